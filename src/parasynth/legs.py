@@ -1,0 +1,504 @@
+"""Leg types: inverse kinematics, passive joint angles, joint twists, actuation and constraint
+wrenches, vectorised over N platform poses.
+
+A leg joins a base anchor to a platform anchor through a chain of joints named base to
+platform (``"UPS"`` = universal at the base, prismatic, spherical at the platform). Each leg
+knows
+
+* ``solve(p, R)``: its inverse kinematics for platform positions ``p`` (N, 3) and orientations
+  ``R`` (N, 3, 3): the actuator value, reachability, joint centres and passive angles;
+* ``joint_twists(state, P)``: the unit twists of all its joint freedoms at the current pose,
+  taken at the platform reference point ``P`` -- the leg's twist system;
+* ``actuation_wrench(state, P)``: the wrench it transmits through its actuated joint (a unit
+  force along the line of the leg, reciprocal to every passive joint) and ``rate_scale`` such
+  that ``actuator_rate = (wrench @ twist) / rate_scale``;
+* ``constraint_wrenches(state, P)``: the wrenches reciprocal to all its joint twists.
+
+Angles are radians and lengths metres; see :mod:`parasynth.spatial` for the twist/wrench
+ordering.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import ClassVar
+
+import numpy as np
+
+from .spatial import couple_wrench, force_wrench, null_space, prismatic_twist, revolute_twist, unit
+
+__all__ = [
+    "Leg",
+    "LegState",
+    "SPS",
+    "UPS",
+    "PUS",
+    "RPU",
+    "RPS",
+    "UPU",
+    "LEG_TYPES",
+    "JOINT_DOF",
+]
+
+#: Freedoms of each joint letter.
+JOINT_DOF = {"R": 1, "P": 1, "U": 2, "S": 3, "C": 2}
+
+#: Tolerance (m, or dimensionless for unit vectors) on the geometric conditions a pose must
+#: satisfy for legs with planar or fixed-axis joints (RPU, RPS).
+GEOM_TOL = 1e-9
+
+
+def _vec3(name: str, v) -> np.ndarray:
+    a = np.asarray(v, dtype=float)
+    if a.shape != (3,):
+        raise ValueError(f"{name} must be a 3-vector, got shape {a.shape}")
+    if not np.all(np.isfinite(a)):
+        raise ValueError(f"{name} must be finite, got {a.tolist()}")
+    return a
+
+
+def _axis(name: str, v) -> np.ndarray:
+    a = _vec3(name, v)
+    n = np.linalg.norm(a)
+    if n == 0:
+        raise ValueError(f"{name} must be a non-zero direction")
+    return a / n
+
+
+def _angle_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Angle (rad) between unit vectors along the last axis, robust near 0 and pi."""
+    cross = np.linalg.norm(np.cross(a, b), axis=-1)
+    dot = np.sum(a * b, axis=-1)
+    return np.arctan2(cross, dot)
+
+
+def _perp_unit(a: np.ndarray, n: np.ndarray) -> np.ndarray:
+    """Unit vector along ``a x n`` (the cross axis of a U joint with fixed axis ``a`` whose
+    link lies along ``n``)."""
+    return unit(np.cross(a, n))
+
+
+@dataclass
+class LegState:
+    """Result of a leg's inverse kinematics for N poses.
+
+    ``base_point`` is the centre of the first joint that moves with the leg (the universal
+    joint on a slider for PUS), ``platform_point`` the platform anchor in the base frame,
+    ``direction`` the unit vector base -> platform along the leg line and ``length`` the
+    distance between the two. ``angles`` holds the passive joint angles (rad) by name.
+    """
+
+    actuator: np.ndarray
+    reachable: np.ndarray
+    base_point: np.ndarray
+    platform_point: np.ndarray
+    direction: np.ndarray
+    length: np.ndarray
+    angles: dict[str, np.ndarray] = field(default_factory=dict)
+    extra: dict[str, np.ndarray] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Leg:
+    """Base class of a leg: base anchor ``base`` (base frame) and platform anchor
+    ``platform`` (platform frame), both in metres.
+
+    ``base_ref`` and ``platform_ref`` are the neutral directions of the end joints (base
+    frame and platform frame respectively): the passive angles ``*_cone`` are measured
+    from them. Models set them to the leg direction at their home pose unless a paper says
+    otherwise.
+    """
+
+    name: str
+    base: np.ndarray
+    platform: np.ndarray
+    base_ref: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, 1.0]))
+    platform_ref: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, -1.0]))
+
+    joints: ClassVar[str] = ""
+    actuated: ClassVar[int | None] = 1  # index in ``joints`` of the actuated joint
+    actuator_kind: ClassVar[str] = "length"
+    #: Freedoms of the leg that do not move the platform (e.g. the spin of an SPS leg).
+    local_dof: ClassVar[int] = 0
+
+    def __post_init__(self):
+        object.__setattr__(self, "base", _vec3(f"leg {self.name}: base", self.base))
+        object.__setattr__(self, "platform", _vec3(f"leg {self.name}: platform", self.platform))
+        object.__setattr__(self, "base_ref", _axis(f"leg {self.name}: base_ref", self.base_ref))
+        object.__setattr__(
+            self, "platform_ref", _axis(f"leg {self.name}: platform_ref", self.platform_ref)
+        )
+
+    # -- structure -------------------------------------------------------------------------
+    @property
+    def n_joint_dof(self) -> int:
+        return sum(JOINT_DOF[j] for j in self.joints)
+
+    @property
+    def n_links(self) -> int:
+        """Moving bodies of the leg (between base and platform)."""
+        return len(self.joints) - 1
+
+    @property
+    def is_actuated(self) -> bool:
+        return self.actuated is not None
+
+    # -- kinematics ------------------------------------------------------------------------
+    def platform_points(self, p: np.ndarray, R: np.ndarray) -> np.ndarray:
+        return p + R @ self.platform
+
+    def solve(self, p: np.ndarray, R: np.ndarray) -> LegState:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def joint_twists(self, st: LegState, P: np.ndarray) -> np.ndarray:  # pragma: no cover
+        raise NotImplementedError
+
+    def actuation_wrench(self, st: LegState, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Unit force along the leg line through the platform anchor, and ``rate_scale``."""
+        w = force_wrench(st.direction, st.platform_point, P)
+        return w, np.ones(st.length.shape)
+
+    def constraint_wrenches(self, st: LegState, P: np.ndarray) -> np.ndarray:
+        """Wrenches (N, c, 6) reciprocal to every joint twist of the leg."""
+        return np.zeros(st.length.shape + (0, 6))
+
+    # shared pieces --------------------------------------------------------------------------
+    def _line(self, base_pts: np.ndarray, plat_pts: np.ndarray):
+        d = plat_pts - base_pts
+        length = np.linalg.norm(d, axis=-1)
+        n = unit(d)
+        return n, length
+
+    def _cone_angles(self, n: np.ndarray, R: np.ndarray, prefix_base: str, prefix_plat: str):
+        base_cone = _angle_between(n, np.broadcast_to(self.base_ref, n.shape))
+        plat_ref = R @ self.platform_ref
+        # The platform joint sees the leg arriving, i.e. the direction platform -> base.
+        plat_cone = _angle_between(-n, plat_ref)
+        return {f"{prefix_base}_cone": base_cone, f"{prefix_plat}_cone": plat_cone}
+
+
+def _spherical_twists(point: np.ndarray, P: np.ndarray) -> list[np.ndarray]:
+    N = point.shape[0]
+    return [revolute_twist(np.broadcast_to(e, (N, 3)), point, P) for e in np.eye(3)]
+
+
+@dataclass(frozen=True)
+class SPS(Leg):
+    """Spherical - actuated prismatic - spherical leg. Actuator: length |S_p - S_b| (m).
+
+    Its six joint freedoms span all twists (the seventh, the spin about the leg line, is a
+    local freedom), so it imposes no constraint."""
+
+    joints: ClassVar[str] = "SPS"
+    local_dof: ClassVar[int] = 1
+
+    def solve(self, p, R):
+        A = self.platform_points(p, R)
+        B = np.broadcast_to(self.base, A.shape)
+        n, length = self._line(B, A)
+        return LegState(
+            actuator=length,
+            reachable=length > 0,
+            base_point=B,
+            platform_point=A,
+            direction=n,
+            length=length,
+            angles=self._cone_angles(n, R, "S_base", "S_platform"),
+        )
+
+    def joint_twists(self, st, P):
+        tw = _spherical_twists(st.base_point, P)
+        tw.append(prismatic_twist(st.direction))
+        tw += _spherical_twists(st.platform_point, P)
+        return np.stack(tw, axis=1)
+
+
+@dataclass(frozen=True)
+class UPS(Leg):
+    """Universal - actuated prismatic - spherical leg. ``u_axis`` is the universal joint's
+    axis fixed to the base (its second axis is carried by the cross, perpendicular to both
+    the first axis and the leg). Actuator: length (m).
+
+    Passive angles: ``U_base_cone`` (leg against ``base_ref``), ``U_base_1``/``U_base_2``
+    (rotation about the fixed axis, and tilt out of the plane normal to it),
+    ``S_platform_cone``."""
+
+    u_axis: np.ndarray = field(default_factory=lambda: np.array([1.0, 0.0, 0.0]))
+    joints: ClassVar[str] = "UPS"
+
+    def __post_init__(self):
+        super().__post_init__()
+        object.__setattr__(self, "u_axis", _axis(f"leg {self.name}: u_axis", self.u_axis))
+
+    def solve(self, p, R):
+        A = self.platform_points(p, R)
+        B = np.broadcast_to(self.base, A.shape)
+        n, length = self._line(B, A)
+        angles = self._cone_angles(n, R, "U_base", "S_platform")
+        angles.update(_u_angles(self.u_axis, self.base_ref, n, "U_base"))
+        return LegState(length, length > 0, B, A, n, length, angles)
+
+    def joint_twists(self, st, P):
+        N = st.length.shape[0]
+        a1 = np.broadcast_to(self.u_axis, (N, 3))
+        a2 = _perp_unit(a1, st.direction)
+        tw = [revolute_twist(a1, st.base_point, P), revolute_twist(a2, st.base_point, P)]
+        tw.append(prismatic_twist(st.direction))
+        tw += _spherical_twists(st.platform_point, P)
+        return np.stack(tw, axis=1)
+
+
+def _u_angles(a1: np.ndarray, ref: np.ndarray, n: np.ndarray, prefix: str) -> dict:
+    """Angles of a universal joint with fixed axis ``a1`` whose link lies along ``n``.
+
+    The neutral link direction ``ref`` is projected normal to ``a1``; angle 1 is the rotation
+    about ``a1`` (of the projection of ``n``), angle 2 the tilt of ``n`` out of the plane
+    normal to ``a1``."""
+    r0 = unit(ref - np.dot(ref, a1) * a1)
+    if not np.any(r0):
+        r0 = unit(np.cross(a1, [1.0, 0, 0]) if abs(a1[0]) < 0.9 else np.cross(a1, [0, 1.0, 0]))
+    b = np.cross(a1, r0)
+    ang1 = np.arctan2(n @ b, n @ r0)
+    ang2 = np.arcsin(np.clip(n @ a1, -1.0, 1.0))
+    return {f"{prefix}_1": ang1, f"{prefix}_2": ang2}
+
+
+@dataclass(frozen=True)
+class PUS(Leg):
+    """Actuated prismatic (slider) - universal - spherical leg with a link of fixed length.
+
+    The slider moves along the unit ``slider_axis`` through ``base`` (the slider origin); the
+    universal joint centre is ``U = base + s * slider_axis`` and the actuator is ``s`` (m).
+    The link ``U -> S`` has constant ``link_length``. Of the two assembly modes the one with
+    ``branch = +1`` puts the universal joint further along ``slider_axis`` than the sphere
+    (the 2021 paper's eq. (11) with the positive sign: sliders above the platform).
+
+    A pose is unreachable when the sphere is further than ``link_length`` from the slider
+    line. ``u_axis`` is the universal joint's axis fixed to the slider.
+    """
+
+    slider_axis: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, 1.0]))
+    link_length: float = 0.2
+    branch: int = 1
+    u_axis: np.ndarray = field(default_factory=lambda: np.array([1.0, 0.0, 0.0]))
+    joints: ClassVar[str] = "PUS"
+    actuated: ClassVar[int | None] = 0
+    actuator_kind: ClassVar[str] = "slider"
+
+    def __post_init__(self):
+        super().__post_init__()
+        object.__setattr__(self, "slider_axis", _axis(f"leg {self.name}: slider_axis", self.slider_axis))
+        object.__setattr__(self, "u_axis", _axis(f"leg {self.name}: u_axis", self.u_axis))
+        L = float(self.link_length)
+        if not np.isfinite(L) or L <= 0:
+            raise ValueError(f"leg {self.name}: link_length must be a positive length in m, got {L}")
+        if self.branch not in (1, -1):
+            raise ValueError(f"leg {self.name}: branch must be +1 or -1, got {self.branch}")
+
+    def solve(self, p, R):
+        S = self.platform_points(p, R)
+        e = self.slider_axis
+        d = S - self.base
+        de = d @ e
+        perp2 = np.einsum("ij,ij->i", d, d) - de**2
+        disc = self.link_length**2 - perp2
+        reachable = disc >= 0
+        s = de + self.branch * np.sqrt(np.where(reachable, disc, np.nan))
+        U = self.base + s[:, None] * e
+        n = (S - U) / self.link_length
+        angles = self._cone_angles(n, R, "U_base", "S_platform")
+        angles.update(_u_angles(self.u_axis, self.base_ref, n, "U_base"))
+        # Angle between link and slider axis: transmission degrades as it nears 90 deg.
+        angles["link_slider"] = _angle_between(-n, np.broadcast_to(e, n.shape))
+        length = np.full(s.shape, self.link_length)
+        return LegState(s, reachable, U, S, n, length, angles)
+
+    def joint_twists(self, st, P):
+        N = st.length.shape[0]
+        e = np.broadcast_to(self.slider_axis, (N, 3))
+        a1 = np.broadcast_to(self.u_axis, (N, 3))
+        a2 = _perp_unit(a1, st.direction)
+        tw = [prismatic_twist(e)]
+        tw += [revolute_twist(a1, st.base_point, P), revolute_twist(a2, st.base_point, P)]
+        tw += _spherical_twists(st.platform_point, P)
+        return np.stack(tw, axis=1)
+
+    def actuation_wrench(self, st, P):
+        # The link is a two-force member: it pushes along its own line through S. A slider
+        # rate s' moves U along e, so n.(S' - s' e) = 0 gives s' = (n . v_S) / (n . e).
+        w = force_wrench(st.direction, st.platform_point, P)
+        return w, st.direction @ self.slider_axis
+
+
+def _in_plane_residual(n_vec: np.ndarray, axis: np.ndarray) -> np.ndarray:
+    return np.abs(n_vec @ axis)
+
+
+@dataclass(frozen=True)
+class RPS(Leg):
+    """Revolute - actuated prismatic - spherical leg. The revolute axis ``r_axis`` (base
+    frame) passes through ``base``; the leg moves in the plane through ``base`` normal to it,
+    so a pose is reachable only if the platform anchor lies in that plane (within
+    ``GEOM_TOL``). Constraint: a force through the sphere centre parallel to ``r_axis``.
+
+    With ``passive=True`` the prismatic joint is free and the leg only constrains (the
+    grinding robot's constraining branch)."""
+
+    r_axis: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, 1.0]))
+    passive: bool = False
+    joints: ClassVar[str] = "RPS"
+
+    def __post_init__(self):
+        super().__post_init__()
+        object.__setattr__(self, "r_axis", _axis(f"leg {self.name}: r_axis", self.r_axis))
+
+    @property
+    def is_actuated(self) -> bool:
+        return not self.passive
+
+    def solve(self, p, R):
+        A = self.platform_points(p, R)
+        B = np.broadcast_to(self.base, A.shape)
+        n, length = self._line(B, A)
+        off_plane = np.abs((A - B) @ self.r_axis)
+        reachable = (off_plane <= GEOM_TOL * max(1.0, float(np.max(length, initial=1.0)))) & (length > 0)
+        angles = self._cone_angles(n, R, "R_base", "S_platform")
+        # Revolute angle: rotation of the leg about r_axis from base_ref (projected).
+        angles.update({"R_base": _u_angles(self.r_axis, self.base_ref, n, "R")["R_1"]})
+        return LegState(length, reachable, B, A, n, length, angles, {"off_plane": off_plane})
+
+    def joint_twists(self, st, P):
+        N = st.length.shape[0]
+        a = np.broadcast_to(self.r_axis, (N, 3))
+        tw = [revolute_twist(a, st.base_point, P), prismatic_twist(st.direction)]
+        tw += _spherical_twists(st.platform_point, P)
+        return np.stack(tw, axis=1)
+
+    def constraint_wrenches(self, st, P):
+        N = st.length.shape[0]
+        return force_wrench(np.broadcast_to(self.r_axis, (N, 3)), st.platform_point, P)[:, None, :]
+
+
+@dataclass(frozen=True)
+class RPU(Leg):
+    """Revolute - actuated prismatic - universal leg.
+
+    The base revolute axis ``r_axis`` passes through ``base``; the universal joint at the
+    platform has one axis parallel to ``r_axis`` (carried by the leg) and one fixed to the
+    platform, ``u_platform_axis`` (platform frame). As in the 2T2R paper (Section 2) the two
+    axes of the universal joint are perpendicular, so a pose is reachable only if the leg lies
+    in the plane normal to ``r_axis`` through ``base`` and ``R @ u_platform_axis`` is normal to
+    ``r_axis``. Constraints: a force parallel to ``r_axis`` through the universal joint centre
+    and a couple about ``r_axis x (R @ u_platform_axis)``.
+    """
+
+    r_axis: np.ndarray = field(default_factory=lambda: np.array([0.0, 1.0, 0.0]))
+    u_platform_axis: np.ndarray = field(default_factory=lambda: np.array([1.0, 0.0, 0.0]))
+    joints: ClassVar[str] = "RPU"
+
+    def __post_init__(self):
+        super().__post_init__()
+        object.__setattr__(self, "r_axis", _axis(f"leg {self.name}: r_axis", self.r_axis))
+        object.__setattr__(
+            self, "u_platform_axis", _axis(f"leg {self.name}: u_platform_axis", self.u_platform_axis)
+        )
+
+    def solve(self, p, R):
+        A = self.platform_points(p, R)
+        B = np.broadcast_to(self.base, A.shape)
+        n, length = self._line(B, A)
+        a4 = R @ self.u_platform_axis
+        off_plane = np.abs((A - B) @ self.r_axis)
+        skew_u = np.abs(a4 @ self.r_axis)
+        scale = max(1.0, float(np.max(length, initial=1.0)))
+        reachable = (off_plane <= GEOM_TOL * scale) & (skew_u <= GEOM_TOL) & (length > 0)
+        angles = self._cone_angles(n, R, "R_base", "U_platform")
+        angles["R_base"] = _u_angles(self.r_axis, self.base_ref, n, "R")["R_1"]
+        # Platform universal joint: rotation about the leg-side axis (parallel to r_axis)
+        # between the leg and the platform axis, minus 90 deg at the perpendicular neutral.
+        angles["U_platform_1"] = np.arctan2(np.cross(n, a4) @ self.r_axis, np.sum(n * a4, -1)) - np.pi / 2
+        return LegState(length, reachable, B, A, n, length, angles, {"off_plane": off_plane, "a4": a4})
+
+    def joint_twists(self, st, P):
+        N = st.length.shape[0]
+        a = np.broadcast_to(self.r_axis, (N, 3))
+        a4 = st.extra["a4"]
+        tw = [revolute_twist(a, st.base_point, P), prismatic_twist(st.direction)]
+        tw += [revolute_twist(a, st.platform_point, P), revolute_twist(a4, st.platform_point, P)]
+        return np.stack(tw, axis=1)
+
+    def constraint_wrenches(self, st, P):
+        N = st.length.shape[0]
+        a = np.broadcast_to(self.r_axis, (N, 3))
+        f = force_wrench(a, st.platform_point, P)
+        c = couple_wrench(unit(np.cross(a, st.extra["a4"])))
+        return np.stack([f, c], axis=1)
+
+
+@dataclass(frozen=True)
+class UPU(Leg):
+    """Universal - prismatic - universal leg, by default passive (a constraining limb).
+
+    Base universal joint: axis ``u_axis`` fixed to the base, cross axis normal to it and to
+    the leg. Platform universal joint: axis ``u_platform_axis`` fixed to the platform (platform
+    frame), cross axis normal to it and to the leg. Its five joint freedoms leave one
+    reciprocal wrench, computed numerically at each pose (a pure couple about the base normal
+    in the 2021 paper's reference pose, eq. (6)). ``passive=False`` makes the prismatic joint
+    actuated."""
+
+    u_axis: np.ndarray = field(default_factory=lambda: np.array([1.0, 0.0, 0.0]))
+    u_platform_axis: np.ndarray = field(default_factory=lambda: np.array([0.0, 1.0, 0.0]))
+    passive: bool = True
+    joints: ClassVar[str] = "UPU"
+
+    def __post_init__(self):
+        super().__post_init__()
+        object.__setattr__(self, "u_axis", _axis(f"leg {self.name}: u_axis", self.u_axis))
+        object.__setattr__(
+            self, "u_platform_axis", _axis(f"leg {self.name}: u_platform_axis", self.u_platform_axis)
+        )
+
+    @property
+    def is_actuated(self) -> bool:
+        return not self.passive
+
+    def solve(self, p, R):
+        A = self.platform_points(p, R)
+        B = np.broadcast_to(self.base, A.shape)
+        n, length = self._line(B, A)
+        angles = self._cone_angles(n, R, "U_base", "U_platform")
+        angles.update(_u_angles(self.u_axis, self.base_ref, n, "U_base"))
+        st = LegState(length, length > 0, B, A, n, length, angles)
+        st.extra["a4"] = R @ self.u_platform_axis
+        return st
+
+    def joint_twists(self, st, P):
+        N = st.length.shape[0]
+        a1 = np.broadcast_to(self.u_axis, (N, 3))
+        a2 = _perp_unit(a1, st.direction)
+        a4 = st.extra["a4"]
+        a3 = _perp_unit(a4, st.direction)
+        tw = [revolute_twist(a1, st.base_point, P), revolute_twist(a2, st.base_point, P)]
+        tw.append(prismatic_twist(st.direction))
+        tw += [revolute_twist(a3, st.platform_point, P), revolute_twist(a4, st.platform_point, P)]
+        return np.stack(tw, axis=1)
+
+    def constraint_wrenches(self, st, P, length_scale: float | None = None):
+        T = self.joint_twists(st, P)
+        L = float(length_scale or max(float(np.mean(st.length)), 1e-3))
+        Ts = T.copy()
+        Ts[..., 3:] *= L
+        Vt, rank = null_space(Ts)
+        w = Vt[:, -1].copy()  # the one reciprocal direction (rank 5)
+        w[:, 3:] *= L
+        fnorm = np.linalg.norm(w[:, :3], axis=-1)
+        mnorm = np.linalg.norm(w[:, 3:], axis=-1)
+        is_couple = fnorm <= 1e-9 * np.maximum(mnorm / L, 1e-300)
+        w[is_couple, :3] = 0.0
+        scale = np.where(is_couple, mnorm, fnorm)
+        w = w / scale[:, None]
+        return w[:, None, :]
+
+
+#: Leg classes by name, for descriptions and error messages.
+LEG_TYPES = {cls.joints: cls for cls in (SPS, UPS, PUS, RPU, RPS, UPU)}

@@ -1,0 +1,546 @@
+"""The generic parallel mechanism: a base, a platform and legs.
+
+Everything here is derived from the legs: inverse kinematics is each leg's own, the
+actuator-rate Jacobian stacks the legs' actuation rows, the wrench system stacks actuation and
+constraint wrenches (the 2018 paper's overall Jacobian J0), the singularity margin is its
+smallest normalised singular value, forward kinematics is a damped Newton solve of the
+inverse kinematics, and mobility is the screw-theory rank of the legs' constraint wrenches.
+
+A concrete model supplies only its legs and its task-space parametrisation:
+
+* ``pose(X) -> (p, R)``: platform reference point (N, 3) and orientation (N, 3, 3) for task
+  coordinates ``X`` (N, n_task), including any dependent coordinates;
+* ``twist_map(X)``: the matrix (N, 6, n_task) mapping task-coordinate rates to the platform
+  twist ``(v_P, omega)``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from .legs import JOINT_DOF, Leg, LegState
+from .spatial import reciprocal_basis
+
+__all__ = ["Mechanism", "IKResult", "Mobility", "ForwardKinematicsError"]
+
+
+class ForwardKinematicsError(RuntimeError):
+    """Forward kinematics failed: no convergence, inconsistent actuator values, or actuators
+    that do not determine the pose. ``indices`` lists the failing samples."""
+
+    def __init__(self, message: str, indices=None, residual=None):
+        super().__init__(message)
+        self.indices = np.asarray(indices if indices is not None else [], dtype=int)
+        self.residual = residual
+
+
+@dataclass
+class IKResult:
+    """Inverse kinematics of N poses.
+
+    ``actuators`` (N, n_act): leg lengths (m) for UPS/SPS/RPU/RPS legs, slider positions (m)
+    for PUS legs, NaN where the pose is not reachable; ``reachable`` (N,) bool;
+    ``passive_angles``: {"<leg>.<joint angle>": (N,) rad}; ``legs``: the per-leg states
+    (joint centres, leg directions, lengths). For a single pose given as shape (n,), arrays
+    lose their leading axis.
+    """
+
+    actuators: np.ndarray
+    reachable: np.ndarray
+    passive_angles: dict[str, np.ndarray]
+    legs: list[LegState] = field(repr=False)
+    actuator_names: tuple[str, ...] = ()
+
+    @property
+    def n_reachable(self) -> int:
+        return int(np.count_nonzero(self.reachable))
+
+
+@dataclass(frozen=True)
+class Mobility:
+    """Mobility of a mechanism at a pose.
+
+    ``dof``: freedoms of the platform from screw theory (6 - rank of the legs' constraint
+    wrenches); ``type``: e.g. "2T2R" (translational and rotational dimensions of the twist
+    space); ``n_actuators``; ``controlled``: do the actuators determine every freedom (the
+    actuation and constraint wrenches together have rank 6)?; ``gruebler``: the plain
+    Grübler-Kutzbach count 6(n - g - 1) + sum f_i; ``gruebler_corrected``: the same plus
+    redundant constraints minus local freedoms (the 2018 paper's eq. (2));
+    ``constraint_rank``; ``redundant_constraints``; ``local_dof``; ``twist_basis`` (dof, 6):
+    the platform's instantaneous freedoms; ``uncontrolled_twists`` (k, 6): freedoms the
+    actuators do not see at the analysed pose (empty when controlled there);
+    ``singular_at_pose``: the analysed pose is a singularity although the actuators control
+    every freedom at generic poses (``controlled`` describes the generic case).
+    """
+
+    dof: int
+    type: str
+    n_actuators: int
+    controlled: bool
+    gruebler: int
+    gruebler_corrected: int
+    constraint_rank: int
+    redundant_constraints: int
+    local_dof: int
+    n_links: int
+    n_joints: int
+    sum_joint_dof: int
+    twist_basis: np.ndarray = field(repr=False)
+    uncontrolled_twists: np.ndarray = field(repr=False)
+    singular_at_pose: bool = False
+
+    def summary(self) -> str:
+        ctrl = "yes" if self.controlled else f"no ({len(self.uncontrolled_twists)} uncontrolled freedom(s))"
+        if self.singular_at_pose:
+            ctrl += f" (but singular at this pose: {len(self.uncontrolled_twists)} freedom(s) uncontrolled here)"
+        return (
+            f"screw theory: {self.dof} DOF ({self.type}), constraint rank {self.constraint_rank}; "
+            f"Grübler-Kutzbach: 6({self.n_links}-{self.n_joints}-1)+{self.sum_joint_dof} = {self.gruebler}"
+            f" (+{self.redundant_constraints} redundant -{self.local_dof} local = {self.gruebler_corrected}); "
+            f"{self.n_actuators} actuators, controlled: {ctrl}"
+        )
+
+
+def _rank(A: np.ndarray, rtol: float = 1e-8) -> int:
+    if A.size == 0:
+        return 0
+    s = np.linalg.svd(A, compute_uv=False)
+    return int(np.sum(s > rtol * max(s[0], 1e-300)))
+
+
+class Mechanism:
+    """A parallel mechanism built from legs. Subclasses define ``pose`` and ``twist_map``.
+
+    Attributes
+    ----------
+    name: registry name of the model.
+    params: the frozen parameter dataclass (SI units).
+    task_coordinates: names of the independent pose coordinates (papers' symbols).
+    actuators: names of the actuated joint variables.
+    home: a reachable reference pose (task coordinates, SI).
+    legs: the legs, base to platform.
+    length_scale: characteristic length (m) used to make wrenches dimensionally
+        homogeneous (moments divided by it) in margins and conditioning.
+    """
+
+    name: str = "mechanism"
+    task_coordinates: tuple[str, ...] = ()
+    angular_coordinates: frozenset[str] = frozenset()
+
+    def __init__(self, params: Any, legs: list[Leg], home, length_scale: float):
+        self.params = params
+        self.home = np.asarray(home, dtype=float)
+        self.length_scale = float(length_scale)
+        self.legs = tuple(self._neutral_refs(legs))
+        self.actuators = tuple(f"q{i + 1}" if leg.actuator_kind == "length" else f"s{i + 1}"
+                               for i, leg in enumerate(self.legs) if leg.is_actuated)
+        self._constraint_rank: int | None = None
+
+    # -- parametrisation (subclass) -------------------------------------------------------------
+    def pose(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # pragma: no cover
+        raise NotImplementedError
+
+    def twist_map(self, X: np.ndarray) -> np.ndarray:  # pragma: no cover
+        raise NotImplementedError
+
+    def pose_valid(self, X: np.ndarray) -> np.ndarray:
+        """Poses at which the parametrisation itself is defined (e.g. tan(theta) finite)."""
+        return np.all(np.isfinite(X), axis=-1)
+
+    # -- helpers ---------------------------------------------------------------------------------
+    @property
+    def n_task(self) -> int:
+        return len(self.task_coordinates)
+
+    @property
+    def n_actuators(self) -> int:
+        return len(self.actuators)
+
+    @property
+    def actuated_legs(self) -> tuple[Leg, ...]:
+        return tuple(leg for leg in self.legs if leg.is_actuated)
+
+    def __repr__(self) -> str:
+        return f"<{type(self).__name__} {self.name!r} task={self.task_coordinates} actuators={self.actuators}>"
+
+    def _poses(self, X) -> tuple[np.ndarray, bool]:
+        X = np.asarray(X, dtype=float)
+        single = X.ndim == 1
+        if single:
+            X = X[None, :]
+        if X.ndim != 2 or X.shape[1] != self.n_task:
+            raise ValueError(
+                f"{self.name}: poses must have shape (N, {self.n_task}) or ({self.n_task},) "
+                f"with columns {self.task_coordinates}; got shape {np.shape(X)}"
+            )
+        return X, single
+
+    def _neutral_refs(self, legs: list[Leg]) -> list[Leg]:
+        """Set each leg's neutral joint directions to its direction at the home pose."""
+        p, R = self.pose(self.home[None, :])
+        out = []
+        for leg in legs:
+            st = leg.solve(p, R)
+            n = st.direction[0]
+            if not np.all(np.isfinite(n)) or not np.any(n):
+                raise ValueError(f"{self.name}: home pose {self.home.tolist()} is not reachable by leg {leg.name}")
+            out.append(dataclasses.replace(leg, base_ref=n, platform_ref=R[0].T @ (-n)))
+        return out
+
+    def leg_states(self, X) -> tuple[np.ndarray, list[LegState], np.ndarray]:
+        """Task poses (N, n), per-leg states and the platform reference points (N, 3)."""
+        Xa, _ = self._poses(X)
+        valid = self.pose_valid(Xa)
+        Xs = np.where(valid[:, None], Xa, self.home)
+        p, R = self.pose(Xs)
+        states = [leg.solve(p, R) for leg in self.legs]
+        for st in states:
+            st.reachable = st.reachable & valid
+        return Xa, states, p
+
+    # -- kinematics ------------------------------------------------------------------------------
+    def inverse_kinematics(self, X) -> IKResult:
+        """Actuator values, reachability and passive joint angles for poses ``X``.
+
+        ``X`` has shape (N, n_task) (or (n_task,) for one pose), columns
+        ``task_coordinates``, SI units. Unreachable poses (including NaN coordinates) are
+        masked in ``.reachable`` and their actuator values are NaN.
+        """
+        Xa, single = self._poses(X)
+        _, states, _ = self.leg_states(Xa)
+        reachable = np.logical_and.reduce([st.reachable for st in states])
+        act = np.stack([st.actuator for leg, st in zip(self.legs, states) if leg.is_actuated], axis=-1)
+        act = np.where(reachable[:, None], act, np.nan)
+        passive = {}
+        for leg, st in zip(self.legs, states):
+            for k, v in st.angles.items():
+                passive[f"{leg.name}.{k}"] = np.where(reachable, v, np.nan)
+        if single:
+            act, reachable = act[0], reachable[0]
+            passive = {k: v[0] for k, v in passive.items()}
+        return IKResult(act, reachable, passive, states, self.actuators)
+
+    def _actuation_rows(self, states, p) -> tuple[np.ndarray, np.ndarray]:
+        rows, scales = [], []
+        for leg, st in zip(self.legs, states):
+            if leg.is_actuated:
+                w, s = leg.actuation_wrench(st, p)
+                rows.append(w)
+                scales.append(s)
+        return np.stack(rows, axis=1), np.stack(scales, axis=1)
+
+    def jacobian(self, X) -> np.ndarray:
+        """Actuator-rate Jacobian d(actuators)/d(task coordinates), shape (N, n_act, n_task).
+
+        Built from the legs: each actuator rate is the power of its leg's unit actuation
+        wrench on the platform twist, divided by the leg's transmission scale (1 for
+        telescopic legs, n.e for a slider); the twist follows from ``twist_map``. Rows of
+        unreachable poses are NaN."""
+        Xa, single = self._poses(X)
+        _, states, p = self.leg_states(Xa)
+        reachable = np.logical_and.reduce([st.reachable for st in states])
+        W, scale = self._actuation_rows(states, p)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            rows = W / scale[..., None]
+        J = rows @ self.twist_map(np.where(reachable[:, None], Xa, self.home))
+        J[~reachable] = np.nan
+        return J[0] if single else J
+
+    def wrench_matrix(self, X) -> np.ndarray:
+        """The overall wrench system at each pose, shape (N, k, 6).
+
+        Rows: first the unit actuation wrench of every actuated leg (in actuator order),
+        then the constraint wrenches of every leg (unit forces or unit couples), each as
+        (f, m_P) about the platform reference point in the base frame. This is the 2018
+        paper's J0 = [J_a; J_c] written as wrenches. Rows of unreachable poses are NaN."""
+        Xa, single = self._poses(X)
+        _, states, p = self.leg_states(Xa)
+        reachable = np.logical_and.reduce([st.reachable for st in states])
+        A, _ = self._actuation_rows(states, p)
+        C = [leg.constraint_wrenches(st, p) for leg, st in zip(self.legs, states)]
+        W = np.concatenate([A] + C, axis=1)
+        W[~reachable] = np.nan
+        return W[0] if single else W
+
+    @property
+    def n_constraint_rows(self) -> int:
+        Xh = self.home[None, :]
+        _, states, p = self.leg_states(Xh)
+        return sum(leg.constraint_wrenches(st, p).shape[1] for leg, st in zip(self.legs, states))
+
+    @property
+    def constraint_rank(self) -> int:
+        """Rank of the legs' constraint wrench system at the home pose (structural)."""
+        if self._constraint_rank is None:
+            self._constraint_rank = self.mobility().constraint_rank
+        return self._constraint_rank
+
+    def normalized_wrench_system(self, X) -> np.ndarray:
+        """Dimensionally homogeneous wrench system used by :meth:`singularity_margin`.
+
+        Moments are divided by ``length_scale``; actuation rows are scaled to unit norm; the
+        constraint block is replaced by its ``constraint_rank`` principal directions weighted
+        by their singular values relative to the largest (so that a loss of constraint rank
+        shows as a small row). Shape (N, n_act + constraint_rank, 6)."""
+        W = self.wrench_matrix(np.atleast_2d(np.asarray(X, dtype=float)))
+        W = W.copy()
+        W[..., 3:] /= self.length_scale
+        na = self.n_actuators
+        A = W[:, :na]
+        A = A / np.linalg.norm(A, axis=-1, keepdims=True)
+        rc = self.constraint_rank
+        C = W[:, na:]
+        if rc and C.shape[1]:
+            ok = np.all(np.isfinite(C), axis=(1, 2))
+            Cs = np.where(ok[:, None, None], C, 0.0)
+            _, s, Vt = np.linalg.svd(Cs, full_matrices=False)
+            rel = s[:, :rc] / np.maximum(s[:, :1], 1e-300)
+            Cn = rel[..., None] * Vt[:, :rc]
+            Cn[~ok] = np.nan
+        else:
+            Cn = np.zeros((W.shape[0], 0, 6))
+        return np.concatenate([A, Cn], axis=1)
+
+    def singularity_margin(self, X) -> np.ndarray:
+        """Smallest singular value of the normalised wrench system, (N,) (0 = singular).
+
+        Of the (n_act + constraint_rank) x 6 normalised system the min(rows, 6)-th singular
+        value is returned, so for an under-actuated mechanism it measures the independence
+        of the wrenches it has. NaN for unreachable poses."""
+        Xa, single = self._poses(X)
+        M = self.normalized_wrench_system(Xa)
+        ok = np.all(np.isfinite(M), axis=(1, 2))
+        s = np.linalg.svd(np.where(ok[:, None, None], M, 0.0), compute_uv=False)
+        k = min(M.shape[1], 6)
+        out = np.where(ok, s[:, k - 1], np.nan)
+        return out[0] if single else out
+
+    # -- forward kinematics ----------------------------------------------------------------------
+    def forward_kinematics(self, actuators, guess=None, fixed: dict | None = None,
+                           tol: float = 1e-12, max_iter: int = 200) -> np.ndarray:
+        """Task coordinates for actuator values, by damped Gauss-Newton on the inverse
+        kinematics (Levenberg-Marquardt, batched over samples).
+
+        ``actuators``: (N, n_act) or (n_act,), SI. ``guess``: starting pose(s), default
+        ``home`` (the solution found is the assembly mode nearest the guess). ``fixed``:
+        {coordinate: value} to hold coordinates fixed when the actuators alone do not
+        determine the pose (under-actuated models). Raises :class:`ForwardKinematicsError`
+        when a sample does not converge, when the actuator values are inconsistent with any
+        pose of the model (over-determined models) or when the actuators do not determine the
+        pose there (a singular Jacobian); raises ``ValueError`` for bad shapes, unknown fixed
+        coordinates, or when fewer actuators than free coordinates remain.
+        """
+        q = np.asarray(actuators, dtype=float)
+        single = q.ndim == 1
+        q = np.atleast_2d(q)
+        if q.shape[1] != self.n_actuators:
+            raise ValueError(
+                f"{self.name}: actuators must have shape (N, {self.n_actuators}) or "
+                f"({self.n_actuators},) for {self.actuators}; got {np.shape(actuators)}"
+            )
+        if not np.all(np.isfinite(q)):
+            raise ValueError(f"{self.name}: actuator values must be finite")
+        fixed = dict(fixed or {})
+        unknown = set(fixed) - set(self.task_coordinates)
+        if unknown:
+            raise ValueError(
+                f"{self.name}: unknown fixed coordinate(s) {sorted(unknown)}; allowed: {self.task_coordinates}"
+            )
+        free = [i for i, c in enumerate(self.task_coordinates) if c not in fixed]
+        if self.n_actuators < len(free):
+            raise ValueError(
+                f"{self.name}: {self.n_actuators} actuators cannot determine {len(free)} task "
+                f"coordinates {tuple(self.task_coordinates[i] for i in free)}; pass "
+                f"fixed={{...}} for {len(free) - self.n_actuators} of them"
+            )
+        N = q.shape[0]
+        if guess is None:
+            X = np.tile(self.home, (N, 1))
+        else:
+            X, _ = self._poses(guess)
+            X = np.broadcast_to(X, (N, self.n_task)).copy()
+        for k, v in fixed.items():
+            X[:, self.task_coordinates.index(k)] = float(v)
+        qscale = max(float(np.max(np.abs(q))), self.length_scale)
+
+        def residual(Xc):
+            r = self.inverse_kinematics(Xc).actuators - q
+            cost = np.sum(r * r, axis=1)
+            return r, np.where(np.isfinite(cost), cost, np.inf)
+
+        r, cost = residual(X)
+        if np.any(~np.isfinite(cost)):
+            bad = np.flatnonzero(~np.isfinite(cost))
+            raise ForwardKinematicsError(
+                f"{self.name}: the starting pose is not reachable for samples {bad.tolist()}; pass a reachable guess",
+                bad,
+            )
+        lam = np.full(N, 1e-3)
+        done = np.zeros(N, bool)
+        for _ in range(max_iter):
+            J = self.jacobian(X)[:, :, free]
+            JtJ = np.einsum("nki,nkj->nij", J, J)
+            g = np.einsum("nki,nk->ni", J, r)
+            D = np.einsum("nii->ni", JtJ) + 1e-12
+            H = JtJ + lam[:, None, None] * np.eye(len(free)) * D[:, None, :]
+            step = -np.linalg.solve(H, g[..., None])[..., 0]
+            Xn = X.copy()
+            Xn[:, free] += np.where(done[:, None], 0.0, step)
+            rn, costn = residual(Xn)
+            better = (costn < cost) & ~done
+            X[better], r[better], cost[better] = Xn[better], rn[better], costn[better]
+            lam = np.where(better, np.maximum(lam / 5, 1e-12), np.minimum(lam * 10, 1e12))
+            small_step = np.linalg.norm(step, axis=1) <= 1e-15 * (1 + np.linalg.norm(X[:, free], axis=1))
+            done |= (np.sqrt(cost) <= tol * qscale) | (small_step & better) | (lam >= 1e12)
+            if np.all(done):
+                break
+        res = np.sqrt(cost)
+        failed = np.flatnonzero(res > max(1e3 * tol, 1e-9) * qscale)
+        if failed.size:
+            over = self.n_actuators > len(free)
+            why = (" (more actuators than free coordinates: the values may be inconsistent with any pose of this model)"
+                   if over else "")
+            raise ForwardKinematicsError(
+                f"{self.name}: forward kinematics did not converge for samples {failed[:10].tolist()}"
+                f"{'...' if failed.size > 10 else ''}; residual up to {res[failed].max():.3g} m{why}. "
+                f"Try a guess closer to the expected assembly mode.",
+                failed, res,
+            )
+        J = self.jacobian(X)[:, :, free]
+        s = np.linalg.svd(J, compute_uv=False)
+        sing = np.flatnonzero(s[:, -1] <= 1e-9 * np.maximum(s[:, 0], 1e-300))
+        if sing.size:
+            raise ForwardKinematicsError(
+                f"{self.name}: the actuators do not determine the pose at samples {sing[:10].tolist()} "
+                f"(actuator Jacobian is singular there)",
+                sing, res,
+            )
+        return X[0] if single else X
+
+    # -- mobility ---------------------------------------------------------------------------------
+    def mobility(self, X=None) -> Mobility:
+        """Screw-theory mobility at pose ``X`` (default ``home``) beside the Grübler-Kutzbach
+        count. The constraint wrenches are recomputed here numerically as the reciprocal
+        complement of every leg's joint twists, independently of the legs' analytic
+        constraint wrenches."""
+        X0 = self.home if X is None else np.asarray(X, dtype=float)
+        Xa, states, p = self.leg_states(X0[None, :])
+        if not all(st.reachable[0] for st in states):
+            raise ValueError(f"{self.name}: pose {X0.tolist()} is not reachable")
+        L = self.length_scale
+        C_rows, per_leg = [], 0
+        for leg, st in zip(self.legs, states):
+            T = leg.joint_twists(st, p)
+            Cl = reciprocal_basis(T, L)[0]
+            per_leg += Cl.shape[0]
+            C_rows.append(Cl)
+        C = np.concatenate(C_rows, axis=0) if C_rows else np.zeros((0, 6))
+        Cs = C.copy()
+        Cs[:, 3:] /= L
+        rc = _rank(Cs)
+        dof = 6 - rc
+        # Twist space: twists t with C t = 0. Work with scaled twists t' = (v, L w).
+        if rc:
+            _, s, Vt = np.linalg.svd(np.vstack([Cs, np.zeros((6, 6))]))
+            Tb = Vt[rc:].copy()
+        else:
+            Tb = np.eye(6)
+        Tb[:, 3:] /= L  # back to (v, w)
+        n_rot = _rank(Tb[:, 3:] * L)
+        n_trans = dof - n_rot
+        A, _ = self._actuation_rows(states, p)
+        A = A[0].copy()
+        A[:, 3:] /= L
+        AC = np.vstack([A, Cs])
+        controlled_here = _rank(AC) == 6
+        controlled = controlled_here
+        if not controlled_here and X is None:
+            controlled = self._controlled_near(X0)
+        # Freedoms not seen by actuators: twists in the twist space annihilated by A.
+        if controlled_here:
+            unc = np.zeros((0, 6))
+        else:
+            _, s, Vt = np.linalg.svd(np.vstack([AC, np.zeros((6, 6))]))
+            r_ac = _rank(AC)
+            unc = Vt[r_ac:].copy()
+            unc[:, 3:] /= L
+        n_links = 2 + sum(leg.n_links for leg in self.legs)
+        n_joints = sum(len(leg.joints) for leg in self.legs)
+        sum_f = sum(leg.n_joint_dof for leg in self.legs)
+        gk = 6 * (n_links - n_joints - 1) + sum_f
+        redundant = per_leg - rc
+        local = sum(leg.local_dof for leg in self.legs)
+        return Mobility(
+            dof=dof,
+            type=f"{n_trans}T{n_rot}R",
+            n_actuators=self.n_actuators,
+            controlled=bool(controlled),
+            gruebler=gk,
+            gruebler_corrected=gk + redundant - local,
+            constraint_rank=rc,
+            redundant_constraints=redundant,
+            local_dof=local,
+            n_links=n_links,
+            n_joints=n_joints,
+            sum_joint_dof=sum_f,
+            twist_basis=Tb,
+            uncontrolled_twists=unc,
+            singular_at_pose=bool(controlled and not controlled_here),
+        )
+
+    def _controlled_near(self, X0: np.ndarray) -> bool:
+        """Whether the wrench system has rank 6 at a few deterministic perturbations of X0
+        (distinguishes a singular reference pose from structural under-actuation)."""
+        rng = np.random.default_rng(12345)
+        for _ in range(5):
+            step = np.where([c in self.angular_coordinates for c in self.task_coordinates], 0.05,
+                            0.02 * self.length_scale)
+            X = X0 + step * rng.uniform(-1, 1, size=X0.shape)
+            W = self.wrench_matrix(X[None, :])[0]
+            if not np.all(np.isfinite(W)):
+                continue
+            W = W.copy()
+            W[:, 3:] /= self.length_scale
+            if _rank(W) == 6:
+                return True
+        return False
+
+    # -- sampling helpers ---------------------------------------------------------------------------
+    def with_params(self, **changes) -> "Mechanism":
+        """A new mechanism of the same model with some parameters changed."""
+        return type(self)(dataclasses.replace(self.params, **changes))
+
+
+def check_length(field_name: str, value, allow_zero: bool = False) -> float:
+    """Validate a length parameter (m): finite and positive (or >= 0)."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{field_name} must be a length in m (a number), got {value!r}") from None
+    if not np.isfinite(v) or (v < 0 if allow_zero else v <= 0):
+        what = "non-negative" if allow_zero else "positive"
+        raise ValueError(f"{field_name} must be a finite, {what} length in m, got {value!r}")
+    return v
+
+
+def check_finite(field_name: str, value) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{field_name} must be a number, got {value!r}") from None
+    if not np.isfinite(v):
+        raise ValueError(f"{field_name} must be finite, got {value!r}")
+    return v
+
+
+def check_points(field_name: str, value, n: int, dim: int) -> tuple:
+    a = np.asarray(value, dtype=float) if not isinstance(value, str) else None
+    if a is None or a.shape != (n, dim):
+        raise ValueError(f"{field_name} must be {n} points of {dim} coordinates (m), got {value!r}")
+    if not np.all(np.isfinite(a)):
+        raise ValueError(f"{field_name} must be finite, got {value!r}")
+    return tuple(tuple(float(c) for c in row) for row in a)

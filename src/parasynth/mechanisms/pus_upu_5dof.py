@@ -1,0 +1,146 @@
+"""5-PUS/UPU 3T2R mechanism (Wang, Lyu & Liu, Appl. Sci. 2021): model ``"5pus_upu"``.
+
+Structure (paper Sections 2 and 3): five driving limbs P-U-S with vertical ball-screw sliders
+whose universal-joint centres U_i lie on a circle of radius ``slider_radius`` (R = 135 mm), a
+fixed-length link U_i S_i (L = 205 mm) and a sphere S_i on the moving platform; one passive
+U-P-U constraining limb from the centre of the base to the centre of the platform.
+
+Frames: base frame O_p-XYZ with Z along the slider screws; the slider coordinate is the Z of
+the universal-joint centre, ``s_i = Z_i^U`` (eq. (11) with its positive sign: the sliders are
+above the platform). Platform frame o_b-xyz at the platform centre. Orientation, eq. (7) with
+gamma = 0: ``R = Ry(beta) Rx(alpha)``.
+
+Schemes (parameter ``platform``):
+
+* ``"rectangular"`` (default, the improved scheme, Section 2.4): sphere centres at the
+  prototype's coordinates (35, 51), (-35, 51), (-51, -35), (51, -35), (0, 51) mm (Section 5 and
+  3.2), parameter ``hinge_points``.
+* ``"pentagonal"``: the first scheme (Section 2.1), a regular pentagon of radius
+  ``pentagon_radius`` similar to and aligned with the slider pentagon. With the platform
+  parallel to the base and centred above the origin, the five link lines meet in one point and
+  the wrench system loses rank (the paper's "structural singularity", Section 2.3).
+
+Assumptions where the paper is silent (all are parameters):
+
+* ``slider_angles``: the angular positions of the sliders. The paper says only "regular
+  pentagon"; we put slider 5 on +Y (sphere 5 is at (0, 51) mm) and pair each slider with the
+  nearest sphere: 18, 162, 234, 306, 90 deg for sliders 1..5.
+* ``pentagon_radius`` (62 mm) for the first scheme: not given; any value shows the singularity.
+* ``upu_base_z`` (-0.15 m): height of the constraining limb's base universal joint. Only the
+  passive limb's length and its constraint wrench direction depend on it (at the reference
+  pose its constraint is the pure couple about Z of eq. (6) whatever the height).
+* The constraining limb's universal-joint axes: base axis X, platform axis y (platform frame),
+  as in the paper's Figure 3 (the limb's screw system (6)). A real U-P-U keeps its two middle
+  axes parallel, which ties the platform's rotation about its normal to the position
+  slightly differently from the paper's gamma = 0 parametrisation of eq. (7); like the paper,
+  the model uses eq. (7) for the pose and takes the limb's instantaneous constraint wrench at
+  each pose (see docs/models/5pus_upu.md).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..legs import PUS, UPU
+from ..mechanism import Mechanism, check_finite, check_length, check_points
+from ..spatial import euler_rate_map, euler_to_matrix
+
+__all__ = ["PUSUPU5Params", "PUSUPU5", "trajectory_eq13"]
+
+_MM = 1e-3
+
+
+@dataclass(frozen=True)
+class PUSUPU5Params:
+    """Parameters in SI (m, rad). Defaults: the 2021 paper's prototype (Sections 3.2 and 5)."""
+
+    slider_radius: float = 0.135
+    link_length: float = 0.205
+    platform: str = "rectangular"
+    hinge_points: tuple = ((35 * _MM, 51 * _MM), (-35 * _MM, 51 * _MM), (-51 * _MM, -35 * _MM),
+                           (51 * _MM, -35 * _MM), (0.0, 51 * _MM))
+    pentagon_radius: float = 0.062
+    slider_angles: tuple = tuple(np.deg2rad([18.0, 162.0, 234.0, 306.0, 90.0]).tolist())
+    upu_base_z: float = -0.15
+
+    def __post_init__(self):
+        object.__setattr__(self, "slider_radius", check_length("5pus_upu.slider_radius", self.slider_radius))
+        object.__setattr__(self, "link_length", check_length("5pus_upu.link_length", self.link_length))
+        object.__setattr__(self, "pentagon_radius", check_length("5pus_upu.pentagon_radius", self.pentagon_radius))
+        object.__setattr__(self, "upu_base_z", check_finite("5pus_upu.upu_base_z", self.upu_base_z))
+        if self.platform not in ("rectangular", "pentagonal"):
+            raise ValueError(
+                f"5pus_upu.platform must be 'rectangular' (improved scheme) or 'pentagonal' "
+                f"(first scheme), got {self.platform!r}"
+            )
+        object.__setattr__(self, "hinge_points", check_points("5pus_upu.hinge_points", self.hinge_points, 5, 2))
+        ang = check_points("5pus_upu.slider_angles", np.asarray(self.slider_angles, dtype=float)[:, None]
+                           if np.ndim(self.slider_angles) == 1 else self.slider_angles, 5, 1)
+        object.__setattr__(self, "slider_angles", tuple(a[0] for a in ang))
+
+
+class PUSUPU5(Mechanism):
+    name = "5pus_upu"
+    paper = "Wang, Lyu, Liu (2021), Kinematic analysis and verification of a new 5-DOF parallel mechanism"
+    Params = PUSUPU5Params
+    task_coordinates = ("x", "y", "z", "alpha", "beta")
+    angular_coordinates = frozenset({"alpha", "beta"})
+
+    def __init__(self, params: PUSUPU5Params | None = None):
+        P = params or PUSUPU5Params()
+        self.params = P
+        ang = np.asarray(P.slider_angles)
+        if P.platform == "rectangular":
+            sph = [np.array([hx, hy, 0.0]) for hx, hy in P.hinge_points]
+        else:
+            sph = [P.pentagon_radius * np.array([np.cos(a), np.sin(a), 0.0]) for a in ang]
+        legs = []
+        for i, a in enumerate(ang):
+            base = P.slider_radius * np.array([np.cos(a), np.sin(a), 0.0])
+            tangent = np.array([-np.sin(a), np.cos(a), 0.0])
+            legs.append(PUS(f"L{i + 1}", base=base, platform=sph[i], slider_axis=[0, 0, 1],
+                            link_length=P.link_length, branch=1, u_axis=tangent))
+        legs.append(UPU("L6", base=[0.0, 0.0, P.upu_base_z], platform=[0.0, 0.0, 0.0],
+                        u_axis=[1.0, 0.0, 0.0], u_platform_axis=[0.0, 1.0, 0.0], passive=True))
+        super().__init__(P, legs, home=[0.0, 0.0, 0.0, 0.0, 0.0], length_scale=P.slider_radius)
+
+    def pose(self, X):
+        p = X[:, :3].copy()
+        R = euler_to_matrix("yx", np.stack([X[:, 4], X[:, 3]], -1))
+        return p, R
+
+    def twist_map(self, X):
+        N = X.shape[0]
+        T = np.zeros((N, 6, 5))
+        T[:, 0, 0] = T[:, 1, 1] = T[:, 2, 2] = 1.0
+        E = euler_rate_map("yx", np.stack([X[:, 4], X[:, 3]], -1))  # columns: beta, alpha
+        T[:, 3:, 3] = E[:, :, 1]
+        T[:, 3:, 4] = E[:, :, 0]
+        return T
+
+
+def trajectory_eq13(t, attitude_follows_curve: bool = False):
+    """The 2021 paper's test trajectory, eq. (13), as task coordinates and their first and
+    second time derivatives (each (N, 5), SI).
+
+    ``u = pi/3 + pi t / 30`` (0 < t < 10 s), ``y = 50 cos u`` mm, ``z = -50 sin u`` mm,
+    x = 0, beta = 0. The paper writes the curve parameter as alpha, the symbol of the platform
+    attitude. With ``attitude_follows_curve=False`` (default) the platform keeps alpha = 0 and
+    only its centre moves on the circle; with ``True`` the platform also tilts by alpha = u
+    (60 to 120 deg), which is far outside any workspace of the prototype.
+    """
+    t = np.atleast_1d(np.asarray(t, dtype=float))
+    w = np.pi / 30.0
+    u = np.pi / 3.0 + w * t
+    r = 0.050
+    X = np.zeros((t.size, 5))
+    Xd = np.zeros_like(X)
+    Xdd = np.zeros_like(X)
+    X[:, 1], X[:, 2] = r * np.cos(u), -r * np.sin(u)
+    Xd[:, 1], Xd[:, 2] = -r * w * np.sin(u), -r * w * np.cos(u)
+    Xdd[:, 1], Xdd[:, 2] = -r * w**2 * np.cos(u), r * w**2 * np.sin(u)
+    if attitude_follows_curve:
+        X[:, 3], Xd[:, 3] = u, w
+    return X, Xd, Xdd

@@ -1,0 +1,131 @@
+"""4-UPS/1-RPS parallel grinding robot (Wang, Liang, Zhou, Yang & Wang, Symmetry 2022):
+model ``"4ups_1rps"``.
+
+Structure (Section 2 and 3): four driving U-P-S legs from the corners of a rectangular fixed
+platform to four spheres evenly spaced on the disc-shaped moving platform, and one passive
+constraining R-P-S branch whose revolute axis is the base Z axis at distance ``l_s0`` from the
+fixed-platform centre (Table 1: alpha_2 = -90 deg, so the prismatic joint moves in the XY plane)
+and whose sphere is the moving-platform centre. Eq. (3): the platform centre is
+``(-d2 sin(theta1), d2 cos(theta1) - l_s0, 0)`` -- it stays in the plane Z = 0.
+
+Task coordinates: (x, y, alpha, beta, gamma): the platform centre in the plane Z = 0 and the
+z-y-z Euler angles of eq. (2), R = Rz(alpha) Ry(beta) Rz(gamma). (The z-y-z angles are
+degenerate at beta = 0, where only alpha + gamma is defined: Jacobian columns for alpha and
+gamma coincide there. This is a property of the paper's convention, not of the mechanism.)
+
+Screw analysis: the RPS branch imposes one constraint, a force along Z through the platform
+centre, leaving five freedoms (2T3R). Four driving legs cannot control five freedoms: the
+mechanism is under-actuated by one (``mobility().controlled`` is False); the paper's
+constant-force actuator and workpiece contact are what close the loop in operation. Forward
+kinematics therefore needs one coordinate fixed (``fixed={"gamma": ...}``), and static or
+dynamic force analysis solves the wrench balance in the least-squares sense and reports the
+unbalanced residual (docs/models/4ups_1rps.md).
+
+Assumptions where the paper is silent (all are parameters):
+
+* ``base_z``: the height of the universal-joint centres relative to the moving platform's
+  plane (the paper gives none). Default -0.40 m (fixed platform below); see the docs for how
+  it was chosen.
+* ``u_angles`` follow Table 2: U1..U4 on a circle of radius ``base_radius`` (0.335 m) with
+  53 deg between U1 and U2 and 127 deg between U2 and U3; the U1-U2 side is centred on +Y.
+* ``platform_angles``: spheres at 45, 135, 225, 315 deg on the circle of radius
+  ``platform_radius`` (0.1 m) ("evenly distributed", Section 3.2), each paired with the
+  nearest universal joint.
+* Universal-joint fixed axes tangential to the base circle.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..legs import RPS, UPS
+from ..mechanism import Mechanism, check_finite, check_length, check_points
+from ..spatial import euler_rate_map, euler_to_matrix
+
+__all__ = ["UPSRPSGrindingParams", "UPSRPSGrinding"]
+
+
+@dataclass(frozen=True)
+class UPSRPSGrindingParams:
+    """Parameters in SI (m, rad). Defaults: the 2022 paper's Table 2 where it gives them."""
+
+    platform_radius: float = 0.10
+    base_radius: float = 0.335
+    mu1: float = float(np.deg2rad(53.0))
+    mu2: float = float(np.deg2rad(127.0))
+    l_s0: float = 0.05
+    y_t: float = 0.075
+    base_z: float = -0.40
+    platform_angles: tuple = tuple(np.deg2rad([45.0, 135.0, 225.0, 315.0]).tolist())
+    # Limits of Table 2 (used by constraint margins).
+    l_min: float = 0.43
+    l_max: float = 0.68
+    d2_min: float = 0.32
+    d2_max: float = 0.55
+    theta1_max: float = float(np.pi / 3)
+    sphere_max: float = float(np.pi / 4)
+    ujoint_max: float = float(np.pi / 4)
+    leg_diameter: float = 0.035
+
+    def __post_init__(self):
+        for k in ("platform_radius", "base_radius", "l_min", "l_max", "d2_min", "d2_max", "leg_diameter"):
+            object.__setattr__(self, k, check_length(f"4ups_1rps.{k}", getattr(self, k)))
+        object.__setattr__(self, "l_s0", check_length("4ups_1rps.l_s0", self.l_s0, allow_zero=True))
+        object.__setattr__(self, "y_t", check_finite("4ups_1rps.y_t", self.y_t))
+        object.__setattr__(self, "base_z", check_finite("4ups_1rps.base_z", self.base_z))
+        for k in ("mu1", "mu2", "theta1_max", "sphere_max", "ujoint_max"):
+            v = check_finite(f"4ups_1rps.{k}", getattr(self, k))
+            if not 0 < v < np.pi:
+                raise ValueError(f"4ups_1rps.{k} must be an angle in (0, pi) rad, got {v}")
+            object.__setattr__(self, k, v)
+        if not self.l_min < self.l_max:
+            raise ValueError(f"4ups_1rps.l_min must be < l_max, got {self.l_min} >= {self.l_max}")
+        if not self.d2_min < self.d2_max:
+            raise ValueError(f"4ups_1rps.d2_min must be < d2_max, got {self.d2_min} >= {self.d2_max}")
+        ang = check_points("4ups_1rps.platform_angles", np.reshape(np.asarray(self.platform_angles, dtype=float), (-1, 1))
+                           if np.ndim(self.platform_angles) == 1 else self.platform_angles, 4, 1)
+        object.__setattr__(self, "platform_angles", tuple(a[0] for a in ang))
+
+    @property
+    def u_angles(self) -> np.ndarray:
+        a1 = np.pi / 2 - self.mu1 / 2
+        return np.array([a1, a1 + self.mu1, a1 + self.mu1 + self.mu2, a1 + 2 * self.mu1 + self.mu2])
+
+
+class UPSRPSGrinding(Mechanism):
+    name = "4ups_1rps"
+    paper = "Wang, Liang, Zhou, Yang, Wang (2022), Analysis of position, pose and force decoupling characteristics of a 4-UPS/1-RPS parallel grinding robot"
+    Params = UPSRPSGrindingParams
+    task_coordinates = ("x", "y", "alpha", "beta", "gamma")
+    angular_coordinates = frozenset({"alpha", "beta", "gamma"})
+
+    def __init__(self, params: UPSRPSGrindingParams | None = None):
+        P = params or UPSRPSGrindingParams()
+        self.params = P
+        legs = []
+        for i, (ua, pa) in enumerate(zip(P.u_angles, P.platform_angles)):
+            base = np.array([P.base_radius * np.cos(ua), P.base_radius * np.sin(ua), P.base_z])
+            plat = P.platform_radius * np.array([np.cos(pa), np.sin(pa), 0.0])
+            legs.append(UPS(f"L{i + 1}", base=base, platform=plat, u_axis=[-np.sin(ua), np.cos(ua), 0.0]))
+        legs.append(RPS("L5", base=[0.0, -P.l_s0, 0.0], platform=[0.0, 0.0, 0.0], r_axis=[0, 0, 1], passive=True))
+        super().__init__(P, legs, home=[0.0, 0.35, 0.0, 0.0, 0.0], length_scale=P.base_radius)
+
+    def pose(self, X):
+        p = np.stack([X[:, 0], X[:, 1], np.zeros(X.shape[0])], -1)
+        return p, euler_to_matrix("zyz", X[:, 2:5])
+
+    def twist_map(self, X):
+        N = X.shape[0]
+        T = np.zeros((N, 6, 5))
+        T[:, 0, 0] = T[:, 1, 1] = 1.0
+        T[:, 3:, 2:] = euler_rate_map("zyz", X[:, 2:5])
+        return T
+
+    def grinding_point(self, X) -> np.ndarray:
+        """Grinding point (N, 3) in the base frame, eq. (10): platform point (0, y_T, 0)."""
+        Xa, single = self._poses(X)
+        p, R = self.pose(Xa)
+        g = p + R @ np.array([0.0, self.params.y_t, 0.0])
+        return g[0] if single else g
