@@ -252,14 +252,15 @@ def _u_angles(a1: np.ndarray, ref: np.ndarray, n: np.ndarray, prefix: str) -> di
     """Angles of a universal joint with fixed axis ``a1`` whose link lies along ``n``.
 
     The neutral link direction ``ref`` is projected normal to ``a1``; angle 1 is the rotation
-    about ``a1`` (of the projection of ``n``), angle 2 the tilt of ``n`` out of the plane
-    normal to ``a1``."""
+    about ``a1`` (of the projection of ``n``) from that projection, angle 2 the tilt of ``n``
+    out of the plane normal to ``a1`` relative to the tilt of ``ref``. Both are zero when
+    ``n == ref``."""
     r0 = unit(ref - np.dot(ref, a1) * a1)
     if not np.any(r0):
         r0 = unit(np.cross(a1, [1.0, 0, 0]) if abs(a1[0]) < 0.9 else np.cross(a1, [0, 1.0, 0]))
     b = np.cross(a1, r0)
     ang1 = np.arctan2(n @ b, n @ r0)
-    ang2 = np.arcsin(np.clip(n @ a1, -1.0, 1.0))
+    ang2 = np.arcsin(np.clip(n @ a1, -1.0, 1.0)) - np.arcsin(np.clip(unit(ref) @ a1, -1.0, 1.0))
     return {f"{prefix}_1": ang1, f"{prefix}_2": ang2}
 
 

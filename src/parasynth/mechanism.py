@@ -509,6 +509,76 @@ class Mechanism:
                 return True
         return False
 
+    # -- constraints ------------------------------------------------------------------------------
+    def build_constraints(self) -> list:
+        """The model's constraints (subclasses override; limits come from ``params``)."""
+        return []
+
+    @property
+    def constraints(self) -> dict:
+        """{name: Constraint} declared by the model, in evaluation order."""
+        if getattr(self, "_constraints", None) is None:
+            cons = self.build_constraints()
+            names = [c.name for c in cons]
+            dup = {n for n in names if names.count(n) > 1}
+            if dup:
+                raise ValueError(f"{self.name}: duplicate constraint names {sorted(dup)}")
+            self._constraints = {c.name: c for c in cons}
+        return self._constraints
+
+    def pose_context(self, X):
+        """Inverse kinematics of poses ``X`` packed for constraint evaluation."""
+        from .constraints import PoseContext
+
+        Xa, _ = self._poses(X)
+        valid = self.pose_valid(Xa)
+        Xs = np.where(valid[:, None], Xa, self.home)
+        p, R = self.pose(Xs)
+        states = [leg.solve(p, R) for leg in self.legs]
+        reachable = valid & np.logical_and.reduce([st.reachable for st in states])
+        act = np.stack([st.actuator for leg, st in zip(self.legs, states) if leg.is_actuated], axis=-1)
+        return PoseContext(Xa, p, R, list(self.legs), states, reachable, act)
+
+    def _select(self, names):
+        if names is None:
+            return list(self.constraints.values())
+        if isinstance(names, str):
+            names = [names]
+        unknown = [n for n in names if n not in self.constraints]
+        if unknown:
+            raise ValueError(
+                f"{self.name}: unknown constraint(s) {unknown}; valid: {', '.join(self.constraints) or '(none)'}"
+            )
+        return [self.constraints[n] for n in names]
+
+    def constraint_margins(self, X, names=None) -> dict[str, np.ndarray]:
+        """{constraint name: margins (N,)}, >= 0 where satisfied, in each constraint's unit
+        (``self.constraints[name].unit``). Poses the legs cannot reach get -inf in every
+        margin (never NaN). ``names`` selects a subset."""
+        Xa, single = self._poses(X)
+        cons = self._select(names)
+        ctx = self.pose_context(Xa)
+        out = {}
+        with np.errstate(invalid="ignore"):
+            for c in cons:
+                m = np.asarray(c.margin(ctx), dtype=float)
+                m = np.where(ctx.reachable & np.isfinite(m), m, -np.inf)
+                out[c.name] = m[0] if single else m
+        return out
+
+    def is_feasible(self, X, names=None) -> np.ndarray:
+        """(N,) bool: reachable and every selected constraint margin >= 0."""
+        Xa, single = self._poses(X)
+        cons = self._select(names)
+        ctx = self.pose_context(Xa)
+        ok = ctx.reachable.copy()
+        with np.errstate(invalid="ignore"):
+            for c in cons:
+                if not ok.any():
+                    break
+                ok &= np.asarray(c.margin(ctx)) >= 0
+        return ok[0] if single else ok
+
     # -- sampling helpers ---------------------------------------------------------------------------
     def with_params(self, **changes) -> "Mechanism":
         """A new mechanism of the same model with some parameters changed."""

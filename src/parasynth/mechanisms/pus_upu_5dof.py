@@ -43,6 +43,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..constraints import ActuatorRange, JointAngleLimit, LegInterference
 from ..legs import PUS, UPU
 from ..mechanism import Mechanism, check_finite, check_length, check_points
 from ..spatial import euler_rate_map, euler_to_matrix
@@ -64,8 +65,21 @@ class PUSUPU5Params:
     pentagon_radius: float = 0.062
     slider_angles: tuple = tuple(np.deg2rad([18.0, 162.0, 234.0, 306.0, 90.0]).tolist())
     upu_base_z: float = -0.15
+    # Limits. Stroke 205 mm (Section 5), placed around the reference pose; joint limits are not
+    # stated in the paper; link diameter 8 mm (Section 5).
+    slider_min: float = 0.085
+    slider_max: float = 0.290
+    sphere_max: float = float(np.deg2rad(40.0))
+    ujoint_max: float = float(np.deg2rad(40.0))
+    link_diameter: float = 0.008
 
     def __post_init__(self):
+        for k in ("sphere_max", "ujoint_max", "link_diameter"):
+            object.__setattr__(self, k, check_length(f"5pus_upu.{k}", getattr(self, k)))
+        for k in ("slider_min", "slider_max"):
+            object.__setattr__(self, k, check_finite(f"5pus_upu.{k}", getattr(self, k)))
+        if not self.slider_min < self.slider_max:
+            raise ValueError(f"5pus_upu.slider_min must be < slider_max, got {self.slider_min} >= {self.slider_max}")
         object.__setattr__(self, "slider_radius", check_length("5pus_upu.slider_radius", self.slider_radius))
         object.__setattr__(self, "link_length", check_length("5pus_upu.link_length", self.link_length))
         object.__setattr__(self, "pentagon_radius", check_length("5pus_upu.pentagon_radius", self.pentagon_radius))
@@ -105,6 +119,22 @@ class PUSUPU5(Mechanism):
         legs.append(UPU("L6", base=[0.0, 0.0, P.upu_base_z], platform=[0.0, 0.0, 0.0],
                         u_axis=[1.0, 0.0, 0.0], u_platform_axis=[0.0, 1.0, 0.0], passive=True))
         super().__init__(P, legs, home=[0.0, 0.0, 0.0, 0.0, 0.0], length_scale=P.slider_radius)
+
+    def build_constraints(self):
+        """Section 4.1's factors: slider stroke, spherical and universal joint angles (cone
+        angle from the joint's neutral direction, the link direction at the reference pose)
+        and link interference (centre-line distance >= link diameter, driving links)."""
+        P = self.params
+        pus = tuple(f"L{i}" for i in range(1, 6))
+        return [
+            ActuatorRange("stroke", lo=P.slider_min, hi=P.slider_max, doc="slider_min <= s_i <= slider_max"),
+            JointAngleLimit("sphere_limit", key="S_platform_cone", hi=P.sphere_max, legs=pus,
+                            doc="spherical joint cone angle <= sphere_max"),
+            JointAngleLimit("ujoint_limit", key="U_base_cone", hi=P.ujoint_max, legs=pus,
+                            doc="universal joint cone angle <= ujoint_max"),
+            LegInterference("interference", diameter=P.link_diameter, legs=pus,
+                            doc="distance between link centre lines >= link_diameter"),
+        ]
 
     def pose(self, X):
         p = X[:, :3].copy()

@@ -30,6 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..constraints import ActuatorRange, CoordinateRange, LegInterference
 from ..legs import RPU, SPS
 from ..mechanism import Mechanism, check_length
 from ..spatial import euler_rate_map, euler_to_matrix
@@ -51,8 +52,19 @@ class RPU2SPS2Params:
     b3: float = 0.550
     b4: float = 0.350
     coupled: bool = True
+    # Limits, Section 6.2: 700 <= q_i <= 1000 mm, -30 <= psi <= 30 deg, -45 <= theta <= 45 deg.
+    q_min: float = 0.700
+    q_max: float = 1.000
+    psi_max: float = float(np.deg2rad(30.0))
+    theta_max: float = float(np.deg2rad(45.0))
+    #: Leg diameter for interference (not stated in the paper).
+    leg_diameter: float = 0.030
 
     def __post_init__(self):
+        for k in ("q_min", "q_max", "psi_max", "theta_max", "leg_diameter"):
+            object.__setattr__(self, k, check_length(f"2rpu_2sps.{k}", getattr(self, k)))
+        if not self.q_min < self.q_max:
+            raise ValueError(f"2rpu_2sps.q_min must be < q_max, got {self.q_min} >= {self.q_max}")
         for k in ("a1", "a2", "a3", "a4", "b1", "b2", "b3", "b4"):
             object.__setattr__(self, k, check_length(f"2rpu_2sps.{k}", getattr(self, k)))
         if not isinstance(self.coupled, (bool, np.bool_)):
@@ -121,6 +133,22 @@ class RPU2SPS2(Mechanism):
             T[:, 3:, 2] = E[:, :, 2]
             T[:, 3:, 3] = E[:, :, 0]
         return T
+
+    def build_constraints(self):
+        """Section 6.1-6.2: leg strokes (eq. (33)) and the angle limits of (34)-(35), read as
+        limits on the platform angles psi and theta (the paper calls them joint angles but
+        gives one range for each symbol); leg interference with ``leg_diameter``."""
+        P = self.params
+        i_psi, i_th = self.task_coordinates.index("psi"), self.task_coordinates.index("theta")
+        return [
+            ActuatorRange("stroke", lo=P.q_min, hi=P.q_max, doc="q_min <= q_i <= q_max, eq. (33)"),
+            CoordinateRange("psi_range", unit="rad", index=i_psi, lo=-P.psi_max, hi=P.psi_max,
+                            doc="|psi| <= psi_max, eq. (35)"),
+            CoordinateRange("theta_range", unit="rad", index=i_th, lo=-P.theta_max, hi=P.theta_max,
+                            doc="|theta| <= theta_max, eq. (34)"),
+            LegInterference("interference", diameter=P.leg_diameter,
+                            doc="distance between leg centre lines >= leg_diameter"),
+        ]
 
     def x_of(self, X) -> np.ndarray:
         """The platform centre's x (m) for poses X (dependent in the coupled model)."""

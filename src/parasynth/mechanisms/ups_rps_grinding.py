@@ -3,10 +3,19 @@ model ``"4ups_1rps"``.
 
 Structure (Section 2 and 3): four driving U-P-S legs from the corners of a rectangular fixed
 platform to four spheres evenly spaced on the disc-shaped moving platform, and one passive
-constraining R-P-S branch whose revolute axis is the base Z axis at distance ``l_s0`` from the
-fixed-platform centre (Table 1: alpha_2 = -90 deg, so the prismatic joint moves in the XY plane)
-and whose sphere is the moving-platform centre. Eq. (3): the platform centre is
-``(-d2 sin(theta1), d2 cos(theta1) - l_s0, 0)`` -- it stays in the plane Z = 0.
+constraining R-P-S branch whose revolute axis is parallel to the base Z axis at distance
+``l_s0`` from the fixed-platform centre (Table 1: alpha_2 = -90 deg, so the prismatic joint
+moves in the XY plane) and whose sphere is the moving-platform centre. Eq. (3): the platform
+centre is ``(-d2 sin(theta1), d2 cos(theta1) - l_s0, 0)`` -- it stays in the plane Z = 0.
+
+Orientation of the machine. Eq. (9) measures the sphere and universal-joint angles against
+the Y axes of the moving and fixed frames (``phi_i^m = arccos(L_i . R n_mi / l_i)`` with
+``n_mi = (0, 1, 0)``, likewise ``phi_i^s``), with limits of +-pi/4: the legs run along Y. The
+fixed platform is therefore the plane Y = 0 of the base frame (universal joints at
+``(Rs cos phi_i, 0, Rs sin phi_i)``), the moving platform is a disc in its local XZ plane with
+normal y, and it moves away from the fixed platform (y > 0). Y is the vertical: the driving
+legs carry gravity (Section 4.3) while the constant grinding force along Z is taken by the
+constraining branch -- the paper's force decoupling.
 
 Task coordinates: (x, y, alpha, beta, gamma): the platform centre in the plane Z = 0 and the
 z-y-z Euler angles of eq. (2), R = Rz(alpha) Ry(beta) Rz(gamma). (The z-y-z angles are
@@ -23,15 +32,17 @@ unbalanced residual (docs/models/4ups_1rps.md).
 
 Assumptions where the paper is silent (all are parameters):
 
-* ``base_z``: the height of the universal-joint centres relative to the moving platform's
-  plane (the paper gives none). Default -0.40 m (fixed platform below); see the docs for how
-  it was chosen.
-* ``u_angles`` follow Table 2: U1..U4 on a circle of radius ``base_radius`` (0.335 m) with
-  53 deg between U1 and U2 and 127 deg between U2 and U3; the U1-U2 side is centred on +Y.
-* ``platform_angles``: spheres at 45, 135, 225, 315 deg on the circle of radius
-  ``platform_radius`` (0.1 m) ("evenly distributed", Section 3.2), each paired with the
-  nearest universal joint.
+* ``base_offset``: the universal-joint centres' distance from the fixed-platform plane along
+  Y (the paper gives no height for them). Default 0: the centres lie in the plane Y = 0.
+* ``u_angles`` follow Table 2: U1..U4 on a circle of radius ``base_radius`` (0.335 m) in the
+  XZ plane, angle measured from +X towards +Z, with 53 deg between U1 and U2 and 127 deg
+  between U2 and U3; the U1-U2 side is centred on ``u_phase`` (default 0, i.e. on +X, so the
+  long side of the rectangle runs along X).
+* ``platform_angles``: spheres at -45, 45, 135, 225 deg on the circle of radius
+  ``platform_radius`` (0.1 m) in the platform's xz plane ("evenly distributed", Section 3.2),
+  each paired with the nearest universal joint.
 * Universal-joint fixed axes tangential to the base circle.
+* Gravity along -Y (parameter of the force analyses, not of the kinematics).
 """
 
 from __future__ import annotations
@@ -40,6 +51,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..constraints import (ActuatorRange, Constraint, JointAngleLimit, LegAxisAngle, LegInterference,
+                           LegLengthRange)
 from ..legs import RPS, UPS
 from ..mechanism import Mechanism, check_finite, check_length, check_points
 from ..spatial import euler_rate_map, euler_to_matrix
@@ -57,8 +70,9 @@ class UPSRPSGrindingParams:
     mu2: float = float(np.deg2rad(127.0))
     l_s0: float = 0.05
     y_t: float = 0.075
-    base_z: float = -0.40
-    platform_angles: tuple = tuple(np.deg2rad([45.0, 135.0, 225.0, 315.0]).tolist())
+    base_offset: float = 0.0
+    u_phase: float = 0.0
+    platform_angles: tuple = tuple(np.deg2rad([-45.0, 45.0, 135.0, 225.0]).tolist())
     # Limits of Table 2 (used by constraint margins).
     l_min: float = 0.43
     l_max: float = 0.68
@@ -74,7 +88,8 @@ class UPSRPSGrindingParams:
             object.__setattr__(self, k, check_length(f"4ups_1rps.{k}", getattr(self, k)))
         object.__setattr__(self, "l_s0", check_length("4ups_1rps.l_s0", self.l_s0, allow_zero=True))
         object.__setattr__(self, "y_t", check_finite("4ups_1rps.y_t", self.y_t))
-        object.__setattr__(self, "base_z", check_finite("4ups_1rps.base_z", self.base_z))
+        object.__setattr__(self, "base_offset", check_finite("4ups_1rps.base_offset", self.base_offset))
+        object.__setattr__(self, "u_phase", check_finite("4ups_1rps.u_phase", self.u_phase))
         for k in ("mu1", "mu2", "theta1_max", "sphere_max", "ujoint_max"):
             v = check_finite(f"4ups_1rps.{k}", getattr(self, k))
             if not 0 < v < np.pi:
@@ -90,8 +105,22 @@ class UPSRPSGrindingParams:
 
     @property
     def u_angles(self) -> np.ndarray:
-        a1 = np.pi / 2 - self.mu1 / 2
+        a1 = self.u_phase - self.mu1 / 2
         return np.array([a1, a1 + self.mu1, a1 + self.mu1 + self.mu2, a1 + 2 * self.mu1 + self.mu2])
+
+
+@dataclass(frozen=True)
+class _CentreAxisAngle(Constraint):
+    """phi_o of eq. (9): angle between the platform's y axis and the position vector of the
+    platform centre from the fixed-platform centre, at most ``hi``."""
+
+    hi: float = np.pi / 4
+    unit: str = "rad"
+
+    def margin(self, ctx):
+        n_o = ctx.p / np.linalg.norm(ctx.p, axis=-1, keepdims=True)
+        yp = ctx.R[:, :, 1]
+        return self.hi - np.arccos(np.clip(np.sum(n_o * yp, -1), -1.0, 1.0))
 
 
 class UPSRPSGrinding(Mechanism):
@@ -106,11 +135,11 @@ class UPSRPSGrinding(Mechanism):
         self.params = P
         legs = []
         for i, (ua, pa) in enumerate(zip(P.u_angles, P.platform_angles)):
-            base = np.array([P.base_radius * np.cos(ua), P.base_radius * np.sin(ua), P.base_z])
-            plat = P.platform_radius * np.array([np.cos(pa), np.sin(pa), 0.0])
-            legs.append(UPS(f"L{i + 1}", base=base, platform=plat, u_axis=[-np.sin(ua), np.cos(ua), 0.0]))
+            base = np.array([P.base_radius * np.cos(ua), P.base_offset, P.base_radius * np.sin(ua)])
+            plat = P.platform_radius * np.array([np.cos(pa), 0.0, np.sin(pa)])
+            legs.append(UPS(f"L{i + 1}", base=base, platform=plat, u_axis=[-np.sin(ua), 0.0, np.cos(ua)]))
         legs.append(RPS("L5", base=[0.0, -P.l_s0, 0.0], platform=[0.0, 0.0, 0.0], r_axis=[0, 0, 1], passive=True))
-        super().__init__(P, legs, home=[0.0, 0.35, 0.0, 0.0, 0.0], length_scale=P.base_radius)
+        super().__init__(P, legs, home=[0.0, 0.42, 0.0, 0.0, 0.0], length_scale=P.base_radius)
 
     def pose(self, X):
         p = np.stack([X[:, 0], X[:, 1], np.zeros(X.shape[0])], -1)
@@ -122,6 +151,31 @@ class UPSRPSGrinding(Mechanism):
         T[:, 0, 0] = T[:, 1, 1] = 1.0
         T[:, 3:, 2:] = euler_rate_map("zyz", X[:, 2:5])
         return T
+
+    def build_constraints(self):
+        """The rows of eq. (9) with Table 2's limits, in order: driving-leg stroke, constraining
+        stroke d2, revolute angle theta1, sphere angles phi_i^m (leg against the platform's y
+        axis), the constraining sphere angle phi_o (platform y axis against the position vector
+        n_o of the platform centre), universal-joint angles phi_i^s (leg against the base Y
+        axis), and D <= D_i for adjacent driving legs."""
+        P = self.params
+        drive = ("L1", "L2", "L3", "L4")
+        y = (0.0, 1.0, 0.0)
+        return [
+            ActuatorRange("stroke", lo=P.l_min, hi=P.l_max, doc="l_min <= l_i <= l_max"),
+            LegLengthRange("d2", legs=("L5",), lo=P.d2_min, hi=P.d2_max, doc="d2_min <= d2 <= d2_max"),
+            JointAngleLimit("theta1", key="R_base", legs=("L5",), lo=-P.theta1_max, hi=P.theta1_max,
+                            doc="theta1_min <= theta1 <= theta1_max"),
+            LegAxisAngle("sphere_platform", legs=drive, axis=y, frame="platform", hi=P.sphere_max,
+                         doc="phi_i^m = arccos(L_i . R n_mi / l_i) <= phi_1max"),
+            _CentreAxisAngle("sphere_constraint", hi=P.sphere_max,
+                             doc="phi_o = arccos(R n_mi . n_o / |n_o|) <= phi_1max"),
+            LegAxisAngle("ujoint_base", legs=drive, axis=y, frame="base", hi=P.ujoint_max,
+                         doc="phi_i^s = arccos(L_i . n_si / l_i) <= phi_2max"),
+            LegInterference("interference", diameter=P.leg_diameter,
+                            pairs=(("L1", "L2"), ("L2", "L3"), ("L3", "L4"), ("L4", "L1")),
+                            doc="D <= D_i, adjacent driving legs"),
+        ]
 
     def grinding_point(self, X) -> np.ndarray:
         """Grinding point (N, 3) in the base frame, eq. (10): platform point (0, y_T, 0)."""

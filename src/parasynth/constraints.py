@@ -1,0 +1,179 @@
+"""Pose constraints as margins (>= 0 feasible), vectorised over poses.
+
+A constraint is a *condition* on a pose (CASPR's workspace conditions): given the legs'
+inverse kinematics at N poses it returns a margin (N,) in its own unit (m or rad), positive
+inside the feasible set, negative outside, and -inf for poses the legs cannot reach at all.
+A model declares its constraints from its parameters; ``Mechanism.constraint_margins`` and
+``Mechanism.is_feasible`` evaluate them. Limits a paper states are the defaults of the model
+parameters; limits it does not state are parameters with documented defaults.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from itertools import combinations
+
+import numpy as np
+
+from .legs import LegState
+from .spatial import segment_distance
+
+__all__ = [
+    "Constraint",
+    "ActuatorRange",
+    "LegLengthRange",
+    "JointAngleLimit",
+    "LegInterference",
+    "LegAxisAngle",
+    "CoordinateRange",
+    "PoseContext",
+]
+
+
+@dataclass
+class PoseContext:
+    """What constraints need at N poses: task poses, platform position and orientation,
+    per-leg states and the joint reachability of every leg."""
+
+    X: np.ndarray
+    p: np.ndarray
+    R: np.ndarray
+    legs: list  # Leg objects
+    states: list[LegState]
+    reachable: np.ndarray
+    actuators: np.ndarray  # (N, n_act)
+
+    def state(self, leg_name: str) -> LegState:
+        for leg, st in zip(self.legs, self.states):
+            if leg.name == leg_name:
+                return st
+        raise KeyError(leg_name)
+
+
+@dataclass(frozen=True)
+class Constraint:
+    """Base class: ``name`` (unique in a mechanism), ``unit`` of the margin, ``doc``."""
+
+    name: str
+    unit: str = "m"
+    doc: str = ""
+
+    def margin(self, ctx: PoseContext) -> np.ndarray:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+
+@dataclass(frozen=True)
+class ActuatorRange(Constraint):
+    """Every actuator value within [lo, hi] (m): margin min_i min(q_i - lo, hi - q_i)."""
+
+    lo: float = 0.0
+    hi: float = np.inf
+
+    def margin(self, ctx):
+        q = ctx.actuators
+        return np.min(np.minimum(q - self.lo, self.hi - q), axis=1)
+
+
+@dataclass(frozen=True)
+class LegLengthRange(Constraint):
+    """Distance between the end joint centres of the named legs within [lo, hi] (m) -- for
+    passive legs whose stroke is limited (e.g. the grinding robot's d2)."""
+
+    legs: tuple[str, ...] = ()
+    lo: float = 0.0
+    hi: float = np.inf
+
+    def margin(self, ctx):
+        m = [np.minimum(ctx.state(n).length - self.lo, self.hi - ctx.state(n).length) for n in self.legs]
+        return np.min(np.stack(m, 1), axis=1)
+
+
+@dataclass(frozen=True)
+class JointAngleLimit(Constraint):
+    """Passive joint angles ``key`` (e.g. "S_platform_cone", "U_base_1") of the named legs
+    (all legs that have it when ``legs`` is empty) within [lo, hi] rad."""
+
+    key: str = ""
+    lo: float = -np.inf
+    hi: float = np.inf
+    legs: tuple[str, ...] = ()
+    unit: str = "rad"
+
+    def margin(self, ctx):
+        vals = []
+        for leg, st in zip(ctx.legs, ctx.states):
+            if (not self.legs or leg.name in self.legs) and self.key in st.angles:
+                a = st.angles[self.key]
+                vals.append(np.minimum(a - self.lo, self.hi - a))
+        if not vals:
+            raise ValueError(f"constraint {self.name!r}: no leg has a joint angle {self.key!r}")
+        return np.min(np.stack(vals, 1), axis=1)
+
+
+@dataclass(frozen=True)
+class LegInterference(Constraint):
+    """Leg-leg interference: the minimum distance between the centre lines of leg segments
+    (base joint centre to platform joint centre) minus ``diameter`` (m), over ``pairs``
+    (default: every pair of the named legs, or of all legs). The 2022 paper's D <= D_i of
+    eq. (9) with D the cylinder diameter."""
+
+    diameter: float = 0.0
+    legs: tuple[str, ...] = ()
+    pairs: tuple[tuple[str, str], ...] = ()
+
+    def _pairs(self, names):
+        if self.pairs:
+            return self.pairs
+        use = self.legs or tuple(names)
+        return tuple(combinations(use, 2))
+
+    def distances(self, ctx) -> np.ndarray:
+        names = [leg.name for leg in ctx.legs]
+        out = []
+        for a, b in self._pairs(names):
+            sa, sb = ctx.state(a), ctx.state(b)
+            out.append(segment_distance(sa.base_point, sa.platform_point, sb.base_point, sb.platform_point))
+        return np.stack(out, 1)
+
+    def margin(self, ctx):
+        return np.min(self.distances(ctx), axis=1) - self.diameter
+
+
+@dataclass(frozen=True)
+class LegAxisAngle(Constraint):
+    """Angle between the leg line (base -> platform) of the named legs and an axis, at most
+    ``hi`` rad. The axis is fixed in the base frame (``frame="base"``) or in the platform
+    (``frame="platform"``, rotated with it). This is the form of the 2022 paper's eq. (9)
+    joint-angle rows, e.g. phi_i^m = arccos(L_i . R n_mi / l_i) with n_mi = (0, 1, 0)."""
+
+    legs: tuple[str, ...] = ()
+    axis: tuple[float, float, float] = (0.0, 0.0, 1.0)
+    frame: str = "base"
+    hi: float = np.pi
+    unit: str = "rad"
+
+    def angles(self, ctx) -> np.ndarray:
+        a = np.asarray(self.axis, dtype=float)
+        a = a / np.linalg.norm(a)
+        ax = ctx.R @ a if self.frame == "platform" else np.broadcast_to(a, ctx.p.shape)
+        out = []
+        for name in self.legs:
+            n = ctx.state(name).direction
+            out.append(np.arccos(np.clip(np.sum(n * ax, -1), -1.0, 1.0)))
+        return np.stack(out, 1)
+
+    def margin(self, ctx):
+        return self.hi - np.max(self.angles(ctx), axis=1)
+
+
+@dataclass(frozen=True)
+class CoordinateRange(Constraint):
+    """A task coordinate (column ``index``) within [lo, hi] (its own unit)."""
+
+    index: int = 0
+    lo: float = -np.inf
+    hi: float = np.inf
+
+    def margin(self, ctx):
+        x = ctx.X[:, self.index]
+        return np.minimum(x - self.lo, self.hi - x)
