@@ -2,7 +2,10 @@
 
 Commands
 --------
-list                 mechanisms (and, as they arrive, objectives, constraints, optimisers)
+run STUDY.yaml       run a design study (sweep, NLopt or Optuna) and write its results
+validate STUDY.yaml  check a study file and print it resolved to SI
+evaluate STUDY.yaml  evaluate one design of a study (all objectives and constraints)
+list                 mechanisms, objectives, optimisers
 analyze NAME         kinematic analysis of a mechanism at its home pose and a pose sample
 """
 
@@ -42,10 +45,114 @@ def _fmt_pose(mech, X) -> str:
 
 
 def cmd_list(args) -> int:
+    from .objectives import OBJECTIVES
+    from .study import OPTIMIZERS
+
     print("mechanisms:")
     for name, summary in mechanism_summaries().items():
         print(f"  {name:12s} {summary}")
+        mech = load_mechanism(name)
+        for cname, c in mech.constraints.items():
+            print(f"      pose constraint {cname} [{c.unit}]: {c.doc}")
+    print("\nobjectives and design-constraint measures (name [unit], natural goal):")
+    for name, m in OBJECTIVES.items():
+        doc = m.doc.splitlines()[0] if m.doc else ""
+        print(f"  {name} [{m.unit}], {m.sense}: {doc}")
+    print("\noptimisers (optimizer.kind: algorithms):")
+    for kind, algs in OPTIMIZERS.items():
+        print(f"  {kind}: {', '.join(algs)}")
     return 0
+
+
+def _load_study_or_exit(path):
+    from .study import StudyError, load_study
+
+    try:
+        return load_study(path)
+    except StudyError as e:
+        print(f"error: {e}", file=sys.stderr)
+        raise SystemExit(2)
+
+
+def cmd_validate(args) -> int:
+    study = _load_study_or_exit(args.study)
+    print(f"{args.study}: valid study {study.name!r} ({study.optimizer.kind}) on {study.mechanism}")
+    for v in study.variables:
+        rng = f"[{v.low}, {v.high}]" if v.low is not None else ""
+        vals = f" values={list(v.values)}" if v.values else ""
+        ch = f" choices={list(v.choices)}" if v.choices else ""
+        print(f"  variable {v.name} ({v.type}, SI) {rng}{vals}{ch}")
+    for o in study.objectives:
+        print(f"  objective {o.label}: {o.goal} {o.name} {o.settings or ''}")
+    for c in study.constraints:
+        print(f"  constraint {c.label}: {c.name} min={c.min} max={c.max}")
+    print(f"  evaluation: {study.evaluation}")
+    return 0
+
+
+def cmd_run(args) -> int:
+    from .study import StudyError, run_study
+
+    study = _load_study_or_exit(args.study)
+    try:
+        res = run_study(study, out_dir=args.out, resume=args.resume, n_trials=args.n_trials,
+                        progress=not args.quiet)
+    except StudyError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    print(res.summary(study))
+    if res.interrupted:
+        print(f"interrupted: {res.n_total} designs are saved; continue with "
+              f"parasynth run {args.study} --resume" + (f" --out {args.out}" if args.out else ""), file=sys.stderr)
+        return 130
+    if not args.no_report:
+        try:
+            from .report import write_report
+        except ImportError:
+            write_report = None
+        if write_report is not None:
+            rdir = write_report(res.out_dir, out=args.report_dir)
+            print(f"report: {rdir / 'index.html'}")
+    return 0
+
+
+def cmd_evaluate(args) -> int:
+    from .study import Evaluator
+    from .study.spec import StudyError, _q
+
+    study = _load_study_or_exit(args.study)
+    byname = {v.name: v for v in study.variables}
+    values = {}
+    base = dict(study.reference or {})
+    for v in study.variables:
+        if v.name in base:
+            values[v.name] = base[v.name]
+        elif v.low is not None:
+            values[v.name] = 0.5 * (v.low + v.high)
+        else:
+            values[v.name] = (v.values or v.choices)[0]
+    for item in args.set or []:
+        if "=" not in item:
+            print(f"error: --set expects NAME=VALUE with units, got {item!r}", file=sys.stderr)
+            return 2
+        k, val = item.split("=", 1)
+        if k not in byname:
+            print(f"error: --set {k}: not a design variable; variables: {', '.join(byname)}", file=sys.stderr)
+            return 2
+        try:
+            values[k] = _q(val.strip(), byname[k].kind, f"--set {k}")
+        except StudyError as e:
+            print(f"error: {e}", file=sys.stderr)
+            return 2
+    rec = Evaluator(study).evaluate(values, n=args.samples)
+    print(f"design: {values}")
+    print(f"status: {rec.status} {rec.error}".rstrip())
+    for k, v in rec.objectives.items():
+        print(f"  objective {k} = {v:.6g}")
+    for k, v in rec.constraint_values.items():
+        print(f"  constraint {k} = {v:.6g} (margin {rec.margins[k]:.4g})")
+    print(f"feasible: {rec.feasible}; {rec.time_s:.2f} s")
+    return 0 if rec.status == "ok" else 1
 
 
 def cmd_analyze(args) -> int:
@@ -92,8 +199,25 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="parasynth", description="Dimensional synthesis of parallel mechanisms")
     ap.add_argument("--version", action="version", version=f"parasynth {__version__}")
     sub = ap.add_subparsers(dest="command", required=True)
-    p = sub.add_parser("list", help="list mechanisms")
+    p = sub.add_parser("list", help="list mechanisms, objectives, optimisers")
     p.set_defaults(func=cmd_list)
+    p = sub.add_parser("run", help="run a design study")
+    p.add_argument("study", help="study YAML file")
+    p.add_argument("--out", help="run directory (default runs/<study name>/)")
+    p.add_argument("--resume", action="store_true", help="continue an interrupted run in the same directory")
+    p.add_argument("--n-trials", type=int, help="evaluation budget (optuna trials / nlopt maxeval)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument("--no-report", action="store_true", help="do not write the report at the end")
+    p.add_argument("--report-dir", help="report directory (default reports/<study name>/)")
+    p.set_defaults(func=cmd_run)
+    p = sub.add_parser("validate", help="check a study file")
+    p.add_argument("study")
+    p.set_defaults(func=cmd_validate)
+    p = sub.add_parser("evaluate", help="evaluate one design of a study")
+    p.add_argument("study")
+    p.add_argument("--set", action="append", metavar="NAME=VALUE", help="design variable value with unit")
+    p.add_argument("--samples", type=int, help="workspace samples (default: the study's)")
+    p.set_defaults(func=cmd_evaluate)
     p = sub.add_parser("analyze", help="kinematic analysis of a mechanism")
     p.add_argument("name", help=f"one of: {', '.join(list_mechanisms())}")
     p.add_argument("--param", action="append", metavar="NAME=VALUE", help="override a parameter (SI units)")

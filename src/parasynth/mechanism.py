@@ -141,6 +141,11 @@ class Mechanism:
         self._constraint_rank: int | None = None
 
     # -- parametrisation (subclass) -------------------------------------------------------------
+    def default_ranges(self) -> dict:
+        """A task box {coordinate: (lo, hi)} (SI) that contains the model's workspace; used
+        when an analysis is not given explicit ranges."""
+        return {}
+
     def pose(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # pragma: no cover
         raise NotImplementedError
 

@@ -40,6 +40,7 @@ Assumptions where the paper is silent (all are parameters):
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 
@@ -56,6 +57,12 @@ _MM = 1e-3
 @dataclass(frozen=True)
 class PUSUPU5Params:
     """Parameters in SI (m, rad). Defaults: the 2021 paper's prototype (Sections 3.2 and 5)."""
+
+    UNITS: ClassVar[dict] = {"slider_radius": "length", "link_length": "length", "platform": None,
+                             "hinge_points": "length", "pentagon_radius": "length", "slider_angles": "angle",
+                             "upu_base_z": "length", "slider_min": "length", "slider_max": "length",
+                             "sphere_max": "angle", "ujoint_max": "angle", "link_diameter": "length"}
+
 
     slider_radius: float = 0.135
     link_length: float = 0.205
@@ -135,6 +142,10 @@ class PUSUPU5(Mechanism):
             LegInterference("interference", diameter=P.link_diameter, legs=pus,
                             doc="distance between link centre lines >= link_diameter"),
         ]
+
+    def default_ranges(self) -> dict:
+        """Fixed-posture box (alpha = beta = 0) around the paper's workspace (Section 4.3), SI."""
+        return {"x": (-0.15, 0.15), "y": (-0.15, 0.15), "z": (-0.30, 0.20)}
 
     def pose(self, X):
         p = X[:, :3].copy()

@@ -27,6 +27,7 @@ Actuators: leg lengths q1..q4 = |A_i - B_i| (eq. (11)), m.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 
@@ -42,6 +43,12 @@ __all__ = ["RPU2SPS2Params", "RPU2SPS2"]
 class RPU2SPS2Params:
     """Parameters (m). Defaults: Section 4.3 of the paper (a1 = a3 = 150 mm,
     a2 = a4 = 75 mm, b1 = b3 = 550 mm, b2 = b4 = 350 mm)."""
+
+    #: Quantity kind of each field, for unit-bearing input (YAML, CLI).
+    UNITS: ClassVar[dict] = {**{k: "length" for k in ("a1", "a2", "a3", "a4", "b1", "b2", "b3", "b4",
+                                                      "q_min", "q_max", "leg_diameter")},
+                             "psi_max": "angle", "theta_max": "angle", "coupled": None}
+
 
     a1: float = 0.150
     a2: float = 0.075
@@ -95,6 +102,14 @@ class RPU2SPS2(Mechanism):
             home = [0.75 * np.tan(np.deg2rad(15.0)), 0.75, 0.0, np.deg2rad(15.0)]
         self.angular_coordinates = frozenset({"psi", "theta"})
         super().__init__(params, legs, home, length_scale=0.5 * (P.b1 + P.b2))
+
+    def default_ranges(self) -> dict:
+        """A task box covering the paper's workspace (Section 6.2) with margin, SI."""
+        r = {"z": (0.55, 1.00), "psi": (-self.params.psi_max, self.params.psi_max),
+             "theta": (-self.params.theta_max, self.params.theta_max)}
+        if not self.params.coupled:
+            r = {"x": (-0.6, 0.6), **r}
+        return r
 
     def _split(self, X):
         if self.params.coupled:

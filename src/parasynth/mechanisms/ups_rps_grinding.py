@@ -48,6 +48,7 @@ Assumptions where the paper is silent (all are parameters):
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 
@@ -63,6 +64,13 @@ __all__ = ["UPSRPSGrindingParams", "UPSRPSGrinding"]
 @dataclass(frozen=True)
 class UPSRPSGrindingParams:
     """Parameters in SI (m, rad). Defaults: the 2022 paper's Table 2 where it gives them."""
+
+    UNITS: ClassVar[dict] = {**{k: "length" for k in ("platform_radius", "base_radius", "l_s0", "y_t",
+                                                      "base_offset", "l_min", "l_max", "d2_min", "d2_max",
+                                                      "leg_diameter")},
+                             **{k: "angle" for k in ("mu1", "mu2", "u_phase", "platform_angles", "theta1_max",
+                                                     "sphere_max", "ujoint_max")}}
+
 
     platform_radius: float = 0.10
     base_radius: float = 0.335
@@ -140,6 +148,11 @@ class UPSRPSGrinding(Mechanism):
             legs.append(UPS(f"L{i + 1}", base=base, platform=plat, u_axis=[-np.sin(ua), 0.0, np.cos(ua)]))
         legs.append(RPS("L5", base=[0.0, -P.l_s0, 0.0], platform=[0.0, 0.0, 0.0], r_axis=[0, 0, 1], passive=True))
         super().__init__(P, legs, home=[0.0, 0.42, 0.0, 0.0, 0.0], length_scale=P.base_radius)
+
+    def default_ranges(self) -> dict:
+        """Platform-centre box with moderate tilts, SI (the paper's Figure 5 region)."""
+        return {"x": (-0.5, 0.5), "y": (0.0, 0.6), "alpha": (-np.pi, np.pi), "beta": (0.0, np.pi / 4),
+                "gamma": (-np.pi, np.pi)}
 
     def pose(self, X):
         p = np.stack([X[:, 0], X[:, 1], np.zeros(X.shape[0])], -1)

@@ -1,0 +1,245 @@
+"""Named, importable design measures: objectives and design constraints.
+
+Every measure is a plain function ``f(mech, **settings) -> float`` registered under a name,
+usable from Python without any YAML::
+
+    from parasynth import load_mechanism, objectives
+    mech = load_mechanism("5pus_upu", link_length=0.205)
+    v = objectives.get("workspace_volume")(mech, n=4096, seed=0)
+
+A study turns a measure into an objective (minimise or maximise) or into a design constraint
+with a bound (``min`` or ``max``): its margin is ``value - min`` or ``max - value`` (>= 0
+feasible), in the measure's unit.
+
+Workspace-based measures share their settings: ``ranges`` ({coordinate: (lo, hi)} SI,
+default the model's ``default_ranges()``), ``n`` samples, ``method`` ("sobol", "grid",
+"random"), ``seed``, ``fixed`` coordinates and ``constraints`` (pose constraint names, default
+all). With a fixed seed the same sample points are used for every design (common random
+numbers), so an optimiser sees a deterministic function. Workspaces are cached per
+(mechanism parameters, settings) so that several measures of one design sample it once.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections import OrderedDict
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+__all__ = [
+    "Measure",
+    "register",
+    "get",
+    "list_objectives",
+    "OBJECTIVES",
+    "workspace_of",
+]
+
+
+@dataclass(frozen=True)
+class Measure:
+    """A registered measure.
+
+    ``unit``: unit of the value (SI, e.g. "m^3", "N", "1"); ``kind``: quantity kind for
+    display ("length", "force", ... or None); ``sense``: the natural direction
+    ("maximize" or "minimize"); ``settings``: {setting name: kind} accepted by the function
+    (kinds: "length", "angle", "force", "mass", "int", "float", "str", "bool", "ranges",
+    "dict", "list"); ``models``: model names it applies to (None = all); ``cost``: "cheap"
+    or "workspace" (needs a workspace sample) or "expensive".
+    """
+
+    name: str
+    func: Callable
+    unit: str
+    sense: str
+    doc: str
+    kind: str | None = None
+    settings: dict = field(default_factory=dict)
+    models: tuple | None = None
+    cost: str = "workspace"
+
+    def __call__(self, mech, **settings) -> float:
+        if self.models is not None and mech.name not in self.models:
+            raise ValueError(f"measure {self.name!r} applies to {list(self.models)}, not to {mech.name!r}")
+        unknown = sorted(set(settings) - set(self.settings))
+        if unknown:
+            raise ValueError(
+                f"measure {self.name!r}: unknown setting(s) {unknown}; allowed: {sorted(self.settings) or '(none)'}"
+            )
+        return float(self.func(mech, **settings))
+
+
+OBJECTIVES: "OrderedDict[str, Measure]" = OrderedDict()
+
+_WS_SETTINGS = {"ranges": "ranges", "n": "int", "method": "str", "seed": "int", "fixed": "dict",
+                "constraints": "list"}
+
+
+def register(name: str, unit: str, sense: str, settings: dict | None = None, kind: str | None = None,
+             models: tuple | None = None, cost: str = "workspace"):
+    """Decorator registering ``f(mech, **settings) -> float`` as measure ``name``."""
+    if sense not in ("maximize", "minimize"):
+        raise ValueError(f"sense must be 'maximize' or 'minimize', got {sense!r}")
+
+    def deco(func):
+        OBJECTIVES[name] = Measure(name, func, unit, sense, (func.__doc__ or "").strip(), kind,
+                                   dict(settings or {}), models, cost)
+        return func
+
+    return deco
+
+
+def get(name: str) -> Measure:
+    """The measure registered as ``name`` (ValueError listing the valid names otherwise)."""
+    if name not in OBJECTIVES:
+        raise ValueError(f"unknown objective {name!r}; valid: {', '.join(OBJECTIVES)}")
+    return OBJECTIVES[name]
+
+
+def list_objectives() -> list[str]:
+    return list(OBJECTIVES)
+
+
+# -- workspace cache ------------------------------------------------------------------------------
+_CACHE: "OrderedDict[tuple, object]" = OrderedDict()
+_CACHE_SIZE = 8
+
+
+def _freeze(v):
+    if isinstance(v, dict):
+        return tuple(sorted((k, _freeze(x)) for k, x in v.items()))
+    if isinstance(v, (list, tuple)):
+        return tuple(_freeze(x) for x in v)
+    if isinstance(v, np.ndarray):
+        return tuple(v.ravel().tolist())
+    return v
+
+
+def workspace_of(mech, ranges=None, n: int = 4096, method: str = "sobol", seed: int = 0, fixed=None,
+                 constraints=None):
+    """The (cached) workspace of ``mech`` for these settings; see :func:`parasynth.workspace`."""
+    from .workspace import workspace
+
+    ranges = dict(ranges) if ranges else mech.default_ranges()
+    key = (type(mech).__name__, _freeze(dataclasses.asdict(mech.params)), _freeze(ranges), int(n), method,
+           int(seed), _freeze(fixed), _freeze(constraints))
+    hit = _CACHE.get(key)
+    if hit is not None:
+        _CACHE.move_to_end(key)
+        return hit
+    ws = workspace(mech, ranges, n=int(n), method=method, seed=int(seed), fixed=fixed, constraints=constraints)
+    _CACHE[key] = ws
+    if len(_CACHE) > _CACHE_SIZE:
+        _CACHE.popitem(last=False)
+    return ws
+
+
+def _ws(mech, kw):
+    return workspace_of(mech, **{k: v for k, v in kw.items() if k in _WS_SETTINGS})
+
+
+# -- workspace measures ----------------------------------------------------------------------------
+@register("workspace_volume", unit="sampled units", sense="maximize", settings=_WS_SETTINGS)
+def workspace_volume(mech, **kw) -> float:
+    """Volume of the feasible set in the sampled task box (product of the sampled
+    coordinates' units: m^3 for a fixed-orientation position box)."""
+    return _ws(mech, kw).volume
+
+
+@register("workspace_fraction", unit="1", sense="maximize", settings=_WS_SETTINGS)
+def workspace_fraction(mech, **kw) -> float:
+    """Fraction of the sampled task box that is feasible."""
+    return _ws(mech, kw).fraction
+
+
+def _extent(ws, axis):
+    lo, hi = ws.extents[axis]
+    return 0.0 if not np.isfinite(hi - lo) else float(hi - lo)
+
+
+@register("extent", unit="m", kind="length", sense="maximize", settings={**_WS_SETTINGS, "axis": "str"})
+def extent(mech, axis: str = "z", **kw) -> float:
+    """Range (m) of the platform reference point along base axis ``axis`` ("x", "y" or
+    "z") over the feasible samples (a projection size, like the papers' XOY sizes)."""
+    if axis not in ("x", "y", "z"):
+        raise ValueError(f"extent: axis must be 'x', 'y' or 'z', got {axis!r}")
+    return _extent(_ws(mech, kw), axis)
+
+
+@register("xy_isotropy", unit="1", sense="maximize", settings=_WS_SETTINGS)
+def xy_isotropy(mech, **kw) -> float:
+    """min/max of the X and Y extents of the feasible platform positions (1 = as wide as
+    long): the 2021 paper's "better isotropy in the workspace of the XOY plane"."""
+    ws = _ws(mech, kw)
+    ex, ey = _extent(ws, "x"), _extent(ws, "y")
+    return 0.0 if max(ex, ey) == 0 else min(ex, ey) / max(ex, ey)
+
+
+@register("inscribed_box_volume", unit="sampled units", sense="maximize",
+          settings={**_WS_SETTINGS, "resolution": "int"})
+def inscribed_box_volume(mech, resolution: int = 24, **kw) -> float:
+    """Volume of the largest axis-aligned box inside the feasible set (sampled coordinates),
+    computed on a raster of ``resolution`` cells per axis."""
+    box = _ws(mech, kw).largest_box(resolution=resolution)
+    return float(np.prod(box.sizes)) if box is not None else 0.0
+
+
+@register("inscribed_box_size", unit="sampled unit", sense="maximize",
+          settings={**_WS_SETTINGS, "resolution": "int", "axis": "str"})
+def inscribed_box_size(mech, axis: str = "z", resolution: int = 24, **kw) -> float:
+    """Side along coordinate ``axis`` of the largest inscribed axis-aligned box."""
+    ws = _ws(mech, kw)
+    box = ws.largest_box(resolution=resolution)
+    if box is None:
+        return 0.0
+    if axis not in box.coordinates:
+        raise ValueError(f"inscribed_box_size: axis must be one of {list(box.coordinates)}, got {axis!r}")
+    return float(box.sizes[list(box.coordinates).index(axis)])
+
+
+@register("singularity_margin_min", unit="1", sense="maximize", settings={**_WS_SETTINGS, "quantile": "float"})
+def singularity_margin_min(mech, quantile: float = 0.0, **kw) -> float:
+    """Smallest (or the given quantile of the) singularity margin over the feasible
+    workspace samples; 0 for an empty workspace."""
+    ws = _ws(mech, kw)
+    if ws.n_feasible == 0:
+        return 0.0
+    pts = ws.points
+    if len(pts) > 20000:
+        pts = pts[np.linspace(0, len(pts) - 1, 20000).astype(int)]
+    m = mech.singularity_margin(pts)
+    m = m[np.isfinite(m)]
+    return float(np.quantile(m, quantile)) if m.size else 0.0
+
+
+# -- cheap measures --------------------------------------------------------------------------------
+@register("home_singularity_margin", unit="1", sense="maximize", cost="cheap")
+def home_singularity_margin(mech) -> float:
+    """Singularity margin at the model's home pose."""
+    v = mech.singularity_margin(mech.home)
+    return float(v) if np.isfinite(v) else 0.0
+
+
+@register("home_feasibility", unit="mixed", sense="maximize", cost="cheap")
+def home_feasibility(mech) -> float:
+    """Smallest pose-constraint margin at the home pose (>= 0: home is feasible). Margins of
+    different constraints have their own units (m or rad); use it as a sign test."""
+    m = mech.constraint_margins(mech.home)
+    vals = [float(v) for v in m.values()] or [0.0 if mech.inverse_kinematics(mech.home).reachable else -np.inf]
+    v = min(vals)
+    return v if np.isfinite(v) else -1.0
+
+
+@register("footprint_radius", unit="m", kind="length", sense="minimize", cost="cheap")
+def footprint_radius(mech) -> float:
+    """Largest distance of a base anchor from the base Z axis (m): the machine's footprint."""
+    return float(max(np.hypot(leg.base[0], leg.base[1]) for leg in mech.legs))
+
+
+@register("max_leg_length_home", unit="m", kind="length", sense="minimize", cost="cheap")
+def max_leg_length_home(mech) -> float:
+    """Longest leg (distance between end joint centres, m) at the home pose: a size measure."""
+    _, states, _ = mech.leg_states(mech.home[None, :])
+    return float(max(st.length[0] for st in states))

@@ -1,0 +1,119 @@
+"""Evaluation of one design: build the mechanism, compute design constraints and objectives.
+
+A design that cannot be built (non-physical parameters) or whose measures raise is recorded
+with ``status = "failed"`` and its error message; a design that violates a constraint is
+recorded with ``feasible = False``; neither stops a run.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+import traceback
+from dataclasses import dataclass, field
+
+from ..mechanisms import load_mechanism
+from ..objectives import get as get_measure
+from .spec import ResolvedStudy
+
+__all__ = ["Record", "Evaluator"]
+
+_WS_KEYS = {"ranges": "ranges", "n": "n", "method": "method", "seed": "seed", "fixed": "fixed",
+            "constraints": "constraints"}
+
+
+@dataclass
+class Record:
+    """One evaluated design (SI values)."""
+
+    values: dict
+    objectives: dict = field(default_factory=dict)
+    constraint_values: dict = field(default_factory=dict)
+    margins: dict = field(default_factory=dict)
+    status: str = "ok"  # ok | failed
+    error: str = ""
+    seed: int = 0
+    samples: int = 0
+    time_s: float = 0.0
+    trial: int = -1
+    source: str = "run"
+
+    @property
+    def feasible(self) -> bool:
+        return self.status == "ok" and all(m >= 0 for m in self.margins.values())
+
+    def to_dict(self) -> dict:
+        return {
+            "trial": self.trial, "source": self.source, "values": self.values, "objectives": self.objectives,
+            "constraint_values": self.constraint_values, "margins": self.margins, "status": self.status,
+            "feasible": self.feasible, "error": self.error, "seed": self.seed, "samples": self.samples,
+            "time_s": self.time_s,
+        }
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "Record":
+        return cls(values=d["values"], objectives=d.get("objectives", {}), constraint_values=d.get("constraint_values", {}),
+                   margins=d.get("margins", {}), status=d.get("status", "ok"), error=d.get("error", ""),
+                   seed=d.get("seed", 0), samples=d.get("samples", 0), time_s=d.get("time_s", 0.0),
+                   trial=d.get("trial", -1), source=d.get("source", "run"))
+
+
+class Evaluator:
+    """Evaluates designs of a resolved study with its evaluation settings.
+
+    Design constraints are computed first, cheapest first; objectives after. With the study's
+    fixed seed the same sample points serve every design (common random numbers)."""
+
+    def __init__(self, study: ResolvedStudy):
+        self.study = study
+
+    def settings_for(self, measure_name: str, own: dict, n: int | None = None, seed: int | None = None) -> dict:
+        m = get_measure(measure_name)
+        ev = self.study.evaluation
+        base = {}
+        for key in _WS_KEYS:
+            if key in m.settings:
+                v = ev.get(key)
+                if key == "n" and n is not None:
+                    v = n
+                if key == "seed" and seed is not None:
+                    v = seed
+                if v is not None:
+                    base[key] = v
+        base.update(own)
+        if n is not None and "n" in m.settings:
+            base["n"] = n
+        if seed is not None and "seed" in m.settings:
+            base["seed"] = seed
+        return base
+
+    def build(self, values: dict):
+        params = {**self.study.fixed, **values}
+        return load_mechanism(self.study.mechanism, **params)
+
+    def evaluate(self, values: dict, n: int | None = None, seed: int | None = None, trial: int = -1,
+                 source: str = "run") -> Record:
+        ev = self.study.evaluation
+        rec = Record(values=dict(values), seed=ev["seed"] if seed is None else seed,
+                     samples=ev["n"] if n is None else n, trial=trial, source=source)
+        t0 = time.perf_counter()
+        try:
+            mech = self.build(values)
+            cons = sorted(self.study.constraints, key=lambda c: get_measure(c.name).cost != "cheap")
+            for c in cons:
+                v = get_measure(c.name)(mech, **self.settings_for(c.name, c.settings, n, seed))
+                rec.constraint_values[c.label] = v
+                rec.margins[c.label] = c.margin(v) if math.isfinite(v) else -math.inf
+            for o in self.study.objectives:
+                v = get_measure(o.name)(mech, **self.settings_for(o.name, o.settings, n, seed))
+                if not math.isfinite(v):
+                    raise FloatingPointError(f"objective {o.label!r} is not finite ({v})")
+                rec.objectives[o.label] = v
+        except KeyboardInterrupt:
+            raise
+        except Exception as e:  # recorded, the run continues
+            rec.status = "failed"
+            rec.error = f"{type(e).__name__}: {e}"
+            rec.error_trace = traceback.format_exc(limit=3)
+        rec.time_s = time.perf_counter() - t0
+        return rec

@@ -1,0 +1,89 @@
+"""Quantities with explicit units at the YAML/CLI boundary ("205 mm", "15 deg").
+
+Inside the library everything is SI (m, rad, N, kg, s). A unit-bearing field given as a bare
+number is an error, not a guess. Parsing and dimension checks are delegated to pint.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+__all__ = ["UNIT_KINDS", "parse_quantity", "format_quantity", "QuantityError"]
+
+#: Kinds of quantities and their SI unit (pint spelling) and pint dimensionality.
+UNIT_KINDS = {
+    "length": ("m", "[length]"),
+    "angle": ("rad", ""),
+    "force": ("N", "[force]"),
+    "mass": ("kg", "[mass]"),
+    "time": ("s", "[time]"),
+    "torque": ("N*m", "[force] * [length]"),
+    "dimensionless": ("", ""),
+}
+
+#: How quantities are shown to people (reports, summaries).
+DISPLAY_UNITS = {"length": "mm", "angle": "deg", "force": "N", "mass": "kg", "time": "s", "torque": "N*m"}
+
+
+class QuantityError(ValueError):
+    """A value without a required unit, with the wrong dimension, or unparsable."""
+
+
+@lru_cache(maxsize=1)
+def _ureg():
+    import pint
+
+    return pint.UnitRegistry()
+
+
+def parse_quantity(value, kind: str, field: str = "value") -> float:
+    """Parse ``value`` ("205 mm", "15 deg", "0.2 m") as a ``kind`` and return SI magnitude.
+
+    Dimensionless kinds accept plain numbers. Raises :class:`QuantityError` naming ``field``
+    for a bare number where a unit is required, a wrong dimension or an unparsable string.
+    """
+    if kind not in UNIT_KINDS:
+        raise ValueError(f"unknown quantity kind {kind!r}; allowed: {sorted(UNIT_KINDS)}")
+    si, dim = UNIT_KINDS[kind]
+    if isinstance(value, bool):
+        raise QuantityError(f"{field}: expected a {kind}, got a boolean {value!r}")
+    if isinstance(value, (int, float)):
+        if kind == "dimensionless":
+            return float(value)
+        raise QuantityError(
+            f"{field}: a bare number ({value!r}) is not allowed for a {kind}; give a unit, "
+            f"e.g. '{value} {DISPLAY_UNITS[kind]}'"
+        )
+    if not isinstance(value, str):
+        raise QuantityError(f"{field}: expected a {kind} such as '10 {DISPLAY_UNITS.get(kind, '')}', got {value!r}")
+    ureg = _ureg()
+    try:
+        q = ureg.Quantity(value.strip())
+    except Exception as e:  # pint raises several error types
+        raise QuantityError(f"{field}: cannot parse {value!r} as a {kind} ({e})") from None
+    if kind == "angle":
+        if q.dimensionless and q.unitless and kind != "dimensionless":
+            raise QuantityError(f"{field}: {value!r} has no unit; give an angle such as '15 deg' or '0.2 rad'")
+        try:
+            return float(q.to("rad").magnitude)
+        except Exception:
+            raise QuantityError(f"{field}: {value!r} is not an angle (use deg or rad)") from None
+    if kind == "dimensionless":
+        if not q.dimensionless:
+            raise QuantityError(f"{field}: {value!r} must be dimensionless")
+        return float(q.to("").magnitude)
+    if q.unitless:
+        raise QuantityError(f"{field}: {value!r} has no unit; give a {kind} such as '10 {DISPLAY_UNITS[kind]}'")
+    if not q.check(dim):
+        raise QuantityError(f"{field}: {value!r} is not a {kind} (expected units like {DISPLAY_UNITS[kind]})")
+    return float(q.to(si).magnitude)
+
+
+def format_quantity(value_si: float, kind: str, digits: int = 4) -> str:
+    """SI value as a string in display units, e.g. 0.205 m -> '205 mm'."""
+    if kind in (None, "dimensionless", "") or kind not in UNIT_KINDS:
+        return f"{value_si:.{digits}g}"
+    unit = DISPLAY_UNITS[kind]
+    ureg = _ureg()
+    v = ureg.Quantity(value_si, UNIT_KINDS[kind][0]).to(unit).magnitude
+    return f"{v:.{digits}g} {unit}"
