@@ -195,7 +195,29 @@ def cmd_analyze(args) -> int:
     return 0
 
 
+def load_plugins(spec: str | None = None) -> None:
+    """Import user modules that register measures (``PARASYNTH_PLUGINS``: comma-separated
+    module names or .py file paths)."""
+    import importlib
+    import importlib.util
+    import os
+
+    spec = os.environ.get("PARASYNTH_PLUGINS", "") if spec is None else spec
+    for item in filter(None, (s.strip() for s in spec.split(","))):
+        if item.endswith(".py"):
+            mod_name = "parasynth_plugin_" + os.path.splitext(os.path.basename(item))[0]
+            sp = importlib.util.spec_from_file_location(mod_name, item)
+            if sp is None or not os.path.exists(item):
+                raise SystemExit(f"error: PARASYNTH_PLUGINS: cannot load {item!r}")
+            mod = importlib.util.module_from_spec(sp)
+            sys.modules[mod_name] = mod
+            sp.loader.exec_module(mod)
+        else:
+            importlib.import_module(item)
+
+
 def main(argv: list[str] | None = None) -> int:
+    load_plugins()
     ap = argparse.ArgumentParser(prog="parasynth", description="Dimensional synthesis of parallel mechanisms")
     ap.add_argument("--version", action="version", version=f"parasynth {__version__}")
     sub = ap.add_subparsers(dest="command", required=True)

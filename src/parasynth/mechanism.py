@@ -613,7 +613,10 @@ def check_finite(field_name: str, value) -> float:
 
 
 def check_points(field_name: str, value, n: int, dim: int) -> tuple:
-    a = np.asarray(value, dtype=float) if not isinstance(value, str) else None
+    try:
+        a = np.asarray(value, dtype=float) if not isinstance(value, str) else None
+    except (TypeError, ValueError):  # ragged or non-numeric: report it against the field
+        a = None
     if a is None or a.shape != (n, dim):
         raise ValueError(f"{field_name} must be {n} points of {dim} coordinates (m), got {value!r}")
     if not np.all(np.isfinite(a)):

@@ -436,6 +436,25 @@ def _constraints_func(trial):
     return trial.user_attrs.get("constraints", [1.0])
 
 
+def _set_optuna_constraints(trial, study, rec):
+    """Our margins count >= 0 as feasible, Optuna's constraint values <= 0: convert here, in
+    one place. Optuna >= 5 reads ``Trial.set_constraint``; older versions a
+    ``constraints_func`` that returns the user attribute set here."""
+    vals = [(-m if math.isfinite(m) else 1e9) for m in rec.margins.values()]
+    if rec.status != "ok":
+        vals = [1e9 for _ in study.constraints]
+    trial.set_user_attr("constraints", vals or [0.0])
+    if hasattr(trial, "set_constraint"):
+        for c, v in zip(study.constraints, vals):
+            trial.set_constraint(c.label, v)
+
+
+def _uses_set_constraint() -> bool:
+    import optuna
+
+    return hasattr(optuna.trial.Trial, "set_constraint")
+
+
 def _run_optuna(study, evaluator, records, record, progress, n_trials, out_dir, resume):
     import optuna
 
@@ -445,7 +464,7 @@ def _run_optuna(study, evaluator, records, record, progress, n_trials, out_dir, 
     seed = opt_spec.seed if opt_spec.seed is not None else study.evaluation["seed"]
     storage = opt_spec.storage or f"sqlite:///{(Path(out_dir) / 'optuna.db').resolve()}"
     directions = [o.goal for o in study.objectives]
-    has_cons = bool(study.constraints)
+    has_cons = bool(study.constraints) and not _uses_set_constraint()
     sampler = _make_sampler(study, seed, _constraints_func if has_cons else None)
     ostudy = optuna.create_study(study_name=study.name, storage=storage, directions=directions, sampler=sampler,
                                  load_if_exists=True)
@@ -458,6 +477,11 @@ def _run_optuna(study, evaluator, records, record, progress, n_trials, out_dir, 
     remaining = max(0, total - len(finished))
     if remaining == 0:
         return
+    if finished:
+        # A resumed sampler must not replay the random stream of the first run (it would
+        # propose the designs already evaluated): continue with a seed offset by the number
+        # of finished trials, which keeps resumed runs deterministic.
+        ostudy.sampler = _make_sampler(study, seed + len(finished), _constraints_func if has_cons else None)
     bar = _Progress(remaining, progress, f"optuna {sampler.__class__.__name__} {study.name}")
 
     def objective(trial):
@@ -470,7 +494,7 @@ def _run_optuna(study, evaluator, records, record, progress, n_trials, out_dir, 
             else:
                 values[v.name] = trial.suggest_float(v.name, v.low, v.high, log=v.log)
         rec = evaluator.evaluate(values, trial=trial.number)
-        trial.set_user_attr("constraints", [(-m if math.isfinite(m) else 1e9) for m in rec.margins.values()] or [0.0])
+        _set_optuna_constraints(trial, study, rec)
         trial.set_user_attr("evaluated", True)
         record(rec)
         bar.update(rec, _best_str(study, records))
@@ -502,7 +526,8 @@ def _optuna_worker(args):
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     evaluator = Evaluator(study)
     journal = Journal(Path(out_dir) / f"journal-w{idx}-{os.getpid()}.jsonl")
-    sampler = _make_sampler(study, seed + idx, _constraints_func if study.constraints else None)
+    sampler = _make_sampler(study, seed + idx,
+                            _constraints_func if study.constraints and not _uses_set_constraint() else None)
     ostudy = optuna.load_study(study_name=study.name, storage=storage, sampler=sampler)
 
     def objective(trial):
@@ -515,7 +540,7 @@ def _optuna_worker(args):
             else:
                 values[v.name] = trial.suggest_float(v.name, v.low, v.high, log=v.log)
         rec = evaluator.evaluate(values, trial=trial.number)
-        trial.set_user_attr("constraints", [(-m if math.isfinite(m) else 1e9) for m in rec.margins.values()] or [0.0])
+        _set_optuna_constraints(trial, study, rec)
         trial.set_user_attr("evaluated", True)
         journal.append(rec)
         if rec.status != "ok":

@@ -1,0 +1,254 @@
+"""The study machinery: YAML validation, runners on an analytic problem, determinism, resume."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+import yaml
+
+from parasynth.cli import load_plugins
+from parasynth.study import StudyError, load_study, run_study
+
+PLUGIN = str(Path(__file__).parent / "data" / "analytic_plugin.py")
+load_plugins(PLUGIN)
+
+BASE = {
+    "name": "analytic",
+    "mechanism": "5pus_upu",
+    "variables": [
+        {"name": "link_length", "low": "150 mm", "high": "250 mm"},
+        {"name": "slider_radius", "low": "100 mm", "high": "180 mm"},
+    ],
+    "objectives": [{"name": "test_quadratic", "goal": "maximize"}],
+    "optimizer": {"kind": "nlopt", "algorithm": "LN_COBYLA", "maxeval": 80, "xtol_rel": 1e-6},
+}
+
+
+def study_of(**changes):
+    d = json.loads(json.dumps(BASE))
+    for k, v in changes.items():
+        d[k] = v
+    return load_study(yaml.safe_dump(d), is_text=True)
+
+
+# -- validation -------------------------------------------------------------------------------------
+def error_of(data) -> str:
+    with pytest.raises(StudyError) as e:
+        load_study(yaml.safe_dump(data), is_text=True)
+    return str(e.value)
+
+
+def test_round_trip_resolved_yaml():
+    s1 = study_of()
+    s2 = load_study(s1.to_yaml(), is_text=True)
+    assert s1.variables == s2.variables
+    assert s1.objectives == s2.objectives
+    assert s2.variables[0].low == pytest.approx(0.150)
+    assert s2.variables[1].high == pytest.approx(0.180)
+
+
+def test_units_are_converted():
+    s = study_of(fixed={"sphere_max": "30 deg", "link_diameter": "8 mm"})
+    assert s.fixed["sphere_max"] == pytest.approx(np.deg2rad(30))
+    assert s.fixed["link_diameter"] == pytest.approx(0.008)
+
+
+def test_unknown_objective_lists_valid_names():
+    msg = error_of({**BASE, "objectives": [{"name": "volumee"}]})
+    assert "objectives[0].name" in msg and "workspace_volume" in msg and "test_quadratic" in msg
+
+
+def test_bare_number_where_unit_required():
+    d = json.loads(json.dumps(BASE))
+    d["variables"][0]["low"] = 150
+    msg = error_of(d)
+    assert "variables[0].low" in msg and "unit" in msg
+
+
+def test_empty_bounds():
+    d = json.loads(json.dumps(BASE))
+    d["variables"][0]["low"] = "250 mm"
+    msg = error_of(d)
+    assert "variables[0]" in msg and "low" in msg and "high" in msg
+
+
+def test_unknown_key_names_path_and_allowed():
+    d = json.loads(json.dumps(BASE))
+    d["variables"][1]["lo"] = "1 mm"
+    msg = error_of(d)
+    assert "variables[1].lo" in msg and "low" in msg
+
+
+def test_unknown_parameter_lists_valid():
+    d = json.loads(json.dumps(BASE))
+    d["variables"][0]["name"] = "link_lenght"
+    msg = error_of(d)
+    assert "variables[0].name" in msg and "link_length" in msg
+
+
+def test_wrong_dimension():
+    d = json.loads(json.dumps(BASE))
+    d["variables"][0]["high"] = "3 kg"
+    assert "not a length" in error_of(d)
+
+
+def test_unknown_mechanism_and_setting():
+    assert "available" in error_of({**BASE, "mechanism": "nope"})
+    d = json.loads(json.dumps(BASE))
+    d["objectives"][0]["settings"] = {"colour": 1}
+    msg = error_of(d)
+    assert "objectives[0].settings.colour" in msg and "delay" in msg
+
+
+def test_nlopt_refuses_two_objectives():
+    d = json.loads(json.dumps(BASE))
+    d["objectives"].append({"name": "test_two"})
+    assert "optuna" in error_of(d)
+
+
+def test_missing_file():
+    with pytest.raises(StudyError, match="does not exist"):
+        load_study("/nonexistent/study.yaml")
+
+
+# -- runners on the analytic problem ------------------------------------------------------------------
+def test_nlopt_finds_known_optimum(tmp_path):
+    res = run_study(study_of(), out_dir=tmp_path / "r", progress=False)
+    t = res.table[res.table.source == "run"]
+    best = t.loc[t["test_quadratic"].idxmax()]
+    assert best["link_length"] == pytest.approx(0.2, abs=1e-3)
+    assert best["slider_radius"] == pytest.approx(0.14, abs=1e-3)
+    assert (tmp_path / "r" / "results.csv").exists() and (tmp_path / "r" / "study.yaml").exists()
+
+
+def test_nlopt_with_constraint_moves_to_bound(tmp_path):
+    s = study_of(constraints=[{"name": "test_link_length", "max": "190 mm"}])
+    res = run_study(s, out_dir=tmp_path / "r", progress=False)
+    t = res.table[(res.table.source == "run") & res.table.feasible]
+    best = t.loc[t["test_quadratic"].idxmax()]
+    assert best["link_length"] == pytest.approx(0.19, abs=2e-3)
+    assert best["slider_radius"] == pytest.approx(0.14, abs=2e-3)
+    assert (t["test_link_length_margin"] >= 0).all()
+
+
+def test_optuna_finds_known_optimum(tmp_path):
+    s = study_of(optimizer={"kind": "optuna", "algorithm": "tpe", "n_trials": 60, "seed": 1})
+    res = run_study(s, out_dir=tmp_path / "r", progress=False)
+    t = res.table[res.table.source == "run"]
+    assert len(t) == 60
+    best = t.loc[t["test_quadratic"].idxmax()]
+    # TPE is a sampler, not a local solver: it gets close, not exact.
+    assert abs(best["link_length"] - 0.2) < 0.01 and abs(best["slider_radius"] - 0.14) < 0.01
+    assert (tmp_path / "r" / "optuna.db").exists()
+
+
+def test_optuna_multiobjective_and_failures_recorded(tmp_path):
+    s = study_of(
+        objectives=[{"name": "test_quadratic"}, {"name": "test_two"}],
+        constraints=[{"name": "test_fail_above", "max": "1 m"}],
+        optimizer={"kind": "optuna", "algorithm": "nsga2", "n_trials": 30, "seed": 0},
+    )
+    res = run_study(s, out_dir=tmp_path / "r", progress=False)
+    t = res.table[res.table.source == "run"]
+    assert len(t) == 30
+    failed = t[t.status == "failed"]
+    assert len(failed) > 0 and (failed["link_length"] > 0.21).all()
+    assert failed["error"].str.contains("deliberate failure").all()
+    assert not failed["feasible"].any()
+
+
+def test_sweep_and_reference(tmp_path):
+    s = study_of(
+        variables=[{"name": "link_length", "values": ["165 mm", "185 mm", "205 mm", "225 mm"]}],
+        optimizer={"kind": "sweep"},
+        reference={"link_length": "205 mm"},
+    )
+    res = run_study(s, out_dir=tmp_path / "r", progress=False)
+    t = res.table
+    run = t[t.source == "run"]
+    assert sorted(run["link_length"].round(6)) == [0.165, 0.185, 0.205, 0.225]
+    expected = -((run["link_length"] - 0.2) ** 2) - (0.135 - 0.14) ** 2
+    assert np.allclose(run["test_quadratic"], expected)
+    assert (t.source == "reference").sum() == 1
+
+
+def test_determinism_same_table(tmp_path):
+    s = study_of(optimizer={"kind": "optuna", "algorithm": "tpe", "n_trials": 15, "seed": 3})
+    a = run_study(s, out_dir=tmp_path / "a", progress=False).table.drop(columns="time_s")
+    b = run_study(s, out_dir=tmp_path / "b", progress=False).table.drop(columns="time_s")
+    pd.testing.assert_frame_equal(a, b)
+
+
+def test_existing_dir_needs_resume(tmp_path):
+    s = study_of()
+    run_study(s, out_dir=tmp_path / "r", progress=False)
+    with pytest.raises(StudyError, match="--resume"):
+        run_study(s, out_dir=tmp_path / "r", progress=False)
+
+
+def test_resume_refuses_changed_study(tmp_path):
+    run_study(study_of(), out_dir=tmp_path / "r", progress=False)
+    other = study_of(optimizer={"kind": "nlopt", "algorithm": "LN_COBYLA", "maxeval": 10})
+    with pytest.raises(StudyError, match="differs"):
+        run_study(other, out_dir=tmp_path / "r", resume=True, progress=False)
+
+
+def test_nlopt_resume_replays_without_repeating(tmp_path):
+    s = study_of()
+    run_study(s, out_dir=tmp_path / "r", progress=False, n_trials=20)
+    first = (tmp_path / "r" / "journal.jsonl").read_text().splitlines()
+    res = run_study(s, out_dir=tmp_path / "r", resume=True, progress=False, n_trials=60)
+    lines = (tmp_path / "r" / "journal.jsonl").read_text().splitlines()
+    values = [json.dumps(json.loads(l)["values"], sort_keys=True) for l in lines]
+    assert len(values) == len(set(values)), "a design was evaluated twice"
+    assert len(first) == 20 and lines[:20] == first and res.n_new == len(lines) - 20 > 0
+    # The resumed run follows exactly the path of an uninterrupted one.
+    fresh = run_study(s, out_dir=tmp_path / "f", progress=False, n_trials=60)
+    fresh_values = [json.dumps(json.loads(l)["values"], sort_keys=True)
+                    for l in (tmp_path / "f" / "journal.jsonl").read_text().splitlines()]
+    assert fresh_values == values
+
+
+@pytest.mark.parametrize("kind", ["optuna", "sweep"])
+def test_resume_after_killed_subprocess(tmp_path, kind):
+    d = json.loads(json.dumps(BASE))
+    d["objectives"] = [{"name": "test_quadratic", "settings": {"delay": 0.15}}]
+    if kind == "optuna":
+        d["optimizer"] = {"kind": "optuna", "algorithm": "tpe", "n_trials": 24, "seed": 0}
+        total = 24
+    else:
+        d["variables"] = [{"name": "link_length", "low": "150 mm", "high": "250 mm", "num": 24}]
+        d["optimizer"] = {"kind": "sweep"}
+        total = 24
+    path = tmp_path / "study.yaml"
+    path.write_text(yaml.safe_dump(d))
+    out = tmp_path / "run"
+    env = {**os.environ, "PARASYNTH_PLUGINS": PLUGIN}
+    cmd = [sys.executable, "-m", "parasynth.cli", "run", str(path), "--out", str(out), "--quiet", "--no-report"]
+    proc = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    journal = out / "journal.jsonl"
+    deadline = time.time() + 60
+    while time.time() < deadline:
+        if journal.exists() and len(journal.read_text().splitlines()) >= 6:
+            break
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    done_before = [json.loads(l) for l in journal.read_text().splitlines() if l.strip()]
+    assert 6 <= len(done_before) < total, "the run was not interrupted mid-way"
+    r = subprocess.run(cmd + ["--resume"], env=env, capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    recs = [json.loads(l) for l in journal.read_text().splitlines() if l.strip()]
+    keys = [json.dumps(x["values"], sort_keys=True) for x in recs]
+    assert len(recs) == total
+    assert len(set(keys)) == total, "a completed design was repeated"
+    assert keys[: len(done_before)] == [json.dumps(x["values"], sort_keys=True) for x in done_before]
+    table = pd.read_csv(out / "results.csv")
+    assert len(table[table.source == "run"]) == total
