@@ -5,6 +5,7 @@ Commands
 run STUDY.yaml       run a design study (sweep, NLopt or Optuna) and write its results
 validate STUDY.yaml  check a study file and print it resolved to SI
 evaluate STUDY.yaml  evaluate one design of a study (all objectives and constraints)
+report RUN_DIR       write index.html, report.md and pareto.csv for a run
 list                 mechanisms, objectives, optimisers
 analyze NAME         kinematic analysis of a mechanism at its home pose and a pose sample
 """
@@ -106,13 +107,25 @@ def cmd_run(args) -> int:
               f"parasynth run {args.study} --resume" + (f" --out {args.out}" if args.out else ""), file=sys.stderr)
         return 130
     if not args.no_report:
+        from .report import ReportError, write_report
+
         try:
-            from .report import write_report
-        except ImportError:
-            write_report = None
-        if write_report is not None:
             rdir = write_report(res.out_dir, out=args.report_dir)
             print(f"report: {rdir / 'index.html'}")
+        except ReportError as e:
+            print(f"no report: {e}", file=sys.stderr)
+    return 0
+
+
+def cmd_report(args) -> int:
+    from .report import ReportError, write_report
+
+    try:
+        rdir = write_report(args.run_dir, out=args.out)
+    except ReportError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    print(f"report: {rdir / 'index.html'} (and report.md, pareto.csv)")
     return 0
 
 
@@ -232,6 +245,10 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--no-report", action="store_true", help="do not write the report at the end")
     p.add_argument("--report-dir", help="report directory (default reports/<study name>/)")
     p.set_defaults(func=cmd_run)
+    p = sub.add_parser("report", help="write the report of a run directory")
+    p.add_argument("run_dir", help="run directory (runs/<study name>/)")
+    p.add_argument("--out", help="report directory (default reports/<study name>/)")
+    p.set_defaults(func=cmd_report)
     p = sub.add_parser("validate", help="check a study file")
     p.add_argument("study")
     p.set_defaults(func=cmd_validate)

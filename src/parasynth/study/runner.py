@@ -49,11 +49,13 @@ class RunResult:
     n_total: int
     elapsed_s: float
     interrupted: bool = False
+    new_records: list | None = None
 
     def summary(self, study: ResolvedStudy) -> str:
         t = self.table
         run = t[t["source"] == "run"] if len(t) else t
-        lines = [f"study {study.name!r}: {len(run)} designs evaluated ({self.n_new} in this run, "
+        n_new_run = sum(1 for r in self.new_records if r.source == "run") if self.new_records else self.n_new
+        lines = [f"study {study.name!r}: {len(run)} designs evaluated ({n_new_run} in this run, "
                  f"{self.elapsed_s:.1f} s); {int(run['feasible'].sum()) if len(run) else 0} feasible, "
                  f"{int((run['status'] == 'failed').sum()) if len(run) else 0} failed"]
         best = best_designs(study, run, k=3)
@@ -264,7 +266,7 @@ def run_study(study: ResolvedStudy, out_dir=None, resume: bool = False, n_trials
     final = None
     if not interrupted and study.evaluation.get("final_samples") and study.evaluation.get("final_top", 0) > 0:
         final = reevaluate_best(study, evaluator, table, out_dir)
-    return RunResult(out_dir, table, final, len(new), len(records), time.perf_counter() - t0, interrupted)
+    return RunResult(out_dir, table, final, len(new), len(records), time.perf_counter() - t0, interrupted, new)
 
 
 def _sweep_designs(study: ResolvedStudy) -> list[dict]:
@@ -458,7 +460,7 @@ def _uses_set_constraint() -> bool:
 def _run_optuna(study, evaluator, records, record, progress, n_trials, out_dir, resume):
     import optuna
 
-    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    optuna.logging.set_verbosity(optuna.logging.ERROR)
     opt_spec = study.optimizer
     total = n_trials or opt_spec.n_trials or 50
     seed = opt_spec.seed if opt_spec.seed is not None else study.evaluation["seed"]
@@ -523,7 +525,7 @@ def _optuna_worker(args):
     study = load_study(study_yaml, is_text=True)
     import optuna
 
-    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    optuna.logging.set_verbosity(optuna.logging.ERROR)
     evaluator = Evaluator(study)
     journal = Journal(Path(out_dir) / f"journal-w{idx}-{os.getpid()}.jsonl")
     sampler = _make_sampler(study, seed + idx,
