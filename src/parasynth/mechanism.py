@@ -146,11 +146,25 @@ class Mechanism:
         when an analysis is not given explicit ranges."""
         return {}
 
-    def pose(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # pragma: no cover
+    def _pose(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # pragma: no cover
         raise NotImplementedError
 
-    def twist_map(self, X: np.ndarray) -> np.ndarray:  # pragma: no cover
+    def _twist_map(self, X: np.ndarray) -> np.ndarray:  # pragma: no cover
         raise NotImplementedError
+
+    def pose(self, X) -> tuple[np.ndarray, np.ndarray]:
+        """Platform reference point (N, 3) and orientation (N, 3, 3) in the base frame for task
+        coordinates ``X`` (N, n_task) or (n_task,), including dependent coordinates."""
+        Xa, single = self._poses(X)
+        p, R = self._pose(Xa)
+        return (p[0], R[0]) if single else (p, R)
+
+    def twist_map(self, X) -> np.ndarray:
+        """Matrix (N, 6, n_task) mapping task-coordinate rates to the platform twist
+        ``(v_P, omega)`` in the base frame."""
+        Xa, single = self._poses(X)
+        T = self._twist_map(Xa)
+        return T[0] if single else T
 
     def pose_valid(self, X: np.ndarray) -> np.ndarray:
         """Poses at which the parametrisation itself is defined (e.g. tan(theta) finite)."""
@@ -173,20 +187,19 @@ class Mechanism:
         return f"<{type(self).__name__} {self.name!r} task={self.task_coordinates} actuators={self.actuators}>"
 
     def _poses(self, X) -> tuple[np.ndarray, bool]:
-        X = np.asarray(X, dtype=float)
-        single = X.ndim == 1
-        if single:
-            X = X[None, :]
+        X0 = np.asarray(X, dtype=float)
+        single = X0.ndim == 1
+        X = X0[None, :] if single else X0
         if X.ndim != 2 or X.shape[1] != self.n_task:
             raise ValueError(
                 f"{self.name}: poses must have shape (N, {self.n_task}) or ({self.n_task},) "
-                f"with columns {self.task_coordinates}; got shape {np.shape(X)}"
+                f"with columns {self.task_coordinates}; got shape {X0.shape}"
             )
         return X, single
 
     def _neutral_refs(self, legs: list[Leg]) -> list[Leg]:
         """Set each leg's neutral joint directions to its direction at the home pose."""
-        p, R = self.pose(self.home[None, :])
+        p, R = self._pose(self.home[None, :])
         out = []
         for leg in legs:
             st = leg.solve(p, R)
@@ -201,7 +214,7 @@ class Mechanism:
         Xa, _ = self._poses(X)
         valid = self.pose_valid(Xa)
         Xs = np.where(valid[:, None], Xa, self.home)
-        p, R = self.pose(Xs)
+        p, R = self._pose(Xs)
         states = [leg.solve(p, R) for leg in self.legs]
         for st in states:
             st.reachable = st.reachable & valid
@@ -251,7 +264,7 @@ class Mechanism:
         W, scale = self._actuation_rows(states, p)
         with np.errstate(divide="ignore", invalid="ignore"):
             rows = W / scale[..., None]
-        J = rows @ self.twist_map(np.where(reachable[:, None], Xa, self.home))
+        J = rows @ self._twist_map(np.where(reachable[:, None], Xa, self.home))
         J[~reachable] = np.nan
         return J[0] if single else J
 
@@ -326,7 +339,8 @@ class Mechanism:
 
     # -- forward kinematics ----------------------------------------------------------------------
     def forward_kinematics(self, actuators, guess=None, fixed: dict | None = None,
-                           tol: float = 1e-12, max_iter: int = 200) -> np.ndarray:
+                           tol: float = 1e-12, max_iter: int = 200,
+                           residual_tol: float = 1e-6) -> np.ndarray:
         """Task coordinates for actuator values, by damped Gauss-Newton on the inverse
         kinematics (Levenberg-Marquardt, batched over samples).
 
@@ -338,6 +352,11 @@ class Mechanism:
         pose of the model (over-determined models) or when the actuators do not determine the
         pose there (a singular Jacobian); raises ``ValueError`` for bad shapes, unknown fixed
         coordinates, or when fewer actuators than free coordinates remain.
+
+        ``tol`` is the relative convergence tolerance of the actuator residual; a solution is
+        accepted when the residual is below ``residual_tol`` (m, default 1 um): with more
+        actuators than free coordinates, actuator values rounded as in a paper's table are
+        slightly inconsistent and cannot be met exactly.
         """
         q = np.asarray(actuators, dtype=float)
         single = q.ndim == 1
@@ -404,7 +423,7 @@ class Mechanism:
             if np.all(done):
                 break
         res = np.sqrt(cost)
-        failed = np.flatnonzero(res > max(1e3 * tol, 1e-9) * qscale)
+        failed = np.flatnonzero(~(res <= residual_tol))
         if failed.size:
             over = self.n_actuators > len(free)
             why = (" (more actuators than free coordinates: the values may be inconsistent with any pose of this model)"
@@ -538,7 +557,7 @@ class Mechanism:
         Xa, _ = self._poses(X)
         valid = self.pose_valid(Xa)
         Xs = np.where(valid[:, None], Xa, self.home)
-        p, R = self.pose(Xs)
+        p, R = self._pose(Xs)
         states = [leg.solve(p, R) for leg in self.legs]
         reachable = valid & np.logical_and.reduce([st.reachable for st in states])
         act = np.stack([st.actuator for leg, st in zip(self.legs, states) if leg.is_actuated], axis=-1)
@@ -622,3 +641,16 @@ def check_points(field_name: str, value, n: int, dim: int) -> tuple:
     if not np.all(np.isfinite(a)):
         raise ValueError(f"{field_name} must be finite, got {value!r}")
     return tuple(tuple(float(c) for c in row) for row in a)
+
+
+def check_angles(field_name: str, value, n: int) -> tuple:
+    """Validate a list of ``n`` finite angles (rad)."""
+    try:
+        a = np.asarray(value, dtype=float) if not isinstance(value, str) else None
+    except (TypeError, ValueError):
+        a = None
+    if a is None or a.shape != (n,):
+        raise ValueError(f"{field_name} must be a list of {n} angles (rad), got {value!r}")
+    if not np.all(np.isfinite(a)):
+        raise ValueError(f"{field_name} must be finite, got {value!r}")
+    return tuple(float(x) for x in a)

@@ -88,7 +88,8 @@ def rot_axis(axis: np.ndarray, angle) -> np.ndarray:
 #:   are given in the order (theta, phi, psi).
 #: * ``"yx"``   -- 5-DOF paper (2021), eq. (7) with gamma = 0: ``R = Ry(beta) Rx(alpha)``;
 #:   angles in the order (beta, alpha).
-#: * ``"xyz"``, ``"zyx"`` -- the usual Cardan sequences, for user models.
+#: * ``"yxy"``  -- the 5-PUS/UPU model's limb-consistent form of eq. (7) (see its docstring).
+#: * ``"xyz"``, ``"zyx"``, ``"zxz"`` -- the usual sequences, for user models.
 EULER_CONVENTIONS = {
     "zyz": "zyz",
     "yzx": "yzx",
@@ -96,6 +97,7 @@ EULER_CONVENTIONS = {
     "xyz": "xyz",
     "zyx": "zyx",
     "zxz": "zxz",
+    "yxy": "yxy",
 }
 
 

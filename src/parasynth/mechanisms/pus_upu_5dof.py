@@ -7,8 +7,19 @@ U-P-U constraining limb from the centre of the base to the centre of the platfor
 
 Frames: base frame O_p-XYZ with Z along the slider screws; the slider coordinate is the Z of
 the universal-joint centre, ``s_i = Z_i^U`` (eq. (11) with its positive sign: the sliders are
-above the platform). Platform frame o_b-xyz at the platform centre. Orientation, eq. (7) with
-gamma = 0: ``R = Ry(beta) Rx(alpha)``.
+above the platform). Platform frame o_b-xyz at the platform centre.
+
+Orientation. Eq. (7) writes the platform orientation as ``Ry(beta) Rx(alpha)`` with gamma = 0
+and treats x, y, z, alpha, beta as independent. A real U-P-U constraining limb cannot hold
+that family at every position: with its base axis along Y, its two middle axes parallel and
+its platform axis along the platform's y (the paper's Figure 3), the platform orientation is
+``Ry(q1) Rx(alpha) Ry(q4)`` where ``q1 = atan2(x - x_B, z - z_B)`` is fixed by the limb's
+direction. The model therefore uses ``R = Ry(q1) Rx(alpha) Ry(beta - q1)``: alpha is the
+rotation about the limb's cross axis and beta the total rotation about y. This equals eq. (7)
+exactly whenever alpha = 0 (R = Ry(beta): the paper's fixed-posture workspaces and its test
+trajectory) or beta = q1, and keeps the kinematic model consistent with the limb's constraint
+(its constraint wrench does no work on any motion of the model). Elsewhere the two differ by a
+rotation of second order, about alpha * (beta - q1).
 
 Schemes (parameter ``platform``):
 
@@ -29,12 +40,8 @@ Assumptions where the paper is silent (all are parameters):
 * ``upu_base_z`` (-0.15 m): height of the constraining limb's base universal joint. Only the
   passive limb's length and its constraint wrench direction depend on it (at the reference
   pose its constraint is the pure couple about Z of eq. (6) whatever the height).
-* The constraining limb's universal-joint axes: base axis X, platform axis y (platform frame),
-  as in the paper's Figure 3 (the limb's screw system (6)). A real U-P-U keeps its two middle
-  axes parallel, which ties the platform's rotation about its normal to the position
-  slightly differently from the paper's gamma = 0 parametrisation of eq. (7); like the paper,
-  the model uses eq. (7) for the pose and takes the limb's instantaneous constraint wrench at
-  each pose (see docs/models/5pus_upu.md).
+* The constraining limb's universal-joint axes: base axis Y, middle axes parallel, platform
+  axis y (platform frame), as in the paper's Figure 3 (its screw system (6)); see Orientation.
 """
 
 from __future__ import annotations
@@ -46,7 +53,7 @@ import numpy as np
 
 from ..constraints import ActuatorRange, JointAngleLimit, LegInterference
 from ..legs import PUS, UPU
-from ..mechanism import Mechanism, check_finite, check_length, check_points
+from ..mechanism import Mechanism, check_angles, check_finite, check_length, check_points
 from ..spatial import euler_rate_map, euler_to_matrix
 
 __all__ = ["PUSUPU5Params", "PUSUPU5", "trajectory_eq13"]
@@ -97,9 +104,7 @@ class PUSUPU5Params:
                 f"(first scheme), got {self.platform!r}"
             )
         object.__setattr__(self, "hinge_points", check_points("5pus_upu.hinge_points", self.hinge_points, 5, 2))
-        ang = check_points("5pus_upu.slider_angles", np.asarray(self.slider_angles, dtype=float)[:, None]
-                           if np.ndim(self.slider_angles) == 1 else self.slider_angles, 5, 1)
-        object.__setattr__(self, "slider_angles", tuple(a[0] for a in ang))
+        object.__setattr__(self, "slider_angles", check_angles("5pus_upu.slider_angles", self.slider_angles, 5))
 
 
 class PUSUPU5(Mechanism):
@@ -124,7 +129,7 @@ class PUSUPU5(Mechanism):
             legs.append(PUS(f"L{i + 1}", base=base, platform=sph[i], slider_axis=[0, 0, 1],
                             link_length=P.link_length, branch=1, u_axis=tangent))
         legs.append(UPU("L6", base=[0.0, 0.0, P.upu_base_z], platform=[0.0, 0.0, 0.0],
-                        u_axis=[1.0, 0.0, 0.0], u_platform_axis=[0.0, 1.0, 0.0], passive=True))
+                        u_axis=[0.0, 1.0, 0.0], u_platform_axis=[0.0, 1.0, 0.0], passive=True))
         super().__init__(P, legs, home=[0.0, 0.0, 0.0, 0.0, 0.0], length_scale=P.slider_radius)
 
     def build_constraints(self):
@@ -147,18 +152,40 @@ class PUSUPU5(Mechanism):
         """Fixed-posture box (alpha = beta = 0) around the paper's workspace (Section 4.3), SI."""
         return {"x": (-0.15, 0.15), "y": (-0.15, 0.15), "z": (-0.30, 0.20)}
 
-    def pose(self, X):
+    def _q1(self, X):
+        """Rotation of the constraining limb's base universal joint about Y, and the partial
+        derivatives of it with respect to x and z."""
+        dx = X[:, 0]
+        dz = X[:, 2] - self.params.upu_base_z
+        r2 = dx * dx + dz * dz
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.arctan2(dx, dz), dz / r2, -dx / r2
+
+    def pose_valid(self, X):
+        ok = np.all(np.isfinite(X), axis=-1)
+        dx = np.where(ok, X[:, 0], 1.0)
+        dz = np.where(ok, X[:, 2], 1.0) - self.params.upu_base_z
+        return ok & (dx * dx + dz * dz > 1e-12)
+
+    def _pose(self, X):
         p = X[:, :3].copy()
-        R = euler_to_matrix("yx", np.stack([X[:, 4], X[:, 3]], -1))
+        q1, _, _ = self._q1(X)
+        alpha, beta = X[:, 3], X[:, 4]
+        R = euler_to_matrix("yxy", np.stack([q1, alpha, beta - q1], -1))
         return p, R
 
-    def twist_map(self, X):
+    def _twist_map(self, X):
         N = X.shape[0]
+        q1, dq1_dx, dq1_dz = self._q1(X)
+        alpha = X[:, 3]
+        E = euler_rate_map("yxy", np.stack([q1, alpha, X[:, 4] - q1], -1))  # columns: q1, alpha, (beta - q1)
         T = np.zeros((N, 6, 5))
         T[:, 0, 0] = T[:, 1, 1] = T[:, 2, 2] = 1.0
-        E = euler_rate_map("yx", np.stack([X[:, 4], X[:, 3]], -1))  # columns: beta, alpha
+        w_q1 = E[:, :, 0] - E[:, :, 2]
+        T[:, 3:, 0] = w_q1 * dq1_dx[:, None]
+        T[:, 3:, 2] = w_q1 * dq1_dz[:, None]
         T[:, 3:, 3] = E[:, :, 1]
-        T[:, 3:, 4] = E[:, :, 0]
+        T[:, 3:, 4] = E[:, :, 2]
         return T
 
 

@@ -119,7 +119,7 @@ class RPU2SPS2(Mechanism):
             x, z, psi, th = X.T
         return x, z, psi, th
 
-    def pose(self, X):
+    def _pose(self, X):
         x, z, psi, th = self._split(X)
         p = np.stack([x, np.zeros_like(x), z], axis=-1)
         R = euler_to_matrix("yzx", np.stack([th, np.zeros_like(th), psi], -1))
@@ -127,10 +127,10 @@ class RPU2SPS2(Mechanism):
 
     def pose_valid(self, X):
         ok = np.all(np.isfinite(X), axis=-1)
-        th = X[:, self.task_coordinates.index("theta")]
+        th = np.where(ok, X[:, self.task_coordinates.index("theta")], 0.0)
         return ok & (np.abs(np.cos(th)) > 1e-9)
 
-    def twist_map(self, X):
+    def _twist_map(self, X):
         x, z, psi, th = self._split(X)
         N = X.shape[0]
         E = euler_rate_map("yzx", np.stack([th, np.zeros_like(th), psi], -1))  # (N,3,3): theta, phi, psi

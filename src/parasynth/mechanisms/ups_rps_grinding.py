@@ -55,7 +55,7 @@ import numpy as np
 from ..constraints import (ActuatorRange, Constraint, JointAngleLimit, LegAxisAngle, LegInterference,
                            LegLengthRange)
 from ..legs import RPS, UPS
-from ..mechanism import Mechanism, check_finite, check_length, check_points
+from ..mechanism import Mechanism, check_angles, check_finite, check_length
 from ..spatial import euler_rate_map, euler_to_matrix
 
 __all__ = ["UPSRPSGrindingParams", "UPSRPSGrinding"]
@@ -107,9 +107,7 @@ class UPSRPSGrindingParams:
             raise ValueError(f"4ups_1rps.l_min must be < l_max, got {self.l_min} >= {self.l_max}")
         if not self.d2_min < self.d2_max:
             raise ValueError(f"4ups_1rps.d2_min must be < d2_max, got {self.d2_min} >= {self.d2_max}")
-        ang = check_points("4ups_1rps.platform_angles", np.reshape(np.asarray(self.platform_angles, dtype=float), (-1, 1))
-                           if np.ndim(self.platform_angles) == 1 else self.platform_angles, 4, 1)
-        object.__setattr__(self, "platform_angles", tuple(a[0] for a in ang))
+        object.__setattr__(self, "platform_angles", check_angles("4ups_1rps.platform_angles", self.platform_angles, 4))
 
     @property
     def u_angles(self) -> np.ndarray:
@@ -154,11 +152,11 @@ class UPSRPSGrinding(Mechanism):
         return {"x": (-0.5, 0.5), "y": (0.0, 0.6), "alpha": (-np.pi, np.pi), "beta": (0.0, np.pi / 4),
                 "gamma": (-np.pi, np.pi)}
 
-    def pose(self, X):
+    def _pose(self, X):
         p = np.stack([X[:, 0], X[:, 1], np.zeros(X.shape[0])], -1)
         return p, euler_to_matrix("zyz", X[:, 2:5])
 
-    def twist_map(self, X):
+    def _twist_map(self, X):
         N = X.shape[0]
         T = np.zeros((N, 6, 5))
         T[:, 0, 0] = T[:, 1, 1] = 1.0

@@ -1,0 +1,97 @@
+"""Helpers shared by the test modules: model configurations, pose sampling near a
+reference pose, finite differences and a few independent geometric utilities.
+
+Nothing here calls the code under test to produce an expected value; the helpers only
+build inputs (poses, seeds) and independent reference quantities (finite differences,
+rotation matrices written out by hand).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+import parasynth
+
+#: (registry name, parameters) of every configuration the generic tests run on.
+MODEL_CONFIGS = [
+    ("4ups_1rps", {}),
+    ("2rpu_2sps", {}),
+    ("2rpu_2sps", {"coupled": False}),
+    ("5pus_upu", {}),
+    ("5pus_upu", {"platform": "pentagonal"}),
+]
+MODEL_IDS = ["4ups_1rps", "2rpu_2sps-coupled", "2rpu_2sps-uncoupled", "5pus_upu-rect", "5pus_upu-pent"]
+
+_CACHE: dict = {}
+
+
+def load(name: str, params: dict):
+    """Load (and cache) a model; the models are immutable so sharing them is safe."""
+    key = (name, tuple(sorted(params.items())))
+    if key not in _CACHE:
+        _CACHE[key] = parasynth.load_mechanism(name, **params)
+    return _CACHE[key]
+
+
+def spread(mech) -> np.ndarray:
+    """Half-width of the sampling box around the centre pose: 0.15 rad for angles,
+    20 mm for lengths."""
+    return np.array([0.15 if c in mech.angular_coordinates else 0.02 for c in mech.task_coordinates])
+
+
+def centre(mech) -> np.ndarray:
+    """Centre of the sampling box. For the first (pentagonal) 5-PUS/UPU scheme the home pose
+    is the paper's structural singularity, so the box is moved away from it."""
+    X0 = np.array(mech.home, dtype=float)
+    if mech.name == "5pus_upu" and mech.params.platform == "pentagonal":
+        X0 = X0 + np.array([0.01, -0.01, 0.0, 0.2, -0.2])
+    return X0
+
+
+def sample_poses(mech, rng: np.random.Generator, n: int, scale: float = 1.0) -> np.ndarray:
+    return centre(mech) + scale * spread(mech) * rng.uniform(-1.0, 1.0, size=(n, mech.n_task))
+
+
+def fd_steps(mech) -> np.ndarray:
+    """Central-difference steps: 1e-6 rad for angles and 1e-6 m for lengths."""
+    return np.full(mech.n_task, 1e-6)
+
+
+def central_difference(f, X: np.ndarray, h: np.ndarray) -> np.ndarray:
+    """d f / d X by central differences for a batched f: (N, n) -> (N, ...)."""
+    cols = []
+    for j in range(X.shape[1]):
+        e = np.zeros(X.shape[1])
+        e[j] = h[j]
+        cols.append((f(X + e) - f(X - e)) / (2 * h[j]))
+    return np.stack(cols, axis=-1)
+
+
+def vee(S: np.ndarray) -> np.ndarray:
+    """Axial vector of the skew-symmetric part of 3x3 matrices (..., 3, 3)."""
+    A = 0.5 * (S - np.swapaxes(S, -1, -2))
+    return np.stack([A[..., 2, 1], A[..., 0, 2], A[..., 1, 0]], axis=-1)
+
+
+def random_rotation(rng: np.random.Generator) -> np.ndarray:
+    """Uniform random rotation (QR of a Gaussian matrix with the sign fixed)."""
+    q, r = np.linalg.qr(rng.normal(size=(3, 3)))
+    q = q * np.sign(np.diag(r))
+    if np.linalg.det(q) < 0:
+        q[:, 0] = -q[:, 0]
+    return q
+
+
+def closest_point_to_lines(points: np.ndarray, dirs: np.ndarray):
+    """Least-squares point nearest to the lines (point_i, dir_i) and the largest distance
+    from it to any of the lines."""
+    d = dirs / np.linalg.norm(dirs, axis=1, keepdims=True)
+    A = np.zeros((3, 3))
+    b = np.zeros(3)
+    for p, u in zip(points, d):
+        M = np.eye(3) - np.outer(u, u)
+        A += M
+        b += M @ p
+    c = np.linalg.lstsq(A, b, rcond=None)[0]
+    dist = [np.linalg.norm((np.eye(3) - np.outer(u, u)) @ (c - p)) for p, u in zip(points, d)]
+    return c, max(dist)

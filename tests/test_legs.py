@@ -1,0 +1,270 @@
+"""Leg types (parasynth.legs): reciprocity of the analytic actuation and constraint wrenches
+to the legs' joint twists, and the PUS slider inverse kinematics.
+
+Legs are built with random anchors and axes, at random poses that satisfy each leg's
+geometric conditions (planar legs in their plane, PUS spheres within reach of the slider).
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from _support import random_rotation
+from parasynth.legs import PUS, RPS, RPU, SPS, UPS, UPU
+
+#: Freedoms per joint letter (independent of parasynth.legs.JOINT_DOF).
+DOF = {"R": 1, "P": 1, "U": 2, "S": 3}
+#: Joint sequence, index of the actuated (or, for passive legs, the prismatic) joint, and the
+#: number of constraint wrenches each leg type imposes (6 minus the rank of its twists).
+SPEC = {
+    "SPS": ("SPS", 1, 0),
+    "UPS": ("UPS", 1, 0),
+    "PUS": ("PUS", 0, 0),
+    "RPS": ("RPS", 1, 1),
+    "RPU": ("RPU", 1, 2),
+    "UPU": ("UPU", 1, 1),
+}
+KINDS = sorted(SPEC)
+N = 8
+SETTINGS = settings(max_examples=25, deadline=None)
+
+
+def _unit(v):
+    return v / np.linalg.norm(v, axis=-1, keepdims=True)
+
+
+def _rotation_taking(a, b):
+    """Rotation matrix taking unit vector a onto unit vector b (Rodrigues, written here)."""
+    v = np.cross(a, b)
+    s, c = np.linalg.norm(v), np.dot(a, b)
+    if s < 1e-15:
+        return np.eye(3)
+    k = v / s
+    K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    return np.eye(3) + s * K + (1 - c) * K @ K
+
+
+def make_leg_and_poses(kind: str, rng: np.random.Generator, n: int = N, branch: int = 1):
+    """A random leg of type ``kind`` and n poses (p, R) it can reach."""
+    base = rng.uniform(-0.5, 0.5, 3)
+    plat = rng.uniform(-0.2, 0.2, 3)
+    R = np.stack([random_rotation(rng) for _ in range(n)])
+    p = rng.uniform(-0.3, 0.3, (n, 3)) + np.array([0.0, 0.0, 0.6])
+    if kind == "SPS":
+        leg = SPS("leg", base=base, platform=plat)
+    elif kind == "UPS":
+        leg = UPS("leg", base=base, platform=plat, u_axis=_unit(rng.normal(size=3)))
+    elif kind == "UPU":
+        leg = UPU("leg", base=base, platform=plat, u_axis=_unit(rng.normal(size=3)),
+                  u_platform_axis=_unit(rng.normal(size=3)), passive=bool(rng.integers(2)))
+    elif kind == "PUS":
+        e = _unit(rng.normal(size=3))
+        L = 0.3
+        leg = PUS("leg", base=base, platform=plat, slider_axis=e, link_length=L, branch=branch,
+                  u_axis=_unit(np.cross(e, rng.normal(size=3))))
+        # Put the universal joint somewhere on the slider and the sphere at distance L from
+        # it, on the side required by the branch, with the link well away from normal to e.
+        for i in range(n):
+            while True:
+                d = _unit(rng.normal(size=3))
+                if -branch * np.dot(d, e) > 0.3:
+                    break
+            U = base + rng.uniform(-0.2, 0.2) * e
+            S = U + L * d
+            p[i] = S - R[i] @ plat
+    elif kind in ("RPS", "RPU"):
+        r = _unit(rng.normal(size=3))
+        if kind == "RPS":
+            leg = RPS("leg", base=base, platform=plat, r_axis=r, passive=bool(rng.integers(2)))
+        else:
+            u = _unit(rng.normal(size=3))
+            leg = RPU("leg", base=base, platform=plat, r_axis=r, u_platform_axis=u)
+            for i in range(n):  # turn R so that R u is normal to r
+                v = R[i] @ u
+                w = _unit(v - np.dot(v, r) * r)
+                R[i] = _rotation_taking(v, w) @ R[i]
+        A = p + np.einsum("nij,j->ni", R, plat)
+        p = p - np.outer((A - base) @ r, r)  # platform anchor into the leg's plane
+    else:  # pragma: no cover
+        raise AssertionError(kind)
+    return leg, p, R
+
+
+def _actuated_twist_index(kind: str) -> int:
+    joints, act, _ = SPEC[kind]
+    return sum(DOF[j] for j in joints[:act])
+
+
+def _twist_scale(P, st):
+    """Typical size of the twist moments (lever arms), for absolute tolerances."""
+    return 1.0 + np.max(np.linalg.norm(st.platform_point - P, axis=-1)) + np.max(
+        np.linalg.norm(st.base_point - P, axis=-1))
+
+
+@pytest.mark.parametrize("kind", KINDS)
+@SETTINGS
+@given(seed=st.integers(0, 2**32 - 1))
+def test_leg_geometry_and_twist_count(kind, seed):
+    rng = np.random.default_rng(seed)
+    leg, p, R = make_leg_and_poses(kind, rng)
+    state = leg.solve(p, R)
+    assert np.all(state.reachable)
+    A = p + np.einsum("nij,j->ni", R, leg.platform)
+    np.testing.assert_allclose(state.platform_point, A, atol=1e-14)
+    np.testing.assert_allclose(np.linalg.norm(state.direction, axis=1), 1.0, atol=1e-12)
+    d = state.platform_point - state.base_point
+    np.testing.assert_allclose(np.linalg.norm(d, axis=1), state.length, rtol=1e-12)
+    np.testing.assert_allclose(d, state.direction * state.length[:, None], atol=1e-12)
+    if kind != "PUS":
+        # telescopic legs: the actuator (or free slide) is the anchor distance
+        np.testing.assert_allclose(state.actuator, np.linalg.norm(A - leg.base, axis=1), rtol=1e-12)
+    T = leg.joint_twists(state, p)
+    joints = SPEC[kind][0]
+    assert T.shape == (N, sum(DOF[j] for j in joints), 6)
+
+
+@pytest.mark.parametrize("kind", KINDS)
+@SETTINGS
+@given(seed=st.integers(0, 2**32 - 1))
+def test_actuation_wrench_reciprocal_to_passive_joints_only(kind, seed):
+    rng = np.random.default_rng(seed)
+    leg, p, R = make_leg_and_poses(kind, rng)
+    state = leg.solve(p, R)
+    P = p + rng.normal(scale=0.1, size=p.shape)  # any reference point works
+    T = leg.joint_twists(state, P)
+    w, rate_scale = leg.actuation_wrench(state, P)
+    assert w.shape == (N, 6)
+    power = np.einsum("nj,nkj->nk", w, T)
+    k_act = _actuated_twist_index(kind)
+    passive = np.delete(power, k_act, axis=1)
+    np.testing.assert_allclose(passive, 0.0, atol=1e-12 * _twist_scale(P, state))
+    # The actuated freedom is not annihilated; its power is the leg's transmission scale
+    # (1 for a telescopic leg, n . e for a slider).
+    assert np.all(np.abs(power[:, k_act]) > 0.1)
+    np.testing.assert_allclose(power[:, k_act], rate_scale, atol=1e-12)
+    if kind == "PUS":
+        np.testing.assert_allclose(rate_scale, state.direction @ leg.slider_axis, atol=1e-14)
+    else:
+        np.testing.assert_allclose(rate_scale, 1.0, atol=1e-14)
+
+
+@pytest.mark.parametrize("kind", KINDS)
+@SETTINGS
+@given(seed=st.integers(0, 2**32 - 1))
+def test_constraint_wrenches_reciprocal_to_all_joints_and_complete(kind, seed):
+    rng = np.random.default_rng(seed)
+    leg, p, R = make_leg_and_poses(kind, rng)
+    state = leg.solve(p, R)
+    P = p + rng.normal(scale=0.1, size=p.shape)
+    T = leg.joint_twists(state, P)
+    C = leg.constraint_wrenches(state, P)
+    n_c = SPEC[kind][2]
+    assert C.shape == (N, n_c, 6)
+    np.testing.assert_allclose(np.einsum("ncj,nkj->nck", C, T), 0.0, atol=1e-11 * _twist_scale(P, state))
+    L = 0.5  # any length to make twists homogeneous for the rank count
+    for i in range(N):
+        Ts = T[i] * np.r_[np.ones(3), L * np.ones(3)]
+        rank_T = np.linalg.matrix_rank(Ts, tol=1e-9)
+        assert rank_T + n_c == 6  # the analytic wrenches span the whole reciprocal space
+        if n_c:
+            Cs = C[i] * np.r_[np.ones(3), np.ones(3) / L]
+            assert np.linalg.matrix_rank(Cs, tol=1e-9) == n_c
+            # unit forces or unit couples
+            f = np.linalg.norm(C[i, :, :3], axis=1)
+            m = np.linalg.norm(C[i, :, 3:], axis=1)
+            assert np.all(np.isclose(f, 1.0, atol=1e-9) | (np.isclose(f, 0.0, atol=1e-9) & np.isclose(m, 1.0)))
+
+
+@SETTINGS
+@given(seed=st.integers(0, 2**32 - 1))
+def test_rps_and_rpu_constraints_are_the_documented_screws(seed):
+    """RPS: a force parallel to the revolute axis through the sphere; RPU: that force through
+    the universal joint and a couple about r x (R u)."""
+    rng = np.random.default_rng(seed)
+    for kind in ("RPS", "RPU"):
+        leg, p, R = make_leg_and_poses(kind, rng)
+        st_ = leg.solve(p, R)
+        C = leg.constraint_wrenches(st_, p)
+        A = st_.platform_point
+        f = C[:, 0, :3]
+        np.testing.assert_allclose(np.abs(f @ leg.r_axis), 1.0, atol=1e-12)
+        np.testing.assert_allclose(C[:, 0, 3:], np.cross(A - p, f), atol=1e-12)
+        if kind == "RPU":
+            a4 = np.einsum("nij,j->ni", R, leg.u_platform_axis)
+            expected = _unit(np.cross(leg.r_axis, a4))
+            np.testing.assert_allclose(C[:, 1, :3], 0.0, atol=1e-14)
+            np.testing.assert_allclose(np.abs(np.einsum("nj,nj->n", C[:, 1, 3:], expected)), 1.0, atol=1e-12)
+
+
+# ---------------------------------------------------------------------------------------------
+# PUS slider inverse kinematics
+# ---------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("branch", [1, -1])
+@SETTINGS
+@given(seed=st.integers(0, 2**32 - 1))
+def test_pus_slider_ik_solves_link_length_exactly(branch, seed):
+    rng = np.random.default_rng(seed)
+    leg, p, R = make_leg_and_poses("PUS", rng, branch=branch)
+    st_ = leg.solve(p, R)
+    assert np.all(st_.reachable)
+    U = leg.base + st_.actuator[:, None] * leg.slider_axis
+    S = p + np.einsum("nij,j->ni", R, leg.platform)
+    np.testing.assert_allclose(st_.base_point, U, atol=1e-14)
+    np.testing.assert_allclose(np.linalg.norm(S - U, axis=1), leg.link_length, rtol=1e-12)
+    # The branch picks the side: branch +1 puts U further along the slider axis than S.
+    assert np.all(branch * ((U - S) @ leg.slider_axis) > 0)
+
+
+def eq11_2021(U_xy, S):
+    """Wang, Lyu & Liu 2021, eq. (11) with the positive sign:
+    Z_U = Z_S + sqrt(L^2 - (X_U - X_S)^2 - (Y_U - Y_S)^2)."""
+    L = 0.205
+    return S[:, 2] + np.sqrt(L**2 - (U_xy[0] - S[:, 0]) ** 2 - (U_xy[1] - S[:, 1]) ** 2)
+
+
+@SETTINGS
+@given(seed=st.integers(0, 2**32 - 1))
+def test_vertical_pus_matches_2021_eq11(seed):
+    rng = np.random.default_rng(seed)
+    a = rng.uniform(0, 2 * np.pi)
+    U_xy = 0.135 * np.array([np.cos(a), np.sin(a)])
+    b = a + rng.uniform(-0.5, 0.5)
+    sphere = np.array([0.06 * np.cos(b), 0.06 * np.sin(b), 0.0])
+    leg = PUS("L", base=np.r_[U_xy, 0.0], platform=sphere, slider_axis=[0, 0, 1], link_length=0.205, branch=1)
+    n = 10
+    p = np.c_[rng.uniform(-0.02, 0.02, (n, 2)), rng.uniform(-0.05, 0.05, n)]
+    R = np.stack([np.eye(3)] * n)
+    st_ = leg.solve(p, R)
+    S = p + sphere
+    assert np.all(st_.reachable)
+    np.testing.assert_allclose(st_.actuator, eq11_2021(U_xy, S), atol=1e-13, equal_nan=False)
+
+
+def test_unreachable_pus_pose_is_masked_not_raised():
+    leg = PUS("L", base=[0.135, 0.0, 0.0], platform=[0.05, 0.0, 0.0], slider_axis=[0, 0, 1], link_length=0.2)
+    p = np.array([[0.0, 0.0, 0.0],      # reachable
+                  [-0.5, 0.0, 0.0],     # sphere 0.585 m from the slider line > 0.2 m
+                  [0.0, 0.0, 0.1]])     # reachable
+    R = np.stack([np.eye(3)] * 3)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no RuntimeWarning from sqrt of a negative either
+        st_ = leg.solve(p, R)
+    assert st_.reachable.tolist() == [True, False, True]
+    assert np.all(np.isfinite(st_.actuator[[0, 2]]))
+    assert not np.isfinite(st_.actuator[1])
+
+
+@pytest.mark.parametrize("kind", ["RPS", "RPU"])
+def test_planar_legs_mask_out_of_plane_poses(kind):
+    rng = np.random.default_rng(7)
+    leg, p, R = make_leg_and_poses(kind, rng)
+    p_off = p + 1e-3 * leg.r_axis  # 1 mm out of the leg's plane
+    assert np.all(leg.solve(p, R).reachable)
+    assert not np.any(leg.solve(p_off, R).reachable)
