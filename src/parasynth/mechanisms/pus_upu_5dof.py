@@ -23,9 +23,19 @@ rotation of second order, about alpha * (beta - q1).
 
 Schemes (parameter ``platform``):
 
-* ``"rectangular"`` (default, the improved scheme, Section 2.4): sphere centres at the
-  prototype's coordinates (35, 51), (-35, 51), (-51, -35), (51, -35), (0, 51) mm (Section 5 and
-  3.2), parameter ``hinge_points``.
+* ``"rectangular"`` (default, the improved scheme, Section 2.4): sphere centres given by
+  ``hinge_layout``:
+
+  - ``"scheme1"`` (default): the prototype's coordinates (35, 51), (-35, 51), (-51, -35),
+    (51, -35), (0, 51) mm (Sections 3.2 and 5; Figure 14a);
+  - ``"scheme2"``: Figure 14b, whose coordinates the text does not give. Assumed: the sphere
+    centres on the corners of the 80 mm square platform (40, 40), (-40, 40), (-40, -40),
+    (40, -40) mm and (0, 40) mm, each paired with the same slider as in scheme 1;
+  - ``"custom"``: ``hinge_points``.
+
+  The layout is then scaled by ``hinge_scale`` about the platform centre, rotated by
+  ``hinge_rotation`` about the platform normal and shifted by ``hinge_shift_y`` along y:
+  three continuous parameters for optimising the layout.
 * ``"pentagonal"``: the first scheme (Section 2.1), a regular pentagon of radius
   ``pentagon_radius`` similar to and aligned with the slider pentagon. With the platform
   parallel to the base and centred above the origin, the five link lines meet in one point and
@@ -60,13 +70,24 @@ __all__ = ["PUSUPU5Params", "PUSUPU5", "trajectory_eq13"]
 
 _MM = 1e-3
 
+#: Sphere-centre layouts of the rectangular platform (platform frame, m), sliders 1..5.
+HINGE_LAYOUTS = {
+    "scheme1": ((35 * _MM, 51 * _MM), (-35 * _MM, 51 * _MM), (-51 * _MM, -35 * _MM), (51 * _MM, -35 * _MM),
+                (0.0, 51 * _MM)),
+    "scheme2": ((40 * _MM, 40 * _MM), (-40 * _MM, 40 * _MM), (-40 * _MM, -40 * _MM), (40 * _MM, -40 * _MM),
+                (0.0, 40 * _MM)),
+    "custom": None,
+}
+
 
 @dataclass(frozen=True)
 class PUSUPU5Params:
     """Parameters in SI (m, rad). Defaults: the 2021 paper's prototype (Sections 3.2 and 5)."""
 
     UNITS: ClassVar[dict] = {"slider_radius": "length", "link_length": "length", "platform": None,
-                             "hinge_points": "length", "pentagon_radius": "length", "slider_angles": "angle",
+                             "hinge_points": "length", "hinge_layout": None,
+                             "hinge_scale": "dimensionless", "hinge_rotation": "angle", "hinge_shift_y": "length",
+                             "pentagon_radius": "length", "slider_angles": "angle",
                              "upu_base_z": "length", "slider_min": "length", "slider_max": "length",
                              "sphere_max": "angle", "ujoint_max": "angle", "link_diameter": "length"}
 
@@ -76,6 +97,10 @@ class PUSUPU5Params:
     platform: str = "rectangular"
     hinge_points: tuple = ((35 * _MM, 51 * _MM), (-35 * _MM, 51 * _MM), (-51 * _MM, -35 * _MM),
                            (51 * _MM, -35 * _MM), (0.0, 51 * _MM))
+    hinge_layout: str = "scheme1"
+    hinge_scale: float = 1.0
+    hinge_rotation: float = 0.0
+    hinge_shift_y: float = 0.0
     pentagon_radius: float = 0.062
     slider_angles: tuple = tuple(np.deg2rad([18.0, 162.0, 234.0, 306.0, 90.0]).tolist())
     upu_base_z: float = -0.15
@@ -104,7 +129,20 @@ class PUSUPU5Params:
                 f"(first scheme), got {self.platform!r}"
             )
         object.__setattr__(self, "hinge_points", check_points("5pus_upu.hinge_points", self.hinge_points, 5, 2))
+        if self.hinge_layout not in HINGE_LAYOUTS:
+            raise ValueError(f"5pus_upu.hinge_layout must be one of {sorted(HINGE_LAYOUTS)}, got {self.hinge_layout!r}")
+        object.__setattr__(self, "hinge_scale", check_length("5pus_upu.hinge_scale", self.hinge_scale))
+        object.__setattr__(self, "hinge_rotation", check_finite("5pus_upu.hinge_rotation", self.hinge_rotation))
+        object.__setattr__(self, "hinge_shift_y", check_finite("5pus_upu.hinge_shift_y", self.hinge_shift_y))
         object.__setattr__(self, "slider_angles", check_angles("5pus_upu.slider_angles", self.slider_angles, 5))
+
+    def sphere_centres(self) -> np.ndarray:
+        """Sphere centres (5, 3) in the platform frame (m) for the rectangular platform."""
+        base = np.asarray(self.hinge_points if self.hinge_layout == "custom" else HINGE_LAYOUTS[self.hinge_layout])
+        c, s = np.cos(self.hinge_rotation), np.sin(self.hinge_rotation)
+        xy = self.hinge_scale * base @ np.array([[c, s], [-s, c]])
+        xy[:, 1] += self.hinge_shift_y
+        return np.column_stack([xy, np.zeros(5)])
 
 
 class PUSUPU5(Mechanism):
@@ -119,7 +157,7 @@ class PUSUPU5(Mechanism):
         self.params = P
         ang = np.asarray(P.slider_angles)
         if P.platform == "rectangular":
-            sph = [np.array([hx, hy, 0.0]) for hx, hy in P.hinge_points]
+            sph = list(P.sphere_centres())
         else:
             sph = [P.pentagon_radius * np.array([np.cos(a), np.sin(a), 0.0]) for a in ang]
         legs = []
