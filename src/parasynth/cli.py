@@ -22,16 +22,24 @@ from . import __version__
 from .mechanisms import list_mechanisms, load_mechanism, mechanism_summaries
 
 
-def _parse_params(items: list[str]) -> dict:
+def _parse_params(name: str, items: list[str]) -> dict:
+    """--param NAME=VALUE items with units where the parameter has one ("link_length=205 mm")."""
+    from .mechanisms import _REGISTRY
+    from .units import parse_quantity
+
+    units = getattr(_REGISTRY[name][0]().Params, "UNITS", {}) if name in _REGISTRY else {}
     out = {}
     for it in items or []:
         if "=" not in it:
-            raise SystemExit(f"error: --param expects NAME=VALUE (SI units), got {it!r}")
-        k, v = it.split("=", 1)
-        try:
-            out[k] = float(v)
-        except ValueError:
-            out[k] = {"true": True, "false": False}.get(v.lower(), v)
+            raise ValueError(f"--param expects NAME=VALUE, with a unit where the parameter has one, got {it!r}")
+        k, v = (x.strip() for x in it.split("=", 1))
+        kind = units.get(k)
+        if kind is not None:
+            out[k] = parse_quantity(v, kind, field=f"--param {k}")
+        elif v.lower() in ("true", "false"):
+            out[k] = v.lower() == "true"
+        else:
+            out[k] = v
     return out
 
 
@@ -170,7 +178,7 @@ def cmd_evaluate(args) -> int:
 
 def cmd_analyze(args) -> int:
     try:
-        mech = load_mechanism(args.name, **_parse_params(args.param))
+        mech = load_mechanism(args.name, **_parse_params(args.name, args.param))
     except ValueError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
@@ -259,7 +267,8 @@ def main(argv: list[str] | None = None) -> int:
     p.set_defaults(func=cmd_evaluate)
     p = sub.add_parser("analyze", help="kinematic analysis of a mechanism")
     p.add_argument("name", help=f"one of: {', '.join(list_mechanisms())}")
-    p.add_argument("--param", action="append", metavar="NAME=VALUE", help="override a parameter (SI units)")
+    p.add_argument("--param", action="append", metavar="NAME=VALUE",
+                   help="override a parameter, with its unit (e.g. link_length='185 mm')")
     p.add_argument("--samples", type=int, default=2000, help="random poses to sample (default 2000)")
     p.add_argument("--seed", type=int, default=0)
     p.set_defaults(func=cmd_analyze)

@@ -74,7 +74,8 @@ class Mobility:
     the platform's instantaneous freedoms; ``uncontrolled_twists`` (k, 6): freedoms the
     actuators do not see at the analysed pose (empty when controlled there);
     ``singular_at_pose``: the analysed pose is a singularity although the actuators control
-    every freedom at generic poses (``controlled`` describes the generic case).
+    every freedom at generic poses nearby (``controlled`` always describes the generic case,
+    whether or not a pose is given).
     """
 
     dof: int
@@ -440,7 +441,9 @@ class Mechanism:
         if sing.size:
             raise ForwardKinematicsError(
                 f"{self.name}: the actuators do not determine the pose at samples {sing[:10].tolist()} "
-                f"(actuator Jacobian is singular there)",
+                f"(the actuator Jacobian with respect to the free coordinates is singular there: a "
+                f"singularity of the mechanism, or of the parametrisation, e.g. z-y-z angles at beta = 0, "
+                f"where holding one more coordinate in `fixed` helps)",
                 sing, res,
             )
         return X[0] if single else X
@@ -482,7 +485,7 @@ class Mechanism:
         AC = np.vstack([A, Cs])
         controlled_here = _rank(AC) == 6
         controlled = controlled_here
-        if not controlled_here and X is None:
+        if not controlled_here:
             controlled = self._controlled_near(X0)
         # Freedoms not seen by actuators: twists in the twist space annihilated by A.
         if controlled_here:

@@ -212,7 +212,9 @@ class _Progress:
             try:
                 from tqdm import tqdm
 
-                self.bar = tqdm(total=total, desc=desc, unit="design", file=sys.stderr, dynamic_ncols=True)
+                # disable=None: a bar on a terminal, nothing in logs (the summary follows).
+                self.bar = tqdm(total=total, desc=desc, unit="design", file=sys.stderr, dynamic_ncols=True,
+                                disable=None, mininterval=0.5)
             except ImportError:
                 self.bar = None
 
