@@ -178,20 +178,22 @@ def xy_isotropy(mech, **kw) -> float:
 
 
 @register("inscribed_box_volume", unit="sampled units", sense="maximize",
-          settings={**_WS_SETTINGS, "resolution": "int"})
-def inscribed_box_volume(mech, resolution: int = 24, **kw) -> float:
-    """Volume of the largest axis-aligned box inside the feasible set (sampled coordinates),
-    computed on a raster of ``resolution`` cells per axis."""
-    box = _ws(mech, kw).largest_box(resolution=resolution)
+          settings={**_WS_SETTINGS, "resolution": "int", "coords": "str"})
+def inscribed_box_volume(mech, resolution: int | None = None, coords="position", **kw) -> float:
+    """Volume of the largest axis-aligned box inside the feasible set, over the sampled
+    position coordinates by default (``coords``; positions feasible for every sampled
+    orientation), computed on a raster (``resolution`` cells per axis, default the
+    sampling raster)."""
+    box = _ws(mech, kw).largest_box(coords=coords, resolution=resolution)
     return float(np.prod(box.sizes)) if box is not None else 0.0
 
 
 @register("inscribed_box_size", unit="sampled unit", sense="maximize",
-          settings={**_WS_SETTINGS, "resolution": "int", "axis": "str"})
-def inscribed_box_size(mech, axis: str = "z", resolution: int = 24, **kw) -> float:
+          settings={**_WS_SETTINGS, "resolution": "int", "axis": "str", "coords": "str"})
+def inscribed_box_size(mech, axis: str = "z", resolution: int | None = None, coords="position", **kw) -> float:
     """Side along coordinate ``axis`` of the largest inscribed axis-aligned box."""
     ws = _ws(mech, kw)
-    box = ws.largest_box(resolution=resolution)
+    box = ws.largest_box(coords=coords, resolution=resolution)
     if box is None:
         return 0.0
     if axis not in box.coordinates:

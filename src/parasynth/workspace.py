@@ -1,0 +1,1027 @@
+"""Workspace of a mechanism by sampling a task-coordinate box.
+
+:func:`workspace` samples the box ``ranges`` of some task coordinates (the others are held
+at fixed values), tests every sample with :meth:`Mechanism.is_feasible` (reachability and
+the model's constraints) and returns a :class:`WorkspaceResult`: the feasible fraction and
+volume with a standard error, the feasible points, the bounding box of the platform
+reference point, 2-D sections for plots and the largest inscribed axis-aligned box.
+
+What is sampled decides what the volume means:
+
+* a fixed-orientation (constant-orientation) workspace samples only position coordinates,
+  e.g. ``ranges={"x": ..., "y": ..., "z": ...}`` for the 5-PUS/UPU: the volume is in m^3;
+* an orientation-range workspace also samples angles, e.g. adding ``"alpha": (-0.2, 0.2)``:
+  the volume is then in m^3 rad (the measure of the feasible set in the sampled coordinates).
+
+Samples are evaluated in chunks and only feasible points are kept (up to ``max_points``, a
+uniform subsample beyond), so memory does not grow with the number of samples.
+
+Sampling methods
+----------------
+``"sobol"`` (default): scrambled Sobol' points (``scipy.stats.qmc.Sobol``, seeded with
+``seed``), drawn in successive blocks from one engine -- the same sequence as one draw of
+``n`` points. The balance properties of the sequence hold exactly when ``n`` is a power of
+two (``random_base2`` is used then, or successive blocks of the same points when ``n``
+exceeds ``chunk_size``); other ``n`` take the first ``n`` points of the sequence.
+
+``"random"``: ``numpy.random.default_rng(seed).random((n, d))`` mapped affinely to the box
+(``lo + (hi - lo) * u``), drawn in blocks (the same numbers as one draw).
+
+``"grid"``: a cell-centred regular grid with **n points in total** (not per axis), spread
+over the d sampled coordinates as evenly as possible: every axis gets
+``m = floor(n ** (1/d))`` points, then axes in task-coordinate order get one more point
+while the product stays <= n (so ``n_samples <= n``; ``n = 1000`` in 3-D gives 10 x 10 x 10).
+Point ``i`` of an axis is at ``lo + (i + 0.5) (hi - lo) / m`` (midpoint rule).
+
+Volume and its standard error
+-----------------------------
+``volume = fraction * box volume``. ``volume_error`` is one standard error:
+
+* random and Sobol: the binomial ``sqrt(f (1 - f) / n) * box volume``. It is exact for
+  random sampling; for Sobol points it is conservative (quasi-Monte Carlo errors are
+  usually much smaller).
+* grid: a boundary-cell estimate (the grid error is not statistical). Every pair of
+  neighbouring grid points whose feasibility differs has the boundary of the feasible set
+  somewhere between them, while the midpoint rule puts it half-way: an error uniform over
+  +-1/2 cell volume, standard deviation cell / sqrt(12), per pair. The pairs are counted
+  per axis, direction of the change and grid plane i (between two layers of points): D_i.
+  Where a boundary crosses the planes (curved or oblique) the crossing positions vary from
+  pair to pair and the errors are taken as independent; where a face lies in one plane
+  (normal to an axis, e.g. a coordinate limit) they share one offset and add up. The face
+  part of a plane's count is its excess over both neighbouring planes,
+  F_i = max(0, D_i - max(D_(i-1), D_(i+1))), and
+  ``volume_error = cell volume * sqrt(sum (F_i^2 + D_i - F_i) / 12)`` summed over axes,
+  directions and planes. The test suite checks it on shells and boxes in 3-D and 4-D.
+
+For an empty (or full) box both are 0. Units are the product of the sampled coordinates'
+units: ``rad`` for ``mech.angular_coordinates``, ``m`` otherwise.
+"""
+
+from __future__ import annotations
+
+import inspect
+import math
+import sys
+import time
+import warnings
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+import numpy as np
+
+__all__ = ["workspace", "WorkspaceResult", "Section", "Box", "METHODS"]
+
+#: Sampling methods accepted by :func:`workspace`.
+METHODS = ("grid", "sobol", "random")
+#: Default number of samples evaluated at once.
+DEFAULT_CHUNK = 2**16
+#: Default cap on the number of feasible points stored.
+DEFAULT_MAX_POINTS = 2**20
+#: With ``progress=None`` a progress line is written to stderr from this many samples on.
+PROGRESS_THRESHOLD = 2**20
+#: Largest raster (cells) a result records or builds.
+RASTER_MAX_CELLS = 2**21
+#: Default largest raster resolution per axis by number of rastered coordinates (the cost of
+#: :meth:`WorkspaceResult.largest_box` grows like r^(2d-1)).
+_RASTER_MAX_PER_AXIS = {1: 4096, 2: 256, 3: 48, 4: 20, 5: 12}
+#: Target samples per raster cell of the default raster of random and Sobol samples.
+_SAMPLES_PER_CELL = 4
+
+_AXES = ("x", "y", "z")
+
+
+# ---------------------------------------------------------------------------------------------
+# results
+# ---------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Section:
+    """2-D section/projection data of a workspace for plots.
+
+    ``coordinates`` (a, b); ``points`` (k, 2): the stored feasible points in these two
+    coordinates (a projection when other coordinates were sampled); ``edges`` (edges_a,
+    edges_b): cell edges of ``occupancy``; ``occupancy`` (n_a, n_b) bool, indexed
+    ``[i_a, i_b]``: cells holding at least one feasible sample. For ``imshow`` use
+    ``occupancy.T`` with ``origin="lower"`` and ``extent``. ``units``: of a and b.
+    """
+
+    coordinates: tuple[str, str]
+    points: np.ndarray
+    edges: tuple[np.ndarray, np.ndarray]
+    occupancy: np.ndarray
+    units: tuple[str, str]
+
+    @property
+    def extent(self) -> tuple[float, float, float, float]:
+        """(a_lo, a_hi, b_lo, b_hi), for ``matplotlib.pyplot.imshow(..., extent=...)``."""
+        ea, eb = self.edges
+        return (float(ea[0]), float(ea[-1]), float(eb[0]), float(eb[-1]))
+
+
+@dataclass(frozen=True)
+class Box:
+    """An axis-aligned box in some task coordinates (from :meth:`WorkspaceResult.largest_box`).
+
+    ``coordinates``; ``lows``, ``highs`` and ``sizes`` (arrays in coordinate order, SI);
+    ``units`` per coordinate; ``resolution``: raster cells per coordinate it was found on;
+    ``cell``: the raster cell sizes. Unpacks as ``lows, highs, sizes = box``.
+    """
+
+    coordinates: tuple[str, ...]
+    lows: np.ndarray
+    highs: np.ndarray
+    units: tuple[str, ...]
+    resolution: tuple[int, ...]
+    cell: np.ndarray
+
+    @property
+    def sizes(self) -> np.ndarray:
+        return self.highs - self.lows
+
+    @property
+    def volume(self) -> float:
+        """Product of the sizes, in :attr:`volume_units`."""
+        return float(np.prod(self.sizes))
+
+    @property
+    def volume_units(self) -> str:
+        return _units_string(self.units)
+
+    def as_dict(self) -> dict[str, tuple[float, float]]:
+        """{coordinate: (low, high)}."""
+        return {c: (float(lo), float(hi)) for c, lo, hi in zip(self.coordinates, self.lows, self.highs)}
+
+    def __iter__(self):
+        return iter((self.lows, self.highs, self.sizes))
+
+    def __str__(self) -> str:
+        parts = []
+        for c, s, u in zip(self.coordinates, self.sizes, self.units):
+            parts.append(f"{c}: {s * 1e3:.4g} mm" if u == "m" else f"{c}: {np.rad2deg(s):.4g} deg")
+        return " x ".join(parts)
+
+
+@dataclass
+class _Raster:
+    """Per-cell sample counts over the sampled box: ``total`` samples and ``feasible`` ones,
+    arrays of shape ``shape`` with uniform cells between ``edges``."""
+
+    edges: tuple[np.ndarray, ...]
+    total: np.ndarray
+    feasible: np.ndarray
+
+    @property
+    def shape(self) -> tuple[int, ...]:
+        return self.total.shape
+
+    def occupancy(self) -> np.ndarray:
+        """Cells with samples are feasible when all their samples are; cells without samples
+        take the state of the nearest cell (in box-normalised coordinates) that has some."""
+        occ = (self.total > 0) & (self.feasible == self.total)
+        empty = self.total == 0
+        if empty.any() and not empty.all():
+            from scipy.ndimage import distance_transform_edt
+
+            idx = distance_transform_edt(empty, sampling=[1.0 / s for s in self.shape],
+                                         return_distances=False, return_indices=True)
+            occ = occ[tuple(idx)]
+        return occ
+
+
+@dataclass(frozen=True)
+class _Sampler:
+    """Reproducible sample stream: ``blocks(chunk)`` yields (start, X, idx) with X (m, d)
+    the sampled coordinates of samples start .. start + m - 1 and idx (m, d) their grid
+    indices ("grid") or None. The stream does not depend on the chunk size."""
+
+    method: str
+    n: int
+    lows: np.ndarray
+    highs: np.ndarray
+    seed: int
+    shape: tuple[int, ...] | None = None
+
+    @property
+    def d(self) -> int:
+        return len(self.lows)
+
+    def blocks(self, chunk: int):
+        span = self.highs - self.lows
+        if self.method == "grid":
+            m = np.asarray(self.shape)
+            for s in range(0, self.n, chunk):
+                e = min(s + chunk, self.n)
+                idx = np.stack(np.unravel_index(np.arange(s, e), self.shape), axis=1)
+                yield s, self.lows + span * ((idx + 0.5) / m), idx
+        elif self.method == "random":
+            rng = np.random.default_rng(self.seed)
+            for s in range(0, self.n, chunk):
+                e = min(s + chunk, self.n)
+                yield s, self.lows + span * rng.random((e - s, self.d)), None
+        else:
+            eng = _sobol_engine(self.d, self.seed, self.n)
+            power2 = self.n & (self.n - 1) == 0
+            with warnings.catch_warnings():
+                warnings.filterwarnings("ignore", message=".*balance properties of Sobol.*")
+                for s in range(0, self.n, chunk):
+                    e = min(s + chunk, self.n)
+                    if s == 0 and e == self.n and power2:
+                        u = eng.random_base2(int(self.n).bit_length() - 1)
+                    else:
+                        u = eng.random(e - s)
+                    yield s, self.lows + span * u, None
+
+
+def _sobol_engine(d: int, seed: int, n: int):
+    from scipy.stats import qmc
+
+    kw: dict[str, Any] = {"scramble": True}
+    if n > 2**30:
+        kw["bits"] = 64
+    if "rng" in inspect.signature(qmc.Sobol).parameters:
+        kw["rng"] = seed
+    else:  # pragma: no cover - scipy < 1.15
+        kw["seed"] = seed
+    return qmc.Sobol(d, **kw)
+
+
+@dataclass(eq=False)
+class WorkspaceResult:
+    """The sampled workspace of a mechanism (see :func:`workspace`).
+
+    Attributes
+    ----------
+    mechanism: the :class:`~parasynth.mechanism.Mechanism` sampled.
+    method, seed: sampling method and the seed used (fresh entropy when ``seed=None`` was
+        given, so the run can be repeated with it).
+    coordinates: the sampled task coordinates, in task-coordinate order.
+    box: {coordinate: (lo, hi)} of the sampled coordinates (SI).
+    fixed: {coordinate: value} of the coordinates held fixed.
+    constraints: names of the constraints tested (all of the model's by default).
+    n_samples: samples evaluated (for "grid" the grid size, <= the ``n`` asked for).
+    n_feasible: feasible samples.
+    volume, volume_error: feasible measure of the box in :attr:`units` and one standard
+        error (binomial for random/Sobol -- conservative for Sobol --, a boundary-cell
+        estimate for "grid"; see the module documentation).
+    units: units of the volume, e.g. "m^3" or "m^3 rad^2".
+    coordinate_units: {sampled coordinate: "m" or "rad"}.
+    extents: {"x", "y", "z": (lo, hi)} (m), bounding box of the platform reference point
+        ``mech.pose(X)[0]`` over all feasible samples (whatever the task coordinates);
+        ``(nan, nan)`` for every axis of an empty workspace.
+    points: (k, n_task) feasible task coordinates, all columns of
+        ``mech.task_coordinates``, in sampling order. All feasible samples unless more than
+        ``max_points`` were found (then a uniform random subsample of ``max_points``,
+        see :attr:`points_complete`); empty (0, n_task) with ``keep_points=False``.
+    points_complete: whether :attr:`points` holds every feasible sample.
+    grid_shape: points per sampled axis for the "grid" method, else None.
+    """
+
+    mechanism: Any = field(repr=False)
+    method: str
+    seed: int
+    coordinates: tuple[str, ...]
+    box: dict[str, tuple[float, float]]
+    fixed: dict[str, float]
+    constraints: tuple[str, ...]
+    n_samples: int
+    n_feasible: int
+    volume: float
+    volume_error: float
+    units: str
+    coordinate_units: dict[str, str]
+    extents: dict[str, tuple[float, float]]
+    points: np.ndarray = field(repr=False)
+    points_complete: bool = field(repr=False)
+    grid_shape: tuple[int, ...] | None = field(default=None, repr=False)
+    _raster: _Raster | None = field(default=None, repr=False)
+    _sampler: _Sampler | None = field(default=None, repr=False)
+    _chunk_size: int = field(default=DEFAULT_CHUNK, repr=False)
+    _raster_cache: dict = field(default_factory=dict, repr=False)
+
+    # -- summary -----------------------------------------------------------------------------
+    @property
+    def fraction(self) -> float:
+        """Feasible fraction of the samples."""
+        return self.n_feasible / self.n_samples if self.n_samples else 0.0
+
+    @property
+    def box_volume(self) -> float:
+        """Volume of the sampled box in :attr:`units`."""
+        return float(np.prod([hi - lo for lo, hi in self.box.values()]))
+
+    @property
+    def task_coordinates(self) -> tuple[str, ...]:
+        return tuple(self.mechanism.task_coordinates)
+
+    @property
+    def raster_resolution(self) -> tuple[int, ...]:
+        """Cells per sampled coordinate of the raster recorded while sampling (the default
+        raster of :meth:`largest_box` and :meth:`section`)."""
+        return self._raster.shape
+
+    def summary(self) -> str:
+        name = getattr(self.mechanism, "name", type(self.mechanism).__name__)
+        ext = ", ".join(
+            f"{a} [{lo * 1e3:.1f}, {hi * 1e3:.1f}] mm" if np.isfinite(lo) else f"{a} (empty)"
+            for a, (lo, hi) in self.extents.items()
+        )
+        return (
+            f"{name} workspace over {', '.join(self.coordinates)} ({self.method}, "
+            f"{self.n_samples:,} samples): {self.fraction:.2%} feasible, volume "
+            f"{self.volume:.6g} +- {self.volume_error:.2g} {self.units}; extents {ext}"
+        )
+
+    # -- sections ------------------------------------------------------------------------------
+    def section(self, coord_a: str, coord_b: str, resolution=None) -> Section:
+        """2-D section/projection data in two sampled coordinates.
+
+        ``points`` are the stored feasible points in (coord_a, coord_b): a section when only
+        these two coordinates were sampled, a projection when others were (sample the other
+        coordinates at fixed values, via ``fixed``, for a section at another level).
+        ``occupancy``: cells with at least one feasible sample. With ``resolution=None``
+        it comes from the raster recorded while sampling (every sample counted); with an
+        int or a pair (n_a, n_b) from the stored points on a uniform raster of the box
+        (from the subsample when :attr:`points_complete` is False).
+        """
+        ia, ib = self._axis_index(coord_a, "coord_a"), self._axis_index(coord_b, "coord_b")
+        if ia == ib:
+            raise ValueError(f"coord_a and coord_b must differ, got {coord_a!r} twice")
+        cols = [self.task_coordinates.index(coord_a), self.task_coordinates.index(coord_b)]
+        pts = self.points[:, cols]
+        units = (self.coordinate_units[coord_a], self.coordinate_units[coord_b])
+        if resolution is None:
+            r = self._raster
+            other = tuple(k for k in range(len(self.coordinates)) if k not in (ia, ib))
+            feas = r.feasible.sum(axis=other) if other else r.feasible
+            occ = feas > 0
+            if ia > ib:
+                occ = occ.T
+            edges = (r.edges[ia], r.edges[ib])
+        else:
+            if not self.points_complete and len(self.points) == 0 and self.n_feasible:
+                raise ValueError(
+                    "resolution: this workspace was sampled with keep_points=False; use "
+                    "resolution=None (the raster recorded while sampling)"
+                )
+            ra, rb = _resolution_pair(resolution)
+            (la, ha), (lb, hb) = self.box[coord_a], self.box[coord_b]
+            edges = (np.linspace(la, ha, ra + 1), np.linspace(lb, hb, rb + 1))
+            occ = np.zeros((ra, rb), bool)
+            if len(pts):
+                a = _bin_axis(pts[:, 0], la, ha, ra)
+                b = _bin_axis(pts[:, 1], lb, hb, rb)
+                occ[a, b] = True
+        return Section((coord_a, coord_b), pts, edges, occ, units)
+
+    # -- largest inscribed box ------------------------------------------------------------------
+    def largest_box(self, coords=None, resolution=None, over: str = "all") -> Box | None:
+        """Largest axis-aligned box inside the feasible set, computed on a raster.
+
+        The sampled box is divided into a raster of ``resolution`` cells per coordinate
+        (an int, or one per sampled coordinate; default: the raster recorded while
+        sampling, :attr:`raster_resolution`). A cell is feasible when every sample in it
+        is feasible; a cell without samples takes the state of the nearest cell with
+        samples (so sparse random/Sobol samples are rasterised by nearest neighbour; give
+        several samples per cell for a reliable box). The result is the largest-volume box
+        made of whole feasible cells, so each of its faces is accurate to about one cell
+        (``Box.cell``; a cell whose samples are all feasible may still be partly
+        infeasible); on a "grid" run whose raster is the grid itself a cell is one grid
+        point. Raster sizes other than the recorded one are rebuilt from the stored points
+        and need :attr:`points_complete`; for a grid the resolution is capped at the grid.
+
+        ``coords``: the coordinates of the box: None (all sampled coordinates),
+        ``"position"`` (the sampled non-angular coordinates) or a list of sampled
+        coordinates. The other sampled coordinates are reduced with ``over``: ``"all"``
+        (default) keeps a cell only if it is feasible for every raster cell of the other
+        coordinates -- e.g. positions reachable with every sampled orientation --,
+        ``"any"`` if it is feasible for some.
+
+        Returns a :class:`Box` (``lows, highs, sizes = box``), or None when no raster cell
+        is feasible. Cost grows like r^(2d-1) for r cells on each of d coordinates.
+        """
+        names = self._box_coords(coords)
+        if over not in ("all", "any"):
+            raise ValueError(f"over must be 'all' or 'any', got {over!r}")
+        raster = self._raster_at(resolution)
+        occ = raster.occupancy()
+        keep = [self.coordinates.index(c) for c in names]
+        other = tuple(k for k in range(occ.ndim) if k not in keep)
+        if other:
+            occ = occ.all(axis=other) if over == "all" else occ.any(axis=other)
+        edges = [raster.edges[k] for k in keep]
+        found = _largest_box(occ, edges)
+        if found is None:
+            return None
+        lo_i, hi_i = found
+        lows = np.array([e[i] for e, i in zip(edges, lo_i)])
+        highs = np.array([e[i] for e, i in zip(edges, hi_i)])
+        cell = np.array([e[1] - e[0] for e in edges])
+        return Box(tuple(names), lows, highs, tuple(self.coordinate_units[c] for c in names),
+                   tuple(int(len(e) - 1) for e in edges), cell)
+
+    # -- export ---------------------------------------------------------------------------------
+    def to_frame(self, positions: bool = False):
+        """pandas DataFrame of the stored feasible points, one column per task coordinate
+        (SI); ``positions=True`` adds the platform reference point ``p_x``, ``p_y``, ``p_z``
+        (m). ``attrs["units"]`` holds the column units."""
+        import pandas as pd
+
+        if not self.points_complete and len(self.points) == 0 and self.n_feasible:
+            raise ValueError("to_frame: this workspace was sampled with keep_points=False; no points were stored")
+        cols = list(self.task_coordinates)
+        df = pd.DataFrame(self.points, columns=cols)
+        ang = self.mechanism.angular_coordinates
+        units = {c: ("rad" if c in ang else "m") for c in cols}
+        if positions:
+            p = self.mechanism.pose(self.points)[0] if len(self.points) else np.zeros((0, 3))
+            for k, a in enumerate(_AXES):
+                df[f"p_{a}"] = p[:, k]
+                units[f"p_{a}"] = "m"
+        df.attrs["units"] = units
+        return df
+
+    # -- helpers ----------------------------------------------------------------------------------
+    def _axis_index(self, c, arg):
+        if c not in self.coordinates:
+            raise ValueError(f"{arg}: {c!r} is not a sampled coordinate; sampled: {list(self.coordinates)}")
+        return self.coordinates.index(c)
+
+    def _box_coords(self, coords):
+        if coords is None:
+            return list(self.coordinates)
+        if isinstance(coords, str):
+            if coords == "position":
+                names = [c for c in self.coordinates if self.coordinate_units[c] == "m"]
+                if not names:
+                    raise ValueError(f"coords: no position coordinate was sampled (sampled: {list(self.coordinates)})")
+                return names
+            coords = [coords]
+        names = list(coords)
+        if not names:
+            raise ValueError("coords must name at least one sampled coordinate")
+        for c in names:
+            self._axis_index(c, "coords")
+        if len(set(names)) != len(names):
+            raise ValueError(f"coords: repeated coordinate in {names}")
+        return [c for c in self.coordinates if c in names]
+
+    def _raster_at(self, resolution) -> _Raster:
+        if resolution is None:
+            return self._raster
+        shape = _raster_shape(resolution, self.coordinates, "resolution")
+        if self.grid_shape is not None:
+            shape = tuple(min(r, m) for r, m in zip(shape, self.grid_shape))
+        if shape == self._raster.shape:
+            return self._raster
+        if shape in self._raster_cache:
+            return self._raster_cache[shape]
+        if not self.points_complete:
+            raise ValueError(
+                f"resolution={resolution!r}: a raster other than the recorded one "
+                f"{self._raster.shape} needs every feasible point, but only {len(self.points)} of "
+                f"{self.n_feasible} were stored; pass raster={resolution!r} to workspace() or raise max_points"
+            )
+        s = self._sampler
+        raster = _new_raster(s.lows, s.highs, shape)
+        cells = int(np.prod(shape))
+        total = np.zeros(cells, np.int64)
+        for _, Xs, _ in s.blocks(self._chunk_size):
+            total += np.bincount(_bin_flat(Xs, s.lows, s.highs, shape), minlength=cells)
+        cols = [self.task_coordinates.index(c) for c in self.coordinates]
+        feas = np.bincount(_bin_flat(self.points[:, cols], s.lows, s.highs, shape), minlength=cells)
+        raster.total[...] = total.reshape(shape)
+        raster.feasible[...] = feas.reshape(shape)
+        self._raster_cache[shape] = raster
+        return raster
+
+    def __repr__(self) -> str:
+        name = getattr(self.mechanism, "name", type(self.mechanism).__name__)
+        return (
+            f"WorkspaceResult({name!r}, {self.method}, coordinates={self.coordinates}, "
+            f"n_samples={self.n_samples}, fraction={self.fraction:.4g}, "
+            f"volume={self.volume:.6g} +- {self.volume_error:.2g} {self.units})"
+        )
+
+
+# ---------------------------------------------------------------------------------------------
+# the sampler
+# ---------------------------------------------------------------------------------------------
+def workspace(mech, ranges=None, n: int = 2**16, method: str = "sobol", seed: int | None = 0,
+              fixed: Mapping | None = None, constraints=None, chunk_size: int = DEFAULT_CHUNK, *,
+              keep_points: bool = True, max_points: int | None = DEFAULT_MAX_POINTS, raster=None,
+              progress: bool | Callable | None = None) -> WorkspaceResult:
+    """Sample the workspace of ``mech`` over a task-coordinate box.
+
+    Parameters
+    ----------
+    mech: a :class:`~parasynth.mechanism.Mechanism`.
+    ranges: {task coordinate: (lo, hi)} (SI: m, rad), lo < hi, the sampled box; default
+        ``mech.default_ranges()``. Coordinates are sampled in ``mech.task_coordinates``
+        order whatever the dict order.
+    n: number of samples, >= 1 (integral floats such as 1e6 are accepted; for "grid" the
+        total, spread as evenly as possible over the sampled axes, see the module
+        documentation).
+    method: "sobol" (scrambled Sobol', default), "random" or "grid".
+    seed: seed of the Sobol' scrambling / the random generator (and of the subsample of
+        stored points); None draws fresh entropy (recorded in ``result.seed``).
+    fixed: {coordinate: value} for coordinates not in ``ranges``; the others not in
+        ``ranges`` stay at ``mech.home``.
+    constraints: constraint names to test (a name or a list; default: all of the model's;
+        ``[]``: reachability only), passed to ``mech.is_feasible``.
+    chunk_size: samples evaluated at once (memory ~ chunk_size times the model's
+        per-pose work); the result does not depend on it.
+    keep_points: store the feasible points (``False``: only counts, extents and raster).
+    max_points: at most this many feasible points are stored (a uniform random subsample,
+        in sampling order, when more are feasible); None for no cap.
+    raster: cells per sampled coordinate (int, or a sequence / dict per coordinate) of the
+        occupancy raster recorded while sampling, used by ``largest_box`` and ``section``
+        by default. Default: for "grid" the grid (capped at 48 per axis in 3-D, 256 in
+        2-D, 20 in 4-D, ...); for random/Sobol about 4 samples per cell, with the same caps.
+    progress: None (a progress line on stderr for runs of at least 2**20 samples), True/False
+        (always/never), or a callable ``progress(n_done, n_total, n_feasible)`` called after
+        every chunk.
+
+    Returns a :class:`WorkspaceResult`. An empty workspace is a valid result (volume 0).
+    Raises ``ValueError`` naming the argument for bad input.
+    """
+    if ranges is None:
+        ranges = getattr(mech, "default_ranges", dict)()
+        if not ranges:
+            raise ValueError(f"ranges: none given and {getattr(mech, 'name', mech)!r} has no default ranges")
+    coords, lows, highs = _check_ranges(mech, ranges)
+    n = _check_count(n, "n")
+    chunk_size = _check_count(chunk_size, "chunk_size")
+    if not isinstance(method, str) or method.lower() not in METHODS:
+        raise ValueError(f"method must be one of {', '.join(METHODS)}; got {method!r}")
+    method = method.lower()
+    if seed is None:
+        seed = int(np.random.SeedSequence().entropy)
+    elif isinstance(seed, (bool, np.bool_)) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ValueError(f"seed must be a non-negative integer or None, got {seed!r}")
+    seed = int(seed)
+    if not isinstance(keep_points, (bool, np.bool_)):
+        raise ValueError(f"keep_points must be True or False, got {keep_points!r}")
+    if max_points is not None:
+        if isinstance(max_points, (bool, np.bool_)) or not isinstance(max_points, (int, np.integer)) or max_points < 0:
+            raise ValueError(f"max_points must be a non-negative integer or None, got {max_points!r}")
+    cap = 0 if not keep_points else (None if max_points is None else int(max_points))
+    if not (progress is None or isinstance(progress, (bool, np.bool_)) or callable(progress)):
+        raise ValueError(f"progress must be None, True, False or a callable(n_done, n_total, n_feasible); got {progress!r}")
+
+    task = tuple(mech.task_coordinates)
+    base = _fixed_pose(mech, coords, fixed)
+    names = _check_constraints(mech, constraints, base)
+    cols = np.array([task.index(c) for c in coords])
+    d = len(coords)
+
+    shape = _grid_shape(n, d) if method == "grid" else None
+    n_samples = int(np.prod(shape)) if shape is not None else n
+    sampler = _Sampler(method, n_samples, lows, highs, seed, shape)
+
+    if raster is None:
+        rshape = _default_raster(method, n_samples, d, shape)
+    else:
+        rshape = _raster_shape(raster, coords, "raster")
+        if shape is not None:
+            rshape = tuple(min(r, m) for r, m in zip(rshape, shape))
+    rec = _new_raster(lows, highs, rshape)
+    cells = rec.total.size
+    r_total = np.zeros(cells, np.int64)
+    r_feas = np.zeros(cells, np.int64)
+
+    boundary = _GridBoundary(shape) if shape is not None else None
+
+    store = _PointStore(cap, seed)
+    ext_lo = np.full(3, np.inf)
+    ext_hi = np.full(3, -np.inf)
+    n_feasible = 0
+    report = _Progress(progress, n_samples, getattr(mech, "name", "mechanism"))
+    for start, Xs, gidx in sampler.blocks(chunk_size):
+        m = len(Xs)
+        X = np.repeat(base[None, :], m, axis=0)
+        X[:, cols] = Xs
+        ok = np.asarray(mech.is_feasible(X, names=names), dtype=bool)
+        k = int(np.count_nonzero(ok))
+        n_feasible += k
+        flat = _bin_flat(Xs, lows, highs, rshape)
+        r_total += np.bincount(flat, minlength=cells)
+        if k:
+            r_feas += np.bincount(flat[ok], minlength=cells)
+            Xf = X[ok]
+            p = np.asarray(mech.pose(Xf)[0], dtype=float)
+            ext_lo = np.minimum(ext_lo, p.min(axis=0))
+            ext_hi = np.maximum(ext_hi, p.max(axis=0))
+            store.add(Xs[ok], start + np.flatnonzero(ok))
+        if boundary is not None:
+            boundary.add(start, ok, gidx)
+        report.update(start + m, n_feasible)
+    report.close(n_feasible)
+
+    rec.total[...] = r_total.reshape(rshape)
+    rec.feasible[...] = r_feas.reshape(rshape)
+    box_vol = float(np.prod(highs - lows))
+    f = n_feasible / n_samples
+    volume = f * box_vol
+    if boundary is not None:
+        volume_error = boundary.standard_error(box_vol / n_samples)
+    else:
+        volume_error = math.sqrt(f * (1.0 - f) / n_samples) * box_vol
+    if n_feasible:
+        extents = {a: (float(ext_lo[i]), float(ext_hi[i])) for i, a in enumerate(_AXES)}
+    else:
+        extents = {a: (math.nan, math.nan) for a in _AXES}
+    ang = mech.angular_coordinates
+    cunits = {c: ("rad" if c in ang else "m") for c in coords}
+    points, complete = store.result(n_feasible, base, cols)
+    return WorkspaceResult(
+        mechanism=mech,
+        method=method,
+        seed=seed,
+        coordinates=coords,
+        box={c: (float(lo), float(hi)) for c, lo, hi in zip(coords, lows, highs)},
+        fixed={c: float(base[i]) for i, c in enumerate(task) if c not in coords},
+        constraints=names if names is not None else tuple(mech.constraints),
+        n_samples=n_samples,
+        n_feasible=n_feasible,
+        volume=volume,
+        volume_error=volume_error,
+        units=_units_string(tuple(cunits[c] for c in coords)),
+        coordinate_units=cunits,
+        extents=extents,
+        points=points,
+        points_complete=complete,
+        grid_shape=shape,
+        _raster=rec,
+        _sampler=sampler,
+        _chunk_size=chunk_size,
+    )
+
+
+# ---------------------------------------------------------------------------------------------
+# input checks
+# ---------------------------------------------------------------------------------------------
+def _check_ranges(mech, ranges):
+    task = tuple(mech.task_coordinates)
+    if not isinstance(ranges, Mapping):
+        raise ValueError(f"ranges must be a dict {{coordinate: (lo, hi)}} (SI); got {type(ranges).__name__}")
+    if not ranges:
+        raise ValueError(f"ranges must name at least one task coordinate of {task}")
+    unknown = [c for c in ranges if c not in task]
+    if unknown:
+        raise ValueError(f"ranges: unknown coordinate(s) {unknown}; valid: {', '.join(task)}")
+    lows, highs = [], []
+    coords = tuple(c for c in task if c in ranges)
+    for c in coords:
+        r = ranges[c]
+        try:
+            lo, hi = (float(v) for v in r)
+        except (TypeError, ValueError):
+            raise ValueError(f"ranges[{c!r}] must be a pair (lo, hi) of numbers (SI), got {r!r}") from None
+        if not (np.isfinite(lo) and np.isfinite(hi)):
+            raise ValueError(f"ranges[{c!r}] must be finite, got {r!r}")
+        if not lo < hi:
+            raise ValueError(f"ranges[{c!r}] is empty or inverted: lo = {lo} must be < hi = {hi}")
+        lows.append(lo)
+        highs.append(hi)
+    return coords, np.array(lows), np.array(highs)
+
+
+def _check_count(v, arg) -> int:
+    if isinstance(v, (bool, np.bool_)):
+        raise ValueError(f"{arg} must be a positive integer, got {v!r}")
+    if isinstance(v, (float, np.floating)) and np.isfinite(v) and float(v).is_integer():
+        v = int(v)
+    if not isinstance(v, (int, np.integer)) or v < 1:
+        raise ValueError(f"{arg} must be a positive integer, got {v!r}")
+    return int(v)
+
+
+def _fixed_pose(mech, coords, fixed) -> np.ndarray:
+    task = tuple(mech.task_coordinates)
+    base = np.array(mech.home, dtype=float).copy()
+    if fixed is None:
+        return base
+    if not isinstance(fixed, Mapping):
+        raise ValueError(f"fixed must be a dict {{coordinate: value}} (SI); got {type(fixed).__name__}")
+    unknown = [c for c in fixed if c not in task]
+    if unknown:
+        raise ValueError(f"fixed: unknown coordinate(s) {unknown}; valid: {', '.join(task)}")
+    both = [c for c in fixed if c in coords]
+    if both:
+        raise ValueError(f"fixed: coordinate(s) {both} are also sampled in ranges; give each in one of them")
+    for c, v in fixed.items():
+        try:
+            v = float(v)
+        except (TypeError, ValueError):
+            raise ValueError(f"fixed[{c!r}] must be a number (SI), got {v!r}") from None
+        if not np.isfinite(v):
+            raise ValueError(f"fixed[{c!r}] must be finite, got {v!r}")
+        base[task.index(c)] = v
+    return base
+
+
+def _check_constraints(mech, constraints, base):
+    if constraints is None:
+        return None
+    names = (constraints,) if isinstance(constraints, str) else tuple(constraints)
+    bad = [c for c in names if not isinstance(c, str)]
+    if bad:
+        raise ValueError(f"constraints must be constraint names (str), got {bad}")
+    try:  # the mechanism validates the names
+        mech.is_feasible(base[None, :], names=list(names))
+    except ValueError as e:
+        raise ValueError(f"constraints: {e}") from e
+    return names
+
+
+def _grid_shape(n: int, d: int) -> tuple[int, ...]:
+    m = max(1, int(round(n ** (1.0 / d))))
+    while m > 1 and m**d > n:
+        m -= 1
+    while (m + 1) ** d <= n:
+        m += 1
+    shape = [m] * d
+    for k in range(d):
+        if math.prod(shape) // shape[k] * (shape[k] + 1) <= n:
+            shape[k] += 1
+    return tuple(shape)
+
+
+def _raster_shape(res, coords, arg) -> tuple[int, ...]:
+    d = len(coords)
+    if isinstance(res, Mapping):
+        unknown = [c for c in res if c not in coords]
+        missing = [c for c in coords if c not in res]
+        if unknown or missing:
+            raise ValueError(f"{arg}: needs one entry per sampled coordinate {list(coords)}; "
+                             f"unknown {unknown}, missing {missing}")
+        vals = [res[c] for c in coords]
+    elif isinstance(res, (int, np.integer)) and not isinstance(res, (bool, np.bool_)):
+        vals = [res] * d
+    else:
+        try:
+            vals = list(res)
+        except TypeError:
+            raise ValueError(f"{arg} must be an int or one int per sampled coordinate, got {res!r}") from None
+        if len(vals) != d:
+            raise ValueError(f"{arg} must have one entry per sampled coordinate {list(coords)}, got {res!r}")
+    shape = tuple(_check_count(v, arg) for v in vals)
+    if math.prod(shape) > RASTER_MAX_CELLS:
+        raise ValueError(
+            f"{arg}={res!r} gives {math.prod(shape):,} raster cells over the {d} sampled coordinates "
+            f"{list(coords)}; at most {RASTER_MAX_CELLS:,} are allowed (the default raster "
+            f"uses at most {_RASTER_MAX_PER_AXIS.get(d, 8)} per coordinate here)"
+        )
+    return shape
+
+
+def _resolution_pair(res) -> tuple[int, int]:
+    if isinstance(res, (int, np.integer)) and not isinstance(res, (bool, np.bool_)):
+        r = _check_count(res, "resolution")
+        return r, r
+    try:
+        a, b = res
+    except (TypeError, ValueError):
+        raise ValueError(f"resolution must be an int or a pair (n_a, n_b), got {res!r}") from None
+    return _check_count(a, "resolution"), _check_count(b, "resolution")
+
+
+def _default_raster(method, n_samples, d, shape) -> tuple[int, ...]:
+    rmax = _RASTER_MAX_PER_AXIS.get(d, 8)
+    if shape is not None:
+        return tuple(min(m, rmax) for m in shape)
+    r = int((n_samples / _SAMPLES_PER_CELL) ** (1.0 / d) + 1e-9)
+    return (max(1, min(r, rmax)),) * d
+
+
+def _units_string(units) -> str:
+    nm = sum(1 for u in units if u == "m")
+    nr = sum(1 for u in units if u == "rad")
+    parts = []
+    for sym, k in (("m", nm), ("rad", nr)):
+        if k:
+            parts.append(sym if k == 1 else f"{sym}^{k}")
+    return " ".join(parts) or "1"
+
+
+# ---------------------------------------------------------------------------------------------
+# raster helpers
+# ---------------------------------------------------------------------------------------------
+def _new_raster(lows, highs, shape) -> _Raster:
+    edges = tuple(np.linspace(lo, hi, r + 1) for lo, hi, r in zip(lows, highs, shape))
+    return _Raster(edges, np.zeros(shape, np.int64), np.zeros(shape, np.int64))
+
+
+def _bin_axis(x, lo, hi, r) -> np.ndarray:
+    i = np.floor((x - lo) / (hi - lo) * r).astype(np.int64)
+    return np.clip(i, 0, r - 1)
+
+
+def _bin_flat(Xs, lows, highs, shape) -> np.ndarray:
+    flat = np.zeros(len(Xs), np.int64)
+    for k, r in enumerate(shape):
+        flat = flat * r + _bin_axis(Xs[:, k], lows[k], highs[k], r)
+    return flat
+
+
+def _largest_box(occ: np.ndarray, edges) -> tuple[list[int], list[int]] | None:
+    """Largest-volume box of True cells of ``occ`` (cell boundaries ``edges`` per axis):
+    (low cell indices, high cell indices exclusive), or None when no cell is True.
+
+    For every width along the leading axes (windows ANDed incrementally, all start
+    positions at once) the longest run of True cells along the last axis is found
+    vectorised; boxes that cannot beat the best so far are skipped."""
+    if not occ.any():
+        return None
+    d = occ.ndim
+    full = [float(e[-1] - e[0]) for e in edges]
+    best: dict[str, Any] = {"vol": 0.0, "lo": None, "hi": None}
+
+    def last_axis(A, pref, widths):
+        e = edges[-1]
+        n = A.shape[-1]
+        j = np.arange(n)
+        last_false = np.maximum.accumulate(np.where(A, -1, j), axis=-1)
+        ext = e[j + 1] - e[last_false + 1]
+        vol = pref[..., None] * ext
+        k = int(np.argmax(vol))
+        v = float(vol.flat[k])
+        if v > best["vol"]:
+            pos = np.unravel_index(k, vol.shape)
+            lo = [int(pos[i]) for i in range(d - 1)] + [int(last_false[pos]) + 1]
+            hi = [int(pos[i]) + widths[i] for i in range(d - 1)] + [int(pos[-1]) + 1]
+            best.update(vol=v, lo=lo, hi=hi)
+
+    def rec(A, k, pref, widths):
+        if k == d - 1:
+            last_axis(A, pref, widths)
+            return
+        n = A.shape[k]
+        e = edges[k]
+        rest = math.prod(full[k + 1:])
+        W = A
+        for w in range(1, n + 1):
+            if w > 1:
+                head = [slice(None)] * A.ndim
+                tail = [slice(None)] * A.ndim
+                head[k] = slice(0, n - w + 1)
+                tail[k] = slice(w - 1, n)
+                W = W[tuple(head)] & A[tuple(tail)]
+            alive = W.reshape(W.shape[: k + 1] + (-1,)).any(axis=-1)
+            if not alive.any():
+                break
+            pw = pref[..., None] * (e[w:] - e[:-w])
+            if float(pw[alive].max()) * rest <= best["vol"]:
+                continue
+            rec(W, k + 1, pw, widths + [w])
+
+    rec(occ, 0, np.array(1.0), [])
+    return best["lo"], best["hi"]
+
+
+# ---------------------------------------------------------------------------------------------
+# stored points and progress
+# ---------------------------------------------------------------------------------------------
+class _GridBoundary:
+    """Boundary-cell error estimate of a grid, accumulated chunk by chunk (see the module
+    documentation): counts D of neighbouring grid-point pairs of different feasibility per
+    axis, grid plane between the two points and direction of the change. Only the last
+    plane of grid points (the largest stride) is kept between chunks."""
+
+    def __init__(self, shape):
+        self.shape = tuple(shape)
+        d = len(self.shape)
+        self.strides = [math.prod(self.shape[k + 1:]) for k in range(d)]
+        active = [self.strides[k] for k in range(d) if self.shape[k] >= 2]
+        self.keep = max(active) if active else 0
+        self.prev = np.zeros(0, bool)
+        self.counts = [np.zeros(2 * (m - 1), np.int64) if m >= 2 else None for m in self.shape]
+
+    def add(self, start: int, ok: np.ndarray, gidx: np.ndarray):
+        if not self.keep:
+            return
+        full = np.concatenate([self.prev, ok])
+        base = start - len(self.prev)
+        i = np.arange(start, start + len(ok))
+        for k, st in enumerate(self.strides):
+            if self.counts[k] is None:
+                continue
+            ik = gidx[:, k]
+            sel = ik >= 1
+            after = ok[sel]
+            before = full[i[sel] - st - base]
+            diff = before != after
+            key = (ik[sel][diff] - 1) * 2 + after[diff]
+            self.counts[k] += np.bincount(key, minlength=len(self.counts[k]))
+        self.prev = full[-self.keep:]
+
+    def standard_error(self, cell_volume: float) -> float:
+        sq = 0.0
+        for c in self.counts:
+            if c is None:
+                continue
+            D = c.reshape(-1, 2).T.astype(float)  # [direction, plane]
+            pad = np.pad(D, ((0, 0), (1, 1)))
+            face = np.maximum(0.0, D - np.maximum(pad[:, :-2], pad[:, 2:]))
+            sq += float(np.sum(face**2) + np.sum(D - face))
+        return math.sqrt(sq / 12.0) * cell_volume
+
+
+class _PointStore:
+    """Feasible points, capped at ``cap`` by keeping those with the smallest random keys (a
+    uniform subsample that does not depend on the chunking)."""
+
+    def __init__(self, cap: int | None, seed: int):
+        self.cap = cap
+        self.X: list[np.ndarray] = []
+        self.idx: list[np.ndarray] = []
+        self.keys: list[np.ndarray] = []
+        self.size = 0
+        self.threshold = np.inf
+        self.rng = np.random.default_rng(np.random.SeedSequence(seed).spawn(1)[0]) if cap else None
+
+    def add(self, X, idx):
+        if self.cap == 0:
+            return
+        if self.cap is None:
+            self.X.append(X)
+            self.idx.append(idx)
+            self.size += len(X)
+            return
+        keys = self.rng.random(len(X))
+        sel = keys < self.threshold
+        if not sel.all():
+            X, idx, keys = X[sel], idx[sel], keys[sel]
+        self.X.append(X)
+        self.idx.append(idx)
+        self.keys.append(keys)
+        self.size += len(X)
+        if self.size > self.cap + max(self.cap // 4, 4096):
+            self._compact()
+
+    def _compact(self):
+        keys = np.concatenate(self.keys)
+        if len(keys) > self.cap:
+            sel = np.sort(np.argpartition(keys, self.cap - 1)[: self.cap])
+            keys = keys[sel]
+            self.threshold = float(keys.max())
+        else:
+            sel = slice(None)
+        X = np.concatenate(self.X)
+        self.X = []
+        X = X[sel]
+        idx = np.concatenate(self.idx)[sel]
+        self.X, self.idx, self.keys, self.size = [X], [idx], [keys], len(X)
+
+    def result(self, n_feasible: int, base: np.ndarray, cols: np.ndarray) -> tuple[np.ndarray, bool]:
+        """Stored points as full task-coordinate rows (``base`` with the sampled ``cols``
+        filled in), in sampling order, and whether they are all the feasible samples."""
+        if self.cap == 0 or not self.X:
+            return np.zeros((0, len(base))), n_feasible == 0
+        if self.cap is not None:
+            self._compact()
+        Xs, idx = np.concatenate(self.X), np.concatenate(self.idx)
+        self.X, self.idx, self.keys = [], [], []
+        order = np.argsort(idx, kind="stable")
+        X = np.repeat(base[None, :], len(Xs), axis=0)
+        X[:, cols] = Xs[order]
+        return X, len(X) == n_feasible
+
+
+class _Progress:
+    def __init__(self, progress, total: int, name: str):
+        self.total = total
+        self.name = name
+        self.callback = progress if callable(progress) and not isinstance(progress, bool) else None
+        if self.callback is not None:
+            self.line = False
+        elif progress is None:
+            self.line = total >= PROGRESS_THRESHOLD
+        else:
+            self.line = bool(progress)
+        self.t0 = time.monotonic()
+        self.last = -np.inf
+        self.wrote = False
+
+    def update(self, done: int, feasible: int):
+        if self.callback is not None:
+            self.callback(done, self.total, feasible)
+        if not self.line:
+            return
+        now = time.monotonic()
+        if now - self.last < 0.5 and done < self.total:
+            return
+        self.last = now
+        el = now - self.t0
+        eta = el / done * (self.total - done) if done else 0.0
+        sys.stderr.write(
+            f"\rworkspace {self.name}: {done:,}/{self.total:,} samples ({100.0 * done / self.total:.0f}%), "
+            f"{feasible / max(done, 1):.1%} feasible, {el:.0f} s elapsed, ~{eta:.0f} s left   "
+        )
+        sys.stderr.flush()
+        self.wrote = True
+
+    def close(self, feasible: int):
+        if self.line and self.wrote:
+            sys.stderr.write("\n")
+            sys.stderr.flush()
