@@ -338,17 +338,18 @@ def plot_designs(figs, study, designs: dict):
     ev = study.evaluation
     fig, axes = plt.subplots(1, 2, figsize=(10, 4.2))
     colors = ["#1f77b4", "#ff7f0e", "#2ca02c"]
-    for (name, mech), c in zip(mechs.items(), colors):
+    for k, ((name, mech), c) in enumerate(zip(mechs.items(), colors)):
         try:
-            ws = workspace_of(mech, ranges=ev.get("ranges"), n=min(ev["n"], 8192), method=ev["method"], seed=ev["seed"],
+            # Different sample points per design, so that the two clouds do not hide each other.
+            ws = workspace_of(mech, ranges=ev.get("ranges"), n=32768, method=ev["method"], seed=ev["seed"] + 101 * (k + 1),
                               fixed=ev.get("fixed"), constraints=ev.get("constraints"))
         except ValueError:
             continue
         if ws.n_feasible == 0:
             continue
         P = mech.pose(ws.points)[0] * 1e3
-        axes[0].scatter(P[:, 0], P[:, 1], s=3, alpha=0.35, c=c, label=name)
-        axes[1].scatter(P[:, 0], P[:, 2], s=3, alpha=0.35, c=c, label=name)
+        axes[0].scatter(P[:, 0], P[:, 1], s=2, alpha=0.25, c=c, label=name)
+        axes[1].scatter(P[:, 0], P[:, 2], s=2, alpha=0.25, c=c, label=name)
     for ax, (a, b) in zip(axes, (("X", "Y"), ("X", "Z"))):
         ax.set_xlabel(f"{a} [mm]")
         ax.set_ylabel(f"{b} [mm]")
