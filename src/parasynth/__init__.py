@@ -10,6 +10,11 @@ Quick use::
 from .legs import LEG_TYPES, PUS, RPS, RPU, SPS, UPS, UPU, Leg
 from .mechanism import ForwardKinematicsError, IKResult, Mechanism, Mobility
 from .mechanisms import list_mechanisms, load_mechanism
+from .workspace import WorkspaceResult, workspace
+from .indices import (StaticForces, global_conditioning_index, local_condition_number, local_transmission_index,
+                      min_max_forces, pressure_angle_indices, singularity_margin_stats, static_forces,
+                      transmission_indices, wrench_capability)
+from .dynamics import GRINDING_INERTIA, InertiaModel, force_decoupling, inverse_dynamics
 
 __version__ = "0.1.0"
 
@@ -28,4 +33,20 @@ __all__ = [
     "RPU",
     "RPS",
     "UPU",
+    "workspace",
+    "WorkspaceResult",
+    "StaticForces",
+    "static_forces",
+    "min_max_forces",
+    "wrench_capability",
+    "transmission_indices",
+    "local_transmission_index",
+    "pressure_angle_indices",
+    "local_condition_number",
+    "global_conditioning_index",
+    "singularity_margin_stats",
+    "InertiaModel",
+    "GRINDING_INERTIA",
+    "inverse_dynamics",
+    "force_decoupling",
 ]

@@ -477,7 +477,9 @@ class Mechanism:
         else:
             Tb = np.eye(6)
         Tb[:, 3:] /= L  # back to (v, w)
-        n_rot = _rank(Tb[:, 3:] * L)
+        # Rows of the twist basis are unit vectors in the scaled space: an absolute tolerance
+        # (a relative one would count a numerically zero rotational block as full rank).
+        n_rot = int(np.sum(np.linalg.svd(Tb[:, 3:] * L, compute_uv=False) > 1e-8)) if dof else 0
         n_trans = dof - n_rot
         A, _ = self._actuation_rows(states, p)
         A = A[0].copy()
