@@ -252,3 +252,21 @@ def test_resume_after_killed_subprocess(tmp_path, kind):
     assert keys[: len(done_before)] == [json.dumps(x["values"], sort_keys=True) for x in done_before]
     table = pd.read_csv(out / "results.csv")
     assert len(table[table.source == "run"]) == total
+
+
+def test_tied_parameters_follow_their_variable(tmp_path):
+    s = load_study(yaml.safe_dump({
+        "name": "tied", "mechanism": "5pus_upu",
+        "variables": [{"name": "sphere_max", "values": ["30 deg", "40 deg"]}],
+        "tied": {"ujoint_max": "sphere_max"},
+        "objectives": [{"name": "home_feasibility"}],
+        "optimizer": {"kind": "sweep"}}), is_text=True)
+    from parasynth.study import Evaluator
+
+    mech = Evaluator(s).build({"sphere_max": np.deg2rad(33)})
+    assert mech.params.ujoint_max == pytest.approx(np.deg2rad(33))
+    bad = {"name": "tied", "mechanism": "5pus_upu", "variables": [{"name": "sphere_max", "values": ["30 deg"]}],
+           "tied": {"link_length": "sphere_max"}, "objectives": [{"name": "home_feasibility"}],
+           "optimizer": {"kind": "sweep"}}
+    with pytest.raises(StudyError, match="different units"):
+        load_study(yaml.safe_dump(bad), is_text=True)

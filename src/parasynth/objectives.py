@@ -245,3 +245,152 @@ def max_leg_length_home(mech) -> float:
     """Longest leg (distance between end joint centres, m) at the home pose: a size measure."""
     _, states, _ = mech.leg_states(mech.home[None, :])
     return float(max(st.length[0] for st in states))
+
+
+# -- transmission, conditioning, forces -------------------------------------------------------------
+_SUB_SETTINGS = {**_WS_SETTINGS, "max_points": "int"}
+
+
+def _points(mech, kw, default_max=4096):
+    """Feasible workspace points, evenly subsampled to at most ``max_points``."""
+    ws = _ws(mech, kw)
+    pts = ws.points
+    m = int(kw.get("max_points", default_max))
+    if len(pts) > m:
+        pts = pts[np.linspace(0, len(pts) - 1, m).astype(int)]
+    return ws, pts
+
+
+@register("min_lti", unit="1", sense="maximize", settings={**_SUB_SETTINGS, "quantile": "float"})
+def min_lti(mech, quantile: float = 0.0, **kw) -> float:
+    """Smallest (or the given quantile of the) local transmission index (Wang, Liu, Wang &
+    Gosselin 2010: min of input and output transmission indices) over the feasible workspace
+    samples; 0 for an empty workspace."""
+    from .indices import local_transmission_index
+
+    _, pts = _points(mech, kw)
+    if not len(pts):
+        return 0.0
+    v = local_transmission_index(mech, pts)
+    v = v[np.isfinite(v)]
+    return float(np.quantile(v, quantile)) if v.size else 0.0
+
+
+@register("mean_lti", unit="1", sense="maximize", settings=_SUB_SETTINGS)
+def mean_lti(mech, **kw) -> float:
+    """Mean local transmission index over the feasible workspace samples."""
+    from .indices import local_transmission_index
+
+    _, pts = _points(mech, kw)
+    if not len(pts):
+        return 0.0
+    v = local_transmission_index(mech, pts)
+    v = v[np.isfinite(v)]
+    return float(v.mean()) if v.size else 0.0
+
+
+@register("good_transmission_volume", unit="sampled units", sense="maximize",
+          settings={**_SUB_SETTINGS, "threshold": "float"})
+def good_transmission_volume(mech, threshold: float = 0.7, **kw) -> float:
+    """Volume of the part of the workspace where LTI >= ``threshold`` (default 0.7):
+    workspace volume times the fraction of feasible samples above the threshold."""
+    from .indices import local_transmission_index
+
+    ws, pts = _points(mech, kw)
+    if not len(pts):
+        return 0.0
+    v = local_transmission_index(mech, pts)
+    return float(ws.volume * np.mean(np.nan_to_num(v, nan=0.0) >= threshold))
+
+
+@register("gci", unit="1", sense="maximize", settings=_SUB_SETTINGS)
+def gci(mech, **kw) -> float:
+    """Global conditioning index (Gosselin & Angeles): mean of the inverse condition number
+    of the dimensionally homogeneous actuator Jacobian over the feasible workspace."""
+    from .indices import global_conditioning_index
+
+    _, pts = _points(mech, kw)
+    if not len(pts):
+        return 0.0
+    return float(global_conditioning_index(mech, pts).value)
+
+
+_LOAD_SETTINGS = {**_SUB_SETTINGS, "mass": "mass", "force": "force", "com": "length"}
+
+
+def _load(mech, X, mass, force, com):
+    from .indices import gravity_wrench, point_force_wrench
+
+    com = tuple(com) if com is not None else (0.0, 0.0, 0.0)
+    w = gravity_wrench(mech, X, float(mass), com=com)
+    if force is not None:
+        w = w + point_force_wrench(mech, X, np.asarray(force, dtype=float), com)
+    return w
+
+
+@register("max_actuator_force", unit="N", kind="force", sense="minimize",
+          settings={**_LOAD_SETTINGS})
+def max_actuator_force(mech, mass: float = 5.0, force=None, com=None, **kw) -> float:
+    """Largest static actuator force (N) over the feasible workspace samples for a payload of
+    ``mass`` kg at ``com`` (platform frame, m) under gravity plus an optional external
+    ``force`` [Fx, Fy, Fz] (N, base frame) at the same point. For an under-actuated model the
+    least-squares balance is used (see indices.static_forces). 0 for an empty workspace."""
+    from .indices import static_forces
+
+    _, pts = _points(mech, kw, default_max=1024)
+    if not len(pts):
+        return 0.0
+    sf = static_forces(mech, pts, _load(mech, pts, mass, force, com))
+    return float(np.nanmax(np.abs(sf.actuator)))
+
+
+@register("wrench_capability", unit="N", kind="force", sense="maximize",
+          settings={**_SUB_SETTINGS, "force_limit": "force", "directions": "list", "mass": "mass"})
+def wrench_capability(mech, force_limit: float = 100.0, directions=None, mass: float = 0.0, **kw) -> float:
+    """Smallest, over the feasible workspace samples and the given force ``directions``
+    (default +-X, +-Y, +-Z), of the largest force the actuators can balance within
+    ``force_limit`` (N) each, with the payload's weight (``mass`` kg) included (cvxpy LP).
+    Directions taken entirely by the constraints count as unlimited."""
+    from .indices import gravity_wrench
+    from .indices import wrench_capability as cap
+
+    _, pts = _points(mech, kw, default_max=32)
+    if not len(pts):
+        return 0.0
+    D = np.asarray(directions if directions is not None else
+                   [[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], dtype=float)
+    g = gravity_wrench(mech, pts, float(mass)) if mass else None
+    c = cap(mech, pts, D, float(force_limit), gravity_wrench=g)
+    c = np.where(np.isnan(c), 0.0, c)
+    return float(np.min(c))
+
+
+@register("max_force_trajectory", unit="N", kind="force", sense="minimize", models=("4ups_1rps",),
+          settings={"dt": "float", "grinding_force": "force", "load_point": "str"})
+def max_force_trajectory(mech, dt: float = 0.25, grinding_force: float = 50.0, load_point: str = "grinding_point") -> float:
+    """Largest driving-leg force (N) along the 2022 paper's trajectory, eqs. (66)-(68), with
+    the Table 3 inertias, gravity and the grinding force (N) along Z applied at the grinding
+    point (``load_point="grinding_point"``) or at the platform centre (``"centre"``)."""
+    r = _decoupling(mech, dt, grinding_force, load_point)
+    return float(np.nanmax(np.abs(r.loaded[float(grinding_force)].actuator)))
+
+
+@register("force_decoupling_ratio", unit="1", sense="minimize", models=("4ups_1rps",),
+          settings={"dt": "float", "grinding_force": "force", "load_point": "str"})
+def force_decoupling_ratio(mech, dt: float = 0.25, grinding_force: float = 50.0,
+                           load_point: str = "grinding_point") -> float:
+    """How much of the grinding force reaches the driving legs: the largest change of a
+    driving-leg force along the eqs. (66)-(68) path when the grinding force (N, along Z) is
+    applied, divided by that force. 0 = fully decoupled (the paper's claim)."""
+    r = _decoupling(mech, dt, grinding_force, load_point)
+    d = np.nanmax(np.abs(r.loaded[float(grinding_force)].actuator - r.gravity_only.actuator))
+    return float(d / grinding_force)
+
+
+def _decoupling(mech, dt, grinding_force, load_point):
+    from .dynamics import force_decoupling
+
+    if load_point not in ("grinding_point", "centre"):
+        raise ValueError(f"load_point must be 'grinding_point' or 'centre', got {load_point!r}")
+    lp = (0.0, mech.params.y_t, 0.0) if load_point == "grinding_point" else (0.0, 0.0, 0.0)
+    return force_decoupling(mech, dt=dt, grinding_forces=(float(grinding_force),), load_point=lp)

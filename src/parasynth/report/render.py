@@ -312,7 +312,8 @@ def plot_designs(figs, study, designs: dict):
     mechs = {}
     for name, values in designs.items():
         try:
-            mechs[name] = load_mechanism(study.mechanism, **{**study.fixed, **values})
+            tied = {k: values[v] for k, v in study.tied.items() if v in values}
+            mechs[name] = load_mechanism(study.mechanism, **{**study.fixed, **values, **tied})
         except ValueError:
             continue
     if not mechs:

@@ -89,6 +89,9 @@ class Evaluator:
 
     def build(self, values: dict):
         params = {**self.study.fixed, **values}
+        for k, src in self.study.tied.items():
+            if src in values:
+                params[k] = values[src]
         return load_mechanism(self.study.mechanism, **params)
 
     def evaluate(self, values: dict, n: int | None = None, seed: int | None = None, trial: int = -1,

@@ -121,6 +121,7 @@ class StudySpec(_Model):
     evaluation: EvaluationSpec = Field(default_factory=EvaluationSpec)
     optimizer: OptimizerSpec = Field(default_factory=OptimizerSpec)
     reference: dict[str, Any] | None = None
+    tied: dict[str, str] = Field(default_factory=dict)
     output: str | None = None
 
 
@@ -186,6 +187,7 @@ class ResolvedStudy:
     optimizer: OptimizerSpec
     reference: dict | None
     source: str | None = None
+    tied: dict = dataclasses.field(default_factory=dict)  # parameter -> design variable it equals
 
     @property
     def name(self) -> str:
@@ -432,8 +434,19 @@ def resolve_study(data: dict, source: str | None = None) -> ResolvedStudy:
             check_param(k, f"reference.{k}")
             reference[k] = _q_nested(v, kinds.get(k), f"reference.{k}")
 
+    tied = {}
+    for k, src in spec.tied.items():
+        check_param(k, f"tied.{k}")
+        if src not in seen:
+            raise StudyError(f"tied.{k}: {src!r} is not a design variable; variables: {', '.join(v.name for v in variables)}")
+        if k in seen or k in fixed:
+            raise StudyError(f"tied.{k}: {k!r} is already a design variable or fixed")
+        if kinds.get(k) != kinds.get(src):
+            raise StudyError(f"tied.{k}: {k!r} ({kinds.get(k)}) and {src!r} ({kinds.get(src)}) have different units")
+        tied[k] = src
+
     return ResolvedStudy(spec, spec.mechanism, fixed, tuple(variables), tuple(objectives), tuple(constraints),
-                         evaluation, opt, reference, source)
+                         evaluation, opt, reference, source, tied)
 
 
 _ANGULAR = {"alpha", "beta", "gamma", "psi", "theta", "phi"}
