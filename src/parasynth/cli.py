@@ -6,6 +6,7 @@ run STUDY.yaml       run a design study (sweep, NLopt or Optuna) and write its r
 validate STUDY.yaml  check a study file and print it resolved to SI
 evaluate STUDY.yaml  evaluate one design of a study (all objectives and constraints)
 report RUN_DIR       write index.html, report.md and pareto.csv for a run
+run-all [FOLDER]     run every study of a folder and write all reports (reports/README.md)
 list                 mechanisms, objectives, optimisers
 analyze NAME         kinematic analysis of a mechanism at its home pose and a pose sample
 """
@@ -122,6 +123,56 @@ def cmd_run(args) -> int:
             print(f"report: {rdir / 'index.html'}")
         except ReportError as e:
             print(f"no report: {e}", file=sys.stderr)
+    return 0
+
+
+def cmd_run_all(args) -> int:
+    """Run every study of a folder (resuming finished or interrupted runs unless --fresh) and
+    write each report, plus an index reports/README.md."""
+    import shutil
+    from pathlib import Path
+
+    from .report import ReportError, write_report
+    from .study import StudyError, load_study, run_study
+
+    folder = Path(args.folder)
+    files = sorted(folder.glob("*.yaml")) if folder.is_dir() else []
+    if args.only:
+        files = [f for f in files if f.stem in args.only]
+    if not files:
+        print(f"error: no study files (*.yaml) in {str(folder)!r}" + (f" matching {args.only}" if args.only else ""),
+              file=sys.stderr)
+        return 2
+    index = []
+    for f in files:
+        try:
+            study = load_study(f)
+        except StudyError as e:
+            print(f"error: {f}: {e}", file=sys.stderr)
+            return 2
+        out = Path(args.runs) / study.name
+        if args.fresh and out.exists():
+            shutil.rmtree(out)
+        print(f"== {f} -> {out}", flush=True)
+        res = run_study(study, out_dir=out, resume=out.exists(), progress=not args.quiet)
+        print(res.summary(study))
+        if res.interrupted:
+            print("interrupted; run the same command again to continue", file=sys.stderr)
+            return 130
+        try:
+            rdir = write_report(out, out=Path(args.reports) / study.name)
+        except ReportError as e:
+            print(f"no report for {study.name}: {e}", file=sys.stderr)
+            continue
+        desc = " ".join(study.spec.description.split())
+        index.append((study.name, rdir, desc))
+    idx = Path(args.reports) / "README.md"
+    lines = ["# Study reports", "", "Regenerate with `parasynth run-all studies` (add `--fresh` to rerun from "
+             "scratch).", ""]
+    for name, rdir, desc in index:
+        lines.append(f"- [{name}]({name}/report.md) ([HTML]({name}/index.html)): {desc}")
+    idx.write_text("\n".join(lines) + "\n")
+    print(f"index: {idx}")
     return 0
 
 
@@ -253,6 +304,14 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--no-report", action="store_true", help="do not write the report at the end")
     p.add_argument("--report-dir", help="report directory (default reports/<study name>/)")
     p.set_defaults(func=cmd_run)
+    p = sub.add_parser("run-all", help="run every study in a folder and write the reports")
+    p.add_argument("folder", nargs="?", default="studies")
+    p.add_argument("--only", nargs="*", help="study file stems to run")
+    p.add_argument("--fresh", action="store_true", help="delete existing run directories first")
+    p.add_argument("--runs", default="runs", help="runs folder (default runs/)")
+    p.add_argument("--reports", default="reports", help="reports folder (default reports/)")
+    p.add_argument("--quiet", action="store_true")
+    p.set_defaults(func=cmd_run_all)
     p = sub.add_parser("report", help="write the report of a run directory")
     p.add_argument("run_dir", help="run directory (runs/<study name>/)")
     p.add_argument("--out", help="report directory (default reports/<study name>/)")
