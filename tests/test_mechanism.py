@@ -333,7 +333,9 @@ def test_rigid_motion_invariance(config, seed):
     np.testing.assert_allclose(Wd[:, :na], Wr[:, :na], atol=1e-12)
     # constraint rows up to sign (a numerically computed reciprocal screw has no set sign)
     err = np.minimum(np.abs(Wd[:, na:] - Wr[:, na:]).max(-1), np.abs(Wd[:, na:] + Wr[:, na:]).max(-1))
-    assert np.all(err < 1e-9)
+    # relative: the U-P-U constraint is a numerically computed null vector whose moment can be
+    # large (a force on a line far from the platform centre)
+    assert np.all(err < 1e-9 * (1 + np.abs(Wr[:, na:]).max(-1)))
     mob, mobd = m.mobility(), d.mobility()
     assert (mob.dof, mob.type, mob.controlled, mob.constraint_rank) == (
         mobd.dof, mobd.type, mobd.controlled, mobd.constraint_rank)

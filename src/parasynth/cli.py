@@ -25,10 +25,13 @@ from .mechanisms import list_mechanisms, load_mechanism, mechanism_summaries
 
 def _parse_params(name: str, items: list[str]) -> dict:
     """--param NAME=VALUE items with units where the parameter has one ("link_length=205 mm")."""
-    from .mechanisms import _REGISTRY
+    from .mechanisms import mechanism_class
     from .units import parse_quantity
 
-    units = getattr(_REGISTRY[name][0]().Params, "UNITS", {}) if name in _REGISTRY else {}
+    try:
+        units = getattr(mechanism_class(name).Params, "UNITS", {})
+    except ValueError:
+        units = {}
     out = {}
     for it in items or []:
         if "=" not in it:
@@ -325,7 +328,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--samples", type=int, help="workspace samples (default: the study's)")
     p.set_defaults(func=cmd_evaluate)
     p = sub.add_parser("analyze", help="kinematic analysis of a mechanism")
-    p.add_argument("name", help=f"one of: {', '.join(list_mechanisms())}")
+    p.add_argument("name", help=f"one of: {', '.join(list_mechanisms())}, or a mechanism description file (.yaml)")
     p.add_argument("--param", action="append", metavar="NAME=VALUE",
                    help="override a parameter, with its unit (e.g. link_length='185 mm')")
     p.add_argument("--samples", type=int, default=2000, help="random poses to sample (default 2000)")

@@ -503,3 +503,87 @@ class UPU(Leg):
 
 #: Leg classes by name, for descriptions and error messages.
 LEG_TYPES = {cls.joints: cls for cls in (SPS, UPS, PUS, RPU, RPS, UPU)}
+
+
+@dataclass(frozen=True)
+class PRS(Leg):
+    """Actuated prismatic (slider) - revolute - spherical leg with a link of fixed length (the
+    leg of a 3-PRS).
+
+    The slider moves along the unit ``slider_axis`` through ``base`` (the slider origin); the
+    revolute joint centre is ``J = base + s * slider_axis`` and the actuator is ``s`` (m). The
+    revolute axis ``r_axis`` (base frame, normal to ``slider_axis``) is carried by the slider,
+    so the link ``J -> S`` of constant ``link_length`` turns in the plane through the slider
+    line normal to ``r_axis``: a pose is reachable only if the sphere lies in that plane
+    (within ``GEOM_TOL``) and no further than ``link_length`` from the slider line. As for
+    :class:`PUS`, ``branch = +1`` puts the revolute joint further along ``slider_axis`` than
+    the sphere.
+
+    Passive angles: ``R_base`` (rotation of the link about ``r_axis`` from ``base_ref``),
+    ``R_base_cone``, ``S_platform_cone`` and ``link_slider`` (link against the slider axis).
+    Constraint: a force parallel to ``r_axis`` through the sphere centre.
+    """
+
+    slider_axis: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, 1.0]))
+    r_axis: np.ndarray = field(default_factory=lambda: np.array([1.0, 0.0, 0.0]))
+    link_length: float = 0.2
+    branch: int = 1
+    joints: ClassVar[str] = "PRS"
+    actuated: ClassVar[int | None] = 0
+    actuator_kind: ClassVar[str] = "slider"
+
+    def __post_init__(self):
+        super().__post_init__()
+        object.__setattr__(self, "slider_axis", _axis(f"leg {self.name}: slider_axis", self.slider_axis))
+        object.__setattr__(self, "r_axis", _axis(f"leg {self.name}: r_axis", self.r_axis))
+        if abs(float(self.slider_axis @ self.r_axis)) > 1e-9:
+            raise ValueError(
+                f"leg {self.name}: r_axis must be perpendicular to slider_axis (the revolute joint "
+                f"turns the link in a plane containing the slider line), got r_axis "
+                f"{self.r_axis.tolist()} and slider_axis {self.slider_axis.tolist()}"
+            )
+        L = float(self.link_length)
+        if not np.isfinite(L) or L <= 0:
+            raise ValueError(f"leg {self.name}: link_length must be a positive length in m, got {L}")
+        if self.branch not in (1, -1):
+            raise ValueError(f"leg {self.name}: branch must be +1 or -1, got {self.branch}")
+
+    def solve(self, p, R):
+        S = self.platform_points(p, R)
+        e, a = self.slider_axis, self.r_axis
+        L = float(self.link_length)
+        d = S - self.base
+        off_plane = np.abs(d @ a)
+        de = d @ e
+        perp2 = np.einsum("ij,ij->i", d, d) - de**2
+        disc = L**2 - perp2
+        reachable = (disc >= 0) & (off_plane <= GEOM_TOL * max(1.0, L))
+        s = de + self.branch * np.sqrt(np.where(disc >= 0, disc, np.nan))
+        J = self.base + s[:, None] * e
+        n = (S - J) / L
+        angles = self._cone_angles(n, R, "R_base", "S_platform")
+        angles["R_base"] = _u_angles(a, self.base_ref, n, "R")["R_1"]
+        angles["link_slider"] = _angle_between(-n, np.broadcast_to(e, n.shape))
+        return LegState(s, reachable, J, S, n, np.full(s.shape, L), angles, {"off_plane": off_plane})
+
+    def joint_twists(self, st, P):
+        N = st.length.shape[0]
+        e = np.broadcast_to(self.slider_axis, (N, 3))
+        a = np.broadcast_to(self.r_axis, (N, 3))
+        tw = [prismatic_twist(e), revolute_twist(a, st.base_point, P)]
+        tw += _spherical_twists(st.platform_point, P)
+        return np.stack(tw, axis=1)
+
+    def actuation_wrench(self, st, P):
+        # The link carries a force along its line through S (reciprocal to the revolute and the
+        # spherical joint); a slider rate s' moves J along e, so s' = (n . v_S) / (n . e).
+        w = force_wrench(st.direction, st.platform_point, P)
+        return w, st.direction @ self.slider_axis
+
+    def constraint_wrenches(self, st, P):
+        N = st.length.shape[0]
+        return force_wrench(np.broadcast_to(self.r_axis, (N, 3)), st.platform_point, P)[:, None, :]
+
+
+LEG_TYPES["PRS"] = PRS
+__all__.append("PRS")

@@ -1,13 +1,24 @@
-"""Registry of the built-in mechanism models."""
+"""Registry of the built-in mechanism models, and of mechanisms described in YAML.
+
+A mechanism is named either by a registry name (``list_mechanisms()``) or by a description
+file: a path to a ``.yaml``/``.yml`` file (or any existing file), or the bare file name of a
+description shipped in this package (``"5pus_upu.yaml"``). See ``docs/mechanisms.md``.
+"""
 
 from __future__ import annotations
 
 import dataclasses
+import os
+from pathlib import Path
 from typing import Callable
 
 from ..mechanism import Mechanism
 
-__all__ = ["list_mechanisms", "load_mechanism", "register"]
+__all__ = ["list_mechanisms", "load_mechanism", "register", "mechanism_class", "resolve_mechanism_name",
+           "packaged_descriptions"]
+
+_PACKAGE_DIR = Path(__file__).resolve().parent
+_DESCRIBED: dict = {}
 
 _REGISTRY: dict[str, tuple[Callable[[], type], str]] = {}
 
@@ -35,9 +46,28 @@ def _ups_rps():
     return UPSRPSGrinding
 
 
+def _described_class(path: Path) -> type:
+    """The class of the description file ``path`` (cached while the file is unchanged)."""
+    from .description import load_description
+
+    st = path.stat()
+    key = (str(path.resolve()), st.st_mtime_ns, st.st_size)
+    if key not in _DESCRIBED:
+        _DESCRIBED[key] = load_description(path)
+    return _DESCRIBED[key]
+
+
+def _packaged(filename: str) -> Callable[[], type]:
+    return lambda: _described_class(_PACKAGE_DIR / filename)
+
+
 register("4ups_1rps", _ups_rps, "4-UPS/1-RPS parallel grinding robot (Wang et al., Symmetry 2022)")
 register("2rpu_2sps", _rpu_sps, "2-RPU&2-SPS 2T2R manipulator (An et al., 2018)")
 register("5pus_upu", _pus_upu, "5-PUS/UPU 3T2R mechanism (Wang, Lyu & Liu, Appl. Sci. 2021)")
+register("gough_stewart_6ups", _packaged("gough_stewart_6ups.yaml"),
+         "6-UPS Gough-Stewart platform, semi-regular hexagons (described in gough_stewart_6ups.yaml)")
+register("3rps", _packaged("3rps.yaml"), "3-RPS 1T2R platform with parasitic motion (described in 3rps.yaml)")
+register("3prs", _packaged("3prs.yaml"), "3-PRS 1T2R platform on vertical sliders (described in 3prs.yaml)")
 
 
 def list_mechanisms() -> list[str]:
@@ -49,15 +79,70 @@ def mechanism_summaries() -> dict[str, str]:
     return {k: _REGISTRY[k][1] for k in list_mechanisms()}
 
 
+def packaged_descriptions() -> list[str]:
+    """File names of the mechanism descriptions shipped with parasynth."""
+    return sorted(p.name for p in _PACKAGE_DIR.glob("*.yaml"))
+
+
+def _description_path(name, base_dir=None) -> Path | None:
+    """The description file ``name`` refers to; None when it is not a file name or path."""
+    if not isinstance(name, (str, os.PathLike)):
+        return None
+    s = os.fspath(name)
+    if not s or (isinstance(name, str) and name in _REGISTRY):
+        return None
+    p = Path(s).expanduser()
+    candidates = []
+    if base_dir is not None and not p.is_absolute():
+        candidates.append(Path(base_dir) / p)
+    candidates.append(p)
+    if p.name == s:
+        candidates.append(_PACKAGE_DIR / s)
+    for c in candidates:
+        if c.is_file():
+            return c
+    if s.endswith((".yaml", ".yml")):
+        where = ", ".join(str(c.parent) for c in candidates)
+        raise ValueError(f"mechanism description {s!r} not found (looked in {where}); packaged descriptions: "
+                         f"{', '.join(packaged_descriptions())}")
+    return None
+
+
+def resolve_mechanism_name(name, base_dir=None) -> str:
+    """A registry name unchanged; a description file as an absolute path (relative paths are
+    tried against ``base_dir`` first, then the working directory), except a packaged
+    description named by its bare file name, which stays bare. Raises ``ValueError`` as
+    :func:`mechanism_class` does."""
+    path = _description_path(name, base_dir)
+    if path is None:
+        mechanism_class(name)  # raises for an unknown name
+        return name
+    if path.parent.resolve() == _PACKAGE_DIR and os.fspath(name) == path.name:
+        return path.name
+    return str(path.resolve())
+
+
+def mechanism_class(name, base_dir=None) -> type:
+    """The model class for a registry name or a description file (see the module docstring).
+    Raises ``ValueError`` naming the valid mechanisms for an unknown name, and
+    ``DescriptionError`` (a ``ValueError``) for a malformed description."""
+    if isinstance(name, str) and name in _REGISTRY:
+        return _REGISTRY[name][0]()
+    path = _description_path(name, base_dir)
+    if path is None:
+        raise ValueError(f"unknown mechanism {name!r}; available: {', '.join(list_mechanisms())}, or a mechanism "
+                         f"description file (.yaml; packaged: {', '.join(packaged_descriptions())})")
+    return _described_class(path)
+
+
 def load_mechanism(name: str, **params) -> Mechanism:
     """Build a model by name with parameters in SI units (m, rad); defaults are the papers'.
 
-    Raises ``ValueError`` naming the valid mechanisms for an unknown name, and the valid
-    parameters for an unknown parameter.
+    ``name`` is a registry name or a mechanism description file (a path, or the file name of a
+    packaged description such as ``"5pus_upu.yaml"``). Raises ``ValueError`` naming the valid
+    mechanisms for an unknown name, and the valid parameters for an unknown parameter.
     """
-    if not isinstance(name, str) or name not in _REGISTRY:
-        raise ValueError(f"unknown mechanism {name!r}; available: {', '.join(list_mechanisms())}")
-    cls = _REGISTRY[name][0]()
+    cls = mechanism_class(name)
     fields = {f.name for f in dataclasses.fields(cls.Params)}
     unknown = sorted(set(params) - fields)
     if unknown:

@@ -277,13 +277,19 @@ def _q_nested(value, kind, path):
 
 def resolve_study(data: dict, source: str | None = None) -> ResolvedStudy:
     """Validate names and units of a parsed study mapping and convert to SI."""
-    from ..mechanisms import _REGISTRY, list_mechanisms
+    from ..mechanisms import mechanism_class, resolve_mechanism_name
     from ..objectives import OBJECTIVES, get as get_measure
 
     spec = parse_spec(data)
-    if spec.mechanism not in _REGISTRY:
-        raise StudyError(f"mechanism: unknown mechanism {spec.mechanism!r}; available: {', '.join(list_mechanisms())}")
-    mech_cls = _REGISTRY[spec.mechanism][0]()
+    # A registry name, or a mechanism description file: a relative path is taken from the study
+    # file's directory and recorded as an absolute path (so that run copies still find it).
+    try:
+        mech_name = resolve_mechanism_name(spec.mechanism, Path(source).parent if source else None)
+        mech_cls = mechanism_class(mech_name)
+    except ValueError as e:
+        raise StudyError(f"mechanism: {e}") from None
+    if mech_name != spec.mechanism:
+        spec = spec.model_copy(update={"mechanism": mech_name})
     kinds = _param_kinds(mech_cls)
     params = [f.name for f in dataclasses.fields(mech_cls.Params)]
 
@@ -398,7 +404,7 @@ def resolve_study(data: dict, source: str | None = None) -> ResolvedStudy:
     for k, v in ev.fixed_pose.items():
         if k not in task:
             raise StudyError(f"evaluation.fixed_pose.{k}: not a task coordinate of {spec.mechanism}; valid: {', '.join(task)}")
-        fixed_pose[k] = _q(v, "angle" if k in _ANGULAR else "length", f"evaluation.fixed_pose.{k}")
+        fixed_pose[k] = _q(v, "angle" if k in _angular(mech_cls) else "length", f"evaluation.fixed_pose.{k}")
     evaluation = dict(method=ev.method, n=ev.samples, seed=ev.seed, ranges=ranges,
                       fixed=fixed_pose or None, constraints=ev.constraints,
                       final_samples=ev.final_samples, final_repeats=ev.final_repeats, final_top=ev.final_top)
@@ -452,6 +458,13 @@ def resolve_study(data: dict, source: str | None = None) -> ResolvedStudy:
 _ANGULAR = {"alpha", "beta", "gamma", "psi", "theta", "phi"}
 
 
+def _angular(mech_cls) -> set:
+    """Angular task coordinates of a model class (by name for models that set them per instance)."""
+    if getattr(mech_cls, "task_coordinates", ()):
+        return set(getattr(mech_cls, "angular_coordinates", ()))
+    return _ANGULAR
+
+
 def _task_coordinates(mech_cls, fixed) -> tuple:
     try:
         return tuple(mech_cls(mech_cls.Params(**{k: v for k, v in fixed.items()})).task_coordinates)
@@ -466,7 +479,7 @@ def _resolve_ranges(val, mech_cls, path) -> dict:
     for k, pair in val.items():
         if not isinstance(pair, (list, tuple)) or len(pair) != 2:
             raise StudyError(f"{path}.{k}: give [low, high] with units, got {pair!r}")
-        kind = "angle" if k in _ANGULAR else "length"
+        kind = "angle" if k in _angular(mech_cls) else "length"
         lo, hi = (_q(x, kind, f"{path}.{k}[{j}]") for j, x in enumerate(pair))
         if not lo < hi:
             raise StudyError(f"{path}.{k}: empty or inverted range [{pair[0]}, {pair[1]}]")
