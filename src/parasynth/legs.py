@@ -362,7 +362,9 @@ class RPS(Leg):
         B = np.broadcast_to(self.base, A.shape)
         n, length = self._line(B, A)
         off_plane = np.abs((A - B) @ self.r_axis)
-        reachable = (off_plane <= GEOM_TOL * max(1.0, float(np.max(length, initial=1.0)))) & (length > 0)
+        # Tolerance per pose (never relative to the batch: a pose's answer must not depend on
+        # the other poses evaluated with it).
+        reachable = (off_plane <= GEOM_TOL * np.maximum(1.0, length)) & (length > 0)
         angles = self._cone_angles(n, R, "R_base", "S_platform")
         # Revolute angle: rotation of the leg about r_axis from base_ref (projected).
         angles.update({"R_base": _u_angles(self.r_axis, self.base_ref, n, "R")["R_1"]})
@@ -411,8 +413,7 @@ class RPU(Leg):
         a4 = R @ self.u_platform_axis
         off_plane = np.abs((A - B) @ self.r_axis)
         skew_u = np.abs(a4 @ self.r_axis)
-        scale = max(1.0, float(np.max(length, initial=1.0)))
-        reachable = (off_plane <= GEOM_TOL * scale) & (skew_u <= GEOM_TOL) & (length > 0)
+        reachable = (off_plane <= GEOM_TOL * np.maximum(1.0, length)) & (skew_u <= GEOM_TOL) & (length > 0)
         angles = self._cone_angles(n, R, "R_base", "U_platform")
         angles["R_base"] = _u_angles(self.r_axis, self.base_ref, n, "R")["R_1"]
         # Platform universal joint: rotation about the leg-side axis (parallel to r_axis)

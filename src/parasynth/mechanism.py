@@ -591,7 +591,8 @@ class Mechanism:
         with np.errstate(invalid="ignore"):
             for c in cons:
                 m = np.asarray(c.margin(ctx), dtype=float)
-                m = np.where(ctx.reachable & np.isfinite(m), m, -np.inf)
+                # Unreachable poses (and undefined margins) are -inf; an unbounded limit stays +inf.
+                m = np.where(ctx.reachable & ~np.isnan(m), m, -np.inf)
                 out[c.name] = m[0] if single else m
         return out
 

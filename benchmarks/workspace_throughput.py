@@ -1,0 +1,377 @@
+"""Workspace throughput: feasible-pose evaluations per second, per model.
+
+Three ways of deciding whether poses are feasible (reachable by every leg and inside every
+constraint the model declares: actuator strokes, joint angles, leg interference, ...):
+
+(a) ``numpy``  -- ``mech.is_feasible`` on large chunks (the vectorised reference path);
+(b) ``kernel`` -- ``parasynth.kernels.feasible_fast``: the fused numba kernel, timed after a
+    warm-up call so that JIT compilation is excluded, on chunks of 2**20 poses;
+(c) ``loop``   -- a naive per-pose loop written like a paper's brute-force workspace search:
+    one pose at a time, plain Python/NumPy on 3-vectors (rotation matrix, inverse kinematics
+    of each leg, each limit in turn, pairwise segment distances), measured in the same run on
+    a small sample.
+
+The poses are uniform in a task box around each model's workspace (printed, with the
+feasible fraction: early rejection makes the rate depend on it). Each model runs in its own
+process so that ``peak_rss_mb`` (``resource.getrusage``) is that model's peak. The run ends
+with exactly one line per model::
+
+    <model> poses_per_s=<float> ratio_vs_loop=<float> peak_rss_mb=<float>
+
+where ``poses_per_s`` is the rate of the fastest path and ``ratio_vs_loop`` its ratio to the
+loop measured in the same run.
+
+Usage::
+
+    python benchmarks/workspace_throughput.py                    # ~2e7 kernel poses per model
+    python benchmarks/workspace_throughput.py --seconds 3        # time-boxed per path
+    python benchmarks/workspace_throughput.py --n 5e6 --models 5pus_upu
+
+Not part of the test suite.
+"""
+
+from __future__ import annotations
+
+import argparse
+import concurrent.futures as cf
+import math
+import multiprocessing as mp
+import os
+import resource
+import sys
+import time
+
+import numpy as np
+
+#: Task boxes (lo, hi), SI, around each model's workspace: with the default parameters 35-50%
+#: of the poses are feasible (printed; early rejection makes the rate depend on it).
+BOXES = {
+    "5pus_upu": ([-0.06, -0.06, -0.10, -0.35, -0.35], [0.06, 0.06, 0.08, 0.35, 0.35]),
+    "2rpu_2sps": ([0.62, -0.55, -0.5], [0.94, 0.55, 0.5]),
+    "4ups_1rps": ([-0.2, 0.36, -0.4, 0.0, -0.4], [0.2, 0.5, 0.4, 0.4, 0.4]),
+}
+
+KERNEL_CHUNK = 2**20
+NUMPY_CHUNK = 2**17
+
+
+# ---------------------------------------------------------------------------------------------
+# (c) The naive loop: one pose at a time on 3-vectors, like a paper's brute-force search.
+# ---------------------------------------------------------------------------------------------
+def rot_x(a):
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+
+
+def rot_y(a):
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+
+
+def rot_z(a):
+    c, s = math.cos(a), math.sin(a)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def angle(u, v):
+    """Angle between two vectors (rad)."""
+    c = np.dot(u, v) / (np.linalg.norm(u) * np.linalg.norm(v))
+    return math.acos(min(1.0, max(-1.0, c)))
+
+
+def segment_distance(p1, q1, p2, q2):
+    """Closest distance of segments [p1, q1], [p2, q2] (Ericson, Real-Time Collision
+    Detection, 5.1.9)."""
+    d1, d2, r = q1 - p1, q2 - p2, p1 - p2
+    a, e, f = np.dot(d1, d1), np.dot(d2, d2), np.dot(d2, r)
+    eps = 1e-300
+    if a <= eps and e <= eps:
+        return np.linalg.norm(r)
+    if a <= eps:
+        s, t = 0.0, min(max(f / e, 0.0), 1.0)
+    else:
+        c = np.dot(d1, r)
+        if e <= eps:
+            t, s = 0.0, min(max(-c / a, 0.0), 1.0)
+        else:
+            b = np.dot(d1, d2)
+            denom = a * e - b * b
+            s = min(max((b * f - c * e) / denom, 0.0), 1.0) if denom > 1e-12 * a * e else 0.0
+            t = (b * s + f) / e
+            if t < 0.0:
+                t, s = 0.0, min(max(-c / a, 0.0), 1.0)
+            elif t > 1.0:
+                t, s = 1.0, min(max((b - c) / a, 0.0), 1.0)
+    return np.linalg.norm((p1 + d1 * s) - (p2 + d2 * t))
+
+
+def loop_5pus_upu(mech, X):
+    P = mech.params
+    pus, upu = mech.legs[:5], mech.legs[5]
+    out = np.zeros(len(X), dtype=bool)
+    for i, (x, y, z, alpha, beta) in enumerate(X):
+        dx, dz = x, z - P.upu_base_z
+        if dx * dx + dz * dz <= 1e-12:
+            continue
+        q1 = math.atan2(dx, dz)
+        R = rot_y(q1) @ rot_x(alpha) @ rot_y(beta - q1)
+        p = np.array([x, y, z])
+        if np.linalg.norm(p + R @ upu.platform - upu.base) == 0.0:
+            continue
+        segs, ok = [], True
+        for leg in pus:
+            S = p + R @ leg.platform
+            d = S - leg.base
+            de = np.dot(d, leg.slider_axis)
+            disc = leg.link_length**2 - (np.dot(d, d) - de**2)
+            if disc < 0:  # sphere out of reach of the link
+                ok = False
+                break
+            s = de + leg.branch * math.sqrt(disc)
+            if not P.slider_min <= s <= P.slider_max:
+                ok = False
+                break
+            U = leg.base + s * leg.slider_axis
+            n = (S - U) / leg.link_length
+            if angle(n, leg.base_ref) > P.ujoint_max or angle(-n, R @ leg.platform_ref) > P.sphere_max:
+                ok = False
+                break
+            segs.append((U, S))
+        if not ok:
+            continue
+        for a in range(5):
+            for b in range(a + 1, 5):
+                if segment_distance(*segs[a], *segs[b]) < P.link_diameter:
+                    ok = False
+                    break
+            if not ok:
+                break
+        out[i] = ok
+    return out
+
+
+def loop_2rpu_2sps(mech, X):
+    P = mech.params
+    out = np.zeros(len(X), dtype=bool)
+    for i, row in enumerate(X):
+        if P.coupled:
+            z, psi, th = row
+            if abs(math.cos(th)) <= 1e-9:
+                continue
+            x = z * math.tan(th)
+        else:
+            x, z, psi, th = row
+        if abs(psi) > P.psi_max or abs(th) > P.theta_max:
+            continue
+        R = rot_y(th) @ rot_x(psi)
+        p = np.array([x, 0.0, z])
+        segs, ok = [], True
+        for leg in mech.legs:
+            A = p + R @ leg.platform
+            d = A - leg.base
+            q = np.linalg.norm(d)
+            if hasattr(leg, "r_axis"):  # RPU: leg in the plane normal to r_axis
+                if abs(np.dot(d, leg.r_axis)) > 1e-9 or abs(np.dot(R @ leg.u_platform_axis, leg.r_axis)) > 1e-9:
+                    ok = False
+                    break
+            if not P.q_min <= q <= P.q_max:
+                ok = False
+                break
+            segs.append((leg.base, A))
+        if not ok:
+            continue
+        for a in range(4):
+            for b in range(a + 1, 4):
+                if segment_distance(*segs[a], *segs[b]) < P.leg_diameter:
+                    ok = False
+                    break
+            if not ok:
+                break
+        out[i] = ok
+    return out
+
+
+def loop_4ups_1rps(mech, X):
+    P = mech.params
+    drive, rps = mech.legs[:4], mech.legs[4]
+    # revolute-angle frame of the constraining branch (theta1 = 0 at home)
+    a1 = rps.r_axis
+    r0 = rps.base_ref - np.dot(rps.base_ref, a1) * a1
+    r0 = r0 / np.linalg.norm(r0)
+    b0 = np.cross(a1, r0)
+    Y = np.array([0.0, 1.0, 0.0])
+    out = np.zeros(len(X), dtype=bool)
+    for i, (x, y, al, be, ga) in enumerate(X):
+        R = rot_z(al) @ rot_y(be) @ rot_z(ga)
+        p = np.array([x, y, 0.0])
+        segs, ok = [], True
+        for leg in drive:
+            A = p + R @ leg.platform
+            L = A - leg.base
+            l = np.linalg.norm(L)
+            if not P.l_min <= l <= P.l_max:
+                ok = False
+                break
+            if angle(L, R @ Y) > P.sphere_max or angle(L, Y) > P.ujoint_max:
+                ok = False
+                break
+            segs.append((leg.base, A))
+        if not ok:
+            continue
+        d = p - rps.base  # constraining branch: plane, stroke d2, revolute angle theta1
+        d2 = np.linalg.norm(d)
+        if abs(np.dot(d, rps.r_axis)) > 1e-9 or not P.d2_min <= d2 <= P.d2_max:
+            continue
+        n = d / d2
+        if abs(math.atan2(np.dot(n, b0), np.dot(n, r0))) > P.theta1_max:
+            continue
+        if angle(p, R @ Y) > P.sphere_max:
+            continue
+        for a, b in ((0, 1), (1, 2), (2, 3), (3, 0)):
+            if segment_distance(*segs[a], *segs[b]) < P.leg_diameter:
+                ok = False
+                break
+        out[i] = ok
+    return out
+
+
+LOOPS = {"5pus_upu": loop_5pus_upu, "2rpu_2sps": loop_2rpu_2sps, "4ups_1rps": loop_4ups_1rps}
+
+
+# ---------------------------------------------------------------------------------------------
+# Measurement
+# ---------------------------------------------------------------------------------------------
+def _peak_rss_mb() -> float:
+    r = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    return r / 1024.0 if sys.platform != "darwin" else r / 2**20
+
+
+def _timed_chunks(fn, sampler, chunk, total, seconds):
+    """Run fn on fresh chunks of poses; time only fn. Stops after ``total`` poses or, with
+    ``seconds``, once that much time has been spent in fn. Returns (poses, seconds,
+    feasible count, cpu seconds)."""
+    done = feas = 0
+    t_fn = cpu = 0.0
+    while True:
+        n = chunk if seconds else min(chunk, total - done)
+        if n <= 0:
+            break
+        X = sampler(n)
+        c0, t0 = time.process_time(), time.perf_counter()
+        ok = fn(X)
+        t_fn += time.perf_counter() - t0
+        cpu += time.process_time() - c0
+        done += n
+        feas += int(np.count_nonzero(ok))
+        if seconds and t_fn >= seconds:
+            break
+    return done, t_fn, feas, cpu
+
+
+def run_model(name: str, opts: dict) -> dict:
+    import numba
+
+    from parasynth import kernels, load_mechanism
+
+    mech = load_mechanism(name)
+    lo, hi = (np.asarray(b, dtype=float) for b in BOXES[name])
+    rng = np.random.default_rng(opts["seed"])
+
+    def sampler(n):
+        return rng.uniform(lo, hi, size=(n, lo.size))
+
+    res = {"model": name, "box": (lo.tolist(), hi.tolist()), "kernel": kernels.kernel_available(mech),
+           "threads": numba.get_num_threads() if kernels.HAVE_NUMBA else 0}
+    seconds = opts["seconds"]
+
+    # (c) naive loop, small sample; checked against the reference
+    Xl = sampler(opts["loop_n"])
+    t0 = time.perf_counter()
+    ok_loop = LOOPS[name](mech, Xl)
+    t_loop = time.perf_counter() - t0
+    if seconds:  # time-boxed: continue until `seconds`
+        n_more = 0
+        while t_loop < seconds:
+            Xm = sampler(200)
+            t0 = time.perf_counter()
+            LOOPS[name](mech, Xm)
+            t_loop += time.perf_counter() - t0
+            n_more += 200
+        n_loop = len(Xl) + n_more
+    else:
+        n_loop = len(Xl)
+    ref = mech.is_feasible(Xl)
+    res["loop"] = dict(n=n_loop, rate=n_loop / t_loop, agree=int(np.count_nonzero(ok_loop == ref)), checked=len(Xl))
+
+    # (a) vectorised NumPy, large chunks
+    n_np, t_np, f_np, c_np = _timed_chunks(mech.is_feasible, sampler, opts["numpy_chunk"], opts["numpy_n"], seconds)
+    res["numpy"] = dict(n=n_np, rate=n_np / t_np, feasible=f_np / n_np, cpu_per_wall=c_np / t_np)
+
+    # (b) fused kernel: warm-up (JIT compile or cache load) excluded, then the big run
+    Xw = sampler(4096)
+    t0 = time.perf_counter()
+    ok_w = kernels.feasible_fast(mech, Xw)
+    res["warmup_s"] = time.perf_counter() - t0
+    ref_w = mech.is_feasible(Xw)
+    res["kernel_agree"] = (int(np.count_nonzero(ok_w == ref_w)), len(Xw))
+    n_k, t_k, f_k, c_k = _timed_chunks(lambda X: kernels.feasible_fast(mech, X), sampler, opts["chunk"],
+                                       opts["n"], seconds)
+    res["fused"] = dict(n=n_k, rate=n_k / t_k, feasible=f_k / n_k, cpu_per_wall=c_k / t_k)
+    res["peak_rss_mb"] = _peak_rss_mb()
+    return res
+
+
+def _run_isolated(name, opts):
+    """Run one model in a fresh process (its own peak RSS)."""
+    with cf.ProcessPoolExecutor(max_workers=1, mp_context=mp.get_context("spawn")) as ex:
+        return ex.submit(run_model, name, opts).result()
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--models", nargs="+", default=list(BOXES), choices=list(BOXES),
+                    help="models to run (default: all)")
+    ap.add_argument("--n", type=float, default=20 * KERNEL_CHUNK,
+                    help="poses for the fused kernel (default 20*2**20 ~ 2.1e7); NumPy gets n/20, at least 2**17")
+    ap.add_argument("--seconds", type=float, default=None,
+                    help="instead of --n: time spent in each path (loop, NumPy, kernel) per model")
+    ap.add_argument("--loop-n", type=int, default=1000, help="poses for the naive loop (default 1000)")
+    ap.add_argument("--chunk", type=int, default=KERNEL_CHUNK, help="kernel chunk (default 2**20)")
+    ap.add_argument("--numpy-chunk", type=int, default=NUMPY_CHUNK, help="NumPy chunk (default 2**17)")
+    ap.add_argument("--seed", type=int, default=2024)
+    ap.add_argument("--in-process", action="store_true", help="run all models in this process")
+    args = ap.parse_args(argv)
+    n = int(args.n)
+    opts = dict(n=n, numpy_n=max(NUMPY_CHUNK, n // 20), seconds=args.seconds, loop_n=args.loop_n,
+                chunk=args.chunk, numpy_chunk=args.numpy_chunk, seed=args.seed)
+
+    results = []
+    for name in args.models:
+        r = run_model(name, opts) if args.in_process else _run_isolated(name, opts)
+        results.append(r)
+
+    print(f"cores: {os.cpu_count()}, numba threads: {results[0]['threads']}; poses uniform in the task boxes below")
+    hdr = f"{'model':10s} {'path':7s} {'poses':>10s} {'poses/s':>12s} {'x loop':>9s} {'feasible':>9s} {'cpu/wall':>9s}"
+    print(hdr)
+    print("-" * len(hdr))
+    for r in results:
+        lr = r["loop"]["rate"]
+        print(f"{r['model']:10s} {'loop':7s} {r['loop']['n']:10d} {lr:12.4g} {1.0:9.1f} {'':>9s} {'':>9s}")
+        for path in ("numpy", "fused"):
+            d = r[path]
+            print(f"{r['model']:10s} {path:7s} {d['n']:10d} {d['rate']:12.4g} {d['rate'] / lr:9.1f} "
+                  f"{d['feasible']:9.3f} {d['cpu_per_wall']:9.2f}")
+    print()
+    for r in results:
+        print(f"{r['model']}: box lo={r['box'][0]} hi={r['box'][1]}; kernel available: {r['kernel']}; "
+              f"warm-up {r['warmup_s']:.2f} s; loop agrees with is_feasible on {r['loop']['agree']}/"
+              f"{r['loop']['checked']} poses, kernel on {r['kernel_agree'][0]}/{r['kernel_agree'][1]}")
+    print()
+    for r in results:
+        best = max(r["numpy"]["rate"], r["fused"]["rate"])
+        print(f"{r['model']} poses_per_s={best:.6g} ratio_vs_loop={best / r['loop']['rate']:.6g} "
+              f"peak_rss_mb={r['peak_rss_mb']:.6g}")
+
+
+if __name__ == "__main__":
+    main()
