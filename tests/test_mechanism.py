@@ -144,7 +144,11 @@ def test_constraint_wrenches_do_no_work_on_feasible_twists(config, seed):
     X = sample_poses(m, np.random.default_rng(seed), 6)
     C = m.wrench_matrix(X)[:, len(m.actuators):]
     assert C.shape[1] > 0
-    np.testing.assert_allclose(C @ m.twist_map(X), 0.0, atol=1e-12)
+    # The U-P-U constraint is a numerically computed null vector that can sit far from the
+    # platform centre (large moment): compare against the size of its terms.
+    T = m.twist_map(X)
+    scale = 1 + np.abs(C).max(axis=(1, 2), keepdims=True) * np.abs(T).max(axis=(1, 2), keepdims=True)
+    assert np.all(np.abs(C @ T) <= 1e-11 * scale), np.max(np.abs(C @ T) / scale)
 
 
 @pytest.mark.parametrize("platform", ["rectangular", "pentagonal"])

@@ -111,7 +111,11 @@ def test_anchor_geometry_follows_table2(m):
     rps = [leg for leg in m.legs if type(leg).joints == "RPS"]
     assert len(rps) == 1
     r, b = rps[0].r_axis, rps[0].base
-    dist = np.linalg.norm(np.cross(c - b, r))
+    # the fixed-platform centre: the rectangle's centre in the plane Y = 0 (the universal-joint
+    # centres lie base_offset from that plane)
+    centre = c - np.array([0.0, m.params.base_offset, 0.0])
+    np.testing.assert_allclose(centre, 0.0, atol=1e-12)
+    dist = np.linalg.norm(np.cross(centre - b, r))
     assert dist == pytest.approx(0.05, abs=1e-12)
     np.testing.assert_allclose(np.abs(r), [0, 0, 1], atol=1e-12)
     np.testing.assert_allclose(rps[0].platform, 0.0, atol=1e-15)  # sphere at the platform centre

@@ -49,7 +49,20 @@ Assumptions where the paper is silent (all are parameters):
 * ``pentagon_radius`` (62 mm) for the first scheme: not given; any value shows the singularity.
 * ``upu_base_z`` (-0.15 m): height of the constraining limb's base universal joint. Only the
   passive limb's length and its constraint wrench direction depend on it (at the reference
-  pose its constraint is the pure couple about Z of eq. (6) whatever the height).
+  pose its constraint is the pure couple about Z of eq. (6) whatever the height). It must lie
+  below the workspace (z >= -0.097 m with the default stroke), where the limb would have zero
+  length; the +-5 deg workspace changes by less than 2 mm for any height from -0.10 to -0.40 m.
+* ``slider_min``, ``slider_max`` (0.085, 0.290 m): the 205 mm stroke of Section 5, placed
+  around the reference pose. At a fixed orientation the placement only shifts the workspace
+  along Z; the paper gives no absolute heights.
+* ``sphere_max`` (25 deg) and ``ujoint_max`` (40 deg): joint cone-angle limits, not stated in
+  the paper. At alpha = beta = 0 both cone angles equal the angle between a link and its
+  reference direction, so only the smaller limit acts. 25 deg balances the XOY sizes of the
+  paper's fixed-posture workspaces (120 x 175 mm at alpha = beta = 0, 80 x 150 mm within
+  +-5 deg): the model gives 137 x 145 mm and 113 x 119 mm, 3 % and 6 % off in the geometric
+  mean. The model's workspace is nearly isotropic in X and Y, so no limit reproduces the
+  paper's aspect ratio (docs/reproduction.md). The spherical joint is the limiting one, as
+  the paper says (Sections 2.4.2 and 4.1); 40 deg is a common universal-joint range.
 * The constraining limb's universal-joint axes: base axis Y, middle axes parallel, platform
   axis y (platform frame), as in the paper's Figure 3 (its screw system (6)); see Orientation.
 """
@@ -105,10 +118,11 @@ class PUSUPU5Params:
     slider_angles: tuple = tuple(np.deg2rad([18.0, 162.0, 234.0, 306.0, 90.0]).tolist())
     upu_base_z: float = -0.15
     # Limits. Stroke 205 mm (Section 5), placed around the reference pose; joint limits are not
-    # stated in the paper; link diameter 8 mm (Section 5).
+    # stated in the paper (sphere_max calibrated on the Section 4.3 workspace sizes, see the
+    # module docstring); link diameter 8 mm (Section 5).
     slider_min: float = 0.085
     slider_max: float = 0.290
-    sphere_max: float = float(np.deg2rad(40.0))
+    sphere_max: float = float(np.deg2rad(25.0))
     ujoint_max: float = float(np.deg2rad(40.0))
     link_diameter: float = 0.008
 

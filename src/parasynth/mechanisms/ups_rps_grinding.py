@@ -32,15 +32,25 @@ unbalanced residual (docs/models/4ups_1rps.md).
 
 Assumptions where the paper is silent (all are parameters):
 
-* ``base_offset``: the universal-joint centres' distance from the fixed-platform plane along
-  Y (the paper gives no height for them). Default 0: the centres lie in the plane Y = 0.
+* ``base_offset``: the universal-joint centres' Y coordinate, i.e. their distance from the
+  fixed-platform plane Y = 0 along Y (the paper gives no height for them). Default -0.125 m
+  (the centres 125 mm below that plane, on the side away from the moving platform),
+  calibrated on the grinding-point workspace of Section 3.3: it puts the lower end of the
+  workspace at the paper's -0.11..0.11 m while the top stays where d2_max puts it
+  (d2_max - l_s0 + y_T = 0.575 m, the paper's 0.57 m). Legs as long as Table 2's l_max reach
+  that top only for base_offset >= -0.135 m. With base_offset = 0 the workspace spans only
+  Y 0.43..0.575 m. See docs/reproduction.md.
 * ``u_angles`` follow Table 2: U1..U4 on a circle of radius ``base_radius`` (0.335 m) in the
   XZ plane, angle measured from +X towards +Z, with 53 deg between U1 and U2 and 127 deg
   between U2 and U3; the U1-U2 side is centred on ``u_phase`` (default 0, i.e. on +X, so the
-  long side of the rectangle runs along X).
+  long side of the rectangle runs along X). ``u_phase = 90 deg`` (long side along Z) gives a
+  wider workspace (X about +-0.36 m) whose lower end is as wide as the rest. That is not the
+  narrowing sector of the paper's Figures 7 and 23, hence the default 0.
 * ``platform_angles``: spheres at -45, 45, 135, 225 deg on the circle of radius
   ``platform_radius`` (0.1 m) in the platform's xz plane ("evenly distributed", Section 3.2),
-  each paired with the nearest universal joint.
+  each paired with the nearest universal joint. A common offset of the four angles is a spin
+  of the platform about its normal. That spin moves neither the platform centre nor the
+  grinding point, so it does not change the grinding-point workspace.
 * Universal-joint fixed axes tangential to the base circle.
 * Gravity along -Y (parameter of the force analyses, not of the kinematics).
 """
@@ -78,7 +88,7 @@ class UPSRPSGrindingParams:
     mu2: float = float(np.deg2rad(127.0))
     l_s0: float = 0.05
     y_t: float = 0.075
-    base_offset: float = 0.0
+    base_offset: float = -0.125
     u_phase: float = 0.0
     platform_angles: tuple = tuple(np.deg2rad([-45.0, 45.0, 135.0, 225.0]).tolist())
     # Limits of Table 2 (used by constraint margins).
