@@ -270,3 +270,18 @@ def test_tied_parameters_follow_their_variable(tmp_path):
            "optimizer": {"kind": "sweep"}}
     with pytest.raises(StudyError, match="different units"):
         load_study(yaml.safe_dump(bad), is_text=True)
+
+
+def test_optuna_parallel_processes(tmp_path, monkeypatch):
+    """n_jobs > 1 runs worker processes sharing the SQLite storage: every trial evaluated
+    once, the table complete."""
+    monkeypatch.setenv("PARASYNTH_PLUGINS", PLUGIN)
+    s = study_of(optimizer={"kind": "optuna", "algorithm": "random", "n_trials": 12, "seed": 0, "n_jobs": 2})
+    res = run_study(s, out_dir=tmp_path / "r", progress=False)
+    t = res.table[res.table.source == "run"]
+    assert len(t) == 12
+    assert t["trial"].nunique() == 12
+    import optuna
+
+    st = optuna.load_study(study_name="analytic", storage=f"sqlite:///{tmp_path / 'r' / 'optuna.db'}")
+    assert len([x for x in st.trials if x.state == optuna.trial.TrialState.COMPLETE]) == 12

@@ -522,7 +522,10 @@ def _run_optuna(study, evaluator, records, record, progress, n_trials, out_dir, 
 
 def _optuna_worker(args):
     study_source, study_yaml, storage, seed, n, out_dir, idx = args
+    from ..cli import load_plugins
     from .spec import load_study
+
+    load_plugins()  # user measures registered through PARASYNTH_PLUGINS
 
     study = load_study(study_yaml, is_text=True)
     import optuna
