@@ -267,7 +267,7 @@ def segment_distance(p1, q1, p2, q2) -> np.ndarray:
     """Minimum distance between segments [p1, q1] and [p2, q2], vectorised over leading axes.
 
     Closest points of two segments (Ericson, *Real-Time Collision Detection*, 5.1.9), with
-    the degenerate cases (a segment of zero length, parallel segments) handled by clamping.
+    the degenerate cases (segments of zero length, parallel segments) handled as there.
     """
     p1, q1, p2, q2 = (np.asarray(a, dtype=float) for a in (p1, q1, p2, q2))
     d1, d2, r = q1 - p1, q2 - p2, p1 - p2
@@ -277,15 +277,21 @@ def segment_distance(p1, q1, p2, q2) -> np.ndarray:
     c = np.sum(d1 * r, -1)
     b = np.sum(d1 * d2, -1)
     eps = 1e-300
+    a_pt, e_pt = a <= eps, e <= eps
     denom = a * e - b * b
-    # s on segment 1 from the infinite-line solution, clamped; parallel -> 0.
     with np.errstate(divide="ignore", invalid="ignore"):
+        # General case: s from the infinite lines (0 when parallel), then t, then clamp.
         s = np.where(denom > 1e-12 * np.maximum(a * e, eps), np.clip((b * f - c * e) / denom, 0, 1), 0.0)
-        t = np.where(e > eps, (b * s + f) / e, 0.0)
-        # Clamp t and recompute s where needed.
-        s = np.where(t < 0, np.where(a > eps, np.clip(-c / a, 0, 1), 0.0), s)
-        s = np.where(t > 1, np.where(a > eps, np.clip((b - c) / a, 0, 1), 0.0), s)
-    t = np.clip(t, 0, 1)
+        t = np.where(e_pt, 0.0, (b * s + f) / e)
+        s = np.where(~e_pt & (t < 0), np.where(a_pt, 0.0, np.clip(-c / a, 0, 1)), s)
+        s = np.where(~e_pt & (t > 1), np.where(a_pt, 0.0, np.clip((b - c) / a, 0, 1)), s)
+        t = np.clip(t, 0, 1)
+        # Second segment a point: closest point of the first to it.
+        s = np.where(e_pt & ~a_pt, np.clip(-c / a, 0, 1), s)
+        # First segment a point: closest point of the second to it.
+        t = np.where(a_pt & ~e_pt, np.clip(f / e, 0, 1), t)
+        s = np.where(a_pt, 0.0, s)
+        t = np.where(a_pt & e_pt, 0.0, t)
     c1 = p1 + s[..., None] * d1
     c2 = p2 + t[..., None] * d2
     return np.linalg.norm(c1 - c2, axis=-1)
