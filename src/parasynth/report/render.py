@@ -413,8 +413,8 @@ def write_report(run_dir, out=None) -> Path:
     runs, front = a["runs"], a["front"]
     front.to_csv(out / "pareto.csv", index=False)
     figs = Figures()
-    plot_pareto(figs, study, runs, front, a["ref_row"], a["knee_row"])
     plot_sweep(figs, study, run.table, run.final)
+    plot_pareto(figs, study, runs, front, a["ref_row"], a["knee_row"])
     plot_convergence(figs, study, runs)
     plot_parallel(figs, study, runs, front)
     designs = {}
@@ -530,18 +530,24 @@ def _cell(x) -> str:
 
 def _markdown(run, sections, figs) -> str:
     out = [f"# Study report: {run.study.name}", ""]
-    for title, text, table in sections:
+
+    def section(title, text, table):
+        nonlocal out
         out += [f"## {title}", "", text, ""]
         if table is not None and len(table):
             out += [_md_table(table), ""]
         if title == "Study and software":
             out += ["```yaml", run.study.to_yaml().rstrip(), "```", ""]
+
+    for sec in sections[:-1]:
+        section(*sec)
     out += ["## Figures", ""]
     for name, caption, png in figs.items:
         if png:
             out += [f"![{name}](img/{name}.png)", "", f"*{caption}*", ""]
         else:
             out += [f"*{caption}*", ""]
+    section(*sections[-1])  # study file and software versions last
     return "\n".join(out)
 
 
@@ -559,7 +565,7 @@ def _html(run, sections, figs) -> str:
     ]
     if run.partial:
         parts.append(f"<p class='partial'><b>Partial report:</b> {esc(run.partial_reason)}.</p>")
-    for title, text, table in sections:
+    def section(title, text, table):
         parts.append(f"<h2>{esc(title)}</h2>")
         parts.append("<p>" + _md_inline(esc(text)) + "</p>")
         if table is not None and len(table):
@@ -567,6 +573,9 @@ def _html(run, sections, figs) -> str:
                                        classes="designs"))
         if title == "Study and software":
             parts.append(f"<pre>{esc(run.study.to_yaml())}</pre>")
+
+    for sec in sections[:-1]:
+        section(*sec)
     parts.append("<h2>Figures</h2>")
     for name, caption, png in figs.items:
         if png:
@@ -575,6 +584,7 @@ def _html(run, sections, figs) -> str:
                          f"<figcaption>{esc(caption)}</figcaption></figure>")
         else:
             parts.append(f"<p><i>{esc(caption)}</i></p>")
+    section(*sections[-1])  # study file and software versions last
     parts.append("</body></html>")
     return "\n".join(parts)
 
