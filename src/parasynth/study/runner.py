@@ -575,7 +575,11 @@ def reevaluate_best(study: ResolvedStudy, evaluator: Evaluator, table: pd.DataFr
     """Re-evaluate the best feasible designs (and the reference) with ``final_samples``
     samples and ``final_repeats`` seeds: mean and standard error of each objective."""
     ev = study.evaluation
-    best = best_designs(study, table[table["source"] == "run"], k=ev["final_top"])
+    runs = table[table["source"] == "run"]
+    if study.optimizer.kind == "sweep":  # a sweep is read as a curve: every completed design
+        best = runs[runs["status"] == "ok"].head(max(ev["final_top"], 1) * 1000)
+    else:
+        best = best_designs(study, runs, k=ev["final_top"])
     ref = table[table["source"] == "reference"]
     rows = []
     for src, df in (("best", best), ("reference", ref)):
