@@ -169,6 +169,17 @@ def cmd_run_all(args) -> int:
             continue
         desc = " ".join(study.spec.description.split())
         index.append((study.name, rdir, desc))
+    # The index lists every study of the folder that has a report, not only those run now.
+    done = {name for name, _, _ in index}
+    for f in sorted(folder.glob("*.yaml")):
+        try:
+            st = load_study(f)
+        except StudyError:
+            continue
+        rdir = Path(args.reports) / st.name
+        if st.name not in done and (rdir / "index.html").exists():
+            index.append((st.name, rdir, " ".join(st.spec.description.split())))
+    index.sort(key=lambda item: item[0])
     idx = Path(args.reports) / "README.md"
     lines = ["# Study reports", "", "Regenerate with `parasynth run-all studies` (add `--fresh` to rerun from "
              "scratch).", ""]
