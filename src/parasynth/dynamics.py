@@ -471,7 +471,7 @@ def inverse_dynamics(mech, X, Xd, Xdd, inertia: InertiaModel, gravity=None, exte
 # ---------------------------------------------------------------------------------------------
 # The grinding robot's trajectories and force-decoupling study (2022 paper, Section 4.5)
 # ---------------------------------------------------------------------------------------------
-def grinding_trajectory(t, y0: float = 0.45, beta: float = -np.pi / 12):
+def grinding_trajectory(t, y0: float = 0.45, beta: float = -np.pi / 12, alpha: float = 0.0, gamma: float = 0.0):
     """Hypothesis 1's motion, eqs. (66)-(68), as task coordinates ``(x, y, alpha, beta,
     gamma)`` of the ``4ups_1rps`` model and their first and second derivatives, (N, 5) each.
 
@@ -480,14 +480,33 @@ def grinding_trajectory(t, y0: float = 0.45, beta: float = -np.pi / 12):
     * 10 < t <= 50 s: ``X = 0.1 cos(pi (t - 10)/20)``, ``Y = 0.1 sin(pi (t - 10)/20) + 0.45``
       (one full circle of radius 0.1 m about (0, 0.45) m in 40 s);
     * ``beta = -pi/12`` throughout (eq. (68)); ``alpha = gamma = 0`` (not stated; taken as zero).
+      ``alpha``, ``beta``, ``gamma`` set the constant attitude, so other readings of eq. (68)
+      can be run, e.g. ``beta=0, alpha=-pi/12``.
 
     (X, Y) are read as the platform centre (the paper applies the motion "to the moving
-    platform"). ``y0`` is the 0.45 m of the equations. In the model's orientation (legs and
-    platform normal along Y, see ``ups_rps_grinding``) the z-y-z angle ``beta`` turns the
-    platform about its own normal. Along this path the model's limits are exceeded in places
-    (``d2`` reaches 0.60 m > ``d2_max`` = 0.55 m at the top of the circle, and two legs
-    shorten to 0.410 m < ``l_min`` = 0.43 m); :func:`force_decoupling` reports the smallest
-    margins. The equations have a velocity jump at t = 10 s (``Y'`` goes from 0 to 15.7 mm/s),
+    platform"). ``y0`` is the 0.45 m of the equations.
+
+    **What beta = -15 deg does.** The model's frame is the paper's: eq. (1), the DH chain of
+    the RPS branch, equals the model's pose, with ``alpha = -(theta1 + theta3)``,
+    ``beta = theta4``, ``gamma = theta5`` (eq. (3)), and the disc's normal is the platform's
+    y axis (eqs. (9)-(10): ``n_mi = (0, 1, 0)``, grinding point ``(0, y_T, 0)``). In
+    ``R = Rz(alpha) Ry(beta) Rz(gamma)`` the normal is
+    ``R (0, 1, 0) = Rz(alpha) (-c(beta) s(gamma), c(gamma), s(beta) s(gamma))``: with
+    ``gamma = 0`` it is ``Rz(alpha) (0, 1, 0)`` whatever ``beta`` (eq. (1)'s second column is
+    ``(s theta13, c theta13, 0)`` when ``theta5 = 0``, free of ``theta4``). So ``beta`` alone
+    turns the platform about its own normal, ``alpha`` tilts it within the plane of motion
+    (about Z, like the revolute angle ``theta1``), and ``beta`` tilts the normal out of that
+    plane only together with ``gamma``. Eq. (68) as printed is therefore a -15 deg spin about
+    the disc axis, and that is the default.
+    A spin is the same as a common offset of the sphere angles, which the paper does not give
+    (the model assumes -45, 45, 135, 225 deg): the spun path equals the level path with
+    ``platform_angles`` -30, 60, 150, 240 deg. docs/reproduction.md compares the readings
+    with the paper's forces.
+
+    Along this path the model's limits are exceeded in places
+    (``d2`` reaches 0.60 m > ``d2_max`` = 0.55 m at the top of the circle, and the legs
+    lengthen to 0.730 m > ``l_max`` = 0.68 m; 61 % of the path is feasible);
+    :func:`force_decoupling` reports the smallest margins. The equations have a velocity jump at t = 10 s (``Y'`` goes from 0 to 15.7 mm/s),
     which the paper notices as a sudden change of the forces; here each instant is evaluated
     on its own branch (t = 10 s on the linear one).
     """
@@ -508,7 +527,7 @@ def grinding_trajectory(t, y0: float = 0.45, beta: float = -np.pi / 12):
     X[c, 0], X[c, 1] = 0.1 * np.cos(u), 0.1 * np.sin(u) + y0
     Xd[c, 0], Xd[c, 1] = -0.1 * w * np.sin(u), 0.1 * w * np.cos(u)
     Xdd[c, 0], Xdd[c, 1] = -0.1 * w**2 * np.cos(u), -0.1 * w**2 * np.sin(u)
-    X[:, 3] = beta
+    X[:, 2], X[:, 3], X[:, 4] = alpha, beta, gamma
     return X, Xd, Xdd
 
 
@@ -600,10 +619,12 @@ class DecouplingResult:
 
 def force_decoupling(mech=None, inertia: InertiaModel | None = None, grinding_forces=(30.0, 50.0),
                      dt: float = 0.1, load_point=(0.0, 0.0, 0.0), direction=(0.0, 0.0, 1.0),
-                     gravity=None, y0: float = 0.45) -> DecouplingResult:
+                     gravity=None, y0: float = 0.45, attitude=(0.0, -np.pi / 12, 0.0)) -> DecouplingResult:
     """Run the 2022 paper's hypotheses 1-3 on the ``4ups_1rps`` model (Section 4.5).
 
-    * Hypothesis 1: gravity only, motion of eqs. (66)-(68) (:func:`grinding_trajectory`).
+    * Hypothesis 1: gravity only, motion of eqs. (66)-(68) (:func:`grinding_trajectory`),
+      at the constant z-y-z ``attitude`` ``(alpha, beta, gamma)``, default eq. (68) as printed
+      (``beta = -pi/12``, a spin about the disc axis; see :func:`grinding_trajectory`).
     * Hypotheses 2 and 3: a constant grinding force of 30 N and 50 N (``grinding_forces``)
       along ``direction`` (base frame, default +Z, the constant-force actuator's axis) with
       zero moment about the platform centre (the paper: "the torque of that external force is
@@ -636,7 +657,11 @@ def force_decoupling(mech=None, inertia: InertiaModel | None = None, grinding_fo
         return TrajectoryForces(t, X, sf.actuator, sf.constraint, sf.residual, sf.balanced, F, margins)
 
     t1 = np.round(np.arange(0.0, 50.0 + 1e-9, dt), 12)
-    path = grinding_trajectory(t1, y0=y0)
+    att = np.asarray(attitude, dtype=float)
+    if att.shape != (3,) or not np.all(np.isfinite(att)):
+        raise ValueError(f"attitude must be three finite z-y-z angles (alpha, beta, gamma) in rad, got {attitude!r}")
+    a, b, c = (float(v) for v in att)
+    path = grinding_trajectory(t1, y0=y0, alpha=a, beta=b, gamma=c)
     t2 = np.round(np.arange(0.0, 10.0 + 1e-9, dt), 12)
     lift = grinding_lift_trajectory(t2, y0=y0)
     h1 = run(t1, path, 0.0)
