@@ -488,25 +488,11 @@ def _run_optuna(study, evaluator, records, record, progress, n_trials, out_dir, 
         ostudy.sampler = _make_sampler(study, seed + len(finished), _constraints_func if has_cons else None)
     bar = _Progress(remaining, progress, f"optuna {sampler.__class__.__name__} {study.name}")
 
-    def objective(trial):
-        values = {}
-        for v in study.variables:
-            if v.type == "categorical":
-                values[v.name] = trial.suggest_categorical(v.name, list(v.choices))
-            elif v.type == "integer":
-                values[v.name] = trial.suggest_int(v.name, int(v.low), int(v.high), log=v.log)
-            else:
-                values[v.name] = trial.suggest_float(v.name, v.low, v.high, log=v.log)
-        rec = evaluator.evaluate(values, trial=trial.number)
-        _set_optuna_constraints(trial, study, rec)
-        trial.set_user_attr("evaluated", True)
+    def on_record(rec):
         record(rec)
         bar.update(rec, _best_str(study, records))
-        if rec.status != "ok":
-            trial.set_user_attr("error", rec.error)
-            return tuple(float("nan") for _ in study.objectives) if len(study.objectives) > 1 else float("nan")
-        vals = tuple(rec.objectives[o.label] for o in study.objectives)
-        return vals if len(vals) > 1 else vals[0]
+
+    objective = _optuna_objective(study, evaluator, on_record)
 
     try:
         if opt_spec.n_jobs > 1:
@@ -520,8 +506,35 @@ def _run_optuna(study, evaluator, records, record, progress, n_trials, out_dir, 
         bar.close()
 
 
+def _optuna_objective(study, evaluator: Evaluator, on_record):
+    """The Optuna objective of a study: suggest the design variables, evaluate the design,
+    hand the record to ``on_record``, report constraints and objectives (NaN for a failed
+    design, which Optuna records as a failed trial)."""
+
+    def objective(trial):
+        values = {}
+        for v in study.variables:
+            if v.type == "categorical":
+                values[v.name] = trial.suggest_categorical(v.name, list(v.choices))
+            elif v.type == "integer":
+                values[v.name] = trial.suggest_int(v.name, int(v.low), int(v.high), log=v.log)
+            else:
+                values[v.name] = trial.suggest_float(v.name, v.low, v.high, log=v.log)
+        rec = evaluator.evaluate(values, trial=trial.number)
+        _set_optuna_constraints(trial, study, rec)
+        trial.set_user_attr("evaluated", True)
+        on_record(rec)
+        if rec.status != "ok":
+            trial.set_user_attr("error", rec.error)
+            return tuple(float("nan") for _ in study.objectives) if len(study.objectives) > 1 else float("nan")
+        vals = tuple(rec.objectives[o.label] for o in study.objectives)
+        return vals if len(vals) > 1 else vals[0]
+
+    return objective
+
+
 def _optuna_worker(args):
-    study_source, study_yaml, storage, seed, n, out_dir, idx = args
+    study_yaml, storage, seed, n, out_dir, idx = args
     from ..cli import load_plugins
     from .spec import load_study
 
@@ -537,24 +550,7 @@ def _optuna_worker(args):
                             _constraints_func if study.constraints and not _uses_set_constraint() else None)
     ostudy = optuna.load_study(study_name=study.name, storage=storage, sampler=sampler)
 
-    def objective(trial):
-        values = {}
-        for v in study.variables:
-            if v.type == "categorical":
-                values[v.name] = trial.suggest_categorical(v.name, list(v.choices))
-            elif v.type == "integer":
-                values[v.name] = trial.suggest_int(v.name, int(v.low), int(v.high), log=v.log)
-            else:
-                values[v.name] = trial.suggest_float(v.name, v.low, v.high, log=v.log)
-        rec = evaluator.evaluate(values, trial=trial.number)
-        _set_optuna_constraints(trial, study, rec)
-        trial.set_user_attr("evaluated", True)
-        journal.append(rec)
-        if rec.status != "ok":
-            return tuple(float("nan") for _ in study.objectives) if len(study.objectives) > 1 else float("nan")
-        vals = tuple(rec.objectives[o.label] for o in study.objectives)
-        return vals if len(vals) > 1 else vals[0]
-
+    objective = _optuna_objective(study, evaluator, journal.append)
     ostudy.optimize(objective, n_trials=n, catch=(Exception,))
     journal.close()
 
@@ -565,7 +561,7 @@ def _optuna_processes(study, storage, seed, remaining, n_jobs, out_dir):
     import multiprocessing as mp
 
     per = [remaining // n_jobs + (1 if i < remaining % n_jobs else 0) for i in range(n_jobs)]
-    args = [(study.source, study.to_yaml(), storage, seed, n, str(out_dir), i) for i, n in enumerate(per) if n]
+    args = [(study.to_yaml(), storage, seed, n, str(out_dir), i) for i, n in enumerate(per) if n]
     ctx = mp.get_context("spawn")
     with ctx.Pool(len(args)) as pool:
         pool.map(_optuna_worker, args)
