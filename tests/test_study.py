@@ -285,3 +285,23 @@ def test_optuna_parallel_processes(tmp_path, monkeypatch):
 
     st = optuna.load_study(study_name="analytic", storage=f"sqlite:///{tmp_path / 'r' / 'optuna.db'}")
     assert len([x for x in st.trials if x.state == optuna.trial.TrialState.COMPLETE]) == 12
+
+
+@pytest.mark.parametrize("algorithm, maxeval, tol", [("GN_ISRES", 600, 0.01), ("GN_DIRECT_L", 300, 0.005)])
+def test_nlopt_global_algorithms_find_known_optimum(tmp_path, algorithm, maxeval, tol):
+    """Global algorithms through the same machinery; DIRECT_L has no nonlinear constraints in
+    NLopt, so a constraint would be handled by the documented penalty (none here)."""
+    s = study_of(optimizer={"kind": "nlopt", "algorithm": algorithm, "maxeval": maxeval, "seed": 1})
+    res = run_study(s, out_dir=tmp_path / "r", progress=False)
+    t = res.table[res.table.source == "run"]
+    best = t.loc[t["test_quadratic"].idxmax()]
+    assert abs(best["link_length"] - 0.2) < tol and abs(best["slider_radius"] - 0.14) < tol
+
+
+def test_nlopt_penalty_keeps_unconstrained_algorithm_feasible(tmp_path):
+    s = study_of(constraints=[{"name": "test_link_length", "max": "190 mm"}],
+                 optimizer={"kind": "nlopt", "algorithm": "LN_BOBYQA", "maxeval": 150})
+    res = run_study(s, out_dir=tmp_path / "r", progress=False)
+    t = res.table[(res.table.source == "run") & res.table.feasible]
+    best = t.loc[t["test_quadratic"].idxmax()]
+    assert best["link_length"] <= 0.19 + 1e-9 and best["link_length"] > 0.185
