@@ -286,12 +286,6 @@ class Mechanism:
         return W[0] if single else W
 
     @property
-    def n_constraint_rows(self) -> int:
-        Xh = self.home[None, :]
-        _, states, p = self.leg_states(Xh)
-        return sum(leg.constraint_wrenches(st, p).shape[1] for leg, st in zip(self.legs, states))
-
-    @property
     def constraint_rank(self) -> int:
         """Rank of the legs' constraint wrench system at the home pose (structural)."""
         if self._constraint_rank is None:
