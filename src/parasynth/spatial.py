@@ -294,4 +294,16 @@ def segment_distance(p1, q1, p2, q2) -> np.ndarray:
         t = np.where(a_pt & e_pt, 0.0, t)
     c1 = p1 + s[..., None] * d1
     c2 = p2 + t[..., None] * d2
-    return np.linalg.norm(c1 - c2, axis=-1)
+    d = np.linalg.norm(c1 - c2, axis=-1)
+    # For (nearly) parallel segments the closest pair involves an endpoint: the distances of
+    # the four endpoints to the other segment bound the minimum exactly there.
+    ends = np.minimum(np.minimum(_point_segment(p1, p2, d2, e), _point_segment(q1, p2, d2, e)),
+                      np.minimum(_point_segment(p2, p1, d1, a), _point_segment(q2, p1, d1, a)))
+    return np.minimum(d, ends)
+
+
+def _point_segment(x, p, d, dd) -> np.ndarray:
+    """Distance from points ``x`` to segments ``p + u d`` (u in [0, 1]), ``dd = d . d``."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        u = np.where(dd > 1e-300, np.clip(np.sum((x - p) * d, -1) / dd, 0, 1), 0.0)
+    return np.linalg.norm(x - p - u[..., None] * d, axis=-1)
