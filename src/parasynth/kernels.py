@@ -570,6 +570,27 @@ if HAVE_NUMBA:
         return c
 
     @njit(**_jit_inline)
+    def _pt_seg2(x, y, z, px, py, pz, dx, dy, dz, dd):
+        """Squared distance from a point to the segment p + u d, u in [0, 1]."""
+        u = 0.0
+        if dd > 1e-300:
+            u = min(max(((x - px) * dx + (y - py) * dy + (z - pz) * dz) / dd, 0.0), 1.0)
+        cx = x - px - u * dx
+        cy = y - py - u * dy
+        cz = z - pz - u * dz
+        return cx * cx + cy * cy + cz * cz
+
+    @njit(**_jit_inline)
+    def _parallel_seg2(p1x, p1y, p1z, d1x, d1y, d1z, a, p2x, p2y, p2z, d2x, d2y, d2z, e):
+        """(Nearly) parallel segments: the closest pair involves an endpoint (as the
+        endpoint candidates of spatial.segment_distance)."""
+        m = _pt_seg2(p1x, p1y, p1z, p2x, p2y, p2z, d2x, d2y, d2z, e)
+        m = min(m, _pt_seg2(p1x + d1x, p1y + d1y, p1z + d1z, p2x, p2y, p2z, d2x, d2y, d2z, e))
+        m = min(m, _pt_seg2(p2x, p2y, p2z, p1x, p1y, p1z, d1x, d1y, d1z, a))
+        m = min(m, _pt_seg2(p2x + d2x, p2y + d2y, p2z + d2z, p1x, p1y, p1z, d1x, d1y, d1z, a))
+        return m
+
+    @njit(**_jit_inline)
     def _seg_dist2(seg, i, j):
         """Squared distance between segments seg[i] and seg[j], each (start, end) -- the
         operations of spatial.segment_distance."""
@@ -597,7 +618,7 @@ if HAVE_NUMBA:
         if denom > 1e-12 * max(a * e, 1e-300):
             s = min(max((b * f - c * e) / denom, 0.0), 1.0)
         else:
-            s = 0.0
+            return _parallel_seg2(p1x, p1y, p1z, d1x, d1y, d1z, a, p2x, p2y, p2z, d2x, d2y, d2z, e)
         if e > 1e-300:
             t = (b * s + f) / e
         else:
@@ -1067,16 +1088,20 @@ if HAVE_NUMBA:
                         c = d1x * rx + d1y * ry + d1z * rz
                         b = d1x * d2x + d1y * d2y + d1z * d2z
                         denom = a * e - b * b
-                        s = _clip01((b * f - c * e) / denom) if denom > 1e-12 * max(a * e, 1e-300) else 0.0
-                        t = (b * s + f) / e if e > 1e-300 else 0.0
-                        s_lo = _clip01(-c / a) if a > 1e-300 else 0.0
-                        s_hi = _clip01((b - c) / a) if a > 1e-300 else 0.0
-                        s = s_lo if t < 0.0 else (s_hi if t > 1.0 else s)
-                        t = _clip01(t)
-                        cx = (p1x + s * d1x) - (p2x + t * d2x)
-                        cy = (p1y + s * d1y) - (p2y + t * d2y)
-                        cz = (p1z + s * d1z) - (p2z + t * d2z)
-                        okm[ii] = okm[ii] & (cx * cx + cy * cy + cz * cz >= D2)
+                        if denom > 1e-12 * max(a * e, 1e-300):
+                            s = _clip01((b * f - c * e) / denom)
+                            t = (b * s + f) / e if e > 1e-300 else 0.0
+                            s_lo = _clip01(-c / a) if a > 1e-300 else 0.0
+                            s_hi = _clip01((b - c) / a) if a > 1e-300 else 0.0
+                            s = s_lo if t < 0.0 else (s_hi if t > 1.0 else s)
+                            t = _clip01(t)
+                            cx = (p1x + s * d1x) - (p2x + t * d2x)
+                            cy = (p1y + s * d1y) - (p2y + t * d2y)
+                            cz = (p1z + s * d1z) - (p2z + t * d2z)
+                            dist2 = cx * cx + cy * cy + cz * cz
+                        else:
+                            dist2 = _parallel_seg2(p1x, p1y, p1z, d1x, d1y, d1z, a, p2x, p2y, p2z, d2x, d2y, d2z, e)
+                        okm[ii] = okm[ii] & (dist2 >= D2)
                 for ii in range(nb):
                     out[j0 + ii] = okm[ii] != 0
                     n_amb += okm[ii] & und[ii]
