@@ -112,14 +112,7 @@ class WrenchSystem:
 
 def _as_poses(mech, X) -> tuple[np.ndarray, bool]:
     """Poses as a float array (N, n_task) and whether a single pose (n_task,) was given."""
-    X0 = np.asarray(X, dtype=float)
-    single = X0.ndim == 1
-    Xa = X0[None, :] if single else X0
-    if Xa.ndim != 2 or Xa.shape[1] != mech.n_task:
-        raise ValueError(
-            f"{mech.name}: poses must have shape (N, {mech.n_task}) or ({mech.n_task},) with columns "
-            f"{tuple(mech.task_coordinates)}; got shape {X0.shape}")
-    return Xa, single
+    return mech._poses(X)
 
 
 def wrench_system(mech, X) -> WrenchSystem:

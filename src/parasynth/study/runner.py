@@ -359,12 +359,16 @@ def _run_nlopt(study, evaluator, records, record, progress, n_trials):
         w = state["worst"]
         return (abs(w) * 2 + 1.0) if w is not None else 1e6
 
-    def f(u, grad):
+    def get_or_stop(u) -> Record:
+        # NLopt swallows Python exceptions: turn an interrupt into its forced stop.
         try:
-            rec = get(u)
+            return get(u)
         except KeyboardInterrupt:
             state["stop"] = "interrupt"
             raise nlopt.ForcedStop
+
+    def f(u, grad):
+        rec = get_or_stop(u)
         if rec.status != "ok":
             return penalty_value(rec)
         val = sign * rec.objectives[o.label]
@@ -379,11 +383,7 @@ def _run_nlopt(study, evaluator, records, record, progress, n_trials):
     if use_constraints:
         for c in study.constraints:
             def g(u, grad, label=c.label):
-                try:
-                    rec = get(u)
-                except KeyboardInterrupt:
-                    state["stop"] = "interrupt"
-                    raise nlopt.ForcedStop
+                rec = get_or_stop(u)
                 if rec.status != "ok":
                     return 1.0
                 m = rec.margins[label]
