@@ -273,6 +273,9 @@ class Expression:
         except (ValueError, RecursionError, MemoryError) as e:
             raise DescriptionError(f"{path}: cannot parse {self.text[:60]!r} as an expression "
                                    f"({type(e).__name__})") from None
+        #: The parsed expression (``ast`` node, unit literals already converted to SI numbers):
+        #: what code generators (the compiled engine) translate.
+        self.tree = tree.body
         try:
             self._fn = self._compile(tree.body, allow_compare)
         except RecursionError:
