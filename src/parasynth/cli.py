@@ -21,6 +21,7 @@ import numpy as np
 
 from . import __version__
 from .mechanisms import list_mechanisms, load_mechanism, mechanism_summaries
+from .plugins import load_plugins  # noqa: F401  (also parasynth.cli.load_plugins)
 
 
 def _parse_params(name: str, items: list[str]) -> dict:
@@ -279,27 +280,6 @@ def cmd_analyze(args) -> int:
             err = np.max(np.abs(Xfk - X[reach][:5]))
             print(f"forward kinematics from home on 5 poses: max |X_fk - X| = {err:.2e} (a large value means another assembly mode)")
     return 0
-
-
-def load_plugins(spec: str | None = None) -> None:
-    """Import user modules that register measures (``PARASYNTH_PLUGINS``: comma-separated
-    module names or .py file paths)."""
-    import importlib
-    import importlib.util
-    import os
-
-    spec = os.environ.get("PARASYNTH_PLUGINS", "") if spec is None else spec
-    for item in filter(None, (s.strip() for s in spec.split(","))):
-        if item.endswith(".py"):
-            mod_name = "parasynth_plugin_" + os.path.splitext(os.path.basename(item))[0]
-            sp = importlib.util.spec_from_file_location(mod_name, item)
-            if sp is None or not os.path.exists(item):
-                raise SystemExit(f"error: PARASYNTH_PLUGINS: cannot load {item!r}")
-            mod = importlib.util.module_from_spec(sp)
-            sys.modules[mod_name] = mod
-            sp.loader.exec_module(mod)
-        else:
-            importlib.import_module(item)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -507,7 +507,7 @@ def _optuna_objective(study, evaluator: Evaluator, on_record):
 
 def _optuna_worker(args):
     study_yaml, storage, seed, n, out_dir, idx = args
-    from ..cli import load_plugins
+    from ..plugins import load_plugins
     from .spec import load_study
 
     load_plugins()  # user measures registered through PARASYNTH_PLUGINS
