@@ -1,0 +1,179 @@
+"""Anchor sets of the ``base:`` and ``platform:`` sections: explicit points or patterns
+(points, circle, polygon, paired, rectangle) with the radial, tangent and normal directions of
+each point.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import DescriptionError
+from .expressions import _Scope
+from .parameters import _Scalar, _check_keys
+
+_PLANES = {"xy": (0, 1, 2), "yx": (1, 0, 2), "xz": (0, 2, 1), "zx": (2, 0, 1), "yz": (1, 2, 0), "zy": (2, 1, 0)}
+_PATTERNS = {
+    "points": ({"points"}, {"points"}),
+    "circle": ({"radius", "angles"}, {"radius", "angles"}),
+    "polygon": ({"n", "radius", "phase"}, {"n", "radius"}),
+    "paired": ({"n", "radius", "phase", "separation"}, {"n", "radius", "separation"}),
+    "rectangle": ({"length", "width"}, {"length", "width"}),
+}
+_SET_COMMON = {"pattern", "plane", "offset", "scale", "rotation", "shift", "doc"}
+
+
+def _count(raw, path, lo=1) -> int:
+    if isinstance(raw, bool) or not isinstance(raw, int) or raw < lo:
+        raise DescriptionError(f"{path}: must be an integer >= {lo}, got {raw!r}")
+    return raw
+
+
+def _list_param(name, params, path, kind, ndim_ok):
+    p = params.get(name)
+    if p is None:
+        raise DescriptionError(f"{path}: {name!r} is not a parameter; give a list here or the name of a list "
+                               f"parameter (parameters: {', '.join(params) or '(none)'})")
+    if len(p.shape) not in ndim_ok or p.kind != kind:
+        raise DescriptionError(f"{path}: parameter {name!r} is a {p.kind} of shape {p.shape}; expected a list "
+                               f"of {kind}s here")
+    return p
+
+
+@dataclass
+class _Anchors:
+    """Built anchor points (n, 3) with the directions of their set's plane."""
+
+    points: np.ndarray
+    radial: np.ndarray
+    tangent: np.ndarray
+    normal: np.ndarray  # (3,)
+
+
+class _AnchorSet:
+    def __init__(self, name: str, raw, path: str, scope: _Scope, params: dict):
+        self.name, self.path = name, path
+        if isinstance(raw, list):
+            raw = {"pattern": "points", "points": raw}
+        if not isinstance(raw, dict):
+            raise DescriptionError(f"{path}: give a list of points or a mapping with a pattern "
+                                   f"({', '.join(_PATTERNS)}), got {raw!r}")
+        pat = raw.get("pattern")
+        if pat is None:
+            raise DescriptionError(f"{path}.pattern: required key is missing; one of {', '.join(_PATTERNS)}")
+        if pat not in _PATTERNS:
+            raise DescriptionError(f"{path}.pattern: unknown pattern {pat!r}; allowed: {', '.join(_PATTERNS)}")
+        keys, required = _PATTERNS[pat]
+        _check_keys(raw, _SET_COMMON | keys, path, f"a {pat} pattern")
+        for k in sorted(required - set(raw)):
+            raise DescriptionError(f"{path}.{k}: required key of a {pat} pattern is missing")
+        self.pattern = pat
+        plane = raw.get("plane", "xy")
+        if plane not in _PLANES:
+            raise DescriptionError(f"{path}.plane: {plane!r} is not a plane; allowed: {', '.join(_PLANES)}")
+        self.axes = _PLANES[plane]
+        S = lambda key, kind, default=None: _Scalar(raw.get(key, default), kind, f"{path}.{key}", scope)  # noqa: E731
+        self.offset = S("offset", "length", 0)
+        self.scale = S("scale", "dimensionless", 1)
+        self.rotation = S("rotation", "angle", 0)
+        shift = raw.get("shift", [0, 0, 0])
+        if not isinstance(shift, list) or len(shift) != 3:
+            raise DescriptionError(f"{path}.shift: give [dx, dy, dz] with units, got {shift!r}")
+        self.shift = [_Scalar(v, "length", f"{path}.shift[{i}]", scope) for i, v in enumerate(shift)]
+        self.points_param = None
+        self.point_rows = None
+        self.angles_param = None
+        self.angles = None
+        if pat == "points":
+            pts = raw["points"]
+            if isinstance(pts, str):
+                self.points_param = _list_param(pts, params, f"{path}.points", "length", (2,))
+                if self.points_param.shape[1] not in (2, 3):
+                    raise DescriptionError(f"{path}.points: parameter {pts!r} must hold points of 2 or 3 coordinates")
+            elif isinstance(pts, list) and pts:
+                rows = []
+                for i, row in enumerate(pts):
+                    if not isinstance(row, list) or len(row) not in (2, 3):
+                        raise DescriptionError(f"{path}.points[{i}]: a point is a list [x, y, z] (or [a, b] in the "
+                                               f"set's plane) of lengths with units, got {row!r}")
+                    rows.append([_Scalar(v, "length", f"{path}.points[{i}][{j}]", scope) for j, v in enumerate(row)])
+                self.point_rows = rows
+            else:
+                raise DescriptionError(f"{path}.points: give a non-empty list of points or the name of a "
+                                       f"list parameter, got {pts!r}")
+        elif pat == "circle":
+            self.radius = S("radius", "length")
+            ang = raw["angles"]
+            if isinstance(ang, str):
+                self.angles_param = _list_param(ang, params, f"{path}.angles", "angle", (1,))
+            elif isinstance(ang, list) and ang:
+                self.angles = [_Scalar(v, "angle", f"{path}.angles[{i}]", scope) for i, v in enumerate(ang)]
+            else:
+                raise DescriptionError(f"{path}.angles: give a non-empty list of angles or the name of a list "
+                                       f"parameter, got {ang!r}")
+        elif pat in ("polygon", "paired"):
+            self.n = _count(raw["n"], f"{path}.n")
+            self.radius = S("radius", "length")
+            self.phase = S("phase", "angle", 0)
+            if pat == "paired":
+                self.separation = S("separation", "angle")
+        else:
+            self.length = S("length", "length")
+            self.width = S("width", "length")
+
+    def build(self, env) -> _Anchors:
+        i1, i2, i3 = self.axes
+        off = self.offset(env)
+        if self.pattern == "points":
+            if self.points_param is not None:
+                rows = np.asarray(env[self.points_param.name], dtype=float)
+            else:
+                rows = [[s(env) for s in row] for row in self.point_rows]
+            P = []
+            for row in rows:
+                if len(row) == 3:
+                    P.append(np.asarray(row, dtype=float))
+                else:
+                    v = np.zeros(3)
+                    v[i1], v[i2], v[i3] = row[0], row[1], off
+                    P.append(v)
+            P = np.array(P)
+        else:
+            if self.pattern == "circle":
+                ang = (np.asarray(env[self.angles_param.name], dtype=float) if self.angles_param is not None
+                       else np.array([a(env) for a in self.angles]))
+                r = self.radius(env)
+                ab = np.column_stack([r * np.cos(ang), r * np.sin(ang)])
+            elif self.pattern in ("polygon", "paired"):
+                r, ph = self.radius(env), self.phase(env)
+                centres = ph + 2 * np.pi * np.arange(self.n) / self.n
+                if self.pattern == "paired":
+                    h = 0.5 * self.separation(env)
+                    ang = np.column_stack([centres - h, centres + h]).ravel()
+                else:
+                    ang = centres
+                ab = np.column_stack([r * np.cos(ang), r * np.sin(ang)])
+            else:
+                a, b = 0.5 * self.length(env), 0.5 * self.width(env)
+                ab = np.array([[a, b], [-a, b], [-a, -b], [a, -b]])
+            P = np.zeros((ab.shape[0], 3))
+            P[:, i1], P[:, i2], P[:, i3] = ab[:, 0], ab[:, 1], off
+        s, rot = self.scale(env), self.rotation(env)
+        if s != 1.0 or rot != 0.0:
+            a, b = s * P[:, i1], s * P[:, i2]
+            c, sn = np.cos(rot), np.sin(rot)
+            P[:, i1], P[:, i2] = c * a - sn * b, sn * a + c * b
+        P = P + np.array([v(env) for v in self.shift])
+        return _directions(P, self.axes)
+
+
+def _directions(P: np.ndarray, axes) -> _Anchors:
+    i1, i2, i3 = axes
+    e = np.eye(3)
+    ab = P[:, [i1, i2]]
+    n = np.linalg.norm(ab, axis=1, keepdims=True)
+    u = np.divide(ab, n, out=np.zeros_like(ab), where=n > 1e-15)
+    radial = u[:, :1] * e[i1] + u[:, 1:] * e[i2]
+    tangent = -u[:, 1:] * e[i1] + u[:, :1] * e[i2]
+    return _Anchors(P, radial, tangent, e[i3].copy())

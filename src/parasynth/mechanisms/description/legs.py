@@ -1,0 +1,232 @@
+"""The ``legs:`` section: leg types of :mod:`parasynth.legs`, their options (joint axes,
+link lengths, branches), anchor references and the actuated joint.
+"""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+
+from ...legs import LEG_TYPES
+from .errors import DescriptionError
+from .parameters import _Scalar, _check_keys
+from .anchors import _Anchors, _PLANES, _directions
+
+#: Options of each leg type: {key: "axis_base" | "axis_platform" | "length" | "branch"}.
+LEG_OPTIONS = {
+    "SPS": {},
+    "UPS": {"u_axis": "axis_base"},
+    "PUS": {"slider_axis": "axis_base", "u_axis": "axis_base", "link_length": "length", "branch": "branch"},
+    "RPS": {"r_axis": "axis_base"},
+    "RPU": {"r_axis": "axis_base", "u_platform_axis": "axis_platform"},
+    "UPU": {"u_axis": "axis_base", "u_platform_axis": "axis_platform"},
+    "PRS": {"slider_axis": "axis_base", "r_axis": "axis_base", "link_length": "length", "branch": "branch"},
+}
+_LEG_REQUIRED = {"PUS": ("link_length",), "PRS": ("link_length",)}
+#: Leg types the leg library can build without an actuator (a constraining limb).
+PASSIVE_CAPABLE = ("RPS", "UPU")
+_LEG_COMMON = {"type", "name", "names", "base", "platform", "actuated", "doc"}
+_NAMED_AXES = {"x": (1, 0, 0), "y": (0, 1, 0), "z": (0, 0, 1)}
+_ANCHOR_AXES = ("radial", "tangent", "normal")
+_REF_RE = re.compile(r"^\s*([A-Za-z_]\w*)\s*(?:\[\s*(-?\d+(?:\s*,\s*-?\d+)*)\s*,?\s*\])?\s*$")
+
+
+class _Axis:
+    """A direction: a named axis (x, -y, ...), a direction of the leg's anchor (radial,
+    tangent, normal, with an optional sign) or [ax, ay, az] (numbers or expressions)."""
+
+    def __init__(self, raw, path, scope):
+        self.path = path
+        self.named = None
+        self.vector = None
+        if isinstance(raw, str):
+            s = raw.strip()
+            sign = -1.0 if s.startswith("-") else 1.0
+            key = s.lstrip("+-").strip()
+            if key in _NAMED_AXES or key in _ANCHOR_AXES:
+                self.named = (sign, key)
+                return
+            raise DescriptionError(f"{path}: unknown direction {raw!r}; give x, y, z, radial, tangent or normal "
+                                   f"(optionally with a sign, e.g. -z) or [ax, ay, az]")
+        if isinstance(raw, list) and len(raw) == 3:
+            self.vector = [_Scalar(v, "dimensionless", f"{path}[{i}]", scope) for i, v in enumerate(raw)]
+            return
+        raise DescriptionError(f"{path}: expected a direction (x, y, z, radial, tangent, normal or [ax, ay, az]), "
+                               f"got {raw!r}")
+
+    def __call__(self, env, anchors: _Anchors, k: int) -> np.ndarray:
+        if self.vector is not None:
+            v = np.array([s(env) for s in self.vector])
+        else:
+            sign, key = self.named
+            if key in _NAMED_AXES:
+                v = sign * np.array(_NAMED_AXES[key], dtype=float)
+            else:
+                v = sign * {"radial": anchors.radial[k], "tangent": anchors.tangent[k], "normal": anchors.normal}[key]
+                if not np.any(v):
+                    raise DescriptionError(f"{self.path}: {key!r} is undefined for an anchor on the axis of its "
+                                           f"set's plane (point {anchors.points[k].tolist()}); give the direction")
+        if not np.linalg.norm(v) > 0:
+            raise DescriptionError(f"{self.path}: the direction must not be zero")
+        return v
+
+
+class _Ref:
+    """A leg's reference to anchors: a set (all points, or listed indices) or an inline point."""
+
+    def __init__(self, raw, side, path, sets, scope):
+        self.path, self.side = path, side
+        self.set = None
+        self.indices = None
+        self.point = None
+        if raw is None:
+            raise DescriptionError(f"{path}: missing anchor; give a {side} anchor set "
+                                   f"({', '.join(sets) or 'none defined'}) or a point [x, y, z]")
+        if isinstance(raw, list):
+            if len(raw) != 3 or any(isinstance(v, (list, dict)) for v in raw):
+                raise DescriptionError(f"{path}: an inline anchor is one point [x, y, z] with units, got {raw!r}")
+            self.point = [_Scalar(v, "length", f"{path}[{i}]", scope) for i, v in enumerate(raw)]
+            self.n = 1
+            return
+        m = _REF_RE.match(raw) if isinstance(raw, str) else None
+        if m is None:
+            raise DescriptionError(f"{path}: expected an anchor set name such as 'B', 'B[2]' or 'B[1, 2, 0]', "
+                                   f"or a point [x, y, z], got {raw!r}")
+        name = m.group(1)
+        if name not in sets:
+            raise DescriptionError(f"{path}: unknown {side} anchor set {name!r}; {side} sets: "
+                                   f"{', '.join(sets) or '(none)'}")
+        self.set = name
+        size = sets[name]
+        if m.group(2) is not None:
+            idx = [int(x) for x in m.group(2).split(",")]
+            bad = [i for i in idx if not -size <= i < size]
+            if bad:
+                raise DescriptionError(f"{path}: index {bad[0]} is out of range for {side} set {name!r} of "
+                                       f"{size} point(s)")
+            self.indices = [i % size for i in idx]
+        else:
+            self.indices = list(range(size))
+        self.n = len(self.indices)
+
+    def resolve(self, env, built: dict) -> _Anchors:
+        if self.point is not None:
+            return _directions(np.array([[s(env) for s in self.point]]), _PLANES["xy"])
+        a = built[self.set]
+        i = self.indices
+        return _Anchors(a.points[i], a.radial[i], a.tangent[i], a.normal)
+
+
+class _LegGroup:
+    def __init__(self, i, raw, base_sets, plat_sets, scope, first_index):
+        path = f"legs[{i}]"
+        if not isinstance(raw, dict):
+            raise DescriptionError(f"{path}: a leg is a mapping with type, base, platform, ..., got {raw!r}")
+        self.base = _Ref(raw.get("base"), "base", f"{path}.base", base_sets, scope)
+        self.platform = _Ref(raw.get("platform"), "platform", f"{path}.platform", plat_sets, scope)
+        nb, nplat = self.base.n, self.platform.n
+        if nb != nplat and 1 not in (nb, nplat):
+            raise DescriptionError(f"{path}.platform: {nplat} platform anchor(s) for {nb} base anchor(s): the counts "
+                                   f"must match (one leg per pair), or one side must be a single point")
+        self.n = max(nb, nplat)
+        if "name" in raw and "names" in raw:
+            raise DescriptionError(f"{path}: give name (one leg) or names (a group), not both")
+        if "name" in raw:
+            if self.n != 1:
+                raise DescriptionError(f"{path}.name: this entry makes {self.n} legs; give names: [...] with "
+                                       f"{self.n} names, or leave it out for L{first_index}..L{first_index + self.n - 1}")
+            names = [raw["name"]]
+        elif "names" in raw:
+            names = raw["names"]
+            if not isinstance(names, list) or len(names) != self.n:
+                raise DescriptionError(f"{path}.names: this entry makes {self.n} legs; give {self.n} names, got {names!r}")
+        else:
+            names = [f"L{first_index + j}" for j in range(self.n)]
+        for nm in names:
+            if not isinstance(nm, str) or not re.match(r"^[A-Za-z_][\w\-]*$", nm):
+                raise DescriptionError(f"{path}: leg name {nm!r} must start with a letter (letters, digits, _, -)")
+        self.names = names
+        self.label = f"{path} ({names[0]})" if self.n == 1 else f"{path} ({names[0]}..{names[-1]})"
+        lab = self.label
+        t = raw.get("type")
+        if t is None:
+            raise DescriptionError(f"{lab}.type: required key is missing; leg types: {', '.join(sorted(LEG_OPTIONS))}")
+        if t not in LEG_TYPES or t not in LEG_OPTIONS:
+            raise DescriptionError(f"{lab}.type: unknown leg type {t!r}; leg types: {', '.join(sorted(LEG_OPTIONS))}")
+        self.type, self.cls = t, LEG_TYPES[t]
+        options = LEG_OPTIONS[t]
+        _check_keys(raw, _LEG_COMMON | set(options), lab, f"the {t} leg")
+        for k in _LEG_REQUIRED.get(t, ()):
+            if k not in raw:
+                raise DescriptionError(f"{lab}.{k}: required key of the {t} leg is missing")
+        self.options = {}
+        for k, kind in options.items():
+            if k not in raw:
+                continue
+            p = f"{lab}.{k}"
+            if kind.startswith("axis"):
+                self.options[k] = _Axis(raw[k], p, scope)
+            elif kind == "length":
+                self.options[k] = _Scalar(raw[k], "length", p, scope)
+            else:
+                if raw[k] not in (1, -1) or isinstance(raw[k], bool):
+                    raise DescriptionError(f"{p}: branch must be 1 or -1, got {raw[k]!r}")
+                self.options[k] = int(raw[k])
+        self.actuated = self._actuated(raw, lab)
+
+    def _actuated(self, raw, lab) -> bool:
+        t, cls = self.type, self.cls
+        act_letter = t[cls.actuated]
+        if "actuated" not in raw:
+            if t == "UPU":  # the leg library's UPU is a passive constraining limb by default
+                return False
+            return True
+        v = raw["actuated"]
+        passive_words = ("none", "passive", "no", "false")
+        if v is None or v is False or (isinstance(v, str) and v.strip().lower() in passive_words):
+            if t not in PASSIVE_CAPABLE:
+                raise DescriptionError(f"{lab}.actuated: the {t} leg cannot be passive in the leg library (it is "
+                                       f"actuated at its prismatic joint '{act_letter}'); passive legs: "
+                                       f"{', '.join(PASSIVE_CAPABLE)}")
+            return False
+        if v is True:
+            return True
+        if not isinstance(v, str) or len(v.strip()) != 1:
+            raise DescriptionError(f"{lab}.actuated: expected a joint letter such as '{act_letter}' (or none for a "
+                                   f"passive leg), got {v!r}")
+        letter = v.strip().upper()
+        if letter not in t:
+            raise DescriptionError(f"{lab}.actuated: joint {v!r} does not exist in the {t} leg (its joints, base to "
+                                   f"platform: {', '.join(t)})")
+        if letter != act_letter:
+            alt = "; or actuated: none for a passive leg" if t in PASSIVE_CAPABLE else ""
+            raise DescriptionError(f"{lab}.actuated: joint {v!r} of the {t} leg cannot be actuated in the leg library; "
+                                   f"its actuated joint is the prismatic joint '{act_letter}'{alt}")
+        return True
+
+    def build(self, env, built_base, built_plat) -> list:
+        A = self.base.resolve(env, built_base)
+        B = self.platform.resolve(env, built_plat)
+        legs = []
+        for j, name in enumerate(self.names):
+            kb = 0 if self.base.n == 1 else j
+            kp = 0 if self.platform.n == 1 else j
+            kw = {}
+            for k, spec in self.options.items():
+                kind = LEG_OPTIONS[self.type][k]
+                if kind == "axis_base":
+                    kw[k] = spec(env, A, kb)
+                elif kind == "axis_platform":
+                    kw[k] = spec(env, B, kp)
+                elif kind == "length":
+                    kw[k] = spec(env)
+                else:
+                    kw[k] = spec
+            if self.type in PASSIVE_CAPABLE:
+                kw["passive"] = not self.actuated
+            try:
+                legs.append(self.cls(name, base=A.points[kb], platform=B.points[kp], **kw))
+            except ValueError as e:
+                raise DescriptionError(f"{self.label}: {e}") from None
+        return legs

@@ -1,0 +1,315 @@
+""":class:`DescribedMechanism`: the :class:`~parasynth.mechanism.Mechanism` of a description
+(pose and twist map from the task expressions, construction checks, mobility with
+consistency checks).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+
+from ...mechanism import Mechanism, Mobility
+from ...spatial import euler_rate_map, euler_to_matrix, reciprocal_basis, rot_axis, skew
+from .errors import DescriptionError, DescriptionWarning
+from .expressions import R_NAMES, _Dual, _grad, _val
+from .parameters import _param_env
+from .schema import Description
+
+@dataclass(frozen=True)
+class DescribedMobility(Mobility):
+    """:class:`~parasynth.mechanism.Mobility` of a described mechanism with the findings of
+    its consistency checks: ``issues`` (messages, each also issued as a
+    :class:`DescriptionWarning`), ``under_actuated`` (the actuators do not control every
+    freedom) and ``consistent`` (the task parametrisation agrees with what the legs allow)."""
+
+    issues: tuple = ()
+    under_actuated: bool = False
+    consistent: bool = True
+
+    def summary(self) -> str:
+        s = super().summary()
+        if self.issues:
+            s += "\nissues:\n  " + "\n  ".join(self.issues)
+        return s
+
+
+class DescribedMechanism(Mechanism):
+    """A mechanism built from a :class:`Description`. Subclasses are made by
+    :func:`description_class`; instantiate them with a ``Params`` object (SI) or nothing for the
+    description's defaults."""
+
+    description: Description
+    Params: type
+
+    def __init__(self, params=None):
+        d = self.description
+        P = self.Params() if params is None else params
+        if not isinstance(P, self.Params):
+            raise ValueError(f"{self.name}: params must be a {self.Params.__name__} (use {self.name}.Params(...) or "
+                             f"load_mechanism(..., **params))")
+        self.params = P
+        self._penv = _param_env(P, d.params)
+        try:
+            legs, home, L = d.build_geometry(self._penv)
+        except DescriptionError as e:
+            raise DescriptionError(f"{self.name}: {e}") from None
+        self.home = np.asarray(home, dtype=float)
+        self._check_pose_expressions(self.home)
+        self._check_home(legs)
+        try:
+            super().__init__(P, legs, home, L)
+        except ValueError as e:
+            raise DescriptionError(f"{self.name}: task.home: {e}") from None
+        self._check_constraints()
+
+    # -- pose ------------------------------------------------------------------------------------
+    def _task_env(self, X, dual: bool = False) -> dict:
+        """Parameters, task coordinates and defined names for poses X (N, n_task)."""
+        env = dict(self._penv)
+        N, n = X.shape
+        if dual:
+            eye = np.eye(n)
+            for j, c in enumerate(self.task_coordinates):
+                env[c] = _Dual(X[:, j], np.broadcast_to(eye[j], (N, n)))
+        else:
+            for j, c in enumerate(self.task_coordinates):
+                env[c] = X[:, j]
+        with np.errstate(all="ignore"):
+            for name, e in self.description.task.defines:
+                env[name] = e(env, dual)
+        return env
+
+    def _rotation(self, a: np.ndarray):
+        """R (N, 3, 3) and E (N, 3, k) with omega = E @ angle rates, for angles a (N, k)."""
+        t = self.description.task
+        N = a.shape[0]
+        if t.convention is not None:
+            return euler_to_matrix(t.convention, a), euler_rate_map(t.convention, a)
+        if not t.rot_axes:
+            return np.broadcast_to(np.eye(3), (N, 3, 3)).copy(), np.zeros((N, 3, 0))
+        R = np.broadcast_to(np.eye(3), (N, 3, 3))
+        cols = []
+        for k, ax in enumerate(t.rot_axes):
+            cols.append(R @ ax)
+            R = R @ rot_axis(ax, a[:, k])
+        return R, np.stack(cols, axis=-1)
+
+    def _pose_eval(self, X, dual: bool):
+        t = self.description.task
+        N, n = X.shape
+        env = self._task_env(X, dual)
+        with np.errstate(all="ignore"):
+            angs = [e(env, dual) for e in t.angles]
+            a = np.stack([np.broadcast_to(_val(v), (N,)) for v in angs], -1) if angs else np.zeros((N, 0))
+            R, E = self._rotation(a)
+            W = None
+            if dual:
+                da = (np.stack([np.broadcast_to(_grad(v), (N, n)) for v in angs], 1) if angs
+                      else np.zeros((N, 0, n)))
+                W = E @ da  # (N, 3, n): angular velocity per unit coordinate rate
+            if t.position_uses_R:
+                if dual:
+                    # dR/dX_t = skew(omega_t) R, omega_t = W[:, :, t]
+                    dR = np.einsum("ntij,njk->nikt", skew(np.moveaxis(W, -1, 1)), R)
+                for nm in R_NAMES:
+                    i, j = int(nm[1]) - 1, int(nm[2]) - 1
+                    env[nm] = _Dual(R[:, i, j], dR[:, i, j, :]) if dual else R[:, i, j]
+            pos = [e(env, dual) for e in t.position]
+            p = np.stack([np.broadcast_to(_val(v), (N,)) for v in pos], -1).astype(float)
+            dp = np.stack([np.broadcast_to(_grad(v), (N, n)) for v in pos], 1) if dual else None
+        return p, np.ascontiguousarray(R, dtype=float), dp, W
+
+    def _pose(self, X):
+        p, R, _, _ = self._pose_eval(X, False)
+        return p, R
+
+    def _twist_map(self, X):
+        _, _, dp, W = self._pose_eval(X, True)
+        T = np.zeros((X.shape[0], 6, self.n_task))
+        T[:, :3] = dp
+        T[:, 3:] = W
+        return T
+
+    def pose_valid(self, X):
+        ok = np.all(np.isfinite(X), axis=-1)
+        Xs = np.where(ok[:, None], X, self.home)
+        t = self.description.task
+        if t.valid:
+            env = self._task_env(Xs)
+            with np.errstate(all="ignore"):
+                for c in t.valid:
+                    ok = ok & np.broadcast_to(np.asarray(c(env), dtype=bool), ok.shape)
+        p, R = self._pose(Xs)
+        return ok & np.all(np.isfinite(p), axis=-1) & np.all(np.isfinite(R), axis=(-1, -2))
+
+    def default_ranges(self) -> dict:
+        out = {}
+        for c, (lo, hi) in self.description.task.ranges.items():
+            out[c] = (lo(self._penv), hi(self._penv))
+        return out
+
+    def build_constraints(self):
+        return [c.build(self) for c in self.description.constraints]
+
+    # -- construction checks ---------------------------------------------------------------------
+    def _check_pose_expressions(self, home):
+        X = home[None, :]
+        try:
+            p, R = self._pose(X)
+            T = self._twist_map(X)
+        except DescriptionError as e:
+            raise DescriptionError(f"{self.name}: {e}") from None
+        if not (np.all(np.isfinite(p)) and np.all(np.isfinite(R)) and np.all(np.isfinite(T))):
+            raise DescriptionError(f"{self.name}: task.home: the pose expressions are not finite at the home pose "
+                                   f"{home.tolist()}")
+        if not self.pose_valid(X)[0]:
+            raise DescriptionError(f"{self.name}: task.home: the home pose {home.tolist()} fails task.valid")
+
+    def _check_home(self, legs):
+        p, R = self._pose(self.home[None, :])
+        for leg in legs:
+            with np.errstate(all="ignore"):
+                st = leg.solve(p, R)
+            if not (st.reachable[0] and np.all(np.isfinite(st.direction[0]))):
+                why = ""
+                if not np.isfinite(st.actuator[0]):
+                    why = " (its platform anchor is further than link_length from its slider line)"
+                elif "off_plane" in st.extra:
+                    why = (f" (its platform anchor is {st.extra['off_plane'][0] * 1e3:.4g} mm off the plane its "
+                           f"revolute joint allows: the position or orientation misses a dependent coordinate?)")
+                raise DescriptionError(f"{self.name}: task.home: the home pose {self.home.tolist()} is not reachable "
+                                       f"by leg {leg.name} ({leg.joints}){why}")
+
+    def _check_constraints(self):
+        try:
+            cons = self.constraints
+        except DescriptionError as e:
+            raise DescriptionError(f"{self.name}: {e}") from None
+        except ValueError as e:
+            raise DescriptionError(f"{self.name}: constraints: {e}") from None
+        ctx = self.pose_context(self.home[None, :])
+        for spec, c in zip(self.description.constraints, cons.values()):
+            try:
+                with np.errstate(all="ignore"):
+                    c.margin(ctx)
+            except DescriptionError as e:
+                raise DescriptionError(f"{self.name}: {e}") from None
+            except (ValueError, KeyError) as e:
+                raise DescriptionError(f"{self.name}: {spec.path}: {e}") from None
+
+    # -- mobility with consistency checks ----------------------------------------------------------
+    @property
+    def constraint_rank(self) -> int:
+        if self._constraint_rank is None:
+            self._constraint_rank = Mechanism.mobility(self).constraint_rank
+        return self._constraint_rank
+
+    def mobility(self, X=None, warn: bool = True) -> DescribedMobility:
+        """Screw-theory mobility (see :meth:`Mechanism.mobility`) plus checks of the description:
+
+        * under-actuation: the actuators do not control every freedom;
+        * more task coordinates than freedoms, or fewer without ``task.restricted: true``;
+        * task coordinates that do not move the platform independently (at every pose near X);
+        * a parametrisation that leaves the legs' constraints: a small step of a task coordinate
+          makes a leg unreachable, or its motion does work against a leg's constraint wrench.
+
+        Each finding is a message in ``issues`` and, with ``warn=True``, a
+        :class:`DescriptionWarning`."""
+        base = Mechanism.mobility(self, X)
+        X0 = self.home if X is None else np.asarray(X, dtype=float)
+        issues, inconsistent = [], False
+        t = self.description.task
+        n, dof = self.n_task, base.dof
+        if not base.controlled:
+            issues.append(
+                f"{self.name}: under-actuated: the {self.n_actuators} actuator(s) {', '.join(self.actuators)} do not "
+                f"control all {dof} freedoms ({base.type}); {max(len(base.uncontrolled_twists), 1)} freedom(s) stay "
+                f"uncontrolled (see uncontrolled_twists; forward kinematics needs fixed={{...}})")
+        if n > dof:
+            inconsistent = True
+            issues.append(
+                f"{self.name}: inconsistent description: {n} task coordinates {self.task_coordinates} but the legs "
+                f"leave {dof} freedom(s) ({base.type}, constraint rank {base.constraint_rank}); the parametrisation "
+                f"describes motions the legs forbid")
+        elif n < dof and not t.restricted:
+            issues.append(
+                f"{self.name}: the {n} task coordinates {self.task_coordinates} cover fewer than the {dof} freedoms "
+                f"({base.type}) the legs allow; add coordinates, or set task.restricted: true if the restriction is "
+                f"intended (e.g. a coupling such as x = z*tan(theta))")
+        found = self._parametrisation_issues(X0)
+        inconsistent |= bool(found)
+        issues += found
+        if warn:
+            for msg in issues:
+                warnings.warn(msg, DescriptionWarning, stacklevel=2)
+        fields = {f.name: getattr(base, f.name) for f in dataclasses.fields(Mobility)}
+        return DescribedMobility(**fields, issues=tuple(issues), under_actuated=not base.controlled,
+                                 consistent=not inconsistent)
+
+    def _parametrisation_issues(self, X0) -> list[str]:
+        L = self.length_scale
+        n = self.n_task
+        ang = np.array([c in self.angular_coordinates for c in self.task_coordinates])
+        step = np.where(ang, 1e-3, 1e-3 * L)
+        rng = np.random.default_rng(20240611)
+        Xp = [X0 + s * step * np.eye(n)[j] for j in range(n) for s in (1.0, -1.0)]
+        Xp += [X0 + step * rng.uniform(-1, 1, n) for _ in range(3)]
+        Xp = np.array(Xp)
+        out = []
+        _, states, p = self.leg_states(Xp)
+        reach = np.logical_and.reduce([st.reachable for st in states])
+        if not np.all(reach[: 2 * n]):
+            bad_coords = sorted({self.task_coordinates[k // 2] for k in np.flatnonzero(~reach[: 2 * n])},
+                                key=self.task_coordinates.index)
+            bad_legs = sorted({leg.name for leg, st in zip(self.legs, states) if not np.all(st.reachable[: 2 * n])})
+            out.append(
+                f"{self.name}: inconsistent parametrisation: a small step of {', '.join(bad_coords)} from the analysed "
+                f"pose leaves the reach of leg(s) {', '.join(bad_legs)}; the task coordinates do not follow the motion "
+                f"the legs allow (a dependent coordinate, e.g. a parasitic motion, is missing or wrong)")
+            return out
+        keep = np.flatnonzero(reach)  # (the random steps may leave the workspace near its boundary)
+        Xp, p = Xp[keep], p[keep]
+        states = [dataclasses.replace(st, **{f.name: _take(getattr(st, f.name), keep)
+                                            for f in dataclasses.fields(st)}) for st in states]
+        T = self._twist_map(Xp)
+        Ts = T.copy()
+        Ts[:, 3:] *= L
+        colnorm = np.linalg.norm(Ts, axis=1)  # (M, n)
+        # Task coordinates that do not move the platform independently, at every pose tried.
+        deficient = []
+        for k in range(Xp.shape[0]):
+            s = np.linalg.svd(Ts[k], compute_uv=False)
+            deficient.append(int(np.sum(s > 1e-8 * max(s[0], 1e-300))) < n if s.size else True)
+        if all(deficient):
+            zero = [c for c, v in zip(self.task_coordinates, colnorm[0]) if v <= 1e-12]
+            extra = f" ({', '.join(zero)} do not move the platform)" if zero else ""
+            out.append(f"{self.name}: the task coordinates {self.task_coordinates} are not independent: their rates "
+                       f"move the platform in fewer than {n} directions at every pose near the analysed one{extra}")
+        # Motions that do work against a leg's constraint wrench.
+        worst = np.zeros(n)
+        for leg, st in zip(self.legs, states):
+            Tj = leg.joint_twists(st, p)
+            for k, C in enumerate(reciprocal_basis(Tj, L)):
+                if not C.shape[0]:
+                    continue
+                Cs = C.copy()
+                Cs[:, 3:] /= L
+                Cs /= np.linalg.norm(Cs, axis=1, keepdims=True)
+                r = np.abs(Cs @ Ts[k]) / np.maximum(colnorm[k], 1e-300)
+                worst = np.maximum(worst, np.max(r, axis=0))
+        bad = [c for c, w in zip(self.task_coordinates, worst) if w > 1e-6]
+        if bad:
+            out.append(f"{self.name}: inconsistent parametrisation: the motion of {', '.join(bad)} does work against "
+                       f"the legs' constraint wrenches (relative residual up to {worst.max():.2g}); the pose "
+                       f"expressions do not follow the motion the legs allow")
+        return out
+
+
+def _take(v, idx):
+    """Rows ``idx`` of a LegState field (arrays, or dicts of arrays)."""
+    if isinstance(v, dict):
+        return {k: _take(x, idx) for k, x in v.items()}
+    return v[idx] if isinstance(v, np.ndarray) and v.ndim else v

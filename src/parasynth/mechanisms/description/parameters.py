@@ -1,0 +1,228 @@
+"""Scalars and design parameters of descriptions: quantities with units, plain numbers,
+expressions of parameters; the ``parameters:`` section and its validation.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ...units import QuantityError, parse_quantity
+from .errors import DescriptionError
+from .expressions import Expression, RESERVED, _PURE_QUANTITY, _Scope
+
+_UNITFUL = ("length", "angle")
+_EXAMPLE_UNIT = {"length": "mm", "angle": "deg"}
+_KIND_TEXT = {"length": "a length (e.g. '135 mm')", "angle": "an angle (e.g. '15 deg')",
+              "dimensionless": "a number", None: "a number"}
+
+
+def _bare_number_error(path, raw, kind):
+    return DescriptionError(f"{path}: a bare number ({raw!r}) is not allowed for {_KIND_TEXT[kind]}; "
+                            f"give a unit, e.g. '{raw} {_EXAMPLE_UNIT[kind]}', or an expression of parameters")
+
+
+class _Scalar:
+    """A scalar in the geometry: a quantity with its unit ("135 mm"), a plain number where the
+    quantity is dimensionless (or 0), or an expression of parameters (SI)."""
+
+    def __init__(self, raw, kind: str | None, path: str, scope: _Scope):
+        self.kind, self.path = kind, path
+        self.const: float | None = None
+        self.expr: Expression | None = None
+        if isinstance(raw, bool) or raw is None or not isinstance(raw, (int, float, str)):
+            raise DescriptionError(f"{path}: expected {_KIND_TEXT[kind]}, got {raw!r}")
+        if isinstance(raw, (int, float)):
+            if kind in _UNITFUL and raw != 0:
+                raise _bare_number_error(path, raw, kind)
+            self.const = float(raw)
+        elif _PURE_QUANTITY.match(raw):
+            try:
+                self.const = parse_quantity(raw, kind or "dimensionless", field=path)
+            except QuantityError as e:
+                raise DescriptionError(str(e)) from None
+        else:
+            self.expr = Expression(raw, path, scope)
+            if self.expr.is_constant and not self.expr.has_units and kind in _UNITFUL:
+                with np.errstate(all="ignore"):
+                    v = float(self.expr({}))
+                if v != 0:
+                    raise _bare_number_error(path, raw, kind)
+        if self.const is not None and not math.isfinite(self.const):
+            raise DescriptionError(f"{path}: must be finite, got {raw!r}")
+
+    def __call__(self, env) -> float:
+        if self.const is not None:
+            return self.const
+        with np.errstate(all="ignore"):
+            v = self.expr(env)
+        if np.ndim(v) != 0:
+            raise DescriptionError(f"{self.path}: {self.expr.text!r} is a list, not a single value; "
+                                   f"index it, e.g. name[0]")
+        v = float(v)
+        if not math.isfinite(v):
+            raise DescriptionError(f"{self.path}: {self.expr.text!r} evaluates to {v} (not finite)")
+        return v
+
+
+_PARAM_KINDS = ("length", "angle", "dimensionless")
+_NAME_RE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+
+
+def _check_identifier(name, path, what):
+    if not isinstance(name, str) or not _NAME_RE.match(name):
+        raise DescriptionError(f"{path}: {what} name {name!r} must be an identifier (letters, digits, _)")
+    if name in RESERVED:
+        raise DescriptionError(f"{path}: {what} name {name!r} is reserved (a function, constant or pose name); "
+                               f"reserved: {', '.join(sorted(RESERVED))}")
+
+
+def _check_keys(raw: dict, allowed, path, what="this entry"):
+    unknown = [k for k in raw if k not in allowed]
+    if unknown:
+        raise DescriptionError(f"{path}: unknown key{'s' if len(unknown) > 1 else ''} "
+                               f"{', '.join(map(repr, unknown))} for {what}; allowed: {', '.join(sorted(allowed))}")
+
+
+def _leaf(v):
+    while isinstance(v, (list, tuple)):
+        if not v:
+            return None
+        v = v[0]
+    return v
+
+
+def _infer_kind(value, path):
+    leaf = _leaf(value)
+    if leaf is None:
+        raise DescriptionError(f"{path}: an empty list cannot be a parameter value")
+    if isinstance(leaf, bool):
+        raise DescriptionError(f"{path}: booleans are not parameters (descriptions have no switches); "
+                               f"give a length, an angle or a number")
+    if isinstance(leaf, (int, float)):
+        return "dimensionless"
+    if isinstance(leaf, str):
+        for kind in _PARAM_KINDS:
+            try:
+                parse_quantity(leaf, kind, field=path)
+                return kind
+            except QuantityError:
+                continue
+        raise DescriptionError(f"{path}: cannot read {leaf!r} as a length (e.g. '135 mm'), an angle (e.g. "
+                               f"'15 deg') or a plain number: unknown or unsuitable unit")
+    raise DescriptionError(f"{path}: expected a value with its unit, got {value!r}")
+
+
+def _parse_value(value, kind, path):
+    if isinstance(value, (list, tuple)):
+        out = tuple(_parse_value(v, kind, f"{path}[{i}]") for i, v in enumerate(value))
+        try:
+            np.asarray(out, dtype=float)
+        except ValueError:
+            raise DescriptionError(f"{path}: nested lists must be rectangular (all rows the same length)") from None
+        return out
+    if isinstance(value, bool) or value is None:
+        raise DescriptionError(f"{path}: expected {_KIND_TEXT[kind]}, got {value!r}")
+    if isinstance(value, (int, float)):
+        if kind in _UNITFUL and value != 0:
+            raise _bare_number_error(path, value, kind)
+        v = float(value)
+    elif isinstance(value, str):
+        try:
+            v = parse_quantity(value, kind, field=path)
+        except QuantityError as e:
+            raise DescriptionError(str(e)) from None
+    else:
+        raise DescriptionError(f"{path}: expected {_KIND_TEXT[kind]}, got {value!r}")
+    if not math.isfinite(v):
+        raise DescriptionError(f"{path}: must be finite, got {value!r}")
+    return v
+
+
+@dataclass(frozen=True)
+class _Param:
+    name: str
+    kind: str
+    default: Any
+    shape: tuple
+    lo: float | None = None
+    hi: float | None = None
+    doc: str = ""
+
+    def coerce(self, value, where: str):
+        unit = {"length": "m", "angle": "rad", "dimensionless": "a plain number"}[self.kind]
+        if self.shape == ():
+            if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+                raise ValueError(f"{where} must be a number ({self.kind}, SI: {unit}), got {value!r}")
+            a = np.asarray(float(value))
+        else:
+            if isinstance(value, (str, bytes, bool)) or value is None:
+                raise ValueError(f"{where} must be a list of shape {self.shape} ({self.kind}, SI: {unit}), got {value!r}")
+            try:
+                a = np.asarray(value, dtype=float)
+            except (TypeError, ValueError):
+                a = None
+            if a is None or a.shape != self.shape:
+                raise ValueError(f"{where} must have shape {self.shape} ({self.kind}, SI: {unit}); the number of "
+                                 f"entries is fixed by the description, got {value!r}")
+        if not np.all(np.isfinite(a)):
+            raise ValueError(f"{where} must be finite, got {value!r}")
+        if self.lo is not None and np.any(a < self.lo):
+            raise ValueError(f"{where} must be >= {self.lo} ({unit}), got {value!r}")
+        if self.hi is not None and np.any(a > self.hi):
+            raise ValueError(f"{where} must be <= {self.hi} ({unit}), got {value!r}")
+        return float(a) if self.shape == () else _to_tuple(a)
+
+
+def _to_tuple(a: np.ndarray):
+    return tuple(_to_tuple(x) for x in a) if a.ndim > 1 else tuple(float(x) for x in a)
+
+
+def _parse_params(raw) -> list[_Param]:
+    if raw is None:
+        return []
+    if not isinstance(raw, dict):
+        raise DescriptionError("parameters: give a mapping {name: value with unit}, e.g. {radius: 135 mm}")
+    out = []
+    for name, spec in raw.items():
+        path = f"parameters.{name}"
+        _check_identifier(name, path, "parameter")
+        lo = hi = None
+        doc = ""
+        if isinstance(spec, dict):
+            _check_keys(spec, {"value", "kind", "min", "max", "doc"}, path, "a parameter")
+            if "value" not in spec:
+                raise DescriptionError(f"{path}.value: required key is missing")
+            value, kind, doc = spec["value"], spec.get("kind"), str(spec.get("doc", ""))
+            if kind is not None and kind not in _PARAM_KINDS:
+                raise DescriptionError(f"{path}.kind: {kind!r} is not a kind; allowed: {', '.join(_PARAM_KINDS)}")
+        else:
+            value, kind = spec, None
+        if kind is None:
+            kind = _infer_kind(value, path)
+        default = _parse_value(value, kind, path)
+        if isinstance(spec, dict):
+            lo = _parse_value(spec["min"], kind, f"{path}.min") if "min" in spec else None
+            hi = _parse_value(spec["max"], kind, f"{path}.max") if "max" in spec else None
+            for nm, b in (("min", lo), ("max", hi)):
+                if b is not None and not isinstance(b, float):
+                    raise DescriptionError(f"{path}.{nm}: a bound must be a single value")
+        p = _Param(name, kind, default, np.shape(default), lo, hi, doc)
+        try:
+            p.coerce(default, path)
+        except ValueError as e:
+            raise DescriptionError(str(e)) from None
+        out.append(p)
+    return out
+
+
+def _param_env(params_obj, plist) -> dict:
+    env = {}
+    for p in plist:
+        v = getattr(params_obj, p.name)
+        env[p.name] = np.float64(v) if p.shape == () else np.asarray(v, dtype=float)
+    return env

@@ -1,0 +1,136 @@
+"""The whole description: :class:`Description` parses and validates a mapping (the YAML
+document) section by section and builds the geometry for a parameter set; the ``Params``
+dataclass of a described mechanism is generated from its parameters.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import re
+
+import numpy as np
+
+from .errors import DescriptionError
+from .expressions import Expression, _Scope
+from .parameters import _Scalar, _check_identifier, _check_keys, _param_env, _parse_params
+from .anchors import _AnchorSet
+from .legs import _LegGroup
+from .task import _Task
+from .constraints import _ConstraintSpec
+
+_TOP_KEYS = {"name", "summary", "description", "parameters", "checks", "base", "platform", "legs", "task",
+             "length_scale", "constraints"}
+
+
+class Description:
+    """A parsed and validated mechanism description (structure only; numbers are evaluated for
+    each parameter set by :meth:`build`)."""
+
+    def __init__(self, data: dict, source: str | None = None):
+        if not isinstance(data, dict):
+            raise DescriptionError("the description must be a mapping with name, parameters, base, platform, legs, "
+                                   "task, constraints")
+        _check_keys(data, _TOP_KEYS, "(top level)", "a mechanism description")
+        name = data.get("name")
+        if not isinstance(name, str) or not re.match(r"^[A-Za-z0-9_.\-]+$", name):
+            raise DescriptionError(f"name: required, letters, digits, '_', '.', '-' only; got {name!r}")
+        self.name = name
+        self.source = source
+        self.summary = str(data.get("summary", "") or f"mechanism described in {source or 'a description'}")
+        self.text = str(data.get("description", "") or "")
+        self.params = _parse_params(data.get("parameters"))
+        self.param_by_name = {p.name: p for p in self.params}
+        pscope = _Scope(("parameters", [p.name for p in self.params]))
+        self.pscope = pscope
+        checks = data.get("checks") or []
+        if isinstance(checks, str):
+            checks = [checks]
+        if not isinstance(checks, list):
+            raise DescriptionError("checks: give a list of conditions on parameters such as 'q_min < q_max'")
+        self.checks = [Expression(c, f"checks[{i}]", pscope, allow_compare=True) for i, c in enumerate(checks)]
+        default_env = {p.name: (np.float64(p.default) if p.shape == () else np.asarray(p.default, dtype=float))
+                       for p in self.params}
+        self.base_sets, self.plat_sets = {}, {}
+        for side, store in (("base", self.base_sets), ("platform", self.plat_sets)):
+            raw = data.get(side) or {}
+            if not isinstance(raw, dict):
+                raise DescriptionError(f"{side}: give a mapping {{set name: points or pattern}}")
+            for sname, sraw in raw.items():
+                _check_identifier(sname, f"{side}.{sname}", "anchor set")
+                store[sname] = _AnchorSet(sname, sraw, f"{side}.{sname}", pscope, self.param_by_name)
+        sizes = {}
+        for side, store in (("base", self.base_sets), ("platform", self.plat_sets)):
+            sizes[side] = {n: s.build(default_env).points.shape[0] for n, s in store.items()}
+        legs = data.get("legs")
+        if not isinstance(legs, list) or not legs:
+            raise DescriptionError("legs: give a non-empty list of legs")
+        self.legs = []
+        k = 1
+        for i, raw in enumerate(legs):
+            g = _LegGroup(i, raw, sizes["base"], sizes["platform"], pscope, k)
+            self.legs.append(g)
+            k += g.n
+        self.leg_names = [n for g in self.legs for n in g.names]
+        dup = sorted({n for n in self.leg_names if self.leg_names.count(n) > 1})
+        if dup:
+            raise DescriptionError(f"legs: leg name(s) {dup} used twice")
+        self.task = _Task(data.get("task"), pscope, set(self.param_by_name))
+        self.length_scale = (_Scalar(data["length_scale"], "length", "length_scale", pscope)
+                             if "length_scale" in data else None)
+        cons = data.get("constraints") or []
+        if not isinstance(cons, list):
+            raise DescriptionError("constraints: give a list of constraints")
+        self.constraints = [_ConstraintSpec(i, c, self.leg_names, self.task, pscope) for i, c in enumerate(cons)]
+        names = [c.name for c in self.constraints]
+        dup = sorted({n for n in names if names.count(n) > 1})
+        if dup:
+            raise DescriptionError(f"constraints: name(s) {dup} used twice")
+        try:
+            text = json.dumps(data, sort_keys=True, default=str)
+        except TypeError:  # keys of mixed types
+            text = repr(data)
+        self.digest = hashlib.sha1(text.encode()).hexdigest()[:10]
+
+    def build_geometry(self, env):
+        base = {n: s.build(env) for n, s in self.base_sets.items()}
+        plat = {n: s.build(env) for n, s in self.plat_sets.items()}
+        legs = []
+        for g in self.legs:
+            legs += g.build(env, base, plat)
+        home = np.array([s(env) for s in self.task.home])
+        for c, (lo, hi) in self.task.ranges.items():
+            if not lo(env) < hi(env):
+                raise DescriptionError(f"task.ranges.{c}: low ({lo(env):g}) must be below high ({hi(env):g}) (SI)")
+        if self.length_scale is not None:
+            L = self.length_scale(env)
+            if not L > 0:
+                raise DescriptionError(f"length_scale: must be a positive length, got {L} m")
+        else:
+            L = max(max(float(np.linalg.norm(leg.base)) for leg in legs), 1e-3)
+        return legs, home, L
+
+
+def _make_params_class(desc: Description, cls_name: str):
+    plist = desc.params
+    mname = desc.name
+    checks = desc.checks
+    units = {p.name: p.kind for p in plist}
+
+    def __post_init__(self):
+        for p in plist:
+            object.__setattr__(self, p.name, p.coerce(getattr(self, p.name), f"{mname}.{p.name}"))
+        env = _param_env(self, plist)
+        for chk in checks:
+            with np.errstate(all="ignore"):
+                ok = chk(env)
+            if not bool(np.all(ok)):
+                vals = ", ".join(f"{n}={env[n]!r}" for n in sorted(chk.names))
+                raise ValueError(f"{mname}: the parameters fail the check {chk.text!r} ({vals}, SI)")
+
+    fields = [(p.name, float if p.shape == () else tuple, dataclasses.field(default=p.default)) for p in plist]
+    doc = (f"Parameters of {mname} in SI (m, rad); defaults from its description. Units: "
+           + ", ".join(f"{p.name} ({p.kind})" for p in plist))
+    return dataclasses.make_dataclass(f"{cls_name}Params", fields, frozen=True,
+                                      namespace={"UNITS": units, "__post_init__": __post_init__, "__doc__": doc})
