@@ -1,0 +1,255 @@
+"""How quantities are shown to people: display units per quantity kind, numbers without float noise.
+
+Inside the library every value is SI (m, rad, N, m^3, ...). Tables, figure axes and console
+summaries show each quantity in the unit a designer reads:
+
+=============  ===========  =====================================
+kind           display      SI -> display factor
+=============  ===========  =====================================
+length         mm           1e3
+angle          deg          180/pi
+area           cm^2         1e4
+volume         cm^3         1e6
+force          N            1
+stiffness      N/m          1
+torque         N*m          1
+mass           kg           1
+time           s            1
+dimensionless  (none)       1
+=============  ===========  =====================================
+
+A quantity's kind comes from the measure registry (``Measure.kind`` or ``Measure.unit``) for
+objectives and design constraints, and from the design variable's kind for variables. The
+workspace measures in "sampled units" (a volume in the product of the sampled coordinates'
+units) get a compound unit: ``cm^3`` for three position coordinates, ``cm^3*deg^2`` for three
+positions and two angles, and so on.
+
+Numbers are rounded to a number of significant digits (default 4) and written without
+trailing zeros or exponent for ordinary magnitudes: ``0.20500000000000002 m`` -> ``205 mm``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["Unit", "UNITS", "unit_for_kind", "unit_for_si", "quantity_unit", "fmt_number", "fmt_quantity",
+           "fmt_mean_se", "fmt_value", "column_header"]
+
+
+@dataclass(frozen=True)
+class Unit:
+    """A display unit: ``display value = SI value * factor``; ``symbol`` is empty for pure numbers."""
+
+    symbol: str
+    factor: float = 1.0
+
+    def __call__(self, value_si):
+        return value_si * self.factor
+
+    def label(self, name: str) -> str:
+        """``name [symbol]`` (``name`` alone for a pure number)."""
+        return f"{name} [{self.symbol}]" if self.symbol else name
+
+
+NONE = Unit("", 1.0)
+
+#: Display unit of each quantity kind.
+UNITS = {
+    "length": Unit("mm", 1e3),
+    "angle": Unit("deg", 180.0 / math.pi),
+    "area": Unit("cm^2", 1e4),
+    "volume": Unit("cm^3", 1e6),
+    "force": Unit("N", 1.0),
+    "stiffness": Unit("N/m", 1.0),
+    "torque": Unit("N*m", 1.0),
+    "mass": Unit("kg", 1.0),
+    "time": Unit("s", 1.0),
+    "dimensionless": NONE,
+}
+
+#: SI unit strings (as measures declare them) -> kind.
+_SI_KIND = {"m": "length", "rad": "angle", "m^2": "area", "m^3": "volume", "N": "force", "N/m": "stiffness",
+            "N*m": "torque", "N m": "torque", "Nm": "torque", "kg": "mass", "s": "time", "1": "dimensionless",
+            "": "dimensionless"}
+
+_POWER = {1: "", 2: "^2", 3: "^3"}
+
+
+def unit_for_kind(kind: str | None) -> Unit:
+    """Display unit of a quantity kind (``None`` or an unknown kind: shown as a plain number)."""
+    return UNITS.get(kind or "dimensionless", NONE)
+
+
+def unit_for_si(unit: str | None) -> Unit:
+    """Display unit for a value declared in the SI unit string ``unit`` ("m", "m^3", "N", "1", ...).
+    Unknown strings are kept as they are (factor 1)."""
+    if unit is None:
+        return NONE
+    u = unit.strip()
+    if u in _SI_KIND:
+        return UNITS[_SI_KIND[u]]
+    if u == "mixed":
+        return NONE
+    return Unit(u, 1.0)
+
+
+def compound_unit(n_length: int, n_angle: int) -> Unit:
+    """Display unit of a product of ``n_length`` lengths and ``n_angle`` angles: lengths in mm
+    for one, cm^2 / cm^3 for two / three (m^n beyond), angles in deg."""
+    parts, factor = [], 1.0
+    if n_length == 1:
+        parts.append("mm")
+        factor *= 1e3
+    elif n_length in (2, 3):
+        parts.append(f"cm{_POWER[n_length]}")
+        factor *= 100.0**n_length
+    elif n_length > 3:
+        parts.append(f"m^{n_length}")
+    if n_angle:
+        parts.append(f"deg{_POWER.get(n_angle, f'^{n_angle}')}")
+        factor *= (180.0 / math.pi) ** n_angle
+    return Unit("*".join(parts), factor)
+
+
+# -- which unit for a study column ---------------------------------------------------------------
+def _sampled_coordinates(study, settings: dict) -> tuple[list[str], set]:
+    """Names of the coordinates a workspace measure samples, and the angular ones."""
+    from .mechanisms import load_mechanism
+
+    ranges = settings.get("ranges") or study.evaluation.get("ranges")
+    try:
+        mech = load_mechanism(study.mechanism, **{**study.fixed, **(study.reference or {})})
+        angular = set(mech.angular_coordinates)
+        if not ranges:
+            ranges = mech.default_ranges()
+    except Exception:  # a design that cannot be built: fall back on the usual angle names
+        angular = {"alpha", "beta", "gamma", "psi", "theta", "phi"}
+    return list(ranges or ()), angular
+
+
+def _sampled_unit(study, measure, settings: dict) -> Unit:
+    coords, angular = _sampled_coordinates(study, settings)
+    if not coords:
+        return NONE
+    if measure.name == "inscribed_box_size":
+        axis = settings.get("axis", "z")
+        return UNITS["angle"] if axis in angular else UNITS["length"]
+    if settings.get("coords", "position") == "position" and "coords" in measure.settings:
+        coords = [c for c in coords if c not in angular]
+    na = sum(1 for c in coords if c in angular)
+    return compound_unit(len(coords) - na, na)
+
+
+def quantity_unit(study, name: str) -> Unit:
+    """Display unit of a result column of ``study``: a design variable (by name), an objective or
+    design constraint (by label, also ``<label>_stderr``), or a constraint margin
+    (``<label>_margin``, in the constraint's unit). Other columns: no unit."""
+    for suffix in ("_stderr", "_margin"):
+        if name.endswith(suffix) and quantity_known(study, name[: -len(suffix)]):
+            return quantity_unit(study, name[: -len(suffix)])
+    for v in study.variables:
+        if v.name == name:
+            return unit_for_kind(v.kind) if v.type != "categorical" or v.kind else NONE
+    for o in list(study.objectives) + list(study.constraints):
+        if o.label == name:
+            return measure_unit(study, o.name, getattr(o, "settings", {}) or {})
+    return NONE
+
+
+def quantity_known(study, name: str) -> bool:
+    return any(v.name == name for v in study.variables) or any(
+        o.label == name for o in list(study.objectives) + list(study.constraints))
+
+
+def measure_unit(study, measure_name: str, settings: dict | None = None) -> Unit:
+    """Display unit of a registered measure's value (with the study's settings for the sampled units)."""
+    from .objectives import OBJECTIVES
+
+    m = OBJECTIVES.get(measure_name)
+    if m is None:
+        return NONE
+    if m.kind:
+        return unit_for_kind(m.kind)
+    if m.unit in ("sampled units", "sampled unit"):
+        return _sampled_unit(study, m, settings or {})
+    return unit_for_si(m.unit)
+
+
+def column_header(study, name: str) -> str:
+    """``name [unit]`` for a result column."""
+    return quantity_unit(study, name).label(name)
+
+
+# -- numbers --------------------------------------------------------------------------------------
+def fmt_number(x, digits: int = 4) -> str:
+    """A number rounded to ``digits`` significant digits, without float noise or trailing zeros
+    (``205.00000000000003`` -> ``205``, ``0.1 + 0.2`` -> ``0.3``). Integers and booleans as they
+    are; NaN as an empty string; magnitudes below 1e-4 or from 1e9 in exponent form."""
+    if x is None:
+        return ""
+    if isinstance(x, (bool, np.bool_)):
+        return str(bool(x))
+    if isinstance(x, (int, np.integer)):
+        return str(int(x))
+    if isinstance(x, str):
+        return x
+    try:
+        x = float(x)
+    except (TypeError, ValueError):
+        return str(x)
+    if math.isnan(x):
+        return ""
+    if math.isinf(x):
+        return "inf" if x > 0 else "-inf"
+    if x == 0:
+        return "0"
+    if abs(x) < 1e-4 or abs(x) >= 1e9:
+        r = float(f"{x:.{digits}g}")
+        return np.format_float_scientific(r, unique=True, trim="-", exp_digits=1).replace("e+", "e")
+    r = float(f"{x:.{digits}g}")
+    s = np.format_float_positional(r, unique=True, trim="-")
+    return "0" if s in ("-0", "0") else s
+
+
+def fmt_value(x, unit: Unit, digits: int = 4) -> str:
+    """An SI value in ``unit`` without the symbol (table cells, tick labels)."""
+    if isinstance(x, (bool, np.bool_, str)) or x is None:
+        return fmt_number(x, digits)
+    try:
+        return fmt_number(float(x) * unit.factor, digits)
+    except (TypeError, ValueError):
+        return str(x)
+
+
+def fmt_quantity(x, unit_or_kind, digits: int = 4) -> str:
+    """An SI value with its display unit: ``fmt_quantity(0.205, "length")`` -> ``'205 mm'``."""
+    unit = unit_or_kind if isinstance(unit_or_kind, Unit) else unit_for_kind(unit_or_kind)
+    s = fmt_value(x, unit, digits)
+    return f"{s} {unit.symbol}" if unit.symbol and s else s
+
+
+def fmt_mean_se(mean, se, unit: Unit = NONE, with_unit: bool = False) -> str:
+    """``mean ± se`` in display units, the standard error with two significant digits and the
+    mean rounded to the same decimal place (``0.19167, 0.0013628`` in mm -> ``191.7 ± 1.4``).
+    Without a standard error (NaN: one repeat) the mean alone with 4 significant digits."""
+    m = float(mean) * unit.factor
+    if not np.isfinite(m):
+        return ""
+    sfx = f" {unit.symbol}" if with_unit and unit.symbol else ""
+    s = float(se) * unit.factor if se is not None else float("nan")
+    if not np.isfinite(s):
+        return fmt_number(m) + sfx
+    if s == 0:
+        return f"{fmt_number(m, 6)} ± 0{sfx}"
+    place = 1 - int(math.floor(math.log10(abs(s))))  # decimals that keep 2 significant digits of se
+    if place <= 0:
+        q = 10.0 ** (-place)
+        ms, ss = fmt_number(round(m / q) * q, 15), fmt_number(round(s / q) * q, 15)
+    else:
+        if place > 10:
+            return f"{fmt_number(m, 6)} ± {fmt_number(s, 2)}{sfx}"
+        ms, ss = f"{m:.{place}f}", f"{s:.{place}f}"
+    return f"{ms} ± {ss}{sfx}"
