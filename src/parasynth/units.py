@@ -6,6 +6,7 @@ number is an error, not a guess. Parsing and dimension checks are delegated to p
 
 from __future__ import annotations
 
+import math
 from functools import lru_cache
 
 __all__ = ["UNIT_KINDS", "parse_quantity", "format_quantity", "QuantityError"]
@@ -40,13 +41,30 @@ def parse_quantity(value, kind: str, field: str = "value") -> float:
     """Parse ``value`` ("205 mm", "15 deg", "0.2 m") as a ``kind`` and return SI magnitude.
 
     Dimensionless kinds accept plain numbers. Raises :class:`QuantityError` naming ``field``
-    for a bare number where a unit is required, a wrong dimension or an unparsable string.
+    for a bare number where a unit is required, a wrong dimension, an unparsable string or a
+    value that is not finite (``nan mm``, ``inf deg``: a NaN bound would make every comparison
+    false, so a constraint would never bind).
     """
+    v = _parse_quantity(value, kind, field)
+    if not math.isfinite(v):
+        if kind == "dimensionless":
+            raise QuantityError(f"{field}: {value!r} is not a finite number")
+        raise QuantityError(f"{field}: {value!r} is not a finite {kind}; give a number with a unit, "
+                            f"e.g. '10 {DISPLAY_UNITS[kind]}'")
+    # Decimal unit conversion leaves binary noise (205 mm -> 0.20500000000000002 m); 15
+    # significant digits are exact for every decimal input of up to 15 digits. Angles in
+    # degrees have no short decimal value in rad and are left as computed.
+    return v if kind == "angle" else float(f"{v:.15g}")
+
+
+def _parse_quantity(value, kind: str, field: str) -> float:
     if kind not in UNIT_KINDS:
         raise ValueError(f"unknown quantity kind {kind!r}; allowed: {sorted(UNIT_KINDS)}")
     si, dim = UNIT_KINDS[kind]
     if isinstance(value, bool):
         raise QuantityError(f"{field}: expected a {kind}, got a boolean {value!r}")
+    if isinstance(value, complex):
+        raise QuantityError(f"{field}: expected a {kind}, got a complex number {value!r}")
     if isinstance(value, (int, float)):
         if kind == "dimensionless":
             return float(value)
@@ -56,6 +74,8 @@ def parse_quantity(value, kind: str, field: str = "value") -> float:
         )
     if not isinstance(value, str):
         raise QuantityError(f"{field}: expected a {kind} such as '10 {DISPLAY_UNITS.get(kind, '')}', got {value!r}")
+    if len(value) > 200:
+        raise QuantityError(f"{field}: {value[:40]!r}... is too long for a {kind}")
     ureg = _ureg()
     try:
         q = ureg.Quantity(value.strip())
