@@ -27,14 +27,17 @@ import dataclasses
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, Strict, ValidationError
 
 from ..units import QuantityError, parse_quantity
+from ..validation import MAX_SAMPLES, MAX_SEED, MAX_TRIALS, check_count, check_number, is_real_number
+from ..yamlio import YamlError, load_yaml
 
-__all__ = ["StudyError", "StudySpec", "ResolvedStudy", "load_study", "resolve_study", "OPTIMIZERS"]
+__all__ = ["StudyError", "StudySpec", "ResolvedStudy", "load_study", "resolve_study", "check_study", "OPTIMIZERS",
+           "RESERVED_COLUMNS", "SETTING_RANGES"]
 
 #: Optimiser kinds and their algorithms.
 OPTIMIZERS = {
@@ -45,12 +48,37 @@ OPTIMIZERS = {
 }
 NLOPT_WITH_CONSTRAINTS = ("LN_COBYLA", "GN_ISRES")
 
+#: Columns of results.csv and final.csv besides the design variables, objectives and
+#: constraints: a label may not take one of these names.
+RESERVED_COLUMNS = ("trial", "source", "feasible", "status", "error", "seed", "samples", "time_s", "repeats",
+                    "knee", "count")
+#: Suffixes of derived columns: ``<constraint>_margin`` (results.csv), ``<objective>_stderr`` (final.csv).
+DERIVED_SUFFIXES = ("_margin", "_stderr")
+
+#: Allowed range of measure settings by name (lo, hi; None = open): checked for every measure
+#: that takes the setting.
+SETTING_RANGES = {
+    "quantile": (0.0, 1.0),
+    "n": (1, MAX_SAMPLES),
+    "seed": (0, MAX_SEED),
+    "max_points": (1, MAX_SAMPLES),
+    "resolution": (1, 4096),
+    "threshold": (0.0, None),
+    "dt": (1e-9, None),
+}
+#: Workspace sampling methods.
+METHODS = ("sobol", "grid", "random")
+#: Most designs a sweep may list (the product of the variables' value counts).
+MAX_DESIGNS = MAX_TRIALS
+
 
 class StudyError(ValueError):
     """An invalid study: the message names the key path and what is allowed."""
 
 
 Scalar = float | int | str | bool
+#: Integers of the study file: true/false and 4096.5 are not counts.
+Int = Annotated[int, Strict()]
 
 
 class _Model(BaseModel):
@@ -64,7 +92,7 @@ class VariableSpec(_Model):
     high: Scalar | None = None
     values: list[Any] | None = None
     choices: list[Any] | None = None
-    num: int | None = Field(default=None, ge=1)
+    num: Int | None = Field(default=None, ge=1, le=10_000)
     log: bool = False
 
 
@@ -85,29 +113,29 @@ class ConstraintRef(_Model):
 
 class EvaluationSpec(_Model):
     method: Literal["sobol", "grid", "random"] = "sobol"
-    samples: int = Field(default=4096, ge=1)
-    seed: int = 0
+    samples: Int = Field(default=4096, ge=1, le=MAX_SAMPLES)
+    seed: Int = Field(default=0, ge=0, le=MAX_SEED)
     ranges: dict[str, list[Scalar]] | None = None
     fixed_pose: dict[str, Scalar] = Field(default_factory=dict)
     constraints: list[str] | None = None
-    final_samples: int | None = Field(default=None, ge=1)
-    final_repeats: int = Field(default=4, ge=1)
-    final_top: int = Field(default=5, ge=0)
+    final_samples: Int | None = Field(default=None, ge=1, le=MAX_SAMPLES)
+    final_repeats: Int = Field(default=4, ge=1, le=1000)
+    final_top: Int = Field(default=5, ge=0, le=1000)
 
 
 class OptimizerSpec(_Model):
     kind: Literal["sweep", "nlopt", "optuna"] = "sweep"
     algorithm: str | None = None
-    n_trials: int | None = Field(default=None, ge=1)
-    maxeval: int | None = Field(default=None, ge=1)
-    xtol_rel: float | None = Field(default=None, gt=0)
-    ftol_rel: float | None = Field(default=None, gt=0)
+    n_trials: Int | None = Field(default=None, ge=1, le=MAX_TRIALS)
+    maxeval: Int | None = Field(default=None, ge=1, le=MAX_TRIALS)
+    xtol_rel: float | None = Field(default=None, gt=0, allow_inf_nan=False)
+    ftol_rel: float | None = Field(default=None, gt=0, allow_inf_nan=False)
     start: dict[str, Any] | None = None
-    n_jobs: int = Field(default=1, ge=1)
+    n_jobs: Int = Field(default=1, ge=1, le=1024)
     storage: str | None = None
-    seed: int | None = None
+    seed: Int | None = Field(default=None, ge=0, le=MAX_SEED)
     designs: list[dict[str, Any]] | None = None
-    population_size: int | None = Field(default=None, ge=2)
+    population_size: Int | None = Field(default=None, ge=2, le=100_000)
 
 
 class StudySpec(_Model):
@@ -209,17 +237,11 @@ def _fmt_loc(loc) -> str:
 
 def load_study(path_or_text, *, is_text: bool = False) -> ResolvedStudy:
     """Read, validate and resolve a study YAML file (or YAML text with ``is_text=True``)."""
-    if is_text:
-        text, source = path_or_text, None
-    else:
-        p = Path(path_or_text)
-        if not p.exists():
-            raise StudyError(f"study file {str(p)!r} does not exist")
-        text, source = p.read_text(), str(p)
+    source = None if is_text else str(path_or_text)
     try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as e:
-        raise StudyError(f"{source or 'study'}: not valid YAML: {e}") from None
+        data = load_yaml(path_or_text, is_text=is_text, name="study" if is_text else None, what="study file")
+    except YamlError as e:
+        raise StudyError(str(e)) from None
     if not isinstance(data, dict):
         raise StudyError(f"{source or 'study'}: the top level must be a mapping with keys name, mechanism, variables, objectives, ...")
     return resolve_study(data, source=source)
@@ -345,22 +367,60 @@ def resolve_study(data: dict, source: str | None = None) -> ResolvedStudy:
                     f"{path}.{k}: unknown setting of {measure.name!r}; allowed: {', '.join(measure.settings) or '(none)'}"
                 )
             sk = measure.settings[k]
+            where = f"{path}.{k}"
+            lo, hi = SETTING_RANGES.get(k, (None, None))
             if sk == "ranges":
-                out[k] = _resolve_ranges(val, mech_cls, f"{path}.{k}")
+                out[k] = _resolve_ranges(val, mech_cls, where, task)
             elif sk in ("length", "angle", "force", "mass", "time", "torque"):
-                out[k] = _q_nested(val, sk, f"{path}.{k}")
+                out[k] = _q_nested(val, sk, where)
             elif sk == "int":
-                if not isinstance(val, int) or isinstance(val, bool):
-                    raise StudyError(f"{path}.{k}: must be an integer, got {val!r}")
-                out[k] = val
+                out[k] = _check_int(val, where, 1 if lo is None else lo, hi)
             elif sk == "float":
-                try:
-                    out[k] = float(val)
-                except (TypeError, ValueError):
-                    raise StudyError(f"{path}.{k}: must be a number, got {val!r}") from None
+                out[k] = _check_float(val, where, lo, hi)
+            elif k == "method":
+                if val not in METHODS:
+                    raise StudyError(f"{where}: {val!r} is not a sampling method; allowed: {', '.join(METHODS)}")
+                out[k] = val
+            elif k == "constraints" and sk == "list":
+                out[k] = _check_pose_constraints(val, where, pose_constraints)
+            elif k == "fixed" and sk == "dict":
+                if not isinstance(val, dict):
+                    raise StudyError(f"{where}: give a mapping {{coordinate: value with unit}}, e.g. {{alpha: 0 deg}}")
+                out[k] = {c: _pose_value(c, x, f"{where}.{c}", task, mech_cls) for c, x in val.items()}
+            elif sk == "str":
+                if not isinstance(val, str):
+                    raise StudyError(f"{where}: must be a string, got {val!r}")
+                out[k] = val
+            elif sk == "bool":
+                if not isinstance(val, bool):
+                    raise StudyError(f"{where}: must be true or false, got {val!r}")
+                out[k] = val
             else:
                 out[k] = val
         return out
+
+    # The model's task coordinates and pose constraints (from a model built with the fixed
+    # parameters; a model that cannot be built is reported by check_study).
+    task, pose_constraints = _model_names(mech_cls, fixed)
+    reserved = set(RESERVED_COLUMNS) | set(seen) | set(spec.tied)
+
+    def check_label(label, path, where):
+        if not isinstance(label, str) or not label.strip():
+            raise StudyError(f"{where}: give a non-empty column name")
+        if label in reserved:
+            what = "a design variable" if label in seen or label in spec.tied else "a column of the results table"
+            raise StudyError(f"{where}: column name {label!r} is {what}; give a distinct label (reserved columns: "
+                             f"{', '.join(RESERVED_COLUMNS)})")
+        if label in labels:
+            raise StudyError(f"{where}: column name {label!r} is used twice; give a distinct label")
+        for suffix in DERIVED_SUFFIXES:
+            if label.endswith(suffix) and label[: -len(suffix)] in labels:
+                raise StudyError(f"{where}: column name {label!r} clashes with the derived column of "
+                                 f"{label[: -len(suffix)]!r}; give a distinct label")
+            if label + suffix in labels:
+                raise StudyError(f"{where}: the derived column {label + suffix!r} of {label!r} is already a column; "
+                                 f"give a distinct label")
+        labels.add(label)
 
     objectives, labels = [], set()
     for i, o in enumerate(spec.objectives):
@@ -371,9 +431,7 @@ def resolve_study(data: dict, source: str | None = None) -> ResolvedStudy:
         if m.models is not None and spec.mechanism not in m.models:
             raise StudyError(f"{path}.name: objective {o.name!r} applies to {list(m.models)}, not {spec.mechanism!r}")
         label = o.label or o.name
-        if label in labels or label in seen:
-            raise StudyError(f"{path}.label: column name {label!r} is used twice; give a distinct label")
-        labels.add(label)
+        check_label(label, path, f"{path}.label" if o.label is not None else f"{path}.name")
         objectives.append(Objective(o.name, label, o.goal or m.sense, resolve_settings(m, o.settings, f"{path}.settings")))
 
     constraints = []
@@ -389,30 +447,43 @@ def resolve_study(data: dict, source: str | None = None) -> ResolvedStudy:
         hi = _q(c.max, kind, f"{path}.max") if c.max is not None else None
         if kind is None:
             for nm, x in (("min", lo), ("max", hi)):
-                if x is not None and not isinstance(x, (int, float)):
-                    raise StudyError(f"{path}.{nm}: {c.name!r} is dimensionless here ({m.unit}); give a number, got {x!r}")
+                if x is not None:
+                    if not is_real_number(x):
+                        raise StudyError(f"{path}.{nm}: {c.name!r} is dimensionless here ({m.unit}); give a number, "
+                                         f"got {x!r}")
+                    if not math.isfinite(x):
+                        raise StudyError(f"{path}.{nm}: must be a finite number, got {x!r}")
+            lo = float(lo) if lo is not None else None
+            hi = float(hi) if hi is not None else None
+        if lo is not None and hi is not None and lo > hi:
+            raise StudyError(f"{path}: min ({c.min}) is above max ({c.max}); no design can be feasible")
+        if m.models is not None and spec.mechanism not in m.models:
+            raise StudyError(f"{path}.name: measure {c.name!r} applies to {list(m.models)}, not {spec.mechanism!r}")
         label = c.label or c.name
-        if label in labels:
-            raise StudyError(f"{path}.label: column name {label!r} is used twice; give a distinct label")
-        labels.add(label)
+        check_label(label, path, f"{path}.label" if c.label is not None else f"{path}.name")
         constraints.append(DesignConstraint(c.name, label, lo, hi, resolve_settings(m, c.settings, f"{path}.settings")))
 
     ev = spec.evaluation
-    ranges = _resolve_ranges(ev.ranges, mech_cls, "evaluation.ranges") if ev.ranges else None
+    ranges = _resolve_ranges(ev.ranges, mech_cls, "evaluation.ranges", task) if ev.ranges is not None else None
     fixed_pose = {}
-    task = _task_coordinates(mech_cls, fixed)
     for k, v in ev.fixed_pose.items():
-        if k not in task:
-            raise StudyError(f"evaluation.fixed_pose.{k}: not a task coordinate of {spec.mechanism}; valid: {', '.join(task)}")
-        fixed_pose[k] = _q(v, "angle" if k in _angular(mech_cls) else "length", f"evaluation.fixed_pose.{k}")
+        fixed_pose[k] = _pose_value(k, v, f"evaluation.fixed_pose.{k}", task, mech_cls)
+        if ranges and k in ranges:
+            raise StudyError(f"evaluation.fixed_pose.{k}: {k!r} is also sampled in evaluation.ranges; give each "
+                             f"coordinate in one of them")
+    ev_constraints = (_check_pose_constraints(ev.constraints, "evaluation.constraints", pose_constraints)
+                      if ev.constraints is not None else None)
     evaluation = dict(method=ev.method, n=ev.samples, seed=ev.seed, ranges=ranges,
-                      fixed=fixed_pose or None, constraints=ev.constraints,
+                      fixed=fixed_pose or None, constraints=ev_constraints,
                       final_samples=ev.final_samples, final_repeats=ev.final_repeats, final_top=ev.final_top)
 
     opt = spec.optimizer
     allowed = OPTIMIZERS[opt.kind]
     if opt.algorithm is not None and opt.algorithm not in allowed:
         raise StudyError(f"optimizer.algorithm: {opt.algorithm!r} is not available for {opt.kind}; allowed: {', '.join(allowed)}")
+    if opt.kind in ("nlopt", "optuna") and not variables:
+        raise StudyError(f"variables: {opt.kind} needs at least one design variable (with low and high); "
+                         f"to evaluate fixed designs use optimizer.kind: sweep")
     if opt.kind == "nlopt":
         if len(objectives) != 1:
             raise StudyError(f"objectives: nlopt optimises one objective, {len(objectives)} given; use optimizer.kind: optuna for several")
@@ -424,14 +495,22 @@ def resolve_study(data: dict, source: str | None = None) -> ResolvedStudy:
             if v.type != "categorical" and (v.low is None or v.high is None):
                 raise StudyError(f"variables: optuna needs low/high for {v.name!r} (or type: categorical with choices)")
     if opt.kind == "sweep" and not opt.designs:
+        n_designs = 1
         for v in variables:
             if v.values is None and v.choices is None:
                 raise StudyError(f"variables: a sweep needs values (or num with low/high, or choices) for {v.name!r}")
+            n_designs *= len(v.values if v.values is not None else v.choices)
+        if n_designs > MAX_DESIGNS:
+            raise StudyError(f"variables: the sweep grid has {n_designs} designs; the maximum is {MAX_DESIGNS}")
     if opt.designs:
+        byname = {v.name: v for v in variables}
+        if len(opt.designs) > MAX_DESIGNS:
+            raise StudyError(f"optimizer.designs: {len(opt.designs)} designs; the maximum is {MAX_DESIGNS}")
         for j, d in enumerate(opt.designs):
-            for k in d:
-                if k not in {v.name for v in variables}:
+            for k, x in d.items():
+                if k not in byname:
                     raise StudyError(f"optimizer.designs[{j}].{k}: not a design variable; variables: {', '.join(v.name for v in variables)}")
+                _q(x, byname[k].kind, f"optimizer.designs[{j}].{k}")
 
     reference = None
     if spec.reference is not None:
@@ -472,11 +551,14 @@ def _task_coordinates(mech_cls, fixed) -> tuple:
         return tuple(getattr(mech_cls, "task_coordinates", ()) or ("x", "y", "z", "alpha", "beta", "gamma", "psi", "theta"))
 
 
-def _resolve_ranges(val, mech_cls, path) -> dict:
+def _resolve_ranges(val, mech_cls, path, task=None) -> dict:
     if not isinstance(val, dict) or not val:
-        raise StudyError(f"{path}: give a mapping {{coordinate: [low, high]}} with units, e.g. {{z: [600 mm, 900 mm]}}")
+        raise StudyError(f"{path}: give a non-empty mapping {{coordinate: [low, high]}} with units, e.g. "
+                         f"{{z: [600 mm, 900 mm]}} (leave the key out for the model's default ranges)")
     out = {}
     for k, pair in val.items():
+        if task is not None and k not in task:
+            raise StudyError(f"{path}.{k}: {k!r} is not a task coordinate of the model; valid: {', '.join(task)}")
         if not isinstance(pair, (list, tuple)) or len(pair) != 2:
             raise StudyError(f"{path}.{k}: give [low, high] with units, got {pair!r}")
         kind = "angle" if k in _angular(mech_cls) else "length"
@@ -485,3 +567,214 @@ def _resolve_ranges(val, mech_cls, path) -> dict:
             raise StudyError(f"{path}.{k}: empty or inverted range [{pair[0]}, {pair[1]}]")
         out[k] = (lo, hi)
     return out
+
+
+def _check_int(val, where, lo, hi) -> int:
+    try:
+        return check_count(where, val, lo, hi)
+    except ValueError as e:
+        raise StudyError(_path_first(str(e), where)) from None
+
+
+def _check_float(val, where, lo, hi) -> float:
+    try:
+        return check_number(where, val, None, lo, hi)
+    except ValueError as e:
+        raise StudyError(_path_first(str(e), where)) from None
+
+
+def _path_first(msg: str, where: str) -> str:
+    """'<where> must be ...' as '<where>: must be ...' (the study's message style)."""
+    return f"{where}:{msg[len(where):]}" if msg.startswith(where + " ") else msg
+
+
+def _model_names(mech_cls, fixed) -> tuple[tuple, tuple | None]:
+    """Task coordinates and pose-constraint names of the model (None: unknown, not checked)."""
+    try:
+        mech = mech_cls(mech_cls.Params(**dict(fixed)))
+    except Exception:
+        try:
+            mech = mech_cls(mech_cls.Params())
+        except Exception:
+            return _task_coordinates(mech_cls, fixed), None
+    try:
+        cons = tuple(mech.constraints)
+    except Exception:
+        cons = None
+    return tuple(mech.task_coordinates), cons
+
+
+def _pose_value(k, v, where, task, mech_cls) -> float:
+    if k not in task:
+        raise StudyError(f"{where}: {k!r} is not a task coordinate of the model; valid: {', '.join(task)}")
+    return _q(v, "angle" if k in _angular(mech_cls) else "length", where)
+
+
+def _check_pose_constraints(val, where, known) -> list:
+    names = [val] if isinstance(val, str) else val
+    if not isinstance(names, list) or not all(isinstance(x, str) for x in names):
+        raise StudyError(f"{where}: give a list of pose constraint names" +
+                         (f"; valid: {', '.join(known)}" if known else ""))
+    if known is not None:
+        for j, x in enumerate(names):
+            if x not in known:
+                raise StudyError(f"{where}[{j}]: {x!r} is not a pose constraint of the model; valid: "
+                                 f"{', '.join(known) or '(none)'}")
+    return list(names)
+
+
+# -- checks that build designs ------------------------------------------------------------------
+#: Corners of the variable box built by :func:`check_study` (a deterministic subset beyond).
+MAX_CORNERS = 64
+#: Workspace samples of the probe evaluation of each measure in :func:`check_study`.
+PROBE_SAMPLES = 256
+
+
+def _fmt_si(v) -> str:
+    if isinstance(v, float):
+        return f"{v:.6g}"
+    if isinstance(v, tuple):
+        return "(" + ", ".join(_fmt_si(x) for x in v) + ")"
+    return repr(v)
+
+
+def check_study(study: ResolvedStudy, *, measures: bool = True, max_corners: int = MAX_CORNERS,
+                probe_samples: int = PROBE_SAMPLES) -> list[str]:
+    """Problems that would make designs of ``study`` fail when it runs, each with its key path.
+
+    Builds the mechanism with each ``fixed`` and ``reference`` value and each variable's
+    bounds, values and choices alone (naming the key that is at fault), then the reference
+    design (or the centre of the variable box), up to ``max_corners`` corners of the box and
+    every listed design (``optimizer.designs``); with ``measures`` it evaluates every objective
+    and design constraint once on the reference design with ``probe_samples`` workspace samples,
+    so that a setting the measure rejects is reported here and not as a failure of every
+    design. An empty list means none was found. A model whose designs are valid at the
+    corners may still be invalid inside the box (a non-convex parameter set); such designs are
+    recorded as failed by the run, with their reason.
+    """
+    import itertools
+
+    from ..mechanisms import load_mechanism
+    from .evaluate import Evaluator
+
+    problems: list[str] = []
+    ev = Evaluator(study)
+    mech = study.mechanism
+
+    def try_build(params):
+        try:
+            return load_mechanism(mech, **params), None
+        except Exception as e:  # every model error is a problem of the file
+            return None, f"{type(e).__name__}: {e}" if not isinstance(e, ValueError) else str(e)
+
+    for k, v in study.fixed.items():
+        _, err = try_build({k: v})
+        if err:
+            problems.append(f"fixed.{k}: {err}")
+    if problems:
+        return problems
+    for k, v in (study.reference or {}).items():
+        if k in study.fixed:
+            continue
+        _, err = try_build({**study.fixed, k: v})
+        if err:
+            problems.append(f"reference.{k}: {err}")
+    if problems:
+        return problems
+    for i, var in enumerate(study.variables):
+        path = f"variables[{i}]"
+        probes = []
+        if var.low is not None:
+            probes += [(f"{path}.low", var.low), (f"{path}.high", var.high)]
+        for key, seq in (("values", var.values), ("choices", var.choices)):
+            if seq and not (key == "values" and var.low is not None and var.values is not None
+                            and study.spec.variables[i].values is None):
+                probes += [(f"{path}.{key}[{j}]", x) for j, x in enumerate(seq)]
+        for where, x in probes:
+            _, err = try_build(ev_params(ev, {var.name: x}))
+            if err:
+                problems.append(f"{where}: {err}")
+                break
+    if problems:
+        return problems
+
+    # The reference design (or the box centre), then the corners of the box.
+    if study.reference is not None:
+        base = dict(study.reference)
+        base_where = "reference"
+    else:
+        base = {}
+        for v in study.variables:
+            if v.low is not None and v.high is not None:
+                base[v.name] = v.denormalize(0.5) if v.type == "continuous" else round(0.5 * (v.low + v.high))
+            elif v.values:
+                base[v.name] = v.values[len(v.values) // 2]
+            elif v.choices:
+                base[v.name] = v.choices[0]
+        base_where = "variables (the centre of the box)"
+    base_mech, err = try_build(ev_params(ev, base))
+    if err:
+        problems.append(f"{base_where}: the design {_design_str(base)} cannot be built: {err}")
+    axes = []
+    for v in study.variables:
+        if v.low is not None and v.high is not None and v.type != "categorical":
+            axes.append((v.name, (v.low, v.high)))
+        elif v.values:
+            axes.append((v.name, (min(v.values), max(v.values)) if all(is_real_number(x) for x in v.values)
+                         else tuple(v.values)))
+        elif v.choices:
+            axes.append((v.name, tuple(v.choices)))
+    combos = list(itertools.islice(itertools.product(*[vals for _, vals in axes]), 100_000))
+    if len(combos) > max_corners:
+        step = len(combos) / max_corners
+        combos = [combos[int(j * step)] for j in range(max_corners - 1)] + [combos[-1]]
+    bad = []
+    for combo in combos:
+        d = dict(zip([a for a, _ in axes], combo))
+        _, err = try_build(ev_params(ev, d))
+        if err:
+            bad.append((d, err))
+    if bad:
+        d, err = bad[0]
+        more = f" (and {len(bad) - 1} more of {len(combos)} corners)" if len(bad) > 1 else ""
+        problems.append(f"variables: the corner {_design_str(d)} of the variable box cannot be built{more}: {err}; "
+                        f"narrow the bounds")
+    for j, d in enumerate(study.optimizer.designs or ()):
+        byname = {v.name: v for v in study.variables}
+        dd = {k: _q(x, byname[k].kind, f"optimizer.designs[{j}].{k}") for k, x in d.items()}
+        _, err = try_build(ev_params(ev, dd))
+        if err:
+            problems.append(f"optimizer.designs[{j}]: the design cannot be built: {err}")
+    if not measures or base_mech is None:
+        return problems
+
+    from ..objectives import get as get_measure
+
+    n = min(int(study.evaluation["n"]), probe_samples)
+    items = [(f"objectives[{i}]", o) for i, o in enumerate(study.objectives)]
+    items += [(f"constraints[{i}]", c) for i, c in enumerate(study.constraints)]
+    for where, item in items:
+        m = get_measure(item.name)
+        try:
+            m(base_mech, **ev.settings_for(item.name, item.settings, n=n))
+        except KeyboardInterrupt:
+            raise
+        except Exception as e:
+            msg = str(e) if isinstance(e, ValueError) else f"{type(e).__name__}: {e}"
+            problems.append(f"{where} ({item.label}): measure {item.name!r} fails on the {base_where.split(' ')[0]} "
+                            f"design with these settings: {msg}")
+    return problems
+
+
+def ev_params(evaluator, values: dict) -> dict:
+    """Parameters of the mechanism for design ``values`` (fixed and tied parameters added)."""
+    st = evaluator.study
+    params = {**st.fixed, **values}
+    for k, src in st.tied.items():
+        if src in values:
+            params[k] = values[src]
+    return params
+
+
+def _design_str(d: dict) -> str:
+    return "{" + ", ".join(f"{k}={_fmt_si(v)}" for k, v in d.items()) + "}"
