@@ -36,7 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = ["Unit", "UNITS", "unit_for_kind", "unit_for_si", "quantity_unit", "fmt_number", "fmt_quantity",
-           "fmt_mean_se", "fmt_value", "column_header"]
+           "fmt_mean_se", "fmt_value", "column_header", "text_table"]
 
 
 @dataclass(frozen=True)
@@ -243,7 +243,7 @@ def fmt_mean_se(mean, se, unit: Unit = NONE, with_unit: bool = False) -> str:
     if not np.isfinite(s):
         return fmt_number(m) + sfx
     if s == 0:
-        return f"{fmt_number(m, 6)} ± 0{sfx}"
+        return f"{fmt_number(m)} ± 0{sfx}"
     place = 1 - int(math.floor(math.log10(abs(s))))  # decimals that keep 2 significant digits of se
     if place <= 0:
         q = 10.0 ** (-place)
@@ -253,3 +253,17 @@ def fmt_mean_se(mean, se, unit: Unit = NONE, with_unit: bool = False) -> str:
             return f"{fmt_number(m, 6)} ± {fmt_number(s, 2)}{sfx}"
         ms, ss = f"{m:.{place}f}", f"{s:.{place}f}"
     return f"{ms} ± {ss}{sfx}"
+
+
+def text_table(study, df, columns) -> str:
+    """Plain-text table of ``columns`` of a results table: headers with display units, values
+    in display units without float noise (console summaries)."""
+    import pandas as pd
+
+    out = pd.DataFrame(index=df.index)
+    for c in columns:
+        if c not in df:
+            continue
+        u = quantity_unit(study, c)
+        out[u.label(c)] = [fmt_value(x, u) for x in df[c]]
+    return out.to_string(index=False)

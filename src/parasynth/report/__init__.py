@@ -1,8 +1,8 @@
 """Pareto analysis and study reports."""
 
-from .pareto import (default_reference_point, hypervolume, knee_index, non_dominated_ranks, pareto_mask,
+from .pareto import (NoisyComparison, compare_with_noise, default_reference_point, hypervolume, knee_index, non_dominated_ranks, pareto_mask,
                      reference_standing, to_min)
 from .render import ReportError, load_run, write_report
 
-__all__ = ["write_report", "load_run", "ReportError", "pareto_mask", "non_dominated_ranks", "hypervolume",
+__all__ = ["compare_with_noise", "NoisyComparison", "write_report", "load_run", "ReportError", "pareto_mask", "non_dominated_ranks", "hypervolume",
            "default_reference_point", "knee_index", "reference_standing", "to_min"]

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = ["to_min", "dominates", "non_dominated_ranks", "pareto_mask", "hypervolume", "default_reference_point",
-           "knee_index", "ReferenceStanding", "reference_standing"]
+           "knee_index", "ReferenceStanding", "reference_standing", "NoisyComparison", "compare_with_noise"]
 
 
 def to_min(F, senses) -> np.ndarray:
@@ -188,3 +188,48 @@ def reference_standing(F, senses, feasible, ref_values, labels) -> ReferenceStan
         eps = float("nan")
     on_front = not dom.any()
     return ReferenceStanding(int(dom.sum()), idx, eps, imp, on_front)
+
+
+@dataclass
+class NoisyComparison:
+    """Design A against design B on re-evaluated objectives (means and standard errors).
+
+    ``status[j]``: +1 A better than B on objective j by more than ``z`` combined standard
+    errors, -1 worse by more, 0 within noise. ``diff[j]``: A - B in the objective's sense
+    (> 0: A better), ``se[j]``: the combined standard error sqrt(se_A^2 + se_B^2) (NaN when
+    a standard error is unknown: then the means decide and ``noise_known`` is False).
+    ``verdict``: "dominates" (better beyond noise somewhere, worse beyond noise nowhere),
+    "dominated" (the reverse), "trade-off" (both) or "within noise" (no difference beyond
+    noise)."""
+
+    status: np.ndarray
+    diff: np.ndarray
+    se: np.ndarray
+    z: float
+    noise_known: bool
+
+    @property
+    def verdict(self) -> str:
+        better, worse = bool((self.status > 0).any()), bool((self.status < 0).any())
+        if better and worse:
+            return "trade-off"
+        if better:
+            return "dominates"
+        if worse:
+            return "dominated"
+        return "within noise"
+
+
+def compare_with_noise(a_mean, a_se, b_mean, b_se, senses, z: float = 2.0) -> NoisyComparison:
+    """Compare design A with design B objective by objective, a difference counting only when
+    it exceeds ``z`` combined standard errors (default 2: a two-sided test at about 95 % for
+    independent estimates). Standard errors may be NaN (one repeat): the means then decide."""
+    sign = np.array([1.0 if s == "maximize" else -1.0 for s in senses])
+    a, b = np.asarray(a_mean, float), np.asarray(b_mean, float)
+    sa, sb = np.asarray(a_se, float), np.asarray(b_se, float)
+    diff = (a - b) * sign
+    se = np.sqrt(sa**2 + sb**2)
+    known = np.isfinite(se)
+    thr = np.where(known, z * np.where(known, se, 0.0), 0.0)
+    status = np.where(diff > thr, 1, np.where(diff < -thr, -1, 0))
+    return NoisyComparison(status.astype(int), diff, se, float(z), bool(known.all()))

@@ -21,7 +21,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from .pareto import default_reference_point, hypervolume, knee_index, pareto_mask, reference_standing, to_min
+from ..display import Unit, fmt_mean_se, fmt_number, fmt_quantity, fmt_value, quantity_unit
+from .pareto import compare_with_noise, default_reference_point, hypervolume, reference_standing, to_min
 
 __all__ = ["write_report", "ReportError", "load_run"]
 
@@ -89,60 +90,42 @@ def load_run(run_dir) -> Run:
 
 
 # -- formatting ----------------------------------------------------------------------------------
-def _measure(name):
-    from ..objectives import OBJECTIVES
-
-    return OBJECTIVES.get(name)
-
-
-_DISPLAY = {"length": (1e3, "mm"), "angle": (180 / np.pi, "deg")}
+#: A difference between re-evaluated designs counts when it exceeds this many combined standard
+#: errors (``write_report(..., noise_z=...)``).
+NOISE_Z = 2.0
 
 
-def _var_display(v):
-    return _DISPLAY.get(v.kind, (1.0, ""))
+def _unit(study, name) -> Unit:
+    return quantity_unit(study, name)
 
 
-def _obj_display(study, label):
-    for o in list(study.objectives) + list(study.constraints):
-        if o.label == label:
-            m = _measure(o.name)
-            if m is not None and m.kind in _DISPLAY:
-                return _DISPLAY[m.kind]
-            if m is not None and m.unit == "sampled units":
-                return 1.0, _sampled_units(study, o)
-            return 1.0, (m.unit if m is not None and m.unit not in ("1", "mixed") else "")
-    return 1.0, ""
+def _is_number_col(study, name) -> bool:
+    v = next((v for v in study.variables if v.name == name), None)
+    return v is None or v.type != "categorical" or bool(v.kind)
 
 
-def _sampled_units(study, o) -> str:
-    ranges = o.settings.get("ranges") or study.evaluation.get("ranges")
-    if not ranges:
-        return "(task-space units)"
-    ang = {"alpha", "beta", "gamma", "psi", "theta", "phi"}
-    nl = sum(1 for k in ranges if k not in ang)
-    na = len(ranges) - nl
-    parts = ([f"m^{nl}" if nl > 1 else "m"] if nl else []) + ([f"rad^{na}" if na > 1 else "rad"] if na else [])
-    return " ".join(parts)
-
-
-def display_table(study, df: pd.DataFrame) -> pd.DataFrame:
-    """Columns of a results table in engineering units (mm, deg), renamed with the unit."""
+def display_table(study, df: pd.DataFrame, constraints: bool = True) -> pd.DataFrame:
+    """A results table for people: display units per quantity (mm, deg, cm^3, N, ...) named in
+    the headers, numbers as strings with 4 significant digits (no float noise); ``count``
+    (merged duplicates) shown as ``evaluations``."""
     out = pd.DataFrame(index=df.index)
-    for c in ["trial"]:
-        if c in df:
-            out[c] = df[c]
-    for v in study.variables:
-        f, u = _var_display(v)
-        col = df[v.name]
-        out[f"{v.name} [{u}]" if u else v.name] = col * f if v.type != "categorical" and v.kind else col
-    for o in study.objectives:
-        f, u = _obj_display(study, o.label)
-        out[f"{o.label} [{u}]" if u else o.label] = df[o.label] * f
-    for c in study.constraints:
-        f, u = _obj_display(study, c.label)
-        out[f"{c.label} [{u}]" if u else c.label] = df[c.label] * f
+    if "trial" in df:
+        out["trial"] = [fmt_number(int(x)) for x in df["trial"]]
+    if "count" in df:
+        out["evaluations"] = [fmt_number(int(x)) for x in df["count"]]
+    cols = [v.name for v in study.variables] + [o.label for o in study.objectives]
+    if constraints:
+        cols += [c.label for c in study.constraints]
+    for c in cols:
+        if c not in df:
+            continue
+        u = _unit(study, c)
+        if _is_number_col(study, c):
+            out[u.label(c)] = [fmt_value(x, u) for x in df[c]]
+        else:
+            out[c] = [str(x) for x in df[c]]
     if "feasible" in df:
-        out["feasible"] = df["feasible"]
+        out["feasible"] = ["yes" if bool(x) else "no" for x in df["feasible"]]
     return out
 
 
@@ -157,21 +140,56 @@ def _plt():
 
 
 class Figures:
-    """Collects figures as PNG bytes: inlined in HTML, written to img/ for Markdown."""
+    """Collects figures as PNG bytes: inlined in HTML, written to img/ for Markdown.
 
-    def __init__(self):
+    ``keep=True`` keeps the matplotlib figures open in ``figures`` (name -> figure) so that
+    their layout can be inspected (tests of tick-label overlap)."""
+
+    def __init__(self, keep: bool = False):
         self.items: list[tuple[str, str, bytes]] = []  # (name, caption, png)
+        self.keep = keep
+        self.figures: dict = {}
 
     def add(self, fig, name, caption):
         buf = io.BytesIO()
         fig.savefig(buf, format="png", dpi=110, bbox_inches="tight")
-        _plt().close(fig)
+        if self.keep:
+            self.figures[name] = fig
+        else:
+            _plt().close(fig)
         self.items.append((name, caption, buf.getvalue()))
 
 
-def _label(study, lab):
-    f, u = _obj_display(study, lab)
-    return (f"{lab} [{u}]" if u else lab), f
+def _label(study, lab) -> tuple[str, Unit]:
+    u = _unit(study, lab)
+    return u.label(lab), u
+
+
+def _tidy(ax, x=True, y=True):
+    """Few, plainly formatted ticks (no offset text, no scientific multiplier) so that tick
+    labels do not run into each other at the figure's size."""
+    from matplotlib.ticker import MaxNLocator, ScalarFormatter
+
+    for on, axis in ((x, ax.xaxis), (y, ax.yaxis)):
+        if not on:
+            continue
+        axis.set_major_locator(MaxNLocator(nbins=5, min_n_ticks=3))
+        fmt = ScalarFormatter(useOffset=False)
+        fmt.set_scientific(True)
+        fmt.set_powerlimits((-4, 6))
+        axis.set_major_formatter(fmt)
+    ax.tick_params(labelsize=8)
+
+
+def _grid(plt, n, width=4.4, height=3.5, max_cols=3):
+    """``n`` panels in a grid that wraps after ``max_cols`` columns (unused cells hidden)."""
+    cols = max(1, min(max_cols, n))
+    rows = int(np.ceil(n / cols))
+    fig, axes = plt.subplots(rows, cols, figsize=(width * cols, height * rows), squeeze=False,
+                             layout="constrained")
+    for ax in axes.ravel()[n:]:
+        ax.axis("off")
+    return fig, axes.ravel()[:n]
 
 
 def plot_pareto(figs, study, run_df, front, ref_row, knee_row):
@@ -180,33 +198,29 @@ def plot_pareto(figs, study, run_df, front, ref_row, knee_row):
         return
     plt = _plt()
     pairs = [(i, j) for i in range(len(objs)) for j in range(i + 1, len(objs))]
-    n = len(pairs)
-    cols = min(3, n)
-    rows = int(np.ceil(n / cols))
-    fig, axes = plt.subplots(rows, cols, figsize=(5.2 * cols, 4.2 * rows), squeeze=False)
+    fig, axes = _grid(plt, len(pairs), width=4.6, height=3.8)
     ok = run_df["status"] == "ok"
-    for ax, (i, j) in zip(axes.ravel(), pairs):
+    for ax, (i, j) in zip(axes, pairs):
         a, b = objs[i].label, objs[j].label
         la, fa = _label(study, a)
         lb, fb = _label(study, b)
-        inf = run_df[ok & ~run_df["feasible"]]
-        fea = run_df[ok & run_df["feasible"]]
-        ax.scatter(inf[a] * fa, inf[b] * fb, s=10, c="#d62728", alpha=0.35, label="infeasible")
-        ax.scatter(fea[a] * fa, fea[b] * fb, s=12, c="#7f7f7f", alpha=0.6, label="feasible")
+        inf = run_df[ok & ~run_df["feasible"].astype(bool)]
+        fea = run_df[ok & run_df["feasible"].astype(bool)]
+        ax.scatter(fa(inf[a]), fb(inf[b]), s=10, c="#d62728", alpha=0.35, label="infeasible")
+        ax.scatter(fa(fea[a]), fb(fea[b]), s=12, c="#7f7f7f", alpha=0.6, label="feasible")
         fr = front.sort_values(a)
-        ax.plot(fr[a] * fa, fr[b] * fb, "o-", c="#1f77b4", ms=5, lw=1.2, label="non-dominated")
+        ax.plot(fa(fr[a]), fb(fr[b]), "o-", c="#1f77b4", ms=5, lw=1.2, label="non-dominated")
         if knee_row is not None:
-            ax.scatter([knee_row[a] * fa], [knee_row[b] * fb], s=140, marker="D", facecolors="none",
+            ax.scatter([fa(knee_row[a])], [fb(knee_row[b])], s=140, marker="D", facecolors="none",
                        edgecolors="#2ca02c", linewidths=2, label="recommended (knee)", zorder=5)
         if ref_row is not None:
-            ax.scatter([ref_row[a] * fa], [ref_row[b] * fb], s=220, marker="*", c="#ff7f0e", edgecolors="k",
+            ax.scatter([fa(ref_row[a])], [fb(ref_row[b])], s=220, marker="*", c="#ff7f0e", edgecolors="k",
                        label="paper design", zorder=6)
-        ax.set_xlabel(f"{la} ({objs[i].goal})")
-        ax.set_ylabel(f"{lb} ({objs[j].goal})")
+        ax.set_xlabel(f"{la} ({objs[i].goal})", fontsize=9)
+        ax.set_ylabel(f"{lb} ({objs[j].goal})", fontsize=9)
         ax.grid(alpha=0.3)
-    for ax in axes.ravel()[n:]:
-        ax.axis("off")
-    axes.ravel()[0].legend(fontsize=8, loc="best")
+        _tidy(ax)
+    axes[0].legend(fontsize=7, loc="best")
     fig.suptitle(f"Pareto front: {study.name}")
     figs.add(fig, "pareto", "Objective space: every evaluated design, the non-dominated feasible set, the "
              "recommended design and the paper's design.")
@@ -218,24 +232,26 @@ def plot_parallel(figs, study, run_df, front):
         return
     plt = _plt()
     d = run_df[run_df["status"] == "ok"][cols + ["feasible"]].copy()
+    d[cols] = d[cols].astype(float)
     lo, hi = d[cols].min(), d[cols].max()
     Z = (d[cols] - lo) / (hi - lo).replace(0, 1)
-    fig, ax = plt.subplots(figsize=(max(6, 1.6 * len(cols)), 4))
+    fig, ax = plt.subplots(figsize=(max(6.0, 1.9 * len(cols)), 4), layout="constrained")
     x = np.arange(len(cols))
+    on_front = set(front["trial"]) if "trial" in front else set()
+    trials = run_df.loc[d.index, "trial"] if "trial" in run_df else pd.Series(-1, index=d.index)
     for idx, row in Z.iterrows():
-        on = idx in front.index
+        on = trials[idx] in on_front
         feas = bool(d.loc[idx, "feasible"])
         ax.plot(x, row.values, c="#1f77b4" if on else ("#bbbbbb" if feas else "#f4b6b6"),
                 alpha=0.9 if on else 0.35, lw=1.6 if on else 0.7, zorder=3 if on else 1)
     ax.set_xticks(x)
     labels = []
     for c in cols:
-        v = next((v for v in study.variables if v.name == c), None)
-        f, u = _var_display(v) if v else _obj_display(study, c)
-        labels.append(f"{c}\n[{lo[c] * f:.3g}, {hi[c] * f:.3g}] {u}")
+        u = _unit(study, c)
+        labels.append(f"{c}\n[{fmt_value(lo[c], u, 3)}, {fmt_value(hi[c], u, 3)}]" + (f"\n{u.symbol}" if u.symbol else ""))
     ax.set_xticklabels(labels, fontsize=8)
     ax.set_yticks([])
-    ax.set_title("Parallel coordinates (blue: non-dominated feasible; grey: feasible; red: infeasible)")
+    ax.set_title("Parallel coordinates (blue: non-dominated feasible; grey: feasible; red: infeasible)", fontsize=10)
     figs.add(fig, "parallel", "Design variables and objectives of every design, scaled to their ranges.")
 
 
@@ -245,12 +261,12 @@ def plot_convergence(figs, study, run_df):
     if not len(d):
         return
     objs = study.objectives
-    fig, ax = plt.subplots(figsize=(6, 3.6))
-    ok = (d["status"] == "ok") & d["feasible"]
+    fig, ax = plt.subplots(figsize=(6, 3.6), layout="constrained")
+    ok = (d["status"] == "ok") & d["feasible"].astype(bool)
     if len(objs) == 1:
         o = objs[0]
-        lab, f = _label(study, o.label)
-        vals = np.where(ok, d[o.label], np.nan) * f
+        lab, u = _label(study, o.label)
+        vals = u(np.where(ok, d[o.label].astype(float), np.nan))
         best = pd.Series(vals).cummax() if o.goal == "maximize" else pd.Series(vals).cummin()
         ax.plot(np.arange(1, len(d) + 1), vals, ".", c="#999999", label="feasible designs")
         ax.plot(np.arange(1, len(d) + 1), best, "-", c="#1f77b4", label="best so far")
@@ -266,13 +282,16 @@ def plot_convergence(figs, study, run_df):
         for k in range(1, len(d) + 1):
             m = feas[:k]
             hv.append(hypervolume(Fm[:k][m], ref) if m.any() else 0.0)
-        ax.plot(np.arange(1, len(d) + 1), hv, "-", c="#1f77b4")
-        ax.set_ylabel("hypervolume of feasible front")
+        hv = np.asarray(hv)
+        ax.plot(np.arange(1, len(d) + 1), hv / hv[-1] if hv[-1] > 0 else hv, "-", c="#1f77b4")
+        ax.set_ylabel("hypervolume / final hypervolume")
     ax.set_xlabel("evaluations")
     ax.grid(alpha=0.3)
+    _tidy(ax)
     ax.legend(fontsize=8) if len(objs) == 1 else None
     figs.add(fig, "convergence", "Convergence: best feasible value (one objective) or hypervolume of the feasible "
-             "non-dominated set (several objectives, reference point as in the summary) against evaluations.")
+             "non-dominated set relative to its final value (several objectives, reference point as in the "
+             "summary) against evaluations.")
 
 
 def plot_sweep(figs, study, run_df, final):
@@ -280,27 +299,36 @@ def plot_sweep(figs, study, run_df, final):
         return
     plt = _plt()
     v = study.variables[0]
-    fv, uv = _var_display(v)
+    xl, xu = _label(study, v.name)
     d = run_df[(run_df["source"] == "run") & (run_df["status"] == "ok")].sort_values(v.name)
     objs = list(study.objectives)
-    fig, axes = plt.subplots(1, len(objs), figsize=(4.6 * len(objs), 3.6), squeeze=False)
-    for ax, o in zip(axes[0], objs):
-        lab, f = _label(study, o.label)
-        x = d[v.name] * fv if v.kind else d[v.name]
-        ax.plot(x, d[o.label] * f, "o-", c="#1f77b4", label=f"{int(d['samples'].iloc[0]) if len(d) else ''} samples")
+    fig, axes = _grid(plt, len(objs), width=4.2, height=3.3)
+    numeric = _is_number_col(study, v.name)
+    for k, (ax, o) in enumerate(zip(axes, objs)):
+        lab, u = _label(study, o.label)
+        x = xu(d[v.name].astype(float)) if numeric else d[v.name].astype(str)
+        ax.plot(x, u(d[o.label].astype(float)), "o-", c="#1f77b4",
+                label=f"{int(d['samples'].iloc[0]) if len(d) else ''} samples, one seed")
         if final is not None and f"{o.label}_stderr" in final and v.name in final:
             fb = final[final["source"] == "best"].sort_values(v.name)
             if len(fb):
-                xf = fb[v.name] * fv if v.kind else fb[v.name]
-                ax.errorbar(xf, fb[o.label] * f, yerr=2 * fb[f"{o.label}_stderr"] * f, fmt="s", c="#d62728", capsize=4,
+                xf = xu(fb[v.name].astype(float)) if numeric else fb[v.name].astype(str)
+                ax.errorbar(xf, u(fb[o.label].astype(float)), yerr=u(2 * fb[f"{o.label}_stderr"].astype(float)),
+                            fmt="s", c="#d62728", capsize=4, ms=4,
                             label=f"re-evaluated, +-2 s.e. ({int(fb['samples'].iloc[0])} x {int(fb['repeats'].iloc[0])})")
-        if study.reference and v.name in study.reference:
-            ax.axvline(study.reference[v.name] * (fv if v.kind else 1), c="#ff7f0e", ls="--", label="paper's choice")
-        ax.set_xlabel(f"{v.name} [{uv}]" if uv else v.name)
-        ax.set_ylabel(lab)
+        if study.reference and v.name in study.reference and numeric:
+            ax.axvline(xu(study.reference[v.name]), c="#ff7f0e", ls="--", label="paper's choice")
+        ax.set_xlabel(xl, fontsize=9)
+        ax.set_ylabel(lab, fontsize=9)
+        ax.set_title(o.label, fontsize=9)
         ax.grid(alpha=0.3)
-        ax.legend(fontsize=7)
-    figs.add(fig, "sweep", f"Sweep of {v.name}: each objective against the design variable.")
+        _tidy(ax, x=numeric)
+        if numeric and 1 < d[v.name].nunique() <= 6:  # a short sweep: ticks at the swept values
+            ax.set_xticks(sorted(set(xu(d[v.name].astype(float)))))
+        if k == 0:
+            ax.legend(fontsize=7)
+    figs.add(fig, "sweep", f"Sweep of {v.name}: each objective against the design variable (one panel per "
+             "objective; red: re-evaluated mean with +-2 standard errors).")
 
 
 def plot_designs(figs, study, designs: dict):
@@ -337,7 +365,7 @@ def plot_designs(figs, study, designs: dict):
     figs.add(fig, "designs", "Mechanism sketches at the home pose (blue: actuated legs, green: passive legs, "
              "orange: platform anchors).")
     ev = study.evaluation
-    fig, axes = plt.subplots(1, 2, figsize=(10, 4.2))
+    fig, axes = plt.subplots(1, 2, figsize=(10, 4.2), layout="constrained")
     colors = ["#1f77b4", "#ff7f0e", "#2ca02c"]
     for k, ((name, mech), c) in enumerate(zip(mechs.items(), colors)):
         try:
@@ -356,6 +384,7 @@ def plot_designs(figs, study, designs: dict):
         ax.set_ylabel(f"{b} [mm]")
         ax.set_aspect("equal", adjustable="datalim")
         ax.grid(alpha=0.3)
+        _tidy(ax)
         ax.legend(fontsize=8, markerscale=4)
     figs.add(fig, "workspace", "Feasible platform positions (projections on XY and XZ) of the recommended and the "
              "paper's design, from the study's evaluation samples.")
@@ -374,7 +403,11 @@ def _versions() -> dict:
     return out
 
 
-def analyse(run: Run) -> dict:
+def analyse(run: Run, noise_z: float = NOISE_Z) -> dict:
+    """Front, knee, hypervolume and the paper design's standing (single-sample screening and,
+    when ``final.csv`` holds it, the re-evaluated verdict) of a loaded run."""
+    from ..study.final import knee_of, pareto_front
+
     study, t = run.study, run.table
     runs = t[t["source"] == "run"].copy()
     objs = study.objectives
@@ -383,36 +416,32 @@ def analyse(run: Run) -> dict:
     ok = (runs["status"] == "ok").to_numpy()
     feas = (runs["feasible"].astype(bool)).to_numpy() & ok
     F = runs[labels].to_numpy(float)
-    mask = pareto_mask(np.where(ok[:, None], F, np.nan), senses, feas) if len(runs) else np.zeros(0, bool)
-    front = runs[mask]
-    out = {"runs": runs, "front": front, "mask": mask, "labels": labels, "senses": senses}
+    front = pareto_front(study, runs)
+    out = {"runs": runs, "front": front, "labels": labels, "senses": senses, "noise_z": float(noise_z)}
     ref = t[t["source"] == "reference"]
     out["ref_row"] = ref.iloc[0] if len(ref) and ref.iloc[0]["status"] == "ok" else None
-    knee_row = None
-    if len(front):
+    knee_row = knee_of(study, front)
+    if len(front) and len(objs) > 1:
         Fm = to_min(front[labels].to_numpy(float), senses)
-        knee_row = front.iloc[knee_index(Fm)]
-        if len(objs) > 1:
-            refpt = default_reference_point(to_min(F[feas], senses))
-            out["hv_ref"] = refpt
-            out["hv"] = hypervolume(Fm, refpt)
+        Ffeas = to_min(F[feas], senses)
+        refpt = default_reference_point(Ffeas)
+        out["hv_ref"] = refpt
+        out["hv"] = hypervolume(Fm, refpt)
+        ideal = Ffeas.min(axis=0)
+        box = float(np.prod(refpt - ideal))
+        out["hv_fraction"] = out["hv"] / box if box > 0 else float("nan")
     out["knee_row"] = knee_row
     if out["ref_row"] is not None and feas.any():
         out["standing"] = reference_standing(F[feas], senses, np.ones(feas.sum(), bool),
                                              out["ref_row"][labels].to_numpy(float), labels)
+    out["final"] = _final_analysis(run, knee_row, noise_z)
     return out
 
 
-def write_report(run_dir, out=None) -> Path:
-    """Write index.html, report.md and pareto.csv for a run directory; returns the report dir."""
-    run = load_run(run_dir)
-    study = run.study
-    out = Path(out) if out else Path("reports") / study.name
-    out.mkdir(parents=True, exist_ok=True)
-    a = analyse(run)
-    runs, front = a["runs"], a["front"]
-    front.to_csv(out / "pareto.csv", index=False)
-    figs = Figures()
+def make_figures(run: Run, a: dict, keep: bool = False) -> Figures:
+    """Every figure of the report for a loaded and analysed run."""
+    study, runs, front = run.study, a["runs"], a["front"]
+    figs = Figures(keep=keep)
     plot_sweep(figs, study, run.table, run.final)
     plot_pareto(figs, study, runs, front, a["ref_row"], a["knee_row"])
     plot_convergence(figs, study, runs)
@@ -426,6 +455,22 @@ def write_report(run_dir, out=None) -> Path:
         plot_designs(figs, study, designs)
     except Exception as e:  # a picture must not cost the report
         figs.items.append(("designs_error", f"design pictures unavailable: {e}", b""))
+    return figs
+
+
+def write_report(run_dir, out=None, noise_z: float = NOISE_Z) -> Path:
+    """Write index.html, report.md and pareto.csv for a run directory; returns the report dir.
+
+    ``pareto.csv``: the distinct non-dominated feasible designs, columns as results.csv plus
+    ``count`` (how many times the design was evaluated). ``noise_z``: a difference between
+    re-evaluated designs counts when it exceeds this many combined standard errors."""
+    run = load_run(run_dir)
+    study = run.study
+    out = Path(out) if out else Path("reports") / study.name
+    out.mkdir(parents=True, exist_ok=True)
+    a = analyse(run, noise_z=noise_z)
+    a["front"].to_csv(out / "pareto.csv", index=False)
+    figs = make_figures(run, a)
     sections = _sections(run, a)
     (out / "img").mkdir(exist_ok=True)
     for name, _, png in figs.items:
@@ -436,13 +481,162 @@ def write_report(run_dir, out=None) -> Path:
     return out
 
 
+def _final_analysis(run: Run, knee_row, noise_z: float) -> dict | None:
+    """Re-evaluated designs compared with each other and with the reference, beyond noise."""
+    from ..study.final import design_key
+
+    study, fin = run.study, run.final
+    labels = [o.label for o in study.objectives]
+    senses = [o.goal for o in study.objectives]
+    need = labels + [f"{lab}_stderr" for lab in labels] + ["source"]
+    if fin is None or not len(fin) or any(c not in fin for c in need):
+        return None
+    fin = fin.copy()
+    if "knee" not in fin:  # final.csv of an older run: find the knee by its design values
+        kk = design_key(study, knee_row) if knee_row is not None else None
+        fin["knee"] = [r["source"] == "best" and kk is not None and design_key(study, r) == kk for _, r in fin.iterrows()]
+    fin["knee"] = fin["knee"].astype(bool)
+    best = fin[fin["source"] == "best"]
+    ref = fin[fin["source"] == "reference"]
+
+    def mse(row):
+        return row[labels].to_numpy(float), row[[f"{lab}_stderr" for lab in labels]].to_numpy(float)
+
+    dominated_by = {}
+    for i, ri in best.iterrows():
+        mi, si = mse(ri)
+        dominated_by[i] = [int(rj["trial"]) for j, rj in best.iterrows()
+                           if j != i and compare_with_noise(*mse(rj), mi, si, senses, noise_z).verdict == "dominates"]
+    out = {"table": fin, "best": best, "dominated_by": dominated_by, "ref": None, "vs_ref": []}
+    if len(ref):
+        r = ref.iloc[0]
+        out["ref"] = r
+        rk = design_key(study, r) if all(v.name in r and pd.notna(r[v.name]) for v in study.variables) else None
+        mr, sr = mse(r)
+        for i, row in best.iterrows():
+            if rk is not None and design_key(study, row) == rk:
+                continue  # the paper's design itself among the re-evaluated ones
+            out["vs_ref"].append((row, compare_with_noise(*mse(row), mr, sr, senses, noise_z)))
+    knee = best[best["knee"]]
+    out["knee"] = knee.iloc[0] if len(knee) else None
+    return out
+
+
+def _design_values(study, row) -> str:
+    parts = []
+    for v in study.variables:
+        val = row[v.name]
+        parts.append(f"{v.name} = {fmt_quantity(val, _unit(study, v.name))}" if _is_number_col(study, v.name)
+                     else f"{v.name} = {val}")
+    return ", ".join(parts)
+
+
+def _pct(diff, se, base) -> str:
+    """Relative difference ``+x % ± y %`` (or the absolute one when ``base`` is 0)."""
+    if base == 0 or not np.isfinite(base):
+        return fmt_mean_se(diff, se)
+    return ("+" if diff >= 0 else "") + fmt_mean_se(100 * diff / abs(base), 100 * se / abs(base)) + " %"
+
+
+def _comparison_text(study, row, cmp, ref) -> str:
+    labels = [o.label for o in study.objectives]
+    groups = {1: [], -1: [], 0: []}
+    for j, lab in enumerate(labels):
+        groups[int(cmp.status[j])].append(f"{lab} ({_pct(cmp.diff[j], cmp.se[j], float(ref[lab]))})")
+    parts = []
+    if groups[1]:
+        parts.append("better on " + ", ".join(groups[1]))
+    if groups[-1]:
+        parts.append("worse on " + ", ".join(groups[-1]))
+    if groups[0]:
+        parts.append(("equal within noise on " if cmp.noise_known else "equal on ") + ", ".join(groups[0]))
+    return f"trial {int(row['trial'])} ({_design_values(study, row)}): " + "; ".join(parts)
+
+
+def _paper_text(run: Run, a: dict) -> str:
+    study = run.study
+    r = a["ref_row"]
+    txt = ("Paper's design: " + ", ".join(_fmt_design(study, r)) + " (single sample); feasible: "
+           + ("yes" if bool(r["feasible"]) else "no") + ".")
+    st = a.get("standing")
+    fa = a.get("final")
+    screened = ""
+    if st is not None:
+        screened = ((f"{st.n_dominating} evaluated feasible designs dominate it" if st.n_dominating > 1 else
+                     "1 evaluated feasible design dominates it") if st.n_dominating
+                    else "no evaluated feasible design dominates it")
+    if fa is None or fa["ref"] is None:
+        if st is not None:
+            if st.n_dominating:
+                imp = "; ".join(f"{k} by up to {fmt_number(100 * v, 2)} %" for k, v in st.best_improvements.items())
+                txt += (f" On single-sample values {screened}, improving {imp} (additive epsilon "
+                        f"{fmt_number(st.epsilon, 3)} in range-normalised objectives).")
+            else:
+                txt += " On single-sample values no evaluated feasible design dominates it (it is on or beyond the front found)."
+            txt += (" These single-sample values were not re-evaluated: differences smaller than the sampling noise "
+                    "are not resolved (set evaluation.final_samples to re-evaluate the best designs).")
+        return txt
+    fin = fa["table"]
+    z = a["noise_z"]
+    txt += (f" Verdict on the re-evaluated values ({int(fin['repeats'].iloc[0])} seeds x "
+            f"{int(fin['samples'].iloc[0])} samples; a difference counts when it exceeds {fmt_number(z)} "
+            f"combined standard errors, otherwise it is within noise):")
+    vs = fa["vs_ref"]
+    dom = [(row, c) for row, c in vs if c.verdict == "dominates"]
+    worse = [(row, c) for row, c in vs if c.verdict == "dominated"]
+    same = [(row, c) for row, c in vs if c.verdict == "within noise"]
+    ref = fa["ref"]
+    if dom:
+        txt += (f" {len(dom)} of the {len(vs)} re-evaluated designs {'dominates' if len(dom) == 1 else 'dominate'} it (better beyond noise on at least "
+                "one objective, worse beyond noise on none): " + " | ".join(_comparison_text(study, row, c, ref)
+                                                                          for row, c in dom) + ".")
+    else:
+        txt += f" none of the {len(vs)} re-evaluated designs dominates it beyond noise."
+    if same:
+        txt += " Equal to it within noise on every objective: " + ", ".join(f"trial {int(row['trial'])}" for row, _ in same) + "."
+    if worse:
+        txt += " Dominated by it: " + ", ".join(f"trial {int(row['trial'])}" for row, _ in worse) + "."
+    if st is not None:
+        txt += f" (Single-sample screening: {screened}; the re-evaluation above decides.)"
+    return txt
+
+
+def final_display_table(study, fa: dict) -> pd.DataFrame:
+    """The re-evaluation table for people: role, trial, evaluations, design variables and each
+    objective as ``mean ± standard error`` in display units, and the re-evaluated designs that
+    dominate each one beyond noise."""
+    fin = fa["table"]
+    rows = []
+    for i, r in fin.iterrows():
+        other = "sweep point" if study.optimizer.kind == "sweep" else "best"
+        row = {"design": ("paper" if r["source"] == "reference" else ("recommended (knee)" if r["knee"] else other)),
+               "trial": fmt_number(int(r["trial"]))}
+        if "count" in fin:
+            row["evaluations"] = fmt_number(int(r["count"])) if r["source"] == "best" else ""
+        for v in study.variables:
+            u = _unit(study, v.name)
+            row[u.label(v.name)] = fmt_value(r[v.name], u) if _is_number_col(study, v.name) else str(r[v.name])
+        for o in study.objectives:
+            u = _unit(study, o.label)
+            row[u.label(o.label)] = fmt_mean_se(r[o.label], r[f"{o.label}_stderr"], u)
+        row["feasible"] = "yes" if bool(r.get("feasible", True)) else "no"
+        if r["source"] == "best":
+            d = fa["dominated_by"].get(i, [])
+            row["dominated by (beyond noise)"] = ", ".join(f"trial {t}" for t in d) if d else "none"
+        else:
+            row["dominated by (beyond noise)"] = ", ".join(f"trial {int(x['trial'])}" for x, c in fa["vs_ref"]
+                                                           if c.verdict == "dominates") or "none"
+        rows.append(row)
+    return pd.DataFrame(rows)
+
+
 def _sections(run: Run, a: dict) -> list[tuple[str, str, pd.DataFrame | None]]:
     """(title, text, table) triples shared by the HTML and Markdown renderers."""
     study, t = run.study, run.table
     runs, front = a["runs"], a["front"]
     sec = []
     n_ok = int((runs["status"] == "ok").sum())
-    n_feas = int((runs["feasible"] & (runs["status"] == "ok")).sum())
+    n_feas = int((runs["feasible"].astype(bool) & (runs["status"] == "ok")).sum())
     ev = study.evaluation
     opt = study.optimizer
     elapsed = float(runs["time_s"].sum()) if len(runs) else 0.0
@@ -457,39 +651,54 @@ def _sections(run: Run, a: dict) -> list[tuple[str, str, pd.DataFrame | None]]:
         text = study.spec.description.strip() + "\n\n" + text
     sec.append(("Summary", text, None))
     if len(study.objectives) > 1 and "hv" in a:
-        ref = ", ".join(f"{l}: {v:.4g}" for l, v in zip(a["labels"], a["hv_ref"]))
-        sec.append(("Hypervolume", f"Hypervolume of the feasible non-dominated set: {a['hv']:.6g} "
-                    f"(objectives in minimisation form, maximised ones negated; reference point: nadir of the "
-                    f"feasible designs plus 10 % of their range: {ref}).", None))
+        refs = []
+        for o, x in zip(study.objectives, a["hv_ref"]):
+            val = x if o.goal == "minimize" else -x
+            refs.append(f"{o.label} {fmt_quantity(val, _unit(study, o.label))}")
+        sec.append(("Hypervolume", f"Hypervolume of the feasible non-dominated set: {fmt_number(a['hv_fraction'], 3)} "
+                    f"of the box between the ideal point and the reference point ({fmt_number(a['hv'])} in SI units, "
+                    f"objectives in minimisation form). Reference point: the worst feasible value of each objective "
+                    f"plus 10 % of its range: " + ", ".join(refs) + ".", None))
     if len(front):
         k = a["knee_row"]
-        txt = (f"{len(front)} non-dominated feasible designs. Recommended (knee of the front): trial "
-               f"{int(k['trial'])}: " + ", ".join(_fmt_design(study, k)) + ".")
+        n_dup = int((front["count"] > 1).sum()) if "count" in front else 0
+        txt = (f"{len(front)} distinct non-dominated feasible designs"
+               + (f" ({n_dup} of them evaluated more than once: column evaluations)" if n_dup else "")
+               + f". Recommended (knee of the front): trial {int(k['trial'])}: " + ", ".join(_fmt_design(study, k))
+               + " (single sample)")
+        fa = a.get("final")
+        if fa is not None and fa.get("knee") is not None:
+            kr = fa["knee"]
+            txt += ("; re-evaluated: " + ", ".join(
+                f"{o.label} = {fmt_mean_se(kr[o.label], kr[o.label + '_stderr'], _unit(study, o.label), True)}"
+                for o in study.objectives))
+        txt += "."
         sec.append(("Non-dominated designs", txt, display_table(study, front)))
     else:
         sec.append(("Non-dominated designs", "No feasible design was found.", None))
     if a["ref_row"] is not None:
-        r = a["ref_row"]
-        st = a.get("standing")
-        txt = "Paper's design: " + ", ".join(_fmt_design(study, r)) + f"; feasible: {bool(r['feasible'])}."
-        if st is not None:
-            if st.n_dominating:
-                imp = "; ".join(f"{k} by up to {100 * v:.1f} %" for k, v in st.best_improvements.items())
-                txt += (f" It is dominated by {st.n_dominating} feasible designs, which improve {imp} "
-                        f"(additive epsilon {st.epsilon:.3g} in range-normalised objectives).")
-            else:
-                txt += " No evaluated feasible design dominates it (it is on or beyond the front found)."
-        sec.append(("Paper design", txt, display_table(study, t[t["source"] == "reference"])))
-    if run.final is not None and len(run.final):
+        sec.append(("Paper design", _paper_text(run, a), display_table(study, t[t["source"] == "reference"])))
+    fa = a.get("final")
+    if fa is not None:
+        fin = fa["table"]
         sec.append(("Re-evaluation of the best designs",
-                    f"Mean and standard error over {int(run.final['repeats'].iloc[0])} seeds with "
-                    f"{int(run.final['samples'].iloc[0])} samples each.", run.final))
+                    f"Mean ± standard error over {int(fin['repeats'].iloc[0])} seeds with "
+                    f"{int(fin['samples'].iloc[0])} samples each, for the best designs, the recommended (knee) "
+                    f"design and the paper's design. A design is dominated beyond noise when another is better by "
+                    f"more than {fmt_number(a['noise_z'])} combined standard errors on some objective and worse by "
+                    f"as much on none.", final_display_table(study, fa)))
+    elif run.final is not None and len(run.final):
+        sec.append(("Re-evaluation of the best designs", "final.csv (columns as written by the run):", run.final))
     if study.constraints or (runs["status"] != "ok").any():
         rows = []
         for c in study.constraints:
             m = runs[f"{c.label}_margin"]
-            rows.append({"constraint": c.label, "measure": c.name, "bounds": f"min={c.min} max={c.max} (SI)",
-                         "violated": int((m < 0).sum()), "smallest margin": float(m.min()) if len(m) else np.nan})
+            u = _unit(study, c.label)
+            bounds = " and ".join(x for x in ((f"min {fmt_quantity(c.min, u)}" if c.min is not None else ""),
+                                              (f"max {fmt_quantity(c.max, u)}" if c.max is not None else "")) if x)
+            rows.append({"constraint": c.label, "measure": c.name, "bounds": bounds,
+                         "violated": int((m < 0).sum()),
+                         "smallest margin": fmt_quantity(float(m.min()), u) if len(m) else ""})
         failed = runs[runs["status"] != "ok"]
         txt = f"{len(failed)} designs failed to evaluate."
         if len(failed):
@@ -503,14 +712,9 @@ def _sections(run: Run, a: dict) -> list[tuple[str, str, pd.DataFrame | None]]:
 
 
 def _fmt_design(study, row) -> list[str]:
-    parts = []
-    for v in study.variables:
-        f, u = _var_display(v)
-        val = row[v.name]
-        parts.append(f"{v.name} = {val * f:.4g} {u}".rstrip() if v.kind and v.type != "categorical" else f"{v.name} = {val}")
+    parts = [_design_values(study, row)] if study.variables else []
     for o in study.objectives:
-        f, u = _obj_display(study, o.label)
-        parts.append(f"{o.label} = {row[o.label] * f:.4g} {u}".rstrip())
+        parts.append(f"{o.label} = {fmt_quantity(row[o.label], _unit(study, o.label))}")
     return parts
 
 
@@ -523,9 +727,7 @@ def _md_table(df: pd.DataFrame) -> str:
 
 
 def _cell(x) -> str:
-    if isinstance(x, (float, np.floating)):
-        return "" if np.isnan(x) else f"{x:.5g}"
-    return str(x)
+    return fmt_number(x) if isinstance(x, (float, np.floating)) else str(x)
 
 
 def _markdown(run, sections, figs) -> str:
@@ -558,7 +760,7 @@ def _html(run, sections, figs) -> str:
         f"<title>parasynth report: {esc(run.study.name)}</title>",
         "<style>body{font-family:system-ui,sans-serif;max-width:1200px;margin:2em auto;padding:0 1em;color:#222}"
         "table{border-collapse:collapse;font-size:13px;margin:.5em 0}td,th{border:1px solid #ccc;padding:3px 6px;"
-        "text-align:right}th{background:#f3f3f3}figure{margin:1.5em 0}img{max-width:100%}"
+        "text-align:right;white-space:nowrap}th{background:#f3f3f3}.table-wrap{overflow-x:auto;max-width:100%}figure{margin:1.5em 0}img{max-width:100%}"
         ".partial{background:#fff3cd;border:1px solid #e0c36a;padding:.6em}pre{background:#f6f6f6;padding:.8em;"
         "overflow:auto;font-size:12px}</style></head><body>",
         f"<h1>Study report: {esc(run.study.name)}</h1>",
@@ -569,8 +771,8 @@ def _html(run, sections, figs) -> str:
         parts.append(f"<h2>{esc(title)}</h2>")
         parts.append("<p>" + _md_inline(esc(text)) + "</p>")
         if table is not None and len(table):
-            parts.append(table.to_html(index=False, float_format=lambda x: f"{x:.5g}", na_rep="", border=0,
-                                       classes="designs"))
+            parts.append("<div class='table-wrap'>" + table.to_html(index=False, float_format=fmt_number, na_rep="",
+                                                                    border=0, classes="designs") + "</div>")
         if title == "Study and software":
             parts.append(f"<pre>{esc(run.study.to_yaml())}</pre>")
 

@@ -3,21 +3,36 @@
 Run directory (default ``runs/<study name>/``):
 
 * ``study.yaml``: the study as run (a copy, so a run can be resumed and reported alone);
-* ``journal*.jsonl``: one JSON line per evaluated design, appended and flushed as soon as the
-  design is evaluated -- the source of truth, so nothing computed is lost when a run is
-  killed;
+* ``journal.jsonl``: one JSON line per evaluated design, appended and flushed as soon as the
+  design is evaluated -- the source of truth for sweeps and NLopt, a mirror of the storage
+  for Optuna (see :mod:`parasynth.study.journal`: torn last lines, ``PARASYNTH_FSYNC``);
+* ``run.lock``: held by the process running in the directory (one writer at a time; a
+  crashed run does not leave it held);
 * ``results.csv`` and ``results.parquet``: every evaluated design (one column per design
   variable, objective and design constraint named as in the YAML, ``<constraint>_margin``,
   ``feasible``, ``status``, ``error``, ``seed``, ``samples``, ``time_s``, ``trial``,
-  ``source``); all values SI;
+  ``source``); all values SI; rewritten at most every few seconds during a run and at its end;
 * ``final.csv``: the best designs re-evaluated with more samples and several seeds (mean and
   standard error of each objective);
-* ``optuna.db``: Optuna's own storage (SQLite) for Optuna studies.
+* ``optuna.journal``: the embedded Optuna storage of an Optuna study, unless ``--storage`` /
+  ``optimizer.storage`` names another one (see :mod:`parasynth.study.storage`).
 
-Resuming (``resume=True``) reads the journal: a sweep skips the designs already evaluated; an
-NLopt run replays its deterministic path, answering already-evaluated points from the journal;
-an Optuna run reloads its storage, marks trials left running by the killed process as failed
-and runs only the remaining trials. Completed evaluations are neither lost nor repeated.
+Interrupts (Ctrl-C, SIGTERM): the design being evaluated is finished and recorded (a second
+Ctrl-C drops it), the tables are written and the result says ``interrupted``.
+
+Resuming (``resume=True``) reads the journal (a torn last line is cut away, with a message):
+
+* a sweep skips the designs already evaluated (trial = index of the design in the grid);
+* an NLopt run replays its deterministic path, answering already-evaluated points from the
+  journal (trial = order of first evaluation);
+* an Optuna run on the embedded storage rebuilds it without the trials the interruption left
+  unfinished and continues; the sampler is seeded per trial from (seed, trial number), so the
+  designs, the results table and the Pareto front equal those of the uninterrupted run. On
+  SQLite the unfinished trials are marked failed instead (the trial numbers then differ from
+  an uninterrupted run: complete, but not the same sequence); on a database server they are
+  left to the heartbeat (other workers may be running).
+
+Completed evaluations are neither lost nor repeated.
 """
 
 from __future__ import annotations
@@ -36,6 +51,7 @@ import pandas as pd
 
 from .evaluate import Evaluator, Record
 from .final import _non_dominated, best_designs, reevaluate_best  # noqa: F401
+from .journal import Journal, RunLock, json_default, read_journal, rewrite_journal
 from .spec import NLOPT_WITH_CONSTRAINTS, ResolvedStudy, StudyError
 
 __all__ = ["run_study", "RunResult", "results_table", "read_journal"]
@@ -53,63 +69,29 @@ class RunResult:
     new_records: list | None = None
 
     def summary(self, study: ResolvedStudy) -> str:
+        from ..display import text_table
+
         t = self.table
         run = t[t["source"] == "run"] if len(t) else t
         n_new_run = sum(1 for r in self.new_records if r.source == "run") if self.new_records else self.n_new
-        lines = [f"study {study.name!r}: {len(run)} designs evaluated ({n_new_run} in this run, "
+        lines = [f"study {study.name}: {len(run)} designs evaluated ({n_new_run} in this run, "
                  f"{self.elapsed_s:.1f} s); {int(run['feasible'].sum()) if len(run) else 0} feasible, "
                  f"{int((run['status'] == 'failed').sum()) if len(run) else 0} failed"]
         best = best_designs(study, run, k=3)
         if len(best):
             lines.append("best feasible designs:")
             cols = [v.name for v in study.variables] + [o.label for o in study.objectives]
-            lines.append(best[cols].to_string(index=False))
+            lines.append(text_table(study, best, cols + (["count"] if "count" in best and (best["count"] > 1).any() else [])))
         ref = t[t["source"] == "reference"] if len(t) else t
         if len(ref):
             lines.append("reference design (paper):")
-            lines.append(ref[[o.label for o in study.objectives] + ["feasible"]].to_string(index=False))
+            lines.append(text_table(study, ref, [o.label for o in study.objectives] + ["feasible"]))
         lines.append(f"results: {self.out_dir / 'results.csv'}")
         return "\n".join(lines)
 
 
 # -- journal and tables ----------------------------------------------------------------------------
-def read_journal(out_dir: Path) -> list[Record]:
-    recs = []
-    for p in sorted(Path(out_dir).glob("journal*.jsonl")):
-        with open(p) as f:
-            for line in f:
-                line = line.strip()
-                if not line:
-                    continue
-                try:
-                    recs.append(Record.from_dict(json.loads(line)))
-                except (json.JSONDecodeError, KeyError):
-                    continue  # a line cut by a kill: the design is evaluated again
-    return recs
-
-
-class Journal:
-    def __init__(self, path: Path):
-        self.path = path
-        self.f = open(path, "a")
-
-    def append(self, rec: Record):
-        self.f.write(json.dumps(rec.to_dict(), default=_json_default) + "\n")
-        self.f.flush()
-        os.fsync(self.f.fileno())
-
-    def close(self):
-        self.f.close()
-
-
-def _json_default(o):
-    if isinstance(o, (np.floating, np.integer)):
-        return o.item()
-    if isinstance(o, np.ndarray):
-        return o.tolist()
-    if isinstance(o, tuple):
-        return list(o)
-    raise TypeError(type(o))
+_json_default = json_default
 
 
 def results_table(study: ResolvedStudy, records: list[Record]) -> pd.DataFrame:
