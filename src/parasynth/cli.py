@@ -90,17 +90,21 @@ def _load_study_or_exit(path):
 
 def cmd_validate(args) -> int:
     study = _load_study_or_exit(args.study)
-    print(f"{args.study}: valid study {study.name!r} ({study.optimizer.kind}) on {study.mechanism}")
+    from .display import fmt_column_value as fq, fmt_evaluation
+
+    print(f"{args.study}: valid study {study.name} ({study.optimizer.kind}) on {study.mechanism}")
     for v in study.variables:
-        rng = f"[{v.low}, {v.high}]" if v.low is not None else ""
-        vals = f" values={list(v.values)}" if v.values else ""
-        ch = f" choices={list(v.choices)}" if v.choices else ""
-        print(f"  variable {v.name} ({v.type}, SI) {rng}{vals}{ch}")
+        rng = f"[{fq(study, v.name, v.low)}, {fq(study, v.name, v.high)}]" if v.low is not None else ""
+        vals = " values " + ", ".join(fq(study, v.name, x) for x in v.values) if v.values else ""
+        ch = " choices " + ", ".join(fq(study, v.name, x) for x in v.choices) if v.choices else ""
+        print(f"  variable {v.name} ({v.type}) {rng}{vals}{ch}".replace(")  ", ") "))
     for o in study.objectives:
-        print(f"  objective {o.label}: {o.goal} {o.name} {o.settings or ''}")
+        sets = ", ".join(f"{k}={x}" for k, x in (o.settings or {}).items())
+        print(f"  objective {o.label}: {o.goal} {o.name}" + (f" ({sets})" if sets else ""))
     for c in study.constraints:
-        print(f"  constraint {c.label}: {c.name} min={c.min} max={c.max}")
-    print(f"  evaluation: {study.evaluation}")
+        bounds = [f"{b} {fq(study, c.label, x)}" for b, x in (("min", c.min), ("max", c.max)) if x is not None]
+        print(f"  constraint {c.label}: {c.name} " + " ".join(bounds))
+    print(f"  evaluation: {fmt_evaluation(study)}")
     return 0
 
 
@@ -232,12 +236,14 @@ def cmd_evaluate(args) -> int:
             print(f"error: {e}", file=sys.stderr)
             return 2
     rec = Evaluator(study).evaluate(values, n=args.samples)
-    print(f"design: {values}")
+    from .display import fmt_column_value as fq, fmt_design
+
+    print(f"design: {fmt_design(study, values)}")
     print(f"status: {rec.status} {rec.error}".rstrip())
     for k, v in rec.objectives.items():
-        print(f"  objective {k} = {v:.6g}")
+        print(f"  objective {k} = {fq(study, k, v, 6)}")
     for k, v in rec.constraint_values.items():
-        print(f"  constraint {k} = {v:.6g} (margin {rec.margins[k]:.4g})")
+        print(f"  constraint {k} = {fq(study, k, v, 6)} (margin {fq(study, k, rec.margins[k])})")
     print(f"feasible: {rec.feasible}; {rec.time_s:.2f} s")
     return 0 if rec.status == "ok" else 1
 

@@ -36,7 +36,8 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = ["Unit", "UNITS", "unit_for_kind", "unit_for_si", "quantity_unit", "fmt_number", "fmt_quantity",
-           "fmt_mean_se", "fmt_value", "column_header", "text_table"]
+           "fmt_mean_se", "fmt_value", "column_header", "text_table", "fmt_column_value", "fmt_design",
+           "fmt_evaluation"]
 
 
 @dataclass(frozen=True)
@@ -267,3 +268,37 @@ def text_table(study, df, columns) -> str:
         u = quantity_unit(study, c)
         out[u.label(c)] = [fmt_value(x, u) for x in df[c]]
     return out.to_string(index=False)
+
+
+def fmt_column_value(study, name: str, x, digits: int = 4) -> str:
+    """Value of result column ``name`` of ``study`` with its display unit (``205 mm``)."""
+    return fmt_quantity(x, quantity_unit(study, name), digits)
+
+
+def fmt_design(study, values: dict) -> str:
+    """``link_length = 205 mm, slider_radius = 135 mm`` for a design's values (SI)."""
+    return ", ".join(f"{k} = {fmt_column_value(study, k, x)}" for k, x in values.items())
+
+
+def fmt_evaluation(study) -> str:
+    """The study's evaluation settings in display units, one line."""
+    ev = study.evaluation
+    parts = [f"{ev.get('method')} sampling", f"{ev.get('n')} samples", f"seed {ev.get('seed')}"]
+    ranges, fixed = ev.get("ranges"), ev.get("fixed")
+    angular = _sampled_coordinates(study, {})[1] if ranges or fixed else set()
+
+    def q(k, x):
+        u = UNITS["angle"] if k in angular else UNITS["length"]
+        return fmt_quantity(x, u) if isinstance(x, (int, float, np.floating)) else str(x)
+
+    if ranges:
+        parts.append("ranges " + ", ".join(f"{k} [{q(k, lo)}, {q(k, hi)}]" for k, (lo, hi) in ranges.items()))
+    if isinstance(fixed, dict) and fixed:
+        parts.append("fixed pose " + ", ".join(f"{k} = {q(k, x)}" for k, x in fixed.items()))
+    if ev.get("constraints"):
+        cons = ev["constraints"]
+        parts.append("pose constraints " + (", ".join(map(str, cons)) if isinstance(cons, (list, tuple)) else str(cons)))
+    if ev.get("final_samples"):
+        parts.append(f"final re-evaluation: top {ev.get('final_top')} with {ev['final_samples']} samples x "
+                     f"{ev.get('final_repeats')} seeds")
+    return "; ".join(parts)
