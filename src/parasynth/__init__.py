@@ -14,6 +14,7 @@ from .workspace import WorkspaceResult, workspace
 from .indices import (StaticForces, global_conditioning_index, local_condition_number, local_transmission_index,
                       min_max_forces, pressure_angle_indices, singularity_margin_stats, static_forces,
                       transmission_indices, wrench_capability)
+from .stiffness import stiffness_matrix
 from .dynamics import GRINDING_INERTIA, InertiaModel, force_decoupling, inverse_dynamics
 
 __version__ = "0.1.0"
@@ -49,4 +50,5 @@ __all__ = [
     "GRINDING_INERTIA",
     "inverse_dynamics",
     "force_decoupling",
+    "stiffness_matrix",
 ]

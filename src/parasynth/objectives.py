@@ -394,3 +394,129 @@ def _decoupling(mech, dt, grinding_force, load_point):
         raise ValueError(f"load_point must be 'grinding_point' or 'centre', got {load_point!r}")
     lp = (0.0, mech.params.y_t, 0.0) if load_point == "grinding_point" else (0.0, 0.0, 0.0)
     return force_decoupling(mech, dt=dt, grinding_forces=(float(grinding_force),), load_point=lp)
+
+
+# -- stiffness and accuracy (parasynth.stiffness, parasynth.accuracy) ---------------------------------
+from .accuracy import TOLERANCE_SETTINGS as _TOL_SETTINGS  # noqa: E402
+from .stiffness import STIFFNESS_SETTINGS as _STIFF_SETTINGS  # noqa: E402
+
+_STIFF_MEASURE = {**_SUB_SETTINGS, **_STIFF_SETTINGS, "quantile": "float"}
+
+
+def _quantile(v, quantile, empty):
+    v = np.asarray(v, dtype=float)
+    v = v[~np.isnan(v)]
+    if not v.size:
+        return empty
+    q = float(quantile)
+    if not 0.0 <= q <= 1.0:
+        raise ValueError(f"quantile must be in [0, 1], got {quantile!r}")
+    return float(np.quantile(v, q, method="lower" if q == 0.0 else "linear"))
+
+
+def _split(kw, keys):
+    return {k: v for k, v in kw.items() if k in keys}
+
+
+@register("stiffness_min", unit="N/m (translational) or N*m/rad (rotational)", sense="maximize",
+          settings={**_STIFF_MEASURE, "part": "str"})
+def stiffness_min(mech, quantile: float = 0.0, part: str = "translational", **kw) -> float:
+    """Smallest (or the ``quantile`` of the) translational (N/m) or rotational (N m/rad)
+    stiffness over the feasible workspace samples (``parasynth.stiffness.part_stiffness``):
+    1 / largest eigenvalue of the force-to-translation (couple-to-rotation) compliance block.
+    Stiffness settings as ``parasynth.stiffness_matrix``. 0 for an empty workspace or where a
+    force (couple) is not carried (a singular stiffness matrix)."""
+    from .stiffness import part_stiffness
+
+    _, pts = _points(mech, kw, default_max=1024)
+    if not len(pts):
+        return 0.0
+    k = part_stiffness(mech, pts, part=part, **_split(kw, _STIFF_SETTINGS))
+    return _quantile(k, quantile, 0.0)
+
+
+@register("stiffness_along", unit="N/m", kind="stiffness", sense="maximize",
+          settings={**_STIFF_MEASURE, "direction": "list", "point": "length", "frame": "str"})
+def stiffness_along_measure(mech, direction=(0.0, 0.0, 1.0), point=(0.0, 0.0, 0.0), frame: str = "base",
+                            quantile: float = 0.0, **kw) -> float:
+    """Smallest (or the ``quantile`` of the) stiffness (N/m) of the platform point ``point``
+    (platform frame) along ``direction`` (unitless components, ``frame`` "base" or
+    "platform"; e.g. the grinding normal at the grinding point) over the feasible workspace
+    samples: force along the direction / displacement of the point along it. 0 where such a
+    force is not carried; 0 for an empty workspace."""
+    from .stiffness import stiffness_along
+
+    _, pts = _points(mech, kw, default_max=1024)
+    if not len(pts):
+        return 0.0
+    k = stiffness_along(mech, pts, direction=direction, point=point, frame=frame, **_split(kw, _STIFF_SETTINGS))
+    return _quantile(k, quantile, 0.0)
+
+
+@register("deflection", unit="m", kind="length", sense="minimize",
+          settings={**_STIFF_MEASURE, "force": "force", "moment": "torque", "point": "length"})
+def deflection_measure(mech, force=None, moment=None, point=(0.0, 0.0, 0.0), quantile: float = 1.0, **kw) -> float:
+    """Largest (or the ``quantile`` of the) displacement (m) of the platform point ``point``
+    (platform frame) under a task wrench: ``force`` [Fx, Fy, Fz] (N, base frame) applied at the
+    point and a couple ``moment`` [Mx, My, Mz] (N m, base frame), over the feasible workspace
+    samples. ``inf`` where the load is not carried (singular stiffness matrix); 0 for an empty
+    workspace."""
+    from .stiffness import point_deflection
+
+    if force is None and moment is None:
+        raise ValueError("deflection: give force (N) and/or moment (N*m)")
+    _, pts = _points(mech, kw, default_max=1024)
+    if not len(pts):
+        return 0.0
+    f = (0.0, 0.0, 0.0) if force is None else force
+    m = (0.0, 0.0, 0.0) if moment is None else moment
+    u = point_deflection(mech, pts, force=f, moment=m, point=point, **_split(kw, _STIFF_SETTINGS))
+    return _quantile(np.linalg.norm(u, axis=-1), quantile, 0.0)
+
+
+_ACC_SETTINGS = {**_SUB_SETTINGS, **_TOL_SETTINGS, "quantile": "float", "method": "choice", "samples": "int",
+                 "sampling": "str"}
+_ERROR_METHODS = ("first_order", "monte_carlo")
+
+
+def _pose_errors(mech, part, method="first_order", quantile=1.0, samples=200, sampling=None, **kw):
+    from .accuracy import pose_error_bound, pose_error_monte_carlo
+
+    # ``method`` names the error model; a workspace sampling method passed in its place (a study's
+    # evaluation.method) selects the sampler instead, and the error model stays first order.
+    if method in ("sobol", "grid", "random"):
+        sampling, method = sampling or method, "first_order"
+    if method not in _ERROR_METHODS:
+        raise ValueError(f"method must be one of {', '.join(_ERROR_METHODS)}, got {method!r}")
+    if sampling is not None:
+        kw["method"] = sampling
+    tol = _split(kw, _TOL_SETTINGS)
+    _, pts = _points(mech, kw, default_max=256 if method == "first_order" else 32)
+    if not len(pts):
+        return 0.0
+    sl = slice(0, 3) if part == "position" else slice(3, 6)
+    if method == "first_order":
+        e = np.linalg.norm(pose_error_bound(mech, pts, **tol)[:, sl], axis=-1)
+    else:
+        t, _ = pose_error_monte_carlo(mech, pts, samples=int(samples), seed=int(kw.get("seed", 0)), **tol)
+        e = np.max(np.linalg.norm(t[..., sl], axis=-1), axis=0)
+    return _quantile(e, quantile, 0.0)
+
+
+@register("position_error_max", unit="m", kind="length", sense="minimize", settings=_ACC_SETTINGS)
+def position_error_max(mech, **kw) -> float:
+    """Largest (or the ``quantile`` of the) position error (m) of the platform point over the
+    feasible workspace samples, from actuator errors, manufacturing errors of the legs'
+    geometry and S/U joint clearances (tolerance settings, see ``parasynth.accuracy``).
+    ``method="first_order"``: the worst-case first-order bound ``||b[:3]||`` per pose;
+    ``"monte_carlo"``: the largest sampled error (``samples`` error draws per pose, at most 32
+    poses by default). Poses near a singularity give large values, ``inf`` at it."""
+    return _pose_errors(mech, "position", **kw)
+
+
+@register("orientation_error_max", unit="rad", kind="angle", sense="minimize", settings=_ACC_SETTINGS)
+def orientation_error_max(mech, **kw) -> float:
+    """Largest (or the ``quantile`` of the) orientation error (rad, norm of the rotation
+    vector) of the platform over the feasible workspace samples; settings and error model as
+    ``position_error_max``."""
+    return _pose_errors(mech, "orientation", **kw)

@@ -19,11 +19,15 @@ UNIT_KINDS = {
     "mass": ("kg", "[mass]"),
     "time": ("s", "[time]"),
     "torque": ("N*m", "[force] * [length]"),
+    "stiffness": ("N/m", "[force] / [length]"),
+    "rotational_stiffness": ("N*m/rad", "[force] * [length]"),
+    "pressure": ("Pa", "[pressure]"),
     "dimensionless": ("", ""),
 }
 
 #: How quantities are shown to people (reports, summaries).
-DISPLAY_UNITS = {"length": "mm", "angle": "deg", "force": "N", "mass": "kg", "time": "s", "torque": "N*m"}
+DISPLAY_UNITS = {"length": "mm", "angle": "deg", "force": "N", "mass": "kg", "time": "s", "torque": "N*m",
+                 "stiffness": "N/m", "rotational_stiffness": "N*m/rad", "pressure": "GPa"}
 
 
 class QuantityError(ValueError):

@@ -371,13 +371,14 @@ def resolve_study(data: dict, source: str | None = None) -> ResolvedStudy:
             lo, hi = SETTING_RANGES.get(k, (None, None))
             if sk == "ranges":
                 out[k] = _resolve_ranges(val, mech_cls, where, task)
-            elif sk in ("length", "angle", "force", "mass", "time", "torque"):
+            elif sk in ("length", "angle", "force", "mass", "time", "torque", "stiffness", "rotational_stiffness",
+                        "pressure"):
                 out[k] = _q_nested(val, sk, where)
             elif sk == "int":
                 out[k] = _check_int(val, where, 1 if lo is None else lo, hi)
             elif sk == "float":
                 out[k] = _check_float(val, where, lo, hi)
-            elif k == "method":
+            elif k == "method" and sk == "str":
                 if val not in METHODS:
                     raise StudyError(f"{where}: {val!r} is not a sampling method; allowed: {', '.join(METHODS)}")
                 out[k] = val
