@@ -1,0 +1,833 @@
+"""Compiled pose-wise indices: singularity margin, local transmission index, condition number.
+
+The NumPy reference builds the legs' wrench system for a whole batch of poses with (N, k, 6)
+temporaries and then calls LAPACK on the stack. Here one compiled pass (``numba.njit``,
+``parallel=True``, float64, no fastmath) takes the platform poses and, pose by pose, forms the
+same wrench rows from the legs' geometry and runs small decompositions on them in scratch
+arrays that stay in the L1 cache:
+
+* the legs' **actuation wrenches** (a unit force along the leg's transmission line through its
+  platform anchor, ``rate_scale`` = ``n . e`` for slider legs and 1 otherwise) and
+  **constraint wrenches**, analytic wherever :mod:`parasynth.legs` is analytic (RPS and PRS: a
+  force along the revolute axis through the sphere centre; RPU: that force and a couple about
+  ``r_axis x R u_platform_axis``), and for UPU legs the numeric reciprocal of the five joint
+  twists, as :meth:`parasynth.legs.UPU.constraint_wrenches` computes it (moments of the twists
+  scaled by the batch-mean leg length, null direction, unit force or unit couple); the null
+  direction comes from a Householder QR of the 6 x 5 twist matrix instead of an SVD (the
+  direction is the same up to sign and rounding, and every index below is invariant to the
+  sign of a constraint row);
+* singular values by the **one-sided Jacobi** method (Hestenes), which computes small singular
+  values to high relative accuracy -- no eigenvalues of Gram matrices.
+
+Every function is generic over the leg types ``SPS, UPS, PUS, RPS, RPU, UPU, PRS``; nothing is
+written per model class. The platform pose and the twist map come from the model's own
+``pose``/``twist_map`` (vectorised NumPy), or from ``parasynth.engine.pose_batch`` when that
+compiled path is present.
+
+Entry points (each ``(mech, X)`` with poses ``X`` (N, n_task), results as the NumPy methods):
+
+* :func:`singularity_margin` -- :meth:`Mechanism.singularity_margin`;
+* :func:`transmission` -- input/output indices and LTI of
+  :func:`parasynth.indices.transmission_indices`;
+* :func:`local_transmission_index` -- its LTI;
+* :func:`condition_number` -- :func:`parasynth.indices.local_condition_number` in the task
+  space;
+* :func:`leg_directions` -- unit leg directions (the inputs of the pressure-angle indices);
+* :func:`coverage` -- ``(True, "")`` or ``(False, reason)``: whether the kernels cover a
+  mechanism (a leg type other than the seven above, a subclass that overrides a leg's or the
+  mechanism's wrench methods, or numba unavailable are not covered).
+
+Agreement with the NumPy reference (``tests/test_engine_indices.py``): within 1e-9 absolute
+for the margin and the transmission indices (values in [0, 1]) and 1e-9 relative for
+condition numbers, over random poses of every shipped mechanism. Exactly as in NumPy, ranks
+use relative thresholds on singular values, so poses within rounding of a threshold (an exact
+singularity) may fall on either side.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import os
+
+import numpy as np
+
+from ..legs import GEOM_TOL, PRS, PUS, RPS, RPU, SPS, UPS, UPU, Leg
+
+__all__ = [
+    "HAVE_NUMBA",
+    "coverage",
+    "singularity_margin",
+    "transmission",
+    "local_transmission_index",
+    "condition_number",
+    "leg_directions",
+    "warn_fallback",
+]
+
+log = logging.getLogger("parasynth.engine")
+
+try:  # pragma: no cover - depends on the environment
+    if os.environ.get("PARASYNTH_NO_NUMBA", "").strip() not in ("", "0"):
+        raise ImportError("disabled by PARASYNTH_NO_NUMBA")
+    from numba import njit, prange
+
+    HAVE_NUMBA = True
+except Exception:  # ImportError, or a broken numba/llvmlite install
+    HAVE_NUMBA = False
+
+# Leg type codes in the kernels.
+_SPS, _UPS, _PUS, _RPS, _RPU, _UPU, _PRS = 0, 1, 2, 3, 4, 5, 6
+_CODES = {SPS: _SPS, UPS: _UPS, PUS: _PUS, RPS: _RPS, RPU: _RPU, UPU: _UPU, PRS: _PRS}
+#: Constraint rows of each leg type.
+_NC = {_SPS: 0, _UPS: 0, _PUS: 0, _RPS: 1, _RPU: 2, _UPU: 1, _PRS: 1}
+# Methods whose NumPy definitions the kernels reproduce: a subclass overriding one of them is
+# not covered.
+_LEG_METHODS = ("solve", "actuation_wrench", "constraint_wrenches", "joint_twists", "platform_points")
+_MECH_METHODS = ("leg_states", "_actuation_rows", "wrench_matrix", "normalized_wrench_system", "jacobian")
+
+#: Poses per parallel work item.
+CHUNK = 256
+
+_WARNED: set = set()
+
+
+def warn_fallback(what: str, mech, reason: str) -> None:
+    """Log once per (what, model class, reason) that ``what`` runs on NumPy and why."""
+    key = (what, type(mech).__name__, reason)
+    if key not in _WARNED:
+        _WARNED.add(key)
+        log.warning("%s of %s runs on NumPy: %s", what, getattr(mech, "name", type(mech).__name__), reason)
+
+
+# ---------------------------------------------------------------------------------------------
+# Plan: the legs packed into arrays
+# ---------------------------------------------------------------------------------------------
+class _Unsupported(Exception):
+    pass
+
+
+def _check_covered(mech) -> None:
+    if not HAVE_NUMBA:
+        raise _Unsupported("numba is not available")
+    from ..mechanism import Mechanism
+
+    for m in _MECH_METHODS:
+        if getattr(type(mech), m, None) is not getattr(Mechanism, m):
+            raise _Unsupported(f"{type(mech).__name__} overrides Mechanism.{m}")
+    if not mech.legs:
+        raise _Unsupported("the mechanism has no legs")
+    for leg in mech.legs:
+        cls = type(leg)
+        if cls not in _CODES:
+            base = next((b for b in cls.__mro__[1:] if b in _CODES), None)
+            if base is None:
+                raise _Unsupported(f"leg {leg.name}: leg type {cls.__name__} ({cls.joints or '?'}) has no compiled "
+                                   f"form (covered: {', '.join(c.__name__ for c in _CODES)})")
+            for m in _LEG_METHODS:
+                if getattr(cls, m) is not getattr(base, m):
+                    raise _Unsupported(f"leg {leg.name}: {cls.__name__} overrides {base.__name__}.{m}")
+    if mech.n_actuators == 0:
+        raise _Unsupported("the mechanism has no actuated leg")
+
+
+def coverage(mech) -> tuple[bool, str]:
+    """``(True, "")`` when the compiled indices cover ``mech``, else ``(False, reason)``."""
+    try:
+        _check_covered(mech)
+    except _Unsupported as e:
+        return False, str(e)
+    return True, ""
+
+
+def _leg_code(leg: Leg) -> int:
+    for cls in type(leg).__mro__:
+        if cls in _CODES:
+            return _CODES[cls]
+    raise _Unsupported(f"leg {leg.name}: no compiled form")  # pragma: no cover - checked before
+
+
+def _plan(mech):
+    """Leg arrays of ``mech`` (cached on the instance: the legs do not change within a design)."""
+    plan = getattr(mech, "_engine_indices_plan", None)
+    if plan is not None and plan[0] is mech.legs:
+        return plan[1]
+    _check_covered(mech)
+    nl = len(mech.legs)
+    code = np.zeros(nl, np.int64)
+    act = np.zeros(nl, np.int64)
+    geo = np.zeros((nl, 4, 3))  # base, platform, axis 1, axis 2
+    sc = np.zeros((nl, 2))  # link length, branch
+    for j, leg in enumerate(mech.legs):
+        c = _leg_code(leg)
+        code[j] = c
+        act[j] = 1 if leg.is_actuated else 0
+        geo[j, 0] = leg.base
+        geo[j, 1] = leg.platform
+        if c == _UPS:
+            geo[j, 2] = leg.u_axis
+        elif c == _PUS:
+            geo[j, 2] = leg.slider_axis
+            geo[j, 3] = leg.u_axis
+        elif c == _RPS:
+            geo[j, 2] = leg.r_axis
+        elif c == _RPU:
+            geo[j, 2] = leg.r_axis
+            geo[j, 3] = leg.u_platform_axis
+        elif c == _UPU:
+            geo[j, 2] = leg.u_axis
+            geo[j, 3] = leg.u_platform_axis
+        elif c == _PRS:
+            geo[j, 2] = leg.slider_axis
+            geo[j, 3] = leg.r_axis
+        if c in (_PUS, _PRS):
+            sc[j] = (float(leg.link_length), float(leg.branch))
+    nc = int(sum(_NC[c] for c in code))
+    plan = (code, act, geo, sc, nc)
+    mech._engine_indices_plan = (mech.legs, plan)
+    return plan
+
+
+def _poses(mech, X, need_twist: bool):
+    """(Xa, single, valid, p, R, T) with invalid poses replaced by ``home`` (as ``leg_states``)."""
+    Xa, single = mech._poses(X)
+    valid = np.asarray(mech.pose_valid(Xa), dtype=bool)
+    Xs = np.where(valid[:, None], Xa, mech.home)
+    p, R = mech._pose(Xs)
+    T = mech._twist_map(Xs) if need_twist else None
+    p = np.ascontiguousarray(p, dtype=float)
+    R = np.ascontiguousarray(R, dtype=float)
+    if T is not None:
+        T = np.ascontiguousarray(T, dtype=float)
+    return Xa, single, valid, p, R, T
+
+
+def _upu_lengths(plan, p, R) -> np.ndarray:
+    """Per leg, the length the NumPy UPU reciprocal scales moments with: the mean leg length
+    over the batch (at least 1 mm), as :meth:`UPU.constraint_wrenches`."""
+    code, _, geo, _, _ = plan
+    out = np.ones(len(code))
+    for j in np.flatnonzero(code == _UPU):
+        A = p + R @ geo[j, 1]
+        out[j] = max(float(np.mean(np.linalg.norm(A - geo[j, 0], axis=-1))), 1e-3)
+    return out
+
+
+# ---------------------------------------------------------------------------------------------
+# Kernels
+# ---------------------------------------------------------------------------------------------
+if HAVE_NUMBA:
+    _jit = dict(nogil=True, error_model="numpy", fastmath=False, cache=True)
+    _jit_inline = dict(_jit, inline="always")
+
+    @njit(**_jit)
+    def _jacobi_sv(Mt, m, n, Vt, want_v, sv):
+        """One-sided Jacobi (Hestenes) SVD of the m x n matrix whose columns are stored as the
+        rows ``Mt[j, :m]`` (overwritten: column j becomes ``sigma_j u_j``). ``sv[:n]`` receives
+        the singular values (unsorted); with ``want_v`` the rows ``Vt[j, :n]`` receive the right
+        singular vectors (``v_j``, the columns of V with ``M_in V = M_out``). Returns the number
+        of sweeps. Singular values come out with an absolute error of a few eps * ||M|| (small
+        ones to high relative accuracy when the columns are well scaled)."""
+        if want_v:
+            for i in range(n):
+                for j in range(n):
+                    Vt[i, j] = 1.0 if i == j else 0.0
+        tol = 4.0e-16 * max(m, 1)
+        fro = 0.0
+        for j in range(n):
+            a = 0.0
+            for k in range(m):
+                a += Mt[j, k] * Mt[j, k]
+            sv[j] = a
+            fro += a
+        # Columns below eps * ||M||_F carry nothing beyond rounding: rotating against them
+        # never converges (their direction is noise), so they are left alone.
+        tiny = 1e-32 * fro
+        sweeps = 0
+        for _sweep in range(60):
+            sweeps += 1
+            rotated = False
+            for i in range(n - 1):
+                for j in range(i + 1, n):
+                    a = sv[i]
+                    b = sv[j]
+                    if a <= tiny or b <= tiny:
+                        continue
+                    g = 0.0
+                    for k in range(m):
+                        g += Mt[i, k] * Mt[j, k]
+                    if g == 0.0 or abs(g) <= tol * math.sqrt(a * b):
+                        continue
+                    rotated = True
+                    zeta = (b - a) / (2.0 * g)
+                    if zeta >= 0.0:
+                        t = 1.0 / (zeta + math.sqrt(1.0 + zeta * zeta))
+                    else:
+                        t = -1.0 / (-zeta + math.sqrt(1.0 + zeta * zeta))
+                    c = 1.0 / math.sqrt(1.0 + t * t)
+                    s = c * t
+                    for k in range(m):
+                        x = Mt[i, k]
+                        y = Mt[j, k]
+                        Mt[i, k] = c * x - s * y
+                        Mt[j, k] = s * x + c * y
+                    if want_v:
+                        for k in range(n):
+                            x = Vt[i, k]
+                            y = Vt[j, k]
+                            Vt[i, k] = c * x - s * y
+                            Vt[j, k] = s * x + c * y
+                    # updated squared norms; recomputed where the update cancels
+                    a2 = a - t * g
+                    b2 = b + t * g
+                    if a2 < 0.25 * a:
+                        a2 = 0.0
+                        for k in range(m):
+                            a2 += Mt[i, k] * Mt[i, k]
+                    if b2 < 0.25 * b:
+                        b2 = 0.0
+                        for k in range(m):
+                            b2 += Mt[j, k] * Mt[j, k]
+                    sv[i] = a2
+                    sv[j] = b2
+            if not rotated:
+                break
+        for j in range(n):
+            a = 0.0
+            for k in range(m):
+                a += Mt[j, k] * Mt[j, k]
+            sv[j] = math.sqrt(a)
+        return sweeps
+
+    @njit(**_jit_inline)
+    def _cross(a0, a1, a2, b0, b1, b2):
+        return a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
+
+    @njit(**_jit_inline)
+    def _unit3(x, y, z):
+        nrm = math.sqrt(x * x + y * y + z * z)
+        if nrm > 0.0:
+            return x / nrm, y / nrm, z / nrm
+        return 0.0, 0.0, 0.0
+
+    @njit(**_jit)
+    def _upu_reciprocal(Tw, Lu, w):
+        """Null direction of the 5 scaled twists (rows of ``Tw`` (5, 6)) by Householder QR of
+        Tw^T; written to ``w`` (6,) as a wrench in SI (moment scaled back by ``Lu``), then
+        made a unit force or, when its force vanishes, a unit couple."""
+        X = np.empty((6, 5))
+        for i in range(6):
+            for k in range(5):
+                X[i, k] = Tw[k, i]
+        vs = np.zeros((5, 6))
+        beta = np.zeros(5)
+        for k in range(5):
+            nrm = 0.0
+            for i in range(k, 6):
+                nrm += X[i, k] * X[i, k]
+            nrm = math.sqrt(nrm)
+            if nrm == 0.0:
+                beta[k] = 0.0
+                continue
+            alpha = -nrm if X[k, k] >= 0.0 else nrm
+            for i in range(k, 6):
+                vs[k, i] = X[i, k]
+            vs[k, k] -= alpha
+            vn = 0.0
+            for i in range(k, 6):
+                vn += vs[k, i] * vs[k, i]
+            if vn == 0.0:
+                beta[k] = 0.0
+                continue
+            beta[k] = 2.0 / vn
+            for jj in range(k, 5):
+                d = 0.0
+                for i in range(k, 6):
+                    d += vs[k, i] * X[i, jj]
+                d *= beta[k]
+                for i in range(k, 6):
+                    X[i, jj] -= d * vs[k, i]
+        for i in range(6):
+            w[i] = 0.0
+        w[5] = 1.0
+        for k in range(4, -1, -1):
+            if beta[k] == 0.0:
+                continue
+            d = 0.0
+            for i in range(k, 6):
+                d += vs[k, i] * w[i]
+            d *= beta[k]
+            for i in range(k, 6):
+                w[i] -= d * vs[k, i]
+        for i in range(3, 6):
+            w[i] *= Lu
+        fn = math.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
+        mn = math.sqrt(w[3] * w[3] + w[4] * w[4] + w[5] * w[5])
+        if fn <= 1e-9 * max(mn / Lu, 1e-300):
+            w[0] = 0.0
+            w[1] = 0.0
+            w[2] = 0.0
+            sc = mn
+        else:
+            sc = fn
+        for i in range(6):
+            w[i] /= sc
+
+    @njit(**_jit)
+    def _legs(p, R, i, code, act, geo, sc, upuL, A, scale, anchor, C, Tw, w):
+        """The wrench system of pose ``i``: actuation rows ``A`` (n_act, 6), ``scale``
+        (n_act,), platform anchors of the actuated legs ``anchor`` (n_act, 3) and constraint
+        rows ``C`` (n_c, 6), all in SI about the platform reference point. Returns whether
+        every leg reaches the pose."""
+        px, py, pz = p[i, 0], p[i, 1], p[i, 2]
+        reach = True
+        ia = 0
+        ic = 0
+        for j in range(code.shape[0]):
+            t = code[j]
+            qx, qy, qz = geo[j, 1, 0], geo[j, 1, 1], geo[j, 1, 2]
+            ax = px + R[i, 0, 0] * qx + R[i, 0, 1] * qy + R[i, 0, 2] * qz
+            ay = py + R[i, 1, 0] * qx + R[i, 1, 1] * qy + R[i, 1, 2] * qz
+            az = pz + R[i, 2, 0] * qx + R[i, 2, 1] * qy + R[i, 2, 2] * qz
+            bx, by, bz = geo[j, 0, 0], geo[j, 0, 1], geo[j, 0, 2]
+            dx, dy, dz = ax - bx, ay - by, az - bz
+            e0, e1, e2 = geo[j, 2, 0], geo[j, 2, 1], geo[j, 2, 2]
+            rs = 1.0
+            if t == _PUS or t == _PRS:
+                Ll = sc[j, 0]
+                de = dx * e0 + dy * e1 + dz * e2
+                perp2 = dx * dx + dy * dy + dz * dz - de * de
+                disc = Ll * Ll - perp2
+                if not disc >= 0.0:
+                    reach = False
+                    disc = 0.0
+                if t == _PRS:
+                    off = abs(dx * geo[j, 3, 0] + dy * geo[j, 3, 1] + dz * geo[j, 3, 2])
+                    if not off <= GEOM_TOL * max(1.0, Ll):
+                        reach = False
+                s = de + sc[j, 1] * math.sqrt(disc)
+                bx, by, bz = bx + s * e0, by + s * e1, bz + s * e2
+                nx, ny, nz = (ax - bx) / Ll, (ay - by) / Ll, (az - bz) / Ll
+                rs = nx * e0 + ny * e1 + nz * e2
+            else:
+                length = math.sqrt(dx * dx + dy * dy + dz * dz)
+                if not length > 0.0:
+                    reach = False
+                nx, ny, nz = _unit3(dx, dy, dz)
+                if t == _RPS or t == _RPU:
+                    off = abs(dx * e0 + dy * e1 + dz * e2)
+                    if not off <= GEOM_TOL * max(1.0, length):
+                        reach = False
+            rx, ry, rz = ax - px, ay - py, az - pz
+            if act[j]:
+                mx, my, mz = _cross(rx, ry, rz, nx, ny, nz)
+                A[ia, 0], A[ia, 1], A[ia, 2] = nx, ny, nz
+                A[ia, 3], A[ia, 4], A[ia, 5] = mx, my, mz
+                scale[ia] = rs
+                anchor[ia, 0], anchor[ia, 1], anchor[ia, 2] = ax, ay, az
+                ia += 1
+            if t == _RPS or t == _PRS or t == _RPU:
+                if t == _PRS:
+                    fx, fy, fz = geo[j, 3, 0], geo[j, 3, 1], geo[j, 3, 2]
+                else:
+                    fx, fy, fz = e0, e1, e2
+                mx, my, mz = _cross(rx, ry, rz, fx, fy, fz)
+                C[ic, 0], C[ic, 1], C[ic, 2] = fx, fy, fz
+                C[ic, 3], C[ic, 4], C[ic, 5] = mx, my, mz
+                ic += 1
+                if t == _RPU:
+                    ux, uy, uz = geo[j, 3, 0], geo[j, 3, 1], geo[j, 3, 2]
+                    a4x = R[i, 0, 0] * ux + R[i, 0, 1] * uy + R[i, 0, 2] * uz
+                    a4y = R[i, 1, 0] * ux + R[i, 1, 1] * uy + R[i, 1, 2] * uz
+                    a4z = R[i, 2, 0] * ux + R[i, 2, 1] * uy + R[i, 2, 2] * uz
+                    if not abs(a4x * e0 + a4y * e1 + a4z * e2) <= GEOM_TOL:
+                        reach = False
+                    cx, cy, cz = _cross(e0, e1, e2, a4x, a4y, a4z)
+                    cx, cy, cz = _unit3(cx, cy, cz)
+                    C[ic, 0], C[ic, 1], C[ic, 2] = 0.0, 0.0, 0.0
+                    C[ic, 3], C[ic, 4], C[ic, 5] = cx, cy, cz
+                    ic += 1
+            elif t == _UPU:
+                Lu = upuL[j]
+                ux, uy, uz = geo[j, 3, 0], geo[j, 3, 1], geo[j, 3, 2]
+                a4x = R[i, 0, 0] * ux + R[i, 0, 1] * uy + R[i, 0, 2] * uz
+                a4y = R[i, 1, 0] * ux + R[i, 1, 1] * uy + R[i, 1, 2] * uz
+                a4z = R[i, 2, 0] * ux + R[i, 2, 1] * uy + R[i, 2, 2] * uz
+                a2x, a2y, a2z = _cross(e0, e1, e2, nx, ny, nz)
+                a2x, a2y, a2z = _unit3(a2x, a2y, a2z)
+                a3x, a3y, a3z = _cross(a4x, a4y, a4z, nx, ny, nz)
+                a3x, a3y, a3z = _unit3(a3x, a3y, a3z)
+                # revolute twist (axis x (P - point), axis), angular part scaled by Lu
+                bpx, bpy, bpz = px - bx, py - by, pz - bz
+                apx, apy, apz = px - ax, py - ay, pz - az
+                v0, v1, v2 = _cross(e0, e1, e2, bpx, bpy, bpz)
+                Tw[0, 0], Tw[0, 1], Tw[0, 2], Tw[0, 3], Tw[0, 4], Tw[0, 5] = v0, v1, v2, e0 * Lu, e1 * Lu, e2 * Lu
+                v0, v1, v2 = _cross(a2x, a2y, a2z, bpx, bpy, bpz)
+                Tw[1, 0], Tw[1, 1], Tw[1, 2], Tw[1, 3], Tw[1, 4], Tw[1, 5] = v0, v1, v2, a2x * Lu, a2y * Lu, a2z * Lu
+                Tw[2, 0], Tw[2, 1], Tw[2, 2], Tw[2, 3], Tw[2, 4], Tw[2, 5] = nx, ny, nz, 0.0, 0.0, 0.0
+                v0, v1, v2 = _cross(a3x, a3y, a3z, apx, apy, apz)
+                Tw[3, 0], Tw[3, 1], Tw[3, 2], Tw[3, 3], Tw[3, 4], Tw[3, 5] = v0, v1, v2, a3x * Lu, a3y * Lu, a3z * Lu
+                v0, v1, v2 = _cross(a4x, a4y, a4z, apx, apy, apz)
+                Tw[4, 0], Tw[4, 1], Tw[4, 2], Tw[4, 3], Tw[4, 4], Tw[4, 5] = v0, v1, v2, a4x * Lu, a4y * Lu, a4z * Lu
+                _upu_reciprocal(Tw, Lu, w)
+                for k in range(6):
+                    C[ic, k] = w[k]
+                ic += 1
+        return reach
+
+    @njit(parallel=True, **_jit)
+    def _margin_kernel(p, R, valid, code, act, geo, sc, upuL, na, nc, rc, L, out):
+        N = p.shape[0]
+        nchunk = (N + CHUNK - 1) // CHUNK
+        rcu = min(rc, nc, 6) if nc > 0 else 0
+        k = na + rcu
+        kk = min(k, 6)
+        for c in prange(nchunk):
+            A = np.empty((max(na, 1), 6))
+            scale = np.empty(max(na, 1))
+            anchor = np.empty((max(na, 1), 3))
+            C = np.empty((max(nc, 1), 6))
+            Tw = np.empty((5, 6))
+            w = np.empty(6)
+            Ct = np.empty((max(nc, 1), 6))
+            svc = np.empty(max(nc, 1))
+            Vd = np.empty((1, 1))
+            M = np.empty((max(k, 6), max(k, 6)))
+            sv = np.empty(max(k, 6))
+            used = np.zeros(max(nc, 1), np.bool_)
+            for i in range(c * CHUNK, min(N, (c + 1) * CHUNK)):
+                if not valid[i]:
+                    out[i] = np.nan
+                    continue
+                if not _legs(p, R, i, code, act, geo, sc, upuL, A, scale, anchor, C, Tw, w):
+                    out[i] = np.nan
+                    continue
+                finite = True
+                # actuation rows: moments / L, then unit norm
+                for a in range(na):
+                    for q in range(3, 6):
+                        A[a, q] /= L
+                    nrm = 0.0
+                    for q in range(6):
+                        nrm += A[a, q] * A[a, q]
+                    nrm = math.sqrt(nrm)
+                    for q in range(6):
+                        A[a, q] /= nrm
+                        if not math.isfinite(A[a, q]):
+                            finite = False
+                # constraint block: top rc principal directions weighted by relative sv
+                if rcu > 0:
+                    for r in range(nc):
+                        for q in range(6):
+                            v = C[r, q] / L if q >= 3 else C[r, q]
+                            if not math.isfinite(v):
+                                finite = False
+                            Ct[r, q] = v
+                if not finite:
+                    out[i] = np.nan
+                    continue
+                if rcu > 0:
+                    _jacobi_sv(Ct, 6, nc, Vd, False, svc)
+                    for r in range(nc):
+                        used[r] = False
+                    s0 = 0.0
+                    for r in range(nc):
+                        s0 = max(s0, svc[r])
+                    s0 = max(s0, 1e-300)
+                    for r in range(rcu):
+                        best = -1
+                        for q in range(nc):
+                            if not used[q] and (best < 0 or svc[q] > svc[best]):
+                                best = q
+                        used[best] = True
+                        for q in range(6):
+                            Ct[best, q] /= s0
+                        # row na + r of the system
+                        if k >= 6:
+                            for q in range(6):
+                                M[q, na + r] = Ct[best, q]
+                        else:
+                            for q in range(6):
+                                M[na + r, q] = Ct[best, q]
+                # Jacobi works on columns (stored as rows of M): the k x 6 system itself when
+                # k >= 6, its transpose (k columns of length 6) otherwise.
+                if k >= 6:
+                    for a in range(na):
+                        for q in range(6):
+                            M[q, a] = A[a, q]
+                    _jacobi_sv(M, k, 6, Vd, False, sv)
+                else:
+                    for a in range(na):
+                        for q in range(6):
+                            M[a, q] = A[a, q]
+                    _jacobi_sv(M, 6, k, Vd, False, sv)
+                smin = np.inf
+                for q in range(kk):
+                    smin = min(smin, sv[q])
+                out[i] = smin
+
+    @njit(parallel=True, **_jit)
+    def _lti_kernel(p, R, valid, code, act, geo, sc, upuL, na, nc, L, rtol, inp, outp, lti):
+        N = p.shape[0]
+        nchunk = (N + CHUNK - 1) // CHUNK
+        m = na - 1 + nc
+        for c in prange(nchunk):
+            A = np.empty((max(na, 1), 6))
+            scale = np.empty(max(na, 1))
+            anchor = np.empty((max(na, 1), 3))
+            C = np.empty((max(nc, 1), 6))
+            Tw = np.empty((5, 6))
+            w = np.empty(6)
+            O = np.empty((6, max(m, 1)))
+            V = np.empty((6, 6))
+            sv = np.empty(6)
+            B = np.empty((6, 6))
+            VB = np.empty((6, 3))
+            P = np.empty((6, 6))
+            svb = np.empty(6)
+            bb = np.empty(6)
+            for i in range(c * CHUNK, min(N, (c + 1) * CHUNK)):
+                ok = valid[i] and _legs(p, R, i, code, act, geo, sc, upuL, A, scale, anchor, C, Tw, w)
+                if ok:
+                    for a in range(na):
+                        for q in range(6):
+                            if not math.isfinite(A[a, q]):
+                                ok = False
+                    for r in range(nc):
+                        for q in range(6):
+                            if not math.isfinite(C[r, q]):
+                                ok = False
+                if not ok:
+                    for a in range(na):
+                        inp[i, a] = np.nan
+                        outp[i, a] = np.nan
+                    lti[i] = np.nan
+                    continue
+                for a in range(na):
+                    for q in range(3, 6):
+                        A[a, q] /= L
+                for r in range(nc):
+                    for q in range(3, 6):
+                        C[r, q] /= L
+                low = np.inf
+                for a in range(na):
+                    # rows: the other actuation wrenches and every constraint wrench
+                    row = 0
+                    for b in range(na):
+                        if b != a:
+                            for q in range(6):
+                                O[q, row] = A[b, q]
+                            row += 1
+                    for r in range(nc):
+                        for q in range(6):
+                            O[q, row] = C[r, q]
+                        row += 1
+                    if m > 0:
+                        _jacobi_sv(O, m, 6, V, True, sv)
+                    else:
+                        for q in range(6):
+                            sv[q] = 0.0
+                            for q2 in range(6):
+                                V[q, q2] = 1.0 if q == q2 else 0.0
+                    smax = 0.0
+                    for q in range(6):
+                        smax = max(smax, sv[q])
+                    thr = rtol * max(smax, 1e-300)
+                    d = 0
+                    for q in range(6):
+                        if not sv[q] > thr:
+                            for q2 in range(6):
+                                B[q2, d] = V[q, q2]
+                            d += 1
+                    if d == 0:
+                        val = 0.0
+                    else:
+                        rx = anchor[a, 0] - p[i, 0]
+                        ry = anchor[a, 1] - p[i, 1]
+                        rz = anchor[a, 2] - p[i, 2]
+                        for e in range(d):
+                            s_ = 0.0
+                            for q in range(6):
+                                s_ += B[q, e] * A[a, q]
+                            bb[e] = s_
+                            cx, cy, cz = _cross(rx, ry, rz, B[3, e], B[4, e], B[5, e])
+                            VB[e, 0] = B[0, e] - cx / L
+                            VB[e, 1] = B[1, e] - cy / L
+                            VB[e, 2] = B[2, e] - cz / L
+                        if d == 1:
+                            g = VB[0, 0] * VB[0, 0] + VB[0, 1] * VB[0, 1] + VB[0, 2] * VB[0, 2]
+                            val = bb[0] * bb[0] / g if g > 0.0 else 0.0
+                        else:
+                            _jacobi_sv(VB, 3, d, P, True, svb)
+                            s0 = 0.0
+                            for e in range(d):
+                                s0 = max(s0, svb[e])
+                            val = 0.0
+                            for e in range(d):
+                                s2 = svb[e] * svb[e]
+                                if s2 > 1e-12 * s0 * s0:
+                                    pb = 0.0
+                                    for e2 in range(d):
+                                        pb += P[e, e2] * bb[e2]
+                                    val += pb * pb / s2
+                    fn = math.sqrt(A[a, 0] * A[a, 0] + A[a, 1] * A[a, 1] + A[a, 2] * A[a, 2])
+                    o = min(math.sqrt(max(val, 0.0)) / max(fn, 1e-300), 1.0)
+                    outp[i, a] = o
+                    ii = min(abs(scale[a]), 1.0)
+                    inp[i, a] = ii
+                    low = min(low, o, ii)
+                lti[i] = low
+
+    @njit(parallel=True, **_jit)
+    def _kappa_kernel(p, R, valid, T, angcol, code, act, geo, sc, upuL, na, nc, L, out):
+        N = p.shape[0]
+        nt = T.shape[2]
+        nchunk = (N + CHUNK - 1) // CHUNK
+        mn = min(na, nt)
+        for c in prange(nchunk):
+            A = np.empty((max(na, 1), 6))
+            scale = np.empty(max(na, 1))
+            anchor = np.empty((max(na, 1), 3))
+            C = np.empty((max(nc, 1), 6))
+            Tw = np.empty((5, 6))
+            w = np.empty(6)
+            J = np.empty((max(na, nt), max(na, nt)))
+            sv = np.empty(max(na, nt))
+            Vd = np.empty((1, 1))
+            for i in range(c * CHUNK, min(N, (c + 1) * CHUNK)):
+                if not (valid[i] and _legs(p, R, i, code, act, geo, sc, upuL, A, scale, anchor, C, Tw, w)):
+                    out[i] = np.nan
+                    continue
+                finite = True
+                for a in range(na):
+                    for col in range(nt):
+                        s_ = 0.0
+                        for q in range(6):
+                            s_ += (A[a, q] / scale[a]) * T[i, q, col]
+                        if angcol[col]:
+                            s_ /= L
+                        if not math.isfinite(s_):
+                            finite = False
+                        if na >= nt:  # Jacobi on columns, stored as rows
+                            J[col, a] = s_
+                        else:
+                            J[a, col] = s_
+                if not finite:
+                    out[i] = np.nan
+                    continue
+                if na >= nt:
+                    _jacobi_sv(J, na, nt, Vd, False, sv)
+                else:
+                    _jacobi_sv(J, nt, na, Vd, False, sv)
+                smax = 0.0
+                smin = np.inf
+                for q in range(mn):
+                    smax = max(smax, sv[q])
+                    smin = min(smin, sv[q])
+                if smin > 1e-14 * smax:
+                    out[i] = smax / smin
+                else:
+                    out[i] = np.inf
+
+    @njit(parallel=True, **_jit)
+    def _dir_kernel(p, R, valid, code, act, geo, sc, upuL, na, nc, dirs, reach):
+        """Unit leg directions (N, n_legs, 3) base -> platform and reachability."""
+        N = p.shape[0]
+        nl = code.shape[0]
+        nchunk = (N + CHUNK - 1) // CHUNK
+        for c in prange(nchunk):
+            A = np.empty((max(na, 1), 6))
+            scale = np.empty(max(na, 1))
+            anchor = np.empty((max(na, 1), 3))
+            C = np.empty((max(nc, 1), 6))
+            Tw = np.empty((5, 6))
+            w = np.empty(6)
+            for i in range(c * CHUNK, min(N, (c + 1) * CHUNK)):
+                reach[i] = valid[i] and _legs(p, R, i, code, act, geo, sc, upuL, A, scale, anchor, C, Tw, w)
+                for j in range(nl):
+                    qx, qy, qz = geo[j, 1, 0], geo[j, 1, 1], geo[j, 1, 2]
+                    ax = p[i, 0] + R[i, 0, 0] * qx + R[i, 0, 1] * qy + R[i, 0, 2] * qz
+                    ay = p[i, 1] + R[i, 1, 0] * qx + R[i, 1, 1] * qy + R[i, 1, 2] * qz
+                    az = p[i, 2] + R[i, 2, 0] * qx + R[i, 2, 1] * qy + R[i, 2, 2] * qz
+                    bx, by, bz = geo[j, 0, 0], geo[j, 0, 1], geo[j, 0, 2]
+                    t = code[j]
+                    if t == _PUS or t == _PRS:
+                        e0, e1, e2 = geo[j, 2, 0], geo[j, 2, 1], geo[j, 2, 2]
+                        Ll = sc[j, 0]
+                        dx, dy, dz = ax - bx, ay - by, az - bz
+                        de = dx * e0 + dy * e1 + dz * e2
+                        disc = Ll * Ll - (dx * dx + dy * dy + dz * dz - de * de)
+                        s = de + sc[j, 1] * math.sqrt(disc) if disc >= 0.0 else np.nan
+                        bx, by, bz = bx + s * e0, by + s * e1, bz + s * e2
+                        dirs[i, j, 0] = (ax - bx) / Ll
+                        dirs[i, j, 1] = (ay - by) / Ll
+                        dirs[i, j, 2] = (az - bz) / Ll
+                    else:
+                        ux, uy, uz = _unit3(ax - bx, ay - by, az - bz)
+                        dirs[i, j, 0], dirs[i, j, 1], dirs[i, j, 2] = ux, uy, uz
+
+
+# ---------------------------------------------------------------------------------------------
+# Entry points
+# ---------------------------------------------------------------------------------------------
+def _out(a, single):
+    return a[0] if single else a
+
+
+def singularity_margin(mech, X) -> np.ndarray:
+    """Compiled :meth:`Mechanism.singularity_margin` (N,) (NaN where unreachable). Raises
+    ``_Unsupported`` (an ``Exception``) when :func:`coverage` is False."""
+    plan = _plan(mech)
+    code, act, geo, sc, nc = plan
+    Xa, single, valid, p, R, _ = _poses(mech, X, False)
+    upuL = _upu_lengths(plan, p, R)
+    out = np.empty(Xa.shape[0])
+    _margin_kernel(p, R, valid, code, act, geo, sc, upuL, int(mech.n_actuators), nc, int(mech.constraint_rank),
+                   float(mech.length_scale), out)
+    return _out(out, single)
+
+
+def transmission(mech, X, rtol: float = 1e-9):
+    """Compiled input (N, n_act), output (N, n_act) and local (N,) transmission indices of
+    :func:`parasynth.indices.transmission_indices`."""
+    plan = _plan(mech)
+    code, act, geo, sc, nc = plan
+    Xa, single, valid, p, R, _ = _poses(mech, X, False)
+    upuL = _upu_lengths(plan, p, R)
+    N, na = Xa.shape[0], int(mech.n_actuators)
+    inp, outp, lti = np.empty((N, na)), np.empty((N, na)), np.empty(N)
+    _lti_kernel(p, R, valid, code, act, geo, sc, upuL, na, nc, float(mech.length_scale), float(rtol), inp, outp, lti)
+    return _out(inp, single), _out(outp, single), _out(lti, single)
+
+
+def local_transmission_index(mech, X, rtol: float = 1e-9) -> np.ndarray:
+    """Compiled LTI (N,) of :func:`parasynth.indices.local_transmission_index`."""
+    return transmission(mech, X, rtol)[2]
+
+
+def condition_number(mech, X, length: float | None = None) -> np.ndarray:
+    """Compiled :func:`parasynth.indices.local_condition_number` in the task space (N,):
+    the Jacobian ``mech.jacobian(X)`` with angular-coordinate columns divided by ``length``
+    (default ``mech.length_scale``); ``inf`` when singular, NaN where unreachable."""
+    plan = _plan(mech)
+    code, act, geo, sc, nc = plan
+    L = float(mech.length_scale if length is None else length)
+    Xa, single, valid, p, R, T = _poses(mech, X, True)
+    upuL = _upu_lengths(plan, p, R)
+    angcol = np.array([c in mech.angular_coordinates for c in mech.task_coordinates], dtype=np.bool_)
+    out = np.empty(Xa.shape[0])
+    _kappa_kernel(p, R, valid, T, angcol, code, act, geo, sc, upuL, int(mech.n_actuators), nc, L, out)
+    return _out(out, single)
+
+
+def leg_directions(mech, X) -> tuple[np.ndarray, np.ndarray]:
+    """Unit leg directions base -> platform (N, n_legs, 3) (the legs' ``direction``) and
+    reachability (N,)."""
+    plan = _plan(mech)
+    code, act, geo, sc, nc = plan
+    Xa, single, valid, p, R, _ = _poses(mech, X, False)
+    upuL = np.ones(len(code))
+    N = Xa.shape[0]
+    dirs, reach = np.empty((N, len(code), 3)), np.empty(N, np.bool_)
+    _dir_kernel(p, R, valid, code, act, geo, sc, upuL, int(mech.n_actuators), nc, dirs, reach)
+    return _out(dirs, single), _out(reach, single)
