@@ -161,7 +161,8 @@ def _row_stiffness(mech, states, p, stiff):
             raise ValueError(
                 f"{mech.name}: no leg diameter to estimate the stiffness of leg {leg.name}'s constraint wrench from; "
                 f"give constraint_force_stiffness (N/m), constraint_couple_stiffness (N*m/rad) or diameter (m)")
-        if need_default:
+        comp_f = comp_m = np.full(N, np.nan)
+        if dc is not None:
             A = math.pi * dc * dc / 4
             I = math.pi * dc ** 4 / 64
             J = 2 * I

@@ -1,0 +1,224 @@
+"""Cartesian stiffness: closed forms, a compliant-model equilibrium, bad input and units."""
+
+import math
+
+import numpy as np
+import pytest
+import yaml
+from scipy.optimize import fsolve
+from scipy.spatial.transform import Rotation
+
+import parasynth
+from parasynth import objectives
+from parasynth.stiffness import (STEEL_E, compliance, deflection, part_stiffness, point_deflection,
+                                 stiffness_along, stiffness_matrix)
+from parasynth.study.spec import StudyError, load_study
+
+
+def _gough_rows(mech, p, R):
+    """Unit leg-line wrenches (f, m_P) computed from the anchors alone."""
+    rows, lengths = [], []
+    for leg in mech.legs:
+        a = R @ np.asarray(leg.platform)
+        d = p + a - np.asarray(leg.base)
+        L = np.linalg.norm(d)
+        n = d / L
+        rows.append(np.concatenate([n, np.cross(a, n)]))
+        lengths.append(L)
+    return np.array(rows), np.array(lengths)
+
+
+def test_gough_stewart_home_closed_form():
+    mech = parasynth.load_mechanism("gough_stewart_6ups")
+    X = mech.home
+    p, R = np.array([0.0, 0.0, X[2]]), np.eye(3)
+    Wr, L = _gough_rows(mech, p, R)
+    k = 2e7
+    K_ref = k * sum(np.outer(w, w) for w in Wr)
+    K = parasynth.stiffness_matrix(mech, X, axial_stiffness=k)
+    assert K.shape == (6, 6)
+    np.testing.assert_allclose(K, K_ref, rtol=1e-12, atol=1e-12 * np.abs(K_ref).max())
+    # Default: steel rod of the leg diameter, k = E A / L (all legs equally long at home).
+    d = mech.params.leg_diameter
+    k_def = STEEL_E * math.pi * d ** 2 / 4 / L
+    K_def = sum(ki * np.outer(w, w) for ki, w in zip(k_def, Wr))
+    np.testing.assert_allclose(stiffness_matrix(mech, X), K_def, rtol=1e-12, atol=1e-12 * np.abs(K_def).max())
+    # Batched shape.
+    assert stiffness_matrix(mech, np.stack([X, X]), axial_stiffness=k).shape == (2, 6, 6)
+
+
+def test_gough_stewart_vertical_force_deflection():
+    mech = parasynth.load_mechanism("gough_stewart_6ups")
+    X = mech.home
+    Wr, L = _gough_rows(mech, np.array([0.0, 0.0, X[2]]), np.eye(3))
+    k, F = 2e7, -500.0
+    # By the threefold and mirror symmetry a vertical force at P moves P straight down:
+    # dz = F / (k sum n_z^2) with n_z = h / L for every leg.
+    nz = X[2] / L
+    dz = F / (k * np.sum(nz ** 2))
+    t = deflection(mech, X, [0, 0, F, 0, 0, 0], axial_stiffness=k)
+    np.testing.assert_allclose(t, [0, 0, dz, 0, 0, 0], atol=1e-12 * abs(dz) + 1e-18, rtol=1e-10)
+    u = point_deflection(mech, X, force=[0, 0, F], axial_stiffness=k)
+    np.testing.assert_allclose(u, [0, 0, dz], atol=1e-12 * abs(dz), rtol=1e-10)
+    # Vertical stiffness: F / dz, the same through stiffness_along.
+    np.testing.assert_allclose(stiffness_along(mech, X, [0, 0, 1], axial_stiffness=k), k * np.sum(nz ** 2), rtol=1e-10)
+
+
+def _rps_geometry(mech):
+    return [(np.asarray(l.base), np.asarray(l.platform), np.asarray(l.r_axis)) for l in mech.legs]
+
+
+def _compliant_equilibrium(mech, X, wrench, eps):
+    """Solve the equilibrium of the 3-RPS platform held by springs (legs along their lines with
+    k = E A / L, lateral constraint springs 3 E I / L^3) under ``eps * wrench``; returns the
+    pose change (dp, rotation vector)."""
+    p0, R0 = mech.pose(X)
+    geo = _rps_geometry(mech)
+    d = mech.params.leg_diameter
+    A, I = math.pi * d ** 2 / 4, math.pi * d ** 4 / 64
+    L0 = np.array([np.linalg.norm(p0 + R0 @ a - b) for b, a, _ in geo])
+    k_ax = STEEL_E * A / L0
+    k_lat = 3 * STEEL_E * I / L0 ** 3
+    scale = np.array([1, 1, 1, mech.length_scale, mech.length_scale, mech.length_scale])
+
+    def balance(x):
+        t = x * eps / scale
+        p = p0 + t[:3]
+        R = Rotation.from_rotvec(t[3:]).as_matrix() @ R0
+        total = np.zeros(6)
+        for (b, a, r), L, ka, kl in zip(geo, L0, k_ax, k_lat):
+            A_ = p + R @ a
+            dvec = A_ - b
+            Lc = np.linalg.norm(dvec)
+            n = dvec / Lc
+            fa = -ka * (Lc - L)  # the leg spring pushes back along its line
+            g = (A_ - b) @ r  # the sphere leaving the leg's plane
+            fl = -kl * g
+            arm = A_ - p
+            total[:3] += fa * n + fl * r
+            total[3:] += np.cross(arm, fa * n + fl * r)
+        total += eps * np.asarray(wrench)
+        return total / eps * np.array([1, 1, 1, 1 / mech.length_scale, 1 / mech.length_scale, 1 / mech.length_scale])
+
+    x = fsolve(balance, np.zeros(6), xtol=1e-14, full_output=False)
+    return x * eps / scale
+
+
+def test_3rps_deflection_matches_compliant_model():
+    mech = parasynth.load_mechanism("3rps")
+    X = np.array([0.52, 0.08, -0.11])
+    wrench = np.array([30.0, -45.0, 80.0, 4.0, -6.0, 2.5])
+    eps = 1e-3
+    # Central difference of the nonlinear equilibrium response removes the second-order terms.
+    resp = (_compliant_equilibrium(mech, X, wrench, eps) - _compliant_equilibrium(mech, X, wrench, -eps)) / (2 * eps)
+    t = deflection(mech, X, wrench)
+    np.testing.assert_allclose(t, resp, rtol=1e-6, atol=1e-6 * np.abs(resp).max())
+    # And the 6x6 matrix is full rank although the mechanism has 3 freedoms.
+    assert np.linalg.matrix_rank(stiffness_matrix(mech, X)) == 6
+
+
+def test_compliance_inverse_and_symmetry():
+    mech = parasynth.load_mechanism("5pus_upu")
+    X = np.array([[0.01, -0.02, 0.03, 0.05, -0.04], [0.0, 0.0, 0.0, 0.0, 0.0]])
+    K = stiffness_matrix(mech, X)
+    np.testing.assert_allclose(K, np.swapaxes(K, 1, 2), rtol=0, atol=1e-9 * np.abs(K).max())
+    C, Z = compliance(K, mech.length_scale)
+    np.testing.assert_allclose(np.einsum("nij,njk->nik", K, C), np.broadcast_to(np.eye(6), K.shape), atol=1e-8)
+    assert np.all(np.abs(Z) < 1e-12)
+    # Translational stiffness: the smallest force-to-displacement ratio over directions.
+    kt = part_stiffness(mech, X)
+    rng = np.random.default_rng(3)
+    dirs = rng.normal(size=(500, 3))
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    ratios = 1.0 / np.einsum("di,ij,dj->d", dirs, C[0, :3, :3], dirs)
+    assert kt[0] <= ratios.min() * (1 + 1e-12)
+    assert kt[0] >= 0.98 * ratios.min()
+
+
+def test_series_actuator_stiffness():
+    mech = parasynth.load_mechanism("gough_stewart_6ups")
+    K1 = stiffness_matrix(mech, mech.home, axial_stiffness=3e7, actuator_stiffness=6e7)
+    K2 = stiffness_matrix(mech, mech.home, axial_stiffness=2e7)
+    np.testing.assert_allclose(K1, K2, rtol=1e-12, atol=1e-6)
+
+
+def test_under_actuated_policy():
+    mech = parasynth.load_mechanism("4ups_1rps")
+    X = mech.home
+    yt = mech.params.y_t
+    # The grinding force (along Z at the grinding point) is carried: finite stiffness.
+    k = stiffness_along(mech, X, [0, 0, 1], point=[0, yt, 0])
+    assert np.isfinite(k) and k > 0
+    # A force along the uncontrolled freedom (X translation coupled with a turn about Z) is not.
+    assert stiffness_along(mech, X, [1, 0, 0]) == 0.0
+    assert np.all(np.isinf(point_deflection(mech, X, force=[10.0, 0, 0])))
+    assert part_stiffness(mech, X) == 0.0
+
+
+@pytest.mark.parametrize("kw, match", [
+    ({"axial_stiffness": 0.0}, "axial_stiffness"),
+    ({"axial_stiffness": -1e7}, "axial_stiffness"),
+    ({"axial_stiffness": [1e7] * 5}, "axial_stiffness"),
+    ({"constraint_force_stiffness": float("nan")}, "constraint_force_stiffness"),
+    ({"youngs_modulus": 0}, "youngs_modulus"),
+    ({"bogus": 1.0}, "bogus"),
+])
+def test_bad_stiffness_values(kw, match):
+    mech = parasynth.load_mechanism("3rps")
+    with pytest.raises(ValueError, match=match):
+        stiffness_matrix(mech, mech.home, **kw)
+
+
+def test_bad_direction_and_point():
+    mech = parasynth.load_mechanism("gough_stewart_6ups")
+    with pytest.raises(ValueError, match="direction"):
+        stiffness_along(mech, mech.home, [0, 0, 0])
+    with pytest.raises(ValueError, match="reach"):
+        stiffness_along(mech, mech.home, [0, 0, 1], point=[0, 75.0, 0])  # 75 m: mm given as m
+    with pytest.raises(ValueError, match="force"):
+        objectives.get("deflection")(mech, n=64)
+
+
+def test_singular_pose_gives_inf_deflection():
+    # Fichter's singularity of the Gough-Stewart platform: gamma = 90 deg at the symmetric pose.
+    mech = parasynth.load_mechanism("gough_stewart_6ups")
+    X = np.array([0, 0, 0.6, 0, 0, math.pi / 2])
+    K = stiffness_matrix(mech, X, axial_stiffness=1e7)
+    L = mech.length_scale
+    S = np.array([1, 1, 1, 1 / L, 1 / L, 1 / L])
+    lam, V = np.linalg.eigh(S[:, None] * K * S[None, :])
+    assert lam[0] < 1e-9 * lam[-1]  # singular
+    w = V[:, 0] / S  # a wrench doing work on the leg lines' common freedom
+    assert np.all(np.isinf(deflection(mech, X, w, axial_stiffness=1e7)))
+    assert stiffness_along(mech, X, w[:3] if np.linalg.norm(w[:3]) > 1e-6 else [1, 0, 0], axial_stiffness=1e7) >= 0
+    # The regular neighbour gives finite numbers.
+    assert np.all(np.isfinite(deflection(mech, mech.home, [0, 0, 0, 0, 0, 1.0], axial_stiffness=1e7)))
+
+
+def test_unreachable_is_nan():
+    mech = parasynth.load_mechanism("3rps")
+    K = stiffness_matrix(mech, np.array([[0.5, 0, 0], [np.nan, 0, 0]]))
+    assert np.all(np.isfinite(K[0])) and np.all(np.isnan(K[1]))
+
+
+def _study(settings, measure="stiffness_along"):
+    spec = {"name": "s", "mechanism": "3rps", "variables": [{"name": "base_radius", "values": ["300 mm"]}],
+            "objectives": [{"name": measure, "settings": settings}], "evaluation": {"samples": 64}}
+    return yaml.safe_dump(spec)
+
+
+def test_study_stiffness_units():
+    s = load_study(_study({"axial_stiffness": "2e7 N/m", "constraint_couple_stiffness": "300 N*m/rad",
+                           "point": ["0 mm", "0 mm", "10 mm"]}), is_text=True)
+    st = s.objectives[0].settings
+    assert st["axial_stiffness"] == pytest.approx(2e7)
+    assert st["constraint_couple_stiffness"] == pytest.approx(300.0)
+    assert st["point"] == pytest.approx((0, 0, 0.01))
+    assert load_study(_study({"axial_stiffness": "20 N/mm"}), is_text=True).objectives[0].settings[
+        "axial_stiffness"] == pytest.approx(2e4)
+    with pytest.raises(StudyError, match=r"objectives\[0\]\.settings\.axial_stiffness"):
+        load_study(_study({"axial_stiffness": 2e7}), is_text=True)
+    with pytest.raises(StudyError, match=r"objectives\[0\]\.settings\.constraint_force_stiffness"):
+        load_study(_study({"constraint_force_stiffness": "2e7 N"}), is_text=True)
+    with pytest.raises(StudyError, match=r"objectives\[0\]\.settings\.youngs_modulus"):
+        load_study(_study({"youngs_modulus": 210e9}), is_text=True)
