@@ -779,3 +779,114 @@ def ev_params(evaluator, values: dict) -> dict:
 
 def _design_str(d: dict) -> str:
     return "{" + ", ".join(f"{k}={_fmt_si(v)}" for k, v in d.items()) + "}"
+
+
+# -- documentation of every key, for the JSON Schema and docs/study-format.md -------------------
+#: {key path: description}; ``[]`` marks the entries of a list. Every key of the study models
+#: has an entry (a test checks it, and that docs/study-format.md documents each one).
+KEY_DOCS = {
+    "name": "Study name: letters, digits, '_', '.', '-'; names the run directory runs/<name>/ and the report.",
+    "description": "Free text shown at the top of the report.",
+    "mechanism": "A registry name (see `parasynth list`) or a mechanism description file (.yaml; a relative "
+                 "path is taken from the study file's folder).",
+    "fixed": "Mechanism parameters held fixed, {parameter: value with unit}, e.g. {slider_radius: 135 mm}.",
+    "variables": "Design variables: mechanism parameters the optimiser or sweep changes.",
+    "variables[].name": "The mechanism parameter (see `parasynth list`).",
+    "variables[].type": "continuous (default), integer or categorical.",
+    "variables[].low": "Lower bound with the parameter's unit, e.g. 160 mm; a plain number for dimensionless "
+                       "parameters.",
+    "variables[].high": "Upper bound with the parameter's unit; must be above low.",
+    "variables[].values": "Explicit values for a sweep, with units, e.g. [165 mm, 185 mm].",
+    "variables[].choices": "The choices of a categorical variable.",
+    "variables[].num": "Number of evenly spaced sweep values from low to high (1 to 10000).",
+    "variables[].log": "Sample on a log scale (needs low > 0).",
+    "objectives": "Measures to optimise (at least one); see `parasynth list` for names and settings.",
+    "objectives[].name": "A registered measure, e.g. workspace_volume.",
+    "objectives[].label": "Column name in the results (default the measure name); must not clash with "
+                          "another column (trial, feasible, a design variable, <constraint>_margin, ...).",
+    "objectives[].goal": "maximize or minimize (default the measure's natural goal).",
+    "objectives[].settings": "Settings of the measure, {setting: value}, checked against the kinds and ranges "
+                             "the measure declares (e.g. quantile in [0, 1]).",
+    "constraints": "Design constraints: a measure with a bound; a design is feasible when every margin >= 0.",
+    "constraints[].name": "A registered measure, e.g. footprint_radius.",
+    "constraints[].label": "Column name in the results (default the measure name); <label>_margin is added.",
+    "constraints[].min": "Lower bound with the measure's unit (a plain number for dimensionless measures).",
+    "constraints[].max": "Upper bound with the measure's unit; min must not be above max.",
+    "constraints[].settings": "Settings of the measure, as for objectives.",
+    "evaluation": "How every design is evaluated: the workspace sample shared by the workspace measures.",
+    "evaluation.method": "Sampling method: sobol (default), grid or random.",
+    "evaluation.samples": f"Workspace samples per design (1 to {MAX_SAMPLES}, default 4096).",
+    "evaluation.seed": f"Seed of the sample (0 to {MAX_SEED}); the same points serve every design.",
+    "evaluation.ranges": "Sampled task coordinates, {coordinate: [low, high]} with units, e.g. "
+                         "{z: [-450 mm, 300 mm]}; leave out for the model's default ranges (an empty "
+                         "mapping is an error).",
+    "evaluation.fixed_pose": "Task coordinates held fixed while sampling, {coordinate: value with unit}.",
+    "evaluation.constraints": "Pose constraints that define the workspace (default all of the model's; see "
+                              "`parasynth list`).",
+    "evaluation.final_samples": "Samples of the final re-evaluation of the best designs (1 to "
+                                f"{MAX_SAMPLES}); leave out to skip it.",
+    "evaluation.final_repeats": "Seeds of the final re-evaluation (1 to 1000, default 4).",
+    "evaluation.final_top": "Best designs re-evaluated at the end (0 to 1000, default 5).",
+    "optimizer": "The search: a sweep over listed values, NLopt (one objective) or Optuna (several).",
+    "optimizer.kind": "sweep (default), nlopt or optuna.",
+    "optimizer.algorithm": "Algorithm of the kind: sweep grid|list; NLopt LN_COBYLA, LN_BOBYQA, ...; Optuna "
+                           "tpe, nsga2, ... (see `parasynth list`).",
+    "optimizer.n_trials": f"Optuna trials (1 to {MAX_TRIALS}).",
+    "optimizer.maxeval": f"NLopt evaluations (1 to {MAX_TRIALS}).",
+    "optimizer.xtol_rel": "NLopt relative tolerance on the design variables (> 0).",
+    "optimizer.ftol_rel": "NLopt relative tolerance on the objective (> 0).",
+    "optimizer.start": "NLopt start design, {variable: value with unit} (default the reference or the box centre).",
+    "optimizer.n_jobs": "Parallel Optuna workers (1 to 1024).",
+    "optimizer.storage": "Optuna storage URL (default the run directory's own storage).",
+    "optimizer.seed": f"Seed of the optimiser (0 to {MAX_SEED}).",
+    "optimizer.designs": "For a sweep: the list of designs to evaluate, each {variable: value with unit}.",
+    "optimizer.population_size": "Population of the evolutionary Optuna samplers (2 to 100000).",
+    "reference": "A reference design (e.g. the paper's), {parameter: value with unit}: evaluated first and "
+                 "compared in the report.",
+    "tied": "Parameters that follow a design variable, {parameter: variable}; same unit.",
+    "output": "Run directory (default runs/<name>/); --out overrides it.",
+}
+
+
+def _model_keys(model, prefix="") -> list[str]:
+    out = []
+    subs = {"variables": VariableSpec, "objectives": MeasureRef, "constraints": ConstraintRef,
+            "evaluation": EvaluationSpec, "optimizer": OptimizerSpec}
+    for name in model.model_fields:
+        key = f"{prefix}{name}"
+        out.append(key)
+        if model is StudySpec and name in subs:
+            sep = "[]." if name in ("variables", "objectives", "constraints") else "."
+            out += _model_keys(subs[name], f"{key}{sep}")
+    return out
+
+
+def study_keys() -> list[str]:
+    """Every key path of the study format (``variables[].low``, ``evaluation.samples``, ...)."""
+    return _model_keys(StudySpec)
+
+
+def study_json_schema() -> dict:
+    """The study file format as JSON Schema (draft 2020-12), from the pydantic models, with a
+    description of every key (:data:`KEY_DOCS`)."""
+    schema = StudySpec.model_json_schema()
+    defs = schema.get("$defs", {})
+    where = {"": schema, "variables[].": defs.get("VariableSpec"), "objectives[].": defs.get("MeasureRef"),
+             "constraints[].": defs.get("ConstraintRef"), "evaluation.": defs.get("EvaluationSpec"),
+             "optimizer.": defs.get("OptimizerSpec")}
+    for key, doc in KEY_DOCS.items():
+        prefix, _, leaf = key.rpartition(".") if "." in key else ("", "", key)
+        prefix = prefix + "." if prefix else ""
+        node = where.get(prefix)
+        if node is not None and leaf in node.get("properties", {}):
+            node["properties"][leaf]["description"] = doc
+    for key in study_keys():  # a key without a text still gets a pointer to the docs
+        prefix, _, leaf = key.rpartition(".") if "." in key else ("", "", key)
+        node = where.get(prefix + "." if prefix else "")
+        if node is not None and leaf in node.get("properties", {}):
+            node["properties"][leaf].setdefault("description", "See docs/study-format.md.")
+    schema["$schema"] = "https://json-schema.org/draft/2020-12/schema"
+    schema["title"] = "parasynth study"
+    schema["description"] = "A parasynth design study (docs/study-format.md). Quantities are strings with units, " \
+                            "e.g. '205 mm', '15 deg'."
+    return schema
