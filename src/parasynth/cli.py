@@ -3,27 +3,97 @@
 Commands
 --------
 run STUDY.yaml       run a design study (sweep, NLopt or Optuna) and write its results
-validate STUDY.yaml  check a study file and print it resolved to SI
+validate STUDY.yaml  check a study file (builds its designs, probes its measures) and print it
 evaluate STUDY.yaml  evaluate one design of a study (all objectives and constraints)
 report RUN_DIR       write index.html, report.md and pareto.csv for a run
 run-all [FOLDER]     run every study of a folder and write all reports (reports/README.md)
-list                 mechanisms, objectives, optimisers
+list                 mechanisms with their parameters, measures with their settings, optimisers
 analyze NAME         kinematic analysis of a mechanism at its home pose and a pose sample
+schema               the study file format as JSON Schema (for editors)
+
+Errors are handled in one place (:func:`main`): bad input, bad files and environment faults
+(permissions, a full disk, a closed pipe, a missing plugin) give one line ``error: ...`` on
+stderr and a non-zero exit status, with no traceback; ``--debug`` (or ``PARASYNTH_DEBUG=1``)
+shows the traceback. Exit status: 0 success, 1 a failed evaluation or an environment fault,
+2 invalid input, 130 interrupted, 141 output closed (broken pipe).
 """
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
+import errno
+import os
 import sys
+from pathlib import Path
 
 import numpy as np
 
 from . import __version__
 from .mechanisms import list_mechanisms, load_mechanism, mechanism_summaries
 from .plugins import load_plugins  # noqa: F401  (also parasynth.cli.load_plugins)
+from .validation import MAX_SAMPLES, MAX_SEED, MAX_TRIALS
+
+EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_INTERRUPTED, EXIT_PIPE = 0, 1, 2, 130, 141
 
 
+class CliError(Exception):
+    """A problem reported to the user as one line; ``code`` is the exit status."""
+
+    def __init__(self, message: str, code: int = EXIT_USAGE):
+        super().__init__(message)
+        self.code = code
+
+
+# -- argument types ------------------------------------------------------------------------------
+def _count_type(what: str, lo: int, hi: int):
+    def parse(text: str) -> int:
+        try:
+            v = int(text.strip().replace("_", ""))
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{what} must be an integer >= {lo}, got {text!r}") from None
+        if v < lo:
+            raise argparse.ArgumentTypeError(f"{what} must be an integer >= {lo}, got {text!r}")
+        if v > hi:
+            raise argparse.ArgumentTypeError(f"{what} must be at most {hi} (the documented maximum), got {text!r}")
+        return v
+
+    parse.__name__ = what
+    return parse
+
+
+_n_trials = _count_type("the evaluation budget", 1, MAX_TRIALS)
+_samples = _count_type("the sample count", 1, MAX_SAMPLES)
+_seed = _count_type("the seed", 0, MAX_SEED)
+
+
+def _path_arg(what: str):
+    def parse(text: str) -> str:
+        if not text.strip():
+            raise argparse.ArgumentTypeError(f"{what} must not be empty")
+        if "\x00" in text:
+            raise argparse.ArgumentTypeError(f"{what} contains a NUL character")
+        return text
+
+    parse.__name__ = what
+    return parse
+
+
+def _out_dir(path, flag: str) -> Path:
+    """An output directory that exists (created) and is writable, or a CliError naming ``flag``."""
+    p = Path(path)
+    if p.exists() and not p.is_dir():
+        raise CliError(f"{flag} {str(p)!r} is an existing file, not a directory; give a directory")
+    try:
+        p.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise CliError(f"{flag} {str(p)!r}: cannot create the directory ({e.strerror or e})", EXIT_USAGE) from None
+    if not os.access(p, os.W_OK | os.X_OK):
+        raise CliError(f"{flag} {str(p)!r}: the directory is not writable")
+    return p
+
+
+# -- helpers -------------------------------------------------------------------------------------
 def _parse_params(name: str, items: list[str]) -> dict:
     """--param NAME=VALUE items with units where the parameter has one ("link_length=205 mm")."""
     from .mechanisms import mechanism_class
@@ -36,7 +106,7 @@ def _parse_params(name: str, items: list[str]) -> dict:
     out = {}
     for it in items or []:
         if "=" not in it:
-            raise ValueError(f"--param expects NAME=VALUE, with a unit where the parameter has one, got {it!r}")
+            raise CliError(f"--param expects NAME=VALUE, with a unit where the parameter has one, got {it!r}")
         k, v = (x.strip() for x in it.split("=", 1))
         kind = units.get(k)
         if kind is not None:
@@ -58,38 +128,83 @@ def _fmt_pose(mech, X) -> str:
     return ", ".join(parts)
 
 
+def _fmt_value(v, kind) -> str:
+    """A parameter or variable value (SI) in display units: '205 mm', '25 deg', '0.8'."""
+    from .units import format_quantity
+
+    if isinstance(v, bool) or isinstance(v, str):
+        return str(v).lower() if isinstance(v, bool) else v
+    if isinstance(v, (tuple, list)):
+        return "[" + ", ".join(_fmt_value(x, kind) for x in v) + "]"
+    if isinstance(v, (int, float, np.floating, np.integer)):
+        return format_quantity(float(v), kind if kind not in (None, "dimensionless") else None, digits=6)
+    return repr(v)
+
+
+def _load_study(path):
+    from .study import load_study
+
+    return load_study(path)
+
+
+def _checked_study(path):
+    """The study of ``path``, refusing it when :func:`check_study` finds a problem."""
+    from .study.spec import check_study
+
+    study = _load_study(path)
+    problems = check_study(study)
+    if problems:
+        raise CliError(f"{path}: {len(problems)} problem(s):\n  " + "\n  ".join(problems))
+    return study
+
+
+# -- commands ------------------------------------------------------------------------------------
 def cmd_list(args) -> int:
+    from .mechanisms import mechanism_class
     from .objectives import OBJECTIVES
     from .study import OPTIMIZERS
 
-    print("mechanisms:")
+    print("mechanisms (parameters with their defaults; give values with units):")
     for name, summary in mechanism_summaries().items():
-        print(f"  {name:12s} {summary}")
-        mech = load_mechanism(name)
+        print(f"  {name}: {summary}")
+        cls = mechanism_class(name)
+        units = getattr(cls.Params, "UNITS", {})
+        params = cls.Params()
+        for f in dataclasses.fields(params):
+            kind = units.get(f.name)
+            unit = {"length": "length, mm", "angle": "angle, deg", "dimensionless": "number"}.get(kind, kind or "option")
+            print(f"      {f.name} ({unit}) = {_fmt_value(getattr(params, f.name), kind)}")
+        mech = cls(params)
+        print(f"      task coordinates: {', '.join(mech.task_coordinates)}")
         for cname, c in mech.constraints.items():
             print(f"      pose constraint {cname} [{c.unit}]: {c.doc}")
-    print("\nobjectives and design-constraint measures (name [unit], natural goal):")
+    print("\nobjectives and design-constraint measures (name [unit], natural goal; settings: kind):")
+    from .study.spec import SETTING_RANGES
+
     for name, m in OBJECTIVES.items():
         doc = m.doc.splitlines()[0] if m.doc else ""
-        print(f"  {name} [{m.unit}], {m.sense}: {doc}")
+        only = f" (only {', '.join(m.models)})" if m.models else ""
+        print(f"  {name} [{m.unit}], {m.sense}{only}: {doc}")
+        if m.settings:
+            parts = []
+            for k, kind in m.settings.items():
+                lo, hi = SETTING_RANGES.get(k, (None, None))
+                rng = f" in [{lo}, {hi if hi is not None else 'inf'}]" if lo is not None else ""
+                parts.append(f"{k} ({kind}{rng})")
+            print(f"      settings: {', '.join(parts)}")
     print("\noptimisers (optimizer.kind: algorithms):")
     for kind, algs in OPTIMIZERS.items():
         print(f"  {kind}: {', '.join(algs)}")
-    return 0
-
-
-def _load_study_or_exit(path):
-    from .study import StudyError, load_study
-
-    try:
-        return load_study(path)
-    except StudyError as e:
-        print(f"error: {e}", file=sys.stderr)
-        raise SystemExit(2)
+    return EXIT_OK
 
 
 def cmd_validate(args) -> int:
-    study = _load_study_or_exit(args.study)
+    from .study.spec import check_study
+
+    study = _load_study(args.study)
+    problems = check_study(study, measures=not args.quick)
+    if problems:
+        raise CliError(f"{args.study}: {len(problems)} problem(s):\n  " + "\n  ".join(problems))
     from .display import fmt_column_value as fq, fmt_evaluation
 
     print(f"{args.study}: valid study {study.name} ({study.optimizer.kind}) on {study.mechanism}")
@@ -105,24 +220,29 @@ def cmd_validate(args) -> int:
         bounds = [f"{b} {fq(study, c.label, x)}" for b, x in (("min", c.min), ("max", c.max)) if x is not None]
         print(f"  constraint {c.label}: {c.name} " + " ".join(bounds))
     print(f"  evaluation: {fmt_evaluation(study)}")
-    return 0
+    return EXIT_OK
+
+
+def _run_hint(args) -> str:
+    out = f" --out {args.out}" if getattr(args, "out", None) else ""
+    return f"parasynth run {args.study} --resume{out}"
 
 
 def cmd_run(args) -> int:
-    from .study import StudyError, run_study
+    from .study import run_study
 
-    study = _load_study_or_exit(args.study)
-    try:
-        res = run_study(study, out_dir=args.out, resume=args.resume, n_trials=args.n_trials,
-                        progress=not args.quiet)
-    except StudyError as e:
-        print(f"error: {e}", file=sys.stderr)
-        return 2
+    study = _checked_study(args.study)
+    if args.out is not None:
+        _out_dir(args.out, "--out")
+    if args.report_dir is not None and not args.no_report:
+        _out_dir(args.report_dir, "--report-dir")
+    res = run_study(study, out_dir=args.out, resume=args.resume, n_trials=args.n_trials, progress=not args.quiet,
+                    storage=args.storage, workers=args.workers)
     print(res.summary(study))
     if res.interrupted:
-        print(f"interrupted: {res.n_total} designs are saved; continue with "
-              f"parasynth run {args.study} --resume" + (f" --out {args.out}" if args.out else ""), file=sys.stderr)
-        return 130
+        from .study.workers import interrupted_run
+
+        return interrupted_run(args, res)
     if not args.no_report:
         from .report import ReportError, write_report
 
@@ -131,34 +251,31 @@ def cmd_run(args) -> int:
             print(f"report: {rdir / 'index.html'}")
         except ReportError as e:
             print(f"no report: {e}", file=sys.stderr)
-    return 0
+    return EXIT_OK
 
 
 def cmd_run_all(args) -> int:
     """Run every study of a folder (resuming finished or interrupted runs unless --fresh) and
     write each report, plus an index reports/README.md."""
     import shutil
-    from pathlib import Path
 
     from .report import ReportError, write_report
     from .study import StudyError, load_study, run_study
 
     folder = Path(args.folder)
+    if folder.exists() and not folder.is_dir():
+        raise CliError(f"{str(folder)!r} is a file; give a folder of study files (*.yaml)")
     files = sorted(folder.glob("*.yaml")) if folder.is_dir() else []
     if args.only:
         files = [f for f in files if f.stem in args.only]
     if not files:
-        print(f"error: no study files (*.yaml) in {str(folder)!r}" + (f" matching {args.only}" if args.only else ""),
-              file=sys.stderr)
-        return 2
+        raise CliError(f"no study files (*.yaml) in {str(folder)!r}" + (f" matching {args.only}" if args.only else ""))
+    runs = _out_dir(args.runs, "--runs")
+    reports = _out_dir(args.reports, "--reports")
+    studies = [(f, _checked_study(f)) for f in files]  # every file is checked before any runs
     index = []
-    for f in files:
-        try:
-            study = load_study(f)
-        except StudyError as e:
-            print(f"error: {f}: {e}", file=sys.stderr)
-            return 2
-        out = Path(args.runs) / study.name
+    for f, study in studies:
+        out = runs / study.name
         if args.fresh and out.exists():
             shutil.rmtree(out)
         print(f"== {f} -> {out}", flush=True)
@@ -166,9 +283,9 @@ def cmd_run_all(args) -> int:
         print(res.summary(study))
         if res.interrupted:
             print("interrupted; run the same command again to continue", file=sys.stderr)
-            return 130
+            return EXIT_INTERRUPTED
         try:
-            rdir = write_report(out, out=Path(args.reports) / study.name)
+            rdir = write_report(out, out=reports / study.name)
         except ReportError as e:
             print(f"no report for {study.name}: {e}", file=sys.stderr)
             continue
@@ -181,37 +298,56 @@ def cmd_run_all(args) -> int:
             st = load_study(f)
         except StudyError:
             continue
-        rdir = Path(args.reports) / st.name
+        rdir = reports / st.name
         if st.name not in done and (rdir / "index.html").exists():
             index.append((st.name, rdir, " ".join(st.spec.description.split())))
     index.sort(key=lambda item: item[0])
-    idx = Path(args.reports) / "README.md"
+    idx = reports / "README.md"
     lines = ["# Study reports", "", "Regenerate with `parasynth run-all studies` (add `--fresh` to rerun from "
              "scratch).", ""]
     for name, rdir, desc in index:
         lines.append(f"- [{name}]({name}/report.md) ([HTML]({name}/index.html)): {desc}")
     idx.write_text("\n".join(lines) + "\n")
     print(f"index: {idx}")
-    return 0
+    return EXIT_OK
 
 
 def cmd_report(args) -> int:
     from .report import ReportError, write_report
 
+    if args.storage or args.study:
+        from .study.workers import cmd_report_storage
+
+        if not args.storage or args.run_dir:
+            raise CliError("report --storage URL --study NAME rebuilds a run from a storage (no RUN_DIR); "
+                           "report RUN_DIR reports a run directory")
+        return cmd_report_storage(args)
+    if not args.run_dir:
+        raise CliError("report needs a RUN_DIR (or --storage URL --study NAME)")
+    run_dir = Path(args.run_dir)
+    if not run_dir.exists():
+        raise CliError(f"run directory {str(run_dir)!r} does not exist")
+    if not run_dir.is_dir():
+        raise CliError(f"{str(run_dir)!r} is a file; give a run directory (runs/<study name>/)")
+    if args.out is not None:
+        _out_dir(args.out, "--out")
     try:
-        rdir = write_report(args.run_dir, out=args.out)
-    except ReportError as e:
-        print(f"error: {e}", file=sys.stderr)
-        return 2
+        rdir = write_report(run_dir, out=args.out)
+    except (ReportError, OSError):
+        raise
+    except (ValueError, KeyError, IndexError, TypeError) as e:
+        # A damaged run directory: a results.csv, final.csv or journal that does not parse.
+        raise CliError(f"cannot report {str(run_dir)!r}: a file of the run is damaged or from another "
+                       f"version ({type(e).__name__}: {e}); rerun the study or restore the file") from e
     print(f"report: {rdir / 'index.html'} (and report.md, pareto.csv)")
-    return 0
+    return EXIT_OK
 
 
 def cmd_evaluate(args) -> int:
     from .study import Evaluator
-    from .study.spec import StudyError, _q
+    from .study.spec import _q
 
-    study = _load_study_or_exit(args.study)
+    study = _checked_study(args.study)
     byname = {v.name: v for v in study.variables}
     values = {}
     base = dict(study.reference or {})
@@ -224,17 +360,23 @@ def cmd_evaluate(args) -> int:
             values[v.name] = (v.values or v.choices)[0]
     for item in args.set or []:
         if "=" not in item:
-            print(f"error: --set expects NAME=VALUE with units, got {item!r}", file=sys.stderr)
-            return 2
-        k, val = item.split("=", 1)
+            raise CliError(f"--set expects NAME=VALUE with units, got {item!r}")
+        k, val = (x.strip() for x in item.split("=", 1))
         if k not in byname:
-            print(f"error: --set {k}: not a design variable; variables: {', '.join(byname)}", file=sys.stderr)
-            return 2
-        try:
-            values[k] = _q(val.strip(), byname[k].kind, f"--set {k}")
-        except StudyError as e:
-            print(f"error: {e}", file=sys.stderr)
-            return 2
+            raise CliError(f"--set {k}: not a design variable; variables: {', '.join(byname) or '(none)'}")
+        var = byname[k]
+        x = _q(val, var.kind, f"--set {k}")
+        if var.type == "categorical" and x not in var.choices:
+            print(f"warning: --set {k}={val} is not one of the variable's choices "
+                  f"{_fmt_value(list(var.choices), var.kind)}", file=sys.stderr)
+        elif var.low is not None and not (var.low <= x <= var.high):
+            print(f"warning: --set {k}={val} is outside the variable's bounds "
+                  f"[{_fmt_value(var.low, var.kind)}, {_fmt_value(var.high, var.kind)}]; the optimiser never "
+                  f"evaluates it", file=sys.stderr)
+        elif var.low is None and var.values and x not in var.values:
+            print(f"warning: --set {k}={val} is not one of the swept values "
+                  f"{_fmt_value(list(var.values), var.kind)}", file=sys.stderr)
+        values[k] = x
     rec = Evaluator(study).evaluate(values, n=args.samples)
     from .display import fmt_column_value as fq, fmt_design
 
@@ -245,15 +387,11 @@ def cmd_evaluate(args) -> int:
     for k, v in rec.constraint_values.items():
         print(f"  constraint {k} = {fq(study, k, v, 6)} (margin {fq(study, k, rec.margins[k])})")
     print(f"feasible: {rec.feasible}; {rec.time_s:.2f} s")
-    return 0 if rec.status == "ok" else 1
+    return EXIT_OK if rec.status == "ok" else EXIT_FAILED
 
 
 def cmd_analyze(args) -> int:
-    try:
-        mech = load_mechanism(args.name, **_parse_params(args.name, args.param))
-    except ValueError as e:
-        print(f"error: {e}", file=sys.stderr)
-        return 2
+    mech = load_mechanism(args.name, **_parse_params(args.name, args.param))
     print(f"parasynth {__version__} -- {mech.name}: {getattr(mech, 'paper', '')}")
     print("\nparameters (SI):")
     for f in dataclasses.fields(mech.params):
@@ -285,54 +423,229 @@ def cmd_analyze(args) -> int:
             Xfk = mech.forward_kinematics(q)
             err = np.max(np.abs(Xfk - X[reach][:5]))
             print(f"forward kinematics from home on 5 poses: max |X_fk - X| = {err:.2e} (a large value means another assembly mode)")
-    return 0
+    return EXIT_OK
+
+
+def cmd_schema(args) -> int:
+    import json
+
+    from .study.spec import study_json_schema
+
+    text = json.dumps(study_json_schema(), indent=2) + "\n"
+    if args.out is None or args.out == "-":
+        sys.stdout.write(text)
+        return EXIT_OK
+    p = Path(args.out)
+    if p.is_dir():
+        raise CliError(f"--out {str(p)!r} is a directory; give a file name such as study.schema.json")
+    p.write_text(text)
+    print(f"schema: {p}")
+    return EXIT_OK
+
+
+# -- parser --------------------------------------------------------------------------------------
+class _Formatter(argparse.RawDescriptionHelpFormatter):
+    pass
+
+
+def build_parser() -> argparse.ArgumentParser:
+    common = argparse.ArgumentParser(add_help=False)
+    common.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
+                        help="show the Python traceback of an error (also PARASYNTH_DEBUG=1)")
+    ap = argparse.ArgumentParser(
+        prog="parasynth", description="Dimensional synthesis of parallel mechanisms", formatter_class=_Formatter,
+        epilog="examples:\n  parasynth list\n  parasynth validate studies/quickstart.yaml\n"
+               "  parasynth run studies/quickstart.yaml --n-trials 40\n  parasynth report runs/quickstart\n"
+               "  parasynth schema --out study.schema.json", parents=[common])
+    ap.add_argument("--version", action="version", version=f"parasynth {__version__}")
+    sub = ap.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    def add(name, func, help, example):
+        p = sub.add_parser(name, help=help, description=help[0].upper() + help[1:] + ".", parents=[common],
+                           epilog=f"example:\n  {example}", formatter_class=_Formatter)
+        p.set_defaults(func=func)
+        return p
+
+    p = add("list", cmd_list, "list mechanisms with their parameters, measures with their settings, optimisers",
+            "parasynth list")
+    p = add("run", cmd_run, "run a design study", "parasynth run studies/quickstart.yaml --out runs/qs --n-trials 40")
+    p.add_argument("study", type=_path_arg("the study file"), help="study YAML file, e.g. studies/quickstart.yaml")
+    p.add_argument("--out", type=_path_arg("--out"), help="run directory (default runs/<study name>/), e.g. --out runs/qs")
+    p.add_argument("--resume", action="store_true",
+                   help="continue an interrupted run in the same directory, e.g. --resume --out runs/qs")
+    p.add_argument("--n-trials", type=_n_trials, metavar="N",
+                   help=f"evaluation budget (Optuna trials / NLopt maxeval), 1 to {MAX_TRIALS}, e.g. --n-trials 40")
+    p.add_argument("--quiet", action="store_true", help="no progress bar, e.g. --quiet")
+    p.add_argument("--no-report", action="store_true", help="do not write the report at the end, e.g. --no-report")
+    p.add_argument("--report-dir", type=_path_arg("--report-dir"),
+                   help="report directory (default reports/<study name>/), e.g. --report-dir reports/qs")
+    p.add_argument("--workers", type=_count_type("--workers", 1, 1024), metavar="N",
+                   help="local worker processes for an Optuna study (e.g. --workers 2); sweeps and NLopt run in one")
+    p.add_argument("--storage", metavar="URL",
+                   help="Optuna storage, e.g. postgresql://user:pw@host/db, sqlite:///optuna.db, journal:FILE "
+                        "(default: optuna.journal in the run directory); see docs/scaling.md")
+    p = add("worker", None, "join a running Optuna study from any machine",
+            "parasynth worker studies/quickstart.yaml --storage postgresql://user:pw@host:5432/db")
+    p.add_argument("study", type=_path_arg("the study file"),
+                   help="the study YAML file the run was started with, e.g. studies/quickstart.yaml")
+    p.add_argument("--storage", metavar="URL", help="the study's storage, e.g. postgresql://user:pw@host:5432/db")
+    p.add_argument("--n-trials", type=_n_trials, metavar="N",
+                   help="study budget (default: the one the run stored), e.g. --n-trials 200")
+    p.add_argument("--quiet", action="store_true", help="no progress bar, e.g. --quiet")
+    from .study.workers import cmd_worker
+
+    p.set_defaults(func=cmd_worker)
+    p = add("run-all", cmd_run_all, "run every study in a folder and write the reports",
+            "parasynth run-all studies --only quickstart")
+    p.add_argument("folder", nargs="?", default="studies", help="folder of study files (default studies), e.g. studies")
+    p.add_argument("--only", nargs="*", metavar="STEM", help="study file stems to run, e.g. --only quickstart")
+    p.add_argument("--fresh", action="store_true", help="delete existing run directories first, e.g. --fresh")
+    p.add_argument("--runs", default="runs", type=_path_arg("--runs"), help="runs folder (default runs/), e.g. --runs runs")
+    p.add_argument("--reports", default="reports", type=_path_arg("--reports"),
+                   help="reports folder (default reports/), e.g. --reports reports")
+    p.add_argument("--quiet", action="store_true", help="no progress bars, e.g. --quiet")
+    p = add("report", cmd_report, "write the report of a run directory", "parasynth report runs/quickstart --out reports/qs")
+    p.add_argument("run_dir", nargs="?", type=_path_arg("the run directory"), help="run directory, e.g. runs/quickstart")
+    p.add_argument("--out", type=_path_arg("--out"), help="report directory (default reports/<study name>/), e.g. --out reports/qs")
+    p.add_argument("--storage", metavar="URL", help="rebuild the run from this storage (with --study NAME), "
+                                                     "e.g. --storage sqlite:///optuna.db")
+    p.add_argument("--study", metavar="NAME", help="study name in --storage, e.g. --study quickstart")
+    p.add_argument("--run-dir", dest="rebuild_dir", metavar="DIR",
+                   help="where --storage rebuilds the run directory (default runs/NAME), e.g. --run-dir runs/qs")
+    p = add("validate", cmd_validate, "check a study file: names, units, ranges, and that its designs can be built "
+            "and its measures evaluated", "parasynth validate studies/quickstart.yaml")
+    p.add_argument("study", type=_path_arg("the study file"), help="study YAML file, e.g. studies/quickstart.yaml")
+    p.add_argument("--quick", action="store_true",
+                   help="skip the probe evaluation of the measures (designs are still built), e.g. --quick")
+    p = add("evaluate", cmd_evaluate, "evaluate one design of a study",
+            "parasynth evaluate studies/quickstart.yaml --set 'link_length=190 mm' --samples 4096")
+    p.add_argument("study", type=_path_arg("the study file"), help="study YAML file, e.g. studies/quickstart.yaml")
+    p.add_argument("--set", action="append", metavar="NAME=VALUE",
+                   help="design variable value with its unit (repeatable), e.g. --set 'link_length=190 mm'; "
+                        "a value outside the variable's bounds is evaluated with a warning")
+    p.add_argument("--samples", type=_samples, metavar="N",
+                   help=f"workspace samples (default: the study's), 1 to {MAX_SAMPLES}, e.g. --samples 4096")
+    p = add("analyze", cmd_analyze, "kinematic analysis of a mechanism", "parasynth analyze 5pus_upu --param 'link_length=185 mm'")
+    p.add_argument("name", help=f"one of: {', '.join(list_mechanisms())}, or a mechanism description file (.yaml), "
+                                f"e.g. 5pus_upu")
+    p.add_argument("--param", action="append", metavar="NAME=VALUE",
+                   help="override a parameter, with its unit (repeatable), e.g. --param 'link_length=185 mm'")
+    p.add_argument("--samples", type=_samples, default=2000, metavar="N",
+                   help=f"random poses to sample (default 2000), 1 to {MAX_SAMPLES}, e.g. --samples 5000")
+    p.add_argument("--seed", type=_seed, default=0, help="seed of the pose sample (default 0), e.g. --seed 1")
+    p = add("schema", cmd_schema, "write the study file format as JSON Schema (for editors)",
+            "parasynth schema --out study.schema.json")
+    p.add_argument("--out", type=_path_arg("--out"), help="output file (default: standard output), e.g. --out study.schema.json")
+    return ap
+
+
+# -- error handling ------------------------------------------------------------------------------
+def _one_line(e: BaseException) -> str:
+    msg = str(e).strip() or type(e).__name__
+    return msg
+
+
+def _describe_error(e: BaseException) -> tuple[str, int]:
+    """(message, exit status) for an exception that reached :func:`main`."""
+    from .study import StudyError
+    from .units import QuantityError
+    from .validation import InputError
+    from .yamlio import YamlError
+
+    if isinstance(e, CliError):
+        return str(e), e.code
+    if isinstance(e, (StudyError, QuantityError, YamlError, InputError)):
+        return _one_line(e), EXIT_USAGE
+    name = type(e).__name__
+    text = str(e)
+    # Storage back-ends (SQLAlchemy / sqlite3 errors are not imported here).
+    if "disk I/O error" in text or "database or disk is full" in text:
+        return f"the storage cannot be written (disk full or I/O error): {text.splitlines()[0]}", EXIT_FAILED
+    if name in ("OperationalError", "DatabaseError", "ArgumentError", "NoSuchModuleError") or \
+            type(e).__module__.startswith(("sqlalchemy", "sqlite3")):
+        return f"storage error ({name}): {text.splitlines()[0] if text else name}", EXIT_FAILED
+    if isinstance(e, OSError):
+        where = f" {e.filename!r}" if getattr(e, "filename", None) else ""
+        if e.errno == errno.ENOSPC:
+            return f"disk full while writing{where}; free some space and run again (with --resume for a run)", EXIT_FAILED
+        if e.errno in (errno.EACCES, errno.EPERM, errno.EROFS):
+            return f"permission denied{where}: {e.strerror}", EXIT_FAILED
+        if e.errno == errno.EISDIR:
+            return f"{where.strip() or 'path'} is a directory, not a file", EXIT_USAGE
+        if e.errno == errno.ENOENT:
+            return f"no such file or directory{where}", EXIT_USAGE
+        return f"{e.strerror or name}{where}", EXIT_FAILED
+    if isinstance(e, UnicodeError):
+        return f"not UTF-8 text: {e}", EXIT_USAGE
+    if isinstance(e, RecursionError):
+        return "the input is nested too deeply", EXIT_USAGE
+    if isinstance(e, MemoryError):
+        return "out of memory; reduce the sample count or the number of designs", EXIT_FAILED
+    if isinstance(e, ValueError):  # library validation errors are ValueErrors naming the field
+        return _one_line(e), EXIT_USAGE
+    return f"internal error ({name}: {text.splitlines()[0] if text else ''}); run with --debug for the " \
+           f"traceback and report it", EXIT_FAILED
+
+
+def _print_error(msg: str) -> None:
+    try:
+        print(f"error: {msg}", file=sys.stderr, flush=True)
+    except (OSError, ValueError):
+        pass
+
+
+def _silence_stdout() -> None:
+    """After a broken pipe: point stdout at /dev/null so that the final flush does not fail."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError, AttributeError):
+        pass
+
+
+def _load_user_plugins() -> None:
+    spec = os.environ.get("PARASYNTH_PLUGINS", "")
+    try:
+        load_plugins(spec)
+    except SystemExit as e:  # the loader's own message for a missing file
+        raise CliError(str(e.code).removeprefix("error: ")) from None
+    except ImportError as e:
+        raise CliError(f"PARASYNTH_PLUGINS: cannot import {getattr(e, 'name', None) or spec!r} ({e})") from None
+    except Exception as e:
+        raise CliError(f"PARASYNTH_PLUGINS: a plugin failed while loading ({type(e).__name__}: {e})",
+                       EXIT_FAILED) from None
 
 
 def main(argv: list[str] | None = None) -> int:
-    load_plugins()
-    ap = argparse.ArgumentParser(prog="parasynth", description="Dimensional synthesis of parallel mechanisms")
-    ap.add_argument("--version", action="version", version=f"parasynth {__version__}")
-    sub = ap.add_subparsers(dest="command", required=True)
-    p = sub.add_parser("list", help="list mechanisms, objectives, optimisers")
-    p.set_defaults(func=cmd_list)
-    p = sub.add_parser("run", help="run a design study")
-    p.add_argument("study", help="study YAML file")
-    p.add_argument("--out", help="run directory (default runs/<study name>/)")
-    p.add_argument("--resume", action="store_true", help="continue an interrupted run in the same directory")
-    p.add_argument("--n-trials", type=int, help="evaluation budget (optuna trials / nlopt maxeval)")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
-    p.add_argument("--no-report", action="store_true", help="do not write the report at the end")
-    p.add_argument("--report-dir", help="report directory (default reports/<study name>/)")
-    p.set_defaults(func=cmd_run)
-    p = sub.add_parser("run-all", help="run every study in a folder and write the reports")
-    p.add_argument("folder", nargs="?", default="studies")
-    p.add_argument("--only", nargs="*", help="study file stems to run")
-    p.add_argument("--fresh", action="store_true", help="delete existing run directories first")
-    p.add_argument("--runs", default="runs", help="runs folder (default runs/)")
-    p.add_argument("--reports", default="reports", help="reports folder (default reports/)")
-    p.add_argument("--quiet", action="store_true")
-    p.set_defaults(func=cmd_run_all)
-    p = sub.add_parser("report", help="write the report of a run directory")
-    p.add_argument("run_dir", help="run directory (runs/<study name>/)")
-    p.add_argument("--out", help="report directory (default reports/<study name>/)")
-    p.set_defaults(func=cmd_report)
-    p = sub.add_parser("validate", help="check a study file")
-    p.add_argument("study")
-    p.set_defaults(func=cmd_validate)
-    p = sub.add_parser("evaluate", help="evaluate one design of a study")
-    p.add_argument("study")
-    p.add_argument("--set", action="append", metavar="NAME=VALUE", help="design variable value with unit")
-    p.add_argument("--samples", type=int, help="workspace samples (default: the study's)")
-    p.set_defaults(func=cmd_evaluate)
-    p = sub.add_parser("analyze", help="kinematic analysis of a mechanism")
-    p.add_argument("name", help=f"one of: {', '.join(list_mechanisms())}, or a mechanism description file (.yaml)")
-    p.add_argument("--param", action="append", metavar="NAME=VALUE",
-                   help="override a parameter, with its unit (e.g. link_length='185 mm')")
-    p.add_argument("--samples", type=int, default=2000, help="random poses to sample (default 2000)")
-    p.add_argument("--seed", type=int, default=0)
-    p.set_defaults(func=cmd_analyze)
-    args = ap.parse_args(argv)
-    return args.func(args)
+    """Run the command line; returns the exit status (see the module docstring)."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    debug = os.environ.get("PARASYNTH_DEBUG", "") not in ("", "0") or "--debug" in argv
+    try:
+        _load_user_plugins()
+        args = build_parser().parse_args(argv)
+        debug = debug or getattr(args, "debug", False)
+        code = args.func(args)
+        sys.stdout.flush()
+        return code
+    except SystemExit:
+        raise
+    except KeyboardInterrupt:
+        if debug:
+            raise
+        _print_error("interrupted")
+        return EXIT_INTERRUPTED
+    except BrokenPipeError:
+        _silence_stdout()
+        if debug:
+            raise
+        _print_error("the output was closed before it was complete (broken pipe)")
+        return EXIT_PIPE
+    except Exception as e:
+        if debug:
+            raise
+        msg, code = _describe_error(e)
+        _print_error(msg)
+        return code
 
 
 if __name__ == "__main__":

@@ -67,6 +67,7 @@ class RunResult:
     elapsed_s: float
     interrupted: bool = False
     new_records: list | None = None
+    storage: str | None = None  # the storage URL when given explicitly (for the resume hint)
 
     def summary(self, study: ResolvedStudy) -> str:
         from ..display import text_table
@@ -134,15 +135,24 @@ def write_tables(study: ResolvedStudy, out_dir: Path, records: list[Record]) -> 
 
 
 # -- run directory -------------------------------------------------------------------------------------
-def prepare_dir(study: ResolvedStudy, out_dir: Path, resume: bool) -> list[Record]:
+def prepare_dir(study: ResolvedStudy, out_dir: Path, resume: bool, lock: RunLock | None = None) -> list[Record]:
+    """Create or check the run directory; with ``lock`` it is acquired before anything is
+    read. Returns the journal's records on resume (a torn last line cut away)."""
     out_dir = Path(out_dir)
-    existing = list(out_dir.glob("journal*.jsonl")) if out_dir.exists() else []
+    if out_dir.exists() and not out_dir.is_dir():
+        raise StudyError(f"run directory {str(out_dir)!r} is a file; choose a directory with --out")
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise StudyError(f"cannot create the run directory {str(out_dir)!r}: {e.strerror or e}") from None
+    if lock is not None:
+        lock.acquire()
+    existing = list(out_dir.glob("journal*.jsonl")) + list(out_dir.glob("optuna.journal"))
     if existing and not resume:
         raise StudyError(
             f"run directory {str(out_dir)!r} already holds results; pass --resume to continue that run "
             f"or --out to start a new one"
         )
-    out_dir.mkdir(parents=True, exist_ok=True)
     text = study.to_yaml()
     sy = out_dir / "study.yaml"
     if resume and sy.exists() and existing:
@@ -150,8 +160,10 @@ def prepare_dir(study: ResolvedStudy, out_dir: Path, resume: bool) -> list[Recor
             raise StudyError(
                 f"cannot resume: the study differs from the one run in {str(out_dir)!r} (compare with its study.yaml)"
             )
-    sy.write_text(text)
-    return read_journal(out_dir) if resume else []
+    tmp = out_dir / "study.yaml.tmp"
+    tmp.write_text(text)
+    os.replace(tmp, sy)
+    return read_journal(out_dir, repair=True) if resume else []
 
 
 def _key(values: dict) -> str:
@@ -160,7 +172,7 @@ def _key(values: dict) -> str:
 
 
 class _Progress:
-    def __init__(self, total, enabled, desc):
+    def __init__(self, total, enabled, desc, initial=0):
         self.bar = None
         if enabled:
             try:
@@ -168,61 +180,129 @@ class _Progress:
 
                 # disable=None: a bar on a terminal, nothing in logs (the summary follows).
                 self.bar = tqdm(total=total, desc=desc, unit="design", file=sys.stderr, dynamic_ncols=True,
-                                disable=None, mininterval=0.5)
+                                disable=None, mininterval=0.5, initial=initial)
             except ImportError:
                 self.bar = None
 
-    def update(self, rec: Record, best=None):
+    def update(self, rec: Record, best=None, n: int = 1):
         if self.bar is not None:
-            self.bar.update(1)
+            self.bar.update(n)
             if best is not None:
-                self.bar.set_postfix_str(best)
+                self.bar.set_postfix_str(best, refresh=False)
 
     def close(self):
         if self.bar is not None:
             self.bar.close()
 
 
+TABLES_EVERY_S = 5.0
+
+
 # -- runners ---------------------------------------------------------------------------------------------
 def run_study(study: ResolvedStudy, out_dir=None, resume: bool = False, n_trials: int | None = None,
-              progress: bool = True) -> RunResult:
-    """Run a resolved study; see the module docstring for the run directory."""
+              progress: bool = True, storage: str | None = None, workers: int | None = None,
+              study_file=None) -> RunResult:
+    """Run a resolved study; see the module docstring for the run directory.
+
+    ``storage``: an Optuna storage URL (overrides ``optimizer.storage``); ``workers``: local
+    worker processes for an Optuna study (default ``optimizer.workers`` / ``n_jobs``, 1).
+    Sweeps and NLopt run in one process (a note is printed when more workers are asked for)."""
+    if n_trials is not None and (not isinstance(n_trials, int) or isinstance(n_trials, bool) or n_trials < 1):
+        raise StudyError(f"n_trials: a positive whole number of designs is needed, got {n_trials!r}")
+    kind = study.optimizer.kind
+    n_workers = _workers_of(study, workers)
+    if kind != "optuna":
+        if storage:
+            raise StudyError(f"--storage applies to Optuna studies; a {kind} run keeps its designs in the run "
+                             f"directory's journal")
+        if n_workers > 1:
+            print(f"note: a {'sweep' if kind == 'sweep' else 'NLopt run'} runs in one process; "
+                  f"--workers applies to Optuna studies", file=sys.stderr)
+            n_workers = 1
     out_dir = Path(out_dir or study.spec.output or Path("runs") / study.name)
-    previous = prepare_dir(study, out_dir, resume)
+    lock = RunLock(out_dir)
+    try:
+        previous = prepare_dir(study, out_dir, resume, lock=lock)
+        return _run_locked(study, out_dir, previous, resume, n_trials, progress, storage, n_workers)
+    finally:
+        lock.release()
+
+
+def _workers_of(study, workers):
+    if workers is not None:
+        if not isinstance(workers, int) or isinstance(workers, bool) or workers < 1:
+            raise StudyError(f"--workers: a positive whole number of processes is needed, got {workers!r}")
+        return workers
+    opt = study.optimizer
+    return max(int(getattr(opt, "workers", None) or 1), int(getattr(opt, "n_jobs", 1) or 1))
+
+
+def _run_locked(study, out_dir, previous, resume, n_trials, progress, storage, n_workers) -> RunResult:
+    from .workers import Interrupt
+
     evaluator = Evaluator(study)
-    worker = f"journal-{os.getpid()}.jsonl" if study.optimizer.n_jobs > 1 else "journal.jsonl"
-    journal = Journal(out_dir / worker)
     t0 = time.perf_counter()
     records = list(previous)
     new = []
-    interrupted = False
+    last_tables = [time.monotonic()]
+    ctx = {}
 
-    def record(rec: Record):
-        journal.append(rec)
-        records.append(rec)
-        new.append(rec)
-        if len(new) % 10 == 0:
-            write_tables(study, out_dir, records)
+    with Interrupt(quiet=not progress) as guard:
+        journal = None
+        try:
+            if study.optimizer.kind == "optuna":
+                # Set up (and check) the storage before any work, and reconcile the journal
+                # with it: the storage is the record of an Optuna study.
+                ctx = _optuna_setup(study, out_dir, resume, n_trials, storage, records)
+                records[:] = ctx["records"]
+            journal = Journal(out_dir / "journal.jsonl")
 
-    try:
-        if study.reference is not None and not any(r.source == "reference" for r in records):
-            record(evaluator.evaluate(dict(study.reference), trial=-1, source="reference"))
-        kind = study.optimizer.kind
-        if kind == "sweep":
-            _run_sweep(study, evaluator, records, record, progress)
-        elif kind == "nlopt":
-            _run_nlopt(study, evaluator, records, record, progress, n_trials)
-        else:
-            _run_optuna(study, evaluator, records, record, progress, n_trials, out_dir, resume)
-    except KeyboardInterrupt:
-        interrupted = True
-    finally:
-        journal.close()
-        table = write_tables(study, out_dir, records)
+            def record(rec: Record):
+                journal.append(rec)
+                records.append(rec)
+                new.append(rec)
+                now = time.monotonic()
+                if now - last_tables[0] > TABLES_EVERY_S:
+                    write_tables(study, out_dir, records)
+                    last_tables[0] = now
+
+            if study.reference is not None and not any(r.source == "reference" for r in records):
+                with guard.evaluating():
+                    rec = evaluator.evaluate(dict(study.reference), trial=-1, source="reference")
+                record(rec)
+                if ctx:
+                    _store_reference(ctx["ostudy"], rec)
+            kind = study.optimizer.kind
+            if guard.requested:
+                pass
+            elif kind == "sweep":
+                _run_sweep(study, evaluator, records, record, progress, guard)
+            elif kind == "nlopt":
+                _run_nlopt(study, evaluator, records, record, progress, n_trials, guard)
+            else:
+                _run_optuna(study, evaluator, records, record, progress, ctx, n_workers, out_dir, guard, journal)
+        except KeyboardInterrupt:
+            guard.requested = True
+        finally:
+            if journal is not None:
+                journal.close()
+            if records:
+                table = write_tables(study, out_dir, records)
+            else:
+                table = results_table(study, records)
+        interrupted = guard.requested
     final = None
     if not interrupted and study.evaluation.get("final_samples") and study.evaluation.get("final_top", 0) > 0:
-        final = reevaluate_best(study, evaluator, table, out_dir)
-    return RunResult(out_dir, table, final, len(new), len(records), time.perf_counter() - t0, interrupted, new)
+        with Interrupt(quiet=not progress) as guard2:
+            try:
+                final = reevaluate_best(study, evaluator, table, out_dir)
+            except KeyboardInterrupt:
+                interrupted = True
+            interrupted = interrupted or guard2.requested
+        if final is not None and ctx:
+            _store_final(ctx["ostudy"], out_dir)
+    return RunResult(out_dir, table, final, len(new), len(records), time.perf_counter() - t0, interrupted, new,
+                     storage=ctx.get("url") if ctx and ctx.get("explicit") else None)
 
 
 def _sweep_designs(study: ResolvedStudy) -> list[dict]:
@@ -248,21 +328,24 @@ def _best_str(study, records):
     return f"best {o.label}={b:.4g}"
 
 
-def _run_sweep(study, evaluator, records, record, progress):
+def _run_sweep(study, evaluator, records, record, progress, guard):
     designs = _sweep_designs(study)
-    done = {_key(r.values) for r in records if r.source == "run"}
-    todo = [(i, d) for i, d in enumerate(designs) if _key(d) not in done]
-    bar = _Progress(len(todo), progress, f"sweep {study.name}")
+    done = {r.trial for r in records if r.source == "run"}
+    todo = [(i, d) for i, d in enumerate(designs) if i not in done]
+    bar = _Progress(len(designs), progress, f"sweep {study.name}", initial=len(designs) - len(todo))
     try:
         for i, d in todo:
-            rec = evaluator.evaluate(d, trial=i)
+            if guard.requested:
+                break
+            with guard.evaluating():
+                rec = evaluator.evaluate(d, trial=i)
             record(rec)
             bar.update(rec, _best_str(study, records))
     finally:
         bar.close()
 
 
-def _run_nlopt(study, evaluator, records, record, progress, n_trials):
+def _run_nlopt(study, evaluator, records, record, progress, n_trials, guard):
     import nlopt
 
     opt_spec = study.optimizer
@@ -286,9 +369,11 @@ def _run_nlopt(study, evaluator, records, record, progress, n_trials):
         opt.set_initial_step([0.1] * nv)
     if opt_spec.population_size:
         opt.set_population(int(opt_spec.population_size))
+    # Trial numbers are the order of first evaluation along the (deterministic) path, the same
+    # in an uninterrupted and a resumed run.
     cache = {_key(r.values): r for r in records if r.source == "run"}
-    state = {"worst": None, "n": 0, "stop": None}
-    bar = _Progress(int(maxeval), progress, f"nlopt {alg} {study.name}")
+    state = {"worst": None, "stop": None}
+    bar = _Progress(int(maxeval), progress, f"nlopt {alg} {study.name}", initial=min(len(cache), int(maxeval)))
 
     def values_of(u):
         return {v.name: v.denormalize(float(np.clip(x, 0, 1))) for v, x in zip(vars_, u)}
@@ -298,10 +383,12 @@ def _run_nlopt(study, evaluator, records, record, progress, n_trials):
         k = _key(vals)
         rec = cache.get(k)
         if rec is None:
-            rec = evaluator.evaluate(vals, trial=state["n"])
+            if guard.requested:
+                raise KeyboardInterrupt
+            with guard.evaluating():
+                rec = evaluator.evaluate(vals, trial=len(cache))
             cache[k] = rec
             record(rec)
-            state["n"] += 1
             bar.update(rec, _best_str(study, list(cache.values())))
         return rec
 
@@ -359,163 +446,146 @@ def _run_nlopt(study, evaluator, records, record, progress, n_trials):
         opt.optimize(x0)
     except nlopt.ForcedStop:
         if state["stop"] == "interrupt":
-            raise KeyboardInterrupt
+            guard.requested = True
     except (nlopt.RoundoffLimited, ValueError, RuntimeError) as e:
         print(f"nlopt stopped: {type(e).__name__}: {e}", file=sys.stderr)
     finally:
         bar.close()
 
 
-def _make_sampler(study, seed, constraints_func):
+# -- Optuna ----------------------------------------------------------------------------------------------
+def _optuna_total(study, n_trials):
+    return int(n_trials or study.optimizer.n_trials or 50)
+
+
+def _optuna_setup(study, out_dir, resume, n_trials, storage_override, journal_records):
+    """Open (and check) the storage, create or load the study, rebuild the embedded storage on
+    resume, and return the records the run starts from (the reference from the journal, the
+    designs from the storage)."""
     import optuna
 
-    alg = study.optimizer.algorithm or ("nsga2" if len(study.objectives) > 1 else "tpe")
-    pop = study.optimizer.population_size
-    if alg == "tpe":
-        return optuna.samplers.TPESampler(seed=seed, constraints_func=constraints_func, multivariate=True)
-    if alg == "nsga2":
-        kw = {"population_size": pop} if pop else {}
-        return optuna.samplers.NSGAIISampler(seed=seed, constraints_func=constraints_func, **kw)
-    if alg == "nsga3":
-        kw = {"population_size": pop} if pop else {}
-        return optuna.samplers.NSGAIIISampler(seed=seed, constraints_func=constraints_func, **kw)
-    if alg == "random":
-        return optuna.samplers.RandomSampler(seed=seed)
-    if alg == "qmc":
-        return optuna.samplers.QMCSampler(seed=seed, scramble=True)
-    if alg == "cmaes":
-        if len(study.objectives) > 1:
-            raise StudyError("optimizer.algorithm: cmaes is single-objective; use nsga2 or tpe")
-        return optuna.samplers.CmaEsSampler(seed=seed)
-    raise StudyError(f"optimizer.algorithm: unknown {alg!r}")
-
-
-def _constraints_func(trial):
-    return trial.user_attrs.get("constraints", [1.0])
-
-
-def _set_optuna_constraints(trial, study, rec):
-    """Our margins count >= 0 as feasible, Optuna's constraint values <= 0: convert here, in
-    one place. Optuna >= 5 reads ``Trial.set_constraint``; older versions a
-    ``constraints_func`` that returns the user attribute set here."""
-    vals = [(-m if math.isfinite(m) else 1e9) for m in rec.margins.values()]
-    if rec.status != "ok":
-        vals = [1e9 for _ in study.constraints]
-    trial.set_user_attr("constraints", vals or [0.0])
-    if hasattr(trial, "set_constraint"):
-        for c, v in zip(study.constraints, vals):
-            trial.set_constraint(c.label, v)
-
-
-def _uses_set_constraint() -> bool:
-    import optuna
-
-    return hasattr(optuna.trial.Trial, "set_constraint")
-
-
-def _run_optuna(study, evaluator, records, record, progress, n_trials, out_dir, resume):
-    import optuna
+    from . import storage as st
 
     optuna.logging.set_verbosity(optuna.logging.ERROR)
-    opt_spec = study.optimizer
-    total = n_trials or opt_spec.n_trials or 50
-    seed = opt_spec.seed if opt_spec.seed is not None else study.evaluation["seed"]
-    storage = opt_spec.storage or f"sqlite:///{(Path(out_dir) / 'optuna.db').resolve()}"
+    url = st.resolve_storage_url(study, out_dir, storage_override)
+    explicit = bool(storage_override or study.optimizer.storage)
+    shared = st.is_shared_server(url)
+    seed = study.optimizer.seed if study.optimizer.seed is not None else study.evaluation["seed"]
+    total = _optuna_total(study, n_trials)
+    if resume and not shared and st._is_journal(url):
+        dropped = st.rebuild_journal_storage(url, study.name)
+        if dropped:
+            print(f"resume: {dropped} unfinished trial(s) of the interrupted run removed from the storage; "
+                  f"their designs are proposed again", file=sys.stderr)
+    storage = st.open_storage(url)
+    exists = study.name in st.study_names(storage)
+    if exists and not resume:
+        raise st.StorageError(
+            f"storage {st.describe_url(url)!r} already holds a study named {study.name!r}; pass --resume to "
+            f"continue it, or give the study another name")
     directions = [o.goal for o in study.objectives]
-    has_cons = bool(study.constraints) and not _uses_set_constraint()
-    sampler = _make_sampler(study, seed, _constraints_func if has_cons else None)
-    ostudy = optuna.create_study(study_name=study.name, storage=storage, directions=directions, sampler=sampler,
-                                 load_if_exists=True)
-    # Trials left running by a killed process are failed: their designs are evaluated anew.
-    for t in ostudy.get_trials(deepcopy=False, states=(optuna.trial.TrialState.RUNNING,)):
-        ostudy._storage.set_trial_state_values(t._trial_id, state=optuna.trial.TrialState.FAIL)
-    finished = [t for t in ostudy.get_trials(deepcopy=False)
-                if t.state in (optuna.trial.TrialState.COMPLETE, optuna.trial.TrialState.FAIL)
-                and t.user_attrs.get("evaluated")]
-    remaining = max(0, total - len(finished))
-    if remaining == 0:
-        return
-    if finished:
-        # A resumed sampler must not replay the random stream of the first run (it would
-        # propose the designs already evaluated): continue with a seed offset by the number
-        # of finished trials, which keeps resumed runs deterministic.
-        ostudy.sampler = _make_sampler(study, seed + len(finished), _constraints_func if has_cons else None)
-    bar = _Progress(remaining, progress, f"optuna {sampler.__class__.__name__} {study.name}")
+    ostudy = optuna.create_study(study_name=study.name, storage=storage, directions=directions,
+                                 sampler=None, load_if_exists=True)
+    if [d.name.lower() for d in ostudy.directions] != [d.lower() for d in directions]:
+        raise st.StorageError(f"storage {st.describe_url(url)!r}: study {study.name!r} there has other objectives "
+                              f"({len(ostudy.directions)} directions); give the study another name")
+    text = study.to_yaml()
+    stored = ostudy.user_attrs.get(st.ATTR_STUDY)
+    if stored is not None and stored != text:
+        raise st.StorageError(f"storage {st.describe_url(url)!r}: the study {study.name!r} stored there differs "
+                              f"from this study file; give the study another name or use the same file")
+    if stored is None:
+        ostudy.set_user_attr(st.ATTR_STUDY, text)
+    ostudy.set_user_attr(st.ATTR_BUDGET, total)
+    from optuna.trial import TrialState
 
-    def on_record(rec):
-        record(rec)
-        bar.update(rec, _best_str(study, records))
+    if resume and not shared and not st._is_journal(url):
+        # SQLite: trials left running by the killed process are failed, their designs
+        # proposed again.
+        for t in ostudy.get_trials(deepcopy=False, states=(TrialState.RUNNING,)):
+            ostudy._storage.set_trial_state_values(t._trial_id, state=TrialState.FAIL)
+    from .workers import make_sampler
 
-    objective = _optuna_objective(study, evaluator, on_record)
+    ostudy.sampler = make_sampler(study, seed)
+    trials = ostudy.get_trials(deepcopy=False)
+    recs = st.records_from_trials(trials)
+    ref = [r for r in journal_records if r.source == "reference"]
+    if not ref:
+        sref = st.reference_record(ostudy)
+        ref = [sref] if sref is not None else []
+    records = ref + recs
+    # The journal mirrors the storage: rewrite it when they differ (a trial the interruption
+    # left unfinished, designs of other workers).
+    want = [(r.source, r.trial) for r in records]
+    have = [(r.source, r.trial) for r in journal_records]
+    jpath = Path(out_dir) / "journal.jsonl"
+    if want != have and (records or jpath.exists()):
+        rewrite_journal(jpath, records)
+    return {"url": url, "explicit": explicit, "shared": shared, "storage": storage, "ostudy": ostudy,
+            "total": total, "seed": seed, "records": records}
+
+
+def _store_reference(ostudy, rec):
+    from .storage import ATTR_REFERENCE
+    from .workers import _jsonable
 
     try:
-        if opt_spec.n_jobs > 1:
-            _optuna_processes(study, storage, seed, remaining, opt_spec.n_jobs, out_dir)
-            for r in read_journal(out_dir):
-                if _key(r.values) not in {_key(x.values) for x in records}:
-                    records.append(r)
+        ostudy.set_user_attr(ATTR_REFERENCE, _jsonable(rec.to_dict()))
+    except Exception as e:  # the reference stays in the journal
+        print(f"warning: could not store the reference design in the storage ({type(e).__name__})", file=sys.stderr)
+
+
+def _store_final(ostudy, out_dir):
+    from .storage import ATTR_FINAL
+
+    try:
+        ostudy.set_user_attr(ATTR_FINAL, (Path(out_dir) / "final.csv").read_text())
+    except Exception as e:
+        print(f"warning: could not store final.csv in the storage ({type(e).__name__})", file=sys.stderr)
+
+
+def _run_optuna(study, evaluator, records, record, progress, ctx, n_workers, out_dir, guard, journal):
+    from . import storage as st
+    from .workers import optimize_loop, optuna_objective, run_local_workers
+
+    ostudy, total = ctx["ostudy"], ctx["total"]
+    counted = sum(1 for r in records if r.source == "run")
+    if counted >= total and not ctx["shared"]:
+        return
+    alg = study.optimizer.algorithm or ("nsga2" if len(study.objectives) > 1 else "tpe")
+    bar = _Progress(total, progress, f"optuna {alg} {study.name}", initial=min(counted, total))
+    try:
+        if n_workers > 1:
+            def on_new(recs):
+                for r in recs:
+                    record(r)
+                bar.update(None, _best_str(study, records), n=len(recs))
+
+            codes = run_local_workers(Path(out_dir) / "study.yaml", ctx["url"], n_workers, total, ostudy, guard,
+                                      on_new=on_new)
+            bad = [c for c in codes if c not in (0, 130, -2)]
+            if bad and not guard.requested:
+                print(f"warning: {len(bad)} worker(s) stopped with an error (exit codes {bad}); the study keeps "
+                      f"their stored trials", file=sys.stderr)
         else:
-            ostudy.optimize(objective, n_trials=remaining, catch=(Exception,), gc_after_trial=False)
+            def on_record(rec):
+                record(rec)
+                bar.update(rec, _best_str(study, records))
+
+            def on_count(n):
+                if bar.bar is not None and n != bar.bar.n:
+                    bar.bar.n = n
+                    bar.bar.refresh()
+
+            objective = optuna_objective(study, evaluator, on_record, guard=guard, mark_owner=ctx["shared"])
+            optimize_loop(ostudy, objective, total, guard, shared=ctx["shared"], counted=counted,
+                          on_count=on_count)
     finally:
         bar.close()
-
-
-def _optuna_objective(study, evaluator: Evaluator, on_record):
-    """The Optuna objective of a study: suggest the design variables, evaluate the design,
-    hand the record to ``on_record``, report constraints and objectives (NaN for a failed
-    design, which Optuna records as a failed trial)."""
-
-    def objective(trial):
-        values = {}
-        for v in study.variables:
-            if v.type == "categorical":
-                values[v.name] = trial.suggest_categorical(v.name, list(v.choices))
-            elif v.type == "integer":
-                values[v.name] = trial.suggest_int(v.name, int(v.low), int(v.high), log=v.log)
-            else:
-                values[v.name] = trial.suggest_float(v.name, v.low, v.high, log=v.log)
-        rec = evaluator.evaluate(values, trial=trial.number)
-        _set_optuna_constraints(trial, study, rec)
-        trial.set_user_attr("evaluated", True)
-        on_record(rec)
-        if rec.status != "ok":
-            trial.set_user_attr("error", rec.error)
-            return tuple(float("nan") for _ in study.objectives) if len(study.objectives) > 1 else float("nan")
-        vals = tuple(rec.objectives[o.label] for o in study.objectives)
-        return vals if len(vals) > 1 else vals[0]
-
-    return objective
-
-
-def _optuna_worker(args):
-    study_yaml, storage, seed, n, out_dir, idx = args
-    from ..plugins import load_plugins
-    from .spec import load_study
-
-    load_plugins()  # user measures registered through PARASYNTH_PLUGINS
-
-    study = load_study(study_yaml, is_text=True)
-    import optuna
-
-    optuna.logging.set_verbosity(optuna.logging.ERROR)
-    evaluator = Evaluator(study)
-    journal = Journal(Path(out_dir) / f"journal-w{idx}-{os.getpid()}.jsonl")
-    sampler = _make_sampler(study, seed + idx,
-                            _constraints_func if study.constraints and not _uses_set_constraint() else None)
-    ostudy = optuna.load_study(study_name=study.name, storage=storage, sampler=sampler)
-
-    objective = _optuna_objective(study, evaluator, journal.append)
-    ostudy.optimize(objective, n_trials=n, catch=(Exception,))
-    journal.close()
-
-
-def _optuna_processes(study, storage, seed, remaining, n_jobs, out_dir):
-    """Optuna's own n_jobs uses threads (no gain for CPU-bound objectives under the GIL):
-    run ``n_jobs`` processes sharing the storage instead."""
-    import multiprocessing as mp
-
-    per = [remaining // n_jobs + (1 if i < remaining % n_jobs else 0) for i in range(n_jobs)]
-    args = [(study.to_yaml(), storage, seed, n, str(out_dir), i) for i, n in enumerate(per) if n]
-    ctx = mp.get_context("spawn")
-    with ctx.Pool(len(args)) as pool:
-        pool.map(_optuna_worker, args)
+    if ctx["shared"] or n_workers > 1:
+        # Designs of every worker (other machines included), each trial once, in trial order.
+        ref = [r for r in records if r.source == "reference"]
+        recs = st.records_from_trials(ostudy.get_trials(deepcopy=False))
+        records[:] = ref + recs
+        journal.close()
+        rewrite_journal(Path(out_dir) / "journal.jsonl", records)

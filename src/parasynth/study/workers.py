@@ -1,0 +1,595 @@
+"""Optuna studies on several processes and machines, and safe interrupts for every runner.
+
+Interrupts
+----------
+:class:`Interrupt` replaces the SIGINT (Ctrl-C) and SIGTERM handlers while a run works. The
+first signal asks the run to stop after the design being evaluated; it is finished and
+recorded, the tables are written and the run returns ``interrupted=True``. A second signal
+while a design is being evaluated drops that design (it is not recorded, a resumed run
+evaluates it again). A signal never interrupts a write to the journal or the storage.
+
+Reproducible proposals
+----------------------
+:class:`PerTrialSeeded` wraps an Optuna sampler so that every trial is proposed by a fresh
+sampler seeded from ``(seed, trial number)``: a proposal depends only on the seed, the trial
+number and the trials stored before it, not on how many proposals a process made before. A
+run killed and resumed (the storage rebuilt without the interrupted trials, see
+:func:`~parasynth.study.storage.rebuild_journal_storage`) therefore proposes, evaluates and
+stores exactly what the uninterrupted run would have. With several workers the trials
+finish in an order set by timing, so a parallel run is complete and every trial is recorded
+once, but it is not the same sequence as a one-process run.
+
+Workers
+-------
+``parasynth run STUDY --workers N`` starts N worker processes on the run's storage (each one
+``parasynth worker``, in its own process group, evaluations single-threaded unless
+``NUMBA_NUM_THREADS`` is set) and follows the storage: the progress bar, the journal and the
+tables count every worker's designs. ``parasynth worker STUDY --storage URL`` joins a study
+from any machine that reaches the storage. Every worker asks the storage for a trial, evaluates
+it and stores the result with the design's record; a worker stops when the study holds its
+budget of counted trials, and waits (instead of stopping early) while trials of other workers
+are still running, so a trial of a killed worker is retried rather than lost. A worker that
+loses the storage retries ``PARASYNTH_STORAGE_RETRIES`` times (default 3, after 1, 2, 4 s),
+then exits with a message; its unfinished trial is failed by the heartbeat (server storage)
+or when its process is found dead (local storage) and is proposed again.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import os
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+
+from .evaluate import Evaluator, Record
+from .spec import StudyError
+
+__all__ = ["Interrupt", "PerTrialSeeded", "make_sampler", "optuna_objective", "optimize_loop", "run_local_workers",
+           "cmd_worker", "cmd_report_storage", "StorageLost"]
+
+
+class StorageLost(StudyError):
+    """The storage stopped answering and did not come back within the retries."""
+
+
+# -- interrupts ------------------------------------------------------------------------------------------
+class Interrupt:
+    """Graceful SIGINT/SIGTERM handling (see the module docstring). ``on_signal(signum)`` is
+    called on every signal (the parent of local workers forwards it)."""
+
+    def __init__(self, on_signal=None, quiet: bool = False):
+        self.requested = False
+        self.count = 0
+        self._evaluating = False
+        self._old = {}
+        self.on_signal = on_signal
+        self.quiet = quiet
+
+    def _handler(self, signum, frame):
+        self.count += 1
+        first = not self.requested
+        self.requested = True
+        if self.on_signal is not None:
+            self.on_signal(signum)
+        if first:
+            if not self.quiet:
+                print("\ninterrupt: finishing the current design, then stopping "
+                      "(press Ctrl-C again to drop it)", file=sys.stderr, flush=True)
+        elif self._evaluating:
+            self._evaluating = False
+            raise KeyboardInterrupt
+
+    @contextlib.contextmanager
+    def evaluating(self):
+        """Around a design evaluation: the only place a second signal may raise."""
+        self._evaluating = True
+        try:
+            yield
+        finally:
+            self._evaluating = False
+
+    def __enter__(self):
+        if threading.current_thread() is threading.main_thread():
+            for s in (signal.SIGINT, signal.SIGTERM):
+                self._old[s] = signal.signal(s, self._handler)
+        return self
+
+    def __exit__(self, *exc):
+        for s, h in self._old.items():
+            signal.signal(s, h)
+        self._old = {}
+
+
+# -- samplers --------------------------------------------------------------------------------------------
+def derive_seed(seed: int, number: int) -> int:
+    return int(np.random.SeedSequence([int(seed) % 2**32, int(number)]).generate_state(1)[0])
+
+
+def _base_sampler(study, seed, constraints_func):
+    import optuna
+
+    alg = study.optimizer.algorithm or ("nsga2" if len(study.objectives) > 1 else "tpe")
+    pop = study.optimizer.population_size
+    if alg == "tpe":
+        return optuna.samplers.TPESampler(seed=seed, constraints_func=constraints_func, multivariate=True)
+    if alg == "nsga2":
+        kw = {"population_size": pop} if pop else {}
+        return optuna.samplers.NSGAIISampler(seed=seed, constraints_func=constraints_func, **kw)
+    if alg == "nsga3":
+        kw = {"population_size": pop} if pop else {}
+        return optuna.samplers.NSGAIIISampler(seed=seed, constraints_func=constraints_func, **kw)
+    if alg == "random":
+        return optuna.samplers.RandomSampler(seed=seed)
+    if alg == "qmc":
+        return optuna.samplers.QMCSampler(seed=seed, scramble=True)
+    if alg == "cmaes":
+        if len(study.objectives) > 1:
+            raise StudyError("optimizer.algorithm: cmaes is single-objective; use nsga2 or tpe")
+        return optuna.samplers.CmaEsSampler(seed=seed)
+    raise StudyError(f"optimizer.algorithm: unknown {alg!r}")
+
+
+_PER_TRIAL_CLASS = None
+
+
+def _per_trial_class():
+    """:class:`PerTrialSeeded`, built on first use (Optuna is imported only by Optuna runs)."""
+    global _PER_TRIAL_CLASS
+    if _PER_TRIAL_CLASS is not None:
+        return _PER_TRIAL_CLASS
+    from optuna.samplers import BaseSampler
+
+    class PerTrialSeeded(BaseSampler):
+        """A sampler whose proposal for trial ``k`` comes from ``factory(derive_seed(seed, k))``;
+        ``per_trial=False`` (QMC: the scrambling must be the same for every point, the sequence
+        index is stored in the study) keeps one sampler seeded with ``seed``."""
+
+        def __init__(self, factory, seed: int, per_trial: bool = True):
+            self._factory = factory
+            self._seed = int(seed)
+            self._per_trial = per_trial
+            self._fixed = factory(self._seed)
+            self._cur = (None, None)
+
+        @property
+        def inner(self):
+            return self._fixed
+
+        def _for(self, trial):
+            if not self._per_trial:
+                return self._fixed
+            n = trial.number
+            if self._cur[0] != n:
+                self._cur = (n, self._factory(derive_seed(self._seed, n)))
+            return self._cur[1]
+
+        def infer_relative_search_space(self, study, trial):
+            return self._for(trial).infer_relative_search_space(study, trial)
+
+        def sample_relative(self, study, trial, search_space):
+            return self._for(trial).sample_relative(study, trial, search_space)
+
+        def sample_independent(self, study, trial, param_name, param_distribution):
+            return self._for(trial).sample_independent(study, trial, param_name, param_distribution)
+
+        def before_trial(self, study, trial):
+            self._for(trial).before_trial(study, trial)
+
+        def after_trial(self, study, trial, state, values):
+            self._for(trial).after_trial(study, trial, state, values)
+
+        def reseed_rng(self):
+            pass  # proposals are seeded per trial
+
+    _PER_TRIAL_CLASS = PerTrialSeeded
+    return PerTrialSeeded
+
+
+def PerTrialSeeded(factory, seed: int, per_trial: bool = True):  # noqa: N802 (a class, built lazily)
+    """A sampler proposing trial ``k`` with ``factory(derive_seed(seed, k))`` (see the module
+    docstring)."""
+    return _per_trial_class()(factory, seed, per_trial)
+
+
+def _uses_set_constraint() -> bool:
+    import optuna
+
+    return hasattr(optuna.trial.Trial, "set_constraint")
+
+
+def _constraints_func(trial):
+    return trial.user_attrs.get("constraints", [1.0])
+
+
+def make_sampler(study, seed):
+    """The study's sampler, seeded per trial (see :class:`PerTrialSeeded`)."""
+    cf = _constraints_func if study.constraints and not _uses_set_constraint() else None
+    alg = study.optimizer.algorithm or ("nsga2" if len(study.objectives) > 1 else "tpe")
+    return PerTrialSeeded(lambda s: _base_sampler(study, s, cf), seed, per_trial=(alg != "qmc"))
+
+
+def _set_optuna_constraints(trial, study, rec):
+    """Our margins count >= 0 as feasible, Optuna's constraint values <= 0: convert here, in
+    one place. Optuna >= 5 reads ``Trial.set_constraint``; older versions a
+    ``constraints_func`` that returns the user attribute set here."""
+    vals = [(-m if math.isfinite(m) else 1e9) for m in rec.margins.values()]
+    if rec.status != "ok":
+        vals = [1e9 for _ in study.constraints]
+    trial.set_user_attr("constraints", vals or [0.0])
+    if hasattr(trial, "set_constraint"):
+        for c, v in zip(study.constraints, vals):
+            trial.set_constraint(c.label, v)
+
+
+def _jsonable(d: dict) -> dict:
+    import json
+
+    from .journal import json_default
+
+    return json.loads(json.dumps(d, default=json_default))
+
+
+OWNER_ATTR = "parasynth:owner"
+
+
+def owner_id() -> str:
+    return f"{socket.gethostname()}:{os.getpid()}"
+
+
+def optuna_objective(study, evaluator: Evaluator, on_record=None, guard: Interrupt | None = None,
+                     mark_owner: bool = False):
+    """The Optuna objective of a study: suggest the design variables, evaluate the design,
+    store its record (trial user attribute ``record``) and constraints, hand the record to
+    ``on_record``, return the objectives (NaN for a failed design, which Optuna records as a
+    failed trial that still counts as an evaluated design)."""
+    from .storage import ATTR_RECORD
+
+    guard = guard or Interrupt()
+
+    def objective(trial):
+        if mark_owner:
+            trial.set_user_attr(OWNER_ATTR, owner_id())
+        values = {}
+        for v in study.variables:
+            if v.type == "categorical":
+                values[v.name] = trial.suggest_categorical(v.name, list(v.choices))
+            elif v.type == "integer":
+                values[v.name] = trial.suggest_int(v.name, int(v.low), int(v.high), log=v.log)
+            else:
+                values[v.name] = trial.suggest_float(v.name, v.low, v.high, log=v.log)
+        with guard.evaluating():
+            rec = evaluator.evaluate(values, trial=trial.number)
+        _set_optuna_constraints(trial, study, rec)
+        trial.set_user_attr(ATTR_RECORD, _jsonable(rec.to_dict()))
+        objective.stats["records"] += 1
+        if on_record is not None:
+            on_record(rec)
+        if rec.status != "ok":
+            return tuple(float("nan") for _ in study.objectives) if len(study.objectives) > 1 else float("nan")
+        vals = tuple(rec.objectives[o.label] for o in study.objectives)
+        return vals if len(vals) > 1 else vals[0]
+
+    objective.stats = {"records": 0}
+    return objective
+
+
+# -- the loop every process runs -------------------------------------------------------------------------
+def _pid_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def _stale_here(t) -> bool:
+    """A running trial owned by a process of this host that no longer exists."""
+    owner = t.user_attrs.get(OWNER_ATTR)
+    if not isinstance(owner, str) or ":" not in owner:
+        return False
+    host, _, pid = owner.rpartition(":")
+    return host == socket.gethostname() and pid.isdigit() and int(pid) != os.getpid() and not _pid_alive(int(pid))
+
+
+def budget_state(ostudy):
+    """(counted, running, waiting) trials of the study; running trials of dead local
+    processes are marked failed on the way (their designs are proposed again)."""
+    from optuna.trial import TrialState
+
+    from .storage import counts
+
+    counted = running = waiting = 0
+    for t in ostudy.get_trials(deepcopy=False):
+        if counts(t):
+            counted += 1
+        elif t.state == TrialState.RUNNING:
+            if _stale_here(t):
+                with contextlib.suppress(Exception):
+                    ostudy._storage.set_trial_state_values(t._trial_id, state=TrialState.FAIL)
+            else:
+                running += 1
+        elif t.state == TrialState.WAITING:
+            waiting += 1
+    return counted, running, waiting
+
+
+def _storage_errors():
+    import optuna
+
+    errs = [optuna.exceptions.StorageInternalError, OSError, ConnectionError]
+    try:
+        from sqlalchemy.exc import DBAPIError, OperationalError
+
+        errs += [OperationalError, DBAPIError]
+    except ImportError:
+        pass
+    return tuple(errs)
+
+
+def _fail_stale(ostudy):
+    import warnings
+
+    import optuna
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        with contextlib.suppress(Exception):
+            optuna.storages.fail_stale_trials(ostudy)
+
+
+def optimize_loop(ostudy, objective, total: int, guard: Interrupt, shared: bool, counted: int = 0,
+                  on_count=None, poll_s: float = 0.5, retries: int | None = None, log=None):
+    """Run trials until the study holds ``total`` counted trials or an interrupt is asked for.
+
+    ``shared``: other processes may work on the study (count in the storage before every
+    trial, wait for their running trials); otherwise ``counted`` is the number of counted
+    trials at the start and this process is the only one. Returns the number of trials run
+    here."""
+    import optuna
+
+    log = log or (lambda msg: print(msg, file=sys.stderr, flush=True))
+    retries = int(os.environ.get("PARASYNTH_STORAGE_RETRIES", "3")) if retries is None else retries
+    errors = _storage_errors()
+    failures = 0
+    ran = 0
+    while not guard.requested:
+        try:
+            if shared:
+                counted, running, waiting = budget_state(ostudy)
+                if on_count is not None:
+                    on_count(counted)
+                if counted >= total:
+                    break
+                if waiting == 0 and counted + running >= total:
+                    # The others' trials complete the budget unless their worker died:
+                    # wait for them (a dead worker's trial is failed and proposed again).
+                    _fail_stale(ostudy)
+                    time.sleep(poll_s)
+                    continue
+            elif counted >= total:
+                break
+            n0 = objective.stats["records"]
+            ostudy.optimize(objective, n_trials=1, catch=(Exception,), gc_after_trial=False)
+            ran += 1
+            if not shared:
+                counted += objective.stats["records"] - n0
+            failures = 0
+        except KeyboardInterrupt:
+            raise
+        except optuna.exceptions.UpdateFinishedTrialError:
+            # our trial was failed by another process that took this one for dead
+            failures = 0
+            continue
+        except errors as e:
+            failures += 1
+            if failures > retries:
+                raise StorageLost(f"lost the storage ({type(e).__name__}: {str(e).strip().splitlines()[0] if str(e).strip() else ''}); "
+                                  f"gave up after {retries} retries. The study stays consistent: trials stored "
+                                  f"are kept and an unfinished one is proposed again; start the worker again "
+                                  f"when the storage is back") from None
+            wait = 2 ** (failures - 1)
+            log(f"storage error ({type(e).__name__}); retrying in {wait} s ({failures}/{retries})")
+            time.sleep(wait)
+    return ran
+
+
+# -- local worker processes ------------------------------------------------------------------------------
+def worker_env(n_workers: int) -> dict:
+    """Environment of a worker process: single-threaded evaluations when the workers share
+    the cores (unless the user set the thread counts)."""
+    env = dict(os.environ)
+    threads = str(max(1, (os.cpu_count() or 1) // max(1, n_workers)))
+    for k in ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+        env.setdefault(k, threads)
+    return env
+
+
+def run_local_workers(study_file: Path, url: str, n_workers: int, total: int, ostudy, guard: Interrupt,
+                      on_new=None, poll_s: float = 0.3, quiet: bool = True):
+    """Start ``n_workers`` ``parasynth worker`` processes on ``url`` and follow the storage
+    until they exit; ``on_new(records)`` receives the newly counted designs. Signals that
+    reach this process are forwarded to the workers (each in its own process group, so a
+    terminal Ctrl-C reaches them once, through here). Returns the workers' exit codes."""
+    from .storage import counts, trial_record
+
+    cmd = [sys.executable, "-m", "parasynth.cli", "worker", str(study_file), "--storage", url,
+           "--n-trials", str(total), "--quiet"]
+    env = worker_env(n_workers)
+    procs = []
+
+    def forward(signum):
+        for p in procs:
+            if p.poll() is None:
+                with contextlib.suppress(ProcessLookupError):
+                    p.send_signal(signal.SIGINT)
+
+    guard.on_signal = forward
+    seen = set()
+
+    def sync():
+        new = []
+        for t in ostudy.get_trials(deepcopy=False):
+            if t.number not in seen and counts(t):
+                rec = trial_record(t)
+                if rec is not None:
+                    seen.add(t.number)
+                    new.append(rec)
+        if new and on_new is not None:
+            on_new(sorted(new, key=lambda r: r.trial))
+
+    for t in ostudy.get_trials(deepcopy=False):
+        if counts(t):
+            seen.add(t.number)
+    for _ in range(n_workers):
+        procs.append(subprocess.Popen(cmd, env=env, start_new_session=True,
+                                      stdout=subprocess.DEVNULL if quiet else None))
+    try:
+        while any(p.poll() is None for p in procs):
+            time.sleep(poll_s)
+            sync()
+    except KeyboardInterrupt:  # a third signal: stop the workers now
+        for p in procs:
+            with contextlib.suppress(ProcessLookupError):
+                p.kill()
+        for p in procs:
+            p.wait()
+        raise
+    finally:
+        guard.on_signal = None
+    sync()
+    return [p.returncode for p in procs]
+
+
+# -- commands ----------------------------------------------------------------------------------------------
+def _err(msg) -> int:
+    print(f"error: {msg}", file=sys.stderr)
+    return 2
+
+
+def cmd_worker(args) -> int:
+    """``parasynth worker STUDY --storage URL``: join a study started by ``parasynth run``."""
+    import optuna
+
+    from .spec import load_study
+    from .storage import ATTR_BUDGET, ATTR_STUDY, describe_url, load_parasynth_study, open_storage
+
+    try:
+        study = load_study(args.study)
+        if study.optimizer.kind != "optuna":
+            return _err(f"{args.study}: optimizer.kind is {study.optimizer.kind!r}; workers join Optuna studies "
+                        f"(sweeps and NLopt run in one process: parasynth run)")
+        url = args.storage or study.optimizer.storage
+        if not url:
+            return _err("parasynth worker needs the study's storage: --storage URL (or optimizer.storage in the file)")
+        storage = open_storage(url)
+        name = getattr(args, "study_name", None) or study.name
+        seed = study.optimizer.seed if study.optimizer.seed is not None else study.evaluation["seed"]
+        ostudy = load_parasynth_study(storage, url, name)
+        stored = ostudy.user_attrs.get(ATTR_STUDY)
+        if stored is not None and stored != study.to_yaml():
+            return _err(f"{args.study}: differs from the study {name!r} stored in {describe_url(url)!r}; "
+                        f"use the same study file as the run that started it")
+        ostudy.sampler = make_sampler(study, seed)
+        total = args.n_trials or ostudy.user_attrs.get(ATTR_BUDGET) or study.optimizer.n_trials or 50
+        if total < 1:
+            return _err(f"--n-trials must be a positive number of trials, got {total}")
+    except StudyError as e:
+        return _err(e)
+    optuna.logging.set_verbosity(optuna.logging.ERROR)
+    evaluator = Evaluator(study)
+    from .runner import _Progress
+
+    bar = _Progress(int(total), not args.quiet, f"worker {name}")
+    mine = []
+
+    def on_count(n):
+        if bar.bar is not None:
+            bar.bar.n = n
+            bar.bar.refresh()
+
+    with Interrupt(quiet=args.quiet) as guard:
+        objective = optuna_objective(study, evaluator, on_record=mine.append, guard=guard, mark_owner=True)
+        try:
+            optimize_loop(ostudy, objective, int(total), guard, shared=True, on_count=on_count)
+        except KeyboardInterrupt:
+            guard.requested = True
+        except StorageLost as e:
+            bar.close()
+            print(f"error: worker {owner_id()}: {e}", file=sys.stderr)
+            return 3
+        finally:
+            bar.close()
+    try:
+        from .storage import counts
+
+        n = sum(1 for t in ostudy.get_trials(deepcopy=False) if counts(t))
+    except Exception:
+        n = None
+    state = f"the study holds {n} of {total} designs" if n is not None else "the storage did not answer at the end"
+    print(f"worker {owner_id()}: {len(mine)} designs evaluated here; {state}")
+    if guard.requested:
+        print(f"interrupted; join again with: parasynth worker {args.study} --storage URL", file=sys.stderr)
+        return 130
+    return 0
+
+
+def cmd_report_storage(args) -> int:
+    """``parasynth report --storage URL --study NAME``: rebuild the run directory from the
+    storage (``--run-dir``, default ``runs/NAME``) and write its report."""
+    from ..report import ReportError, write_report
+    from .storage import materialize_run
+
+    name = args.study
+    if not name:
+        return _err("report --storage needs --study NAME (the study's name)")
+    run_dir = Path(getattr(args, "rebuild_dir", None) or Path("runs") / name)
+    try:
+        materialize_run(args.storage, name, run_dir)
+        rdir = write_report(run_dir, out=args.out)
+    except (StudyError, ReportError) as e:
+        return _err(e)
+    print(f"run directory rebuilt from the storage: {run_dir}")
+    print(f"report: {rdir / 'index.html'} (and report.md, pareto.csv)")
+    return 0
+
+
+def resume_command(args, res) -> str:
+    """The command that continues an interrupted ``parasynth run``."""
+    import shlex
+
+    parts = ["parasynth", "run", str(args.study), "--resume"]
+    if getattr(args, "out", None):
+        parts += ["--out", str(args.out)]
+    if getattr(args, "storage", None):
+        parts += ["--storage", str(args.storage)]
+    if getattr(args, "workers", None):
+        parts += ["--workers", str(args.workers)]
+    if getattr(args, "n_trials", None):
+        parts += ["--n-trials", str(args.n_trials)]
+    return " ".join(shlex.quote(p) for p in parts)
+
+
+def interrupted_run(args, res) -> int:
+    """After an interrupted ``parasynth run``: write the partial report (unless
+    ``--no-report``), say how to resume, exit code 130."""
+    if not getattr(args, "no_report", False) and res.n_total:
+        from ..report import ReportError, write_report
+
+        try:
+            rdir = write_report(res.out_dir, out=getattr(args, "report_dir", None))
+            print(f"partial report: {rdir / 'index.html'}")
+        except (ReportError, StudyError) as e:
+            print(f"no report: {e}", file=sys.stderr)
+    print(f"interrupted: {res.n_total} designs are saved in {res.out_dir}; continue with: "
+          f"{resume_command(args, res)}", file=sys.stderr)
+    return 130
