@@ -1,0 +1,315 @@
+"""The command line: one-line errors and exit status for bad input and environment faults,
+--debug, the schema command, list, evaluate --set warnings, help with examples."""
+
+from __future__ import annotations
+
+import contextlib
+import errno
+import io
+import json
+import os
+import re
+import sqlite3
+import subprocess
+import sys
+from pathlib import Path
+
+import jsonschema
+import pytest
+import yaml
+
+import parasynth.cli as cli
+from parasynth.cli import main
+
+ROOT = Path(__file__).resolve().parents[1]
+STUDIES = sorted((ROOT / "studies").glob("*.yaml"))
+QUICK = ROOT / "studies" / "quickstart.yaml"
+
+
+def run_cli(args, env: dict | None = None):
+    """(exit status, stdout, stderr) of ``parasynth ARGS`` run in-process."""
+    out, err = io.StringIO(), io.StringIO()
+    old = {k: os.environ.get(k) for k in (env or {})}
+    os.environ.update(env or {})
+    try:
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+            try:
+                code = main([str(a) for a in args])
+            except SystemExit as e:  # argparse errors and --help
+                code = e.code
+    finally:
+        for k, v in old.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+    return code, out.getvalue(), err.getvalue()
+
+
+def assert_clean_error(code, err, *needles, status=None):
+    assert code not in (0, None), err
+    if status is not None:
+        assert code == status, (code, err)
+    assert "Traceback" not in err, err
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert lines, "no message on stderr"
+    assert any(ln.startswith("error:") or ": error:" in ln for ln in lines), err
+    for n in needles:
+        assert n in err, (n, err)
+
+
+def tiny_study(tmp_path, **changes) -> Path:
+    d = yaml.safe_load(QUICK.read_text())
+    d["evaluation"].update(samples=128)
+    d["evaluation"].pop("final_samples", None)
+    d["optimizer"].update(n_trials=2, population_size=2)
+    d.update(changes)
+    p = tmp_path / "tiny.yaml"
+    p.write_text(yaml.safe_dump(d, sort_keys=False))
+    return p
+
+
+# -- arguments ----------------------------------------------------------------------------------
+@pytest.mark.parametrize("args,needle", [
+    (["run", QUICK, "--n-trials", "0"], "--n-trials"),
+    (["run", QUICK, "--n-trials", "-3"], "--n-trials"),
+    (["run", QUICK, "--n-trials", "1e3"], "--n-trials"),
+    (["run", QUICK, "--n-trials", "10000001"], "documented maximum"),
+    (["run", QUICK, "--out", ""], "--out"),
+    (["evaluate", QUICK, "--samples", "-1"], "--samples"),
+    (["evaluate", QUICK, "--samples", "10^13"], "--samples"),
+    (["evaluate", QUICK, "--samples", "10000000000000"], "documented maximum"),
+    (["analyze", "5pus_upu", "--samples", "0"], "--samples"),
+    (["analyze", "5pus_upu", "--seed", "-1"], "--seed"),
+])
+def test_bad_arguments_are_refused_before_any_work(args, needle):
+    code, out, err = run_cli(args)
+    assert code == 2
+    assert needle in err and "Traceback" not in err
+    assert out == ""
+
+
+def test_out_that_is_a_file_is_refused(tmp_path):
+    f = tmp_path / "a_file"
+    f.write_text("x")
+    code, _, err = run_cli(["run", tiny_study(tmp_path), "--out", f, "--quiet"])
+    assert_clean_error(code, err, "--out", "existing file", status=2)
+    assert f.read_text() == "x"
+
+
+def test_out_that_cannot_be_created_is_refused(tmp_path):
+    f = tmp_path / "a_file"
+    f.write_text("x")
+    code, _, err = run_cli(["run", tiny_study(tmp_path), "--out", f / "run", "--quiet"])
+    assert_clean_error(code, err, "--out", "cannot create", status=2)
+    code, _, err = run_cli(["report", tiny_study(tmp_path).parent, "--out", f / "rep"])
+    assert "Traceback" not in err and code != 0
+
+
+# -- files --------------------------------------------------------------------------------------
+@pytest.mark.parametrize("content,needle", [
+    (b"\xff\xfe\x00n\x00a\x00m\x00e", "binary"),
+    (b"name: caf\xe9\n", "not UTF-8"),
+    (b"[" * 5000 + b"]" * 5000, "nested deeper"),
+    (b"name: a\nname: b\n", "duplicate key 'name'"),
+    (b"a: &a [x, x, x, x, x, x, x, x, x, x]\n" + b"".join(
+        f"{c}: &{c} [{', '.join(['*' + p] * 10)}]\n".encode() for p, c in zip("abcdefg", "bcdefgh")), "aliases"),
+    (b"- just\n- a list\n", "top level"),
+    (b"name: [unclosed\n", "not valid YAML"),
+])
+def test_bad_study_files(tmp_path, content, needle):
+    p = tmp_path / "s.yaml"
+    p.write_bytes(content)
+    for cmd in ("validate", "run", "evaluate"):
+        code, _, err = run_cli([cmd, p])
+        assert_clean_error(code, err, needle, status=2)
+
+
+def test_directory_and_missing_file(tmp_path):
+    code, _, err = run_cli(["validate", tmp_path])
+    assert_clean_error(code, err, "is a directory", status=2)
+    code, _, err = run_cli(["validate", tmp_path / "nope.yaml"])
+    assert_clean_error(code, err, "does not exist", status=2)
+
+
+def test_missing_plugin_module():
+    code, _, err = run_cli(["list"], env={"PARASYNTH_PLUGINS": "no_such_plugin_module_xyz"})
+    assert_clean_error(code, err, "PARASYNTH_PLUGINS", "no_such_plugin_module_xyz")
+    code, _, err = run_cli(["list"], env={"PARASYNTH_PLUGINS": "/no/such/plugin.py"})
+    assert_clean_error(code, err, "PARASYNTH_PLUGINS", "/no/such/plugin.py")
+
+
+# -- environment faults, in one place -----------------------------------------------------------
+@pytest.mark.parametrize("exc,needle,status", [
+    (OSError(errno.ENOSPC, "No space left on device", "runs/x/journal.jsonl"), "disk full", 1),
+    (sqlite3.OperationalError("disk I/O error"), "disk I/O error", 1),
+    (PermissionError(errno.EACCES, "Permission denied", "runs/x"), "permission denied", 1),
+    (MemoryError(), "out of memory", 1),
+    (RecursionError("maximum recursion depth exceeded"), "nested too deeply", 2),
+    (RuntimeError("something unexpected"), "internal error", 1),
+])
+def test_faults_during_a_run_give_one_line(tmp_path, monkeypatch, exc, needle, status):
+    import parasynth.study as study_pkg
+
+    def boom(*a, **k):
+        raise exc
+
+    monkeypatch.setattr(study_pkg, "run_study", boom)
+    code, _, err = run_cli(["run", tiny_study(tmp_path), "--out", tmp_path / "r", "--quiet"])
+    assert_clean_error(code, err, needle, status=status)
+    assert len([ln for ln in err.splitlines() if ln.strip()]) == 1, err
+
+
+def test_debug_shows_the_traceback(tmp_path, monkeypatch):
+    import parasynth.study as study_pkg
+
+    def boom(*a, **k):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(study_pkg, "run_study", boom)
+    with pytest.raises(OSError):
+        main(["run", str(tiny_study(tmp_path)), "--out", str(tmp_path / "r"), "--quiet", "--debug"])
+    with pytest.raises(OSError):
+        run_cli(["run", tiny_study(tmp_path), "--out", tmp_path / "r", "--quiet"], env={"PARASYNTH_DEBUG": "1"})
+
+
+def test_broken_pipe_is_one_line_and_nonzero(tmp_path):
+    """``parasynth list | head -2`` in a real pipe: no traceback, status 141."""
+    env = dict(os.environ, PYTHONUNBUFFERED="0")
+    p = subprocess.Popen([sys.executable, "-c", "import sys; from parasynth.cli import main; sys.exit(main())", "list"],
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env)
+    first = p.stdout.readline()
+    p.stdout.close()  # the reader goes away, as head does
+    err = p.stderr.read().decode()
+    code = p.wait(timeout=120)
+    assert first.startswith(b"mechanisms")
+    assert "Traceback" not in err, err
+    assert code == 141, (code, err)
+    assert "broken pipe" in err
+
+
+# -- reports of damaged runs --------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def small_run(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("run")
+    d = yaml.safe_load(QUICK.read_text())
+    d["evaluation"].update(samples=128, final_samples=128, final_repeats=2, final_top=1)
+    d["optimizer"].update(n_trials=3, population_size=2)
+    s = tmp / "tiny.yaml"
+    s.write_text(yaml.safe_dump(d, sort_keys=False))
+    code, out, err = run_cli(["run", s, "--out", tmp / "run", "--quiet", "--no-report"])
+    assert code == 0, err
+    return tmp / "run"
+
+
+@pytest.mark.parametrize("name,content", [
+    ("results.csv", b"trial,source\n1,2,3,4,5\n\x00\x01"),
+    ("final.csv", b"\xff\xfe\x00garbage,\n1,2,3\n4"),
+    ("journal.jsonl", b'{"trial": 0, "values": {"link_length": 0.2}\n{not json\n'),
+])
+def test_report_of_a_damaged_run(small_run, tmp_path, name, content):
+    import shutil
+
+    run = tmp_path / "run"
+    shutil.copytree(small_run, run)
+    if (run / name).exists() or name != "journal.jsonl":
+        (run / name).write_bytes(content)
+    code, out, err = run_cli(["report", run, "--out", tmp_path / "rep"])
+    assert "Traceback" not in err, err
+    if code != 0:  # a damaged file is refused with one line naming the run ...
+        assert_clean_error(code, err)
+    else:  # ... or the report is written from what is still readable
+        assert (tmp_path / "rep" / "index.html").exists()
+
+
+# -- schema, list, evaluate, help ---------------------------------------------------------------
+def test_schema_accepts_the_shipped_studies_and_rejects_unknown_keys(tmp_path):
+    code, out, err = run_cli(["schema", "--out", tmp_path / "s.json"])
+    assert code == 0, err
+    schema = json.loads((tmp_path / "s.json").read_text())
+    jsonschema.Draft202012Validator.check_schema(schema)
+    v = jsonschema.Draft202012Validator(schema)
+    for f in STUDIES:
+        data = yaml.safe_load(f.read_text())
+        errors = list(v.iter_errors(data))
+        assert not errors, (f.name, [e.message for e in errors])
+    bad = yaml.safe_load(QUICK.read_text())
+    bad["evaluation"]["sample"] = 10
+    assert any("sample" in e.message for e in v.iter_errors(bad))
+    bad = yaml.safe_load(QUICK.read_text())
+    bad["optimizer"]["kind"] = "annealing"
+    assert list(v.iter_errors(bad))
+    # every key has a description for the editor
+    def props(node):
+        for k, p in node.get("properties", {}).items():
+            yield k, p
+    for node in [schema] + list(schema["$defs"].values()):
+        for k, p in props(node):
+            assert p.get("description") and "See docs" not in p["description"], k
+
+
+def test_schema_to_stdout_is_json():
+    code, out, _ = run_cli(["schema"])
+    assert code == 0
+    assert json.loads(out)["title"] == "parasynth study"
+
+
+def test_study_format_doc_lists_every_key():
+    from parasynth.study.spec import study_keys
+
+    doc = (ROOT / "docs" / "study-format.md").read_text()
+    missing = [k for k in study_keys() if f"`{k}`" not in doc]
+    assert not missing, missing
+
+
+def test_list_shows_parameters_with_units_and_measure_settings():
+    import dataclasses
+
+    from parasynth.mechanisms import list_mechanisms, mechanism_class
+    from parasynth.objectives import OBJECTIVES
+
+    code, out, _ = run_cli(["list"])
+    assert code == 0
+    for name in list_mechanisms():
+        block = out.split(f"  {name}:", 1)[1].split("\n  ", 1)[0] if f"  {name}:" in out else ""
+        assert block, name
+        for f in dataclasses.fields(mechanism_class(name).Params):
+            assert f"      {f.name} (" in out, (name, f.name)
+    assert re.search(r"link_length \(length, mm\) = 205 mm", out)
+    for name, m in OBJECTIVES.items():
+        for k in m.settings:
+            assert re.search(rf"^  {re.escape(name)} .*\n      settings: .*\b{k} \(", out, re.M), (name, k)
+    assert "quantile (float in [0.0, 1.0])" in out
+
+
+def test_evaluate_set_outside_bounds_warns(tmp_path):
+    s = tiny_study(tmp_path)
+    code, out, err = run_cli(["evaluate", s, "--set", "link_length=300 mm", "--samples", "128"])
+    assert code == 0, err
+    assert "warning: --set link_length=300 mm is outside" in err and "[160 mm, 240 mm]" in err
+    code, out, err = run_cli(["evaluate", s, "--set", "link_length=200 mm", "--samples", "128"])
+    assert code == 0 and "warning" not in err
+    assert "link_length = 200 mm" in out
+
+
+@pytest.mark.parametrize("item,needle", [
+    ("link_length", "NAME=VALUE"),
+    ("nope=3 mm", "not a design variable"),
+    ("link_length=3", "no unit"),
+    ("link_length=nan mm", "finite"),
+])
+def test_evaluate_bad_set(tmp_path, item, needle):
+    code, _, err = run_cli(["evaluate", tiny_study(tmp_path), "--set", item])
+    assert_clean_error(code, err, needle, status=2)
+
+
+def test_every_argument_has_help_with_an_example():
+    ap = cli.build_parser()
+    sub = next(a for a in ap._actions if isinstance(a, cli.argparse._SubParsersAction))
+    for name, p in sub.choices.items():
+        assert "example" in (p.epilog or ""), name
+        for a in p._actions:
+            if a.dest in ("help", "debug"):
+                continue
+            assert a.help, (name, a.dest)
+            assert "e.g." in a.help or "example" in a.help, (name, a.dest, a.help)
