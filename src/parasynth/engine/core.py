@@ -1,0 +1,1311 @@
+"""The compiled kernels (numba) and the plans that feed them; see :mod:`parasynth.engine`.
+
+One kernel set serves every mechanism description: the legs' geometry and every limit are
+read into arrays at each plan (so parameter changes need no recompilation), and the task
+parametrisation -- defined coordinates, Euler conventions or rotation axis lists, positions
+that may use ``R11..R33``, validity conditions -- and the ``expression`` constraint margins
+are a register program (:mod:`parasynth.engine.program`) interpreted per sub-block of ``SUB``
+poses. Per sub-block: the task-coordinate ranges and finiteness, the program's pose part,
+then leg by leg its inverse kinematics and that leg's checks (actuator range, passive length,
+joint cone angles, leg-axis angles, revolute angle), each a straight loop over the sub-block
+with the leg's geometry and limits as loop invariants (SIMD across poses), then the
+expression margins and, last and most expensive, leg interference (a bounding-box test
+settles most pairs; the segment distance is computed only for a sub-block with an unsettled
+feasible pose). A sub-block stops at the first stage after which none of its poses is
+feasible. Nothing of size N is allocated but the result.
+
+Agreement with the NumPy path
+-----------------------------
+The kernels evaluate the same conditions, not always in the same arithmetic form: a cone
+limit ``angle(u, v) <= hi`` is tested as ``sin(hi) (u.v) - cos(hi) |u x v| >= 0`` (on
+squares, signs handled), ``arccos(c) <= hi`` as ``c >= cos(hi)``, a distance limit
+``d >= D`` as ``d^2 >= D^2``; the sine and cosine of an ``atan2`` are taken algebraically; the
+vectorised sin/cos (Cephes) may differ from NumPy's by an ulp; sums may associate
+differently. The booleans therefore agree exactly except at poses within rounding of a
+boundary: the contract (``tests/test_kernels.py``) is that ``feasible`` and the NumPy
+``is_feasible`` disagree only at poses whose NumPy feasibility margin is within 1e-12 of zero.
+Margins agree to ~1e-15 except where rounding is amplified (``arccos`` near 0 and pi, the
+square root of a PUS discriminant at the reach limit).
+
+RPS/RPU legs accept an off-plane error up to ``GEOM_TOL * max(1, leg length)`` (a batch-
+dependent tolerance in NumPy). The kernel decides reachability itself whenever the off-plane
+error is at most ``GEOM_TOL`` (in consistent descriptions it is ~1e-16) and otherwise hands
+the whole batch to NumPy.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+
+import numpy as np
+
+from ..constraints import (ActuatorRange, CoordinateRange, JointAngleLimit, LegAxisAngle, LegInterference,
+                           LegLengthRange)
+from ..legs import GEOM_TOL, PRS, PUS, RPS, RPU, SPS, UPS, UPU
+from .program import OPS, Program, Untranslatable, build_program
+
+try:  # pragma: no cover - depends on the environment
+    if os.environ.get("PARASYNTH_NO_NUMBA", "").strip() not in ("", "0"):
+        raise ImportError("disabled by PARASYNTH_NO_NUMBA")
+    from numba import njit, prange
+
+    HAVE_NUMBA = True
+except Exception:  # ImportError, or a broken numba/llvmlite install
+    HAVE_NUMBA = False
+
+# Leg kinds in the kernel.
+_FREE, _PUS, _RPS, _RPU, _PRS = 0, 1, 2, 3, 4
+
+# Leg float-array layout (leg_f columns).
+_B, _A, _AX, _AX2, _BREF, _PREF, _LEN, _BRANCH, _PTOL = 0, 3, 6, 9, 12, 15, 18, 19, 20
+_NLF = 21
+
+#: Cone-angle keys of each leg class: (base end, platform end).
+_CONE_KEYS = {
+    SPS: ("S_base_cone", "S_platform_cone"),
+    UPS: ("U_base_cone", "S_platform_cone"),
+    PUS: ("U_base_cone", "S_platform_cone"),
+    RPS: ("R_base_cone", "S_platform_cone"),
+    RPU: ("R_base_cone", "U_platform_cone"),
+    PRS: ("R_base_cone", "S_platform_cone"),
+    UPU: ("U_base_cone", "U_platform_cone"),
+}
+
+#: Poses per parallel work item (one scratch allocation per work item).
+BLOCK = 4096
+#: Poses per SIMD sub-block (the scratch of one sub-block stays in the L1 cache).
+SUB = 64
+
+
+class Unsupported(Exception):
+    """The mechanism uses something the kernels do not implement (use NumPy); the message
+    names the construct."""
+
+
+# ---------------------------------------------------------------------------------------------
+# Plan: the mechanism's program, geometry and constraints packed into arrays.
+# ---------------------------------------------------------------------------------------------
+class KernelPlan:
+    """Arrays describing one mechanism (and one selection of its constraints) for the kernels.
+
+    Program: ``ins`` (n, 6) instructions, ``consts`` the constant rows' values (literals and
+    parameter values), ``n_reg`` register rows, ``n_pose`` instructions of the pose part,
+    ``pose_regs`` (12,) the registers of p and R (row-major), ``valid_regs`` the validity
+    conditions, ``expr`` (k, 2) int rows (register, constraint column) of expression margins.
+
+    Check tables (float64, one row per elementary check; integer fields stored as floats):
+
+    * ``coord``  (col, lo, hi, ci): CoordinateRange
+    * ``actr``   (lo, hi, ci): ActuatorRange over all actuated legs
+    * ``lenr``   (leg, lo, hi, ci): LegLengthRange
+    * ``cone``   (leg, end, lo, hi, ci, lo_mode, hi_mode, sin^2 lo, cos^2 lo, sin^2 hi, cos^2 hi)
+    * ``rang``   (leg, r0[3], b[3], lo, hi, ci): signed revolute angle atan2(n.b, n.r0)
+    * ``axang``  (leg, axis[3], frame, hi, ci, cos hi): LegAxisAngle
+    * ``pair``   (leg i, leg j, D, ci, D^2 or -1): LegInterference
+
+    ``ci`` is the column of the constraint in ``names``. The per-leg tables (lenr, cone, rang,
+    axang) are sorted by leg; ``offs`` (4, n_legs + 1) holds each leg's row range in them.
+    Leg geometry ``leg_f`` (n_legs, 20): base anchor, platform anchor, slider/revolute axis,
+    RPU platform axis, base_ref, platform_ref, link length, branch.
+    """
+
+    def __init__(self, program: Program, consts, leg_kind, leg_act, leg_f, names, tables, expr):
+        self.program = program
+        self.consts = consts
+        self.leg_kind = leg_kind
+        self.leg_act = leg_act
+        self.leg_f = leg_f
+        self.names = tuple(names)
+        self.tables = tables  # dict name -> (k, m) float64
+        self.expr = expr
+
+    def args(self):
+        p = self.program
+        t = self.tables
+        return (p.ins, self.consts, p.const_base, p.n_reg, p.n_pose, p.pose_regs, p.valid_regs, self.expr, GEOM_TOL,
+                self.leg_kind, self.leg_act, self.leg_f, t["coord"], t["actr"], t["lenr"], t["cone"], t["rang"],
+                t["axang"], t["pair"], t["offs"])
+
+
+def _table(rows, width):
+    a = np.asarray(rows, dtype=np.float64).reshape(-1, width) if rows else np.zeros((0, width))
+    return np.ascontiguousarray(a)
+
+
+def _angle_modes(lo: float, hi: float):
+    """Encode cone-angle bounds [lo, hi] (rad, angle in [0, pi]) for the boolean test."""
+    if np.isnan(lo) or np.isnan(hi):
+        raise Unsupported("a NaN angle limit")
+    if hi <= 0 or lo >= np.pi:
+        raise Unsupported("a degenerate cone-angle limit")
+    if hi >= np.pi:
+        hi_mode, sh2, ch2 = 0, 0.0, 0.0
+    else:
+        sh, ch = math.sin(hi), math.cos(hi)
+        hi_mode, sh2, ch2 = (1 if ch >= 0 else 2), sh * sh, ch * ch
+    if lo <= 0:
+        lo_mode, sl2, cl2 = 0, 0.0, 0.0
+    else:
+        sl, cl = math.sin(lo), math.cos(lo)
+        lo_mode, sl2, cl2 = (1 if cl >= 0 else 2), sl * sl, cl * cl
+    return lo_mode, hi_mode, sl2, cl2, sh2, ch2
+
+
+def _cos_limit(hi: float) -> float:
+    """Threshold c such that ``arccos(clip(x, -1, 1)) <= hi`` iff ``x >= c`` (NaN never)."""
+    if np.isnan(hi):
+        raise Unsupported("a NaN angle limit")
+    if hi >= np.pi:
+        return -np.inf
+    if hi < 0:
+        return np.inf
+    return math.cos(hi)
+
+
+def _revolute_frame(r_axis: np.ndarray, ref: np.ndarray):
+    """r0 and b of legs._u_angles (same operations), for the signed revolute angle."""
+    from ..spatial import unit
+
+    a1 = r_axis
+    r0 = unit(ref - np.dot(ref, a1) * a1)
+    if not np.any(r0):
+        r0 = unit(np.cross(a1, [1.0, 0, 0]) if abs(a1[0]) < 0.9 else np.cross(a1, [0, 1.0, 0]))
+    b = np.cross(a1, r0)
+    return r0, b
+
+
+def expression_of(mech, c):
+    """The margin :class:`Expression` of the expression constraint ``c`` of a described
+    ``mech`` (None if ``c`` is not one of the description's expression constraints)."""
+    e = getattr(c, "expression", None)
+    if e is not None and hasattr(e, "tree"):
+        return e
+    ev = getattr(c, "evaluate", None)
+    for v in (getattr(ev, "__defaults__", None) or ()):
+        if hasattr(v, "tree") and getattr(v, "text", None) == getattr(c, "text", object()):
+            return v
+    for spec in getattr(mech.description, "constraints", ()):
+        if getattr(spec, "name", None) == c.name and getattr(spec, "type", None) == "expression":
+            e = spec.expr
+            if e.text == getattr(c, "text", None):
+                return e
+    return None
+
+
+def _is_described(mech) -> bool:
+    from ..mechanisms.description import DescribedMechanism
+
+    return isinstance(mech, DescribedMechanism)
+
+
+def leg_tables(mech, cons):
+    """Leg arrays and check tables of ``mech`` for the constraints ``cons`` (a list), the
+    expression constraints found ({name: Expression}) and their columns."""
+    legs = list(mech.legs)
+    nl = len(legs)
+    names = [leg.name for leg in legs]
+    index = {n: i for i, n in enumerate(names)}
+    kind = np.zeros(nl, dtype=np.int64)
+    act = np.zeros(nl, dtype=np.int64)
+    F = np.zeros((nl, _NLF))
+    for i, leg in enumerate(legs):
+        t = type(leg)
+        if t in (SPS, UPS, UPU):
+            kind[i] = _FREE
+        elif t is PUS:
+            kind[i] = _PUS
+            F[i, _AX:_AX + 3] = leg.slider_axis
+            F[i, _LEN] = float(leg.link_length)
+            F[i, _BRANCH] = float(leg.branch)
+        elif t is PRS:  # a PUS-like slider and link, in the plane normal to r_axis
+            kind[i] = _PRS
+            F[i, _AX:_AX + 3] = leg.slider_axis
+            F[i, _AX2:_AX2 + 3] = leg.r_axis
+            F[i, _LEN] = float(leg.link_length)
+            F[i, _BRANCH] = float(leg.branch)
+            F[i, _PTOL] = GEOM_TOL * max(1.0, float(leg.link_length))
+        elif t is RPS:
+            kind[i] = _RPS
+            F[i, _AX:_AX + 3] = leg.r_axis
+        elif t is RPU:
+            kind[i] = _RPU
+            F[i, _AX:_AX + 3] = leg.r_axis
+            F[i, _AX2:_AX2 + 3] = leg.u_platform_axis
+        else:
+            raise Unsupported(f"the leg type {t.__name__} (leg {leg.name})")
+        act[i] = 1 if leg.is_actuated else 0
+        F[i, _B:_B + 3] = leg.base
+        F[i, _A:_A + 3] = leg.platform
+        F[i, _BREF:_BREF + 3] = leg.base_ref
+        F[i, _PREF:_PREF + 3] = leg.platform_ref
+
+    rows = {k: [] for k in ("coord", "actr", "lenr", "cone", "rang", "axang", "pair")}
+    exprs = {}
+    expr_rows = []
+    keys = None
+    for ci, c in enumerate(cons):
+        t = type(c)
+        if t is ActuatorRange:
+            if not act.any():
+                raise Unsupported("an actuator_range constraint without actuators (NumPy raises)")
+            rows["actr"].append((c.lo, c.hi, ci))
+        elif t is CoordinateRange:
+            if not 0 <= c.index < mech.n_task:
+                raise Unsupported(f"constraint {c.name}: coordinate index out of range")
+            rows["coord"].append((c.index, c.lo, c.hi, ci))
+        elif t is LegLengthRange:
+            if not c.legs:
+                raise Unsupported(f"constraint {c.name}: leg_length without legs")
+            for n in c.legs:
+                rows["lenr"].append((index[n], c.lo, c.hi, ci))
+        elif t is JointAngleLimit:
+            if keys is None:  # angle keys each leg actually reports (checked, not assumed)
+                p, R = mech.pose(mech.home[None, :])
+                keys = [set(leg.solve(p, R).angles) for leg in legs]
+            sel = [i for i, leg in enumerate(legs) if (not c.legs or leg.name in c.legs) and c.key in keys[i]]
+            if not sel:
+                raise Unsupported(f"constraint {c.name}: joint angle {c.key!r} matches no leg (NumPy raises)")
+            for i in sel:
+                ckeys = _CONE_KEYS[type(legs[i])]
+                if c.key in ckeys:
+                    end = ckeys.index(c.key)
+                    rows["cone"].append((i, end, c.lo, c.hi, ci) + _angle_modes(float(c.lo), float(c.hi)))
+                elif c.key == "R_base" and kind[i] in (_RPS, _RPU, _PRS):
+                    r0, b = _revolute_frame(legs[i].r_axis, legs[i].base_ref)
+                    rows["rang"].append((i, *r0, *b, c.lo, c.hi, ci))
+                else:
+                    raise Unsupported(f"constraint {c.name}: the joint angle {c.key!r} of leg {legs[i].name}")
+        elif t is LegAxisAngle:
+            if c.frame not in ("base", "platform") or not c.legs:
+                raise Unsupported(f"constraint {c.name}: leg_axis_angle frame {c.frame!r} or no legs")
+            a = np.asarray(c.axis, dtype=float)
+            a = a / np.linalg.norm(a)
+            for n in c.legs:
+                rows["axang"].append((index[n], *a, 1.0 if c.frame == "platform" else 0.0, c.hi, ci,
+                                      _cos_limit(float(c.hi))))
+        elif t is LegInterference:
+            D = float(c.diameter)
+            if not c._pairs(names):
+                raise Unsupported(f"constraint {c.name}: interference without pairs (NumPy raises)")
+            for a_, b_ in c._pairs(names):
+                rows["pair"].append((index[a_], index[b_], D, ci, D * D if D > 0 else -1.0))
+        elif t.__name__ == "ExpressionConstraint" and _is_described(mech):
+            e = expression_of(mech, c)
+            if e is None:
+                raise Unsupported(f"constraint {c.name}: an expression constraint not from the description")
+            exprs[c.name] = e
+            expr_rows.append((c.name, ci))
+        else:
+            raise Unsupported(f"constraint {c.name}: the constraint type {t.__name__}")
+    widths = {"coord": 4, "actr": 3, "lenr": 4, "cone": 11, "rang": 10, "axang": 8, "pair": 5}
+    for k in ("lenr", "cone", "rang", "axang"):
+        rows[k] = sorted(rows[k], key=lambda r: r[0])
+    tables = {k: _table(v, widths[k]) for k, v in rows.items()}
+    offs = np.zeros((4, nl + 1), dtype=np.int64)
+    for j, k in enumerate(("lenr", "cone", "rang", "axang")):
+        legs_of = tables[k][:, 0].astype(np.int64)
+        offs[j] = np.searchsorted(legs_of, np.arange(nl + 1), side="left")
+    tables["offs"] = offs
+    return kind, act, np.ascontiguousarray(F), tables, exprs, expr_rows
+
+
+# ---------------------------------------------------------------------------------------------
+# Programs (one per description and twist flag, parameters as constants) and plans
+# ---------------------------------------------------------------------------------------------
+_PROGRAMS: dict = {}
+
+
+def _program_key(mech, exprs, twist):
+    d = mech.description
+    shapes = tuple(sorted((k, np.shape(v)) for k, v in mech._penv.items()))
+    return (type(mech), id(d), tuple((n, e.text) for n, e in exprs.items()), bool(twist), shapes)
+
+
+def program_for(mech, exprs: dict, twist: bool = False) -> Program:
+    """The (cached) program of a described ``mech`` with the margins ``exprs``; checked
+    against ``mech.pose``/``mech.pose_valid`` (and ``mech.twist_map``) when first built.
+    Raises :class:`Unsupported`."""
+    patched = [k for k in ("_pose", "pose", "pose_valid", "_twist_map", "twist_map", "_task_env") if k in vars(mech)]
+    if patched:
+        raise Unsupported(f"a pose method replaced on the instance ({', '.join(patched)})")
+    key = _program_key(mech, exprs, twist)
+    hit = _PROGRAMS.get(key)
+    if hit is not None and hit[0] is mech.description:
+        if isinstance(hit[1], Exception):
+            raise hit[1]
+        return hit[1]
+    try:
+        try:
+            prog = build_program(mech, exprs, twist)
+        except Untranslatable as e:
+            raise Unsupported(str(e)) from None
+        except (KeyError, IndexError, TypeError, ValueError, RecursionError) as e:
+            raise Unsupported(f"the task parametrisation ({type(e).__name__}: {e})") from None
+        _check_program(mech, prog, twist)
+    except Unsupported as e:
+        _PROGRAMS[key] = (mech.description, e)
+        raise
+    _PROGRAMS[key] = (mech.description, prog)
+    return prog
+
+
+def _probe_poses(mech) -> np.ndarray:
+    rng = np.random.default_rng(7)
+    n = mech.n_task
+    scale = np.array([0.5 if c in mech.angular_coordinates else 0.3 * mech.length_scale
+                      for c in mech.task_coordinates])
+    X = mech.home + scale * rng.uniform(-1, 1, size=(48, n))
+    return np.vstack([mech.home, X, np.zeros((1, n))])
+
+
+def _check_program(mech, prog: Program, twist: bool) -> None:
+    """Compare the compiled pose with ``mech.pose_valid``/``mech.pose`` (and the twist map)
+    on deterministic poses around home: a translation that does not reproduce the
+    description is never used."""
+    if not HAVE_NUMBA:
+        return
+    X = _probe_poses(mech)
+    with np.errstate(all="ignore"):
+        valid = mech.pose_valid(X)
+        p0, R0 = mech.pose(X[valid])
+        T0 = mech.twist_map(X[valid]) if twist else None
+    consts = prog.constants(mech._penv)
+    ok, p1, R1, T1 = run_pose(prog, consts, X, twist)
+    if not np.array_equal(ok, valid):
+        raise Unsupported("the compiled pose validity does not match mech.pose_valid")
+    scale = max(1.0, float(np.max(np.abs(p0), initial=0.0)))
+    if not (np.allclose(p0, p1[valid], rtol=0, atol=1e-12 * scale)
+            and np.allclose(R0, R1[valid], rtol=0, atol=1e-12)):
+        raise Unsupported("the compiled pose does not match mech.pose")
+    if twist:
+        tscale = max(1.0, float(np.max(np.abs(T0), initial=0.0)))
+        fin = np.isfinite(T0)
+        if not (np.array_equal(fin, np.isfinite(T1[valid]))
+                and np.allclose(T0[fin], T1[valid][fin], rtol=0, atol=1e-10 * tscale)):
+            raise Unsupported("the compiled twist map does not match mech.twist_map")
+
+
+def build_plan(mech, cons) -> KernelPlan:
+    """Pack ``mech`` and the constraints ``cons`` (a list of its Constraint objects) for the
+    kernels; raises :class:`Unsupported` naming what cannot be represented."""
+    if not _is_described(mech):
+        raise Unsupported(f"the model class {type(mech).__name__} is not a mechanism description")
+    kind, act, F, tables, exprs, expr_rows = leg_tables(mech, cons)
+    all_exprs = {}
+    for c in mech.constraints.values():
+        if type(c).__name__ == "ExpressionConstraint":
+            e = expression_of(mech, c)
+            if e is not None:
+                all_exprs[c.name] = e
+    all_exprs.update(exprs)
+    prog = program_for(mech, all_exprs)
+    try:
+        consts = prog.constants(mech._penv)
+    except (KeyError, IndexError, TypeError, ValueError) as e:
+        raise Unsupported(f"a parameter of the task parametrisation ({type(e).__name__}: {e})") from None
+    expr = np.array([(prog.margin_regs[n], ci) for n, ci in expr_rows], dtype=np.int64).reshape(-1, 2)
+    return KernelPlan(prog, consts, kind, act, F, [c.name for c in cons], tables, expr)
+
+
+def run_feasible(plan: KernelPlan, X: np.ndarray):
+    """(out (N,) bool, ambiguous: bool) for contiguous float64 poses X."""
+    out = np.empty(X.shape[0], dtype=np.bool_)
+    nblk = (X.shape[0] + BLOCK - 1) // BLOCK
+    amb = np.zeros(max(nblk, 1), dtype=np.int64)
+    _feasible_kernel(X, *plan.args(), BLOCK, out, amb)
+    return out, bool(amb.any())
+
+
+def run_margins(plan: KernelPlan, X: np.ndarray):
+    """(M (N, n_constraints), ambiguous: bool)."""
+    M = np.empty((X.shape[0], len(plan.names)))
+    nblk = (X.shape[0] + BLOCK - 1) // BLOCK
+    amb = np.zeros(max(nblk, 1), dtype=np.int64)
+    _margins_kernel(X, *plan.args(), BLOCK, M, amb)
+    return M, bool(amb.any())
+
+
+def run_pose(prog: Program, consts, X: np.ndarray, twist: bool = False):
+    """(valid (N,), p (N, 3), R (N, 3, 3), T (N, 6, n_task) or None)."""
+    X = np.ascontiguousarray(X, dtype=np.float64)
+    N = X.shape[0]
+    ok = np.empty(N, dtype=np.bool_)
+    P = np.empty((N, 3))
+    Rm = np.empty((N, 9))
+    if twist:
+        tr = prog.twist_regs
+        Tw = np.empty((N, 6, prog.n_task))
+        n_run = prog.n_pose
+    else:
+        tr = np.zeros((0, 0), dtype=np.int64)
+        Tw = np.empty((0, 0, 0))
+        n_run = prog.n_pose
+    _pose_kernel(X, prog.ins, consts, prog.const_base, prog.n_reg, n_run, prog.pose_regs, prog.valid_regs, tr,
+                 BLOCK, ok, P, Rm, Tw)
+    return ok, P, Rm.reshape(N, 3, 3), (Tw if twist else None)
+
+
+# ---------------------------------------------------------------------------------------------
+# Kernels
+# ---------------------------------------------------------------------------------------------
+if HAVE_NUMBA:
+    _jit = dict(nogil=True, error_model="numpy", fastmath=False, cache=True)
+    _jit_inline = dict(_jit, inline="always")
+
+    # Opcodes (parasynth.engine.program.OPS)
+    _NOP = 0
+    _ADD = 1
+    _SUBT = 2
+    _MUL = 3
+    _DIV = 4
+    _POW = 5
+    _NEG = 6
+    _SQRT = 7
+    _TAN = 8
+    _ASIN = 9
+    _ACOS = 10
+    _ATAN = 11
+    _EXP = 12
+    _LOG = 13
+    _ABS = 14
+    _SINH = 15
+    _COSH = 16
+    _TANH = 17
+    _ATAN2 = 18
+    _HYPOT = 19
+    _MIN = 20
+    _MAX = 21
+    _LT = 22
+    _LE = 23
+    _GT = 24
+    _GE = 25
+    _AND = 26
+    _SINCOS = 27
+    _SINCOS_ATAN2 = 28
+    _SIGN = 29
+    _SELECT = 30
+    _SQUARE = 31
+    _COPY = 32
+    _CLIP = 33
+    _SIN1 = 34
+    _COS1 = 35
+
+    # The pose travels as a tuple T = (px, py, pz, R00, R01, R02, R10, ..., R22) in the scalar
+    # kernel so that it stays in registers.
+
+    @njit(**_jit_inline)
+    def _rot(T, x, y, z):
+        """R @ (x, y, z)."""
+        return (T[3] * x + T[4] * y + T[5] * z,
+                T[6] * x + T[7] * y + T[8] * z,
+                T[9] * x + T[10] * y + T[11] * z)
+
+    @njit(**_jit_inline)
+    def _leg(k, kind, leg_f, T, tol):
+        """Inverse kinematics of leg k: (status, actuator, length, base joint centre (3),
+        platform joint centre (3)); status 0 reachable, 1 unreachable, 2 undecidable here
+        (batch-dependent RPS/RPU tolerance)."""
+        rx, ry, rz = _rot(T, leg_f[k, 3], leg_f[k, 4], leg_f[k, 5])
+        Ax = T[0] + rx
+        Ay = T[1] + ry
+        Az = T[2] + rz
+        bx = leg_f[k, 0]
+        by = leg_f[k, 1]
+        bz = leg_f[k, 2]
+        dx = Ax - bx
+        dy = Ay - by
+        dz = Az - bz
+        if kind == 1 or kind == 4:  # PUS, PRS: slider along e through base, link of length L
+            ex = leg_f[k, 6]
+            ey = leg_f[k, 7]
+            ez = leg_f[k, 8]
+            L = leg_f[k, 18]
+            de = dx * ex + dy * ey + dz * ez
+            disc = L * L - ((dx * dx + dy * dy + dz * dz) - de * de)
+            if not disc >= 0.0:
+                return 1, 0.0, L, bx, by, bz, Ax, Ay, Az
+            if kind == 4 and not abs(dx * leg_f[k, 9] + dy * leg_f[k, 10] + dz * leg_f[k, 11]) <= leg_f[k, 20]:
+                return 1, 0.0, L, bx, by, bz, Ax, Ay, Az
+            s = de + leg_f[k, 19] * math.sqrt(disc)
+            return 0, s, L, bx + s * ex, by + s * ey, bz + s * ez, Ax, Ay, Az
+        length = math.sqrt(dx * dx + dy * dy + dz * dz)
+        if not length > 0.0:
+            return 1, length, length, bx, by, bz, Ax, Ay, Az
+        if kind == 0:
+            return 0, length, length, bx, by, bz, Ax, Ay, Az
+        ux = leg_f[k, 6]
+        uy = leg_f[k, 7]
+        uz = leg_f[k, 8]
+        if kind == 3:  # RPU: the platform axis must be normal to the revolute axis
+            a4x, a4y, a4z = _rot(T, leg_f[k, 9], leg_f[k, 10], leg_f[k, 11])
+            if not abs(a4x * ux + a4y * uy + a4z * uz) <= tol:
+                return 1, length, length, bx, by, bz, Ax, Ay, Az
+        off = abs(dx * ux + dy * uy + dz * uz)
+        if off <= tol:
+            return 0, length, length, bx, by, bz, Ax, Ay, Az
+        if not off == off:
+            return 1, length, length, bx, by, bz, Ax, Ay, Az
+        return 2, length, length, bx, by, bz, Ax, Ay, Az
+
+    @njit(**_jit_inline)
+    def _cone_uv(k, end, leg_f, T, wx, wy, wz):
+        """(u, v) whose angle is the cone angle at ``end`` (0 base, 1 platform) of leg k with
+        leg vector w: base (w, base_ref); platform (-w, R @ platform_ref)."""
+        if end == 0:
+            return wx, wy, wz, leg_f[k, 12], leg_f[k, 13], leg_f[k, 14]
+        vx, vy, vz = _rot(T, leg_f[k, 15], leg_f[k, 16], leg_f[k, 17])
+        return -wx, -wy, -wz, vx, vy, vz
+
+    @njit(**_jit_inline)
+    def _clip1(c):
+        """np.clip(c, -1, 1) (NaN stays NaN)."""
+        if c > 1.0:
+            return 1.0
+        if c < -1.0:
+            return -1.0
+        return c
+
+    @njit(**_jit_inline)
+    def _pt_seg2(x, y, z, px, py, pz, dx, dy, dz, dd):
+        """Squared distance from a point to the segment p + u d, u in [0, 1]."""
+        u = 0.0
+        if dd > 1e-300:
+            u = min(max(((x - px) * dx + (y - py) * dy + (z - pz) * dz) / dd, 0.0), 1.0)
+        cx = x - px - u * dx
+        cy = y - py - u * dy
+        cz = z - pz - u * dz
+        return cx * cx + cy * cy + cz * cz
+
+    @njit(**_jit_inline)
+    def _parallel_seg2(p1x, p1y, p1z, d1x, d1y, d1z, a, p2x, p2y, p2z, d2x, d2y, d2z, e):
+        """(Nearly) parallel segments: the closest pair involves an endpoint (as the
+        endpoint candidates of spatial.segment_distance)."""
+        m = _pt_seg2(p1x, p1y, p1z, p2x, p2y, p2z, d2x, d2y, d2z, e)
+        m = min(m, _pt_seg2(p1x + d1x, p1y + d1y, p1z + d1z, p2x, p2y, p2z, d2x, d2y, d2z, e))
+        m = min(m, _pt_seg2(p2x, p2y, p2z, p1x, p1y, p1z, d1x, d1y, d1z, a))
+        m = min(m, _pt_seg2(p2x + d2x, p2y + d2y, p2z + d2z, p1x, p1y, p1z, d1x, d1y, d1z, a))
+        return m
+
+    @njit(**_jit_inline)
+    def _seg_dist2(seg, i, j):
+        """Squared distance between segments seg[i] and seg[j], each (start, end) -- the
+        operations of spatial.segment_distance."""
+        p1x = seg[i, 0]
+        p1y = seg[i, 1]
+        p1z = seg[i, 2]
+        p2x = seg[j, 0]
+        p2y = seg[j, 1]
+        p2z = seg[j, 2]
+        d1x = seg[i, 3] - p1x
+        d1y = seg[i, 4] - p1y
+        d1z = seg[i, 5] - p1z
+        d2x = seg[j, 3] - p2x
+        d2y = seg[j, 4] - p2y
+        d2z = seg[j, 5] - p2z
+        rx = p1x - p2x
+        ry = p1y - p2y
+        rz = p1z - p2z
+        a = d1x * d1x + d1y * d1y + d1z * d1z
+        e = d2x * d2x + d2y * d2y + d2z * d2z
+        f = d2x * rx + d2y * ry + d2z * rz
+        c = d1x * rx + d1y * ry + d1z * rz
+        b = d1x * d2x + d1y * d2y + d1z * d2z
+        denom = a * e - b * b
+        if denom > 1e-12 * max(a * e, 1e-300):
+            s = min(max((b * f - c * e) / denom, 0.0), 1.0)
+        else:
+            return _parallel_seg2(p1x, p1y, p1z, d1x, d1y, d1z, a, p2x, p2y, p2z, d2x, d2y, d2z, e)
+        if e > 1e-300:
+            t = (b * s + f) / e
+        else:
+            t = 0.0
+        if t < 0.0:
+            s = min(max(-c / a, 0.0), 1.0) if a > 1e-300 else 0.0
+        elif t > 1.0:
+            s = min(max((b - c) / a, 0.0), 1.0) if a > 1e-300 else 0.0
+        t = min(max(t, 0.0), 1.0)
+        cx = (p1x + s * d1x) - (p2x + t * d2x)
+        cy = (p1y + s * d1y) - (p2y + t * d2y)
+        cz = (p1z + s * d1z) - (p2z + t * d2z)
+        return cx * cx + cy * cy + cz * cz
+
+
+    @njit(**_jit_inline)
+    def _clip01(x):
+        return min(max(x, 0.0), 1.0)
+
+    @njit(**_jit_inline)
+    def _any(m, nb):
+        r = False
+        for ii in range(nb):
+            r |= m[ii] != 0
+        return r
+
+    # Vectorisable sin/cos (Cephes sin.c: reduction by pi/4 in three parts, degree-6
+    # polynomials; absolute error <= ~2.2e-16, i.e. within an ulp or two of libm) for the
+    # SIMD pose stage; arguments beyond 1e6 rad are recomputed with libm.
+    _FOPI = 1.27323954473516268615
+    _DP1 = 7.85398125648498535156e-1
+    _DP2 = 3.77489470793079817668e-8
+    _DP3 = 2.69515142907905952645e-15
+    _S0, _S1, _S2, _S3, _S4, _S5 = (1.58962301576546568060e-10, -2.50507477628578072866e-8,
+                                    2.75573136213857245213e-6, -1.98412698295895385996e-4,
+                                    8.33333333332211858878e-3, -1.66666666666666307295e-1)
+    _C0, _C1, _C2, _C3, _C4, _C5 = (-1.13585365213876817300e-11, 2.08757008419747316778e-9,
+                                    -2.75573141792967388112e-7, 2.48015872888517045348e-5,
+                                    -1.38888888888730564116e-3, 4.16666666666665929218e-2)
+    _BIG_ANGLE = 1e6
+
+    @njit(**_jit_inline)
+    def _sincos(x):
+        # np.floor (float result): math.floor returns an integer, which keeps the loop scalar
+        ax = abs(x)
+        y = np.floor(ax * _FOPI)
+        y = y + (y - 2.0 * np.floor(y * 0.5))  # next even octant
+        j = y - 8.0 * np.floor(y * 0.125)  # octant mod 8: 0, 2, 4 or 6
+        z = ((ax - y * _DP1) - y * _DP2) - y * _DP3
+        zz = z * z
+        ps = z + z * zz * (((((_S0 * zz + _S1) * zz + _S2) * zz + _S3) * zz + _S4) * zz + _S5)
+        pc = 1.0 - 0.5 * zz + zz * zz * (((((_C0 * zz + _C1) * zz + _C2) * zz + _C3) * zz + _C4) * zz + _C5)
+        swap = (j == 2.0) | (j == 6.0)
+        s = pc if swap else ps
+        c = ps if swap else pc
+        s = -s if (j >= 4.0) != (x < 0.0) else s
+        c = -c if (j == 2.0) | (j == 4.0) else c
+        return s, c
+
+    # ------------------------------------------------------------------------------------------
+    # The program interpreter: each instruction a loop over the nb lanes of a sub-block.
+    # Every operand of a lane is read before its results are written (registers may be reused
+    # in place); two-result instructions write the sine first, then the cosine.
+    # ------------------------------------------------------------------------------------------
+    @njit(**_jit)
+    def _run(ins, lo, hi, Rg, Sc, nb):
+        for k in range(lo, hi):
+            op = ins[k, 0]
+            d = ins[k, 1]
+            a = ins[k, 2]
+            b = ins[k, 3]
+            c = ins[k, 4]
+            if op == _ADD:
+                for ii in range(nb):
+                    Rg[d, ii] = Rg[a, ii] + Rg[b, ii]
+            elif op == _SUBT:
+                for ii in range(nb):
+                    Rg[d, ii] = Rg[a, ii] - Rg[b, ii]
+            elif op == _MUL:
+                for ii in range(nb):
+                    Rg[d, ii] = Rg[a, ii] * Rg[b, ii]
+            elif op == _DIV:
+                for ii in range(nb):
+                    Rg[d, ii] = Rg[a, ii] / Rg[b, ii]
+            elif op == _SQUARE:
+                for ii in range(nb):
+                    u = Rg[a, ii]
+                    Rg[d, ii] = u * u
+            elif op == _NEG:
+                for ii in range(nb):
+                    Rg[d, ii] = -Rg[a, ii]
+            elif op == _SINCOS:  # (the allocator never places a result on the argument)
+                big = False
+                for ii in range(nb):  # into separate scratch rows, so that the loop vectorises
+                    x = Rg[a, ii]
+                    sv, cv = _sincos(x)
+                    Sc[0, ii] = sv
+                    Sc[1, ii] = cv
+                    big |= abs(x) > _BIG_ANGLE
+                for ii in range(nb):
+                    Rg[d, ii] = Sc[0, ii]
+                    Rg[b, ii] = Sc[1, ii]
+                if big:
+                    for ii in range(nb):
+                        x = Rg[a, ii]
+                        if abs(x) > _BIG_ANGLE:
+                            Rg[d, ii] = math.sin(x)
+                            Rg[b, ii] = math.cos(x)
+            elif op == _SINCOS_ATAN2:  # sin, cos of atan2(y, x) = y / r, x / r
+                bad = False
+                for ii in range(nb):
+                    y = Rg[a, ii]
+                    x = Rg[b, ii]
+                    r = math.sqrt(x * x + y * y)
+                    Sc[0, ii] = y / r
+                    Sc[1, ii] = x / r
+                    bad |= not ((r > 0.0) & (r < np.inf))
+                if bad:  # r = 0 or not finite: as sin(atan2(y, x)), cos(atan2(y, x))
+                    for ii in range(nb):
+                        y = Rg[a, ii]
+                        x = Rg[b, ii]
+                        r = math.sqrt(x * x + y * y)
+                        if not ((r > 0.0) & (r < np.inf)):
+                            t = math.atan2(y, x)
+                            Sc[0, ii] = math.sin(t)
+                            Sc[1, ii] = math.cos(t)
+                for ii in range(nb):
+                    Rg[d, ii] = Sc[0, ii]
+                    Rg[c, ii] = Sc[1, ii]
+            elif op == _SQRT:
+                for ii in range(nb):
+                    Rg[d, ii] = math.sqrt(Rg[a, ii])
+            elif op == _POW:
+                for ii in range(nb):
+                    Rg[d, ii] = Rg[a, ii] ** Rg[b, ii]
+            elif op == _ATAN2:
+                for ii in range(nb):
+                    Rg[d, ii] = math.atan2(Rg[a, ii], Rg[b, ii])
+            elif op == _HYPOT:
+                for ii in range(nb):
+                    Rg[d, ii] = math.hypot(Rg[a, ii], Rg[b, ii])
+            elif op == _MIN:
+                for ii in range(nb):
+                    u = Rg[a, ii]
+                    v = Rg[b, ii]
+                    Rg[d, ii] = np.nan if (u != u or v != v) else (u if u <= v else v)
+            elif op == _MAX:
+                for ii in range(nb):
+                    u = Rg[a, ii]
+                    v = Rg[b, ii]
+                    Rg[d, ii] = np.nan if (u != u or v != v) else (u if u >= v else v)
+            elif op == _CLIP:  # np.clip = minimum(maximum(x, lo), hi), NaN propagating
+                for ii in range(nb):
+                    u = Rg[a, ii]
+                    lo_ = Rg[b, ii]
+                    hi_ = Rg[c, ii]
+                    if u != u or lo_ != lo_ or hi_ != hi_:
+                        Rg[d, ii] = np.nan
+                    else:
+                        u = u if u >= lo_ else lo_
+                        Rg[d, ii] = u if u <= hi_ else hi_
+            elif op == _LT:
+                for ii in range(nb):
+                    Rg[d, ii] = 1.0 if Rg[a, ii] < Rg[b, ii] else 0.0
+            elif op == _LE:
+                for ii in range(nb):
+                    Rg[d, ii] = 1.0 if Rg[a, ii] <= Rg[b, ii] else 0.0
+            elif op == _GT:
+                for ii in range(nb):
+                    Rg[d, ii] = 1.0 if Rg[a, ii] > Rg[b, ii] else 0.0
+            elif op == _GE:
+                for ii in range(nb):
+                    Rg[d, ii] = 1.0 if Rg[a, ii] >= Rg[b, ii] else 0.0
+            elif op == _AND:
+                for ii in range(nb):
+                    Rg[d, ii] = 1.0 if (Rg[a, ii] != 0.0 and Rg[b, ii] != 0.0) else 0.0
+            elif op == _SELECT:  # d = cond(c) ? a : b
+                for ii in range(nb):
+                    Rg[d, ii] = Rg[a, ii] if Rg[c, ii] != 0.0 else Rg[b, ii]
+            elif op == _SIGN:
+                for ii in range(nb):
+                    u = Rg[a, ii]
+                    Rg[d, ii] = np.nan if u != u else (1.0 if u > 0.0 else (-1.0 if u < 0.0 else 0.0))
+            elif op == _ABS:
+                for ii in range(nb):
+                    Rg[d, ii] = abs(Rg[a, ii])
+            elif op == _COPY:
+                for ii in range(nb):
+                    Rg[d, ii] = Rg[a, ii]
+            else:
+                for ii in range(nb):
+                    Rg[d, ii] = _unary(op, Rg[a, ii])
+
+    @njit(**_jit)
+    def _unary(op, u):
+        if op == _TAN:
+            return math.tan(u)
+        if op == _ASIN:
+            return math.asin(u) if -1.0 <= u <= 1.0 else np.nan
+        if op == _ACOS:
+            return math.acos(u) if -1.0 <= u <= 1.0 else np.nan
+        if op == _ATAN:
+            return math.atan(u)
+        if op == _EXP:
+            return math.exp(u)
+        if op == _LOG:
+            if u > 0.0:
+                return math.log(u)
+            if u == 0.0:
+                return -np.inf
+            return np.nan
+        if op == _SINH:
+            return math.sinh(u)
+        if op == _COSH:
+            return math.cosh(u)
+        if op == _TANH:
+            return math.tanh(u)
+        if op == _SIN1:
+            return math.sin(u)
+        if op == _COS1:
+            return math.cos(u)
+        return np.nan
+
+    @njit(**_jit_inline)
+    def _fill_consts(Rg, consts, cbase):
+        for j in range(consts.shape[0]):
+            v = consts[j]
+            for ii in range(Rg.shape[1]):
+                Rg[cbase + j, ii] = v
+
+    @njit(**_jit_inline)
+    def _pose_prog(X, j0, nb, coord, okm, Rg, Sc, Tm, ins, n_pose, pose_regs, valid_regs):
+        """Task-coordinate ranges, finiteness, the pose part of the program and the pose's
+        validity for poses X[j0:j0+nb]: okm, and Tm (12, nb) = (p, R row-major)."""
+        nt = X.shape[1]
+        for ii in range(nb):
+            i = j0 + ii
+            v = True
+            for j in range(nt):
+                v = v & (abs(X[i, j]) < np.inf)
+            for q in range(coord.shape[0]):
+                x = X[i, int(coord[q, 0])]
+                v = v & (x - coord[q, 1] >= 0.0) & (coord[q, 2] - x >= 0.0)
+            okm[ii] = v
+            for j in range(nt):
+                Rg[j, ii] = X[i, j] if v else 0.0
+        _run(ins, 0, n_pose, Rg, Sc, nb)
+        for q in range(valid_regs.shape[0]):
+            r = valid_regs[q]
+            for ii in range(nb):
+                okm[ii] = okm[ii] & (Rg[r, ii] != 0.0)
+        for j in range(12):
+            r = pose_regs[j]
+            for ii in range(nb):
+                t = Rg[r, ii]
+                Tm[j, ii] = t
+                okm[ii] = okm[ii] & (abs(t) < np.inf)
+
+    @njit(parallel=True, **_jit)
+    def _pose_kernel(X, ins, consts, cbase, n_reg, n_run, pose_regs, valid_regs, twist_regs, block, ok, P, Rm, Tw):
+        """Validity, positions, rotations (row-major) and, if twist_regs is not empty, the
+        twist map of poses X: the program alone."""
+        N = X.shape[0]
+        nblk = (N + block - 1) // block
+        coord = np.zeros((0, 4))
+        n_pose = n_run
+        for blk in prange(nblk):
+            Rg = np.empty((n_reg, SUB))
+            _fill_consts(Rg, consts, cbase)
+            Sc = np.empty((2, SUB))
+            Tm = np.empty((12, SUB))
+            okm = np.empty(SUB, dtype=np.uint8)
+            i1 = min(N, (blk + 1) * block)
+            for j0 in range(blk * block, i1, SUB):
+                nb = min(SUB, i1 - j0)
+                _pose_prog(X, j0, nb, coord, okm, Rg, Sc, Tm, ins, n_pose, pose_regs, valid_regs)
+                if twist_regs.shape[0] > 0:
+                    _run(ins, n_pose, ins.shape[0], Rg, Sc, nb)
+                for ii in range(nb):
+                    i = j0 + ii
+                    ok[i] = okm[ii] != 0
+                    for j in range(3):
+                        P[i, j] = Tm[j, ii]
+                    for j in range(9):
+                        Rm[i, j] = Tm[3 + j, ii]
+                    for r in range(twist_regs.shape[0]):
+                        for j in range(twist_regs.shape[1]):
+                            Tw[i, r, j] = Rg[twist_regs[r, j], ii]
+
+    @njit(parallel=True, **_jit)
+    def _feasible_kernel(X, ins, consts, cbase, n_reg, n_pose, pose_regs, valid_regs, expr, tol, leg_kind, leg_act,
+                         leg_f, coord, actr, lenr, cone, rang, axang, pair, offs, block, out, amb):
+        """Boolean feasibility of poses X (N, n_task) -> out (N,), amb[block] = number of
+        poses whose RPS/RPU reachability NumPy decides batch-dependently.
+
+        Work items (prange) are blocks of ``block`` poses, processed in sub-blocks of SUB
+        poses laid out structure-of-arrays: the pose (_pose_block), then leg by leg and check
+        by check a straight loop over the sub-block that the compiler vectorises (the leg
+        geometry and limits are loop invariants). A sub-block stops as soon as none of its
+        poses is feasible; interference, the most expensive check, comes last (see the
+        module docstring)."""
+        N = X.shape[0]
+        nl = leg_kind.shape[0]
+        nblk = (N + block - 1) // block
+        for blk in prange(nblk):
+            Tm = np.empty((12, SUB))
+            Rg = np.empty((n_reg, SUB))
+            _fill_consts(Rg, consts, cbase)
+            Sc = np.empty((2, SUB))
+            okm = np.empty(SUB, dtype=np.uint8)
+            und = np.empty(SUB, dtype=np.uint8)
+            Sg = np.empty((nl, 6, SUB))
+            Q = np.empty((nl, SUB))
+            n_amb = 0
+            i1 = min(N, (blk + 1) * block)
+            for j0 in range(blk * block, i1, SUB):
+                nb = min(SUB, i1 - j0)
+                # 1. task-coordinate ranges and the pose (the program's pose part)
+                _pose_prog(X, j0, nb, coord, okm, Rg, Sc, Tm, ins, n_pose, pose_regs, valid_regs)
+                for ii in range(nb):
+                    und[ii] = 0
+                # 2. leg by leg: inverse kinematics, then that leg's checks
+                for k in range(nl):
+                    if not _any(okm, nb):
+                        break
+                    kind = leg_kind[k]
+                    a0 = leg_f[k, 3]
+                    a1 = leg_f[k, 4]
+                    a2 = leg_f[k, 5]
+                    bx = leg_f[k, 0]
+                    by = leg_f[k, 1]
+                    bz = leg_f[k, 2]
+                    ex = leg_f[k, 6]
+                    ey = leg_f[k, 7]
+                    ez = leg_f[k, 8]
+                    if kind == 1 or kind == 4:  # PUS, PRS: slider along e through base, link L
+                        L = leg_f[k, 18]
+                        br = leg_f[k, 19]
+                        is_prs = kind == 4
+                        r0_ = leg_f[k, 9]
+                        r1_ = leg_f[k, 10]
+                        r2_ = leg_f[k, 11]
+                        ptol = leg_f[k, 20]
+                        for ii in range(nb):
+                            Sx = Tm[0, ii] + (Tm[3, ii] * a0 + Tm[4, ii] * a1 + Tm[5, ii] * a2)
+                            Sy = Tm[1, ii] + (Tm[6, ii] * a0 + Tm[7, ii] * a1 + Tm[8, ii] * a2)
+                            Sz = Tm[2, ii] + (Tm[9, ii] * a0 + Tm[10, ii] * a1 + Tm[11, ii] * a2)
+                            dx = Sx - bx
+                            dy = Sy - by
+                            dz = Sz - bz
+                            de = dx * ex + dy * ey + dz * ez
+                            disc = L * L - ((dx * dx + dy * dy + dz * dz) - de * de)
+                            s = de + br * math.sqrt(disc)
+                            off_ok = abs(dx * r0_ + dy * r1_ + dz * r2_) <= ptol
+                            okm[ii] = okm[ii] & (disc >= 0.0) & (off_ok | (not is_prs))
+                            Q[k, ii] = s
+                            Sg[k, 0, ii] = bx + s * ex
+                            Sg[k, 1, ii] = by + s * ey
+                            Sg[k, 2, ii] = bz + s * ez
+                            Sg[k, 3, ii] = Sx
+                            Sg[k, 4, ii] = Sy
+                            Sg[k, 5, ii] = Sz
+                    else:  # fixed base joint: SPS, UPS, UPU, RPS, RPU
+                        for ii in range(nb):
+                            Ax = Tm[0, ii] + (Tm[3, ii] * a0 + Tm[4, ii] * a1 + Tm[5, ii] * a2)
+                            Ay = Tm[1, ii] + (Tm[6, ii] * a0 + Tm[7, ii] * a1 + Tm[8, ii] * a2)
+                            Az = Tm[2, ii] + (Tm[9, ii] * a0 + Tm[10, ii] * a1 + Tm[11, ii] * a2)
+                            dx = Ax - bx
+                            dy = Ay - by
+                            dz = Az - bz
+                            length = math.sqrt(dx * dx + dy * dy + dz * dz)
+                            okm[ii] = okm[ii] & (length > 0.0)
+                            Q[k, ii] = length
+                            Sg[k, 0, ii] = bx
+                            Sg[k, 1, ii] = by
+                            Sg[k, 2, ii] = bz
+                            Sg[k, 3, ii] = Ax
+                            Sg[k, 4, ii] = Ay
+                            Sg[k, 5, ii] = Az
+                        if kind == 2 or kind == 3:  # planar leg: off-plane error, axis r = e
+                            is_rpu = kind == 3
+                            u0 = leg_f[k, 9]
+                            u1 = leg_f[k, 10]
+                            u2 = leg_f[k, 11]
+                            for ii in range(nb):
+                                off = abs((Sg[k, 3, ii] - bx) * ex + (Sg[k, 4, ii] - by) * ey
+                                          + (Sg[k, 5, ii] - bz) * ez)
+                                a4x = Tm[3, ii] * u0 + Tm[4, ii] * u1 + Tm[5, ii] * u2
+                                a4y = Tm[6, ii] * u0 + Tm[7, ii] * u1 + Tm[8, ii] * u2
+                                a4z = Tm[9, ii] * u0 + Tm[10, ii] * u1 + Tm[11, ii] * u2
+                                skew_ok = abs(a4x * ex + a4y * ey + a4z * ez) <= tol
+                                okm[ii] = okm[ii] & (off == off) & (skew_ok | (not is_rpu))
+                                und[ii] = und[ii] | (off > tol)
+                    # actuator ranges
+                    if leg_act[k] == 1:
+                        for q in range(actr.shape[0]):
+                            lo = actr[q, 0]
+                            hi = actr[q, 1]
+                            for ii in range(nb):
+                                okm[ii] = okm[ii] & (Q[k, ii] - lo >= 0.0) & (hi - Q[k, ii] >= 0.0)
+                    # passive leg length ranges (length = actuator value for non-PUS legs)
+                    for q in range(offs[0, k], offs[0, k + 1]):
+                        lo = lenr[q, 1]
+                        hi = lenr[q, 2]
+                        if kind == 1 or kind == 4:
+                            L = leg_f[k, 18]
+                            ok_l = L - lo >= 0.0 and hi - L >= 0.0
+                            if not ok_l:
+                                for ii in range(nb):
+                                    okm[ii] = 0
+                        else:
+                            for ii in range(nb):
+                                okm[ii] = okm[ii] & (Q[k, ii] - lo >= 0.0) & (hi - Q[k, ii] >= 0.0)
+                    # joint cone angles lo <= angle(u, v) <= hi, without arctan2 or sqrt:
+                    # angle <= hi iff sin(hi) (u.v) - cos(hi) |u x v| >= 0 for hi in (0, pi),
+                    # tested on squares with the signs handled (modes from _angle_modes)
+                    for q in range(offs[1, k], offs[1, k + 1]):
+                        end = int(cone[q, 1])
+                        lo_mode = int(cone[q, 5])
+                        hi_mode = int(cone[q, 6])
+                        l1 = lo_mode == 1
+                        l2 = lo_mode == 2
+                        h0 = hi_mode == 0
+                        h1 = hi_mode == 1
+                        h2 = hi_mode == 2
+                        sl2 = cone[q, 7]
+                        cl2 = cone[q, 8]
+                        sh2 = cone[q, 9]
+                        ch2 = cone[q, 10]
+                        q0 = leg_f[k, 12]
+                        q1 = leg_f[k, 13]
+                        q2 = leg_f[k, 14]
+                        r0 = leg_f[k, 15]
+                        r1 = leg_f[k, 16]
+                        r2 = leg_f[k, 17]
+                        plat = end == 1
+                        sgn = -1.0 if plat else 1.0
+                        for ii in range(nb):
+                            wx = sgn * (Sg[k, 3, ii] - Sg[k, 0, ii])
+                            wy = sgn * (Sg[k, 4, ii] - Sg[k, 1, ii])
+                            wz = sgn * (Sg[k, 5, ii] - Sg[k, 2, ii])
+                            if plat:
+                                vx = Tm[3, ii] * r0 + Tm[4, ii] * r1 + Tm[5, ii] * r2
+                                vy = Tm[6, ii] * r0 + Tm[7, ii] * r1 + Tm[8, ii] * r2
+                                vz = Tm[9, ii] * r0 + Tm[10, ii] * r1 + Tm[11, ii] * r2
+                            else:
+                                vx = q0
+                                vy = q1
+                                vz = q2
+                            dot = wx * vx + wy * vy + wz * vz
+                            cx = wy * vz - wz * vy
+                            cy = wz * vx - wx * vz
+                            cz = wx * vy - wy * vx
+                            cr2 = cx * cx + cy * cy + cz * cz
+                            d2 = dot * dot
+                            ok_hi = h0 | (h1 & (dot >= 0.0) & (sh2 * d2 >= ch2 * cr2)) | (
+                                h2 & ((dot >= 0.0) | (ch2 * cr2 >= sh2 * d2)))
+                            ok_lo = (not (l1 or l2)) | (l1 & ((dot <= 0.0) | (cl2 * cr2 >= sl2 * d2))) | (
+                                l2 & (dot <= 0.0) & (sl2 * d2 >= cl2 * cr2))
+                            okm[ii] = okm[ii] & ok_hi & ok_lo
+                    # leg axis against a base or platform axis: arccos(n.a) <= hi as n.a >= cos(hi)
+                    for q in range(offs[3, k], offs[3, k + 1]):
+                        ax = axang[q, 1]
+                        ay = axang[q, 2]
+                        az = axang[q, 3]
+                        in_plat = axang[q, 4] == 1.0
+                        ch = axang[q, 7]
+                        for ii in range(nb):
+                            if in_plat:
+                                vx = Tm[3, ii] * ax + Tm[4, ii] * ay + Tm[5, ii] * az
+                                vy = Tm[6, ii] * ax + Tm[7, ii] * ay + Tm[8, ii] * az
+                                vz = Tm[9, ii] * ax + Tm[10, ii] * ay + Tm[11, ii] * az
+                            else:
+                                vx = ax
+                                vy = ay
+                                vz = az
+                            wx = Sg[k, 3, ii] - Sg[k, 0, ii]
+                            wy = Sg[k, 4, ii] - Sg[k, 1, ii]
+                            wz = Sg[k, 5, ii] - Sg[k, 2, ii]
+                            ln = leg_f[k, 18] if (kind == 1 or kind == 4) else Q[k, ii]
+                            okm[ii] = okm[ii] & (wx * vx + wy * vy + wz * vz >= ch * ln)
+                    # signed revolute angle (atan2: not vectorised)
+                    for q in range(offs[2, k], offs[2, k + 1]):
+                        for ii in range(nb):
+                            if okm[ii]:
+                                wx = Sg[k, 3, ii] - Sg[k, 0, ii]
+                                wy = Sg[k, 4, ii] - Sg[k, 1, ii]
+                                wz = Sg[k, 5, ii] - Sg[k, 2, ii]
+                                ang = math.atan2(wx * rang[q, 4] + wy * rang[q, 5] + wz * rang[q, 6],
+                                                 wx * rang[q, 1] + wy * rang[q, 2] + wz * rang[q, 3])
+                                okm[ii] = (ang - rang[q, 7] >= 0.0) and (rang[q, 8] - ang >= 0.0)
+                # 3. expression margins (the rest of the program), >= 0 (NaN fails)
+                if expr.shape[0] > 0 and _any(okm, nb):
+                    _run(ins, n_pose, ins.shape[0], Rg, Sc, nb)
+                    for q in range(expr.shape[0]):
+                        r = expr[q, 0]
+                        for ii in range(nb):
+                            okm[ii] = okm[ii] & (Rg[r, ii] >= 0.0)
+                # 4. leg interference, last: segment-segment distance (spatial.segment_distance,
+                # branch-free) compared squared
+                for q in range(pair.shape[0]):
+                    if not _any(okm, nb):
+                        break
+                    ka = int(pair[q, 0])
+                    kb = int(pair[q, 1])
+                    Dq = pair[q, 2]
+                    D2 = pair[q, 4]
+                    # Bounding boxes at least D apart along an axis prove the distance >= D
+                    # (exactly: the distance is at least that gap); only if some feasible pose
+                    # of the sub-block is not settled so is the distance computed.
+                    need = 0
+                    for ii in range(nb):
+                        gap = -1.0
+                        for c in range(3):
+                            u = Sg[ka, c, ii]
+                            v = Sg[ka, 3 + c, ii]
+                            a_lo = u if u < v else v
+                            a_hi = v if u < v else u
+                            u = Sg[kb, c, ii]
+                            v = Sg[kb, 3 + c, ii]
+                            b_lo = u if u < v else v
+                            b_hi = v if u < v else u
+                            g1 = b_lo - a_hi
+                            g2 = a_lo - b_hi
+                            g = g1 if g1 > g2 else g2
+                            gap = g if g > gap else gap
+                        need |= okm[ii] & (gap < Dq)
+                    if not need:
+                        continue
+                    for ii in range(nb):
+                        p1x = Sg[ka, 0, ii]
+                        p1y = Sg[ka, 1, ii]
+                        p1z = Sg[ka, 2, ii]
+                        p2x = Sg[kb, 0, ii]
+                        p2y = Sg[kb, 1, ii]
+                        p2z = Sg[kb, 2, ii]
+                        d1x = Sg[ka, 3, ii] - p1x
+                        d1y = Sg[ka, 4, ii] - p1y
+                        d1z = Sg[ka, 5, ii] - p1z
+                        d2x = Sg[kb, 3, ii] - p2x
+                        d2y = Sg[kb, 4, ii] - p2y
+                        d2z = Sg[kb, 5, ii] - p2z
+                        rx = p1x - p2x
+                        ry = p1y - p2y
+                        rz = p1z - p2z
+                        a = d1x * d1x + d1y * d1y + d1z * d1z
+                        e = d2x * d2x + d2y * d2y + d2z * d2z
+                        f = d2x * rx + d2y * ry + d2z * rz
+                        c = d1x * rx + d1y * ry + d1z * rz
+                        b = d1x * d2x + d1y * d2y + d1z * d2z
+                        denom = a * e - b * b
+                        if denom > 1e-12 * max(a * e, 1e-300):
+                            s = _clip01((b * f - c * e) / denom)
+                            t = (b * s + f) / e if e > 1e-300 else 0.0
+                            s_lo = _clip01(-c / a) if a > 1e-300 else 0.0
+                            s_hi = _clip01((b - c) / a) if a > 1e-300 else 0.0
+                            s = s_lo if t < 0.0 else (s_hi if t > 1.0 else s)
+                            t = _clip01(t)
+                            cx = (p1x + s * d1x) - (p2x + t * d2x)
+                            cy = (p1y + s * d1y) - (p2y + t * d2y)
+                            cz = (p1z + s * d1z) - (p2z + t * d2z)
+                            dist2 = cx * cx + cy * cy + cz * cz
+                        else:
+                            dist2 = _parallel_seg2(p1x, p1y, p1z, d1x, d1y, d1z, a, p2x, p2y, p2z, d2x, d2y, d2z, e)
+                        okm[ii] = okm[ii] & (dist2 >= D2)
+                for ii in range(nb):
+                    out[j0 + ii] = okm[ii] != 0
+                    n_amb += okm[ii] & und[ii]
+            amb[blk] = n_amb
+
+    @njit(**_jit_inline)
+    def _nmin(a, b):
+        """np.minimum for scalars (NaN propagates)."""
+        if a != a or b != b:
+            return np.nan
+        return a if a <= b else b
+
+    @njit(**_jit_inline)
+    def _upd(M, i, ci, m):
+        """M[i, ci] = np.minimum(M[i, ci], m)."""
+        if m < M[i, ci] or m != m:
+            M[i, ci] = m
+
+    @njit(parallel=True, **_jit)
+    def _margins_kernel(X, ins, consts, cbase, n_reg, n_pose, pose_regs, valid_regs, expr, tol, leg_kind, leg_act,
+                        leg_f, coord, actr, lenr, cone, rang, axang, pair, offs, block, M, amb):
+        """All constraint margins with NumPy's formulas (arctan2, arccos, sqrt), no early
+        exit -- Mechanism.constraint_margins. The program runs per sub-block; the rest per
+        pose."""
+        N = X.shape[0]
+        nl = leg_kind.shape[0]
+        nc = M.shape[1]
+        nblk = (N + block - 1) // block
+        nocoord = np.zeros((0, 4))
+        for blk in prange(nblk):
+            seg = np.empty((nl, 6))
+            lens = np.empty(nl)
+            qv = np.empty(nl)
+            nvec = np.empty((nl, 3))
+            Rg = np.empty((n_reg, SUB))
+            _fill_consts(Rg, consts, cbase)
+            Sc = np.empty((2, SUB))
+            Tm = np.empty((12, SUB))
+            okm = np.empty(SUB, dtype=np.uint8)
+            n_amb = 0
+            i1 = min(N, (blk + 1) * block)
+            for j0 in range(blk * block, i1, SUB):
+              nb = min(SUB, i1 - j0)
+              _pose_prog(X, j0, nb, nocoord, okm, Rg, Sc, Tm, ins, n_pose, pose_regs, valid_regs)
+              _run(ins, n_pose, ins.shape[0], Rg, Sc, nb)
+              for ii in range(nb):
+                i = j0 + ii
+                reach = okm[ii] != 0
+                T = (Tm[0, ii], Tm[1, ii], Tm[2, ii], Tm[3, ii], Tm[4, ii], Tm[5, ii], Tm[6, ii], Tm[7, ii],
+                     Tm[8, ii], Tm[9, ii], Tm[10, ii], Tm[11, ii])
+                undecided = False
+                if reach:
+                    for k in range(nl):
+                        st, q_act, length, ux, uy, uz, ax_, ay_, az_ = _leg(k, leg_kind[k], leg_f, T, tol)
+                        if st == 1:
+                            reach = False
+                            break
+                        if st == 2:
+                            undecided = True
+                        lens[k] = length
+                        qv[k] = q_act
+                        seg[k, 0] = ux
+                        seg[k, 1] = uy
+                        seg[k, 2] = uz
+                        seg[k, 3] = ax_
+                        seg[k, 4] = ay_
+                        seg[k, 5] = az_
+                        # unit leg direction as the legs compute it
+                        wx = ax_ - ux
+                        wy = ay_ - uy
+                        wz = az_ - uz
+                        if leg_kind[k] != 1 and leg_kind[k] != 4:
+                            length = math.sqrt(wx * wx + wy * wy + wz * wz)
+                        nvec[k, 0] = wx / length
+                        nvec[k, 1] = wy / length
+                        nvec[k, 2] = wz / length
+                if not reach:
+                    for j in range(nc):
+                        M[i, j] = -np.inf
+                    continue
+                if undecided:
+                    n_amb += 1
+                for j in range(nc):
+                    M[i, j] = np.inf
+                for q in range(coord.shape[0]):
+                    x = X[i, int(coord[q, 0])]
+                    _upd(M, i, int(coord[q, 3]), _nmin(x - coord[q, 1], coord[q, 2] - x))
+                for k in range(nl):
+                    if leg_act[k] == 1:
+                        for q in range(actr.shape[0]):
+                            _upd(M, i, int(actr[q, 2]), _nmin(qv[k] - actr[q, 0], actr[q, 1] - qv[k]))
+                for q in range(lenr.shape[0]):
+                    ln = lens[int(lenr[q, 0])]
+                    _upd(M, i, int(lenr[q, 3]), _nmin(ln - lenr[q, 1], lenr[q, 2] - ln))
+                for q in range(cone.shape[0]):
+                    k = int(cone[q, 0])
+                    u0, u1, u2, v0, v1, v2 = _cone_uv(k, int(cone[q, 1]), leg_f, T, nvec[k, 0], nvec[k, 1], nvec[k, 2])
+                    cx = u1 * v2 - u2 * v1
+                    cy = u2 * v0 - u0 * v2
+                    cz = u0 * v1 - u1 * v0
+                    ang = math.atan2(math.sqrt(cx * cx + cy * cy + cz * cz), u0 * v0 + u1 * v1 + u2 * v2)
+                    _upd(M, i, int(cone[q, 4]), _nmin(ang - cone[q, 2], cone[q, 3] - ang))
+                for q in range(rang.shape[0]):
+                    k = int(rang[q, 0])
+                    ang = math.atan2(nvec[k, 0] * rang[q, 4] + nvec[k, 1] * rang[q, 5] + nvec[k, 2] * rang[q, 6],
+                                     nvec[k, 0] * rang[q, 1] + nvec[k, 1] * rang[q, 2] + nvec[k, 2] * rang[q, 3])
+                    _upd(M, i, int(rang[q, 9]), _nmin(ang - rang[q, 7], rang[q, 8] - ang))
+                for q in range(axang.shape[0]):
+                    k = int(axang[q, 0])
+                    if axang[q, 4] == 1.0:
+                        bx, by, bz = _rot(T, axang[q, 1], axang[q, 2], axang[q, 3])
+                    else:
+                        bx = axang[q, 1]
+                        by = axang[q, 2]
+                        bz = axang[q, 3]
+                    c = nvec[k, 0] * bx + nvec[k, 1] * by + nvec[k, 2] * bz
+                    _upd(M, i, int(axang[q, 6]), axang[q, 5] - math.acos(_clip1(c)))
+                for q in range(expr.shape[0]):
+                    _upd(M, i, expr[q, 1], Rg[expr[q, 0], ii])
+                # interference: min distance over the pairs, minus the diameter
+                for q in range(pair.shape[0]):
+                    d = math.sqrt(_seg_dist2(seg, int(pair[q, 0]), int(pair[q, 1])))
+                    _upd(M, i, int(pair[q, 3]), d - pair[q, 2])
+                for j in range(nc):
+                    if M[i, j] != M[i, j]:  # NaN (undefined) -> -inf; an unbounded limit stays inf
+                        M[i, j] = -np.inf
+            amb[blk] = n_amb
+
