@@ -574,10 +574,18 @@ class Mechanism:
             )
         return [self.constraints[n] for n in names]
 
-    def constraint_margins(self, X, names=None) -> dict[str, np.ndarray]:
+    def constraint_margins(self, X, names=None, engine: str = "compiled") -> dict[str, np.ndarray]:
         """{constraint name: margins (N,)}, >= 0 where satisfied, in each constraint's unit
         (``self.constraints[name].unit``). Poses the legs cannot reach get -inf in every
-        margin (never NaN). ``names`` selects a subset."""
+        margin (never NaN). ``names`` selects a subset. ``engine``: "compiled" (the compiled
+        engine, :mod:`parasynth.engine`, falling back to NumPy with a warning where it does not
+        cover the mechanism) or "numpy" (the reference)."""
+        from . import engine as _engine
+
+        return _engine.margins(self, X, names, engine)
+
+    def _constraint_margins_numpy(self, X, names=None) -> dict[str, np.ndarray]:
+        """The NumPy reference of :meth:`constraint_margins`."""
         Xa, single = self._poses(X)
         cons = self._select(names)
         ctx = self.pose_context(Xa)
@@ -590,8 +598,15 @@ class Mechanism:
                 out[c.name] = m[0] if single else m
         return out
 
-    def is_feasible(self, X, names=None) -> np.ndarray:
-        """(N,) bool: reachable and every selected constraint margin >= 0."""
+    def is_feasible(self, X, names=None, engine: str = "compiled") -> np.ndarray:
+        """(N,) bool: reachable and every selected constraint margin >= 0. ``engine``:
+        "compiled" (default, see :meth:`constraint_margins`) or "numpy" (the reference)."""
+        from . import engine as _engine
+
+        return _engine.feasible(self, X, names, engine)
+
+    def _is_feasible_numpy(self, X, names=None) -> np.ndarray:
+        """The NumPy reference of :meth:`is_feasible`."""
         Xa, single = self._poses(X)
         cons = self._select(names)
         ctx = self.pose_context(Xa)
