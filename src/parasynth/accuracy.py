@@ -116,9 +116,9 @@ def _leg_residual(leg, p, R) -> np.ndarray:
     (actuator value if actuated), then the constraint residuals."""
     j = leg.joints
     out = []
-    if leg.is_actuated:
-        out.append(leg.solve(p, R).actuator)
     A = leg.platform_points(p, R)
+    if leg.is_actuated:
+        out.append(_actuator_value(leg, A, p, R))
     if j in ("RPS", "PRS"):
         out.append((A - leg.base) @ leg.r_axis)
     elif j == "RPU":
@@ -133,6 +133,19 @@ def _leg_residual(leg, p, R) -> np.ndarray:
         raise ValueError(f"accuracy: leg type {j!r} (leg {leg.name}) has no closure residual; supported: "
                          f"SPS, UPS, PUS, RPS, PRS, RPU, UPU")
     return np.stack(out, axis=-1) if out else np.zeros(p.shape[:1] + (0,))
+
+
+def _actuator_value(leg, A, p, R):
+    """The leg's actuator value for platform anchor points ``A``: the closed forms of
+    ``leg.solve`` (leg length; slider position of a fixed-length link), or ``leg.solve``."""
+    if leg.joints in ("SPS", "UPS", "RPS", "RPU", "UPU"):
+        return np.linalg.norm(A - leg.base, axis=-1)
+    if leg.joints in ("PUS", "PRS"):
+        d = A - leg.base
+        de = d @ leg.slider_axis
+        disc = leg.link_length ** 2 - (np.einsum("ij,ij->i", d, d) - de ** 2)
+        return de + leg.branch * np.sqrt(np.where(disc >= 0, disc, np.nan))
+    return leg.solve(p, R).actuator
 
 
 def closure_residuals(mech, p, R, legs=None) -> np.ndarray:
@@ -277,22 +290,37 @@ def _source_jacobian(mech, p, R, src: ErrorSources):
     return G
 
 
-def _pinv_rank6(Gt, mech_name):
-    N = Gt.shape[0]
-    L = np.ones(6)
-    if Gt.shape[1] < 6:
-        raise ValueError(f"{mech_name}: {Gt.shape[1]} closure equations cannot fix the 6 pose coordinates "
+def _pinv_rank6(Gt, mech, rtol=1e-8):
+    """``G_t^+`` (N, 6, m) on the dimensionally homogeneous form of ``G_t`` (rotations and
+    length rows scaled by the model's length scale); inf where its 6th singular value is below
+    ``rtol`` times the largest (a singular pose: the finite differences resolve about 1e-10)."""
+    N, m = Gt.shape[:2]
+    if m < 6:
+        raise ValueError(f"{mech.name}: {m} closure equations cannot fix the 6 pose coordinates "
                          f"(under-actuated mechanism: an uncontrolled freedom has no defined pose error)")
+    L = mech.length_scale
+    dc = np.array([1.0, 1.0, 1.0, 1.0 / L, 1.0 / L, 1.0 / L])
+    dr = np.where(_length_rows(mech), 1.0 / L, 1.0)
     ok = np.all(np.isfinite(Gt), axis=(1, 2))
-    G0 = np.where(ok[:, None, None], Gt, 0.0) * L
-    s = np.linalg.svd(G0, compute_uv=False)
-    sing = s[:, 5] <= 1e-12 * np.maximum(s[:, 0], 1e-300)
-    Gi = np.full((N, 6, Gt.shape[1]), np.nan)
+    Gs = np.where(ok[:, None, None], Gt, 0.0) * dr[None, :, None] * dc[None, None, :]
+    s = np.linalg.svd(Gs, compute_uv=False)
+    sing = s[:, 5] <= rtol * np.maximum(s[:, 0], 1e-300)
+    Gi = np.full((N, 6, m), np.nan)
     good = ok & ~sing
     if good.any():
-        Gi[good] = np.linalg.pinv(G0[good])
+        Gi[good] = dc[None, :, None] * np.linalg.pinv(Gs[good]) * dr[None, None, :]
     Gi[ok & sing] = np.inf
     return Gi
+
+
+def _length_rows(mech):
+    """(m,) bool: closure rows in metres (actuators, plane offsets); the others are angles."""
+    rows = []
+    for leg in mech.legs:
+        if leg.is_actuated:
+            rows.append(True)
+        rows += {"RPS": [True], "PRS": [True], "RPU": [True, False], "UPU": [False]}.get(leg.joints, [])
+    return np.array(rows, bool)
 
 
 def sensitivity(mech, X):
@@ -303,14 +331,16 @@ def sensitivity(mech, X):
     p, R = mech.pose(Xa)
     src = error_sources(mech)
     Gt = _pose_jacobian(mech, p, R)
-    Gi = _pinv_rank6(Gt, mech.name)
+    Gi = _pinv_rank6(Gt, mech)
     Ge = _source_jacobian(mech, p, R, src)
     act_rows = np.flatnonzero(_actuated_row_mask(mech))
     for j, (k, i) in enumerate(zip(src.kind, src.index)):
         if k == "actuator":
             Ge[:, act_rows[i], j] = -1.0
+    sing = np.any(np.isinf(Gi), axis=(1, 2))
     with np.errstate(invalid="ignore"):
-        S = -np.einsum("nim,nmj->nij", Gi, Ge)
+        S = -np.einsum("nim,nmj->nij", np.where(sing[:, None, None], 0.0, Gi), Ge)
+    S[sing] = np.inf
     reach = mech.inverse_kinematics(Xa).reachable
     S[~reach] = np.nan
     return S, src
@@ -334,9 +364,9 @@ def pose_error_bound(mech, X, **tolerances) -> np.ndarray:
 def _bound(S, src, tol):
     tv = _tolerance_vector(src, tol)
     grp = np.array(src.group)
-    box = grp < 0
+    box = (grp < 0) & (tv > 0)  # sources without a tolerance are left out (no inf * 0 at singular poses)
     b = np.einsum("nij,j->ni", np.abs(S[..., box]), tv[box])
-    for g in np.unique(grp[~box]):
+    for g in np.unique(grp[(grp >= 0) & (tv > 0)]):
         cols = np.flatnonzero(grp == g)
         b = b + tv[cols[0]] * np.linalg.norm(S[..., cols], axis=-1)
     return b
@@ -353,7 +383,8 @@ def pose_error_covariance(mech, X, **tolerances) -> np.ndarray:
 def _covariance(S, src, tol):
     tv = _tolerance_vector(src, tol)
     var = np.where(np.array(src.group) < 0, tv ** 2 / 3.0, tv ** 2 / 5.0)
-    return np.einsum("nij,j,nkj->nik", S, var, S)
+    on = var > 0
+    return np.einsum("nij,j,nkj->nik", S[..., on], var[on], S[..., on])
 
 
 def _sample_errors(src: ErrorSources, tol: dict, M: int, rng) -> np.ndarray:
@@ -370,11 +401,31 @@ def _sample_errors(src: ErrorSources, tol: dict, M: int, rng) -> np.ndarray:
 
 
 def _perturbed_legs(mech, src, e):
-    legs = list(mech.legs)
+    """Copies of the legs with the errors ``e`` applied (one ``dataclasses.replace`` per leg)."""
+    changes = {}
     for j, (k, li, idx) in enumerate(zip(src.kind, src.leg, src.index)):
         if k == "actuator" or e[j] == 0.0:
             continue
-        legs[li] = _perturb_leg(legs[li], idx, e[j])
+        ch = changes.setdefault(li, {})
+        what, c = idx
+        leg = mech.legs[li]
+        if what in ("base", "platform"):
+            v = ch.setdefault(what, np.array(getattr(leg, what), dtype=float))
+            v[c] += e[j]
+        elif what == "link_length":
+            ch[what] = ch.get(what, float(leg.link_length)) + e[j]
+        else:
+            a = np.array(getattr(leg, what), dtype=float)
+            tilts = ch.setdefault(("tilt", what), [0.0, 0.0])
+            tilts[c] += e[j]
+    legs = list(mech.legs)
+    for li, ch in changes.items():
+        kw = {k: v for k, v in ch.items() if not isinstance(k, tuple)}
+        for key, (t1, t2) in ((k, v) for k, v in ch.items() if isinstance(k, tuple)):
+            a = np.array(getattr(mech.legs[li], key[1]), dtype=float)
+            b1, b2 = _tilt_basis(a)
+            kw[key[1]] = a + np.tan(t1) * b1 + np.tan(t2) * b2  # normalised by the leg
+        legs[li] = dataclasses.replace(mech.legs[li], **kw)
     return legs
 
 
@@ -387,14 +438,14 @@ def pose_error_monte_carlo(mech, X, samples: int = 200, seed: int = 0, max_iter:
     Xa, _ = mech._poses(X)
     p, R = mech.pose(Xa)
     src = error_sources(mech)
-    Gi = _pinv_rank6(_pose_jacobian(mech, p, R), mech.name)
+    Gi = _pinv_rank6(_pose_jacobian(mech, p, R), mech)
     h0 = closure_residuals(mech, p, R)
     rng = np.random.default_rng(seed)
     E = np.asarray(errors, dtype=float) if errors is not None else _sample_errors(src, tol, int(samples), rng)
     act_rows = np.flatnonzero(_actuated_row_mask(mech))
     act_idx = [i for k, i in zip(src.kind, src.index) if k == "actuator"]
     act_cols = [j for j, k in enumerate(src.kind) if k == "actuator"]
-    scale = np.array([mech.length_scale if r else 1.0 for r in _actuated_row_mask(mech)])
+    scale = np.where(_length_rows(mech), mech.length_scale, 1.0)
     out = np.full((E.shape[0], Xa.shape[0], 6), np.nan)
     for s in range(E.shape[0]):
         legs = _perturbed_legs(mech, src, E[s])
