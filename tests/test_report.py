@@ -477,8 +477,9 @@ def test_html_tables_scroll_inside_the_page(mo_run):
 
 
 def _text_boxes_overlap(fig):
-    """Pairs of overlapping tick labels (same axis), and tick or axis labels of different axes
-    that overlap, in the drawn figure."""
+    """Pairs of overlapping tick labels (same axis), tick or axis labels of different panels
+    that overlap, and labels of a panel that run into another panel's plotting area, in the
+    drawn figure."""
     fig.canvas.draw()
     r = fig.canvas.get_renderer()
     bad, per_axes = [], []
@@ -498,10 +499,12 @@ def _text_boxes_overlap(fig):
             boxes += bb
             if axis.label.get_text():
                 boxes.append(axis.label.get_window_extent(r).expanded(0.98, 0.98))
-        per_axes.append(boxes)
-    for A, B in itertools.combinations(per_axes, 2):
+        per_axes.append((boxes, ax.bbox))
+    for (A, frame_a), (B, frame_b) in itertools.combinations(per_axes, 2):
         if any(a.overlaps(b) for a in A for b in B):
             bad.append("labels of two panels overlap")
+        if any(a.overlaps(frame_b) for a in A) or any(b.overlaps(frame_a) for b in B):
+            bad.append("labels of a panel run into another panel")
     return bad
 
 
