@@ -1,5 +1,6 @@
-"""Mechanisms described in YAML: the seed models' descriptions against the built-in models,
-the expression evaluator, loading by file name and path, and use in studies."""
+"""Mechanisms described in YAML: the paper models defined by their packaged descriptions and
+their variants (checked against closed forms and the papers' numbers), the expression
+evaluator, loading by file name and path, and use in studies."""
 
 from __future__ import annotations
 
@@ -12,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from scipy.spatial.transform import Rotation
 
 import parasynth
 from parasynth.mechanisms import mechanism_class, packaged_descriptions, resolve_mechanism_name
@@ -19,37 +21,8 @@ from parasynth.mechanisms.description import (DescribedMechanism, DescriptionErr
                                               from_description)
 
 PKG = Path(parasynth.__file__).parent / "mechanisms"
-
-# (built-in name, description file, changed parameters, half-widths of the pose box around home)
-SEEDS = [
-    ("2rpu_2sps", "2rpu_2sps.yaml", dict(a1=0.16, b2=0.36, b3=0.5, q_max=0.95, theta_max=np.deg2rad(40.0),
-                                         leg_diameter=0.05),
-     [0.2, 0.5, 0.6]),
-    ("5pus_upu", "5pus_upu.yaml", dict(link_length=0.22, slider_radius=0.14, hinge_scale=1.1, hinge_rotation=0.1,
-                                       hinge_shift_y=0.005, upu_base_z=-0.2, sphere_max=0.6,
-                                       slider_angles=tuple(np.deg2rad([20.0, 160.0, 230.0, 310.0, 90.0]))),
-     [0.06, 0.06, 0.1, 0.45, 0.45]),
-    ("4ups_1rps", "4ups_1rps.yaml", dict(base_radius=0.3, platform_radius=0.11, mu1=np.deg2rad(50.0), l_s0=0.06,
-                                         u_phase=0.1, base_offset=0.01, l_max=0.6,
-                                         platform_angles=tuple(np.deg2rad([-40.0, 45.0, 135.0, 220.0]))),
-     [0.15, 0.1, 1.0, 0.6, 1.0]),
-]
-CASES = [(b, y, {}, s) for b, y, _, s in SEEDS] + [(b, y, p, s) for b, y, p, s in SEEDS]
-IDS = [f"{b}-default" for b, *_ in SEEDS] + [f"{b}-changed" for b, *_ in SEEDS]
-
-
-def _builtin_defaults(builtin, yaml_name) -> dict:
-    """The built-in model's current defaults of the parameters both versions have (the
-    descriptions carry the same defaults, but the comparison must not depend on it)."""
-    cb, cy = mechanism_class(builtin), mechanism_class(yaml_name)
-    shared = {f.name for f in dataclasses.fields(cy.Params)} & {f.name for f in dataclasses.fields(cb.Params)}
-    P = cb.Params()
-    return {k: getattr(P, k) for k in shared}
-
-
-def _pair(builtin, yaml_name, changes):
-    params = {**_builtin_defaults(builtin, yaml_name), **changes}
-    return parasynth.load_mechanism(builtin, **changes), parasynth.load_mechanism(yaml_name, **params)
+MM = 1e-3
+DEG = np.pi / 180
 
 
 def _poses(mech, half, n=300, seed=0):
@@ -66,98 +39,215 @@ def _close(a, b, atol):
     np.testing.assert_allclose(a, b, rtol=0, atol=atol, equal_nan=True)
 
 
-# -- the seed models: a description reproduces the built-in model ---------------------------------
-@pytest.mark.parametrize("builtin, yaml_name, params, half", CASES, ids=IDS)
-def test_seed_description_reproduces_builtin(builtin, yaml_name, params, half):
-    b, y = _pair(builtin, yaml_name, params)
-    assert isinstance(y, DescribedMechanism)
-    assert y.task_coordinates == b.task_coordinates
-    assert y.angular_coordinates == b.angular_coordinates
-    assert y.actuators == b.actuators
-    assert [leg.name for leg in y.legs] == [leg.name for leg in b.legs]
-    assert [type(leg) for leg in y.legs] == [type(leg) for leg in b.legs]
-    np.testing.assert_allclose(y.home, b.home, atol=1e-15)
-    assert y.length_scale == pytest.approx(b.length_scale, abs=1e-15)
-    for lb, ly in zip(b.legs, y.legs):  # the geometry itself
-        np.testing.assert_allclose(ly.base, lb.base, atol=1e-15)
-        np.testing.assert_allclose(ly.platform, lb.platform, atol=1e-15)
-        assert ly.is_actuated == lb.is_actuated
-    X = _poses(b, half)
-    pb, Rb = b.pose(X[:-1])
-    py, Ry = y.pose(X[:-1])
-    _close(py, pb, 1e-14)
-    _close(Ry, Rb, 1e-14)
-    _close(y.twist_map(X[:-1]), b.twist_map(X[:-1]), 1e-12)
-    ib, iy = b.inverse_kinematics(X), y.inverse_kinematics(X)
-    assert np.array_equal(iy.reachable, ib.reachable)
-    _close(iy.actuators, ib.actuators, 1e-12)
-    assert list(iy.passive_angles) == list(ib.passive_angles)
-    for k in ib.passive_angles:
-        _close(iy.passive_angles[k], ib.passive_angles[k], 1e-10)
-    _close(y.jacobian(X), b.jacobian(X), 1e-10)
-    _close(y.wrench_matrix(X), b.wrench_matrix(X), 1e-10)
-    _close(y.singularity_margin(X), b.singularity_margin(X), 1e-10)
-    mb, my = b.constraint_margins(X), y.constraint_margins(X)
-    assert list(my) == list(mb)
-    assert {c.unit for c in y.constraints.values()} <= {"m", "rad"}
-    for k in mb:
-        assert y.constraints[k].unit == b.constraints[k].unit
-        assert np.array_equal(np.isfinite(my[k]), np.isfinite(mb[k]))
-        np.testing.assert_allclose(my[k], mb[k], rtol=0, atol=1e-9)
-    fb, fy = b.is_feasible(X), y.is_feasible(X)
-    assert np.array_equal(fy, fb)
-    assert 0 < fb.mean() < 1  # the box holds feasible and infeasible poses
-    rb, ry = b.default_ranges(), y.default_ranges()
-    assert list(ry) == list(rb)
-    for k in rb:
-        np.testing.assert_allclose(ry[k], rb[k], atol=1e-15)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", DescriptionWarning)
-        mob_y = y.mobility()
-    mob_b = b.mobility()
-    assert (mob_y.dof, mob_y.type, mob_y.controlled, mob_y.constraint_rank) == \
-        (mob_b.dof, mob_b.type, mob_b.controlled, mob_b.constraint_rank)
-    assert mob_y.consistent
+# -- the paper models are their packaged descriptions ---------------------------------------------
+@pytest.mark.parametrize("name", ["5pus_upu", "2rpu_2sps", "4ups_1rps"])
+def test_paper_model_is_the_class_of_its_packaged_description(name):
+    cls = mechanism_class(name)
+    assert issubclass(cls, DescribedMechanism)
+    assert cls is mechanism_class(f"{name}.yaml")  # the bare file name: the same description
+    assert cls.name == name and cls.description.source == f"{name}.yaml"
+    m = parasynth.load_mechanism(name)
+    assert type(m) is cls and m.name == name
+    assert name + "_yaml" not in parasynth.list_mechanisms()
 
 
-@pytest.mark.parametrize("builtin, yaml_name", [(b, y) for b, y, *_ in SEEDS])
-def test_seed_parameters_have_the_builtin_units(builtin, yaml_name):
-    cb, cy = mechanism_class(builtin), mechanism_class(yaml_name)
-    shared = {f.name for f in dataclasses.fields(cy.Params)} & {f.name for f in dataclasses.fields(cb.Params)}
-    assert len(shared) >= 9
-    for k in shared:
-        assert cy.Params.UNITS[k] == cb.Params.UNITS[k], k
-        assert np.shape(getattr(cy.Params(), k)) == np.shape(getattr(cb.Params(), k)), k
+# Slider heights at home of the 5-PUS/UPU (platform centre at the origin, level): the sphere
+# S_i in the plane z = 0 and the universal joint U_i above it on the slider line through
+# R (cos a_i, sin a_i), so s_i = sqrt(L^2 - |U_i - S_i|_xy^2).
+def _slider_heights(R, L, angles, spheres_xy):
+    U = R * np.c_[np.cos(angles), np.sin(angles)]
+    return np.sqrt(L**2 - np.sum((U - np.asarray(spheres_xy)) ** 2, axis=1))
 
 
-def test_uncoupled_2rpu_2sps_as_a_python_dict():
-    """The 2-RPU&2-SPS with its four true freedoms (coupled=False), by editing the dict."""
-    data = yaml.safe_load((PKG / "2rpu_2sps.yaml").read_text())
-    d = copy.deepcopy(data)
-    d["name"] = "2rpu_2sps_uncoupled"
-    d["task"].update({
-        "coordinates": {"x": "length", "z": "length", "psi": "angle", "theta": "angle"},
-        "restricted": False,
-        "position": ["x", "0 mm", "z"],
-        "home": {"x": "750 mm * tan(15 deg)", "z": "750 mm", "psi": "0 deg", "theta": "15 deg"},
-        "ranges": {"x": ["-600 mm", "600 mm"], **data["task"]["ranges"]},
-    })
-    del d["task"]["valid"]
-    y = from_description(d, **{**_builtin_defaults("2rpu_2sps", "2rpu_2sps.yaml"), "a2": 0.08})
-    b = parasynth.load_mechanism("2rpu_2sps", coupled=False, a2=0.08)
-    X = _poses(b, [0.2, 0.2, 0.5, 0.6])
-    _close(y.jacobian(X), b.jacobian(X), 1e-10)
-    _close(y.singularity_margin(X), b.singularity_margin(X), 1e-10)
-    assert np.array_equal(y.is_feasible(X), b.is_feasible(X))
-    assert y.default_ranges().keys() == b.default_ranges().keys()
+SCHEME1 = np.array([[35, 51], [-35, 51], [-51, -35], [51, -35], [0, 51]]) * MM
+SCHEME2 = np.array([[40, 40], [-40, 40], [-40, -40], [40, -40], [0, 40]]) * MM
+SLIDERS = np.deg2rad([18.0, 162.0, 234.0, 306.0, 90.0])
+
+
+def test_5pus_upu_variants_against_closed_forms():
+    m = parasynth.load_mechanism("5pus_upu")
+    assert (m.params.platform, m.params.hinge_layout) == ("rectangular", "scheme1")
+    q = m.inverse_kinematics(m.home).actuators
+    # docs/models/5pus_upu.md: 182.2543, 182.2543, 188.9789, 188.9789, 187.0000 mm
+    np.testing.assert_allclose(q / MM, [182.2543, 182.2543, 188.9789, 188.9789, 187.0000], atol=5e-5)
+    np.testing.assert_allclose(q, _slider_heights(0.135, 0.205, SLIDERS, SCHEME1), atol=1e-14)
+    pent = parasynth.load_mechanism("5pus_upu", platform="pentagonal")
+    r = pent.params.pentagon_radius
+    assert r == pytest.approx(0.062)
+    sph = r * np.c_[np.cos(SLIDERS), np.sin(SLIDERS)]
+    np.testing.assert_allclose([leg.platform[:2] for leg in pent.legs[:5]], sph, atol=1e-15)
+    np.testing.assert_allclose(pent.inverse_kinematics(pent.home).actuators / MM, [191.5620] * 5, atol=5e-5)
+    # The pentagon ignores the hinge-layout transforms (they belong to the rectangular platform).
+    pent2 = parasynth.load_mechanism("5pus_upu", platform="pentagonal", hinge_layout="scheme2", hinge_scale=1.3)
+    np.testing.assert_allclose([leg.platform for leg in pent2.legs], [leg.platform for leg in pent.legs], atol=0)
+    # The structural singularity of the first scheme (Section 2.3) at the centred level pose.
+    assert pent.singularity_margin(pent.home) < 1e-9 < m.singularity_margin(m.home)
+    # scheme2 (assumed coordinates), scaled, rotated and shifted: points by hand.
+    k, th, dy = 1.2, 10 * DEG, 4 * MM
+    s2 = parasynth.load_mechanism("5pus_upu", hinge_layout="scheme2", hinge_scale=k, hinge_rotation=th,
+                                  hinge_shift_y=dy)
+    c, s = np.cos(th), np.sin(th)
+    pts = k * SCHEME2 @ np.array([[c, s], [-s, c]]) + [0.0, dy]
+    np.testing.assert_allclose([leg.platform[:2] for leg in s2.legs[:5]], pts, atol=1e-15)
+    np.testing.assert_allclose(s2.inverse_kinematics(s2.home).actuators,
+                               _slider_heights(0.135, 0.205, SLIDERS, pts), atol=1e-14)
+    # custom: hinge_points
+    pts = SCHEME1 * 0.9
+    cu = parasynth.load_mechanism("5pus_upu", hinge_layout="custom", hinge_points=tuple(map(tuple, pts)))
+    np.testing.assert_allclose(cu.inverse_kinematics(cu.home).actuators,
+                               _slider_heights(0.135, 0.205, SLIDERS, pts), atol=1e-14)
+    # hinge_points only acts in the custom layout
+    s1 = parasynth.load_mechanism("5pus_upu", hinge_points=tuple(map(tuple, pts)))
+    np.testing.assert_allclose(s1.inverse_kinematics(s1.home).actuators, q, atol=0)
+
+
+def test_5pus_upu_orientation_is_the_limb_consistent_one():
+    """R = Ry(q1) Rx(alpha) Ry(beta - q1), q1 = atan2(x, z - upu_base_z) (scipy rotations)."""
+    m = parasynth.load_mechanism("5pus_upu")
+    X = _poses(m, [0.05, 0.05, 0.08, 0.3, 0.3])[:-1]
+    q1 = np.arctan2(X[:, 0], X[:, 2] + 0.15)
+    R = Rotation.from_euler("YXY", np.c_[q1, X[:, 3], X[:, 4] - q1]).as_matrix()
+    p, Rm = m.pose(X)
+    np.testing.assert_allclose(Rm, R, atol=1e-14)
+    np.testing.assert_allclose(p, X[:, :3], atol=0)
+
+
+def _2rpu_lengths(P, x, z, psi, theta):
+    """|p + R a_i - b_i| with R = Ry(theta) Rx(psi) (eq. (1) with phi = 0), p = (x, 0, z)."""
+    a1, a2, a3, a4, b1, b2, b3, b4 = P
+    A = np.array([[0, -a1, 0], [a2, 0, 0], [0, a3, 0], [-a4, 0, 0]])
+    B = np.array([[0, -b1, 0], [b2, 0, 0], [0, b3, 0], [-b4, 0, 0]])
+    R = Rotation.from_euler("YX", np.c_[theta, psi]).as_matrix()
+    p = np.c_[x, np.zeros_like(x), z]
+    return np.linalg.norm(p[:, None, :] + np.einsum("nij,kj->nki", R, A) - B[None], axis=-1)
+
+
+def test_2rpu_2sps_coupled_switch_against_closed_forms():
+    """coupled=True: x = z tan(theta) (eq. (10)); coupled=False: x a fourth coordinate. Leg
+    lengths against eq. (11) written out; both variants agree where x = z tan(theta)."""
+    P = (0.16, 0.08, 0.15, 0.075, 0.55, 0.36, 0.5, 0.35)
+    kw = dict(zip(("a1", "a2", "a3", "a4", "b1", "b2", "b3", "b4"), P))
+    c = parasynth.load_mechanism("2rpu_2sps", **kw)
+    f = parasynth.load_mechanism("2rpu_2sps", coupled=False, **kw)
+    assert c.task_coordinates == ("z", "psi", "theta") and f.task_coordinates == ("x", "z", "psi", "theta")
+    assert c.params.coupled is True and f.params.coupled is False
+    np.testing.assert_allclose(f.home, [0.75 * np.tan(15 * DEG), 0.75, 0.0, 15 * DEG], atol=1e-15)
+    assert list(f.default_ranges()) == ["x", "z", "psi", "theta"]
+    assert f.default_ranges()["x"] == pytest.approx((-0.6, 0.6))
+    assert list(c.default_ranges()) == ["z", "psi", "theta"]
+    rng = np.random.default_rng(1)
+    Xf = f.home + rng.uniform(-1, 1, (200, 4)) * [0.2, 0.2, 0.5, 0.6]
+    qf = f.inverse_kinematics(Xf)
+    np.testing.assert_allclose(qf.actuators[qf.reachable], _2rpu_lengths(P, *Xf.T)[qf.reachable], atol=1e-14)
+    assert 0.3 < qf.reachable.mean() <= 1.0
+    Xc = Xf[:, 1:]
+    x = Xc[:, 0] * np.tan(Xc[:, 2])
+    np.testing.assert_allclose(c.x_of(Xc), x, atol=1e-15)
+    np.testing.assert_allclose(f.x_of(Xf), Xf[:, 0], atol=0)
+    qc = c.inverse_kinematics(Xc)
+    np.testing.assert_allclose(qc.actuators[qc.reachable], _2rpu_lengths(P, x, *Xc.T)[qc.reachable], atol=1e-14)
+    # The uncoupled model has the four true freedoms, consistently described; FK inverts IK.
     with warnings.catch_warnings():
         warnings.simplefilter("error", DescriptionWarning)
-        m = y.mobility()
-    assert (m.dof, m.type, m.controlled, m.issues) == (4, "2T2R", True, ())
-    # Forward kinematics of the square model inverts the inverse kinematics.
-    Xr = X[:20][b.inverse_kinematics(X[:20]).reachable]
-    q = y.inverse_kinematics(Xr).actuators
-    np.testing.assert_allclose(y.forward_kinematics(q, guess=Xr + 1e-3), Xr, atol=1e-9)
+        mob = f.mobility()
+    assert (mob.dof, mob.type, mob.controlled, mob.issues) == (4, "2T2R", True, ())
+    Xr = Xf[:20][qf.reachable[:20]]
+    np.testing.assert_allclose(f.forward_kinematics(f.inverse_kinematics(Xr).actuators, guess=Xr + 1e-3), Xr,
+                               atol=1e-9)
+    # Constraints by coordinate name follow the variant's columns.
+    assert f.constraints["theta_range"].index == 3 and c.constraints["theta_range"].index == 2
+
+
+def test_4ups_1rps_geometry_and_grinding_point_against_closed_forms():
+    from parasynth.mechanisms.extras import grinding_u_angles
+
+    m = parasynth.load_mechanism("4ups_1rps", u_phase=0.1, base_offset=-0.1)
+    P = m.params
+    ua = P.u_phase - P.mu1 / 2 + np.array([0.0, P.mu1, P.mu1 + P.mu2, 2 * P.mu1 + P.mu2])
+    np.testing.assert_allclose(grinding_u_angles(P), ua, atol=1e-15)
+    U = np.c_[P.base_radius * np.cos(ua), np.full(4, P.base_offset), P.base_radius * np.sin(ua)]
+    np.testing.assert_allclose([leg.base for leg in m.legs[:4]], U, atol=1e-15)
+    sa = np.deg2rad([-45.0, 45.0, 135.0, 225.0])
+    S = P.platform_radius * np.c_[np.cos(sa), np.zeros(4), np.sin(sa)]
+    np.testing.assert_allclose([leg.platform for leg in m.legs[:4]], S, atol=1e-15)
+    np.testing.assert_allclose(m.legs[4].base, [0.0, -0.05, 0.0], atol=0)
+    X = _poses(m, [0.1, 0.1, 1.0, 0.3, 1.0])[:-1]
+    R = Rotation.from_euler("ZYZ", X[:, 2:]).as_matrix()
+    p = np.c_[X[:, :2], np.zeros(len(X))]
+    G = p + R @ np.array([0.0, P.y_t, 0.0])
+    np.testing.assert_allclose(m.grinding_point(X), G, atol=1e-15)
+    np.testing.assert_allclose(m.grinding_point(np.array([0.0, 0.42, 0, 0, 0])), [0.0, 0.495, 0.0], atol=1e-15)
+    q = m.inverse_kinematics(X)
+    L = np.linalg.norm(p[:, None, :] + np.einsum("nij,kj->nki", R, S) - U[None], axis=-1)
+    np.testing.assert_allclose(q.actuators[q.reachable], L[q.reachable], atol=1e-14)
+    # phi_o of eq. (9): the platform y axis against the centre's position vector.
+    phi_o = np.arccos(np.clip(np.sum(R[:, :, 1] * p, -1) / np.linalg.norm(p, axis=1), -1, 1))
+    mg = m.constraint_margins(X, "sphere_constraint")["sphere_constraint"]
+    ok = q.reachable
+    np.testing.assert_allclose(mg[ok], (P.sphere_max - phi_o)[ok], atol=1e-12)
+
+
+@pytest.mark.parametrize("name, expected", [
+    ("5pus_upu", {"slider_radius": "length", "link_length": "length", "platform": None, "hinge_layout": None,
+                  "hinge_points": "length", "hinge_scale": "dimensionless", "hinge_rotation": "angle",
+                  "hinge_shift_y": "length", "pentagon_radius": "length", "slider_angles": "angle",
+                  "upu_base_z": "length", "slider_min": "length", "slider_max": "length", "sphere_max": "angle",
+                  "ujoint_max": "angle", "link_diameter": "length"}),
+    ("2rpu_2sps", {**{k: "length" for k in ("a1", "a2", "a3", "a4", "b1", "b2", "b3", "b4", "q_min", "q_max",
+                                           "leg_diameter")}, "psi_max": "angle", "theta_max": "angle",
+                   "coupled": None}),
+    ("4ups_1rps", {**{k: "length" for k in ("platform_radius", "base_radius", "l_s0", "y_t", "base_offset", "l_min",
+                                           "l_max", "d2_min", "d2_max", "leg_diameter")},
+                   **{k: "angle" for k in ("mu1", "mu2", "u_phase", "platform_angles", "theta1_max", "sphere_max",
+                                           "ujoint_max")}}),
+])
+def test_paper_model_parameters_and_units(name, expected):
+    """Every parameter of the paper models keeps its name and quantity kind (studies, CLI
+    ``--param`` and YAML files use them); variants are fields with kind None."""
+    cls = mechanism_class(name)
+    assert dict(cls.Params.UNITS) == expected
+    assert {f.name for f in dataclasses.fields(cls.Params)} == set(expected)
+
+
+def test_paper_model_defaults_are_the_papers():
+    p = mechanism_class("5pus_upu").Params()
+    assert (p.slider_radius, p.link_length, p.link_diameter, p.slider_max - p.slider_min) == \
+        pytest.approx((0.135, 0.205, 0.008, 0.205))
+    np.testing.assert_allclose(p.hinge_points, SCHEME1, atol=1e-15)
+    np.testing.assert_allclose(p.slider_angles, SLIDERS, atol=1e-15)
+    q = mechanism_class("2rpu_2sps").Params()
+    assert (q.a1, q.a2, q.b1, q.b2, q.q_min, q.q_max, q.psi_max, q.theta_max) == \
+        pytest.approx((0.15, 0.075, 0.55, 0.35, 0.7, 1.0, 30 * DEG, 45 * DEG))
+    g = mechanism_class("4ups_1rps").Params()
+    assert (g.base_radius, g.platform_radius, g.mu1, g.mu2, g.l_min, g.l_max, g.d2_min, g.d2_max, g.y_t) == \
+        pytest.approx((0.335, 0.1, 53 * DEG, 127 * DEG, 0.43, 0.68, 0.32, 0.55, 0.075))
+
+
+def test_variant_instances_share_one_parsed_description_per_choice():
+    cls = mechanism_class("5pus_upu")
+    a = cls(cls.Params(link_length=0.21))
+    b = cls(cls.Params(link_length=0.22))
+    c = cls(cls.Params(platform="pentagonal"))
+    assert a.description is b.description is cls.description
+    assert c.description is not a.description
+    assert c.description is cls(cls.Params(platform="pentagonal", slider_radius=0.14)).description
+    assert c.description.selection == {"hinge_layout": "scheme1", "platform": "pentagonal"}
+    assert a.with_params(platform="pentagonal").description is c.description
+
+
+def test_extras_trajectory_eq13_closed_form():
+    from parasynth.mechanisms.extras import trajectory_eq13
+
+    t = np.linspace(0.0, 10.0, 11)
+    X, Xd, Xdd = trajectory_eq13(t)
+    u = np.pi / 3 + np.pi * t / 30
+    np.testing.assert_allclose(X[:, 1:3], 0.05 * np.c_[np.cos(u), -np.sin(u)], atol=1e-16)
+    h = 1e-6
+    Xp, Xm = trajectory_eq13(t + h)[0], trajectory_eq13(t - h)[0]
+    np.testing.assert_allclose(Xd, (Xp - Xm) / (2 * h), atol=1e-9)
+    np.testing.assert_allclose(Xdd, (trajectory_eq13(t + h)[1] - trajectory_eq13(t - h)[1]) / (2 * h), atol=1e-9)
+    assert np.all(X[:, [0, 3, 4]] == 0)
+    assert trajectory_eq13(t, attitude_follows_curve=True)[0][:, 3] == pytest.approx(u)
 
 
 def test_orientation_as_a_product_of_rotations():

@@ -11,6 +11,7 @@ import pytest
 import yaml
 
 import parasynth
+import parasynth.objectives
 from parasynth.mechanisms import _PACKAGE_DIR
 from parasynth.mechanisms.description import (DescriptionError, DescriptionWarning, description_class,
                                               from_description, load_description)
@@ -135,14 +136,14 @@ def test_bad_yaml_file_and_nothing_half_built(tmp_path):
     with pytest.raises(ValueError, match=r"m\.yaml: legs\[2\] \(L3\)\.actuated"):
         parasynth.load_mechanism(str(p))
     p.write_text(yaml.safe_dump(SQUARE) + "\n# fixed\n")  # fixed: loads now (the failure was not cached)
-    assert parasynth.load_mechanism(str(p)).name == "2rpu_2sps_yaml"
+    assert parasynth.load_mechanism(str(p)).name == "2rpu_2sps"
     p.write_text("- just a list\n")
     with pytest.raises(DescriptionError, match="must be a mapping"):
         load_description(p)
 
 
 def test_bad_parameter_values_at_load():
-    with pytest.raises(ValueError, match=r"5pus_upu_yaml\.slider_angles must have shape \(5,\)"):
+    with pytest.raises(ValueError, match=r"5pus_upu\.slider_angles must have shape \(5,\)"):
         parasynth.load_mechanism("5pus_upu.yaml", slider_angles=(0.1, 0.2, 0.3))
     with pytest.raises(ValueError, match=r"3rps\.q_min must be a number"):
         parasynth.load_mechanism("3rps", q_min="300 mm")
@@ -150,6 +151,121 @@ def test_bad_parameter_values_at_load():
         parasynth.load_mechanism("3rps", q_min=0.8)
     with pytest.raises(ValueError, match="task.home: the home pose .* not reachable by leg L1"):
         parasynth.load_mechanism("3prs", link_length=0.1)
+
+
+# -- variants -----------------------------------------------------------------------------------------
+FIVE = _data("5pus_upu.yaml")
+
+
+@pytest.mark.parametrize("name, kw, pattern", [
+    ("5pus_upu", {"platform": "hexagonal"}, r"5pus_upu\.platform must be one of 'rectangular', 'pentagonal', "
+                                            r"got 'hexagonal'"),
+    ("5pus_upu", {"hinge_layout": "scheme3"}, r"5pus_upu\.hinge_layout must be one of 'scheme1', 'scheme2', "
+                                              r"'custom', got 'scheme3'"),
+    ("5pus_upu", {"platform": True}, r"5pus_upu\.platform must be one of"),
+    ("2rpu_2sps", {"coupled": "yes"}, r"2rpu_2sps\.coupled must be true or false, got 'yes'"),
+    ("2rpu_2sps", {"coupled": 1}, r"2rpu_2sps\.coupled must be true or false"),
+    ("2rpu_2sps", {"b2": 0.0}, r"2rpu_2sps\.b2 must be > 0"),
+    ("4ups_1rps", {"mu2": np.pi}, r"4ups_1rps\.mu2 must be < 3\.14"),
+])
+def test_variant_and_bound_errors_name_the_field_and_the_choices(name, kw, pattern):
+    with pytest.raises(ValueError, match=pattern):
+        parasynth.load_mechanism(name, **kw)
+
+
+def test_variants_section_errors_name_the_key_path():
+    v = FIVE["variants"]
+    cases = [
+        (["variants", "platform", "default"], "round", r"variants\.platform\.default must be one of 'rectangular', "
+                                                       r"'pentagonal', got 'round'"),
+        (["variants", "platform", "default"], ..., r"variants\.platform\.default: required key is missing"),
+        (["variants", "platform", "choices"], {"only": {}}, r"variants\.platform\.choices: give at least two"),
+        (["variants", "platform", "choices", "pentagonal", "parameters"], {"pentagon_radius": "70 mm"},
+         r"variants\.platform\.choices\.pentagonal: 'parameters' cannot be overlaid by a variant \(every choice "
+         r"shares"),
+        (["variants", "platform", "choices", "pentagonal", "platform"], ["S"],
+         r"variants\.platform\.choices\.pentagonal\.platform: give a mapping"),
+        (["variants", "platform", "colour"], "red", r"variants\.platform: unknown key 'colour'"),
+        (["variants", "link_length"], v["platform"], r"variants\.link_length: 'link_length' is also a parameter"),
+        (["variants", "platform", "choices"], {True: {}, "no": {}}, r"variants\.platform\.choices: choice names"),
+    ]
+    for path, value, pattern in cases:
+        msg = _error(_with(FIVE, path, value))
+        assert msg.startswith("5pus_upu:"), msg
+        assert __import__("re").search(pattern, msg), (pattern, msg)
+    sw = _with(SQUARE, ["variants", "coupled", "choices"], {True: {}, "maybe": {}})
+    assert "choice names are all strings, or the two booleans" in _error(sw)
+
+
+def test_a_broken_non_default_variant_fails_at_load_naming_the_choice():
+    # The pentagonal platform names a parameter that does not exist: found when the
+    # description is loaded, not when someone first selects it.
+    d = _with(FIVE, ["variants", "platform", "choices", "pentagonal", "platform", "S", "radius"], "pentagon_r")
+    msg = _error(d)
+    assert "variants (hinge_layout=" in msg and "platform='pentagonal')" in msg
+    assert "unknown name 'pentagon_r'" in msg and "platform.S.radius" in msg
+    # ... and a choice whose geometry fails at its defaults too.
+    d = _with(FIVE, ["variants", "platform", "choices", "pentagonal", "platform", "S", "radius"], "400 mm")
+    msg = _error(d)
+    assert "platform='pentagonal'" in msg and "not reachable by leg L1" in msg
+
+
+def test_variant_overlays_replace_entries_and_null_removes():
+    """Mapping sections are overlaid entry by entry (an anchor set, a task key), lists and the
+    other sections replaced whole; null removes an entry."""
+    d = copy.deepcopy(SQUARE)
+    d["name"] = "square_variants"
+    d["variants"]["wide"] = {"default": "no", "choices": {
+        "no": {},
+        "yes": {"base": {"B": [["0 mm", "-b1 - 50 mm", "0 mm"], ["b2 + 50 mm", "0 mm", "0 mm"],
+                               ["0 mm", "b3 + 50 mm", "0 mm"], ["-b4 - 50 mm", "0 mm", "0 mm"]]},
+                "constraints": [{"name": "stroke", "type": "actuator_range", "min": "q_min", "max": "q_max"}]},
+    }}
+    cls = description_class(d)
+    a, b = cls(), cls(cls.Params(wide="yes"))
+    np.testing.assert_allclose(b.legs[1].base - a.legs[1].base, [0.05, 0, 0], atol=1e-15)
+    assert list(a.constraints) == ["stroke", "psi_range", "theta_range", "interference"]
+    assert list(b.constraints) == ["stroke"]
+    assert b.task_coordinates == a.task_coordinates  # task untouched
+    c = cls(cls.Params(wide="yes", coupled=False))  # two variants combine
+    assert c.task_coordinates == ("x", "z", "psi", "theta") and list(c.constraints) == ["stroke"]
+    assert "define" not in c.description.selection and c.description.task.defines == []  # define: null
+    assert cls.Params.UNITS["wide"] is None and cls.Params().wide == "no"
+
+
+def test_categorical_study_variable_over_a_variant(tmp_path):
+    from parasynth.study import StudyError, load_study, run_study
+
+    study = {
+        "name": "schemes",
+        "mechanism": "5pus_upu",
+        "variables": [{"name": "platform", "type": "categorical", "choices": ["rectangular", "pentagonal"]}],
+        "objectives": [{"name": "workspace_volume", "goal": "maximize"}],
+        "evaluation": {"method": "sobol", "samples": 256, "seed": 0},
+        "optimizer": {"kind": "sweep"},
+    }
+    s = load_study(yaml.safe_dump(study), is_text=True)
+    assert s.variables[0].choices == ("rectangular", "pentagonal")
+    res = run_study(s, out_dir=tmp_path / "run", progress=False)
+    assert [r.status for r in res.new_records] == ["ok", "ok"], [r.error for r in res.new_records]
+    vol = {r.values["platform"]: r.objectives["workspace_volume"] for r in res.new_records}
+    assert set(vol) == {"pentagonal", "rectangular"}
+    direct = {k: parasynth.objectives.get("workspace_volume")(parasynth.load_mechanism("5pus_upu", platform=k),
+                                                               n=256, seed=0) for k in vol}
+    assert vol == pytest.approx(direct) and vol["pentagonal"] != vol["rectangular"]
+    bad = copy.deepcopy(study)
+    bad["variables"][0]["choices"] = ["rectangular", "hexagonal"]
+    with pytest.raises(StudyError, match=r"variables\[0\]\.choices\[1\] must be one of 'rectangular', 'pentagonal', "
+                                         r"got 'hexagonal'"):
+        load_study(yaml.safe_dump(bad), is_text=True)
+    bad = dict(study, variables=[{"name": "link_length", "low": "200 mm", "high": "210 mm", "num": 2}],
+               fixed={"coupled": True})
+    with pytest.raises(StudyError, match=r"fixed\.coupled: 'coupled' is not a parameter"):
+        load_study(yaml.safe_dump(bad), is_text=True)
+    sw = dict(study, mechanism="2rpu_2sps", variables=[{"name": "coupled", "type": "categorical",
+                                                          "choices": [True, "no"]}])
+    with pytest.raises(StudyError, match=r"variables\[0\]\.choices\[1\] must be true or false"):
+        load_study(yaml.safe_dump(sw), is_text=True)
 
 
 # -- mobility warnings ------------------------------------------------------------------------------

@@ -30,7 +30,8 @@ from scipy.stats import qmc
 
 import parasynth
 from parasynth.constraints import Constraint
-from parasynth.mechanisms.rpu_sps_2t2r import RPU2SPS2, RPU2SPS2Params
+from parasynth.mechanisms import mechanism_class
+from parasynth.mechanisms.extras import grinding_u_angles
 
 MM = 1e-3
 DEG = np.pi / 180
@@ -39,6 +40,8 @@ DEG = np.pi / 180
 # =============================================================================================
 # An et al. (2018), 2-RPU&2-SPS
 # =============================================================================================
+RPU2SPS2 = mechanism_class("2rpu_2sps")  # the class of the packaged description
+RPU2SPS2Params = RPU2SPS2.Params
 PAPER_2018_X = 0.410
 PAPER_2018_Z = (0.655, 0.860)
 A_2018 = (0.150, 0.075, 0.150, 0.075)  # a1..a4, Section 4.3
@@ -488,7 +491,7 @@ def test_grinding_base_offset_calibration_by_hand():
     l_max: l = sqrt((0.5 - base_offset)^2 + r_h^2) with r_h the horizontal U_i-S_i distance
     (0.24226 m, Table 2), so base_offset >= 0.5 - sqrt(l_max^2 - r_h^2) = -0.1354 m."""
     p = parasynth.load_mechanism("4ups_1rps").params
-    ua = p.u_angles
+    ua = grinding_u_angles(p)
     sa = np.asarray(p.platform_angles)
     U = p.base_radius * np.c_[np.cos(ua), np.sin(ua)]
     S = p.platform_radius * np.c_[np.cos(sa), np.sin(sa)]

@@ -1,8 +1,13 @@
-"""Registry of the built-in mechanism models, and of mechanisms described in YAML.
+"""Registry of the mechanism models: every built-in model is a packaged description.
 
 A mechanism is named either by a registry name (``list_mechanisms()``) or by a description
 file: a path to a ``.yaml``/``.yml`` file (or any existing file), or the bare file name of a
-description shipped in this package (``"5pus_upu.yaml"``). See ``docs/mechanisms.md``.
+description shipped in this package (``"5pus_upu.yaml"``, the same class as ``"5pus_upu"``).
+The paper models ``5pus_upu``, ``2rpu_2sps`` and ``4ups_1rps`` are defined by their packaged
+descriptions (``mechanism_class("5pus_upu")`` is the class built from ``5pus_upu.yaml``);
+their paper-specific extras are in :mod:`parasynth.mechanisms.extras`. A description's class
+is built once per file (and per file change), and resolves each variant choice once. See
+``docs/mechanisms.md``.
 """
 
 from __future__ import annotations
@@ -28,24 +33,6 @@ def register(name: str, loader: Callable[[], type], summary: str) -> None:
     _REGISTRY[name] = (loader, summary)
 
 
-def _rpu_sps():
-    from .rpu_sps_2t2r import RPU2SPS2
-
-    return RPU2SPS2
-
-
-def _pus_upu():
-    from .pus_upu_5dof import PUSUPU5
-
-    return PUSUPU5
-
-
-def _ups_rps():
-    from .ups_rps_grinding import UPSRPSGrinding
-
-    return UPSRPSGrinding
-
-
 def _described_class(path: Path) -> type:
     """The class of the description file ``path`` (cached while the file is unchanged)."""
     from .description import load_description
@@ -61,9 +48,12 @@ def _packaged(filename: str) -> Callable[[], type]:
     return lambda: _described_class(_PACKAGE_DIR / filename)
 
 
-register("4ups_1rps", _ups_rps, "4-UPS/1-RPS parallel grinding robot (Wang et al., Symmetry 2022)")
-register("2rpu_2sps", _rpu_sps, "2-RPU&2-SPS 2T2R manipulator (An et al., 2018)")
-register("5pus_upu", _pus_upu, "5-PUS/UPU 3T2R mechanism (Wang, Lyu & Liu, Appl. Sci. 2021)")
+register("4ups_1rps", _packaged("4ups_1rps.yaml"),
+         "4-UPS/1-RPS parallel grinding robot (Wang et al., Symmetry 2022; described in 4ups_1rps.yaml)")
+register("2rpu_2sps", _packaged("2rpu_2sps.yaml"),
+         "2-RPU&2-SPS 2T2R manipulator (An et al., 2018; described in 2rpu_2sps.yaml)")
+register("5pus_upu", _packaged("5pus_upu.yaml"),
+         "5-PUS/UPU 3T2R mechanism (Wang, Lyu & Liu, Appl. Sci. 2021; described in 5pus_upu.yaml)")
 register("gough_stewart_6ups", _packaged("gough_stewart_6ups.yaml"),
          "6-UPS Gough-Stewart platform, semi-regular hexagons (described in gough_stewart_6ups.yaml)")
 register("3rps", _packaged("3rps.yaml"), "3-RPS 1T2R platform with parasitic motion (described in 3rps.yaml)")

@@ -297,6 +297,20 @@ def _q_nested(value, kind, path):
     return _q(value, kind, path)
 
 
+def _check_variant_choices(mech_cls, name, choices, path, single=None):
+    """Choices of a described mechanism's variant (a structural choice such as ``platform``)
+    must be among the variant's choices; the message names them."""
+    var = getattr(mech_cls, "variants", {}).get(name)
+    if var is None:
+        return
+    items = [(path, single)] if choices is None else [(f"{path}[{j}]", x) for j, x in enumerate(choices)]
+    for where, x in items:
+        try:
+            var.coerce(x, where)
+        except ValueError as e:
+            raise StudyError(str(e)) from None
+
+
 def resolve_study(data: dict, source: str | None = None) -> ResolvedStudy:
     """Validate names and units of a parsed study mapping and convert to SI."""
     from ..mechanisms import mechanism_class, resolve_mechanism_name
@@ -323,6 +337,7 @@ def resolve_study(data: dict, source: str | None = None) -> ResolvedStudy:
     for k, v in spec.fixed.items():
         check_param(k, f"fixed.{k}")
         fixed[k] = _q_nested(v, kinds.get(k), f"fixed.{k}")
+        _check_variant_choices(mech_cls, k, None, f"fixed.{k}", single=fixed[k])
 
     variables = []
     seen = set()
@@ -343,6 +358,7 @@ def resolve_study(data: dict, source: str | None = None) -> ResolvedStudy:
             if not choices:
                 raise StudyError(f"{path}.choices: a categorical variable needs a non-empty list of choices")
             choices = tuple(_q(x, kind, f"{path}.choices[{j}]") if kind else x for j, x in enumerate(choices))
+            _check_variant_choices(mech_cls, v.name, choices, f"{path}.choices")
         else:
             if values is None and (low is None or high is None):
                 raise StudyError(f"{path}: give both low and high (with units), or a list of values")

@@ -44,12 +44,22 @@ class DescribedMechanism(Mechanism):
     description: Description
     Params: type
 
+    #: {variant name: Variant} of the description (empty without variants).
+    variants: dict = {}
+
     def __init__(self, params=None):
-        d = self.description
         P = self.Params() if params is None else params
         if not isinstance(P, self.Params):
             raise ValueError(f"{self.name}: params must be a {self.Params.__name__} (use {self.name}.Params(...) or "
                              f"load_mechanism(..., **params))")
+        if self.variants:
+            # The resolved description of this instance's variant choice (parsed once, cached).
+            d = self._description_for({k: getattr(P, k) for k in self.variants})
+            self.description = d
+            self.task_coordinates = d.task.names
+            self.angular_coordinates = frozenset(c for c, k in d.task.coords if k == "angle")
+        else:
+            d = self.description
         self.params = P
         self._penv = _param_env(P, d.params)
         try:
@@ -58,12 +68,36 @@ class DescribedMechanism(Mechanism):
             raise DescriptionError(f"{self.name}: {e}") from None
         self.home = np.asarray(home, dtype=float)
         self._check_pose_expressions(self.home)
-        self._check_home(legs)
         try:
-            super().__init__(P, legs, home, L)
+            super().__init__(P, legs, home, L)  # solves the legs at home (_neutral_refs)
+        except DescriptionError:
+            raise
         except ValueError as e:
             raise DescriptionError(f"{self.name}: task.home: {e}") from None
-        self._check_constraints()
+        # Evaluating every margin at home catches constraints the description cannot build
+        # (unknown joint angle keys, ...): a property of the resolved description, checked once.
+        self._check_constraints(margins=not getattr(d, "_margins_checked", False))
+        d._margins_checked = True
+
+    @classmethod
+    def _description_for(cls, selection: dict) -> Description:
+        """The description resolved for a variant selection (see :func:`description_class`)."""
+        return cls.description
+
+    def _output(self, spec, X):
+        """Evaluate the output ``spec`` (:mod:`.outputs`) at poses X."""
+        Xa, single = self._poses(X)
+        p, R = self._pose(Xa)
+        env = self._task_env(Xa)
+        for k, nm in enumerate(("px", "py", "pz")):
+            env[nm] = p[:, k]
+        for nm in R_NAMES:
+            env[nm] = R[:, int(nm[1]) - 1, int(nm[2]) - 1]
+        N = Xa.shape[0]
+        with np.errstate(all="ignore"):
+            vals = [np.broadcast_to(np.asarray(e(env), dtype=float), (N,)) for e in spec.exprs]
+        out = np.stack(vals, -1) if spec.vector else vals[0].copy()
+        return out[0] if single else out
 
     # -- pose ------------------------------------------------------------------------------------
     def _task_env(self, X, dual: bool = False) -> dict:
@@ -158,22 +192,26 @@ class DescribedMechanism(Mechanism):
     def _check_pose_expressions(self, home):
         X = home[None, :]
         try:
-            p, R = self._pose(X)
-            T = self._twist_map(X)
+            p, R, dp, W = self._pose_eval(X, True)
         except DescriptionError as e:
             raise DescriptionError(f"{self.name}: {e}") from None
-        if not (np.all(np.isfinite(p)) and np.all(np.isfinite(R)) and np.all(np.isfinite(T))):
+        if not (np.all(np.isfinite(p)) and np.all(np.isfinite(R)) and np.all(np.isfinite(dp))
+                and np.all(np.isfinite(W))):
             raise DescriptionError(f"{self.name}: task.home: the pose expressions are not finite at the home pose "
                                    f"{home.tolist()}")
         if not self.pose_valid(X)[0]:
             raise DescriptionError(f"{self.name}: task.home: the home pose {home.tolist()} fails task.valid")
 
-    def _check_home(self, legs):
+    def _neutral_refs(self, legs):
+        """Each leg's neutral joint directions: its direction at home (as
+        :meth:`Mechanism._neutral_refs`), after checking that every leg reaches home."""
         p, R = self._pose(self.home[None, :])
+        out = []
         for leg in legs:
             with np.errstate(all="ignore"):
                 st = leg.solve(p, R)
-            if not (st.reachable[0] and np.all(np.isfinite(st.direction[0]))):
+            n = st.direction[0]
+            if not (st.reachable[0] and np.all(np.isfinite(n))) or not np.any(n):
                 why = ""
                 if not np.isfinite(st.actuator[0]):
                     why = " (its platform anchor is further than link_length from its slider line)"
@@ -182,14 +220,18 @@ class DescribedMechanism(Mechanism):
                            f"revolute joint allows: the position or orientation misses a dependent coordinate?)")
                 raise DescriptionError(f"{self.name}: task.home: the home pose {self.home.tolist()} is not reachable "
                                        f"by leg {leg.name} ({leg.joints}){why}")
+            out.append(dataclasses.replace(leg, base_ref=n, platform_ref=R[0].T @ (-n)))
+        return out
 
-    def _check_constraints(self):
+    def _check_constraints(self, margins: bool = True):
         try:
             cons = self.constraints
         except DescriptionError as e:
             raise DescriptionError(f"{self.name}: {e}") from None
         except ValueError as e:
             raise DescriptionError(f"{self.name}: constraints: {e}") from None
+        if not margins:
+            return
         ctx = self.pose_context(self.home[None, :])
         for spec, c in zip(self.description.constraints, cons.values()):
             try:
@@ -204,7 +246,7 @@ class DescribedMechanism(Mechanism):
     @property
     def constraint_rank(self) -> int:
         if self._constraint_rank is None:
-            self._constraint_rank = Mechanism.mobility(self).constraint_rank
+            self._constraint_rank = self.structural_constraint_rank()
         return self._constraint_rank
 
     def mobility(self, X=None, warn: bool = True) -> DescribedMobility:

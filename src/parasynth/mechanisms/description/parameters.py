@@ -152,6 +152,8 @@ class _Param:
     lo: float | None = None
     hi: float | None = None
     doc: str = ""
+    above: float | None = None  # exclusive bounds
+    below: float | None = None
 
     def coerce(self, value, where: str):
         unit = {"length": "m", "angle": "rad", "dimensionless": "a plain number"}[self.kind]
@@ -175,6 +177,10 @@ class _Param:
             raise ValueError(f"{where} must be >= {self.lo} ({unit}), got {value!r}")
         if self.hi is not None and np.any(a > self.hi):
             raise ValueError(f"{where} must be <= {self.hi} ({unit}), got {value!r}")
+        if self.above is not None and np.any(a <= self.above):
+            raise ValueError(f"{where} must be > {self.above} ({unit}), got {value!r}")
+        if self.below is not None and np.any(a >= self.below):
+            raise ValueError(f"{where} must be < {self.below} ({unit}), got {value!r}")
         return float(a) if self.shape == () else _to_tuple(a)
 
 
@@ -191,10 +197,10 @@ def _parse_params(raw) -> list[_Param]:
     for name, spec in raw.items():
         path = f"parameters.{name}"
         _check_identifier(name, path, "parameter")
-        lo = hi = None
+        lo = hi = above = below = None
         doc = ""
         if isinstance(spec, dict):
-            _check_keys(spec, {"value", "kind", "min", "max", "doc"}, path, "a parameter")
+            _check_keys(spec, {"value", "kind", "min", "max", "above", "below", "doc"}, path, "a parameter")
             if "value" not in spec:
                 raise DescriptionError(f"{path}.value: required key is missing")
             value, kind, doc = spec["value"], spec.get("kind"), str(spec.get("doc", ""))
@@ -208,10 +214,12 @@ def _parse_params(raw) -> list[_Param]:
         if isinstance(spec, dict):
             lo = _parse_value(spec["min"], kind, f"{path}.min") if "min" in spec else None
             hi = _parse_value(spec["max"], kind, f"{path}.max") if "max" in spec else None
-            for nm, b in (("min", lo), ("max", hi)):
+            above = _parse_value(spec["above"], kind, f"{path}.above") if "above" in spec else None
+            below = _parse_value(spec["below"], kind, f"{path}.below") if "below" in spec else None
+            for nm, b in (("min", lo), ("max", hi), ("above", above), ("below", below)):
                 if b is not None and not isinstance(b, float):
                     raise DescriptionError(f"{path}.{nm}: a bound must be a single value")
-        p = _Param(name, kind, default, np.shape(default), lo, hi, doc)
+        p = _Param(name, kind, default, np.shape(default), lo, hi, doc, above, below)
         try:
             p.coerce(default, path)
         except ValueError as e:

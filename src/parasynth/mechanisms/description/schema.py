@@ -19,16 +19,23 @@ from .anchors import _AnchorSet
 from .legs import _LegGroup
 from .task import _Task
 from .constraints import _ConstraintSpec
+from .outputs import parse_outputs
+from .variants import apply_variants, parse_variants
 
-_TOP_KEYS = {"name", "summary", "description", "parameters", "checks", "base", "platform", "legs", "task",
-             "length_scale", "constraints"}
+_TOP_KEYS = {"name", "summary", "description", "parameters", "variants", "checks", "base", "platform", "legs",
+             "task", "length_scale", "constraints", "outputs"}
 
 
 class Description:
     """A parsed and validated mechanism description (structure only; numbers are evaluated for
-    each parameter set by :meth:`build`)."""
+    each parameter set by :meth:`build_geometry`).
 
-    def __init__(self, data: dict, source: str | None = None):
+    ``selection`` ({variant: choice}, missing ones at their defaults) picks the variants that
+    are overlaid on the base description (:mod:`.variants`); ``variants`` lists them and
+    ``selection`` is the complete choice this description was resolved for."""
+
+    def __init__(self, data: dict, source: str | None = None, selection: dict | None = None,
+                 outputs_taken=lambda name: False):
         if not isinstance(data, dict):
             raise DescriptionError("the description must be a mapping with name, parameters, base, platform, legs, "
                                    "task, constraints")
@@ -39,9 +46,23 @@ class Description:
         self.name = name
         self.source = source
         self.summary = str(data.get("summary", "") or f"mechanism described in {source or 'a description'}")
-        self.text = str(data.get("description", "") or "")
         self.params = _parse_params(data.get("parameters"))
         self.param_by_name = {p.name: p for p in self.params}
+        self.variants = parse_variants(data.get("variants"), set(self.param_by_name))
+        sel = {v.name: v.default for v in self.variants}
+        for k, val in (selection or {}).items():
+            var = next((v for v in self.variants if v.name == k), None)
+            if var is None:
+                raise DescriptionError(f"variants: {k!r} is not a variant; variants: "
+                                       f"{', '.join(v.name for v in self.variants) or '(none)'}")
+            try:
+                sel[k] = var.coerce(val, f"variants.{k}")
+            except ValueError as e:
+                raise DescriptionError(str(e)) from None
+        self.selection = sel
+        self.digest = _digest(data)
+        data = apply_variants(data, self.variants, sel)
+        self.text = str(data.get("description", "") or "")
         pscope = _Scope(("parameters", [p.name for p in self.params]))
         self.pscope = pscope
         checks = data.get("checks") or []
@@ -87,11 +108,7 @@ class Description:
         dup = sorted({n for n in names if names.count(n) > 1})
         if dup:
             raise DescriptionError(f"constraints: name(s) {dup} used twice")
-        try:
-            text = json.dumps(data, sort_keys=True, default=str)
-        except TypeError:  # keys of mixed types
-            text = repr(data)
-        self.digest = hashlib.sha1(text.encode()).hexdigest()[:10]
+        self.outputs = parse_outputs(data.get("outputs"), self.task.pose_scope, outputs_taken)
 
     def build_geometry(self, env):
         base = {n: s.build(env) for n, s in self.base_sets.items()}
@@ -112,15 +129,32 @@ class Description:
         return legs, home, L
 
 
-def _make_params_class(desc: Description, cls_name: str):
+def _digest(data) -> str:
+    try:
+        text = json.dumps(data, sort_keys=True, default=str)
+    except TypeError:  # keys of mixed types
+        text = repr(data)
+    return hashlib.sha1(text.encode()).hexdigest()[:10]
+
+
+def _make_params_class(desc: Description, cls_name: str, resolve=None):
+    """The frozen ``Params`` dataclass: one field per parameter (SI), then one per variant
+    (its choice). ``resolve(selection)`` gives the description of a selection (its checks
+    apply); without it the checks of ``desc`` do."""
     plist = desc.params
+    variants = desc.variants
     mname = desc.name
-    checks = desc.checks
     units = {p.name: p.kind for p in plist}
+    units.update({v.name: None for v in variants})
 
     def __post_init__(self):
         for p in plist:
             object.__setattr__(self, p.name, p.coerce(getattr(self, p.name), f"{mname}.{p.name}"))
+        for v in variants:
+            object.__setattr__(self, v.name, v.coerce(getattr(self, v.name), f"{mname}.{v.name}"))
+        checks = desc.checks
+        if variants and resolve is not None:
+            checks = resolve({v.name: getattr(self, v.name) for v in variants}).checks
         env = _param_env(self, plist)
         for chk in checks:
             with np.errstate(all="ignore"):
@@ -130,7 +164,10 @@ def _make_params_class(desc: Description, cls_name: str):
                 raise ValueError(f"{mname}: the parameters fail the check {chk.text!r} ({vals}, SI)")
 
     fields = [(p.name, float if p.shape == () else tuple, dataclasses.field(default=p.default)) for p in plist]
+    fields += [(v.name, bool if v.is_switch else str, dataclasses.field(default=v.default)) for v in variants]
     doc = (f"Parameters of {mname} in SI (m, rad); defaults from its description. Units: "
            + ", ".join(f"{p.name} ({p.kind})" for p in plist))
+    if variants:
+        doc += ". Variants: " + "; ".join(f"{v.name} ({v.allowed}; default {v.default!r})" for v in variants)
     return dataclasses.make_dataclass(f"{cls_name}Params", fields, frozen=True,
                                       namespace={"UNITS": units, "__post_init__": __post_init__, "__doc__": doc})
