@@ -1,6 +1,8 @@
-"""The fused feasibility kernel (parasynth.kernels) against the NumPy reference.
+"""The compiled feasibility engine (parasynth.engine, through parasynth.kernels) against the
+NumPy reference.
 
-``feasible_fast(mech, X)`` must return ``mech.is_feasible(X)``. The kernel evaluates the same
+``feasible_fast(mech, X)`` (and ``mech.is_feasible(X)``, which uses the engine by default) must
+return ``mech.is_feasible(X, engine="numpy")``. The kernel evaluates the same
 conditions in float64 but not always in the same arithmetic form (an angle limit is tested
 through sin/cos of the limit instead of arctan2, a distance limit on squares, libm's sin/cos
 may differ from NumPy's by an ulp), so the contract -- documented in the module -- is: the
@@ -27,7 +29,7 @@ import pytest
 import parasynth
 from parasynth import kernels
 from parasynth.constraints import JointAngleLimit
-from parasynth.legs import GEOM_TOL, PUS
+from parasynth.legs import GEOM_TOL, PRS, PUS
 
 TOL = 1e-12
 D = np.deg2rad
@@ -102,10 +104,12 @@ def reach_margin(mech, X) -> np.ndarray:
     states = [leg.solve(p, R) for leg in mech.legs]
     scale = max(1.0, max(float(np.max(st.length, initial=1.0)) for st in states))
     for leg, st in zip(mech.legs, states):
-        if isinstance(leg, PUS):
+        if isinstance(leg, (PUS, PRS)):
             d = st.platform_point - leg.base
             de = d @ leg.slider_axis
             reach.append(leg.link_length**2 - (np.einsum("ij,ij->i", d, d) - de**2))
+            if isinstance(leg, PRS):
+                reach.append(GEOM_TOL * max(1.0, leg.link_length) - st.extra["off_plane"])
         else:
             reach.append(st.length)
             if "off_plane" in st.extra:
@@ -122,7 +126,7 @@ def numpy_margin(mech, X) -> np.ndarray:
     X = np.asarray(X, dtype=float)
     valid = mech.pose_valid(X)
     rm = reach_margin(mech, X)
-    cm = np.min(np.stack(list(mech.constraint_margins(X).values())), axis=0)
+    cm = np.min(np.stack(list(mech.constraint_margins(X, engine="numpy").values())), axis=0)
     reachable = mech.pose_context(X).reachable
     M = np.where(reachable, np.minimum(rm, cm), np.minimum(rm, 0.0))
     return np.where(valid, M, -np.inf)
@@ -151,7 +155,7 @@ def special_poses(mech, lo, hi) -> np.ndarray:
 def boundary_poses(mech, X, n_pairs=300, iters=60) -> np.ndarray:
     """Poses on the feasibility boundary: bisection (on is_feasible) between feasible and
     infeasible samples; both final brackets are returned."""
-    ok = mech.is_feasible(X)
+    ok = mech.is_feasible(X, engine="numpy")
     fi, ii = np.flatnonzero(ok), np.flatnonzero(~ok & np.all(np.isfinite(X), 1))
     if fi.size == 0 or ii.size == 0:
         return np.zeros((0, X.shape[1]))
@@ -161,7 +165,7 @@ def boundary_poses(mech, X, n_pairs=300, iters=60) -> np.ndarray:
     # bring the infeasible end close first so the boundary found is a nearby one
     for _ in range(iters):
         m = 0.5 * (a + b)
-        fm = mech.is_feasible(m)
+        fm = mech.is_feasible(m, engine="numpy")
         a = np.where(fm[:, None], m, a)
         b = np.where(fm[:, None], b, m)
     return np.vstack([a, b])
@@ -174,7 +178,7 @@ def case_poses(mech, lo, hi, seed=0):
 
 
 def assert_agrees(mech, X, fast):
-    ref = mech.is_feasible(X)
+    ref = mech.is_feasible(X, engine="numpy")
     assert fast.dtype == np.bool_ and fast.shape == ref.shape
     diff = np.flatnonzero(fast != ref)
     if diff.size:
@@ -200,7 +204,9 @@ def test_feasible_fast_matches_is_feasible(case):
     assert not np.any(diff < N_RANDOM)
     # single pose -> scalar, like is_feasible
     for x in X[:3]:
-        assert kernels.feasible_fast(mech, x) == mech.is_feasible(x)
+        assert kernels.feasible_fast(mech, x) == mech.is_feasible(x, engine="numpy")
+    # the default path of is_feasible is the engine's
+    assert np.array_equal(mech.is_feasible(X), kernels.feasible_fast(mech, X))
 
 
 @pytest.mark.parametrize("name", ["5pus_upu", "2rpu_2sps", "4ups_1rps"])
@@ -217,7 +223,7 @@ def test_cases_exercise_every_constraint(name):
         X = np.random.default_rng(0).uniform(lo, hi, size=(N_RANDOM, mech.n_task))
         ctx = mech.pose_context(X)
         unreachable = max(unreachable, 1 - ctx.reachable.mean())
-        mg = mech.constraint_margins(X)
+        mg = mech.constraint_margins(X, engine="numpy")
         V = np.stack([m < 0 for m in mg.values()], 1) & ctx.reachable[:, None]
         only = V & (V.sum(1) == 1)[:, None]
         for j, c in enumerate(mg):
@@ -234,7 +240,7 @@ def test_margins_fast_matches_constraint_margins(case):
     _, name, params, lo, hi = case
     mech = _mech(name, params)
     X = case_poses(mech, lo, hi, seed=1)
-    ref = mech.constraint_margins(X)
+    ref = mech.constraint_margins(X, engine="numpy")
     fast = kernels.margins_fast(mech, X)
     assert list(fast) == list(ref)
     for c in ref:
@@ -273,23 +279,27 @@ def test_unsupported_constraint_falls_back():
     mech.constraints["u1"] = extra
     assert not kernels.kernel_available(mech)
     X = np.random.default_rng(2).uniform([-0.08, -0.08, -0.12, -0.6, -0.6], [0.08, 0.08, 0.08, 0.6, 0.6], (3000, 5))
-    assert np.array_equal(kernels.feasible_fast(mech, X), mech.is_feasible(X))
+    assert np.array_equal(kernels.feasible_fast(mech, X), mech.is_feasible(X, engine="numpy"))
     del mech.constraints["u1"]
     assert kernels.kernel_available(mech) == kernels.HAVE_NUMBA
 
 
 def test_unknown_model_and_changed_parametrisation_fall_back():
-    from parasynth.mechanisms.pus_upu_5dof import PUSUPU5
+    """A subclass that changes the parametrisation, or a pose method replaced on an instance,
+    is detected (the compiled pose is compared with mech.pose) and evaluated with NumPy."""
+    base = parasynth.load_mechanism("5pus_upu")
+    cls = type(base)
 
-    class Variant(PUSUPU5):  # a subclass may change anything: no kernel
-        pass
+    class Variant(cls):  # a subclass may change anything: its pose is checked
+        def _pose(self, X):
+            p, R = super()._pose(X)
+            return p + 0.001, R
 
     X = np.random.default_rng(3).uniform([-0.08, -0.08, -0.12, -0.6, -0.6], [0.08, 0.08, 0.08, 0.6, 0.6], (2000, 5))
-    v = Variant()
+    v = Variant(base.params)
     assert not kernels.kernel_available(v)
-    assert np.array_equal(kernels.feasible_fast(v, X), v.is_feasible(X))
+    assert np.array_equal(kernels.feasible_fast(v, X), v.is_feasible(X, engine="numpy"))
 
-    # a model whose pose no longer matches the compiled parametrisation is detected
     m = parasynth.load_mechanism("5pus_upu")
     orig = m._pose
 
@@ -299,7 +309,7 @@ def test_unknown_model_and_changed_parametrisation_fall_back():
 
     m._pose = swapped
     assert not kernels.kernel_available(m)
-    assert np.array_equal(kernels.feasible_fast(m, X), m.is_feasible(X))
+    assert np.array_equal(kernels.feasible_fast(m, X), m.is_feasible(X, engine="numpy"))
 
 
 @pytest.mark.parametrize("case", CASES[::3], ids=CASE_IDS[::3])
@@ -311,8 +321,8 @@ def test_fallback_path_equals_is_feasible(case, monkeypatch):
     monkeypatch.setattr(kernels, "HAVE_NUMBA", False)
     assert not kernels.kernel_available(mech)
     X = case_poses(mech, lo, hi, seed=2)
-    assert np.array_equal(kernels.feasible_fast(mech, X), mech.is_feasible(X))
-    ref, fast = mech.constraint_margins(X), kernels.margins_fast(mech, X)
+    assert np.array_equal(kernels.feasible_fast(mech, X), mech.is_feasible(X, engine="numpy"))
+    ref, fast = mech.constraint_margins(X, engine="numpy"), kernels.margins_fast(mech, X)
     assert all(np.array_equal(ref[c], fast[c]) for c in ref)
 
 
@@ -323,11 +333,12 @@ def test_without_numba_importable():
         "import numpy as np, parasynth\n"
         "from parasynth import kernels\n"
         "assert not kernels.HAVE_NUMBA\n"
-        "for name in ('5pus_upu', '2rpu_2sps', '4ups_1rps'):\n"
+        "for name in parasynth.list_mechanisms():\n"
         "    m = parasynth.load_mechanism(name)\n"
         "    X = m.home + np.random.default_rng(0).uniform(-0.1, 0.1, (500, m.n_task))\n"
         "    assert not kernels.kernel_available(m)\n"
-        "    assert np.array_equal(kernels.feasible_fast(m, X), m.is_feasible(X))\n"
+        "    assert np.array_equal(kernels.feasible_fast(m, X), m.is_feasible(X, engine='numpy'))\n"
+        "    assert np.array_equal(m.is_feasible(X), m.is_feasible(X, engine='numpy'))\n"
         "print('ok')\n"
     )
     env = dict(os.environ)
