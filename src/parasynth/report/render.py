@@ -198,7 +198,7 @@ def plot_pareto(figs, study, run_df, front, ref_row, knee_row):
         return
     plt = _plt()
     pairs = [(i, j) for i in range(len(objs)) for j in range(i + 1, len(objs))]
-    fig, axes = _grid(plt, len(pairs), width=4.6, height=3.8)
+    fig, axes = _grid(plt, len(pairs), width=5.2 if len(pairs) == 1 else 4.6, height=3.8)
     ok = run_df["status"] == "ok"
     for ax, (i, j) in zip(axes, pairs):
         a, b = objs[i].label, objs[j].label
@@ -220,7 +220,8 @@ def plot_pareto(figs, study, run_df, front, ref_row, knee_row):
         ax.set_ylabel(f"{lb} ({objs[j].goal})", fontsize=9)
         ax.grid(alpha=0.3)
         _tidy(ax)
-    axes[0].legend(fontsize=7, loc="best")
+    handles, names = axes[0].get_legend_handles_labels()
+    fig.legend(handles, names, loc="outside lower center", ncols=3 if len(pairs) == 1 else 5, fontsize=8)
     fig.suptitle(f"Pareto front: {study.name}")
     figs.add(fig, "pareto", "Objective space: every evaluated design, the non-dominated feasible set, the "
              "recommended design and the paper's design.")
@@ -417,6 +418,8 @@ def analyse(run: Run, noise_z: float = NOISE_Z) -> dict:
     feas = (runs["feasible"].astype(bool)).to_numpy() & ok
     F = runs[labels].to_numpy(float)
     front = pareto_front(study, runs)
+    if len(front):  # best first in the first objective
+        front = front.sort_values(labels[0], ascending=senses[0] == "minimize", kind="stable")
     out = {"runs": runs, "front": front, "labels": labels, "senses": senses, "noise_z": float(noise_z)}
     ref = t[t["source"] == "reference"]
     out["ref_row"] = ref.iloc[0] if len(ref) and ref.iloc[0]["status"] == "ok" else None
