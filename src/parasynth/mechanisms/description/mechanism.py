@@ -199,13 +199,19 @@ class DescribedMechanism(Mechanism):
                 and np.all(np.isfinite(W))):
             raise DescriptionError(f"{self.name}: task.home: the pose expressions are not finite at the home pose "
                                    f"{home.tolist()}")
-        if not self.pose_valid(X)[0]:
-            raise DescriptionError(f"{self.name}: task.home: the home pose {home.tolist()} fails task.valid")
+        valid = self.description.task.valid
+        if valid:
+            env = self._task_env(X)
+            with np.errstate(all="ignore"):
+                ok = all(bool(np.all(c(env))) for c in valid)
+            if not ok:
+                raise DescriptionError(f"{self.name}: task.home: the home pose {home.tolist()} fails task.valid")
+        self._home_pose = (p, R)  # reused by _neutral_refs
 
     def _neutral_refs(self, legs):
         """Each leg's neutral joint directions: its direction at home (as
         :meth:`Mechanism._neutral_refs`), after checking that every leg reaches home."""
-        p, R = self._pose(self.home[None, :])
+        p, R = self.__dict__.pop("_home_pose", None) or self._pose(self.home[None, :])
         out = []
         for leg in legs:
             with np.errstate(all="ignore"):
