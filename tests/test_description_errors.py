@@ -268,6 +268,32 @@ def test_categorical_study_variable_over_a_variant(tmp_path):
         load_study(yaml.safe_dump(sw), is_text=True)
 
 
+def test_outputs_and_exclusive_bounds_errors():
+    assert "outputs.jacobian: 'jacobian' is already an attribute" in _error(
+        _with(TRIPOD, ["outputs"], {"jacobian": "px"}))
+    assert "outputs.tip.value: a vector output has three components" in _error(
+        _with(TRIPOD, ["outputs"], {"tip": {"value": ["px", "py"]}}))
+    assert "outputs.tip: unknown name 'nope'" in _error(_with(TRIPOD, ["outputs"], {"tip": "px + nope"}))
+    assert "parameters.q_min.above: '1 kg'" in _error(_with(TRIPOD, ["parameters", "q_min"],
+                                                            {"value": "300 mm", "above": "1 kg"}))
+    # An output evaluated on poses: the platform point (0, 0, h) of the 3-RPS, by hand.
+    m = from_description(_with(TRIPOD, ["outputs"], {"tip": ["px + 0.1*R13", "py + 0.1*R23", "pz + 0.1*R33"],
+                                                      "height": "pz"}))
+    X = np.array([[0.5, 0.1, -0.2], [0.45, 0.0, 0.3]])
+    p, R = m.pose(X)
+    np.testing.assert_allclose(m.tip(X), p + 0.1 * R[:, :, 2], atol=1e-15)
+    np.testing.assert_allclose(m.height(X), X[:, 0], atol=1e-15)
+    assert m.tip(X[0]).shape == (3,) and np.ndim(m.height(X[0])) == 0
+    # Exclusive bounds name the field and the bound.
+    cls = description_class(_with(TRIPOD, ["parameters", "q_min"], {"value": "300 mm", "above": "100 mm",
+                                                                   "below": "500 mm"}))
+    with pytest.raises(ValueError, match=r"3rps\.q_min must be > 0\.1 \(m\), got 0\.1"):
+        cls.Params(q_min=0.1)
+    with pytest.raises(ValueError, match=r"3rps\.q_min must be < 0\.5 \(m\), got 0\.5"):
+        cls.Params(q_min=0.5)
+    assert cls.Params(q_min=0.1000001).q_min == pytest.approx(0.1000001)
+
+
 # -- mobility warnings ------------------------------------------------------------------------------
 def test_under_actuation_warns():
     m = parasynth.load_mechanism("4ups_1rps.yaml")

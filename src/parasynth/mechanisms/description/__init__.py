@@ -33,6 +33,7 @@ Modules (one per section of a description)::
     task.py         task: coordinates, defined names, position, orientation
     constraints.py  constraints:
     variants.py     variants: named structural choices overlaid on the base description
+    outputs.py      outputs: named pose quantities (tool points, dependent coordinates) as methods
     schema.py       Description: the whole document, validated; the generated Params class
     mechanism.py    DescribedMechanism, DescribedMobility
     loading.py      description_class, load_description, from_description
