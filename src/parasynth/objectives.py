@@ -74,7 +74,7 @@ class Measure:
 OBJECTIVES: "OrderedDict[str, Measure]" = OrderedDict()
 
 _WS_SETTINGS = {"ranges": "ranges", "n": "int", "method": "str", "seed": "int", "fixed": "dict",
-                "constraints": "list"}
+                "constraints": "list", "engine": "str"}
 
 
 def register(name: str, unit: str, sense: str, settings: dict | None = None, kind: str | None = None,
@@ -118,18 +118,20 @@ def _freeze(v):
 
 
 def workspace_of(mech, ranges=None, n: int = 4096, method: str = "sobol", seed: int = 0, fixed=None,
-                 constraints=None):
-    """The (cached) workspace of ``mech`` for these settings; see :func:`parasynth.workspace`."""
+                 constraints=None, engine: str = "compiled"):
+    """The (cached) workspace of ``mech`` for these settings; see :func:`parasynth.workspace`
+    (``engine``: "compiled" or "numpy", the evaluation engine)."""
     from .workspace import workspace
 
     ranges = dict(ranges) if ranges else mech.default_ranges()
     key = (type(mech).__name__, _freeze(dataclasses.asdict(mech.params)), _freeze(ranges), int(n), method,
-           int(seed), _freeze(fixed), _freeze(constraints))
+           int(seed), _freeze(fixed), _freeze(constraints), engine)
     hit = _CACHE.get(key)
     if hit is not None:
         _CACHE.move_to_end(key)
         return hit
-    ws = workspace(mech, ranges, n=int(n), method=method, seed=int(seed), fixed=fixed, constraints=constraints)
+    ws = workspace(mech, ranges, n=int(n), method=method, seed=int(seed), fixed=fixed, constraints=constraints,
+                   engine=engine)
     _CACHE[key] = ws
     if len(_CACHE) > _CACHE_SIZE:
         _CACHE.popitem(last=False)

@@ -16,6 +16,17 @@ What is sampled decides what the volume means:
 Samples are evaluated in chunks and only feasible points are kept (up to ``max_points``, a
 uniform subsample beyond), so memory does not grow with the number of samples.
 
+Evaluation engine: ``engine="compiled"`` (default) tests feasibility with the compiled engine
+(:mod:`parasynth.engine`; it falls back to NumPy, with a warning saying why, for a mechanism
+it does not cover), ``engine="numpy"`` with the NumPy reference. Both give the same answer
+except at poses within rounding of a constraint boundary.
+
+Sample reuse: the sample points of a (box, fixed coordinates, n, method, seed, chunk size,
+raster) are generated once and kept in a small least-recently-used cache
+(:data:`SAMPLE_CACHE_BYTES` in all, runs of more than :data:`SAMPLE_CACHE_MAX_POINTS` samples
+are not cached), so that the designs of a study, sampled on the same points (common random
+numbers), do not pay for the Sobol' scrambling, the scaling and the raster binning again.
+
 Sampling methods
 ----------------
 ``"sobol"`` (default): scrambled Sobol' points (``scipy.stats.qmc.Sobol``, seeded with
@@ -64,6 +75,7 @@ import math
 import sys
 import time
 import warnings
+from collections import OrderedDict
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any, Callable
@@ -89,6 +101,10 @@ _RASTER_MAX_PER_AXIS = {1: 4096, 2: 256, 3: 48, 4: 20, 5: 12}
 _SAMPLES_PER_CELL = 4
 
 _AXES = ("x", "y", "z")
+#: Bytes of sample points kept by the sample cache (least recently used runs dropped first).
+SAMPLE_CACHE_BYTES = 256 * 2**20
+#: Runs of more samples than this are generated chunk by chunk and not cached.
+SAMPLE_CACHE_MAX_POINTS = 2**21
 
 
 # ---------------------------------------------------------------------------------------------
@@ -243,6 +259,72 @@ def _sobol_engine(d: int, seed: int, n: int):
     else:  # pragma: no cover - scipy < 1.15
         kw["seed"] = seed
     return qmc.Sobol(d, **kw)
+
+
+class _SampleCache:
+    """LRU cache of prepared sample chunks: key -> list of (start, X, Xs, gidx, flat,
+    counts), arrays read-only."""
+
+    def __init__(self, max_bytes: int):
+        self.max_bytes = max_bytes
+        self.entries: "OrderedDict[tuple, tuple[list, int]]" = OrderedDict()
+        self.bytes = 0
+
+    def get(self, key):
+        hit = self.entries.get(key)
+        if hit is None:
+            return None
+        self.entries.move_to_end(key)
+        return hit[0]
+
+    def put(self, key, chunks):
+        size = sum(a.nbytes for c in chunks for a in c[1:] if isinstance(a, np.ndarray))
+        if size > self.max_bytes:
+            return
+        for c in chunks:
+            for a in c[1:]:
+                if isinstance(a, np.ndarray):
+                    a.flags.writeable = False
+        self.entries[key] = (chunks, size)
+        self.bytes += size
+        while self.bytes > self.max_bytes and len(self.entries) > 1:
+            _, (_, sz) = self.entries.popitem(last=False)
+            self.bytes -= sz
+
+    def clear(self):
+        self.entries.clear()
+        self.bytes = 0
+
+
+_SAMPLES = _SampleCache(SAMPLE_CACHE_BYTES)
+
+
+def _prepared_chunks(sampler, chunk, base, cols, rshape):
+    """Yield (start, X, Xs, gidx, flat, counts) for every chunk: X (m, n_task) the full poses,
+    Xs the sampled columns, gidx grid indices or None, flat the raster cells, counts their
+    bincount. Cached for runs of at most SAMPLE_CACHE_MAX_POINTS samples."""
+    cells = int(np.prod(rshape))
+    key = None
+    if sampler.n <= SAMPLE_CACHE_MAX_POINTS:
+        key = (sampler.method, sampler.n, tuple(sampler.lows.tolist()), tuple(sampler.highs.tolist()), sampler.seed,
+               sampler.shape, int(chunk), tuple(base.tolist()), tuple(cols.tolist()), tuple(rshape))
+        hit = _SAMPLES.get(key)
+        if hit is not None:
+            yield from hit
+            return
+    out = [] if key is not None else None
+    for start, Xs, gidx in sampler.blocks(chunk):
+        m = len(Xs)
+        X = np.repeat(base[None, :], m, axis=0)
+        X[:, cols] = Xs
+        flat = _bin_flat(Xs, sampler.lows, sampler.highs, rshape)
+        counts = np.bincount(flat, minlength=cells)
+        item = (start, X, Xs, gidx, flat, counts)
+        if out is not None:
+            out.append(item)
+        yield item
+    if out is not None:
+        _SAMPLES.put(key, out)
 
 
 @dataclass(eq=False)
@@ -509,7 +591,7 @@ class WorkspaceResult:
 def workspace(mech, ranges=None, n: int = 2**16, method: str = "sobol", seed: int | None = 0,
               fixed: Mapping | None = None, constraints=None, chunk_size: int = DEFAULT_CHUNK, *,
               keep_points: bool = True, max_points: int | None = DEFAULT_MAX_POINTS, raster=None,
-              progress: bool | Callable | None = None) -> WorkspaceResult:
+              progress: bool | Callable | None = None, engine: str = "compiled") -> WorkspaceResult:
     """Sample the workspace of ``mech`` over a task-coordinate box.
 
     Parameters
@@ -540,6 +622,8 @@ def workspace(mech, ranges=None, n: int = 2**16, method: str = "sobol", seed: in
     progress: None (a progress line on stderr for runs of at least 2**20 samples), True/False
         (always/never), or a callable ``progress(n_done, n_total, n_feasible)`` called after
         every chunk.
+    engine: "compiled" (default: the compiled engine, falling back to NumPy with a warning
+        for a mechanism it does not cover) or "numpy" (the NumPy reference).
 
     Returns a :class:`WorkspaceResult`. An empty workspace is a valid result (volume 0).
     Raises ``ValueError`` naming the argument for bad input.
@@ -565,12 +649,15 @@ def workspace(mech, ranges=None, n: int = 2**16, method: str = "sobol", seed: in
         if isinstance(max_points, (bool, np.bool_)) or not isinstance(max_points, (int, np.integer)) or max_points < 0:
             raise ValueError(f"max_points must be a non-negative integer or None, got {max_points!r}")
     cap = 0 if not keep_points else (None if max_points is None else int(max_points))
+    from .engine import check_engine, pose_batch
+
+    engine = check_engine(engine, "engine")
     if not (progress is None or isinstance(progress, (bool, np.bool_)) or callable(progress)):
         raise ValueError(f"progress must be None, True, False or a callable(n_done, n_total, n_feasible); got {progress!r}")
 
     task = tuple(mech.task_coordinates)
     base = _fixed_pose(mech, coords, fixed)
-    names = _check_constraints(mech, constraints, base)
+    names = _check_constraints(mech, constraints, base, engine)
     cols = np.array([task.index(c) for c in coords])
     d = len(coords)
 
@@ -596,19 +683,16 @@ def workspace(mech, ranges=None, n: int = 2**16, method: str = "sobol", seed: in
     ext_hi = np.full(3, -np.inf)
     n_feasible = 0
     report = _Progress(progress, n_samples, getattr(mech, "name", "mechanism"))
-    for start, Xs, gidx in sampler.blocks(chunk_size):
+    for start, X, Xs, gidx, flat, counts in _prepared_chunks(sampler, chunk_size, base, cols, rshape):
         m = len(Xs)
-        X = np.repeat(base[None, :], m, axis=0)
-        X[:, cols] = Xs
-        ok = np.asarray(mech.is_feasible(X, names=names), dtype=bool)
+        ok = np.asarray(mech.is_feasible(X, names=names, engine=engine), dtype=bool)
         k = int(np.count_nonzero(ok))
         n_feasible += k
-        flat = _bin_flat(Xs, lows, highs, rshape)
-        r_total += np.bincount(flat, minlength=cells)
+        r_total += counts
         if k:
             r_feas += np.bincount(flat[ok], minlength=cells)
             Xf = X[ok]
-            p = np.asarray(mech.pose(Xf)[0], dtype=float)
+            p = np.asarray(pose_batch(mech, Xf, engine=engine)[1], dtype=float)
             ext_lo = np.minimum(ext_lo, p.min(axis=0))
             ext_hi = np.maximum(ext_hi, p.max(axis=0))
             store.add(Xs[ok], start + np.flatnonzero(ok))
@@ -720,7 +804,7 @@ def _fixed_pose(mech, coords, fixed) -> np.ndarray:
     return base
 
 
-def _check_constraints(mech, constraints, base):
+def _check_constraints(mech, constraints, base, engine="compiled"):
     if constraints is None:
         return None
     names = (constraints,) if isinstance(constraints, str) else tuple(constraints)
@@ -728,7 +812,7 @@ def _check_constraints(mech, constraints, base):
     if bad:
         raise ValueError(f"constraints must be constraint names (str), got {bad}")
     try:  # the mechanism validates the names
-        mech.is_feasible(base[None, :], names=list(names))
+        mech.is_feasible(base[None, :], names=list(names), engine=engine)
     except ValueError as e:
         raise ValueError(f"constraints: {e}") from e
     return names

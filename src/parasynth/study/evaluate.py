@@ -19,7 +19,7 @@ from .spec import ResolvedStudy
 __all__ = ["Record", "Evaluator"]
 
 _WS_KEYS = {"ranges": "ranges", "n": "n", "method": "method", "seed": "seed", "fixed": "fixed",
-            "constraints": "constraints"}
+            "constraints": "constraints", "engine": "engine"}
 
 
 @dataclass

@@ -121,6 +121,7 @@ class EvaluationSpec(_Model):
     final_samples: Int | None = Field(default=None, ge=1, le=MAX_SAMPLES)
     final_repeats: Int = Field(default=4, ge=1, le=1000)
     final_top: Int = Field(default=5, ge=0, le=1000)
+    engine: Literal["compiled", "numpy"] = "compiled"
 
 
 class OptimizerSpec(_Model):
@@ -492,7 +493,8 @@ def resolve_study(data: dict, source: str | None = None) -> ResolvedStudy:
                       if ev.constraints is not None else None)
     evaluation = dict(method=ev.method, n=ev.samples, seed=ev.seed, ranges=ranges,
                       fixed=fixed_pose or None, constraints=ev_constraints,
-                      final_samples=ev.final_samples, final_repeats=ev.final_repeats, final_top=ev.final_top)
+                      final_samples=ev.final_samples, final_repeats=ev.final_repeats, final_top=ev.final_top,
+                      engine=ev.engine)
 
     opt = spec.optimizer
     allowed = OPTIMIZERS[opt.kind]
@@ -843,6 +845,8 @@ KEY_DOCS = {
                                 f"{MAX_SAMPLES}); leave out to skip it.",
     "evaluation.final_repeats": "Seeds of the final re-evaluation (1 to 1000, default 4).",
     "evaluation.final_top": "Best designs re-evaluated at the end (0 to 1000, default 5).",
+    "evaluation.engine": "Evaluation engine: compiled (default; NumPy, with a warning, for a mechanism it does "
+                         "not cover) or numpy (the NumPy reference).",
     "optimizer": "The search: a sweep over listed values, NLopt (one objective) or Optuna (several).",
     "optimizer.kind": "sweep (default), nlopt or optuna.",
     "optimizer.algorithm": "Algorithm of the kind: sweep grid|list; NLopt LN_COBYLA, LN_BOBYQA, ...; Optuna "
