@@ -184,9 +184,21 @@ def _check_rdb(url: str):
     shown = describe_url(url)
     try:
         u = make_url(url)
-    except ArgumentError:
+        u.port  # noqa: B018 (a port that is not a number fails here)
+    except (ArgumentError, ValueError):
         raise StorageError(f"storage {shown!r}: not a storage URL; expected e.g. "
                            f"postgresql://USER:PASSWORD@HOST:5432/DATABASE, sqlite:///optuna.db or journal:FILE") from None
+    if u.drivername in ("postgresql", "postgres"):
+        # No driver named: psycopg (3) or psycopg2, whichever is installed.
+        import importlib.util
+
+        for mod, name in (("psycopg", "postgresql+psycopg"), ("psycopg2", "postgresql+psycopg2")):
+            if importlib.util.find_spec(mod) is not None:
+                u = u.set(drivername=name)
+                break
+        else:
+            raise StorageError(f"storage {shown!r}: no PostgreSQL driver is installed; install one with: "
+                               f"pip install psycopg2-binary")
     try:
         dialect = u.get_dialect()
     except NoSuchModuleError:
@@ -232,17 +244,29 @@ def open_storage(url: str, heartbeat: bool = True):
     if _is_journal(url):
         return _open_journal(url)
     u, kw = _check_rdb(url)
+    url = u.render_as_string(hide_password=False)
     import optuna
-    from optuna.storages import RDBStorage, RetryFailedTrialCallback
+    from optuna.storages import RDBStorage
 
-    options = {}
-    if heartbeat and u.get_backend_name() != "sqlite":
-        interval = max(1, int(float(os.environ.get("PARASYNTH_HEARTBEAT", "5"))))
-        options = dict(heartbeat_interval=interval, grace_period=3 * interval,
-                       heartbeat_stale_trial_callback=RetryFailedTrialCallback(max_retry=1))
+    try:
+        from optuna.storages import RetryHeartbeatStaleTrialCallback as Retry
+    except ImportError:  # Optuna < 4.9
+        from optuna.storages import RetryFailedTrialCallback as Retry
+
+    import warnings
+
     engine_kwargs = {"pool_pre_ping": True, **kw}
     try:
-        return RDBStorage(url, engine_kwargs=engine_kwargs, **options)
+        with warnings.catch_warnings():
+            # heartbeats are "experimental" in Optuna: nothing for a user of the command line
+            # to act on.
+            warnings.simplefilter("ignore")
+            options = {}
+            if heartbeat and u.get_backend_name() != "sqlite":
+                interval = max(1, int(float(os.environ.get("PARASYNTH_HEARTBEAT", "5"))))
+                options = dict(heartbeat_interval=interval, grace_period=3 * interval,
+                               heartbeat_stale_trial_callback=Retry(max_retry=1))
+            return RDBStorage(url, engine_kwargs=engine_kwargs, **options)
     except optuna.exceptions.StorageInternalError as e:
         raise StorageError(f"storage {describe_url(url)!r}: {e}") from None
     except Exception as e:  # schema creation refused, incompatible schema version, ...

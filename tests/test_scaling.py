@@ -1,0 +1,318 @@
+"""One Optuna study on several processes: local ``--workers``, a real PostgreSQL server with a
+worker killed mid-trial, and the one-line messages for bad storage input.
+
+The PostgreSQL tests use ``PARASYNTH_TEST_POSTGRES_URL`` (``.ci/run`` starts a server and sets
+it); without it they start a throw-away server themselves (initdb and pg_ctl on loopback, in a
+temporary directory) and are skipped, with the reason, when that is not possible.
+"""
+
+import os
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import pandas as pd
+import pytest
+import yaml
+
+from parasynth.plugins import load_plugins
+from parasynth.study import StudyError, load_study, run_study
+
+PLUGIN = str(Path(__file__).parent / "data" / "analytic_plugin.py")
+load_plugins(PLUGIN)
+ENV = {**os.environ, "PARASYNTH_PLUGINS": PLUGIN, "PARASYNTH_HEARTBEAT": "1"}
+
+
+def study_dict(name, n, delay=0.0, algorithm="nsga2", duplicates=False):
+    variables = [{"name": "link_length", "low": "150 mm", "high": "250 mm"},
+                 {"name": "slider_radius", "low": "100 mm", "high": "180 mm"}]
+    if duplicates:  # 4 possible designs: the sampler proposes identical designs often
+        variables = [{"name": "link_length", "type": "categorical", "choices": ["180 mm", "200 mm"]},
+                     {"name": "slider_radius", "type": "categorical", "choices": ["120 mm", "140 mm"]}]
+    return {"name": name, "mechanism": "5pus_upu", "variables": variables,
+            "objectives": [{"name": "test_quadratic", "goal": "maximize", "settings": {"delay": delay}},
+                           {"name": "test_two"}],
+            "evaluation": {"samples": 64},
+            "optimizer": {"kind": "optuna", "algorithm": algorithm, "n_trials": n, "seed": 0, "population_size": 6}}
+
+
+def cli(*args):
+    return [sys.executable, "-m", "parasynth.cli", *map(str, args)]
+
+
+# -- local worker processes ----------------------------------------------------------------------------
+def test_local_workers_record_every_trial_once_identical_designs_included(tmp_path, monkeypatch, capsys):
+    import optuna
+
+    from parasynth.study.storage import counts, open_storage
+
+    monkeypatch.setenv("PARASYNTH_PLUGINS", PLUGIN)
+    s = load_study(yaml.safe_dump(study_dict("local_workers", 24, delay=0.05, algorithm="random",
+                                             duplicates=True)), is_text=True)
+    res = run_study(s, out_dir=tmp_path / "r", progress=False, workers=2)
+    t = res.table[res.table.source == "run"]
+    assert sorted(t["trial"]) == list(range(24)), "a trial was lost or recorded twice"
+    n_distinct = len(t[["link_length", "slider_radius"]].drop_duplicates())
+    assert n_distinct <= 4 < len(t)  # identical designs are all kept
+    assert "24 designs evaluated (24 in this run" in res.summary(s)
+    st = optuna.load_study(study_name="local_workers", storage=open_storage(f"journal:{tmp_path / 'r' / 'optuna.journal'}"))
+    assert sum(counts(x) for x in st.trials) == 24
+    owners = {x.user_attrs.get("parasynth:owner") for x in st.trials}
+    assert len(owners) == 2, f"both workers evaluate designs: {owners}"
+    on_disk = pd.read_csv(tmp_path / "r" / "results.csv")
+    assert sorted(on_disk[on_disk.source == "run"]["trial"]) == list(range(24))
+
+
+def test_sweeps_and_nlopt_say_they_run_in_one_process(tmp_path, capsys):
+    d = study_dict("one_process", 3)
+    d["variables"] = [{"name": "link_length", "values": ["180 mm", "200 mm"]}]
+    d["objectives"] = d["objectives"][:1]
+    d["optimizer"] = {"kind": "sweep"}
+    s = load_study(yaml.safe_dump(d), is_text=True)
+    res = run_study(s, out_dir=tmp_path / "r", progress=False, workers=2)
+    assert "runs in one process" in capsys.readouterr().err
+    assert len(res.table) == 2
+    with pytest.raises(StudyError, match="--storage applies to Optuna studies"):
+        run_study(s, out_dir=tmp_path / "r2", progress=False, storage="sqlite:///x.db")
+
+
+# -- bad storage input: one clear line before any work --------------------------------------------------
+def _free_port():
+    with socket.socket() as so:
+        so.bind(("127.0.0.1", 0))
+        return so.getsockname()[1]
+
+
+@pytest.mark.parametrize("url, fragment", [
+    ("postgresql://u:secret@127.0.0.1:{port}/db", "cannot reach the server"),
+    ("postgresql+pg8000://u:secret@127.0.0.1:{port}/db", "pip install pg8000"),
+    ("nosuchdb://u@h/db", "unknown database kind"),
+    ("postgresql://u:secret@127.0.0.1:notaport/db", "storage"),
+])
+def test_bad_storage_one_line_before_work(tmp_path, url, fragment):
+    pytest.importorskip("psycopg2")
+    url = url.format(port=_free_port())
+    path = tmp_path / "s.yaml"
+    path.write_text(yaml.safe_dump(study_dict("bad_storage", 4)))
+    r = subprocess.run(cli("run", path, "--out", tmp_path / "r", "--storage", url, "--quiet", "--no-report"),
+                       env=ENV, capture_output=True, text=True, timeout=60)
+    assert r.returncode == 2
+    lines = [x for x in r.stderr.splitlines() if x.strip()]
+    assert len(lines) == 1 and lines[0].startswith("error: storage"), r.stderr
+    assert fragment in lines[0]
+    assert "secret" not in r.stderr  # the password is not shown
+    assert not list((tmp_path / "r").glob("journal.jsonl")) or not (tmp_path / "r" / "journal.jsonl").read_text()
+
+
+def test_worker_with_wrong_study_name(tmp_path):
+    url = f"journal:{tmp_path / 'j.journal'}"
+    s = load_study(yaml.safe_dump(study_dict("present", 2)), is_text=True)
+    run_study(s, out_dir=tmp_path / "r", progress=False, storage=url)
+    path = tmp_path / "other.yaml"
+    path.write_text(yaml.safe_dump(study_dict("absent", 2)))
+    r = subprocess.run(cli("worker", path, "--storage", url, "--quiet"), env=ENV, capture_output=True, text=True,
+                       timeout=60)
+    assert r.returncode == 2
+    assert "no study named 'absent'" in r.stderr and "'present'" in r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1
+
+
+def test_worker_gives_up_after_retries_when_the_storage_is_lost(monkeypatch):
+    """A storage that stops answering: a few retries, then a clear error, nothing half-written
+    on our side."""
+    from sqlalchemy.exc import OperationalError
+
+    from parasynth.study import workers
+
+    class Lost:
+        calls = 0
+
+        def optimize(self, *a, **k):
+            Lost.calls += 1
+            raise OperationalError("SELECT 1", {}, Exception("server closed the connection unexpectedly"))
+
+        def get_trials(self, deepcopy=False):
+            return []
+
+    monkeypatch.setattr(workers.time, "sleep", lambda s: None)
+    objective = lambda t: 0.0  # noqa: E731
+    objective.stats = {"records": 0}
+    logs = []
+    with pytest.raises(workers.StorageLost, match="gave up after 3 retries"):
+        workers.optimize_loop(Lost(), objective, 10, workers.Interrupt(), shared=False, retries=3, log=logs.append)
+    assert Lost.calls == 4 and len(logs) == 3 and "retrying in 4 s" in logs[-1]
+
+
+# -- a real PostgreSQL server -------------------------------------------------------------------------------
+def _start_postgres():
+    """A throw-away server: (url, stop) or raises RuntimeError with the reason."""
+    bindirs = sorted(Path("/usr/lib/postgresql").glob("*/bin")) if Path("/usr/lib/postgresql").exists() else []
+    initdb = next((d / "initdb" for d in reversed(bindirs) if (d / "initdb").exists()), None)
+    if initdb is None and shutil.which("initdb"):
+        initdb = Path(shutil.which("initdb"))
+    if initdb is None:
+        raise RuntimeError("no PostgreSQL server binaries (initdb) on this machine; install postgresql")
+    bindir = initdb.parent
+    tmp = Path(tempfile.mkdtemp(prefix="parasynth-pg-"))
+    prefix = []
+    if os.geteuid() == 0:  # the server refuses to run as root
+        import pwd
+
+        for user in ("postgres", "nobody"):
+            try:
+                pw = pwd.getpwnam(user)
+                break
+            except KeyError:
+                pw = None
+        if pw is None:
+            raise RuntimeError("running as root and no unprivileged user (postgres, nobody) to run the server")
+        os.chown(tmp, pw.pw_uid, pw.pw_gid)
+        runuser = shutil.which("runuser") or shutil.which("su")
+        if runuser is None:
+            raise RuntimeError("running as root without runuser/su to start the server as another user")
+        prefix = [runuser, "-u", user, "--"] if runuser.endswith("runuser") else None
+        if prefix is None:
+            raise RuntimeError("need runuser to start the server as an unprivileged user")
+    password = "pw" + os.urandom(6).hex()
+    pwfile = tmp / "pw"
+    pwfile.write_text(password + "\n")
+    if os.geteuid() == 0:
+        os.chown(pwfile, pw.pw_uid, pw.pw_gid)
+    port = _free_port()
+    run = lambda *cmd: subprocess.run(prefix + [str(c) for c in cmd], capture_output=True, text=True,  # noqa: E731
+                                      timeout=120, cwd=tmp)
+    r = run(bindir / "initdb", "-D", tmp / "data", "-U", "parasynth", f"--pwfile={pwfile}", "-A", "scram-sha-256")
+    if r.returncode:
+        raise RuntimeError(f"initdb failed: {r.stderr.strip()[-300:]}")
+    r = run(bindir / "pg_ctl", "-D", tmp / "data", "-l", tmp / "log", "-w", "-t", "60",
+            "-o", f"-c listen_addresses=127.0.0.1 -p {port} -k {tmp} -c fsync=off", "start")
+    if r.returncode:
+        raise RuntimeError(f"pg_ctl start failed: {(r.stderr or r.stdout).strip()[-300:]}")
+
+    def stop():
+        run(bindir / "pg_ctl", "-D", tmp / "data", "-m", "immediate", "stop")
+        shutil.rmtree(tmp, ignore_errors=True)
+
+    env = {**os.environ, "PGPASSWORD": password}
+    r = subprocess.run(prefix + [str(bindir / "createdb"), "-h", "127.0.0.1", "-p", str(port), "-U", "parasynth",
+                                 "parasynth_test"], capture_output=True, text=True, env=env, timeout=60, cwd=tmp)
+    if r.returncode:
+        stop()
+        raise RuntimeError(f"createdb failed: {r.stderr.strip()[-300:]}")
+    return f"postgresql://parasynth:{password}@127.0.0.1:{port}/parasynth_test", stop
+
+
+@pytest.fixture(scope="module")
+def postgres_url():
+    pytest.importorskip("psycopg2", reason="the PostgreSQL driver is not installed: pip install psycopg2-binary")
+    url = os.environ.get("PARASYNTH_TEST_POSTGRES_URL")
+    if url:
+        yield url
+        return
+    try:
+        url, stop = _start_postgres()
+    except (RuntimeError, OSError, subprocess.SubprocessError) as e:
+        pytest.skip(f"no PostgreSQL server for the tests: {e}")
+    try:
+        yield url
+    finally:
+        stop()
+
+
+def _trials(url, name):
+    import optuna
+
+    from parasynth.study.storage import open_storage
+
+    return optuna.load_study(study_name=name, storage=open_storage(url, heartbeat=False)).get_trials(deepcopy=False)
+
+
+def test_postgres_three_workers_one_killed_mid_trial(tmp_path, postgres_url):
+    """3 processes on one study (the run and 2 workers); one worker is SIGKILLed while it
+    evaluates: every completed trial is stored once, none is lost, the killed trial is failed
+    (and retried), the study reaches its budget, and the run's results equal the storage."""
+    from optuna.trial import TrialState
+
+    from parasynth.study.storage import counts
+
+    name = f"pg_kill_{os.getpid()}"
+    n = 30
+    path = tmp_path / "s.yaml"
+    path.write_text(yaml.safe_dump(study_dict(name, n, delay=0.3, algorithm="random")))
+    out = tmp_path / "run"
+    run = subprocess.Popen(cli("run", path, "--out", out, "--storage", postgres_url, "--quiet", "--no-report"),
+                           env=ENV, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.time() + 60
+    while time.time() < deadline:  # the run has created the study
+        try:
+            if _trials(postgres_url, name):
+                break
+        except Exception:
+            pass
+        time.sleep(0.2)
+    workers = [subprocess.Popen(cli("worker", path, "--storage", postgres_url, "--quiet"), env=ENV,
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for _ in range(2)]
+    victim = workers[0]
+    owner = f"{socket.gethostname()}:{victim.pid}"
+    killed_trial = None
+    deadline = time.time() + 60
+    while time.time() < deadline and killed_trial is None:
+        for t in _trials(postgres_url, name):
+            if t.state == TrialState.RUNNING and t.user_attrs.get("parasynth:owner") == owner:
+                killed_trial = t.number
+        time.sleep(0.05)
+    assert killed_trial is not None, "the worker never started a trial"
+    victim.send_signal(signal.SIGKILL)
+    victim.wait()
+    _, err = workers[1].communicate(timeout=120)
+    assert workers[1].returncode == 0, err
+    stdout, err = run.communicate(timeout=120)
+    assert run.returncode == 0, err
+    trials = _trials(postgres_url, name)
+    killed = [t for t in trials if t.number == killed_trial][0]
+    assert killed.state == TrialState.FAIL and not counts(killed)
+    counted = [t for t in trials if counts(t)]
+    assert n <= len(counted) <= n + 2  # the budget is reached (workers finishing together may add one each)
+    assert not [t for t in trials if t.state in (TrialState.RUNNING, TrialState.WAITING)]
+    # None lost, none twice: the run's table holds exactly the counted trials of the server.
+    table = pd.read_csv(out / "results.csv")
+    run_rows = table[table.source == "run"]
+    assert sorted(run_rows["trial"]) == sorted(t.number for t in counted)
+    assert run_rows["trial"].is_unique
+    # All three processes evaluated designs.
+    owners = {t.user_attrs.get("parasynth:owner") for t in counted}
+    assert len(owners) >= 2
+    # The report can be rebuilt from the server alone.
+    r = subprocess.run(cli("report", "--storage", postgres_url, "--study", name, "--run-dir", tmp_path / "rebuilt",
+                           "--out", tmp_path / "rep"), env=ENV, capture_output=True, text=True, timeout=180)
+    assert r.returncode == 0, r.stderr
+    rebuilt = pd.read_csv(tmp_path / "rebuilt" / "results.csv")
+    pd.testing.assert_frame_equal(rebuilt.drop(columns="time_s"), table.drop(columns="time_s"))
+    assert (tmp_path / "rep" / "index.html").exists()
+
+
+def test_postgres_wrong_credentials_one_line(tmp_path, postgres_url):
+    from sqlalchemy.engine import make_url
+
+    bad = make_url(postgres_url).set(password="wrong").render_as_string(hide_password=False)
+    path = tmp_path / "s.yaml"
+    path.write_text(yaml.safe_dump(study_dict("pg_bad_password", 2)))
+    r = subprocess.run(cli("run", path, "--out", tmp_path / "r", "--storage", bad, "--quiet", "--no-report"),
+                       env=ENV, capture_output=True, text=True, timeout=60)
+    assert r.returncode == 2
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and "refused the credentials" in lines[0] and "wrong" not in lines[0]
+
+
+def test_postgres_worker_wrong_study_name(tmp_path, postgres_url):
+    path = tmp_path / "s.yaml"
+    path.write_text(yaml.safe_dump(study_dict(f"pg_never_started_{os.getpid()}", 2)))
+    r = subprocess.run(cli("worker", path, "--storage", postgres_url, "--quiet"), env=ENV, capture_output=True,
+                       text=True, timeout=60)
+    assert r.returncode == 2
+    assert "holds no study named" in r.stderr and len(r.stderr.strip().splitlines()) == 1
