@@ -65,6 +65,7 @@ SETTING_RANGES = {
     "resolution": (1, 4096),
     "threshold": (0.0, None),
     "dt": (1e-9, None),
+    "samples": (1, MAX_SAMPLES),
 }
 #: Workspace sampling methods.
 METHODS = ("sobol", "grid", "random")
@@ -448,7 +449,7 @@ def resolve_study(data: dict, source: str | None = None) -> ResolvedStudy:
         m = get_measure(o.name)
         if m.models is not None and spec.mechanism not in m.models:
             raise StudyError(f"{path}.name: objective {o.name!r} applies to {list(m.models)}, not {spec.mechanism!r}")
-        label = o.label or o.name
+        label = o.label if o.label is not None else o.name
         check_label(label, path, f"{path}.label" if o.label is not None else f"{path}.name")
         objectives.append(Objective(o.name, label, o.goal or m.sense, resolve_settings(m, o.settings, f"{path}.settings")))
 
@@ -477,7 +478,7 @@ def resolve_study(data: dict, source: str | None = None) -> ResolvedStudy:
             raise StudyError(f"{path}: min ({c.min}) is above max ({c.max}); no design can be feasible")
         if m.models is not None and spec.mechanism not in m.models:
             raise StudyError(f"{path}.name: measure {c.name!r} applies to {list(m.models)}, not {spec.mechanism!r}")
-        label = c.label or c.name
+        label = c.label if c.label is not None else c.name
         check_label(label, path, f"{path}.label" if c.label is not None else f"{path}.name")
         constraints.append(DesignConstraint(c.name, label, lo, hi, resolve_settings(m, c.settings, f"{path}.settings")))
 
@@ -780,6 +781,11 @@ def check_study(study: ResolvedStudy, *, measures: bool = True, max_corners: int
             raise
         except Exception as e:
             msg = str(e) if isinstance(e, ValueError) else f"{type(e).__name__}: {e}"
+            import re
+
+            named = [k for k in item.settings if re.search(rf"\b{re.escape(k)}\b", msg)]
+            if len(named) == 1:  # the message names the setting at fault
+                where = f"{where}.settings.{named[0]}"
             problems.append(f"{where} ({item.label}): measure {item.name!r} fails on the {base_where.split(' ')[0]} "
                             f"design with these settings: {msg}")
     return problems
