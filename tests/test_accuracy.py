@@ -203,3 +203,13 @@ def test_study_tolerance_units():
         load_study(_study({"axis_tolerance": 0.05}, measure="orientation_error_max"), is_text=True)
     with pytest.raises(StudyError, match=r"objectives\[0\]\.settings\.spherical_clearance"):
         load_study(_study({"spherical_clearance": "0.01 deg"}), is_text=True)
+
+
+def test_api_tolerances_with_units():
+    mech = parasynth.load_mechanism("gough_stewart_6ups")
+    X = mech.home[None]
+    np.testing.assert_allclose(acc.pose_error_bound(mech, X, anchor_tolerance="0.02 mm", axis_tolerance="0.05 deg"),
+                               acc.pose_error_bound(mech, X, anchor_tolerance=2e-5, axis_tolerance=math.radians(0.05)),
+                               rtol=1e-12)
+    with pytest.raises(ValueError, match="anchor_tolerance"):
+        acc.pose_error_bound(mech, X, anchor_tolerance="0.02 deg")

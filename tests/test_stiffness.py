@@ -222,3 +222,11 @@ def test_study_stiffness_units():
         load_study(_study({"constraint_force_stiffness": "2e7 N"}), is_text=True)
     with pytest.raises(StudyError, match=r"objectives\[0\]\.settings\.youngs_modulus"):
         load_study(_study({"youngs_modulus": 210e9}), is_text=True)
+
+
+def test_api_values_with_units():
+    mech = parasynth.load_mechanism("gough_stewart_6ups")
+    np.testing.assert_allclose(stiffness_matrix(mech, mech.home, axial_stiffness="20 N/mm"),
+                               stiffness_matrix(mech, mech.home, axial_stiffness=2e4), rtol=1e-12)
+    with pytest.raises(ValueError, match="axial_stiffness"):
+        stiffness_matrix(mech, mech.home, axial_stiffness="2e7 N")

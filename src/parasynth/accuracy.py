@@ -87,6 +87,7 @@ TOLERANCE_SETTINGS = {
     "spherical_clearance": "length",
     "universal_clearance": "length",
 }
+#: Tolerances are SI numbers, or strings with their unit ("0.02 mm", "0.05 deg").
 
 _AXIS_FIELDS = ("u_axis", "slider_axis", "r_axis", "u_platform_axis")
 
@@ -98,6 +99,10 @@ def _check_tolerances(tol: dict) -> dict:
     out = {}
     for k in TOLERANCE_SETTINGS:
         v = tol.get(k, 0.0)
+        if isinstance(v, str):  # a quantity with its unit, e.g. "0.02 mm", "0.05 deg"
+            from .units import parse_quantity
+
+            v = parse_quantity(v, TOLERANCE_SETTINGS[k], field=k)
         try:
             v = float(v)
         except (TypeError, ValueError):

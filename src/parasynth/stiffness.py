@@ -79,6 +79,10 @@ RTOL = 1e-9
 
 
 def _positive(name, value, allow_inf=False):
+    if isinstance(value, str):  # a quantity with its unit, e.g. "2e7 N/m"
+        from .units import parse_quantity
+
+        value = parse_quantity(value, STIFFNESS_SETTINGS.get(name.split("[")[0], "dimensionless"), field=name)
     try:
         v = float(value)
     except (TypeError, ValueError):
@@ -197,8 +201,10 @@ def stiffness_matrix(mech, X, **stiffness) -> np.ndarray:
     coordinate, ``constraint_force_stiffness`` (N/m) and ``constraint_couple_stiffness``
     (N m/rad; one value or one per constraint row), ``diameter`` and ``constraint_diameter``
     (m, the steel rod of the estimates; default the model's ``leg_diameter`` or
-    ``link_diameter``), ``youngs_modulus`` and ``shear_modulus`` (Pa). Zero, negative or
-    non-finite values raise ``ValueError`` naming the setting. Unreachable poses give NaN.
+    ``link_diameter``), ``youngs_modulus`` and ``shear_modulus`` (Pa). Values may also be
+    strings with their unit (``"2e7 N/m"``, ``"300 N*m/rad"``, ``"35 mm"``, ``"210 GPa"``). Zero,
+    negative or non-finite values raise ``ValueError`` naming the setting. Unreachable poses
+    give NaN.
     """
     unknown = sorted(set(stiffness) - set(STIFFNESS_SETTINGS))
     if unknown:
