@@ -76,6 +76,35 @@ _CONE_KEYS = {
 BLOCK = 4096
 #: Poses per SIMD sub-block (the scratch of one sub-block stays in the L1 cache).
 SUB = 64
+#: Batches of fewer poses run on the calling thread only: waking the thread pool costs more
+#: than it saves for them (and, on a machine busy with other work, far more).
+PARALLEL_MIN = 2**17
+
+
+class _threads:
+    """Run the enclosed kernel call on one thread for small batches."""
+
+    def __init__(self, n: int):
+        self.serial = HAVE_NUMBA and n < PARALLEL_MIN
+        self.prev = None
+
+    def __enter__(self):
+        if self.serial:
+            import numba
+
+            self.prev = numba.get_num_threads()
+            if self.prev != 1:
+                numba.set_num_threads(1)
+            else:
+                self.prev = None
+        return self
+
+    def __exit__(self, *exc):
+        if self.prev is not None:
+            import numba
+
+            numba.set_num_threads(self.prev)
+        return False
 
 
 class Unsupported(Exception):
@@ -199,6 +228,20 @@ def _is_described(mech) -> bool:
     return isinstance(mech, DescribedMechanism)
 
 
+_KEYS: dict = {}
+
+
+def _angle_keys(mech, legs):
+    """The joint-angle keys each leg's ``solve`` reports (found once per leg class: the keys
+    of a leg type do not depend on its geometry)."""
+    missing = [leg for leg in legs if type(leg) not in _KEYS]
+    if missing:
+        p, R = mech.pose(mech.home[None, :])
+        for leg in missing:
+            _KEYS[type(leg)] = frozenset(leg.solve(p, R).angles)
+    return [_KEYS[type(leg)] for leg in legs]
+
+
 def leg_tables(mech, cons):
     """Leg arrays and check tables of ``mech`` for the constraints ``cons`` (a list), the
     expression constraints found ({name: Expression}) and their columns."""
@@ -261,8 +304,7 @@ def leg_tables(mech, cons):
                 rows["lenr"].append((index[n], c.lo, c.hi, ci))
         elif t is JointAngleLimit:
             if keys is None:  # angle keys each leg actually reports (checked, not assumed)
-                p, R = mech.pose(mech.home[None, :])
-                keys = [set(leg.solve(p, R).angles) for leg in legs]
+                keys = _angle_keys(mech, legs)
             sel = [i for i, leg in enumerate(legs) if (not c.legs or leg.name in c.legs) and c.key in keys[i]]
             if not sel:
                 raise Unsupported(f"constraint {c.name}: joint angle {c.key!r} matches no leg (NumPy raises)")
@@ -413,7 +455,8 @@ def run_feasible(plan: KernelPlan, X: np.ndarray):
     out = np.empty(X.shape[0], dtype=np.bool_)
     nblk = (X.shape[0] + BLOCK - 1) // BLOCK
     amb = np.zeros(max(nblk, 1), dtype=np.int64)
-    _feasible_kernel(X, *plan.args(), BLOCK, out, amb)
+    with _threads(X.shape[0]):
+        _feasible_kernel(X, *plan.args(), BLOCK, out, amb)
     return out, bool(amb.any())
 
 
@@ -422,7 +465,8 @@ def run_margins(plan: KernelPlan, X: np.ndarray):
     M = np.empty((X.shape[0], len(plan.names)))
     nblk = (X.shape[0] + BLOCK - 1) // BLOCK
     amb = np.zeros(max(nblk, 1), dtype=np.int64)
-    _margins_kernel(X, *plan.args(), BLOCK, M, amb)
+    with _threads(X.shape[0]):
+        _margins_kernel(X, *plan.args(), BLOCK, M, amb)
     return M, bool(amb.any())
 
 
@@ -441,8 +485,9 @@ def run_pose(prog: Program, consts, X: np.ndarray, twist: bool = False):
         tr = np.zeros((0, 0), dtype=np.int64)
         Tw = np.empty((0, 0, 0))
         n_run = prog.n_pose
-    _pose_kernel(X, prog.ins, consts, prog.const_base, prog.n_reg, n_run, prog.pose_regs, prog.valid_regs, tr,
-                 BLOCK, ok, P, Rm, Tw)
+    with _threads(N):
+        _pose_kernel(X, prog.ins, consts, prog.const_base, prog.n_reg, n_run, prog.pose_regs, prog.valid_regs, tr,
+                     BLOCK, ok, P, Rm, Tw)
     return ok, P, Rm.reshape(N, 3, 3), (Tw if twist else None)
 
 
