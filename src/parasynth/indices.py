@@ -38,6 +38,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .mechanism import _use_compiled
+
 
 __all__ = [
     "PressureAngleIndices",
@@ -180,7 +182,7 @@ class PressureAngleIndices:
     definition: str
 
 
-def pressure_angle_indices(mech, X, definition: str = "paper") -> PressureAngleIndices:
+def pressure_angle_indices(mech, X, definition: str = "paper", engine: str = "compiled") -> PressureAngleIndices:
     """Transmission indices ``lambda1 = cos(alpha)``, ``lambda2 = cos(beta)`` of the 2018 paper
     (Section 7, eq. (36)) for the ``2rpu_2sps`` model.
 
@@ -206,6 +208,10 @@ def pressure_angle_indices(mech, X, definition: str = "paper") -> PressureAngleI
     limbs are coplanar exactly when x = z tan(theta), the coupled model; for skew limbs this
     is the sine of the angle between their directions.)
 
+    ``engine="compiled"`` (default) takes the leg directions from the compiled kernels of
+    :mod:`parasynth.engine.indices`, ``engine="numpy"`` from the legs' NumPy inverse
+    kinematics (the same directions to rounding).
+
     Raises ``ValueError`` for any model other than ``2rpu_2sps`` or an unknown definition.
     """
     if getattr(mech, "name", None) != "2rpu_2sps":
@@ -216,9 +222,15 @@ def pressure_angle_indices(mech, X, definition: str = "paper") -> PressureAngleI
     if definition not in ("paper", "pressure"):
         raise ValueError(f"definition must be 'paper' or 'pressure', got {definition!r}")
     Xa, single = _as_poses(mech, X)
-    _, states, _ = mech.leg_states(Xa)
-    reachable = np.logical_and.reduce([st.reachable for st in states])
-    w = {leg.name: st.direction for leg, st in zip(mech.legs, states)}
+    if _use_compiled(mech, engine, "pressure_angle_indices"):
+        from .engine import indices as _ei
+
+        dirs, reachable = _ei.leg_directions(mech, Xa)
+        w = {leg.name: dirs[:, k] for k, leg in enumerate(mech.legs)}
+    else:
+        _, states, _ = mech.leg_states(Xa)
+        reachable = np.logical_and.reduce([st.reachable for st in states])
+        w = {leg.name: st.direction for leg, st in zip(mech.legs, states)}
     c_rpu = np.abs(np.sum(w["L2"] * w["L4"], -1))
     c_sps = np.abs(np.sum(w["L1"] * w["L3"], -1))
     s_rpu = np.linalg.norm(np.cross(w["L2"], w["L4"]), axis=-1)
@@ -358,17 +370,29 @@ def input_transmission_index(mech, X) -> np.ndarray:
     return _out(v, ws.single)
 
 
-def output_transmission_index(mech, X, rtol: float = 1e-9) -> np.ndarray:
+def output_transmission_index(mech, X, rtol: float = 1e-9, engine: str = "compiled") -> np.ndarray:
     """Output transmission index of every actuated leg, (N, n_act) (see
-    :func:`transmission_indices`)."""
+    :func:`transmission_indices`). ``engine`` as in :func:`local_transmission_index`."""
+    if _use_compiled(mech, engine, "output_transmission_index"):
+        from .engine import indices as _ei
+
+        return _ei.transmission(mech, X, rtol)[1]
     return transmission_indices(mech, X, rtol).output
 
 
-def local_transmission_index(mech, X, rtol: float = 1e-9) -> np.ndarray:
+def local_transmission_index(mech, X, rtol: float = 1e-9, engine: str = "compiled") -> np.ndarray:
     """Local transmission index LTI (N,): the smallest input and output transmission index
     over the actuated legs, in [0, 1] (1 = every force transmitted along the motion it
     drives, 0 = a singularity). See :func:`transmission_indices` for the definitions and the
-    treatment of lower-mobility and under-actuated mechanisms. NaN where unreachable."""
+    treatment of lower-mobility and under-actuated mechanisms. NaN where unreachable.
+
+    ``engine="compiled"`` (default): the compiled kernels of :mod:`parasynth.engine.indices`
+    (the same definitions, agreeing with the NumPy path to 1e-9; NumPy with the reason logged
+    once for a mechanism they do not cover); ``engine="numpy"``: :func:`transmission_indices`."""
+    if _use_compiled(mech, engine, "local_transmission_index"):
+        from .engine import indices as _ei
+
+        return _ei.transmission(mech, X, rtol)[2]
     return transmission_indices(mech, X, rtol).lti
 
 
@@ -419,7 +443,8 @@ def good_transmission_volume(mech, X, workspace_volume: float, threshold: float 
 # ---------------------------------------------------------------------------------------------
 # Conditioning
 # ---------------------------------------------------------------------------------------------
-def local_condition_number(mech, X, length: float | None = None, space: str = "task") -> np.ndarray:
+def local_condition_number(mech, X, length: float | None = None, space: str = "task",
+                           engine: str = "compiled") -> np.ndarray:
     """Condition number (N,) >= 1 of a dimensionally homogeneous actuator Jacobian.
 
     ``space="task"`` (default): ``J = mech.jacobian(X)`` (actuator rates per task-coordinate
@@ -437,10 +462,26 @@ def local_condition_number(mech, X, length: float | None = None, space: str = "t
     For a non-square Jacobian the ratio of the largest to the smallest of its
     ``min(rows, columns)`` singular values is returned. ``inf`` at singularities, NaN where
     unreachable. An isotropic pose gives exactly 1.
+
+    ``engine="compiled"`` (default) evaluates ``space="task"`` with the compiled kernels of
+    :mod:`parasynth.engine.indices` (relative agreement 1e-9 with the NumPy path; NumPy with
+    the reason logged once where they do not apply, including ``space="twist"``);
+    ``engine="numpy"``: the NumPy reference.
     """
     L = float(mech.length_scale if length is None else length)
     if not np.isfinite(L) or L <= 0:
         raise ValueError(f"length must be a positive length in m, got {length!r}")
+    if space not in ("task", "twist"):
+        raise ValueError(f"space must be 'task' or 'twist', got {space!r}")
+    if space == "twist" and engine == "compiled":
+        from .engine import indices as _ei
+
+        _ei.warn_fallback("local_condition_number", mech, "space='twist' has no compiled form")
+        engine = "numpy"
+    if _use_compiled(mech, engine, "local_condition_number"):
+        from .engine import indices as _ei
+
+        return _ei.condition_number(mech, X, L)
     if space == "task":
         Xa, single = _as_poses(mech, X)
         J = np.array(mech.jacobian(Xa), dtype=float, copy=True)
@@ -489,16 +530,17 @@ class GlobalIndex:
     n_excluded: int
 
 
-def global_conditioning_index(mech, X, length: float | None = None, space: str = "task") -> GlobalIndex:
+def global_conditioning_index(mech, X, length: float | None = None, space: str = "task",
+                              engine: str = "compiled") -> GlobalIndex:
     """Global conditioning index (Gosselin & Angeles 1991): the workspace average of the
     inverse condition number, ``GCI = int (1/kappa) dW / int dW``.
 
     ``X`` are poses sampled uniformly in the workspace (a plain array; sampling is the
     caller's). The Monte Carlo estimate is the sample mean of ``1/kappa`` (0 at
     singularities) and its standard error ``std / sqrt(n)``. Unreachable poses are excluded
-    and counted. ``length`` and ``space`` as in :func:`local_condition_number`.
+    and counted. ``length``, ``space`` and ``engine`` as in :func:`local_condition_number`.
     """
-    kappa = np.atleast_1d(local_condition_number(mech, X, length, space))
+    kappa = np.atleast_1d(local_condition_number(mech, X, length, space, engine))
     ok = ~np.isnan(kappa)
     n = int(np.count_nonzero(ok))
     if n == 0:
@@ -526,11 +568,11 @@ class MarginStats:
     n_unreachable: int
 
 
-def singularity_margin_stats(mech, X, percentiles=(1, 5, 25, 50, 75, 95)) -> MarginStats:
+def singularity_margin_stats(mech, X, percentiles=(1, 5, 25, 50, 75, 95), engine: str = "compiled") -> MarginStats:
     """Summary of the singularity margin (smallest normalised singular value of the wrench
-    system, :meth:`Mechanism.singularity_margin`) over the poses ``X``; unreachable poses are
-    ignored and counted."""
-    m = np.atleast_1d(mech.singularity_margin(np.atleast_2d(np.asarray(X, dtype=float))))
+    system, :meth:`Mechanism.singularity_margin`, ``engine`` as there) over the poses ``X``;
+    unreachable poses are ignored and counted."""
+    m = np.atleast_1d(mech.singularity_margin(np.atleast_2d(np.asarray(X, dtype=float)), engine=engine))
     ok = np.isfinite(m)
     n = int(np.count_nonzero(ok))
     if n == 0:

@@ -106,6 +106,25 @@ class Mobility:
         )
 
 
+ENGINES = ("compiled", "numpy")
+
+
+def _use_compiled(mech, engine: str, what: str) -> bool:
+    """Whether ``what`` runs on the compiled index kernels for ``mech``: ``engine`` must be one
+    of :data:`ENGINES`; "compiled" falls back to NumPy (reason logged once) when the kernels
+    do not cover the mechanism."""
+    if engine == "numpy":
+        return False
+    if engine != "compiled":
+        raise ValueError(f"engine must be one of {list(ENGINES)}, got {engine!r}")
+    from .engine import indices as _ei
+
+    ok, why = _ei.coverage(mech)
+    if not ok:
+        _ei.warn_fallback(what, mech, why)
+    return ok
+
+
 def _rank(A: np.ndarray, rtol: float = 1e-8) -> int:
     if A.size == 0:
         return 0
@@ -287,10 +306,42 @@ class Mechanism:
 
     @property
     def constraint_rank(self) -> int:
-        """Rank of the legs' constraint wrench system at the home pose (structural)."""
+        """Rank of the legs' constraint wrench system at the home pose (structural), computed
+        once per instance by :meth:`structural_constraint_rank`."""
         if self._constraint_rank is None:
-            self._constraint_rank = self.mobility().constraint_rank
+            self._constraint_rank = self.structural_constraint_rank()
         return self._constraint_rank
+
+    def structural_constraint_rank(self, X=None, engine: str = "compiled") -> int:
+        """``mobility(X).constraint_rank`` (default pose ``home``) without the rest of the
+        mobility analysis: every leg's reciprocal wrench space is the null space of its joint
+        twists (moments scaled by ``length_scale``, rank tolerance 1e-9 as in
+        :func:`parasynth.spatial.reciprocal_basis`), and the rank of their union is taken with
+        the tolerance of :meth:`mobility` (1e-8). One batched SVD over the legs instead of
+        per-leg canonical bases, so that the per-design cost of the singularity margin stays
+        small; the same span, so the same rank. ``engine`` as in :meth:`singularity_margin`."""
+        if _use_compiled(self, engine, "constraint rank"):
+            from .engine import indices as _ei
+
+            return _ei.constraint_rank(self, X)
+        X0 = self.home if X is None else np.asarray(X, dtype=float)
+        _, states, p = self.leg_states(X0[None, :])
+        if not all(st.reachable[0] for st in states):
+            raise ValueError(f"{self.name}: pose {X0.tolist()} is not reachable")
+        L = self.length_scale
+        w = np.r_[np.ones(3), np.full(3, L)]
+        T = np.zeros((len(self.legs), 6, 6))
+        for k, (leg, st) in enumerate(zip(self.legs, states)):
+            t = leg.joint_twists(st, p)[0] * w
+            if t.shape[0] > 6:  # more than six joint freedoms: six rows spanning the same space
+                _, sv, vt = np.linalg.svd(t, full_matrices=False)
+                t = sv[:, None] * vt
+            T[k, : t.shape[0]] = t
+        _, s, Vt = np.linalg.svd(T)
+        rank = np.sum(s > 1e-9 * np.maximum(s[:, :1], 1e-300), axis=1)
+        rows = [Vt[k, rank[k]:] for k in range(len(self.legs))]
+        C = np.concatenate(rows, axis=0) if rows else np.zeros((0, 6))
+        return _rank(C)
 
     def normalized_wrench_system(self, X) -> np.ndarray:
         """Dimensionally homogeneous wrench system used by :meth:`singularity_margin`.
@@ -318,12 +369,21 @@ class Mechanism:
             Cn = np.zeros((W.shape[0], 0, 6))
         return np.concatenate([A, Cn], axis=1)
 
-    def singularity_margin(self, X) -> np.ndarray:
+    def singularity_margin(self, X, engine: str = "compiled") -> np.ndarray:
         """Smallest singular value of the normalised wrench system, (N,) (0 = singular).
 
         Of the (n_act + constraint_rank) x 6 normalised system the min(rows, 6)-th singular
         value is returned, so for an under-actuated mechanism it measures the independence
-        of the wrenches it has. NaN for unreachable poses."""
+        of the wrenches it has. NaN for unreachable poses.
+
+        ``engine="compiled"`` (default) evaluates it with the compiled kernels of
+        :mod:`parasynth.engine.indices` (agreeing with the NumPy path to 1e-9); a mechanism
+        they do not cover (a leg type of its own, an overridden wrench method, no numba) runs
+        on NumPy, with the reason logged once. ``engine="numpy"``: the NumPy reference."""
+        if _use_compiled(self, engine, "singularity_margin"):
+            from .engine import indices as _ei
+
+            return _ei.singularity_margin(self, X)
         Xa, single = self._poses(X)
         M = self.normalized_wrench_system(Xa)
         ok = np.all(np.isfinite(M), axis=(1, 2))

@@ -203,17 +203,19 @@ def inscribed_box_size(mech, axis: str = "z", resolution: int | None = None, coo
     return float(box.sizes[list(box.coordinates).index(axis)])
 
 
-@register("singularity_margin_min", unit="1", sense="maximize", settings={**_WS_SETTINGS, "quantile": "float"})
+@register("singularity_margin_min", unit="1", sense="maximize",
+          settings={**_WS_SETTINGS, "quantile": "float", "engine": "str"})
 def singularity_margin_min(mech, quantile: float = 0.0, **kw) -> float:
     """Smallest (or the given quantile of the) singularity margin over the feasible
-    workspace samples; 0 for an empty workspace."""
+    workspace samples; 0 for an empty workspace. ``engine``: "compiled" (default) or "numpy"
+    (see :meth:`Mechanism.singularity_margin`)."""
     ws = _ws(mech, kw)
     if ws.n_feasible == 0:
         return 0.0
     pts = ws.points
     if len(pts) > 20000:
         pts = pts[np.linspace(0, len(pts) - 1, 20000).astype(int)]
-    m = mech.singularity_margin(pts)
+    m = mech.singularity_margin(pts, engine=kw.get("engine", "compiled"))
     m = m[np.isfinite(m)]
     return float(np.quantile(m, quantile)) if m.size else 0.0
 
@@ -251,6 +253,8 @@ def max_leg_length_home(mech) -> float:
 
 # -- transmission, conditioning, forces -------------------------------------------------------------
 _SUB_SETTINGS = {**_WS_SETTINGS, "max_points": "int"}
+#: Index measures choose the compiled or the NumPy pose-wise indices ("compiled" default).
+_IDX_SETTINGS = {**_SUB_SETTINGS, "engine": "str"}
 
 
 def _points(mech, kw, default_max=4096):
@@ -263,7 +267,7 @@ def _points(mech, kw, default_max=4096):
     return ws, pts
 
 
-@register("min_lti", unit="1", sense="maximize", settings={**_SUB_SETTINGS, "quantile": "float"})
+@register("min_lti", unit="1", sense="maximize", settings={**_IDX_SETTINGS, "quantile": "float"})
 def min_lti(mech, quantile: float = 0.0, **kw) -> float:
     """Smallest (or the given quantile of the) local transmission index (Wang, Liu, Wang &
     Gosselin 2010: min of input and output transmission indices) over the feasible workspace
@@ -273,12 +277,12 @@ def min_lti(mech, quantile: float = 0.0, **kw) -> float:
     _, pts = _points(mech, kw)
     if not len(pts):
         return 0.0
-    v = local_transmission_index(mech, pts)
+    v = local_transmission_index(mech, pts, engine=kw.get("engine", "compiled"))
     v = v[np.isfinite(v)]
     return float(np.quantile(v, quantile)) if v.size else 0.0
 
 
-@register("mean_lti", unit="1", sense="maximize", settings=_SUB_SETTINGS)
+@register("mean_lti", unit="1", sense="maximize", settings=_IDX_SETTINGS)
 def mean_lti(mech, **kw) -> float:
     """Mean local transmission index over the feasible workspace samples."""
     from .indices import local_transmission_index
@@ -286,13 +290,13 @@ def mean_lti(mech, **kw) -> float:
     _, pts = _points(mech, kw)
     if not len(pts):
         return 0.0
-    v = local_transmission_index(mech, pts)
+    v = local_transmission_index(mech, pts, engine=kw.get("engine", "compiled"))
     v = v[np.isfinite(v)]
     return float(v.mean()) if v.size else 0.0
 
 
 @register("good_transmission_volume", unit="sampled units", sense="maximize",
-          settings={**_SUB_SETTINGS, "threshold": "float"})
+          settings={**_IDX_SETTINGS, "threshold": "float"})
 def good_transmission_volume(mech, threshold: float = 0.7, **kw) -> float:
     """Volume of the part of the workspace where LTI >= ``threshold`` (default 0.7):
     workspace volume times the fraction of feasible samples above the threshold."""
@@ -301,11 +305,11 @@ def good_transmission_volume(mech, threshold: float = 0.7, **kw) -> float:
     ws, pts = _points(mech, kw)
     if not len(pts):
         return 0.0
-    v = local_transmission_index(mech, pts)
+    v = local_transmission_index(mech, pts, engine=kw.get("engine", "compiled"))
     return float(ws.volume * np.mean(np.nan_to_num(v, nan=0.0) >= threshold))
 
 
-@register("gci", unit="1", sense="maximize", settings=_SUB_SETTINGS)
+@register("gci", unit="1", sense="maximize", settings=_IDX_SETTINGS)
 def gci(mech, **kw) -> float:
     """Global conditioning index (Gosselin & Angeles): mean of the inverse condition number
     of the dimensionally homogeneous actuator Jacobian over the feasible workspace."""
@@ -314,7 +318,7 @@ def gci(mech, **kw) -> float:
     _, pts = _points(mech, kw)
     if not len(pts):
         return 0.0
-    return float(global_conditioning_index(mech, pts).value)
+    return float(global_conditioning_index(mech, pts, engine=kw.get("engine", "compiled")).value)
 
 
 _LOAD_SETTINGS = {**_SUB_SETTINGS, "mass": "mass", "force": "force", "com": "length"}

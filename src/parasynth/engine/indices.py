@@ -62,6 +62,7 @@ __all__ = [
     "local_transmission_index",
     "condition_number",
     "leg_directions",
+    "constraint_rank",
     "warn_fallback",
 ]
 
@@ -189,12 +190,35 @@ def _plan(mech):
 
 
 def _poses(mech, X, need_twist: bool):
-    """(Xa, single, valid, p, R, T) with invalid poses replaced by ``home`` (as ``leg_states``)."""
+    """(Xa, single, valid, p, R, T): poses, validity of the parametrisation, platform positions,
+    rotations and (with ``need_twist``) twist maps, with invalid poses replaced by ``home`` (as
+    ``Mechanism.leg_states`` does). From the compiled ``parasynth.engine.pose_batch`` when the
+    engine provides it for a described mechanism, else from the model's NumPy
+    ``pose_valid``/``_pose``/``_twist_map`` (model classes written in Python)."""
     Xa, single = mech._poses(X)
-    valid = np.asarray(mech.pose_valid(Xa), dtype=bool)
-    Xs = np.where(valid[:, None], Xa, mech.home)
-    p, R = mech._pose(Xs)
-    T = mech._twist_map(Xs) if need_twist else None
+    pose_batch = None
+    if getattr(mech, "description", None) is not None:  # a description: its pose is compiled too
+        try:
+            from . import pose_batch
+        except ImportError:  # pragma: no cover - the engine package without its pose path
+            pose_batch = None
+    if pose_batch is not None:
+        valid, p, R, T = pose_batch(mech, Xa, twist=need_twist)
+        valid = np.asarray(valid, dtype=bool)
+        p = np.array(p, dtype=float)
+        R = np.array(R, dtype=float)
+        T = np.array(T, dtype=float) if need_twist else None
+        if not valid.all():
+            bad = ~valid
+            p0, R0 = mech._pose(mech.home[None, :])
+            p[bad], R[bad] = p0[0], R0[0]
+            if need_twist:
+                T[bad] = mech._twist_map(mech.home[None, :])[0]
+    else:
+        valid = np.asarray(mech.pose_valid(Xa), dtype=bool)
+        Xs = np.where(valid[:, None], Xa, mech.home)
+        p, R = mech._pose(Xs)
+        T = mech._twist_map(Xs) if need_twist else None
     p = np.ascontiguousarray(p, dtype=float)
     R = np.ascontiguousarray(R, dtype=float)
     if T is not None:
@@ -298,6 +322,65 @@ if HAVE_NUMBA:
                 a += Mt[j, k] * Mt[j, k]
             sv[j] = math.sqrt(a)
         return sweeps
+
+    @njit(**_jit)
+    def _jacobi_sv6(Mt, n, sv):
+        """:func:`_jacobi_sv` without V for columns of length exactly 6 (the wrench systems
+        of up to six rows), so that the inner loops have constant bounds and unroll."""
+        tol = 4.0e-16 * 6
+        fro = 0.0
+        for j in range(n):
+            a = 0.0
+            for k in range(6):
+                a += Mt[j, k] * Mt[j, k]
+            sv[j] = a
+            fro += a
+        tiny = 1e-32 * fro
+        for _sweep in range(60):
+            rotated = False
+            for i in range(n - 1):
+                for j in range(i + 1, n):
+                    a = sv[i]
+                    b = sv[j]
+                    if a <= tiny or b <= tiny:
+                        continue
+                    g = 0.0
+                    for k in range(6):
+                        g += Mt[i, k] * Mt[j, k]
+                    if g == 0.0 or abs(g) <= tol * math.sqrt(a * b):
+                        continue
+                    rotated = True
+                    zeta = (b - a) / (2.0 * g)
+                    if zeta >= 0.0:
+                        t = 1.0 / (zeta + math.sqrt(1.0 + zeta * zeta))
+                    else:
+                        t = -1.0 / (-zeta + math.sqrt(1.0 + zeta * zeta))
+                    c = 1.0 / math.sqrt(1.0 + t * t)
+                    s = c * t
+                    for k in range(6):
+                        x = Mt[i, k]
+                        y = Mt[j, k]
+                        Mt[i, k] = c * x - s * y
+                        Mt[j, k] = s * x + c * y
+                    a2 = a - t * g
+                    b2 = b + t * g
+                    if a2 < 0.25 * a:
+                        a2 = 0.0
+                        for k in range(6):
+                            a2 += Mt[i, k] * Mt[i, k]
+                    if b2 < 0.25 * b:
+                        b2 = 0.0
+                        for k in range(6):
+                            b2 += Mt[j, k] * Mt[j, k]
+                    sv[i] = a2
+                    sv[j] = b2
+            if not rotated:
+                break
+        for j in range(n):
+            a = 0.0
+            for k in range(6):
+                a += Mt[j, k] * Mt[j, k]
+            sv[j] = math.sqrt(a)
 
     @njit(**_jit_inline)
     def _cross(a0, a1, a2, b0, b1, b2):
@@ -475,7 +558,143 @@ if HAVE_NUMBA:
                 ic += 1
         return reach
 
-    @njit(parallel=True, **_jit)
+    @njit(**_jit_inline)
+    def _put_rev(Tw, k, a0, a1, a2, cx, cy, cz, px, py, pz, L):
+        v0, v1, v2 = _cross(a0, a1, a2, px - cx, py - cy, pz - cz)
+        Tw[k, 0], Tw[k, 1], Tw[k, 2] = v0, v1, v2
+        Tw[k, 3], Tw[k, 4], Tw[k, 5] = a0 * L, a1 * L, a2 * L
+
+    @njit(**_jit_inline)
+    def _put_pri(Tw, k, d0, d1, d2):
+        Tw[k, 0], Tw[k, 1], Tw[k, 2] = d0, d1, d2
+        Tw[k, 3], Tw[k, 4], Tw[k, 5] = 0.0, 0.0, 0.0
+
+    @njit(**_jit)
+    def _joint_twists(p, R, i, j, code, geo, sc, L, Tw):
+        """The joint twists of leg ``j`` at pose ``i`` as rows of ``Tw`` (up to 7, about the
+        platform reference point, angular parts multiplied by ``L``), in the order of the
+        legs' ``joint_twists``; returns their number (0 when the leg cannot reach the pose)."""
+        px, py, pz = p[i, 0], p[i, 1], p[i, 2]
+        t = code[j]
+        qx, qy, qz = geo[j, 1, 0], geo[j, 1, 1], geo[j, 1, 2]
+        ax = px + R[i, 0, 0] * qx + R[i, 0, 1] * qy + R[i, 0, 2] * qz
+        ay = py + R[i, 1, 0] * qx + R[i, 1, 1] * qy + R[i, 1, 2] * qz
+        az = pz + R[i, 2, 0] * qx + R[i, 2, 1] * qy + R[i, 2, 2] * qz
+        bx, by, bz = geo[j, 0, 0], geo[j, 0, 1], geo[j, 0, 2]
+        e0, e1, e2 = geo[j, 2, 0], geo[j, 2, 1], geo[j, 2, 2]
+        if t == _PUS or t == _PRS:
+            Ll = sc[j, 0]
+            dx, dy, dz = ax - bx, ay - by, az - bz
+            de = dx * e0 + dy * e1 + dz * e2
+            disc = Ll * Ll - (dx * dx + dy * dy + dz * dz - de * de)
+            if not disc >= 0.0:
+                return 0
+            s = de + sc[j, 1] * math.sqrt(disc)
+            bx, by, bz = bx + s * e0, by + s * e1, bz + s * e2
+            nx, ny, nz = (ax - bx) / Ll, (ay - by) / Ll, (az - bz) / Ll
+        else:
+            nx, ny, nz = _unit3(ax - bx, ay - by, az - bz)
+        k = 0
+        if t == _SPS:
+            for q in range(3):
+                _put_rev(Tw, k, 1.0 if q == 0 else 0.0, 1.0 if q == 1 else 0.0, 1.0 if q == 2 else 0.0,
+                         bx, by, bz, px, py, pz, L)
+                k += 1
+        elif t == _UPS or t == _UPU:
+            _put_rev(Tw, k, e0, e1, e2, bx, by, bz, px, py, pz, L)
+            c0, c1, c2 = _cross(e0, e1, e2, nx, ny, nz)
+            c0, c1, c2 = _unit3(c0, c1, c2)
+            _put_rev(Tw, k + 1, c0, c1, c2, bx, by, bz, px, py, pz, L)
+            k += 2
+        elif t == _PUS:
+            _put_pri(Tw, k, e0, e1, e2)
+            u0, u1, u2 = geo[j, 3, 0], geo[j, 3, 1], geo[j, 3, 2]
+            _put_rev(Tw, k + 1, u0, u1, u2, bx, by, bz, px, py, pz, L)
+            c0, c1, c2 = _cross(u0, u1, u2, nx, ny, nz)
+            c0, c1, c2 = _unit3(c0, c1, c2)
+            _put_rev(Tw, k + 2, c0, c1, c2, bx, by, bz, px, py, pz, L)
+            k += 3
+        elif t == _PRS:
+            _put_pri(Tw, k, e0, e1, e2)
+            _put_rev(Tw, k + 1, geo[j, 3, 0], geo[j, 3, 1], geo[j, 3, 2], bx, by, bz, px, py, pz, L)
+            k += 2
+        elif t == _RPS or t == _RPU:
+            _put_rev(Tw, k, e0, e1, e2, bx, by, bz, px, py, pz, L)
+            k += 1
+        if t == _SPS or t == _UPS or t == _RPS or t == _RPU or t == _UPU:
+            _put_pri(Tw, k, nx, ny, nz)
+            k += 1
+        if t == _RPU:
+            _put_rev(Tw, k, e0, e1, e2, ax, ay, az, px, py, pz, L)
+            ux, uy, uz = geo[j, 3, 0], geo[j, 3, 1], geo[j, 3, 2]
+            a4x = R[i, 0, 0] * ux + R[i, 0, 1] * uy + R[i, 0, 2] * uz
+            a4y = R[i, 1, 0] * ux + R[i, 1, 1] * uy + R[i, 1, 2] * uz
+            a4z = R[i, 2, 0] * ux + R[i, 2, 1] * uy + R[i, 2, 2] * uz
+            _put_rev(Tw, k + 1, a4x, a4y, a4z, ax, ay, az, px, py, pz, L)
+            k += 2
+        elif t == _UPU:
+            ux, uy, uz = geo[j, 3, 0], geo[j, 3, 1], geo[j, 3, 2]
+            a4x = R[i, 0, 0] * ux + R[i, 0, 1] * uy + R[i, 0, 2] * uz
+            a4y = R[i, 1, 0] * ux + R[i, 1, 1] * uy + R[i, 1, 2] * uz
+            a4z = R[i, 2, 0] * ux + R[i, 2, 1] * uy + R[i, 2, 2] * uz
+            c0, c1, c2 = _cross(a4x, a4y, a4z, nx, ny, nz)
+            c0, c1, c2 = _unit3(c0, c1, c2)
+            _put_rev(Tw, k, c0, c1, c2, ax, ay, az, px, py, pz, L)
+            _put_rev(Tw, k + 1, a4x, a4y, a4z, ax, ay, az, px, py, pz, L)
+            k += 2
+        else:  # spherical joint at the platform anchor
+            for q in range(3):
+                _put_rev(Tw, k, 1.0 if q == 0 else 0.0, 1.0 if q == 1 else 0.0, 1.0 if q == 2 else 0.0,
+                         ax, ay, az, px, py, pz, L)
+                k += 1
+        return k
+
+    @njit(**_jit)
+    def _constraint_rank_kernel(p, R, code, geo, sc, L):
+        """Rank of the union of the legs' reciprocal wrench spaces at pose 0 (scaled
+        coordinates; per-leg rank tolerance 1e-9, union tolerance 1e-8, as ``mobility``).
+        -1 when a leg cannot reach the pose."""
+        nl = code.shape[0]
+        Tw = np.empty((7, 6))
+        Twt = np.empty((6, 7))
+        V = np.empty((6, 6))
+        sv = np.empty(7)
+        U = np.empty((6, 6 * nl))
+        nu = 0
+        for j in range(nl):
+            k = _joint_twists(p, R, 0, j, code, geo, sc, L, Tw)
+            if k == 0:
+                return -1
+            for a in range(k):
+                for q in range(6):
+                    Twt[q, a] = Tw[a, q]
+            _jacobi_sv(Twt, k, 6, V, True, sv)
+            smax = 0.0
+            for q in range(6):
+                smax = max(smax, sv[q])
+            for q in range(6):
+                if not sv[q] > 1e-9 * max(smax, 1e-300):
+                    for q2 in range(6):
+                        U[q2, nu] = V[q, q2]
+                    nu += 1
+        if nu == 0:
+            return 0
+        # rank of the nu x 6 union: Jacobi on its columns (the 6 coordinates)
+        Ut = np.empty((6, nu))
+        for q in range(6):
+            for a in range(nu):
+                Ut[q, a] = U[q, a]
+        sv2 = np.empty(6)
+        _jacobi_sv(Ut, nu, 6, V, False, sv2)
+        smax = 0.0
+        for q in range(6):
+            smax = max(smax, sv2[q])
+        r = 0
+        for q in range(6):
+            if sv2[q] > 1e-8 * max(smax, 1e-300):
+                r += 1
+        return r
+
     def _margin_kernel(p, R, valid, code, act, geo, sc, upuL, na, nc, rc, L, out):
         N = p.shape[0]
         nchunk = (N + CHUNK - 1) // CHUNK
@@ -543,15 +762,15 @@ if HAVE_NUMBA:
                         for q in range(6):
                             Ct[best, q] /= s0
                         # row na + r of the system
-                        if k >= 6:
+                        if k > 6:
                             for q in range(6):
                                 M[q, na + r] = Ct[best, q]
                         else:
                             for q in range(6):
                                 M[na + r, q] = Ct[best, q]
                 # Jacobi works on columns (stored as rows of M): the k x 6 system itself when
-                # k >= 6, its transpose (k columns of length 6) otherwise.
-                if k >= 6:
+                # k > 6, its transpose (k columns of length 6) otherwise.
+                if k > 6:
                     for a in range(na):
                         for q in range(6):
                             M[q, a] = A[a, q]
@@ -560,13 +779,12 @@ if HAVE_NUMBA:
                     for a in range(na):
                         for q in range(6):
                             M[a, q] = A[a, q]
-                    _jacobi_sv(M, 6, k, Vd, False, sv)
+                    _jacobi_sv6(M, k, sv)
                 smin = np.inf
                 for q in range(kk):
                     smin = min(smin, sv[q])
                 out[i] = smin
 
-    @njit(parallel=True, **_jit)
     def _lti_kernel(p, R, valid, code, act, geo, sc, upuL, na, nc, L, rtol, inp, outp, lti):
         N = p.shape[0]
         nchunk = (N + CHUNK - 1) // CHUNK
@@ -678,7 +896,6 @@ if HAVE_NUMBA:
                     low = min(low, o, ii)
                 lti[i] = low
 
-    @njit(parallel=True, **_jit)
     def _kappa_kernel(p, R, valid, T, angcol, code, act, geo, sc, upuL, na, nc, L, out):
         N = p.shape[0]
         nt = T.shape[2]
@@ -729,7 +946,6 @@ if HAVE_NUMBA:
                 else:
                     out[i] = np.inf
 
-    @njit(parallel=True, **_jit)
     def _dir_kernel(p, R, valid, code, act, geo, sc, upuL, na, nc, dirs, reach):
         """Unit leg directions (N, n_legs, 3) base -> platform and reachability."""
         N = p.shape[0]
@@ -767,6 +983,20 @@ if HAVE_NUMBA:
                         dirs[i, j, 0], dirs[i, j, 1], dirs[i, j, 2] = ux, uy, uz
 
 
+    # Each kernel twice: threaded for large batches, serial for the few thousand poses of one
+    # design (where starting threads costs more than it saves, and studies parallelise over
+    # designs).
+    _KERNELS = {}
+    for _f in (_margin_kernel, _lti_kernel, _kappa_kernel, _dir_kernel):
+        _KERNELS[_f.__name__] = (njit(**_jit)(_f), njit(parallel=True, **_jit)(_f))
+
+#: Batches of at least this many poses run on all threads.
+PARALLEL_MIN = 16384
+
+
+def _kernel(name: str, n: int):
+    return _KERNELS[name][1 if n >= PARALLEL_MIN else 0]
+
 # ---------------------------------------------------------------------------------------------
 # Entry points
 # ---------------------------------------------------------------------------------------------
@@ -782,7 +1012,7 @@ def singularity_margin(mech, X) -> np.ndarray:
     Xa, single, valid, p, R, _ = _poses(mech, X, False)
     upuL = _upu_lengths(plan, p, R)
     out = np.empty(Xa.shape[0])
-    _margin_kernel(p, R, valid, code, act, geo, sc, upuL, int(mech.n_actuators), nc, int(mech.constraint_rank),
+    _kernel("_margin_kernel", Xa.shape[0])(p, R, valid, code, act, geo, sc, upuL, int(mech.n_actuators), nc, int(mech.constraint_rank),
                    float(mech.length_scale), out)
     return _out(out, single)
 
@@ -796,7 +1026,7 @@ def transmission(mech, X, rtol: float = 1e-9):
     upuL = _upu_lengths(plan, p, R)
     N, na = Xa.shape[0], int(mech.n_actuators)
     inp, outp, lti = np.empty((N, na)), np.empty((N, na)), np.empty(N)
-    _lti_kernel(p, R, valid, code, act, geo, sc, upuL, na, nc, float(mech.length_scale), float(rtol), inp, outp, lti)
+    _kernel("_lti_kernel", Xa.shape[0])(p, R, valid, code, act, geo, sc, upuL, na, nc, float(mech.length_scale), float(rtol), inp, outp, lti)
     return _out(inp, single), _out(outp, single), _out(lti, single)
 
 
@@ -816,8 +1046,23 @@ def condition_number(mech, X, length: float | None = None) -> np.ndarray:
     upuL = _upu_lengths(plan, p, R)
     angcol = np.array([c in mech.angular_coordinates for c in mech.task_coordinates], dtype=np.bool_)
     out = np.empty(Xa.shape[0])
-    _kappa_kernel(p, R, valid, T, angcol, code, act, geo, sc, upuL, int(mech.n_actuators), nc, L, out)
+    _kernel("_kappa_kernel", Xa.shape[0])(p, R, valid, T, angcol, code, act, geo, sc, upuL, int(mech.n_actuators), nc, L, out)
     return _out(out, single)
+
+
+def constraint_rank(mech, X=None) -> int:
+    """Compiled :meth:`Mechanism.structural_constraint_rank` at pose ``X`` (default ``home``):
+    the rank of the union of the legs' reciprocal wrench spaces (null spaces of their joint
+    twists). Raises ``ValueError`` when a leg cannot reach the pose."""
+    code, act, geo, sc, nc = _plan(mech)
+    X0 = mech.home if X is None else np.asarray(X, dtype=float)
+    Xa, _, valid, p, R, _ = _poses(mech, X0[None, :], False)
+    r = -1
+    if valid[0]:
+        r = int(_constraint_rank_kernel(p, R, code, geo, sc, float(mech.length_scale)))
+    if r < 0:
+        raise ValueError(f"{mech.name}: pose {X0.tolist()} is not reachable")
+    return r
 
 
 def leg_directions(mech, X) -> tuple[np.ndarray, np.ndarray]:
@@ -829,5 +1074,5 @@ def leg_directions(mech, X) -> tuple[np.ndarray, np.ndarray]:
     upuL = np.ones(len(code))
     N = Xa.shape[0]
     dirs, reach = np.empty((N, len(code), 3)), np.empty(N, np.bool_)
-    _dir_kernel(p, R, valid, code, act, geo, sc, upuL, int(mech.n_actuators), nc, dirs, reach)
+    _kernel("_dir_kernel", Xa.shape[0])(p, R, valid, code, act, geo, sc, upuL, int(mech.n_actuators), nc, dirs, reach)
     return _out(dirs, single), _out(reach, single)

@@ -1,0 +1,320 @@
+"""Compiled pose-wise indices against the NumPy reference.
+
+The reference is the NumPy path of the same definitions (``engine="numpy"``: LAPACK SVDs of
+the legs' wrench systems built by :mod:`parasynth.legs`), on random poses of every shipped
+mechanism and variant; the contract is agreement to 1e-9 (absolute for the margin and the
+transmission indices, which lie in [0, 1]; relative for condition numbers). The one-sided
+Jacobi SVD is checked against matrices of known singular values, and the constraint rank
+against :meth:`Mechanism.mobility`.
+"""
+
+from __future__ import annotations
+
+import logging
+import warnings
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+import pytest
+
+import parasynth
+from parasynth import objectives
+from parasynth.engine import indices as ei
+from parasynth.indices import (global_conditioning_index, local_condition_number, local_transmission_index,
+                               output_transmission_index, pressure_angle_indices, singularity_margin_stats,
+                               transmission_indices)
+from parasynth.legs import UPS
+
+pytestmark = pytest.mark.skipif(not ei.HAVE_NUMBA, reason="numba is not importable: no compiled indices")
+
+ATOL = 1e-9
+RTOL_KAPPA = 1e-9
+
+#: Every shipped mechanism with its default parameters, and the variants of the paper models.
+CONFIGS = [(name, {}) for name in parasynth.list_mechanisms()] + [
+    ("2rpu_2sps", {"coupled": False}),
+    ("5pus_upu", {"platform": "pentagonal"}),
+    ("5pus_upu", {"hinge_layout": "scheme2"}),
+]
+IDS = [n + ("-" + "-".join(f"{k}={v}" for k, v in kw.items()) if kw else "") for n, kw in CONFIGS]
+
+_MECHS: dict = {}
+
+
+def _mech(name, kw):
+    key = (name, tuple(sorted(kw.items())))
+    if key not in _MECHS:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            _MECHS[key] = parasynth.load_mechanism(name, **kw)
+    return _MECHS[key]
+
+
+def _box(mech):
+    """Sampling box: the model's default ranges, coordinates without a range +-0.3 (rad or m
+    x 0.2) about home."""
+    rg = mech.default_ranges()
+    lo, hi = [], []
+    for c, h in zip(mech.task_coordinates, mech.home):
+        if c in rg:
+            a, b = rg[c]
+        else:
+            w = 0.3 if c in mech.angular_coordinates else 0.06
+            a, b = h - w, h + w
+        lo.append(a)
+        hi.append(b)
+    return np.array(lo), np.array(hi)
+
+
+def _poses(mech, n=400, seed=0):
+    """Random reachable poses (up to ``n``) plus a few the legs cannot reach (NaN results
+    expected) and one with a NaN coordinate."""
+    rng = np.random.default_rng(seed)
+    lo, hi = _box(mech)
+    X = lo + (hi - lo) * rng.random((20 * n, mech.n_task))
+    reach = mech.inverse_kinematics(X).reachable
+    good = X[reach][:n]
+    bad = X[~reach][:5]
+    nan = np.full((1, mech.n_task), np.nan)
+    return np.concatenate([good, bad, nan]), len(good)
+
+
+@pytest.fixture(params=CONFIGS, ids=IDS)
+def mech_poses(request):
+    name, kw = request.param
+    mech = _mech(name, kw)
+    X, n_good = _poses(mech)
+    assert n_good >= 50, f"{name}: too few reachable random poses to test ({n_good})"
+    return mech, X, len(X) - n_good
+
+
+def _same_nan(a, b):
+    np.testing.assert_array_equal(np.isnan(a), np.isnan(b))
+
+
+# ---------------------------------------------------------------------------------------------
+# Agreement with NumPy on every shipped mechanism
+# ---------------------------------------------------------------------------------------------
+def test_singularity_margin_agrees(mech_poses):
+    mech, X, n_bad = mech_poses
+    ref = mech.singularity_margin(X, engine="numpy")
+    got = mech.singularity_margin(X, engine="compiled")
+    _same_nan(ref, got)
+    ok = np.isfinite(ref)
+    assert ok.sum() >= 50
+    np.testing.assert_allclose(got[ok], ref[ok], rtol=0, atol=ATOL)
+    # NaN for the unreachable poses and the invalid one (listed last)
+    assert np.all(np.isnan(got[-n_bad:]))
+
+
+def test_transmission_indices_agree(mech_poses):
+    mech, X, n_bad = mech_poses
+    ref = transmission_indices(mech, X)
+    inp, out, lti = ei.transmission(mech, X)
+    for a, b in ((ref.input, inp), (ref.output, out), (ref.lti, lti)):
+        _same_nan(a, b)
+        ok = np.isfinite(a)
+        np.testing.assert_allclose(b[ok], a[ok], rtol=0, atol=ATOL)
+    np.testing.assert_allclose(local_transmission_index(mech, X), lti, rtol=0, atol=0, equal_nan=True)
+    np.testing.assert_allclose(output_transmission_index(mech, X), out, rtol=0, atol=0, equal_nan=True)
+    np.testing.assert_allclose(local_transmission_index(mech, X, engine="numpy"), ref.lti, rtol=0, atol=0,
+                               equal_nan=True)
+
+
+def test_condition_number_agrees(mech_poses):
+    mech, X, n_bad = mech_poses
+    ref = local_condition_number(mech, X, engine="numpy")
+    got = local_condition_number(mech, X)
+    _same_nan(ref, got)
+    np.testing.assert_array_equal(np.isinf(ref), np.isinf(got))
+    ok = np.isfinite(ref)
+    assert np.all(ref[ok] >= 1 - 1e-12)
+    np.testing.assert_allclose(got[ok], ref[ok], rtol=RTOL_KAPPA, atol=0)
+    # another length scale for the angular columns
+    L = 0.37 * mech.length_scale
+    np.testing.assert_allclose(local_condition_number(mech, X, length=L),
+                               local_condition_number(mech, X, length=L, engine="numpy"), rtol=RTOL_KAPPA,
+                               equal_nan=True)
+
+
+def test_constraint_rank_matches_mobility(mech_poses):
+    mech, _, _ = mech_poses
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        expected = mech.mobility().constraint_rank
+    assert ei.constraint_rank(mech) == expected
+    assert mech.structural_constraint_rank(engine="numpy") == expected
+    assert mech.constraint_rank == expected
+
+
+def test_single_pose_and_threaded_batches(mech_poses, monkeypatch):
+    mech, X, n_bad = mech_poses
+    ref = mech.singularity_margin(X, engine="numpy")
+    assert np.ndim(mech.singularity_margin(X[0])) == 0
+    assert abs(float(mech.singularity_margin(X[0])) - ref[0]) <= ATOL
+    monkeypatch.setattr(ei, "PARALLEL_MIN", 1)  # the threaded kernels on the same poses
+    got = mech.singularity_margin(X)
+    np.testing.assert_allclose(got, ref, rtol=0, atol=ATOL, equal_nan=True)
+    np.testing.assert_allclose(ei.transmission(mech, X)[2], transmission_indices(mech, X).lti, rtol=0, atol=ATOL,
+                               equal_nan=True)
+    np.testing.assert_allclose(local_condition_number(mech, X), local_condition_number(mech, X, engine="numpy"),
+                               rtol=RTOL_KAPPA, equal_nan=True)
+
+
+def test_margin_at_a_structural_singularity():
+    """The pentagonal 5-PUS/UPU scheme is singular at its home pose (the paper's reason for
+    the rectangular platform): both paths give (numerically) zero there, and agree nearby."""
+    mech = _mech("5pus_upu", {"platform": "pentagonal"})
+    ref = float(mech.singularity_margin(mech.home, engine="numpy"))
+    got = float(mech.singularity_margin(mech.home))
+    assert ref < 1e-8 and got < 1e-8
+    assert abs(got - ref) <= ATOL
+    eps = np.logspace(-9, -3, 7)
+    X = mech.home + eps[:, None] * np.array([1.0, -0.5, 0.3, 1.0, -1.0])
+    np.testing.assert_allclose(mech.singularity_margin(X), mech.singularity_margin(X, engine="numpy"), rtol=0,
+                               atol=ATOL)
+
+
+def test_pressure_angles_agree():
+    for kw in ({}, {"coupled": False}):
+        mech = _mech("2rpu_2sps", kw)
+        X, _ = _poses(mech, 200, seed=3)
+        for definition in ("paper", "pressure"):
+            a = pressure_angle_indices(mech, X, definition, engine="numpy")
+            b = pressure_angle_indices(mech, X, definition)
+            for f in ("lambda1", "lambda2", "alpha", "beta"):
+                np.testing.assert_allclose(getattr(b, f), getattr(a, f), rtol=0, atol=ATOL, equal_nan=True)
+
+
+# ---------------------------------------------------------------------------------------------
+# Measures and summaries reach the compiled path
+# ---------------------------------------------------------------------------------------------
+def test_measures_compiled_equal_numpy():
+    mech = _mech("5pus_upu", {})
+    kw = dict(n=2048, seed=0, ranges={"x": (-0.1, 0.1), "y": (-0.1, 0.1), "z": (-0.3, 0.1)})
+    for name, extra in (("singularity_margin_min", {"quantile": 0.05}), ("min_lti", {"quantile": 0.1}),
+                        ("mean_lti", {}), ("gci", {}), ("good_transmission_volume", {"threshold": 0.46})):
+        f = objectives.get(name)
+        a = f(mech, engine="numpy", **extra, **kw)
+        b = f(mech, **extra, **kw)
+        assert a > 0
+        assert abs(a - b) <= ATOL * max(1.0, abs(a)), name
+    X, _ = _poses(mech, 200, seed=5)
+    s1 = singularity_margin_stats(mech, X, engine="numpy")
+    s2 = singularity_margin_stats(mech, X)
+    assert (s1.n, s1.n_unreachable, s1.argmin) == (s2.n, s2.n_unreachable, s2.argmin)
+    assert abs(s1.mean - s2.mean) <= ATOL
+    g1 = global_conditioning_index(mech, X, engine="numpy")
+    g2 = global_conditioning_index(mech, X)
+    assert g1.n == g2.n and abs(g1.value - g2.value) <= ATOL
+
+
+def test_engine_argument_is_checked():
+    mech = _mech("3rps", {})
+    with pytest.raises(ValueError, match="engine must be one of"):
+        mech.singularity_margin(mech.home, engine="fast")
+    with pytest.raises(ValueError, match="engine"):
+        local_transmission_index(mech, mech.home, engine="Compiled")
+    five = _mech("5pus_upu", {})
+    with pytest.raises(ValueError, match="engine"):
+        objectives.get("singularity_margin_min")(five, n=256, ranges={"x": (-0.1, 0.1), "y": (-0.1, 0.1),
+                                                                        "z": (-0.3, 0.1)}, engine="gpu")
+
+
+def test_twist_space_condition_number_falls_back(caplog):
+    mech = _mech("3rps", {})
+    X, _ = _poses(mech, 50, seed=2)
+    with caplog.at_level(logging.WARNING, logger="parasynth.engine"):
+        a = local_condition_number(mech, X, space="twist")
+    b = local_condition_number(mech, X, space="twist", engine="numpy")
+    np.testing.assert_array_equal(a, b)
+
+
+# ---------------------------------------------------------------------------------------------
+# A leg the kernels do not know runs on NumPy, said once
+# ---------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class _TwistedUPS(UPS):
+    """A UPS leg whose actuation wrench is tilted: a construct the kernels do not cover."""
+
+    joints: ClassVar[str] = "UPS"
+
+    def actuation_wrench(self, st, P):
+        w, s = super().actuation_wrench(st, P)
+        return w * np.array([1.0, 1.0, 0.9, 1.0, 1.0, 1.0]), s
+
+
+def test_uncovered_leg_falls_back_with_a_reason(caplog):
+    import dataclasses
+
+    base = _mech("gough_stewart_6ups", {})
+    legs = list(base.legs)
+    legs[0] = _TwistedUPS(**{f.name: getattr(legs[0], f.name) for f in dataclasses.fields(legs[0])})
+    mech = object.__new__(type(base))
+    mech.__dict__.update(base.__dict__)
+    mech.legs = tuple(legs)
+    mech._engine_indices_plan = None
+    ok, why = ei.coverage(mech)
+    assert not ok and "overrides UPS.actuation_wrench" in why and legs[0].name in why
+    X, _ = _poses(base, 40, seed=4)
+    ei._WARNED.clear()
+    with caplog.at_level(logging.WARNING, logger="parasynth.engine"):
+        a = mech.singularity_margin(X)
+        mech.singularity_margin(X)
+    msgs = [r.getMessage() for r in caplog.records if "singularity_margin" in r.getMessage()]
+    assert len(msgs) == 1 and "runs on NumPy" in msgs[0] and "actuation_wrench" in msgs[0]
+    np.testing.assert_array_equal(a, mech.singularity_margin(X, engine="numpy"))
+    # and the tilted wrench does change the answer, so the fallback is not a no-op
+    assert np.nanmax(np.abs(a - base.singularity_margin(X, engine="numpy"))) > 1e-6
+
+
+# ---------------------------------------------------------------------------------------------
+# The one-sided Jacobi SVD
+# ---------------------------------------------------------------------------------------------
+def _known(rng, m, n, s):
+    U, _ = np.linalg.qr(rng.standard_normal((m, m)))
+    V, _ = np.linalg.qr(rng.standard_normal((n, n)))
+    S = np.zeros((m, n))
+    S[np.arange(len(s)), np.arange(len(s))] = s
+    return U @ S @ V.T
+
+
+@pytest.mark.parametrize("m,n", [(6, 6), (5, 6), (6, 5), (7, 6), (6, 1), (3, 2), (4, 6)])
+def test_jacobi_singular_values_of_known_matrices(m, n):
+    rng = np.random.default_rng(m * 10 + n)
+    k = min(m, n)
+    for trial in range(30):
+        s = np.sort(10.0 ** rng.uniform(-12 if trial % 2 else -3, 0, size=k))[::-1]
+        M = _known(rng, m, n, s)
+        Mt = np.ascontiguousarray(M.T)
+        Vt = np.empty((n, n))
+        sv = np.empty(n)
+        sweeps = ei._jacobi_sv(Mt, m, n, Vt, True, sv)
+        assert sweeps < 30
+        got = np.sort(sv)[::-1][:k]
+        # absolute accuracy eps * ||M|| for every singular value
+        np.testing.assert_allclose(got, s, rtol=0, atol=1e-14)
+        # right singular vectors: M V = (the rotated columns), V orthogonal
+        np.testing.assert_allclose(M @ Vt.T, Mt.T, atol=1e-14)
+        np.testing.assert_allclose(Vt @ Vt.T, np.eye(n), atol=1e-14)
+        if m == 6:
+            Mt6 = np.ascontiguousarray(M.T)
+            sv6 = np.empty(n)
+            ei._jacobi_sv6(Mt6, n, sv6)
+            np.testing.assert_allclose(np.sort(sv6)[::-1][:k], s, rtol=0, atol=1e-14)
+
+
+def test_jacobi_small_singular_value_relative_accuracy():
+    """Columns of very different scale (a graded matrix): the smallest singular value keeps
+    its relative accuracy, which eigenvalues of M^T M lose (they square the conditioning)."""
+    rng = np.random.default_rng(7)
+    s = np.array([1.0, 0.5, 0.1, 1e-3, 1e-6, 1e-10])
+    M = _known(rng, 6, 6, s)
+    Mt = np.ascontiguousarray(M.T)
+    sv = np.empty(6)
+    ei._jacobi_sv6(Mt, 6, sv)
+    smin = np.sort(sv)[0]
+    assert abs(smin - 1e-10) <= 1e-15  # absolute eps-level error, i.e. ~1e-5 relative here
+    gram = np.sqrt(np.abs(np.linalg.eigvalsh(M.T @ M)))[0]
+    assert abs(gram - 1e-10) > abs(smin - 1e-10)  # the Gram route is worse
