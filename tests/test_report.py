@@ -560,3 +560,21 @@ def test_overlap_check_detects_crowded_panels():
     bad = _text_boxes_overlap(fig)
     plt.close(fig)
     assert bad and "labels of two panels overlap" in bad and any(isinstance(b, tuple) for b in bad)
+
+
+def test_stale_final_without_the_knee_is_said(tmp_path):
+    study = _mo_study()
+    recs = [_rec(-1, 0.205, 0.135, -0.00110, 0.5050, source="reference"),
+            _rec(0, 0.200, 0.132, -0.00100, 0.5000),
+            _rec(1, 0.190, 0.120, -0.01000, 0.4300),
+            _rec(2, 0.180, 0.110, -0.00500, 0.4600)]
+    run = load_run(_write_run(tmp_path / "probe", study, recs))
+    knee = analyse(run)["knee_row"]
+    others = [r for r in recs[1:] if r.trial != int(knee["trial"])]
+    # final.csv written before the knee design existed: it holds the other designs only
+    fin = [_final_row("best", r.trial, r.values["link_length"], r.values["slider_radius"], r.objectives["test_quadratic"],
+                      1e-5, r.objectives["test_two"], 1e-3, knee=(k == 0)) for k, r in enumerate(others)]
+    fin.append(_final_row("reference", -1, 0.205, 0.135, -0.0011, 1e-5, 0.505, 1e-3))
+    txt = (write_report(_write_run(tmp_path / "stale", study, recs, fin), out=tmp_path / "rep") / "report.md").read_text()
+    assert "final.csv does not hold this design" in txt
+    assert "| recommended (knee) |" not in txt and "| best |" in txt

@@ -520,8 +520,16 @@ def _final_analysis(run: Run, knee_row, noise_z: float) -> dict | None:
             if rk is not None and design_key(study, row) == rk:
                 continue  # the paper's design itself among the re-evaluated ones
             out["vs_ref"].append((row, compare_with_noise(*mse(row), mr, sr, senses, noise_z)))
-    knee = best[best["knee"]]
-    out["knee"] = knee.iloc[0] if len(knee) else None
+    # The knee as the report computes it must be the one re-evaluated (final.csv may be older
+    # than a resumed run's table).
+    out["knee"], out["knee_missing"] = None, knee_row is not None
+    if knee_row is not None:
+        kk = design_key(study, knee_row)
+        hit = [i for i, r in best.iterrows() if design_key(study, r) == kk]
+        if hit:
+            out["knee"], out["knee_missing"] = best.loc[hit[0]], False
+            fin.loc[hit[0], "knee"] = True
+            fin.loc[[i for i in best.index if i != hit[0]], "knee"] = False
     return out
 
 
@@ -581,7 +589,7 @@ def _paper_text(run: Run, a: dict) -> str:
         return txt
     fin = fa["table"]
     z = a["noise_z"]
-    txt += (f" Verdict on the re-evaluated values ({int(fin['repeats'].iloc[0])} seeds x "
+    txt += (f"\n\nVerdict on the re-evaluated values ({int(fin['repeats'].iloc[0])} seeds x "
             f"{int(fin['samples'].iloc[0])} samples; a difference counts when it exceeds {fmt_number(z)} "
             f"combined standard errors, otherwise it is within noise):")
     vs = fa["vs_ref"]
@@ -600,7 +608,7 @@ def _paper_text(run: Run, a: dict) -> str:
     if worse:
         txt += " Dominated by it: " + ", ".join(f"trial {int(row['trial'])}" for row, _ in worse) + "."
     if st is not None:
-        txt += f" (Single-sample screening: {screened}; the re-evaluation above decides.)"
+        txt += f"\n\n(Single-sample screening: {screened}; the re-evaluation above decides.)"
     return txt
 
 
@@ -612,7 +620,8 @@ def final_display_table(study, fa: dict) -> pd.DataFrame:
     rows = []
     for i, r in fin.iterrows():
         other = "sweep point" if study.optimizer.kind == "sweep" else "best"
-        row = {"design": ("paper" if r["source"] == "reference" else ("recommended (knee)" if r["knee"] else other)),
+        rec = "recommended (knee)" if len(study.objectives) > 1 else "recommended (best)"
+        row = {"design": ("paper" if r["source"] == "reference" else (rec if r["knee"] else other)),
                "trial": fmt_number(int(r["trial"]))}
         if "count" in fin:
             row["evaluations"] = fmt_number(int(r["count"])) if r["source"] == "best" else ""
@@ -667,7 +676,8 @@ def _sections(run: Run, a: dict) -> list[tuple[str, str, pd.DataFrame | None]]:
         n_dup = int((front["count"] > 1).sum()) if "count" in front else 0
         txt = (f"{len(front)} distinct non-dominated feasible designs"
                + (f" ({n_dup} of them evaluated more than once: column evaluations)" if n_dup else "")
-               + f". Recommended (knee of the front): trial {int(k['trial'])}: " + ", ".join(_fmt_design(study, k))
+               + (". Recommended (knee of the front)" if len(study.objectives) > 1 else ". Recommended (the best)")
+               + f": trial {int(k['trial'])}: " + ", ".join(_fmt_design(study, k))
                + " (single sample)")
         fa = a.get("final")
         if fa is not None and fa.get("knee") is not None:
@@ -676,6 +686,9 @@ def _sections(run: Run, a: dict) -> list[tuple[str, str, pd.DataFrame | None]]:
                 f"{o.label} = {fmt_mean_se(kr[o.label], kr[o.label + '_stderr'], _unit(study, o.label), True)}"
                 for o in study.objectives))
         txt += "."
+        if fa is not None and fa.get("knee_missing"):
+            txt += (" final.csv does not hold this design (it was written before the run's last designs): its "
+                    "re-evaluated values are not known; run the study again with --resume to redo the final stage.")
         sec.append(("Non-dominated designs", txt, display_table(study, front)))
     else:
         sec.append(("Non-dominated designs", "No feasible design was found.", None))
