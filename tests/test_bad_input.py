@@ -162,3 +162,135 @@ def test_non_finite_actuators_rejected_by_fk(config):
     q[0] = np.nan
     with pytest.raises(ValueError):
         m.forward_kinematics(q, fixed={"gamma": 0.0} if m.name == "4ups_1rps" else None)
+
+
+# -- parasynth.validation: number, count and pose checks ----------------------------------------
+from parasynth.validation import (MAX_SAMPLES, InputError, check_count, check_number,  # noqa: E402
+                                  check_pose_array, is_real_number)
+
+
+@pytest.mark.parametrize("value", [True, False, np.bool_(True), "0.2", b"0.2", 0.2 + 0j, np.complex128(1), None,
+                                   [0.2], (0.2,), {"v": 0.2}, np.array([0.2])])
+def test_check_number_rejects_non_numbers_naming_the_field(value):
+    with pytest.raises(InputError) as e:
+        check_number("link_length", value, "length", 0.0, lo_open=True)
+    msg = str(e.value)
+    assert msg.startswith("link_length must be a length in m > 0"), msg
+
+
+@pytest.mark.parametrize("value,ok", [(0.2, True), (1, True), (np.float32(0.5), True), (np.int64(2), True),
+                                      (np.array(0.3), True), (0.0, False), (-0.1, False), (float("nan"), False),
+                                      (float("inf"), False), (1e308 * 10, False)])
+def test_check_number_range_and_finiteness(value, ok):
+    if ok:
+        assert check_number("x", value, "length", 0.0, lo_open=True) == float(value)
+    else:
+        with pytest.raises(InputError, match=r"^x must be"):
+            check_number("x", value, "length", 0.0, lo_open=True)
+
+
+def test_check_number_closed_and_open_bounds():
+    assert check_number("q", 0.0, None, 0.0, 1.0) == 0.0
+    assert check_number("q", 1.0, None, 0.0, 1.0) == 1.0
+    with pytest.raises(InputError, match=r"q must be a number in \(0.0, 1.0\)"):
+        check_number("q", 1.0, None, 0.0, 1.0, lo_open=True, hi_open=True)
+    with pytest.raises(InputError, match=r"in \[0, 3.14\] rad"):
+        check_number("a", 4.0, "angle", 0, 3.14)
+
+
+@pytest.mark.parametrize("value,expected", [(1, 1), (4096.0, 4096), (np.int32(7), 7), (MAX_SAMPLES, MAX_SAMPLES)])
+def test_check_count_accepts_integral_values(value, expected):
+    v = check_count("n", value, 1, MAX_SAMPLES)
+    assert v == expected and type(v) is int
+
+
+@pytest.mark.parametrize("value,needle", [(0, ">= 1"), (-3, ">= 1"), (2.5, ">= 1"), (True, "boolean"), ("10", "string"),
+                                          (float("nan"), ">= 1"), (1e20, "documented maximum"),
+                                          (MAX_SAMPLES + 1, "documented maximum"), (10**20, "documented maximum")])
+def test_check_count_refuses(value, needle):
+    with pytest.raises(InputError) as e:
+        check_count("n", value, 1, MAX_SAMPLES)
+    assert str(e.value).startswith("n must") and needle in str(e.value)
+
+
+def test_is_real_number():
+    assert all(is_real_number(v) for v in (1, 1.5, np.float64(2), np.int8(1), np.array(3.0)))
+    assert not any(is_real_number(v) for v in (True, np.bool_(False), "1", 1j, None, [1], np.array([1.0])))
+
+
+@pytest.mark.parametrize("X,needle", [("0.1, 0.2", "string"), (np.array(["0.1", "0.2"]), "strings"),
+                                      (np.array([1 + 0j, 2]), "complex"), (np.array([True, False]), "booleans"),
+                                      ([0.1, "0.2"], "string"), ([0.1, None], "None"), (None, "None")])
+def test_check_pose_array_refuses_non_numbers(X, needle):
+    with pytest.raises(InputError) as e:
+        check_pose_array("poses X", X)
+    assert str(e.value).startswith("poses X must") and needle in str(e.value)
+
+
+def test_check_pose_array_keeps_non_finite_values_for_masking():
+    X = check_pose_array("X", [[0.0, np.nan], [np.inf, 1e308], [1, 2]])
+    assert X.dtype == float and X.shape == (3, 2)
+    assert np.isnan(X[0, 1]) and np.isinf(X[1, 0]) and X[2, 1] == 2.0
+
+
+# -- parasynth.yamlio: the one safe YAML reader ------------------------------------------------
+from parasynth.yamlio import MAX_ALIASES, MAX_DEPTH, MAX_NODES, YamlError, load_yaml  # noqa: E402
+
+
+def test_yaml_plain_document_round_trips():
+    import yaml as pyyaml
+
+    data = {"a": [1, 2.5, "x", None, True], "b": {"c": {"d": "205 mm"}}, "e": []}
+    assert load_yaml(pyyaml.safe_dump(data), is_text=True) == data
+
+
+@pytest.mark.parametrize("text,line", [("a: 1\nb: 2\na: 3\n", 3), ("x:\n  k: 1\n  k: 2\n", 3),
+                                       ("{a: 1, b: 2, a: 1}", 1), ("- {n: 1}\n- {n: 1, n: 2}\n", 2)])
+def test_yaml_duplicate_keys_are_refused_with_their_line(text, line):
+    with pytest.raises(YamlError) as e:
+        load_yaml(text, is_text=True, name="s.yaml")
+    assert str(e.value).startswith("s.yaml: duplicate key") and f"line {line}" in str(e.value)
+
+
+def test_yaml_merge_keys_and_a_few_aliases_are_fine():
+    d = load_yaml("base: &b {x: 1, y: 2}\nthis: {<<: *b, y: 3}\nl: [*b, *b]\n", is_text=True)
+    assert d["this"] == {"x": 1, "y": 3} and d["l"] == [{"x": 1, "y": 2}] * 2
+
+
+def test_yaml_alias_limits():
+    many = "v: &v 1\nl: [" + ", ".join(["*v"] * (MAX_ALIASES + 1)) + "]\n"
+    with pytest.raises(YamlError, match="aliases"):
+        load_yaml(many, is_text=True)
+    # a "billion laughs" with few aliases: the expansion is counted
+    bomb = "a0: &a0 [x, x, x, x, x, x, x, x, x, x]\n" + "".join(
+        f"a{j}: &a{j} [" + ", ".join([f"*a{j - 1}"] * 10) + "]\n" for j in range(1, 7))
+    assert 6 * 10 <= MAX_ALIASES
+    with pytest.raises(YamlError, match=f"the maximum is {MAX_NODES}"):
+        load_yaml(bomb, is_text=True)
+    with pytest.raises(YamlError, match="contains it"):
+        load_yaml("a: &a [1, *a]\n", is_text=True)
+
+
+def test_yaml_depth_limit():
+    ok = "[" * (MAX_DEPTH - 1) + "]" * (MAX_DEPTH - 1)
+    load_yaml(ok, is_text=True)
+    with pytest.raises(YamlError, match="nested deeper"):
+        load_yaml("[" * 100_000 + "]" * 100_000, is_text=True)
+    with pytest.raises(YamlError, match="nested deeper"):
+        load_yaml("".join(f"{' ' * j}k{j}:\n" for j in range(MAX_DEPTH + 5)) + " " * (MAX_DEPTH + 5) + "v: 1\n",
+                  is_text=True)
+
+
+def test_yaml_files(tmp_path):
+    (tmp_path / "bom.yaml").write_bytes("\ufeffa: 1\n".encode("utf-8"))
+    assert load_yaml(tmp_path / "bom.yaml") == {"a": 1}
+    (tmp_path / "latin1.yaml").write_bytes("a: caf\xe9\n".encode("latin-1"))
+    with pytest.raises(YamlError, match="not UTF-8"):
+        load_yaml(tmp_path / "latin1.yaml")
+    (tmp_path / "bin.yaml").write_bytes(b"\x89PNG\r\n\x1a\n\x00\x00")
+    with pytest.raises(YamlError, match="binary"):
+        load_yaml(tmp_path / "bin.yaml")
+    with pytest.raises(YamlError, match="directory"):
+        load_yaml(tmp_path)
+    with pytest.raises(YamlError, match="does not exist"):
+        load_yaml(tmp_path / "nope.yaml")

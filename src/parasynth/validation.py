@@ -151,11 +151,10 @@ def check_array(field: str, value, shape: tuple | None = None, kind: str | None 
         raise InputError(f"{field} must be an array of numbers, got {_describe(value)}") from None
     if a.dtype.kind not in "iuf":
         if a.dtype.kind == "O":
-            bad = next((x for x in a.ravel() if not is_real_number(x)), None)
-            if bad is None and a.size:
-                a = a.astype(float)
-            else:
-                raise InputError(f"{field} must contain numbers only, got {_describe(bad)}")
+            bad = [x for x in a.ravel() if not is_real_number(x)][:1]
+            if bad:
+                raise InputError(f"{field} must contain numbers only, got {_describe(bad[0])}")
+            a = a.astype(float)
         else:
             kinds = {"b": "booleans", "c": "complex numbers", "U": "strings", "S": "strings"}
             raise InputError(f"{field} must contain real numbers only, got {kinds.get(a.dtype.kind, a.dtype)}")
@@ -189,10 +188,10 @@ def check_pose_array(field: str, X) -> np.ndarray:
     if kind in "iuf":
         return a.astype(float)
     if kind == "O":
-        bad = next((x for x in a.ravel() if not is_real_number(x)), None)
-        if bad is None:
+        bad = [x for x in a.ravel() if not is_real_number(x)][:1]
+        if not bad:
             return a.astype(float)
-        raise InputError(f"{field} must contain numbers only (SI: m, rad), got {_describe(bad)}")
+        raise InputError(f"{field} must contain numbers only (SI: m, rad), got {_describe(bad[0])}")
     kinds = {"b": "booleans", "c": "complex numbers", "U": "strings", "S": "strings"}
     raise InputError(f"{field} must contain real numbers only (SI: m, rad), got {kinds.get(kind, str(a.dtype))}")
 

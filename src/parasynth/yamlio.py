@@ -82,9 +82,10 @@ class _Loader(yaml.SafeLoader):
 
     def construct_mapping(self, node, deep=False):
         if isinstance(node, yaml.MappingNode):
-            self.flatten_mapping(node)
             seen = {}
-            for key_node, _ in node.value:
+            for key_node, _ in node.value:  # the mapping's own keys; merged (<<) ones may be overridden
+                if key_node.tag == "tag:yaml.org,2002:merge":
+                    continue
                 try:
                     key = self.construct_object(key_node, deep=True)
                     hash(key)
