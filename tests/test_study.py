@@ -314,3 +314,93 @@ def test_nlopt_penalty_keeps_unconstrained_algorithm_feasible(tmp_path):
     t = res.table[(res.table.source == "run") & res.table.feasible]
     best = t.loc[t["test_quadratic"].idxmax()]
     assert best["link_length"] <= 0.19 + 1e-9 and best["link_length"] > 0.185
+
+
+# -- validation that catches what the run would reject -------------------------------------------
+from parasynth.study.spec import check_study  # noqa: E402
+
+
+def _problems(**changes):
+    return check_study(study_of(**changes))
+
+
+def test_check_study_accepts_the_base_study():
+    assert _problems() == []
+
+
+def test_check_study_names_the_bound_that_cannot_be_built():
+    vs = [{"name": "link_length", "low": "0 mm", "high": "250 mm"}, BASE["variables"][1]]
+    p = _problems(variables=vs)
+    assert len(p) == 1 and p[0].startswith("variables[0].low:") and "link_length" in p[0]
+    p = _problems(fixed={"link_diameter": "-8 mm"})
+    assert p and p[0].startswith("fixed.link_diameter:")
+    p = _problems(reference={"link_length": "-1 mm", "slider_radius": "135 mm"})
+    assert p and p[0].startswith("reference.link_length:")
+
+
+def test_check_study_finds_a_corner_that_no_single_bound_shows():
+    # each bound alone is buildable with the default of the other (slider_min < slider_max),
+    # but the corner slider_min = 250 mm, slider_max = 200 mm is not.
+    vs = [{"name": "slider_min", "low": "100 mm", "high": "250 mm"},
+          {"name": "slider_max", "low": "200 mm", "high": "300 mm"}]
+    p = _problems(variables=vs)
+    assert len(p) == 1 and p[0].startswith("variables: the corner") and "slider_min=0.25" in p[0], p
+    assert "slider_max=0.2" in p[0]
+
+
+def test_check_study_probes_every_measure_with_its_settings():
+    from parasynth import objectives
+
+    @objectives.register("test_refuses_flag", unit="1", sense="maximize", settings={"flag": "bool"}, cost="cheap")
+    def _refuses(mech, flag=False):
+        if flag:
+            raise ValueError("flag is not supported by this model")
+        return 1.0
+
+    try:
+        ok = _problems(objectives=[{"name": "test_refuses_flag", "settings": {"flag": False}}])
+        assert ok == []
+        p = _problems(objectives=[{"name": "test_quadratic"},
+                                  {"name": "test_refuses_flag", "settings": {"flag": True}}],
+                      optimizer={"kind": "optuna", "n_trials": 2})
+        assert len(p) == 1 and p[0].startswith("objectives[1].settings.flag") and "not supported" in p[0]
+    finally:
+        objectives.OBJECTIVES.pop("test_refuses_flag", None)
+
+
+@pytest.mark.parametrize("label", ["trial", "feasible", "status", "time_s", "link_length"])
+def test_labels_may_not_clash_with_result_columns(label):
+    msg = error_of({**BASE, "objectives": [{"name": "test_quadratic", "label": label}]})
+    assert "objectives[0].label" in msg and repr(label) in msg
+
+
+def test_constraint_margin_column_clash():
+    msg = error_of({**BASE, "objectives": [{"name": "test_quadratic", "label": "fp_margin"}],
+                    "constraints": [{"name": "footprint_radius", "label": "fp", "max": "150 mm"}]})
+    assert "constraints[0].label" in msg and "fp_margin" in msg
+
+
+def test_nan_bound_would_make_every_design_feasible_and_is_refused():
+    msg = error_of({**BASE, "constraints": [{"name": "footprint_radius", "max": "nan mm"}]})
+    assert "constraints[0].max" in msg and "finite" in msg
+
+
+def test_duplicate_keys_are_refused():
+    text = yaml.safe_dump(BASE) + "name: other\n"
+    with pytest.raises(StudyError) as e:
+        load_study(text, is_text=True)
+    assert "duplicate key 'name'" in str(e.value)
+
+
+@pytest.mark.parametrize("ev,path", [({"seed": -1}, "evaluation.seed"), ({"samples": 0}, "evaluation.samples"),
+                                     ({"samples": 10**20}, "evaluation.samples"), ({"ranges": {}}, "evaluation.ranges"),
+                                     ({"ranges": {"w": ["0 mm", "1 mm"]}}, "evaluation.ranges.w"),
+                                     ({"constraints": ["nope"]}, "evaluation.constraints[0]")])
+def test_evaluation_values_are_checked(ev, path):
+    assert path in error_of({**BASE, "evaluation": ev})
+
+
+def test_optimisers_need_variables():
+    for opt in ({"kind": "optuna", "n_trials": 5}, {"kind": "nlopt", "maxeval": 5}):
+        msg = error_of({**BASE, "variables": [], "optimizer": opt})
+        assert msg.startswith("variables:") and opt["kind"] in msg
