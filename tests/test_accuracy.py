@@ -35,7 +35,7 @@ def test_actuator_only_error_is_inverse_jacobian(name):
     np.testing.assert_allclose(t, ref, rtol=1e-6, atol=1e-6 * np.abs(ref).max())
 
 
-@pytest.mark.parametrize("name", ["gough_stewart_6ups", "5pus_upu", "3rps"])
+@pytest.mark.parametrize("name", ["gough_stewart_6ups", "5pus_upu", "3rps", "3prs"])
 def test_first_order_bound_contains_monte_carlo(name):
     mech = parasynth.load_mechanism(name)
     X = _poses(mech, n=3)

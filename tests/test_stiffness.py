@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 import yaml
-from scipy.optimize import fsolve
+from scipy.optimize import root
 from scipy.spatial.transform import Rotation
 
 import parasynth
@@ -100,8 +100,9 @@ def _compliant_equilibrium(mech, X, wrench, eps):
         total += eps * np.asarray(wrench)
         return total / eps * np.array([1, 1, 1, 1 / mech.length_scale, 1 / mech.length_scale, 1 / mech.length_scale])
 
-    x = fsolve(balance, np.zeros(6), xtol=1e-14, full_output=False)
-    return x * eps / scale
+    sol = root(balance, np.zeros(6), method="hybr", options={"xtol": 1e-14})
+    assert np.max(np.abs(balance(sol.x))) < 1e-6 * np.max(np.abs(wrench))  # round-off floor of k (L - L0)
+    return sol.x * eps / scale
 
 
 def test_3rps_deflection_matches_compliant_model():

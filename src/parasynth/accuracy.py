@@ -225,7 +225,9 @@ def error_sources(mech) -> ErrorSources:
             idx.append(("link_length", 0)), group.append(-1)
         for f in _AXIS_FIELDS:
             if hasattr(leg, f):
-                for c in (0, 1):
+                # A PRS revolute axis stays normal to its slider: one tilt about the slider axis
+                # (its other tilt is a tilt of the slider-revolute assembly, under slider_axis).
+                for c in ((0,) if _coupled_axes(leg) and f == "r_axis" else (0, 1)):
                     names.append(f"{leg.name}.{f}.tilt{c + 1}"), kind.append("axis"), legi.append(li)
                     idx.append((f, c)), group.append(-1)
         for end, letter in (("base", _base_joint(leg)), ("platform", leg.joints[-1])):
@@ -245,17 +247,42 @@ def _tilt_basis(a):
     return b1, np.cross(a, b1)
 
 
-def _perturb_leg(leg, idx, delta):
-    what, c = idx
-    if what in ("base", "platform"):
-        v = np.array(getattr(leg, what), dtype=float)
-        v[c] += delta
-        return dataclasses.replace(leg, **{what: v})
-    if what == "link_length":
-        return dataclasses.replace(leg, link_length=float(leg.link_length) + delta)
-    a = np.array(getattr(leg, what), dtype=float)
+def _coupled_axes(leg) -> bool:
+    """A leg whose revolute axis is carried normal to its slider axis (PRS)."""
+    return hasattr(leg, "slider_axis") and hasattr(leg, "r_axis")
+
+
+def _tilt(a, c, delta):
+    """Rotation matrix tilting the unit axis ``a`` by ``delta`` towards ``_tilt_basis(a)[c]``."""
     b = _tilt_basis(a)[c]
-    return dataclasses.replace(leg, **{what: np.cos(delta) * a + np.sin(delta) * b})
+    return rot_axis(np.cross(a, b), delta)
+
+
+def _leg_changes(leg, items) -> dict:
+    """New field values of ``leg`` for the errors ``items`` [(index, delta), ...] (anchor
+    coordinates and link lengths added, axis tilts applied one after the other, each about
+    the nominal axis' tilt basis; a PRS slider tilt turns its revolute axis with it)."""
+    kw = {}
+    for (what, c), delta in items:
+        if what in ("base", "platform"):
+            v = kw.setdefault(what, np.array(getattr(leg, what), dtype=float))
+            v[c] += delta
+        elif what == "link_length":
+            kw[what] = kw.get(what, float(leg.link_length)) + delta
+        else:
+            a0 = unit(np.array(getattr(leg, what), dtype=float))
+            if what == "r_axis" and _coupled_axes(leg):
+                Q = rot_axis(unit(np.array(kw.get("slider_axis", leg.slider_axis), dtype=float)), delta)
+            else:
+                Q = _tilt(a0, c, delta)
+            kw[what] = Q @ kw.get(what, a0)
+            if what == "slider_axis" and _coupled_axes(leg):
+                kw["r_axis"] = Q @ kw.get("r_axis", unit(np.array(leg.r_axis, dtype=float)))
+    return kw
+
+
+def _perturb_leg(leg, idx, delta):
+    return dataclasses.replace(leg, **_leg_changes(leg, [(idx, delta)]))
 
 
 def _steps(mech):
@@ -407,30 +434,13 @@ def _sample_errors(src: ErrorSources, tol: dict, M: int, rng) -> np.ndarray:
 
 def _perturbed_legs(mech, src, e):
     """Copies of the legs with the errors ``e`` applied (one ``dataclasses.replace`` per leg)."""
-    changes = {}
+    items = {}
     for j, (k, li, idx) in enumerate(zip(src.kind, src.leg, src.index)):
-        if k == "actuator" or e[j] == 0.0:
-            continue
-        ch = changes.setdefault(li, {})
-        what, c = idx
-        leg = mech.legs[li]
-        if what in ("base", "platform"):
-            v = ch.setdefault(what, np.array(getattr(leg, what), dtype=float))
-            v[c] += e[j]
-        elif what == "link_length":
-            ch[what] = ch.get(what, float(leg.link_length)) + e[j]
-        else:
-            a = np.array(getattr(leg, what), dtype=float)
-            tilts = ch.setdefault(("tilt", what), [0.0, 0.0])
-            tilts[c] += e[j]
+        if k != "actuator" and e[j] != 0.0:
+            items.setdefault(li, []).append((idx, e[j]))
     legs = list(mech.legs)
-    for li, ch in changes.items():
-        kw = {k: v for k, v in ch.items() if not isinstance(k, tuple)}
-        for key, (t1, t2) in ((k, v) for k, v in ch.items() if isinstance(k, tuple)):
-            a = np.array(getattr(mech.legs[li], key[1]), dtype=float)
-            b1, b2 = _tilt_basis(a)
-            kw[key[1]] = a + np.tan(t1) * b1 + np.tan(t2) * b2  # normalised by the leg
-        legs[li] = dataclasses.replace(mech.legs[li], **kw)
+    for li, it in items.items():
+        legs[li] = dataclasses.replace(legs[li], **_leg_changes(legs[li], it))
     return legs
 
 
