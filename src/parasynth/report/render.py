@@ -526,10 +526,10 @@ def _final_analysis(run: Run, knee_row, noise_z: float) -> dict | None:
     if knee_row is not None:
         kk = design_key(study, knee_row)
         hit = [i for i, r in best.iterrows() if design_key(study, r) == kk]
+        fin["knee"] = False
         if hit:
             out["knee"], out["knee_missing"] = best.loc[hit[0]], False
             fin.loc[hit[0], "knee"] = True
-            fin.loc[[i for i in best.index if i != hit[0]], "knee"] = False
     return out
 
 
