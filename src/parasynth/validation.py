@@ -32,6 +32,8 @@ __all__ = [
     "check_count",
     "check_array",
     "check_pose_array",
+    "mask_huge_poses",
+    "pose_finite",
     "is_real_number",
     "MAX_SAMPLES",
     "MAX_TRIALS",
@@ -200,3 +202,17 @@ def pose_finite(X: np.ndarray) -> np.ndarray:
     """(N,) bool: every coordinate finite and within :data:`MAX_POSE_MAGNITUDE`."""
     with np.errstate(invalid="ignore"):
         return np.all(np.isfinite(X) & (np.abs(X) <= MAX_POSE_MAGNITUDE), axis=-1)
+
+
+def mask_huge_poses(X: np.ndarray) -> np.ndarray:
+    """``X`` with every coordinate beyond :data:`MAX_POSE_MAGNITUDE` replaced by NaN (a copy
+    when any is), so that the models mask such poses as unreachable as they do NaN poses;
+    squares of 1e308 m overflow to inf and would otherwise reach the kinematics."""
+    with np.errstate(invalid="ignore"):
+        huge = np.abs(X) > MAX_POSE_MAGNITUDE
+    if not np.any(huge):
+        return X
+    X = np.array(X, dtype=float, copy=True)
+    X[huge] = np.nan
+    return X
+

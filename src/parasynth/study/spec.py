@@ -608,8 +608,27 @@ def _path_first(msg: str, where: str) -> str:
     return f"{where}:{msg[len(where):]}" if msg.startswith(where + " ") else msg
 
 
+_MODEL_NAMES: dict = {}
+
+
 def _model_names(mech_cls, fixed) -> tuple[tuple, tuple | None]:
     """Task coordinates and pose-constraint names of the model (None: unknown, not checked)."""
+    try:
+        key = (mech_cls, tuple(sorted(fixed.items())))
+        hash(key)
+    except TypeError:
+        key = None
+    if key is not None and key in _MODEL_NAMES:
+        return _MODEL_NAMES[key]
+    out = _model_names_uncached(mech_cls, fixed)
+    if key is not None:
+        if len(_MODEL_NAMES) > 64:
+            _MODEL_NAMES.clear()
+        _MODEL_NAMES[key] = out
+    return out
+
+
+def _model_names_uncached(mech_cls, fixed) -> tuple[tuple, tuple | None]:
     try:
         mech = mech_cls(mech_cls.Params(**dict(fixed)))
     except Exception:
