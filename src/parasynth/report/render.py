@@ -644,6 +644,8 @@ def final_display_table(study, fa: dict) -> pd.DataFrame:
 
 def _sections(run: Run, a: dict) -> list[tuple[str, str, pd.DataFrame | None]]:
     """(title, text, table) triples shared by the HTML and Markdown renderers."""
+    from ..study.final import design_key
+
     study, t = run.study, run.table
     runs, front = a["runs"], a["front"]
     sec = []
@@ -686,6 +688,16 @@ def _sections(run: Run, a: dict) -> list[tuple[str, str, pd.DataFrame | None]]:
                 f"{o.label} = {fmt_mean_se(kr[o.label], kr[o.label + '_stderr'], _unit(study, o.label), True)}"
                 for o in study.objectives))
         txt += "."
+        if fa is not None:
+            keys = {design_key(study, r): i for i, r in fa["best"].iterrows()}
+            notes = []
+            for _, r in front.iterrows():
+                i = keys.get(design_key(study, r))
+                if i is not None and fa["dominated_by"].get(i):
+                    notes.append(f"trial {int(r['trial'])} (by " + ", ".join(f"trial {t}" for t in fa["dominated_by"][i]) + ")")
+            if notes:
+                txt += (" On the re-evaluated values some of these designs are dominated beyond noise: "
+                        + "; ".join(notes) + ".")
         if fa is not None and fa.get("knee_missing"):
             txt += (" final.csv does not hold this design (it was written before the run's last designs): its "
                     "re-evaluated values are not known; run the study again with --resume to redo the final stage.")
