@@ -82,6 +82,8 @@ from typing import Any, Callable
 
 import numpy as np
 
+from .validation import MAX_SAMPLES
+
 __all__ = ["workspace", "WorkspaceResult", "Section", "Box", "METHODS"]
 
 #: Sampling methods accepted by :func:`workspace`.
@@ -633,7 +635,7 @@ def workspace(mech, ranges=None, n: int = 2**16, method: str = "sobol", seed: in
         if not ranges:
             raise ValueError(f"ranges: none given and {getattr(mech, 'name', mech)!r} has no default ranges")
     coords, lows, highs = _check_ranges(mech, ranges)
-    n = _check_count(n, "n")
+    n = _check_count(n, "n", MAX_SAMPLES)
     chunk_size = _check_count(chunk_size, "chunk_size")
     if not isinstance(method, str) or method.lower() not in METHODS:
         raise ValueError(f"method must be one of {', '.join(METHODS)}; got {method!r}")
@@ -770,13 +772,16 @@ def _check_ranges(mech, ranges):
     return coords, np.array(lows), np.array(highs)
 
 
-def _check_count(v, arg) -> int:
+def _check_count(v, arg, hi=None) -> int:
     if isinstance(v, (bool, np.bool_)):
         raise ValueError(f"{arg} must be a positive integer, got {v!r}")
     if isinstance(v, (float, np.floating)) and np.isfinite(v) and float(v).is_integer():
         v = int(v)
     if not isinstance(v, (int, np.integer)) or v < 1:
         raise ValueError(f"{arg} must be a positive integer, got {v!r}")
+    if hi is not None and v > hi:  # refused up front: a larger sample does not fit in memory
+        raise ValueError(f"{arg} must be at most {hi} (the documented maximum, parasynth.validation.MAX_SAMPLES), "
+                         f"got {v!r}")
     return int(v)
 
 
