@@ -244,6 +244,12 @@ if HAVE_NUMBA:
     _jit = dict(nogil=True, error_model="numpy", fastmath=False, cache=True)
     _jit_inline = dict(_jit, inline="always")
 
+    #: Round-robin ordering of the 15 column pairs of six columns: five rounds of three
+    #: disjoint pairs, so that consecutive rotations are independent and their square roots
+    #: and divisions overlap in the processor.
+    _PAIRS6 = np.array([[0, 1], [2, 5], [3, 4], [0, 2], [1, 3], [4, 5], [0, 3], [2, 4], [1, 5],
+                        [0, 4], [3, 5], [1, 2], [0, 5], [1, 4], [2, 3]], dtype=np.int64)
+
     @njit(**_jit)
     def _jacobi_sv(Mt, m, n, Vt, want_v, sv):
         """One-sided Jacobi (Hestenes) SVD of the m x n matrix whose columns are stored as the
@@ -256,7 +262,7 @@ if HAVE_NUMBA:
             for i in range(n):
                 for j in range(n):
                     Vt[i, j] = 1.0 if i == j else 0.0
-        tol = 4.0e-16 * max(m, 1)
+        tol2 = (4.0e-16 * max(m, 1)) ** 2
         fro = 0.0
         for j in range(n):
             a = 0.0
@@ -268,52 +274,66 @@ if HAVE_NUMBA:
         # never converges (their direction is noise), so they are left alone.
         tiny = 1e-32 * fro
         sweeps = 0
+        npair = 15 if n <= 6 else n * (n - 1) // 2
         for _sweep in range(60):
             sweeps += 1
             rotated = False
-            for i in range(n - 1):
-                for j in range(i + 1, n):
-                    a = sv[i]
-                    b = sv[j]
-                    if a <= tiny or b <= tiny:
+            i = 0
+            j = 0
+            for q in range(npair):
+                if n <= 6:  # round-robin: consecutive rotations independent
+                    i = _PAIRS6[q, 0]
+                    j = _PAIRS6[q, 1]
+                    if j >= n:
                         continue
-                    g = 0.0
+                else:  # cyclic by rows
+                    j += 1
+                    if q == 0:
+                        i, j = 0, 1
+                    elif j >= n:
+                        i += 1
+                        j = i + 1
+                a = sv[i]
+                b = sv[j]
+                if a <= tiny or b <= tiny:
+                    continue
+                g = 0.0
+                for k in range(m):
+                    g += Mt[i, k] * Mt[j, k]
+                if g * g <= tol2 * (a * b):
+                    continue
+                rotated = True
+                zeta = (b - a) / (2.0 * g)
+                if zeta >= 0.0:
+                    t = 1.0 / (zeta + math.sqrt(1.0 + zeta * zeta))
+                else:
+                    t = -1.0 / (-zeta + math.sqrt(1.0 + zeta * zeta))
+                c = 1.0 / math.sqrt(1.0 + t * t)
+                s = c * t
+                for k in range(m):
+                    x = Mt[i, k]
+                    y = Mt[j, k]
+                    Mt[i, k] = c * x - s * y
+                    Mt[j, k] = s * x + c * y
+                if want_v:
+                    for k in range(n):
+                        x = Vt[i, k]
+                        y = Vt[j, k]
+                        Vt[i, k] = c * x - s * y
+                        Vt[j, k] = s * x + c * y
+                # updated squared norms; recomputed where the update cancels
+                a2 = a - t * g
+                b2 = b + t * g
+                if a2 < 0.25 * a:
+                    a2 = 0.0
                     for k in range(m):
-                        g += Mt[i, k] * Mt[j, k]
-                    if g == 0.0 or abs(g) <= tol * math.sqrt(a * b):
-                        continue
-                    rotated = True
-                    zeta = (b - a) / (2.0 * g)
-                    if zeta >= 0.0:
-                        t = 1.0 / (zeta + math.sqrt(1.0 + zeta * zeta))
-                    else:
-                        t = -1.0 / (-zeta + math.sqrt(1.0 + zeta * zeta))
-                    c = 1.0 / math.sqrt(1.0 + t * t)
-                    s = c * t
+                        a2 += Mt[i, k] * Mt[i, k]
+                if b2 < 0.25 * b:
+                    b2 = 0.0
                     for k in range(m):
-                        x = Mt[i, k]
-                        y = Mt[j, k]
-                        Mt[i, k] = c * x - s * y
-                        Mt[j, k] = s * x + c * y
-                    if want_v:
-                        for k in range(n):
-                            x = Vt[i, k]
-                            y = Vt[j, k]
-                            Vt[i, k] = c * x - s * y
-                            Vt[j, k] = s * x + c * y
-                    # updated squared norms; recomputed where the update cancels
-                    a2 = a - t * g
-                    b2 = b + t * g
-                    if a2 < 0.25 * a:
-                        a2 = 0.0
-                        for k in range(m):
-                            a2 += Mt[i, k] * Mt[i, k]
-                    if b2 < 0.25 * b:
-                        b2 = 0.0
-                        for k in range(m):
-                            b2 += Mt[j, k] * Mt[j, k]
-                    sv[i] = a2
-                    sv[j] = b2
+                        b2 += Mt[j, k] * Mt[j, k]
+                sv[i] = a2
+                sv[j] = b2
             if not rotated:
                 break
         for j in range(n):
@@ -325,9 +345,9 @@ if HAVE_NUMBA:
 
     @njit(**_jit)
     def _jacobi_sv6(Mt, n, sv):
-        """:func:`_jacobi_sv` without V for columns of length exactly 6 (the wrench systems
-        of up to six rows), so that the inner loops have constant bounds and unroll."""
-        tol = 4.0e-16 * 6
+        """:func:`_jacobi_sv` without V for at most six columns of length exactly 6 (the wrench
+        systems of up to six rows): constant loop bounds, and the pairs in round-robin order."""
+        tol2 = (4.0e-16 * 6) ** 2
         fro = 0.0
         for j in range(n):
             a = 0.0
@@ -338,42 +358,45 @@ if HAVE_NUMBA:
         tiny = 1e-32 * fro
         for _sweep in range(60):
             rotated = False
-            for i in range(n - 1):
-                for j in range(i + 1, n):
-                    a = sv[i]
-                    b = sv[j]
-                    if a <= tiny or b <= tiny:
-                        continue
-                    g = 0.0
+            for q in range(15):
+                i = _PAIRS6[q, 0]
+                j = _PAIRS6[q, 1]
+                if j >= n:
+                    continue
+                a = sv[i]
+                b = sv[j]
+                if a <= tiny or b <= tiny:
+                    continue
+                g = 0.0
+                for k in range(6):
+                    g += Mt[i, k] * Mt[j, k]
+                if g * g <= tol2 * (a * b):
+                    continue
+                rotated = True
+                zeta = (b - a) / (2.0 * g)
+                if zeta >= 0.0:
+                    t = 1.0 / (zeta + math.sqrt(1.0 + zeta * zeta))
+                else:
+                    t = -1.0 / (-zeta + math.sqrt(1.0 + zeta * zeta))
+                c = 1.0 / math.sqrt(1.0 + t * t)
+                s = c * t
+                for k in range(6):
+                    x = Mt[i, k]
+                    y = Mt[j, k]
+                    Mt[i, k] = c * x - s * y
+                    Mt[j, k] = s * x + c * y
+                a2 = a - t * g
+                b2 = b + t * g
+                if a2 < 0.25 * a:
+                    a2 = 0.0
                     for k in range(6):
-                        g += Mt[i, k] * Mt[j, k]
-                    if g == 0.0 or abs(g) <= tol * math.sqrt(a * b):
-                        continue
-                    rotated = True
-                    zeta = (b - a) / (2.0 * g)
-                    if zeta >= 0.0:
-                        t = 1.0 / (zeta + math.sqrt(1.0 + zeta * zeta))
-                    else:
-                        t = -1.0 / (-zeta + math.sqrt(1.0 + zeta * zeta))
-                    c = 1.0 / math.sqrt(1.0 + t * t)
-                    s = c * t
+                        a2 += Mt[i, k] * Mt[i, k]
+                if b2 < 0.25 * b:
+                    b2 = 0.0
                     for k in range(6):
-                        x = Mt[i, k]
-                        y = Mt[j, k]
-                        Mt[i, k] = c * x - s * y
-                        Mt[j, k] = s * x + c * y
-                    a2 = a - t * g
-                    b2 = b + t * g
-                    if a2 < 0.25 * a:
-                        a2 = 0.0
-                        for k in range(6):
-                            a2 += Mt[i, k] * Mt[i, k]
-                    if b2 < 0.25 * b:
-                        b2 = 0.0
-                        for k in range(6):
-                            b2 += Mt[j, k] * Mt[j, k]
-                    sv[i] = a2
-                    sv[j] = b2
+                        b2 += Mt[j, k] * Mt[j, k]
+                sv[i] = a2
+                sv[j] = b2
             if not rotated:
                 break
         for j in range(n):
