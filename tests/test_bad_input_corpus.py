@@ -572,3 +572,23 @@ def test_api_huge_pose_is_masked(name, big):
     assert np.isfinite(s[0]) and not feas[1]
     for k, m in margins.items():
         assert m[1] == -math.inf, k
+
+
+# -- Python API: sample counts ------------------------------------------------------------------
+API_COUNT_CASES = [1e20, 10**13, 2**22 + 1, 0, -1, 2.5, True, "100", None, float("nan")]
+
+
+@pytest.mark.parametrize("n", API_COUNT_CASES, ids=[repr(n) for n in API_COUNT_CASES])
+def test_api_sample_count_is_refused_up_front(n):
+    import time
+
+    from parasynth.objectives import get, workspace_of
+
+    mech = parasynth.load_mechanism("5pus_upu")
+    t0 = time.perf_counter()
+    with pytest.raises(ValueError) as e:
+        workspace_of(mech, n=n)
+    assert re.search(r"\bn\b", str(e.value)), str(e.value)
+    with pytest.raises(ValueError):
+        get("workspace_volume")(mech, n=n)
+    assert time.perf_counter() - t0 < 5.0

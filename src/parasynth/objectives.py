@@ -121,8 +121,11 @@ def workspace_of(mech, ranges=None, n: int = 4096, method: str = "sobol", seed: 
                  constraints=None, engine: str = "compiled"):
     """The (cached) workspace of ``mech`` for these settings; see :func:`parasynth.workspace`
     (``engine``: "compiled" or "numpy", the evaluation engine)."""
+    from .validation import MAX_SAMPLES, check_count
     from .workspace import workspace
 
+    n = check_count("n", n, 1, MAX_SAMPLES, what="a sample count")  # no truncation of 2.5, True, "100"
+    seed = check_count("seed", seed, 0, what="an integer seed")
     ranges = dict(ranges) if ranges else mech.default_ranges()
     key = (type(mech).__name__, _freeze(dataclasses.asdict(mech.params)), _freeze(ranges), int(n), method,
            int(seed), _freeze(fixed), _freeze(constraints), engine)
