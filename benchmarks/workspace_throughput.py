@@ -3,13 +3,19 @@
 Three ways of deciding whether poses are feasible (reachable by every leg and inside every
 constraint the model declares: actuator strokes, joint angles, leg interference, ...):
 
-(a) ``numpy``  -- ``mech.is_feasible`` on large chunks (the vectorised reference path);
-(b) ``kernel`` -- ``parasynth.kernels.feasible_fast``: the fused numba kernel, timed after a
-    warm-up call so that JIT compilation is excluded, on chunks of 2**20 poses;
+(a) ``numpy``  -- ``mech.is_feasible(X, engine="numpy")`` on large chunks (the vectorised
+    reference path);
+(b) ``kernel`` -- ``mech.is_feasible(X)``: the compiled engine (``parasynth.engine``), timed
+    after a warm-up call so that JIT compilation is excluded, on chunks of 2**20 poses;
 (c) ``loop``   -- a naive per-pose loop written like a paper's brute-force workspace search:
     one pose at a time, plain Python/NumPy on 3-vectors (rotation matrix, inverse kinematics
     of each leg, each limit in turn, pairwise segment distances), measured in the same run on
-    a small sample.
+    a small sample. Models without a hand-written loop use the library one pose at a time
+    (``is_feasible`` with NumPy on a single pose), the per-pose loop a user would write.
+
+Besides the rate on the box (which depends on the feasible fraction: infeasible poses exit
+early), the **worst case** is measured: the compiled engine on poses that are all feasible
+(feasible samples of the box, repeated), where every check of every leg runs.
 
 The poses are uniform in a task box around each model's workspace (printed, with the
 feasible fraction: early rejection makes the rate depend on it). Each model runs in its own
@@ -18,14 +24,23 @@ with exactly one line per model::
 
     <model> poses_per_s=<float> ratio_vs_loop=<float> peak_rss_mb=<float>
 
-where ``poses_per_s`` is the rate of the fastest path and ``ratio_vs_loop`` its ratio to the
-loop measured in the same run.
+    <model> poses_per_s=<float> ratio_vs_loop=<float> peak_rss_mb=<float> worst_case_poses_per_s=<float>
+    <model> worst_case_ratio_vs_numpy=<float>
+
+where ``poses_per_s`` is the rate of the fastest path, ``ratio_vs_loop`` its ratio to the
+loop measured in the same run, and ``worst_case_ratio_vs_numpy`` the worst-case compiled rate
+over the NumPy path's rate on the same all-feasible poses.
+
+``--big-workspace 1e8`` instead runs ``parasynth.workspace`` with that many Sobol samples on
+``5pus_upu`` in a fresh process and prints its time and peak memory
+(``workspace_samples=<n> seconds=<f> peak_rss_mb=<f>``).
 
 Usage::
 
     python benchmarks/workspace_throughput.py                    # ~2e7 kernel poses per model
     python benchmarks/workspace_throughput.py --seconds 3        # time-boxed per path
     python benchmarks/workspace_throughput.py --n 5e6 --models 5pus_upu
+    python benchmarks/workspace_throughput.py --big-workspace 1e8
 
 Not part of the test suite.
 """
@@ -49,6 +64,9 @@ BOXES = {
     "5pus_upu": ([-0.06, -0.06, -0.10, -0.35, -0.35], [0.06, 0.06, 0.08, 0.35, 0.35]),
     "2rpu_2sps": ([0.62, -0.55, -0.5], [0.94, 0.55, 0.5]),
     "4ups_1rps": ([-0.2, 0.36, -0.4, 0.0, -0.4], [0.2, 0.5, 0.4, 0.4, 0.4]),
+    "gough_stewart_6ups": ([-0.15, -0.15, 0.45, -0.25, -0.25, -0.5], [0.15, 0.15, 0.8, 0.25, 0.25, 0.5]),
+    "3rps": ([0.3, -0.5, -0.5], [0.7, 0.5, 0.5]),
+    "3prs": ([-0.2, -0.5, -0.5], [0.25, 0.5, 0.5]),
 }
 
 KERNEL_CHUNK = 2**20
@@ -235,6 +253,11 @@ def loop_4ups_1rps(mech, X):
     return out
 
 
+def loop_library(mech, X):
+    """One pose at a time through the library's NumPy path."""
+    return np.array([bool(mech.is_feasible(x, engine="numpy")) for x in X])
+
+
 LOOPS = {"5pus_upu": loop_5pus_upu, "2rpu_2sps": loop_2rpu_2sps, "4ups_1rps": loop_4ups_1rps}
 
 
@@ -286,25 +309,27 @@ def run_model(name: str, opts: dict) -> dict:
 
     # (c) naive loop, small sample; checked against the reference
     Xl = sampler(opts["loop_n"])
+    loop = LOOPS.get(name, loop_library)
     t0 = time.perf_counter()
-    ok_loop = LOOPS[name](mech, Xl)
+    ok_loop = loop(mech, Xl)
     t_loop = time.perf_counter() - t0
     if seconds:  # time-boxed: continue until `seconds`
         n_more = 0
         while t_loop < seconds:
             Xm = sampler(200)
             t0 = time.perf_counter()
-            LOOPS[name](mech, Xm)
+            loop(mech, Xm)
             t_loop += time.perf_counter() - t0
             n_more += 200
         n_loop = len(Xl) + n_more
     else:
         n_loop = len(Xl)
-    ref = mech.is_feasible(Xl)
+    ref = mech.is_feasible(Xl, engine="numpy")
     res["loop"] = dict(n=n_loop, rate=n_loop / t_loop, agree=int(np.count_nonzero(ok_loop == ref)), checked=len(Xl))
 
     # (a) vectorised NumPy, large chunks
-    n_np, t_np, f_np, c_np = _timed_chunks(mech.is_feasible, sampler, opts["numpy_chunk"], opts["numpy_n"], seconds)
+    numpy_path = lambda X: mech.is_feasible(X, engine="numpy")  # noqa: E731
+    n_np, t_np, f_np, c_np = _timed_chunks(numpy_path, sampler, opts["numpy_chunk"], opts["numpy_n"], seconds)
     res["numpy"] = dict(n=n_np, rate=n_np / t_np, feasible=f_np / n_np, cpu_per_wall=c_np / t_np)
 
     # (b) fused kernel: warm-up (JIT compile or cache load) excluded, then the big run
@@ -312,13 +337,48 @@ def run_model(name: str, opts: dict) -> dict:
     t0 = time.perf_counter()
     ok_w = kernels.feasible_fast(mech, Xw)
     res["warmup_s"] = time.perf_counter() - t0
-    ref_w = mech.is_feasible(Xw)
+    ref_w = mech.is_feasible(Xw, engine="numpy")
     res["kernel_agree"] = (int(np.count_nonzero(ok_w == ref_w)), len(Xw))
     n_k, t_k, f_k, c_k = _timed_chunks(lambda X: kernels.feasible_fast(mech, X), sampler, opts["chunk"],
                                        opts["n"], seconds)
     res["fused"] = dict(n=n_k, rate=n_k / t_k, feasible=f_k / n_k, cpu_per_wall=c_k / t_k)
+
+    # worst case: every pose feasible (feasible samples of the box, repeated)
+    Xs = sampler(2**17)
+    feas = Xs[numpy_path(Xs)]
+    if len(feas):
+        Xf = np.ascontiguousarray(np.resize(feas, (opts["chunk"], lo.size)))
+        assert np.all(kernels.feasible_fast(mech, Xf))
+        reps = max(1, opts["n"] // len(Xf)) if not seconds else None
+        t_w, n_w = 0.0, 0
+        while True:
+            t0 = time.perf_counter()
+            kernels.feasible_fast(mech, Xf)
+            t_w += time.perf_counter() - t0
+            n_w += len(Xf)
+            if (seconds and t_w >= seconds) or (not seconds and n_w >= reps * len(Xf)):
+                break
+        Xn = Xf[: opts["numpy_chunk"]]
+        t0 = time.perf_counter()
+        numpy_path(Xn)
+        np_rate = len(Xn) / (time.perf_counter() - t0)
+        res["worst"] = dict(rate=n_w / t_w, numpy_rate=np_rate, distinct=len(feas))
+    else:
+        res["worst"] = dict(rate=float("nan"), numpy_rate=float("nan"), distinct=0)
     res["peak_rss_mb"] = _peak_rss_mb()
     return res
+
+
+def run_big_workspace(n: int, name: str = "5pus_upu") -> dict:
+    """parasynth.workspace with n Sobol samples: time and peak memory (this process)."""
+    import parasynth
+
+    mech = parasynth.load_mechanism(name)
+    parasynth.workspace(mech, n=4096)  # warm-up (compilation or cache load)
+    t0 = time.perf_counter()
+    ws = parasynth.workspace(mech, n=n, progress=False)
+    return dict(n=ws.n_samples, seconds=time.perf_counter() - t0, peak_rss_mb=_peak_rss_mb(),
+                fraction=ws.fraction, rss_before=None)
 
 
 def _run_isolated(name, opts):
@@ -340,7 +400,15 @@ def main(argv=None):
     ap.add_argument("--numpy-chunk", type=int, default=NUMPY_CHUNK, help="NumPy chunk (default 2**17)")
     ap.add_argument("--seed", type=int, default=2024)
     ap.add_argument("--in-process", action="store_true", help="run all models in this process")
+    ap.add_argument("--big-workspace", type=float, default=None, metavar="N",
+                    help="only run parasynth.workspace on 5pus_upu with N Sobol samples (e.g. 1e8): time, memory")
     args = ap.parse_args(argv)
+    if args.big_workspace:
+        with cf.ProcessPoolExecutor(max_workers=1, mp_context=mp.get_context("spawn")) as ex:
+            r = ex.submit(run_big_workspace, int(args.big_workspace)).result()
+        print(f"workspace_samples={r['n']} seconds={r['seconds']:.6g} peak_rss_mb={r['peak_rss_mb']:.6g} "
+              f"fraction={r['fraction']:.4g}")
+        return
     n = int(args.n)
     opts = dict(n=n, numpy_n=max(NUMPY_CHUNK, n // 20), seconds=args.seconds, loop_n=args.loop_n,
                 chunk=args.chunk, numpy_chunk=args.numpy_chunk, seed=args.seed)
@@ -351,15 +419,15 @@ def main(argv=None):
         results.append(r)
 
     print(f"cores: {os.cpu_count()}, numba threads: {results[0]['threads']}; poses uniform in the task boxes below")
-    hdr = f"{'model':10s} {'path':7s} {'poses':>10s} {'poses/s':>12s} {'x loop':>9s} {'feasible':>9s} {'cpu/wall':>9s}"
+    hdr = f"{'model':18s} {'path':7s} {'poses':>10s} {'poses/s':>12s} {'x loop':>9s} {'feasible':>9s} {'cpu/wall':>9s}"
     print(hdr)
     print("-" * len(hdr))
     for r in results:
         lr = r["loop"]["rate"]
-        print(f"{r['model']:10s} {'loop':7s} {r['loop']['n']:10d} {lr:12.4g} {1.0:9.1f} {'':>9s} {'':>9s}")
+        print(f"{r['model']:18s} {'loop':7s} {r['loop']['n']:10d} {lr:12.4g} {1.0:9.1f} {'':>9s} {'':>9s}")
         for path in ("numpy", "fused"):
             d = r[path]
-            print(f"{r['model']:10s} {path:7s} {d['n']:10d} {d['rate']:12.4g} {d['rate'] / lr:9.1f} "
+            print(f"{r['model']:18s} {path:7s} {d['n']:10d} {d['rate']:12.4g} {d['rate'] / lr:9.1f} "
                   f"{d['feasible']:9.3f} {d['cpu_per_wall']:9.2f}")
     print()
     for r in results:
@@ -368,9 +436,16 @@ def main(argv=None):
               f"{r['loop']['checked']} poses, kernel on {r['kernel_agree'][0]}/{r['kernel_agree'][1]}")
     print()
     for r in results:
+        w = r["worst"]
+        print(f"{r['model']}: worst case (all {w['distinct']} distinct feasible poses repeated): compiled "
+              f"{w['rate']:.4g} poses/s, NumPy {w['numpy_rate']:.4g} poses/s")
+    print()
+    for r in results:
         best = max(r["numpy"]["rate"], r["fused"]["rate"])
+        w = r["worst"]
         print(f"{r['model']} poses_per_s={best:.6g} ratio_vs_loop={best / r['loop']['rate']:.6g} "
-              f"peak_rss_mb={r['peak_rss_mb']:.6g}")
+              f"peak_rss_mb={r['peak_rss_mb']:.6g} worst_case_poses_per_s={w['rate']:.6g}")
+        print(f"{r['model']} worst_case_ratio_vs_numpy={w['rate'] / w['numpy_rate']:.6g}")
 
 
 if __name__ == "__main__":
