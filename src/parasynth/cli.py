@@ -141,6 +141,18 @@ def _fmt_value(v, kind) -> str:
     return repr(v)
 
 
+def _param_range(spec, kind) -> str:
+    """', > 0 mm', ', in [0 deg, 90 deg]' for a described parameter's declared bounds."""
+    if spec is None:
+        return ""
+    parts = []
+    for attr, op in (("above", ">"), ("lo", ">="), ("below", "<"), ("hi", "<=")):
+        v = getattr(spec, attr, None)
+        if v is not None:
+            parts.append(f"{op} {_fmt_value(v, kind)}")
+    return (", " + " and ".join(parts)) if parts else ""
+
+
 def _load_study(path):
     from .study import load_study
 
@@ -170,10 +182,12 @@ def cmd_list(args) -> int:
         cls = mechanism_class(name)
         units = getattr(cls.Params, "UNITS", {})
         params = cls.Params()
+        specs = getattr(getattr(cls, "description", None), "param_by_name", None) or {}
         for f in dataclasses.fields(params):
             kind = units.get(f.name)
             unit = {"length": "length, mm", "angle": "angle, deg", "dimensionless": "number"}.get(kind, kind or "option")
-            print(f"      {f.name} ({unit}) = {_fmt_value(getattr(params, f.name), kind)}")
+            rng = _param_range(specs.get(f.name), kind)
+            print(f"      {f.name} ({unit}{rng}) = {_fmt_value(getattr(params, f.name), kind)}")
         mech = cls(params)
         print(f"      task coordinates: {', '.join(mech.task_coordinates)}")
         for cname, c in mech.constraints.items():
