@@ -228,13 +228,11 @@ def _poses(mech, X, need_twist: bool):
 
 def _upu_lengths(plan, p, R) -> np.ndarray:
     """Per leg, the length the NumPy UPU reciprocal scales moments with: the mean leg length
-    over the batch (at least 1 mm), as :meth:`UPU.constraint_wrenches`."""
+    over the batch (at least 1 mm), as :meth:`UPU.constraint_wrenches` (1 for other legs)."""
     code, _, geo, _, _ = plan
-    out = np.ones(len(code))
-    for j in np.flatnonzero(code == _UPU):
-        A = p + R @ geo[j, 1]
-        out[j] = max(float(np.mean(np.linalg.norm(A - geo[j, 0], axis=-1))), 1e-3)
-    return out
+    if not np.any(code == _UPU):
+        return np.ones(len(code))
+    return _upu_mean_lengths(p, R, code, geo)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -580,6 +578,23 @@ if HAVE_NUMBA:
                     C[ic, k] = w[k]
                 ic += 1
         return reach
+
+    @njit(**_jit)
+    def _upu_mean_lengths(p, R, code, geo):
+        out = np.ones(code.shape[0])
+        N = p.shape[0]
+        for j in range(code.shape[0]):
+            if code[j] != _UPU:
+                continue
+            qx, qy, qz = geo[j, 1, 0], geo[j, 1, 1], geo[j, 1, 2]
+            acc = 0.0
+            for i in range(N):
+                dx = p[i, 0] + R[i, 0, 0] * qx + R[i, 0, 1] * qy + R[i, 0, 2] * qz - geo[j, 0, 0]
+                dy = p[i, 1] + R[i, 1, 0] * qx + R[i, 1, 1] * qy + R[i, 1, 2] * qz - geo[j, 0, 1]
+                dz = p[i, 2] + R[i, 2, 0] * qx + R[i, 2, 1] * qy + R[i, 2, 2] * qz - geo[j, 0, 2]
+                acc += math.sqrt(dx * dx + dy * dy + dz * dz)
+            out[j] = max(acc / max(N, 1), 1e-3)
+        return out
 
     @njit(**_jit_inline)
     def _put_rev(Tw, k, a0, a1, a2, cx, cy, cz, px, py, pz, L):
@@ -1035,8 +1050,9 @@ def singularity_margin(mech, X) -> np.ndarray:
     Xa, single, valid, p, R, _ = _poses(mech, X, False)
     upuL = _upu_lengths(plan, p, R)
     out = np.empty(Xa.shape[0])
-    _kernel("_margin_kernel", Xa.shape[0])(p, R, valid, code, act, geo, sc, upuL, int(mech.n_actuators), nc, int(mech.constraint_rank),
-                   float(mech.length_scale), out)
+    kernel = _kernel("_margin_kernel", Xa.shape[0])
+    kernel(p, R, valid, code, act, geo, sc, upuL, int(mech.n_actuators), nc, int(mech.constraint_rank),
+           float(mech.length_scale), out)
     return _out(out, single)
 
 
@@ -1049,7 +1065,8 @@ def transmission(mech, X, rtol: float = 1e-9):
     upuL = _upu_lengths(plan, p, R)
     N, na = Xa.shape[0], int(mech.n_actuators)
     inp, outp, lti = np.empty((N, na)), np.empty((N, na)), np.empty(N)
-    _kernel("_lti_kernel", Xa.shape[0])(p, R, valid, code, act, geo, sc, upuL, na, nc, float(mech.length_scale), float(rtol), inp, outp, lti)
+    kernel = _kernel("_lti_kernel", N)
+    kernel(p, R, valid, code, act, geo, sc, upuL, na, nc, float(mech.length_scale), float(rtol), inp, outp, lti)
     return _out(inp, single), _out(outp, single), _out(lti, single)
 
 
@@ -1069,7 +1086,8 @@ def condition_number(mech, X, length: float | None = None) -> np.ndarray:
     upuL = _upu_lengths(plan, p, R)
     angcol = np.array([c in mech.angular_coordinates for c in mech.task_coordinates], dtype=np.bool_)
     out = np.empty(Xa.shape[0])
-    _kernel("_kappa_kernel", Xa.shape[0])(p, R, valid, T, angcol, code, act, geo, sc, upuL, int(mech.n_actuators), nc, L, out)
+    kernel = _kernel("_kappa_kernel", Xa.shape[0])
+    kernel(p, R, valid, T, angcol, code, act, geo, sc, upuL, int(mech.n_actuators), nc, L, out)
     return _out(out, single)
 
 
@@ -1097,5 +1115,5 @@ def leg_directions(mech, X) -> tuple[np.ndarray, np.ndarray]:
     upuL = np.ones(len(code))
     N = Xa.shape[0]
     dirs, reach = np.empty((N, len(code), 3)), np.empty(N, np.bool_)
-    _kernel("_dir_kernel", Xa.shape[0])(p, R, valid, code, act, geo, sc, upuL, int(mech.n_actuators), nc, dirs, reach)
+    _kernel("_dir_kernel", N)(p, R, valid, code, act, geo, sc, upuL, int(mech.n_actuators), nc, dirs, reach)
     return _out(dirs, single), _out(reach, single)
