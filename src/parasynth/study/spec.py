@@ -539,6 +539,9 @@ def resolve_study(data: dict, source: str | None = None) -> ResolvedStudy:
             check_param(k, f"reference.{k}")
             reference[k] = _q_nested(v, kinds.get(k), f"reference.{k}")
 
+    if spec.output is not None and (not spec.output.strip() or "\x00" in spec.output):
+        raise StudyError("output: give a run directory (e.g. runs/my_study) or leave the key out for runs/<name>/")
+
     tied = {}
     for k, src in spec.tied.items():
         check_param(k, f"tied.{k}")
