@@ -141,6 +141,39 @@ def _journal_backend(path: Path):
                 fcntl.flock(self._lock_fd, fcntl.LOCK_UN)
             self._fd = os.open(file_path, os.O_WRONLY | os.O_APPEND)
 
+        def read_logs(self, log_number_from: int):
+            # As Optuna's, on a file handle kept open (no open/close per storage operation).
+            f = getattr(self, "_rf", None)
+            if f is None:
+                f = self._rf = open(self._file_path, "rb")
+            remaining = os.fstat(f.fileno()).st_size
+            start = 0
+            if log_number_from in self._log_number_offset:
+                f.seek(self._log_number_offset[log_number_from])
+                start = log_number_from
+                remaining -= self._log_number_offset[log_number_from]
+            else:
+                f.seek(0)
+            last_error = None
+            for number, line in enumerate(f, start=start):
+                remaining -= len(line)
+                if remaining < 0:
+                    break
+                if last_error is not None:
+                    raise last_error
+                if not line.endswith(b"\n"):
+                    last_error = ValueError("Invalid log format.")
+                    continue
+                if number + 1 not in self._log_number_offset:
+                    self._log_number_offset[number + 1] = self._log_number_offset[number] + len(line)
+                if number < log_number_from:
+                    continue
+                try:
+                    yield json.loads(line)
+                except json.JSONDecodeError as err:
+                    last_error = err
+                    del self._log_number_offset[number + 1]
+
         def append_logs(self, logs):
             data = ("\n".join(json.dumps(log, separators=(",", ":")) for log in logs) + "\n").encode("utf-8")
             self._fcntl.flock(self._lock_fd, self._fcntl.LOCK_EX)

@@ -223,10 +223,11 @@ def _set_optuna_constraints(trial, study, rec):
     vals = [(-m if math.isfinite(m) else 1e9) for m in rec.margins.values()]
     if rec.status != "ok":
         vals = [1e9 for _ in study.constraints]
-    trial.set_user_attr("constraints", vals or [0.0])
     if hasattr(trial, "set_constraint"):
         for c, v in zip(study.constraints, vals):
             trial.set_constraint(c.label, v)
+    else:
+        trial.set_user_attr("constraints", vals or [0.0])
 
 
 def _jsonable(d: dict) -> dict:
