@@ -134,6 +134,7 @@ class OptimizerSpec(_Model):
     ftol_rel: float | None = Field(default=None, gt=0, allow_inf_nan=False)
     start: dict[str, Any] | None = None
     n_jobs: Int = Field(default=1, ge=1, le=1024)
+    workers: Int | None = Field(default=None, ge=1, le=1024)
     storage: str | None = None
     seed: Int | None = Field(default=None, ge=0, le=MAX_SEED)
     designs: list[dict[str, Any]] | None = None
@@ -884,8 +885,11 @@ KEY_DOCS = {
     "optimizer.xtol_rel": "NLopt relative tolerance on the design variables (> 0).",
     "optimizer.ftol_rel": "NLopt relative tolerance on the objective (> 0).",
     "optimizer.start": "NLopt start design, {variable: value with unit} (default the reference or the box centre).",
-    "optimizer.n_jobs": "Parallel Optuna workers (1 to 1024).",
-    "optimizer.storage": "Optuna storage URL (default the run directory's own storage).",
+    "optimizer.n_jobs": "Same as optimizer.workers (kept for older study files).",
+    "optimizer.workers": "Local worker processes of an Optuna study (1 to 1024, default 1; --workers overrides; "
+                         "see docs/scaling.md).",
+    "optimizer.storage": "Optuna storage URL: postgresql://USER:PASSWORD@HOST/DB, sqlite:///FILE or journal:FILE "
+                         "(default the run directory's optuna.journal; --storage overrides; see docs/scaling.md).",
     "optimizer.seed": f"Seed of the optimiser (0 to {MAX_SEED}).",
     "optimizer.designs": "For a sweep: the list of designs to evaluate, each {variable: value with unit}.",
     "optimizer.population_size": "Population of the evolutionary Optuna samplers (2 to 100000).",
