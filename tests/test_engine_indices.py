@@ -318,3 +318,103 @@ def test_jacobi_small_singular_value_relative_accuracy():
     assert abs(smin - 1e-10) <= 1e-15  # absolute eps-level error, i.e. ~1e-5 relative here
     gram = np.sqrt(np.abs(np.linalg.eigvalsh(M.T @ M)))[0]
     assert abs(gram - 1e-10) > abs(smin - 1e-10)  # the Gram route is worse
+
+
+# ---------------------------------------------------------------------------------------------
+# Random mechanisms from every leg type (generic over legs, nothing per model)
+# ---------------------------------------------------------------------------------------------
+from parasynth.legs import PRS, PUS, RPS, RPU, SPS, UPU  # noqa: E402
+from parasynth.mechanism import Mechanism  # noqa: E402
+from parasynth.spatial import euler_rate_map, euler_to_matrix  # noqa: E402
+
+
+class _Free6(Mechanism):
+    """x, y, z and z-y-x Euler angles; legs given."""
+
+    name = "random_legs"
+    task_coordinates = ("x", "y", "z", "a", "b", "c")
+    angular_coordinates = frozenset({"a", "b", "c"})
+
+    def _pose(self, X):
+        return X[:, :3].copy(), euler_to_matrix("zyx", X[:, 3:])
+
+    def _twist_map(self, X):
+        T = np.zeros((X.shape[0], 6, 6))
+        T[:, :3, :3] = np.eye(3)
+        T[:, 3:, 3:] = euler_rate_map("zyx", X[:, 3:])
+        return T
+
+
+def _unit(v):
+    return v / np.linalg.norm(v)
+
+
+def _random_leg(rng, k, kind, p0, R0):
+    """A leg of type ``kind`` that reaches the pose (p0, R0), its planar conditions met there."""
+    plat = rng.uniform(-0.15, 0.15, 3)
+    A = p0 + R0 @ plat
+    base = A + np.array([0, 0, -1.0]) * rng.uniform(0.3, 0.8) + rng.uniform(-0.4, 0.4, 3)
+    d = A - base
+    name = f"L{k}"
+    if kind is SPS:
+        return SPS(name, base, plat)
+    if kind is UPS:
+        return UPS(name, base, plat, u_axis=_unit(rng.standard_normal(3)))
+    if kind is UPU:
+        return UPU(name, base, plat, u_axis=_unit(rng.standard_normal(3)),
+                   u_platform_axis=_unit(rng.standard_normal(3)), passive=bool(rng.random() < 0.5))
+    if kind is RPS:
+        r = _unit(np.cross(d, rng.standard_normal(3)))
+        return RPS(name, base, plat, r_axis=r, passive=bool(rng.random() < 0.3))
+    if kind is RPU:
+        r = _unit(np.cross(d, rng.standard_normal(3)))
+        u = _unit(np.cross(r, rng.standard_normal(3)))
+        return RPU(name, base, plat, r_axis=r, u_platform_axis=R0.T @ u)
+    e = _unit(rng.standard_normal(3) + np.array([0, 0, 2.0]))
+    perp = np.linalg.norm(d - (d @ e) * e)
+    L = perp / rng.uniform(0.3, 0.95)
+    branch = int(rng.choice([-1, 1]))
+    if kind is PUS:
+        return PUS(name, base, plat, slider_axis=e, link_length=L, branch=branch,
+                   u_axis=_unit(np.cross(e, rng.standard_normal(3))))
+    r = _unit(np.cross(e, d))
+    return PRS(name, base, plat, slider_axis=e, r_axis=r, link_length=L, branch=branch)
+
+
+def _random_mechanism(seed):
+    rng = np.random.default_rng(seed)
+    X0 = np.r_[rng.uniform(-0.1, 0.1, 3), rng.uniform(-0.4, 0.4, 3)]
+    p0, R0 = X0[:3], euler_to_matrix("zyx", X0[3:])
+    kinds = [SPS, UPS, PUS, RPS, RPU, UPU, PRS]
+    n = int(rng.integers(3, 8))
+    legs = [_random_leg(rng, k, kinds[int(rng.integers(len(kinds)))], p0, R0) for k in range(n)]
+    if not any(leg.is_actuated for leg in legs):
+        legs[0] = _random_leg(rng, 0, SPS, p0, R0)
+    return _Free6(None, legs, X0, float(rng.uniform(0.1, 0.5)))
+
+
+def test_random_mechanisms_of_every_leg_type():
+    seen = set()
+    for seed in range(120):
+        mech = _random_mechanism(seed)
+        seen.update(type(leg).__name__ for leg in mech.legs)
+        # the home pose (every planar condition met) and, for legs without one, poses nearby
+        rng = np.random.default_rng(1000 + seed)
+        X = np.vstack([mech.home, mech.home + rng.uniform(-0.02, 0.02, (20, 6))])
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            assert ei.constraint_rank(mech) == mech.mobility().constraint_rank, seed
+        a = mech.singularity_margin(X, engine="numpy")
+        b = mech.singularity_margin(X)
+        assert np.isfinite(a[0]), seed
+        np.testing.assert_allclose(b, a, rtol=0, atol=ATOL, equal_nan=True, err_msg=f"seed {seed}")
+        ref = transmission_indices(mech, X)
+        inp, out, lti = ei.transmission(mech, X)
+        np.testing.assert_allclose(out, ref.output, rtol=0, atol=ATOL, equal_nan=True, err_msg=f"seed {seed}")
+        np.testing.assert_allclose(inp, ref.input, rtol=0, atol=ATOL, equal_nan=True, err_msg=f"seed {seed}")
+        np.testing.assert_allclose(lti, ref.lti, rtol=0, atol=ATOL, equal_nan=True, err_msg=f"seed {seed}")
+        ka = local_condition_number(mech, X, engine="numpy")
+        kb = local_condition_number(mech, X)
+        np.testing.assert_array_equal(np.isinf(ka), np.isinf(kb))
+        np.testing.assert_allclose(kb, ka, rtol=RTOL_KAPPA, equal_nan=True, err_msg=f"seed {seed}")
+    assert seen == {"SPS", "UPS", "PUS", "RPS", "RPU", "UPU", "PRS"}
