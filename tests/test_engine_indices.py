@@ -215,17 +215,20 @@ def test_engine_argument_is_checked():
     with pytest.raises(ValueError, match="engine must be one of"):
         mech.singularity_margin(mech.home, engine="fast")
     with pytest.raises(ValueError, match="engine"):
-        local_transmission_index(mech, mech.home, engine="Compiled")
+        local_transmission_index(mech, mech.home, engine="cuda")
+    with pytest.raises(ValueError, match="engine"):
+        local_condition_number(mech, mech.home, engine=None)
     five = _mech("5pus_upu", {})
     with pytest.raises(ValueError, match="engine"):
         objectives.get("singularity_margin_min")(five, n=256, ranges={"x": (-0.1, 0.1), "y": (-0.1, 0.1),
                                                                         "z": (-0.3, 0.1)}, engine="gpu")
 
 
-def test_twist_space_condition_number_falls_back(caplog):
+def test_twist_space_condition_number_falls_back():
     mech = _mech("3rps", {})
     X, _ = _poses(mech, 50, seed=2)
-    with caplog.at_level(logging.WARNING, logger="parasynth.engine"):
+    ei._WARNED.clear()
+    with pytest.warns(UserWarning, match="space='twist' has no compiled form"):
         a = local_condition_number(mech, X, space="twist")
     b = local_condition_number(mech, X, space="twist", engine="numpy")
     np.testing.assert_array_equal(a, b)
@@ -259,11 +262,14 @@ def test_uncovered_leg_falls_back_with_a_reason(caplog):
     assert not ok and "overrides UPS.actuation_wrench" in why and legs[0].name in why
     X, _ = _poses(base, 40, seed=4)
     ei._WARNED.clear()
-    with caplog.at_level(logging.WARNING, logger="parasynth.engine"):
+    with warnings.catch_warnings(record=True) as rec, caplog.at_level(logging.INFO, logger="parasynth.engine"):
+        warnings.simplefilter("always")
         a = mech.singularity_margin(X)
         mech.singularity_margin(X)
-    msgs = [r.getMessage() for r in caplog.records if "singularity_margin" in r.getMessage()]
+    msgs = [str(w.message) for w in rec if "singularity_margin" in str(w.message)]
     assert len(msgs) == 1 and "runs on NumPy" in msgs[0] and "actuation_wrench" in msgs[0]
+    assert issubclass([w for w in rec if "singularity_margin" in str(w.message)][0].category, UserWarning)
+    assert sum("singularity_margin" in r.getMessage() for r in caplog.records) == 1
     np.testing.assert_array_equal(a, mech.singularity_margin(X, engine="numpy"))
     # and the tilted wrench does change the answer, so the fallback is not a no-op
     assert np.nanmax(np.abs(a - base.singularity_margin(X, engine="numpy"))) > 1e-6

@@ -106,18 +106,15 @@ class Mobility:
         )
 
 
-ENGINES = ("compiled", "numpy")
-
-
 def _use_compiled(mech, engine: str, what: str) -> bool:
-    """Whether ``what`` runs on the compiled index kernels for ``mech``: ``engine`` must be one
-    of :data:`ENGINES`; "compiled" falls back to NumPy (reason logged once) when the kernels
-    do not cover the mechanism."""
-    if engine == "numpy":
-        return False
-    if engine != "compiled":
-        raise ValueError(f"engine must be one of {list(ENGINES)}, got {engine!r}")
+    """Whether ``what`` runs on the compiled index kernels for ``mech``: ``engine`` is
+    "compiled" or "numpy" (``ValueError`` otherwise); "compiled" falls back to NumPy, saying
+    why once, when the kernels do not cover the mechanism."""
+    from .engine import check_engine
     from .engine import indices as _ei
+
+    if check_engine(engine) == "numpy":
+        return False
 
     ok, why = _ei.coverage(mech)
     if not ok:

@@ -49,6 +49,7 @@ from __future__ import annotations
 import logging
 import math
 import os
+import warnings
 
 import numpy as np
 
@@ -94,11 +95,19 @@ _WARNED: set = set()
 
 
 def warn_fallback(what: str, mech, reason: str) -> None:
-    """Log once per (what, model class, reason) that ``what`` runs on NumPy and why."""
+    """Say once per (what, model class, reason) that ``what`` runs on NumPy and why: an
+    :class:`parasynth.engine.EngineFallbackWarning` and a log record (``parasynth.engine``)."""
     key = (what, type(mech).__name__, reason)
-    if key not in _WARNED:
-        _WARNED.add(key)
-        log.warning("%s of %s runs on NumPy: %s", what, getattr(mech, "name", type(mech).__name__), reason)
+    if key in _WARNED:
+        return
+    _WARNED.add(key)
+    msg = f"{getattr(mech, 'name', type(mech).__name__)}: {what} runs on NumPy: {reason}"
+    log.info(msg)
+    try:
+        from . import EngineFallbackWarning as category
+    except ImportError:  # pragma: no cover - the engine package without its warning class
+        category = UserWarning
+    warnings.warn(msg, category, stacklevel=4)
 
 
 # ---------------------------------------------------------------------------------------------
