@@ -163,7 +163,13 @@ def _checked_study(path):
     """The study of ``path``, refusing it when :func:`check_study` finds a problem."""
     from .study.spec import check_study
 
-    study = _load_study(path)
+    from .study import StudyError
+
+    try:
+        study = _load_study(path)
+    except StudyError as e:
+        msg = str(e)
+        raise CliError(msg if str(path) in msg else f"{path}: {msg}") from None
     problems = check_study(study)
     if problems:
         raise CliError(f"{path}: {len(problems)} problem(s):\n  " + "\n  ".join(problems))
