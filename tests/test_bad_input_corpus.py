@@ -111,6 +111,8 @@ def _study_mutations(path, si=0):
     add("mechanism-list", lambda d: d.update(mechanism=[1]), "mechanism")
     add("no-objectives", lambda d: d.update(objectives=[]), "objectives")
     add("variables-mapping", lambda d: d.update(variables={"a": 1}), "variables")
+    add("output-empty", lambda d: d.update(output=""), "output")
+    add("description-number", lambda d: d.update(description=["a"]), "description")
     # variables
     if variables:
         add("var-unknown-param", lambda d: d["variables"][0].update(name="nope_param"), "variables[0].name")

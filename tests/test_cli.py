@@ -275,7 +275,7 @@ def test_list_shows_parameters_with_units_and_measure_settings():
         assert block, name
         for f in dataclasses.fields(mechanism_class(name).Params):
             assert f"      {f.name} (" in out, (name, f.name)
-    assert re.search(r"link_length \(length, mm\) = 205 mm", out)
+    assert re.search(r"link_length \(length, mm(, > 0 mm)?\) = 205 mm", out)
     for name, m in OBJECTIVES.items():
         for k in m.settings:
             assert re.search(rf"^  {re.escape(name)} .*\n      settings: .*\b{k} \(", out, re.M), (name, k)
@@ -313,3 +313,26 @@ def test_every_argument_has_help_with_an_example():
                 continue
             assert a.help, (name, a.dest)
             assert "e.g." in a.help or "example" in a.help, (name, a.dest, a.help)
+
+
+def test_run_all_checks_every_study_before_running_any(tmp_path):
+    folder = tmp_path / "studies"
+    folder.mkdir()
+    good = yaml.safe_load(QUICK.read_text())
+    good["evaluation"].update(samples=64)
+    good["evaluation"].pop("final_samples", None)
+    good["optimizer"].update(n_trials=2, population_size=2)
+    (folder / "a_good.yaml").write_text(yaml.safe_dump(good))
+    bad = copy_of(good, name="b_bad")
+    bad["evaluation"]["seed"] = -1
+    (folder / "b_bad.yaml").write_text(yaml.safe_dump(bad))
+    code, out, err = run_cli(["run-all", folder, "--runs", tmp_path / "runs", "--reports", tmp_path / "reports",
+                              "--quiet"])
+    assert_clean_error(code, err, "b_bad.yaml", "evaluation.seed", status=2)
+    assert not (tmp_path / "runs" / "quickstart").exists()
+
+
+def copy_of(d, **changes):
+    out = json.loads(json.dumps(d))
+    out.update(changes)
+    return out

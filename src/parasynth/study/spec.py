@@ -267,7 +267,9 @@ def parse_spec(data: dict) -> StudySpec:
                 msgs.append(f"{loc}: {err['msg']} (got {err.get('input')!r})")
             else:
                 msgs.append(f"{loc}: {err['msg']} (got {err.get('input')!r})")
-        raise StudyError("invalid study:\n  " + "\n  ".join(msgs)) from None
+        if len(msgs) == 1:
+            raise StudyError(msgs[0]) from None
+        raise StudyError(f"{len(msgs)} problems:\n  " + "\n  ".join(msgs)) from None
 
 
 def _allowed_keys(parent_loc) -> list[str]:
