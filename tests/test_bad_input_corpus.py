@@ -260,6 +260,10 @@ def _study_mutations(path, si=0):
         add("nlopt-maxeval-zero", lambda d: d["optimizer"].update(maxeval=0), "optimizer.maxeval")
         add("nlopt-no-variables", lambda d: (d.update(variables=[]), d.pop("reference", None)), "variables")
         add("nlopt-xtol-neg", lambda d: d["optimizer"].update(xtol_rel=-1.0), "optimizer.xtol_rel")
+        add("nlopt-start-unknown", lambda d: d["optimizer"].update(start={"nope": "1 mm"}), "optimizer.start.nope")
+        v0 = variables[0]
+        add("nlopt-start-outside", lambda d: d["optimizer"].update(start={v0["name"]: "9 m"}),
+            f"optimizer.start.{v0['name']}")
     # reference and fixed: non-positive lengths and unknown parameters
     ref = base.get("reference") or {}
     ref_len = [p for p in ref if kinds.get(p) == "length" and p in ("link_length", "slider_radius", "a1", "b1",

@@ -542,6 +542,17 @@ def resolve_study(data: dict, source: str | None = None) -> ResolvedStudy:
             check_param(k, f"reference.{k}")
             reference[k] = _q_nested(v, kinds.get(k), f"reference.{k}")
 
+    if opt.start:
+        byname = {v.name: v for v in variables}
+        for k, x in opt.start.items():
+            where = f"optimizer.start.{k}"
+            if k not in byname:
+                raise StudyError(f"{where}: not a design variable; variables: {', '.join(byname) or '(none)'}")
+            v = byname[k]
+            val = _q(x, v.kind, where)
+            if v.low is not None and is_real_number(val) and not v.low <= val <= v.high:
+                raise StudyError(f"{where}: {x!r} is outside the variable's bounds [{v.low:.6g}, {v.high:.6g}] (SI)")
+
     if spec.output is not None and (not spec.output.strip() or "\x00" in spec.output):
         raise StudyError("output: give a run directory (e.g. runs/my_study) or leave the key out for runs/<name>/")
 
