@@ -271,3 +271,25 @@ def test_resume_refuses_another_study_in_the_storage(tmp_path):
     run_study(s, out_dir=tmp_path / "a", progress=False, storage=url)
     with pytest.raises(StudyError, match="already holds a study named 'safety_optuna'.*--resume"):
         run_study(s, out_dir=tmp_path / "b", progress=False, storage=url)
+
+
+def test_second_sigint_drops_the_design_being_evaluated(tmp_path):
+    """Ctrl-C twice during a long evaluation: the design is dropped at once (not recorded),
+    the run ends cleanly with exit 130, a consistent journal and the resume hint."""
+    path = write_study(tmp_path, study_dict("sweep", delay=4.0, n=3))
+    out = tmp_path / "run"
+    proc = subprocess.Popen(cli("run", path, "--out", out, "--quiet", "--no-report"), env=ENV,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.time() + 60
+    while not (out / "journal.jsonl").exists() and time.time() < deadline:  # opened just before evaluating
+        time.sleep(0.02)
+    time.sleep(0.5)  # inside the first 4 s evaluation
+    t0 = time.time()
+    proc.send_signal(signal.SIGINT)
+    time.sleep(0.2)
+    proc.send_signal(signal.SIGINT)
+    stdout, stderr = proc.communicate(timeout=60)
+    assert time.time() - t0 < 3.0, "the design being evaluated was not dropped"
+    assert proc.returncode == 130, stderr
+    assert "Traceback" not in stderr and "--resume" in stderr
+    assert journal_lines(out) == []

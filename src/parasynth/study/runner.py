@@ -301,6 +301,9 @@ def _run_locked(study, out_dir, previous, resume, n_trials, progress, storage, n
             interrupted = interrupted or guard2.requested
         if final is not None and ctx:
             _store_final(ctx["ostudy"], out_dir)
+    # New designs of this run, those of other workers on the same study included.
+    before = {(r.source, r.trial) for r in previous}
+    new = [r for r in records if (r.source, r.trial) not in before]
     return RunResult(out_dir, table, final, len(new), len(records), time.perf_counter() - t0, interrupted, new,
                      storage=ctx.get("url") if ctx and ctx.get("explicit") else None)
 
