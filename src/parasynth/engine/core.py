@@ -434,14 +434,7 @@ def build_plan(mech, cons) -> KernelPlan:
     if not _is_described(mech):
         raise Unsupported(f"the model class {type(mech).__name__} is not a mechanism description")
     kind, act, F, tables, exprs, expr_rows = leg_tables(mech, cons)
-    all_exprs = {}
-    for c in mech.constraints.values():
-        if type(c).__name__ == "ExpressionConstraint":
-            e = expression_of(mech, c)
-            if e is not None:
-                all_exprs[c.name] = e
-    all_exprs.update(exprs)
-    prog = program_for(mech, all_exprs)
+    prog = program_for(mech, exprs)
     try:
         consts = prog.constants(mech._penv)
     except (KeyError, IndexError, TypeError, ValueError) as e:
