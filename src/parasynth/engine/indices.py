@@ -851,6 +851,7 @@ if HAVE_NUMBA:
             P = np.empty((6, 6))
             svb = np.empty(6)
             bb = np.empty(6)
+            WV = np.empty((6, 6))
             for i in range(c * CHUNK, min(N, (c + 1) * CHUNK)):
                 ok = valid[i] and _legs(p, R, i, code, act, geo, sc, upuL, A, scale, anchor, C, Tw, w)
                 if ok:
@@ -874,8 +875,50 @@ if HAVE_NUMBA:
                 for r in range(nc):
                     for q in range(3, 6):
                         C[r, q] /= L
+                # Square and well conditioned (sigma_min > 1e-6 sigma_max): every leg's set of
+                # twists reciprocal to the other rows is one-dimensional (singular values
+                # interlace, so the others keep rank 5 at the 1e-9 threshold), spanned by the
+                # column of W^-1 = V S^-1 U^T of its row: one SVD for all legs.
+                square = False
+                if na + nc == 6:
+                    for r in range(6):
+                        for q in range(6):
+                            WV[q, r] = A[r, q] if r < na else C[r - na, q]
+                    _jacobi_sv(WV, 6, 6, V, True, sv)
+                    smax = 0.0
+                    smin = np.inf
+                    for q in range(6):
+                        smax = max(smax, sv[q])
+                        smin = min(smin, sv[q])
+                    square = smin > 1e-6 * smax
                 low = np.inf
                 for a in range(na):
+                    if square:
+                        # t = sum_j v_j u_j[a] / sigma_j, with u_j[a] = WV[j, a] / sigma_j
+                        for q in range(6):
+                            tq = 0.0
+                            for j in range(6):
+                                tq += V[j, q] * (WV[j, a] / (sv[j] * sv[j]))
+                            bb[q] = tq
+                        rx = anchor[a, 0] - p[i, 0]
+                        ry = anchor[a, 1] - p[i, 1]
+                        rz = anchor[a, 2] - p[i, 2]
+                        cx, cy, cz = _cross(rx, ry, rz, bb[3], bb[4], bb[5])
+                        v0 = bb[0] - cx / L
+                        v1 = bb[1] - cy / L
+                        v2 = bb[2] - cz / L
+                        g = v0 * v0 + v1 * v1 + v2 * v2
+                        bt = 0.0
+                        for q in range(6):
+                            bt += A[a, q] * bb[q]
+                        val = bt * bt / g if g > 0.0 else 0.0
+                        fn = math.sqrt(A[a, 0] * A[a, 0] + A[a, 1] * A[a, 1] + A[a, 2] * A[a, 2])
+                        o = min(math.sqrt(max(val, 0.0)) / max(fn, 1e-300), 1.0)
+                        outp[i, a] = o
+                        ii = min(abs(scale[a]), 1.0)
+                        inp[i, a] = ii
+                        low = min(low, o, ii)
+                        continue
                     # rows: the other actuation wrenches and every constraint wrench
                     row = 0
                     for b in range(na):
