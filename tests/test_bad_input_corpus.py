@@ -381,7 +381,11 @@ def _desc_mutations(path):
         out.append((f"{path.stem}:{cid}", yaml.safe_dump(d, sort_keys=False), needle))
 
     params = base.get("parameters") or {}
-    lengths = [k for k, v in params.items() if isinstance(v, str) and v.endswith(" mm") and float(v.split()[0]) != 0]
+    def _val(v):
+        return v.get("value") if isinstance(v, dict) else v
+
+    lengths = [k for k, v in params.items() if isinstance(_val(v), str) and _val(v).endswith(" mm")
+               and float(_val(v).split()[0]) != 0]
     for k in lengths[:3]:
         add(f"param-{k}-bare", lambda d, k=k: d["parameters"].update({k: 300}), f"parameters.{k}")
         add(f"param-{k}-nan", lambda d, k=k: d["parameters"].update({k: "nan mm"}), f"parameters.{k}")
