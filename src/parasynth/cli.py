@@ -562,7 +562,7 @@ def _describe_error(e: BaseException) -> tuple[str, int]:
             return f"{where.strip() or 'path'} is a directory, not a file", EXIT_USAGE
         if e.errno == errno.ENOENT:
             return f"no such file or directory{where}", EXIT_USAGE
-        return f"{e.strerror or name}{where}", EXIT_FAILED
+        return f"{e.strerror or text or name}{where}", EXIT_FAILED
     if isinstance(e, UnicodeError):
         return f"not UTF-8 text: {e}", EXIT_USAGE
     if isinstance(e, RecursionError):
