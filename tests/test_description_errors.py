@@ -102,7 +102,7 @@ BAD = [
     (SQUARE, ["name"], "my mech", ["name: required, letters, digits"]),
     (TRIPOD, ["platform", "A", "n"], 4, ["legs[0].platform: 4 platform anchor(s) for 3 base anchor(s)"]),
     (TRIPOD, ["platform", "A", "pattern"], "hexagon", ["platform.A.pattern: unknown pattern 'hexagon'", "polygon"]),
-    (TRIPOD, ["platform", "A", "n"], 0, ["platform.A.n: must be an integer >= 1"]),
+    (TRIPOD, ["platform", "A", "n"], 0, ["platform.A.n: must be an integer from 1 to 1000"]),
     (TRIPOD, ["platform", "A", "radius"], "platform_radiuss", ["platform.A.radius: unknown name 'platform_radiuss'"]),
     (TRIPOD, ["platform", "A", "plane"], "xx", ["platform.A.plane: 'xx' is not a plane"]),
     (TRIPOD, ["legs", 0, "names"], ["a", "b"], ["legs[0].names: this entry makes 3 legs; give 3 names"]),

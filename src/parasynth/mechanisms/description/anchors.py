@@ -24,9 +24,13 @@ _PATTERNS = {
 _SET_COMMON = {"pattern", "plane", "offset", "scale", "rotation", "shift", "doc"}
 
 
-def _count(raw, path, lo=1) -> int:
-    if isinstance(raw, bool) or not isinstance(raw, int) or raw < lo:
-        raise DescriptionError(f"{path}: must be an integer >= {lo}, got {raw!r}")
+#: Most points a pattern may generate (a resource limit: each point is usually a leg).
+MAX_PATTERN_POINTS = 1000
+
+
+def _count(raw, path, lo=1, hi=MAX_PATTERN_POINTS) -> int:
+    if isinstance(raw, bool) or not isinstance(raw, int) or not lo <= raw <= hi:
+        raise DescriptionError(f"{path}: must be an integer from {lo} to {hi}, got {raw!r}")
     return raw
 
 

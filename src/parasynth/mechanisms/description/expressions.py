@@ -320,11 +320,13 @@ class Expression:
 class _Scope:
     """Names an expression may use, grouped for messages."""
 
-    def __init__(self, *groups):
+    def __init__(self, *groups, kinds: dict | None = None):
         self.groups = [(label, tuple(names)) for label, names in groups]
+        #: Quantity kind of the parameters (length, angle, dimensionless), for unit checks.
+        self.kinds = dict(kinds or {})
 
     def extended(self, label, names) -> "_Scope":
-        return _Scope(*self.groups, (label, names))
+        return _Scope(*self.groups, (label, names), kinds=self.kinds)
 
     @property
     def names(self) -> set:

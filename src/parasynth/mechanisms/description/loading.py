@@ -6,8 +6,7 @@ import dataclasses
 import re
 from pathlib import Path
 
-import yaml
-
+from ...yamlio import YamlError, load_yaml
 from .errors import DescriptionError
 from .schema import Description, _make_params_class
 from .mechanism import DescribedMechanism
@@ -107,16 +106,16 @@ def description_class(data: dict, source: str | None = None) -> type:
 
 
 def load_description(path) -> type:
-    """Read a YAML description file and return its mechanism class (see :func:`description_class`)."""
+    """Read a YAML description file and return its mechanism class (see :func:`description_class`).
+
+    The file is read with the project's safe YAML reader (:mod:`parasynth.yamlio`): duplicate
+    keys, alias bombs, excessive nesting, binary and non-UTF-8 files are refused with a
+    one-line :class:`DescriptionError` naming the file."""
     p = Path(path)
     try:
-        text = p.read_text(encoding="utf-8")
-    except OSError as e:
-        raise DescriptionError(f"{p}: cannot read the description ({e.strerror})") from None
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as e:
-        raise DescriptionError(f"{p.name}: not valid YAML: {e}") from None
+        data = load_yaml(p, name=p.name, what="mechanism description")
+    except YamlError as e:
+        raise DescriptionError(str(e)) from None
     return description_class(data, source=p.name)
 
 

@@ -52,6 +52,15 @@ class _Scalar:
                     v = float(self.expr({}))
                 if v != 0:
                     raise _bare_number_error(path, raw, kind)
+            elif kind in _UNITFUL and not self.expr.has_units and self.expr.names and scope is not None:
+                # Only plain-number parameters and no unit: the value has no unit either.
+                plain = sorted(n for n in self.expr.names if scope.kinds.get(n) == "dimensionless")
+                if len(plain) == len(self.expr.names):
+                    which = ", ".join(f"parameters.{n}" for n in plain)
+                    raise DescriptionError(
+                        f"{path}: {raw!r} is a plain number ({which} without a unit) where {_KIND_TEXT[kind]} is "
+                        f"expected; give {'it' if len(plain) == 1 else 'them'} a unit, e.g. "
+                        f"'300 {_EXAMPLE_UNIT[kind]}'")
         if self.const is not None and not math.isfinite(self.const):
             raise DescriptionError(f"{path}: must be finite, got {raw!r}")
 

@@ -63,7 +63,7 @@ class Description:
         self.digest = _digest(data)
         data = apply_variants(data, self.variants, sel)
         self.text = str(data.get("description", "") or "")
-        pscope = _Scope(("parameters", [p.name for p in self.params]))
+        pscope = _Scope(("parameters", [p.name for p in self.params]), kinds={p.name: p.kind for p in self.params})
         self.pscope = pscope
         checks = data.get("checks") or []
         if isinstance(checks, str):
