@@ -45,6 +45,20 @@ def cli(*args):
     return [sys.executable, "-m", "parasynth.cli", *map(str, args)]
 
 
+def main_in_process(capsys, monkeypatch, *args):
+    """``parasynth ARGS`` in this process (no interpreter start-up): (exit code, stdout, stderr)."""
+    from parasynth.cli import main
+
+    monkeypatch.setenv("PARASYNTH_PLUGINS", PLUGIN)
+    capsys.readouterr()
+    try:
+        code = main([str(a) for a in args])
+    except SystemExit as e:
+        code = e.code
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
 # -- local worker processes ----------------------------------------------------------------------------
 def test_local_workers_record_every_trial_once_identical_designs_included(tmp_path, monkeypatch, capsys):
     import optuna
@@ -94,18 +108,18 @@ def _free_port():
     ("nosuchdb://u@h/db", "unknown database kind"),
     ("postgresql://u:secret@127.0.0.1:notaport/db", "storage"),
 ])
-def test_bad_storage_one_line_before_work(tmp_path, url, fragment):
+def test_bad_storage_one_line_before_work(tmp_path, capsys, monkeypatch, url, fragment):
     pytest.importorskip("psycopg2")
     url = url.format(port=_free_port())
     path = tmp_path / "s.yaml"
     path.write_text(yaml.safe_dump(study_dict("bad_storage", 4)))
-    r = subprocess.run(cli("run", path, "--out", tmp_path / "r", "--storage", url, "--quiet", "--no-report"),
-                       env=ENV, capture_output=True, text=True, timeout=60)
-    assert r.returncode == 2
-    lines = [x for x in r.stderr.splitlines() if x.strip()]
-    assert len(lines) == 1 and lines[0].startswith("error: storage"), r.stderr
+    code, _, err = main_in_process(capsys, monkeypatch, "run", path, "--out", tmp_path / "r", "--storage", url,
+                                   "--quiet", "--no-report")
+    assert code == 2
+    lines = [x for x in err.splitlines() if x.strip()]
+    assert len(lines) == 1 and lines[0].startswith("error: storage"), err
     assert fragment in lines[0]
-    assert "secret" not in r.stderr  # the password is not shown
+    assert "secret" not in err  # the password is not shown
     assert not list((tmp_path / "r").glob("journal.jsonl")) or not (tmp_path / "r" / "journal.jsonl").read_text()
 
 
@@ -307,23 +321,22 @@ def test_postgres_three_workers_one_killed_mid_trial(tmp_path, postgres_url):
     assert (tmp_path / "rep" / "index.html").exists()
 
 
-def test_postgres_wrong_credentials_one_line(tmp_path, postgres_url):
+def test_postgres_wrong_credentials_one_line(tmp_path, capsys, monkeypatch, postgres_url):
     from sqlalchemy.engine import make_url
 
     bad = make_url(postgres_url).set(password="wrong").render_as_string(hide_password=False)
     path = tmp_path / "s.yaml"
     path.write_text(yaml.safe_dump(study_dict("pg_bad_password", 2)))
-    r = subprocess.run(cli("run", path, "--out", tmp_path / "r", "--storage", bad, "--quiet", "--no-report"),
-                       env=ENV, capture_output=True, text=True, timeout=60)
-    assert r.returncode == 2
-    lines = r.stderr.strip().splitlines()
+    code, _, err = main_in_process(capsys, monkeypatch, "run", path, "--out", tmp_path / "r", "--storage", bad,
+                                   "--quiet", "--no-report")
+    assert code == 2
+    lines = err.strip().splitlines()
     assert len(lines) == 1 and "refused the credentials" in lines[0] and "wrong" not in lines[0]
 
 
-def test_postgres_worker_wrong_study_name(tmp_path, postgres_url):
+def test_postgres_worker_wrong_study_name(tmp_path, capsys, monkeypatch, postgres_url):
     path = tmp_path / "s.yaml"
     path.write_text(yaml.safe_dump(study_dict(f"pg_never_started_{os.getpid()}", 2)))
-    r = subprocess.run(cli("worker", path, "--storage", postgres_url, "--quiet"), env=ENV, capture_output=True,
-                       text=True, timeout=60)
-    assert r.returncode == 2
-    assert "holds no study named" in r.stderr and len(r.stderr.strip().splitlines()) == 1
+    code, _, err = main_in_process(capsys, monkeypatch, "worker", path, "--storage", postgres_url, "--quiet")
+    assert code == 2
+    assert "holds no study named" in err and len(err.strip().splitlines()) == 1
