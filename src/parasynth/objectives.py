@@ -496,7 +496,8 @@ def _pose_errors(mech, part, method="first_order", quantile=1.0, samples=200, sa
     if method in ("sobol", "grid", "random"):
         sampling, method = sampling or method, "first_order"
     if method not in _ERROR_METHODS:
-        raise ValueError(f"method must be one of {', '.join(_ERROR_METHODS)}, got {method!r}")
+        raise ValueError(f"method must be one of {', '.join(_ERROR_METHODS)} (the error model; a sampling method "
+                         f"sobol, grid or random selects the workspace sampler instead), got {method!r}")
     if sampling is not None:
         kw["method"] = sampling
     tol = _split(kw, _TOL_SETTINGS)
