@@ -294,3 +294,10 @@ def test_yaml_files(tmp_path):
         load_yaml(tmp_path)
     with pytest.raises(YamlError, match="does not exist"):
         load_yaml(tmp_path / "nope.yaml")
+
+
+def test_leg_limit_matches_the_description_reader():
+    from parasynth.mechanisms.description.anchors import MAX_PATTERN_POINTS
+    from parasynth.validation import MAX_LEGS
+
+    assert MAX_LEGS == MAX_PATTERN_POINTS

@@ -14,7 +14,8 @@ memory or time before any work is done:
 * :data:`MAX_SAMPLES`: workspace samples of one evaluation (``n``, ``evaluation.samples``,
   ``final_samples``, ``--samples``);
 * :data:`MAX_TRIALS`: evaluation budget of a study (``n_trials``, ``maxeval``);
-* :data:`MAX_LEGS`: legs (or anchors of one anchor set) of a described mechanism;
+* :data:`MAX_LEGS`: points one anchor pattern of a described mechanism generates (the
+  description reader's ``MAX_PATTERN_POINTS``);
 * :data:`MAX_POSE_MAGNITUDE`: a pose coordinate beyond this (1e6 m or rad) is outside any
   mechanism and is treated as unreachable, as NaN is (it would overflow squares of lengths).
 """
@@ -46,8 +47,9 @@ __all__ = [
 MAX_SAMPLES = 2**22
 #: Largest evaluation budget of one study (trials or NLopt evaluations).
 MAX_TRIALS = 1_000_000
-#: Largest number of legs (or anchors in one anchor set) of a described mechanism.
-MAX_LEGS = 64
+#: Largest number of points one anchor pattern of a described mechanism generates (the same
+#: value as ``parasynth.mechanisms.description.anchors.MAX_PATTERN_POINTS``).
+MAX_LEGS = 1000
 #: Largest |pose coordinate| (m or rad) that is evaluated; beyond it a pose is unreachable.
 MAX_POSE_MAGNITUDE = 1e6
 #: Seeds are integers in [0, MAX_SEED] (NumPy's SeedSequence and Optuna's samplers accept them).
