@@ -39,7 +39,11 @@ class DescribedMobility(Mobility):
 class DescribedMechanism(Mechanism):
     """A mechanism built from a :class:`Description`. Subclasses are made by
     :func:`description_class`; instantiate them with a ``Params`` object (SI) or nothing for the
-    description's defaults."""
+    description's defaults.
+
+    With variants, ``self.description`` is the description resolved for the instance's
+    choices (cached per choice on the class), and ``task_coordinates`` /
+    ``angular_coordinates`` are the instance's; the class attributes are the defaults'."""
 
     description: Description
     Params: type
