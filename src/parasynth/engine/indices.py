@@ -17,7 +17,18 @@ arrays that stay in the L1 cache:
   direction is the same up to sign and rounding, and every index below is invariant to the
   sign of a constraint row);
 * singular values by the **one-sided Jacobi** method (Hestenes), which computes small singular
-  values to high relative accuracy -- no eigenvalues of Gram matrices.
+  values to high relative accuracy -- no eigenvalues of Gram matrices. Column pairs are
+  visited in round-robin order (consecutive rotations independent).
+
+Transmission indices: each actuated leg's output twist spans the twists reciprocal to every
+other row of the wrench system. When that system is square (n_act + n_c = 6) and well
+conditioned (smallest singular value above 1e-6 of the largest) one SVD serves every leg: the
+twist is the leg's column of the inverse, ``V S^-1 U^T e_i`` (by interlacing the other rows
+then have rank 5 at the NumPy path's 1e-9 threshold, so the NumPy path finds the same
+one-dimensional set); otherwise each leg gets the SVD of its other rows, as in NumPy.
+
+Batches of at least :data:`PARALLEL_MIN` poses run on all threads (``prange``); smaller ones
+(one design's feasible poses) serially, where starting threads would cost more than it saves.
 
 Every function is generic over the leg types ``SPS, UPS, PUS, RPS, RPU, UPU, PRS``; nothing is
 written per model class. The platform pose and the twist map come from the model's own
