@@ -695,7 +695,7 @@ def _fmt_si(v) -> str:
 
 
 def check_study(study: ResolvedStudy, *, measures: bool = True, max_corners: int = MAX_CORNERS,
-                probe_samples: int = PROBE_SAMPLES) -> list[str]:
+                probe_samples: int = PROBE_SAMPLES, stats: dict | None = None) -> list[str]:
     """Problems that would make designs of ``study`` fail when it runs, each with its key path.
 
     Builds the mechanism with each ``fixed`` and ``reference`` value and each variable's
@@ -706,7 +706,8 @@ def check_study(study: ResolvedStudy, *, measures: bool = True, max_corners: int
     so that a setting the measure rejects is reported here and not as a failure of every
     design. An empty list means none was found. A model whose designs are valid at the
     corners may still be invalid inside the box (a non-convex parameter set); such designs are
-    recorded as failed by the run, with their reason.
+    recorded as failed by the run, with their reason. ``stats``, when given, receives the
+    counts of what was checked (``designs``, ``corners``, ``measures``).
     """
     import itertools
 
@@ -714,6 +715,8 @@ def check_study(study: ResolvedStudy, *, measures: bool = True, max_corners: int
     from .evaluate import Evaluator
 
     problems: list[str] = []
+    stats = {} if stats is None else stats
+    stats.update(designs=0, corners=0, measures=0)
     ev = Evaluator(study)
     mech = study.mechanism
 
@@ -785,6 +788,8 @@ def check_study(study: ResolvedStudy, *, measures: bool = True, max_corners: int
         step = len(combos) / max_corners
         combos = [combos[int(j * step)] for j in range(max_corners - 1)] + [combos[-1]]
     bad = []
+    stats["corners"] = len(combos)
+    stats["designs"] = 1 + len(combos) + len(study.optimizer.designs or ())
     for combo in combos:
         d = dict(zip([a for a, _ in axes], combo))
         _, err = try_build(ev_params(ev, d))
@@ -809,6 +814,7 @@ def check_study(study: ResolvedStudy, *, measures: bool = True, max_corners: int
     n = min(int(study.evaluation["n"]), probe_samples)
     items = [(f"objectives[{i}]", o) for i, o in enumerate(study.objectives)]
     items += [(f"constraints[{i}]", c) for i, c in enumerate(study.constraints)]
+    stats["measures"] = len(items)
     for where, item in items:
         m = get_measure(item.name)
         try:
