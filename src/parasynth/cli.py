@@ -222,7 +222,8 @@ def cmd_validate(args) -> int:
     from .study.spec import check_study
 
     study = _load_study(args.study)
-    problems = check_study(study, measures=not args.quick)
+    stats: dict = {}
+    problems = check_study(study, measures=not args.quick, stats=stats)
     if problems:
         raise CliError(f"{args.study}: {len(problems)} problem(s):\n  " + "\n  ".join(problems))
     from .display import fmt_column_value as fq, fmt_evaluation
@@ -240,6 +241,10 @@ def cmd_validate(args) -> int:
         bounds = [f"{b} {fq(study, c.label, x)}" for b, x in (("min", c.min), ("max", c.max)) if x is not None]
         print(f"  constraint {c.label}: {c.name} " + " ".join(bounds))
     print(f"  evaluation: {fmt_evaluation(study)}")
+    probe = (f"; {stats['measures']} measure(s) evaluated once on the first of them"
+             if stats.get("measures") else "")
+    print(f"  checked: {stats.get('designs', 0)} design(s) built (the reference or the box centre, "
+          f"{stats.get('corners', 0)} corner(s) of the variable box){probe}")
     return EXIT_OK
 
 
