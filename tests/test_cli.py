@@ -174,18 +174,21 @@ def test_debug_shows_the_traceback(tmp_path, monkeypatch):
 
 
 def test_broken_pipe_is_one_line_and_nonzero(tmp_path):
-    """``parasynth list | head -2`` in a real pipe: no traceback, status 141."""
-    env = dict(os.environ, PYTHONUNBUFFERED="0")
-    p = subprocess.Popen([sys.executable, "-c", "import sys; from parasynth.cli import main; sys.exit(main())", "list"],
-                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env)
+    """``parasynth list | head -2`` in a real pipe: the reader reads a line and goes away while
+    the command still writes (list is longer than a pipe buffer): no traceback, status 141."""
+    p = subprocess.Popen([sys.executable, "-m", "parasynth.cli", "list"], stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE)
     first = p.stdout.readline()
     p.stdout.close()  # the reader goes away, as head does
     err = p.stderr.read().decode()
     code = p.wait(timeout=120)
     assert first.startswith(b"mechanisms")
     assert "Traceback" not in err, err
-    assert code == 141, (code, err)
-    assert "broken pipe" in err
+    if code == 0:  # everything was already in the pipe buffer: nothing was lost, nothing to report
+        assert err == ""
+    else:
+        assert code == 141, (code, err)
+        assert "broken pipe" in err and err.count("\n") == 1
 
 
 # -- reports of damaged runs --------------------------------------------------------------------
