@@ -146,7 +146,9 @@ def test_worker_gives_up_after_retries_when_the_storage_is_lost(monkeypatch):
     class Lost:
         calls = 0
 
-        def optimize(self, *a, **k):
+        _storage = None
+
+        def ask(self, *a, **k):
             Lost.calls += 1
             raise OperationalError("SELECT 1", {}, Exception("server closed the connection unexpectedly"))
 
@@ -203,14 +205,21 @@ def _start_postgres():
     r = run(bindir / "initdb", "-D", tmp / "data", "-U", "parasynth", f"--pwfile={pwfile}", "-A", "scram-sha-256")
     if r.returncode:
         raise RuntimeError(f"initdb failed: {r.stderr.strip()[-300:]}")
-    r = run(bindir / "pg_ctl", "-D", tmp / "data", "-l", tmp / "log", "-w", "-t", "60",
-            "-o", f"-c listen_addresses=127.0.0.1 -p {port} -k {tmp} -c fsync=off", "start")
-    if r.returncode:
-        raise RuntimeError(f"pg_ctl start failed: {(r.stderr or r.stdout).strip()[-300:]}")
+    def start():
+        r = run(bindir / "pg_ctl", "-D", tmp / "data", "-l", tmp / "log", "-w", "-t", "60",
+                "-o", f"-c listen_addresses=127.0.0.1 -p {port} -k {tmp} -c fsync=off", "start")
+        if r.returncode:
+            raise RuntimeError(f"pg_ctl start failed: {(r.stderr or r.stdout).strip()[-300:]}")
+
+    def halt():
+        run(bindir / "pg_ctl", "-D", tmp / "data", "-m", "immediate", "-w", "stop")
 
     def stop():
-        run(bindir / "pg_ctl", "-D", tmp / "data", "-m", "immediate", "stop")
+        halt()
         shutil.rmtree(tmp, ignore_errors=True)
+
+    start()
+    stop.halt, stop.start = halt, start
 
     env = {**os.environ, "PGPASSWORD": password}
     r = subprocess.run(prefix + [str(bindir / "createdb"), "-h", "127.0.0.1", "-p", str(port), "-U", "parasynth",
@@ -340,3 +349,54 @@ def test_postgres_worker_wrong_study_name(tmp_path, capsys, monkeypatch, postgre
     code, _, err = main_in_process(capsys, monkeypatch, "worker", path, "--storage", postgres_url, "--quiet")
     assert code == 2
     assert "holds no study named" in err and len(err.strip().splitlines()) == 1
+
+
+def test_postgres_lost_server_worker_retries_then_exits_and_resume_completes(tmp_path):
+    """The database server goes away under a running study: the run retries a few times, exits
+    with one clear message and its tables written; with the server back, --resume completes
+    the study with every trial once."""
+    pytest.importorskip("psycopg2", reason="the PostgreSQL driver is not installed: pip install psycopg2-binary")
+    try:
+        url, stop = _start_postgres()  # a server of its own: this test stops it
+    except (RuntimeError, OSError, subprocess.SubprocessError) as e:
+        pytest.skip(f"no PostgreSQL server for the tests: {e}")
+    try:
+        name = "pg_lost"
+        path = tmp_path / "s.yaml"
+        path.write_text(yaml.safe_dump(study_dict(name, 20, delay=0.2, algorithm="random")))
+        out = tmp_path / "run"
+        env = {**ENV, "PARASYNTH_STORAGE_RETRIES": "2"}
+        cmd = cli("run", path, "--out", out, "--storage", url, "--quiet", "--no-report")
+        proc = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        deadline = time.time() + 60
+        while time.time() < deadline:
+            p = out / "journal.jsonl"
+            if p.exists() and len(p.read_text().splitlines()) >= 3:
+                break
+            time.sleep(0.05)
+        stop.halt()
+        t0 = time.time()
+        _, err = proc.communicate(timeout=90)
+        assert proc.returncode == 2, err
+        assert time.time() - t0 < 30  # 2 retries (1 s, 2 s) and the connection timeouts, not a hang
+        msg = [x for x in err.splitlines() if x.startswith("error:")]
+        assert len(msg) == 1 and "lost the storage" in msg[0] and "Traceback" not in err
+        assert "retrying in 1 s" in err
+        noise = [x for x in err.splitlines() if x.strip() and not x.startswith(("error:", "storage error"))]
+        assert not noise, err
+        saved = pd.read_csv(out / "results.csv")
+        assert len(saved) >= 3
+        stop.start()
+        r = subprocess.run(cmd + ["--resume"], env=env, capture_output=True, text=True, timeout=120)
+        assert r.returncode == 0, r.stderr
+        import optuna
+
+        from parasynth.study.storage import counts, open_storage
+
+        trials = optuna.load_study(study_name=name, storage=open_storage(url, heartbeat=False)).trials
+        counted = [t.number for t in trials if counts(t)]
+        assert len(counted) == 20
+        table = pd.read_csv(out / "results.csv")
+        assert sorted(table["trial"]) == sorted(counted)
+    finally:
+        stop()

@@ -337,6 +337,19 @@ def _storage_errors():
     return tuple(errs)
 
 
+def _root_cause(e: BaseException) -> str:
+    """The first line of the innermost cause (the driver's message, not Optuna's wrapper)."""
+    seen = set()
+    while (e.__cause__ or e.__context__) is not None and id(e) not in seen:
+        seen.add(id(e))
+        e = e.__cause__ or e.__context__
+    orig = getattr(e, "orig", None)
+    if orig is not None:
+        e = orig
+    text = str(e).strip().splitlines()
+    return f"{type(e).__name__}: {text[0]}" if text else type(e).__name__
+
+
 def _fail_stale(ostudy):
     import warnings
 
@@ -346,6 +359,48 @@ def _fail_stale(ostudy):
         warnings.simplefilter("ignore")
         with contextlib.suppress(Exception):
             optuna.storages.fail_stale_trials(ostudy)
+
+
+def _heartbeat():
+    try:
+        from optuna.storages._heartbeat import get_heartbeat_thread, is_heartbeat_enabled
+    except ImportError:  # pragma: no cover (an Optuna without heartbeats)
+        return (lambda trial_id, storage: contextlib.nullcontext()), (lambda storage: False)
+    return get_heartbeat_thread, is_heartbeat_enabled
+
+
+def run_one_trial(ostudy, objective, storage_errors=()):
+    """Ask for a trial, evaluate it, tell the result: Optuna's ask-and-tell with its heartbeat
+    (server storages), so that a storage error reaches the caller as itself (Optuna's own
+    loop turns a storage error while telling into an ``UnboundLocalError``)."""
+    from optuna.trial import TrialState
+
+    get_thread, enabled = _heartbeat()
+    if enabled(ostudy._storage):
+        _fail_stale(ostudy)
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # "heartbeat is supposed to be used with Study.optimize": it is, below
+        trial = ostudy.ask()
+    with get_thread(trial._trial_id, ostudy._storage):
+        try:
+            value = objective(trial)
+        except KeyboardInterrupt:
+            with contextlib.suppress(Exception):
+                ostudy.tell(trial, state=TrialState.FAIL, skip_if_finished=True)
+            raise
+        except storage_errors:
+            raise  # the trial stays running; it is failed as stale and proposed again
+        except Exception:  # noqa: BLE001 (a fault outside the design evaluation: the trial fails)
+            ostudy.tell(trial, state=TrialState.FAIL, skip_if_finished=True)
+            return trial.number
+    vals = value if isinstance(value, tuple) else (value,)
+    if any(v is None or (isinstance(v, float) and math.isnan(v)) for v in vals):
+        ostudy.tell(trial, state=TrialState.FAIL, skip_if_finished=True)  # a failed design (recorded)
+    else:
+        ostudy.tell(trial, list(vals) if len(vals) > 1 else vals[0])
+    return trial.number
 
 
 def optimize_loop(ostudy, objective, total: int, guard: Interrupt, shared: bool, counted: int = 0,
@@ -361,6 +416,25 @@ def optimize_loop(ostudy, objective, total: int, guard: Interrupt, shared: bool,
     log = log or (lambda msg: print(msg, file=sys.stderr, flush=True))
     retries = int(os.environ.get("PARASYNTH_STORAGE_RETRIES", "3")) if retries is None else retries
     errors = _storage_errors()
+    failures = 0
+    ran = 0
+    old_hook = threading.excepthook
+
+    def quiet_hook(hook_args):
+        # Optuna's heartbeat thread meets a lost storage first: this loop reports it once.
+        if not issubclass(hook_args.exc_type, errors):
+            old_hook(hook_args)
+
+    threading.excepthook = quiet_hook
+    try:
+        return _loop(ostudy, objective, total, guard, shared, counted, on_count, poll_s, retries, log, errors)
+    finally:
+        threading.excepthook = old_hook
+
+
+def _loop(ostudy, objective, total, guard, shared, counted, on_count, poll_s, retries, log, errors):
+    import optuna
+
     failures = 0
     ran = 0
     while not guard.requested:
@@ -380,7 +454,7 @@ def optimize_loop(ostudy, objective, total: int, guard: Interrupt, shared: bool,
             elif counted >= total:
                 break
             n0 = objective.stats["records"]
-            ostudy.optimize(objective, n_trials=1, catch=(Exception,), gc_after_trial=False)
+            run_one_trial(ostudy, objective, errors)
             ran += 1
             if not shared:
                 counted += objective.stats["records"] - n0
@@ -394,12 +468,12 @@ def optimize_loop(ostudy, objective, total: int, guard: Interrupt, shared: bool,
         except errors as e:
             failures += 1
             if failures > retries:
-                raise StorageLost(f"lost the storage ({type(e).__name__}: {str(e).strip().splitlines()[0] if str(e).strip() else ''}); "
+                raise StorageLost(f"lost the storage ({_root_cause(e)}); "
                                   f"gave up after {retries} retries. The study stays consistent: trials stored "
                                   f"are kept and an unfinished one is proposed again; start the worker again "
                                   f"when the storage is back") from None
             wait = 2 ** (failures - 1)
-            log(f"storage error ({type(e).__name__}); retrying in {wait} s ({failures}/{retries})")
+            log(f"storage error ({_root_cause(e)}); retrying in {wait} s ({failures}/{retries})")
             time.sleep(wait)
     return ran
 
