@@ -376,3 +376,25 @@ def test_kernels_module_names():
     assert kernels.kernel_available(mech) == kernels.HAVE_NUMBA
     X = np.random.default_rng(0).uniform(*_box(mech), size=(1000, 6))
     np.testing.assert_array_equal(kernels.feasible_fast(mech, X), mech.is_feasible(X))
+
+
+def test_huge_coordinates_follow_the_numpy_path():
+    """Where the NumPy path treats a coordinate beyond MAX_POSE_MAGNITUDE as unreachable (here a
+    subclass masking it in pose_valid), the compiled path does too; where it does not, a
+    whole number of turns past it is the home pose again for both."""
+    from parasynth.validation import MAX_POSE_MAGNITUDE
+
+    base = parasynth.load_mechanism("gough_stewart_6ups")
+
+    class Masking(type(base)):
+        def pose_valid(self, X):
+            return super().pose_valid(X) & np.all(np.abs(X) <= MAX_POSE_MAGNITUDE, axis=-1)
+
+    turns = 2 * np.pi * math.ceil(2 * MAX_POSE_MAGNITUDE / (2 * np.pi))
+    for mech, expect in ((Masking(base.params), False), (base, True)):
+        X = np.array([mech.home, mech.home])
+        X[1, 3] += turns
+        ref = mech.is_feasible(X, engine="numpy")
+        assert ref.tolist() == [True, expect]
+        assert mech.is_feasible(X).tolist() == ref.tolist()
+        assert engine.pose_batch(mech, X)[0].tolist() == mech.pose_valid(X).tolist()

@@ -152,7 +152,8 @@ class KernelPlan:
     def args(self):
         p = self.program
         t = self.tables
-        return (p.ins, self.consts, p.const_base, p.n_reg, p.n_pose, p.pose_regs, p.valid_regs, self.expr, GEOM_TOL,
+        return (p.ins, self.consts, p.const_base, p.n_reg, p.n_pose, p.pose_regs, p.valid_regs, p.pose_limit,
+                self.expr, GEOM_TOL,
                 self.leg_kind, self.leg_act, self.leg_f, t["coord"], t["actr"], t["lenr"], t["cone"], t["rang"],
                 t["axang"], t["pair"], t["offs"])
 
@@ -385,11 +386,33 @@ def program_for(mech, exprs: dict, twist: bool = False) -> Program:
         except (KeyError, IndexError, TypeError, ValueError, RecursionError) as e:
             raise Unsupported(f"the task parametrisation ({type(e).__name__}: {e})") from None
         _check_program(mech, prog, twist)
+        prog.pose_limit = _pose_limit(mech)
     except Unsupported as e:
         _PROGRAMS[key] = (mech.description, e)
         raise
     _PROGRAMS[key] = (mech.description, prog)
     return prog
+
+
+def _pose_limit(mech) -> float:
+    """The coordinate magnitude beyond which the NumPy path treats a pose as unreachable
+    (``parasynth.validation.MAX_POSE_MAGNITUDE`` if it does so, else inf): probed with the home
+    pose turned by a whole number of turns past that magnitude in an angular coordinate,
+    which is the home pose again to rounding."""
+    try:
+        from ..validation import MAX_POSE_MAGNITUDE as lim
+    except ImportError:  # pragma: no cover
+        return np.inf
+    ang = [j for j, c in enumerate(mech.task_coordinates) if c in mech.angular_coordinates]
+    if not ang:
+        return float(lim)  # a length beyond it is unreachable either way
+    X = np.array([mech.home, mech.home])
+    X[1, ang[0]] += 2 * np.pi * math.ceil(2 * lim / (2 * np.pi))
+    with np.errstate(all="ignore"):
+        reach = mech.pose_context(X).reachable
+    if reach[0] and not reach[1]:
+        return float(lim)
+    return np.inf
 
 
 def _probe_poses(mech) -> np.ndarray:
@@ -479,7 +502,8 @@ def run_pose(prog: Program, consts, X: np.ndarray, twist: bool = False):
         Tw = np.empty((0, 0, 0))
         n_run = prog.n_pose
     with _threads(N):
-        _pose_kernel(X, prog.ins, consts, prog.const_base, prog.n_reg, n_run, prog.pose_regs, prog.valid_regs, tr,
+        _pose_kernel(X, prog.ins, consts, prog.const_base, prog.n_reg, n_run, prog.pose_regs, prog.valid_regs,
+                     prog.pose_limit, tr,
                      BLOCK, ok, P, Rm, Tw)
     return ok, P, Rm.reshape(N, 3, 3), (Tw if twist else None)
 
@@ -885,7 +909,7 @@ if HAVE_NUMBA:
                 Rg[cbase + j, ii] = v
 
     @njit(**_jit_inline)
-    def _pose_prog(X, j0, nb, coord, okm, Rg, Sc, Tm, ins, n_pose, pose_regs, valid_regs):
+    def _pose_prog(X, j0, nb, coord, okm, Rg, Sc, Tm, ins, n_pose, pose_regs, valid_regs, plim):
         """Task-coordinate ranges, finiteness, the pose part of the program and the pose's
         validity for poses X[j0:j0+nb]: okm, and Tm (12, nb) = (p, R row-major)."""
         nt = X.shape[1]
@@ -893,7 +917,7 @@ if HAVE_NUMBA:
             i = j0 + ii
             v = True
             for j in range(nt):
-                v = v & (abs(X[i, j]) < np.inf)
+                v = v & (abs(X[i, j]) < np.inf) & (abs(X[i, j]) <= plim)
             for q in range(coord.shape[0]):
                 x = X[i, int(coord[q, 0])]
                 v = v & (x - coord[q, 1] >= 0.0) & (coord[q, 2] - x >= 0.0)
@@ -913,7 +937,8 @@ if HAVE_NUMBA:
                 okm[ii] = okm[ii] & (abs(t) < np.inf)
 
     @njit(parallel=True, **_jit)
-    def _pose_kernel(X, ins, consts, cbase, n_reg, n_run, pose_regs, valid_regs, twist_regs, block, ok, P, Rm, Tw):
+    def _pose_kernel(X, ins, consts, cbase, n_reg, n_run, pose_regs, valid_regs, plim, twist_regs, block, ok, P, Rm,
+                     Tw):
         """Validity, positions, rotations (row-major) and, if twist_regs is not empty, the
         twist map of poses X: the program alone."""
         N = X.shape[0]
@@ -929,7 +954,7 @@ if HAVE_NUMBA:
             i1 = min(N, (blk + 1) * block)
             for j0 in range(blk * block, i1, SUB):
                 nb = min(SUB, i1 - j0)
-                _pose_prog(X, j0, nb, coord, okm, Rg, Sc, Tm, ins, n_pose, pose_regs, valid_regs)
+                _pose_prog(X, j0, nb, coord, okm, Rg, Sc, Tm, ins, n_pose, pose_regs, valid_regs, plim)
                 if twist_regs.shape[0] > 0:
                     _run(ins, n_pose, ins.shape[0], Rg, Sc, nb)
                 for ii in range(nb):
@@ -944,7 +969,7 @@ if HAVE_NUMBA:
                             Tw[i, r, j] = Rg[twist_regs[r, j], ii]
 
     @njit(parallel=True, **_jit)
-    def _feasible_kernel(X, ins, consts, cbase, n_reg, n_pose, pose_regs, valid_regs, expr, tol, leg_kind, leg_act,
+    def _feasible_kernel(X, ins, consts, cbase, n_reg, n_pose, pose_regs, valid_regs, plim, expr, tol, leg_kind, leg_act,
                          leg_f, coord, actr, lenr, cone, rang, axang, pair, offs, block, out, amb):
         """Boolean feasibility of poses X (N, n_task) -> out (N,), amb[block] = number of
         poses whose RPS/RPU reachability NumPy decides batch-dependently.
@@ -972,7 +997,7 @@ if HAVE_NUMBA:
             for j0 in range(blk * block, i1, SUB):
                 nb = min(SUB, i1 - j0)
                 # 1. task-coordinate ranges and the pose (the program's pose part)
-                _pose_prog(X, j0, nb, coord, okm, Rg, Sc, Tm, ins, n_pose, pose_regs, valid_regs)
+                _pose_prog(X, j0, nb, coord, okm, Rg, Sc, Tm, ins, n_pose, pose_regs, valid_regs, plim)
                 for ii in range(nb):
                     und[ii] = 0
                 # 2. leg by leg: inverse kinematics, then that leg's checks
@@ -1238,7 +1263,7 @@ if HAVE_NUMBA:
             M[i, ci] = m
 
     @njit(parallel=True, **_jit)
-    def _margins_kernel(X, ins, consts, cbase, n_reg, n_pose, pose_regs, valid_regs, expr, tol, leg_kind, leg_act,
+    def _margins_kernel(X, ins, consts, cbase, n_reg, n_pose, pose_regs, valid_regs, plim, expr, tol, leg_kind, leg_act,
                         leg_f, coord, actr, lenr, cone, rang, axang, pair, offs, block, M, amb):
         """All constraint margins with NumPy's formulas (arctan2, arccos, sqrt), no early
         exit -- Mechanism.constraint_margins. The program runs per sub-block; the rest per
@@ -1262,7 +1287,7 @@ if HAVE_NUMBA:
             i1 = min(N, (blk + 1) * block)
             for j0 in range(blk * block, i1, SUB):
               nb = min(SUB, i1 - j0)
-              _pose_prog(X, j0, nb, nocoord, okm, Rg, Sc, Tm, ins, n_pose, pose_regs, valid_regs)
+              _pose_prog(X, j0, nb, nocoord, okm, Rg, Sc, Tm, ins, n_pose, pose_regs, valid_regs, plim)
               _run(ins, n_pose, ins.shape[0], Rg, Sc, nb)
               for ii in range(nb):
                 i = j0 + ii

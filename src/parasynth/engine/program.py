@@ -398,6 +398,8 @@ class Program:
         self.valid_regs = valid_regs
         self.margin_regs = margin_regs  # {constraint name: register}
         self.twist_regs = twist_regs  # (6, n_task) or None
+        #: Poses with a coordinate beyond this magnitude are invalid (as in the NumPy path).
+        self.pose_limit = np.inf
 
     def constants(self, penv) -> np.ndarray:
         """The constant rows' values for a parameter environment."""
