@@ -424,3 +424,21 @@ def test_random_mechanisms_of_every_leg_type():
         np.testing.assert_array_equal(np.isinf(ka), np.isinf(kb))
         np.testing.assert_allclose(kb, ka, rtol=RTOL_KAPPA, equal_nan=True, err_msg=f"seed {seed}")
     assert seen == {"SPS", "UPS", "PUS", "RPS", "RPU", "UPU", "PRS"}
+
+
+@pytest.mark.parametrize("big", [1e308, 1e200])
+def test_a_pose_at_infinity_does_not_spoil_the_batch(big):
+    """A huge coordinate gives NaN for that pose only, without floating-point warnings; the
+    other poses keep the values they have alone."""
+    for name in parasynth.list_mechanisms():
+        mech = _mech(name, {})
+        X = np.array([mech.home, mech.home])
+        X[1, 0] = big
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            s = mech.singularity_margin(X)
+            lti = local_transmission_index(mech, X)
+            k = local_condition_number(mech, X)
+        assert np.isnan(s[1]) and np.isnan(lti[1]) and np.isnan(k[1]), name
+        assert abs(s[0] - float(mech.singularity_margin(mech.home, engine="numpy"))) <= ATOL, name
+        assert abs(lti[0] - float(local_transmission_index(mech, mech.home, engine="numpy"))) <= ATOL, name

@@ -152,13 +152,24 @@ def _check_covered(mech) -> None:
         raise _Unsupported("the mechanism has no actuated leg")
 
 
+#: Coverage by (mechanism class, (leg class, actuated) per leg): what decides it is structural.
+_COVERAGE: dict = {}
+
+
 def coverage(mech) -> tuple[bool, str]:
     """``(True, "")`` when the compiled indices cover ``mech``, else ``(False, reason)``."""
-    try:
-        _check_covered(mech)
-    except _Unsupported as e:
-        return False, str(e)
-    return True, ""
+    key = (type(mech), tuple((type(leg), leg.name, bool(leg.is_actuated)) for leg in mech.legs))
+    hit = _COVERAGE.get(key)
+    if hit is None:
+        try:
+            _check_covered(mech)
+            hit = (True, "")
+        except _Unsupported as e:
+            hit = (False, str(e))
+        if len(_COVERAGE) > 256:
+            _COVERAGE.clear()
+        _COVERAGE[key] = hit
+    return hit
 
 
 def _leg_code(leg: Leg) -> int:
@@ -173,7 +184,9 @@ def _plan(mech):
     plan = getattr(mech, "_engine_indices_plan", None)
     if plan is not None and plan[0] is mech.legs:
         return plan[1]
-    _check_covered(mech)
+    ok, why = coverage(mech)
+    if not ok:
+        raise _Unsupported(why)
     nl = len(mech.legs)
     code = np.zeros(nl, np.int64)
     act = np.zeros(nl, np.int64)
@@ -248,7 +261,9 @@ def _poses(mech, X, need_twist: bool):
 
 def _upu_lengths(plan, p, R) -> np.ndarray:
     """Per leg, the length the NumPy UPU reciprocal scales moments with: the mean leg length
-    over the batch (at least 1 mm), as :meth:`UPU.constraint_wrenches` (1 for other legs)."""
+    over the batch (at least 1 mm), as :meth:`UPU.constraint_wrenches` (1 for other legs).
+    Non-finite lengths (poses at infinity) are left out of the mean, where the NumPy mean
+    would make every pose of the batch NaN."""
     code, _, geo, _, _ = plan
     if not np.any(code == _UPU):
         return np.ones(len(code))
@@ -535,7 +550,7 @@ if HAVE_NUMBA:
                 rs = nx * e0 + ny * e1 + nz * e2
             else:
                 length = math.sqrt(dx * dx + dy * dy + dz * dz)
-                if not length > 0.0:
+                if not (length > 0.0 and length < np.inf):  # a pose at infinity: NaN, as NumPy ends
                     reach = False
                 nx, ny, nz = _unit3(dx, dy, dz)
                 if t == _RPS or t == _RPU:
@@ -608,12 +623,16 @@ if HAVE_NUMBA:
                 continue
             qx, qy, qz = geo[j, 1, 0], geo[j, 1, 1], geo[j, 1, 2]
             acc = 0.0
+            cnt = 0
             for i in range(N):
                 dx = p[i, 0] + R[i, 0, 0] * qx + R[i, 0, 1] * qy + R[i, 0, 2] * qz - geo[j, 0, 0]
                 dy = p[i, 1] + R[i, 1, 0] * qx + R[i, 1, 1] * qy + R[i, 1, 2] * qz - geo[j, 0, 1]
                 dz = p[i, 2] + R[i, 2, 0] * qx + R[i, 2, 1] * qy + R[i, 2, 2] * qz - geo[j, 0, 2]
-                acc += math.sqrt(dx * dx + dy * dy + dz * dz)
-            out[j] = max(acc / max(N, 1), 1e-3)
+                d = math.sqrt(dx * dx + dy * dy + dz * dz)
+                if math.isfinite(d):  # a pose at infinity must not spoil the others
+                    acc += d
+                    cnt += 1
+            out[j] = max(acc / max(cnt, 1), 1e-3)
         return out
 
     @njit(**_jit_inline)
