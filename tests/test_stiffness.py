@@ -231,3 +231,177 @@ def test_api_values_with_units():
                                stiffness_matrix(mech, mech.home, axial_stiffness=2e4), rtol=1e-12)
     with pytest.raises(ValueError, match="axial_stiffness"):
         stiffness_matrix(mech, mech.home, axial_stiffness="2e7 N")
+
+
+# -- stiffness values declared in the mechanism description -----------------------------------------
+from pathlib import Path  # noqa: E402
+
+from parasynth.mechanisms.description import DescriptionError, description_class  # noqa: E402
+from parasynth.study.evaluate import Evaluator  # noqa: E402
+
+_GS_FILE = Path(parasynth.__file__).parent / "mechanisms" / "gough_stewart_6ups.yaml"
+
+
+def _gs_description(leg_stiffness="2e7 N/m", section=None):
+    d = yaml.safe_load(_GS_FILE.read_text())
+    d["name"] = "gs_declared"
+    d["parameters"]["leg_stiffness"] = leg_stiffness
+    d["stiffness"] = {"axial": "leg_stiffness"} if section is None else section
+    return d
+
+
+def test_declared_leg_stiffness_closed_form():
+    cls = description_class(_gs_description())
+    assert cls.Params.UNITS["leg_stiffness"] == "stiffness"
+    mech = cls()
+    assert mech.params.leg_stiffness == pytest.approx(2e7)
+    X = mech.home
+    Wr, _ = _gough_rows(mech, np.array([0.0, 0.0, X[2]]), np.eye(3))
+    K_ref = 2e7 * sum(np.outer(w, w) for w in Wr)
+    K = stiffness_matrix(mech, X)
+    np.testing.assert_allclose(K, K_ref, rtol=1e-12, atol=1e-12 * np.abs(K_ref).max())
+    # Not the geometric estimate (40 mm steel rod over ~0.6 m is ~4.4e8 N/m).
+    assert not np.allclose(K, stiffness_matrix(parasynth.load_mechanism("gough_stewart_6ups"), X), rtol=0.5)
+    # K is linear in the parameter, at any pose.
+    Xs = np.array([X, X + np.array([0.05, -0.03, 0.1, 0.1, -0.05, 0.2])])
+    mech3 = cls(cls.Params(leg_stiffness=6e7))
+    np.testing.assert_allclose(stiffness_matrix(mech3, Xs), 3 * stiffness_matrix(mech, Xs), rtol=1e-12, atol=1e-6)
+    # The vertical deflection under 500 N follows the declared k.
+    nz = Wr[:, 2]
+    dz = -500.0 / (2e7 * np.sum(nz ** 2))
+    np.testing.assert_allclose(point_deflection(mech, X, force=[0, 0, -500.0]), [0, 0, dz], rtol=1e-9,
+                               atol=1e-12 * abs(dz))
+
+
+def test_declared_stiffness_expression_and_groups():
+    # Per-leg groups: legs L1..L3 at k, L4..L6 at 2k through an expression of the parameter.
+    section = [{"legs": ["L1", "L2", "L3"], "axial": "leg_stiffness"},
+               {"legs": ["L4", "L5", "L6"], "axial": "2*leg_stiffness", "doc": "stiffer half"}]
+    mech = description_class(_gs_description(section=section))()
+    X = mech.home
+    Wr, _ = _gough_rows(mech, np.array([0.0, 0.0, X[2]]), np.eye(3))
+    k = np.array([2e7] * 3 + [4e7] * 3)
+    K_ref = sum(ki * np.outer(w, w) for ki, w in zip(k, Wr))
+    np.testing.assert_allclose(stiffness_matrix(mech, X), K_ref, rtol=1e-12, atol=1e-12 * np.abs(K_ref).max())
+    # The series drive of the description: 3e7 and 6e7 in series give 2e7.
+    sec2 = {"axial": "3e7 N/m", "actuator": "6e7 N/m"}
+    m2 = description_class(_gs_description(section=sec2))()
+    np.testing.assert_allclose(stiffness_matrix(m2, X), 2e7 * sum(np.outer(w, w) for w in Wr), rtol=1e-12, atol=1e-3)
+
+
+def test_stiffness_precedence():
+    mech = description_class(_gs_description())()
+    X = mech.home
+    Wr, L = _gough_rows(mech, np.array([0.0, 0.0, X[2]]), np.eye(3))
+    G = sum(np.outer(w, w) for w in Wr)
+    # 1. An explicit setting beats the description's value.
+    np.testing.assert_allclose(stiffness_matrix(mech, X, axial_stiffness=5e7), 5e7 * G, rtol=1e-12, atol=1e-3)
+    np.testing.assert_allclose(stiffness_along(mech, X, [0, 0, 1], axial_stiffness="50 N/mm"),
+                               5e4 * np.sum(Wr[:, 2] ** 2), rtol=1e-10)
+    # 2. The description's value beats the estimate (whose diameter setting then does nothing).
+    np.testing.assert_allclose(stiffness_matrix(mech, X, diameter=0.08), 2e7 * G, rtol=1e-12, atol=1e-3)
+    # 3. Without a declaration: the steel-rod estimate E A / L of the leg diameter.
+    plain = parasynth.load_mechanism("gough_stewart_6ups")
+    d = plain.params.leg_diameter
+    K_est = sum(ki * np.outer(w, w) for ki, w in zip(STEEL_E * math.pi * d * d / 4 / L, Wr))
+    np.testing.assert_allclose(stiffness_matrix(plain, X), K_est, rtol=1e-12, atol=1e-12 * np.abs(K_est).max())
+    # A declared diameter feeds the estimate for legs without a declared value; the keyword beats it.
+    m_d = description_class(_gs_description(section={"diameter": "20 mm"}))()
+    np.testing.assert_allclose(stiffness_matrix(m_d, X), K_est / 4, rtol=1e-12, atol=1e-12 * np.abs(K_est).max())
+    np.testing.assert_allclose(stiffness_matrix(m_d, X, diameter=0.04), K_est, rtol=1e-12,
+                               atol=1e-12 * np.abs(K_est).max())
+    # Through a measure: the study setting beats the description, as in stiffness_matrix.
+    kz = objectives.get("stiffness_along")
+    a = kz(mech, direction=[0, 0, 1], n=64, seed=1)
+    b = kz(mech, direction=[0, 0, 1], n=64, seed=1, axial_stiffness=4e7)
+    assert b == pytest.approx(2 * a, rel=1e-9)
+
+
+def test_constraint_limb_declared_stiffness():
+    # 3-RPS: the constraint force rows of each leg at a declared value give K = sum k_j w_j w_j^T.
+    d = yaml.safe_load((_GS_FILE.parent / "3rps.yaml").read_text())
+    d["name"] = "rps_declared"
+    d["parameters"]["limb_force_stiffness"] = {"value": "3e6 N/m", "above": "0 N/m"}
+    d["parameters"]["leg_stiffness"] = "4e7 N/m"
+    d["stiffness"] = {"axial": "leg_stiffness", "constraint_force": "limb_force_stiffness"}
+    mech = description_class(d)()
+    X = np.array([0.52, 0.08, -0.11])
+    W = mech.wrench_matrix(X)
+    na = mech.n_actuators
+    k = np.array([4e7] * na + [3e6] * (W.shape[0] - na))
+    K_ref = W.T @ np.diag(k) @ W
+    np.testing.assert_allclose(stiffness_matrix(mech, X), K_ref, rtol=1e-10, atol=1e-10 * np.abs(K_ref).max())
+    # Keyword beats description for the constraint rows too.
+    np.testing.assert_allclose(stiffness_matrix(mech, X, constraint_force_stiffness=6e6, axial_stiffness=4e7),
+                               W.T @ np.diag(np.where(np.arange(len(k)) < na, 4e7, 6e6)) @ W, rtol=1e-10,
+                               atol=1e-10 * np.abs(K_ref).max())
+
+
+@pytest.mark.parametrize("value, section, match", [
+    (2e7, None, r"stiffness\.axial: 'leg_stiffness' is a plain number \(parameters\.leg_stiffness"),
+    ({"value": 2e7, "kind": "stiffness"}, None, r"parameters\.leg_stiffness: a bare number"),
+    ("-2e7 N/m", None, r"parameters\.leg_stiffness must be > 0"),
+    ("0 N/m", None, r"parameters\.leg_stiffness must be > 0"),
+    ({"value": "2e7 N/m", "min": "3e7 N/m"}, None, r"parameters\.leg_stiffness must be >= 3"),
+    ("2e7 N", None, r"parameters\.leg_stiffness: cannot read '2e7 N'"),
+    ("2e7 N/m", {"axial": "3e7"}, r"stiffness\.axial: '3e7' has no unit"),
+    ("2e7 N/m", {"axial": "-3e7 N/m"}, r"stiffness\.axial: must be positive"),
+    ("2e7 N/m", {"axial": "leg_diameter"}, r"stiffness\.axial: parameters\.leg_diameter is a length"),
+    ("2e7 N/m", {"axial": "-leg_stiffness"}, r"stiffness\.axial: must be a finite positive value"),
+    ("2e7 N/m", {"constraint_couple": "leg_stiffness"}, r"stiffness\.constraint_couple: parameters\.leg_stiffness is a stiffness"),
+    ("2e7 N/m", {"constraint_force": "3e6 N/m"}, r"stiffness\.constraint_force: no leg of this entry"),
+    ("2e7 N/m", [{"legs": ["L9"], "axial": "leg_stiffness"}], r"stiffness\[0\]\.legs: unknown leg 'L9'"),
+    ("2e7 N/m", [{"axial": "leg_stiffness"}, {"legs": ["L2"], "axial": "leg_stiffness"}],
+     r"stiffness\[1\]\.axial: leg L2's axial is already given by stiffness\[0\]\.axial"),
+    ("2e7 N/m", {"axial_stiffness": "leg_stiffness"}, r"stiffness: unknown key 'axial_stiffness'"),
+])
+def test_declared_stiffness_bad_input(value, section, match):
+    with pytest.raises(DescriptionError, match=match):
+        description_class(_gs_description(value, section))
+
+
+def test_declared_stiffness_bad_value_at_build():
+    cls = description_class(_gs_description())
+    with pytest.raises(ValueError, match=r"leg_stiffness must be > 0"):
+        cls.Params(leg_stiffness=-1.0)
+
+
+def test_study_with_stiffness_variable(tmp_path):
+    desc = tmp_path / "gs_declared.yaml"
+    desc.write_text(yaml.safe_dump(_gs_description()))
+    spec = {"name": "k", "mechanism": "gs_declared.yaml",
+            "variables": [{"name": "leg_stiffness", "low": "1e7 N/m", "high": "5e7 N/m", "num": 3}],
+            "objectives": [{"name": "stiffness_along", "settings": {"direction": [0, 0, 1]}}],
+            "evaluation": {"samples": 64}}
+    path = tmp_path / "s.yaml"
+    path.write_text(yaml.safe_dump(spec))
+    s = load_study(path)
+    v = s.variables[0]
+    assert v.kind == "stiffness" and v.low == pytest.approx(1e7) and v.high == pytest.approx(5e7)
+    assert v.values == pytest.approx((1e7, 3e7, 5e7))
+    ev = Evaluator(s)
+    r1 = ev.evaluate({"leg_stiffness": 1e7})
+    r3 = ev.evaluate({"leg_stiffness": 3e7})
+    assert r1.status == "ok" and r3.status == "ok", (r1.error, r3.error)
+    assert r1.objectives["stiffness_along"] > 0
+    assert r3.objectives["stiffness_along"] == pytest.approx(3 * r1.objectives["stiffness_along"], rel=1e-9)
+    # Bounds without a unit, or in the wrong unit, are refused naming the key path.
+    for low, match in ((1e7, r"variables\[0\]\.low: a bare number"), ("1e7 N", r"variables\[0\]\.low")):
+        spec["variables"][0]["low"] = low
+        path.write_text(yaml.safe_dump(spec))
+        with pytest.raises(StudyError, match=match):
+            load_study(path)
+
+
+def test_list_shows_stiffness_unit(tmp_path, capsys, monkeypatch):
+    from parasynth import cli
+
+    desc = tmp_path / "gs_declared.yaml"
+    d = _gs_description("25 N/mm")
+    d["parameters"]["limb_couple"] = {"value": "3e5 N*m/rad", "above": "0 N*m/rad"}
+    desc.write_text(yaml.safe_dump(d))
+    monkeypatch.setattr(cli, "mechanism_summaries", lambda: {str(desc): "declared stiffness"})
+    assert cli.cmd_list(None) == 0
+    out = capsys.readouterr().out
+    assert "leg_stiffness (stiffness, N/m) = 25000 N/m" in out
+    assert "limb_couple (rotational stiffness, N*m/rad, > 0 N*m/rad) = 300000 N*m/rad" in out

@@ -191,7 +191,9 @@ def cmd_list(args) -> int:
         specs = getattr(getattr(cls, "description", None), "param_by_name", None) or {}
         for f in dataclasses.fields(params):
             kind = units.get(f.name)
-            unit = {"length": "length, mm", "angle": "angle, deg", "dimensionless": "number"}.get(kind, kind or "option")
+            unit = {"length": "length, mm", "angle": "angle, deg", "dimensionless": "number",
+                    "stiffness": "stiffness, N/m", "rotational_stiffness": "rotational stiffness, N*m/rad",
+                    "pressure": "modulus, GPa"}.get(kind, kind or "option")
             rng = _param_range(specs.get(f.name), kind)
             print(f"      {f.name} ({unit}{rng}) = {_fmt_value(getattr(params, f.name), kind)}")
         mech = cls(params)

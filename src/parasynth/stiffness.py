@@ -105,9 +105,7 @@ def _per_row(name, value, n, allow_inf=False):
     return np.array([_positive(f"{name}[{i}]", v, allow_inf) for i, v in enumerate(vals)])
 
 
-def _default_diameter(mech, diameter):
-    if diameter is not None:
-        return _positive("diameter", diameter)
+def _model_diameter(mech):
     for f in ("leg_diameter", "link_diameter"):
         v = getattr(mech.params, f, None)
         if v is not None and float(v) > 0:
@@ -115,33 +113,57 @@ def _default_diameter(mech, diameter):
     return None
 
 
+def _declared(mech) -> dict:
+    """{leg name: {key: SI value}} of the description's ``stiffness:`` section (empty if none)."""
+    return getattr(mech, "declared_stiffness", None) or {}
+
+
 def _row_stiffness(mech, states, p, stiff):
-    """Per-row spring stiffness (N, k) in the row order of ``mech.wrench_matrix``."""
-    E = _positive("youngs_modulus", stiff.get("youngs_modulus", STEEL_E))
-    G = _positive("shear_modulus", stiff.get("shear_modulus", STEEL_G))
-    d = _default_diameter(mech, stiff.get("diameter"))
-    dc = stiff.get("constraint_diameter")
-    dc = _positive("constraint_diameter", dc) if dc is not None else d
+    """Per-row spring stiffness (N, k) in the row order of ``mech.wrench_matrix``.
+
+    Per value: the keyword ``stiff[...]`` if given, else the description's declared value for
+    the leg, else the geometric estimate (whose rod diameter and moduli follow the same order)."""
+    decl = _declared(mech)
+    E_kw = _positive("youngs_modulus", stiff["youngs_modulus"]) if stiff.get("youngs_modulus") is not None else None
+    G_kw = _positive("shear_modulus", stiff["shear_modulus"]) if stiff.get("shear_modulus") is not None else None
+    d_kw = _positive("diameter", stiff["diameter"]) if stiff.get("diameter") is not None else None
+    dc_kw = (_positive("constraint_diameter", stiff["constraint_diameter"])
+             if stiff.get("constraint_diameter") is not None else None)
+    d_model = _model_diameter(mech)
+
+    def material(leg):
+        dl = decl.get(leg.name, {})
+        E = E_kw if E_kw is not None else dl.get("youngs_modulus", STEEL_E)
+        G = G_kw if G_kw is not None else dl.get("shear_modulus", STEEL_G)
+        d = d_kw if d_kw is not None else dl.get("diameter", d_model)
+        return E, G, d
+
     legs = mech.legs
     act_legs = [(leg, st) for leg, st in zip(legs, states) if leg.is_actuated]
     na = len(act_legs)
     k_ax = _per_row("axial_stiffness", stiff.get("axial_stiffness"), na)
-    k_dr = _per_row("actuator_stiffness", stiff.get("actuator_stiffness", math.inf), na, allow_inf=True)
+    k_dr = _per_row("actuator_stiffness", stiff.get("actuator_stiffness"), na, allow_inf=True)
     N = p.shape[0]
     cols = []
     for i, (leg, st) in enumerate(act_legs):
         L = st.length
+        dl = decl.get(leg.name, {})
         if k_ax is not None:
             kl = np.full(N, k_ax[i])
+        elif "axial" in dl:
+            kl = np.full(N, dl["axial"])
         else:
+            E, _, d = material(leg)
             if d is None:
                 raise ValueError(
-                    f"{mech.name}: no leg diameter to estimate the axial stiffness from (the model has no "
-                    f"leg_diameter/link_diameter parameter); give axial_stiffness (N/m) or diameter (m)")
+                    f"{mech.name}: no leg diameter to estimate the axial stiffness of leg {leg.name} from (the model "
+                    f"has no leg_diameter/link_diameter parameter and its description no stiffness for the leg); "
+                    f"give axial_stiffness (N/m) or diameter (m)")
             kl = E * (math.pi * d * d / 4) / L
+        kd = k_dr[i] if k_dr is not None else dl.get("actuator", math.inf)
         _, s = leg.actuation_wrench(st, p)
         with np.errstate(divide="ignore", invalid="ignore"):
-            comp = 1.0 / kl + (s * s) / k_dr[i]
+            comp = 1.0 / kl + (s * s) / kd
         cols.append(1.0 / comp)
     # Constraint rows.
     crow = []  # (leg, state, wrench rows (N, c, 6))
@@ -157,16 +179,21 @@ def _row_stiffness(mech, states, p, stiff):
     for j, (leg, st, w) in enumerate(all_rows):
         L = st.length
         n = st.direction
+        dl = decl.get(leg.name, {})
+        kf_j = kf[j] if kf is not None else dl.get("constraint_force")
+        kc_j = kc[j] if kc is not None else dl.get("constraint_couple")
+        E, G, d = material(leg)
+        dc = dc_kw if dc_kw is not None else d
         f, m = w[:, :3], w[:, 3:]
         fn = np.linalg.norm(f, axis=-1)
         is_force = fn > 1e-12
-        need_default = (kf is None and np.any(is_force)) or (kc is None and np.any(~is_force))
+        need_default = (kf_j is None and np.any(is_force)) or (kc_j is None and np.any(~is_force))
         if need_default and dc is None:
             raise ValueError(
                 f"{mech.name}: no leg diameter to estimate the stiffness of leg {leg.name}'s constraint wrench from; "
                 f"give constraint_force_stiffness (N/m), constraint_couple_stiffness (N*m/rad) or diameter (m)")
         comp_f = comp_m = np.full(N, np.nan)
-        if dc is not None:
+        if need_default:
             A = math.pi * dc * dc / 4
             I = math.pi * dc ** 4 / 64
             J = 2 * I
@@ -175,8 +202,8 @@ def _row_stiffness(mech, states, p, stiff):
                 comp_f = cf * L / (E * A) + (1 - cf) * L ** 3 / (3 * E * I)
                 cm = np.sum(unit_rows(m) * n, -1) ** 2
                 comp_m = cm * L / (G * J) + (1 - cm) * L / (E * I)
-        kforce = np.full(N, kf[j]) if kf is not None else 1.0 / comp_f
-        kcouple = np.full(N, kc[j]) if kc is not None else 1.0 / comp_m
+        kforce = np.full(N, kf_j) if kf_j is not None else 1.0 / comp_f
+        kcouple = np.full(N, kc_j) if kc_j is not None else 1.0 / comp_m
         cols.append(np.where(is_force, kforce, kcouple))
     return np.stack(cols, axis=1) if cols else np.zeros((N, 0))
 

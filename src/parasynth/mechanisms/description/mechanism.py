@@ -70,6 +70,12 @@ class DescribedMechanism(Mechanism):
             legs, home, L = d.build_geometry(self._penv)
         except DescriptionError as e:
             raise DescriptionError(f"{self.name}: {e}") from None
+        try:
+            #: {leg name: {key: SI value}} declared by the description's ``stiffness:`` section
+            #: (see :mod:`.stiffness`); :func:`parasynth.stiffness_matrix` uses them.
+            self.declared_stiffness = d.stiffness.values(self._penv)
+        except DescriptionError as e:
+            raise DescriptionError(f"{self.name}: {e}") from None
         self.home = np.asarray(home, dtype=float)
         self._check_pose_expressions(self.home)
         try:

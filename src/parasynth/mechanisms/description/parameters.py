@@ -15,10 +15,19 @@ from ...units import QuantityError, parse_quantity
 from .errors import DescriptionError
 from .expressions import Expression, RESERVED, _PURE_QUANTITY, _Scope
 
-_UNITFUL = ("length", "angle")
-_EXAMPLE_UNIT = {"length": "mm", "angle": "deg"}
+_UNITFUL = ("length", "angle", "stiffness", "rotational_stiffness", "pressure")
+_EXAMPLE_UNIT = {"length": "mm", "angle": "deg", "stiffness": "N/m", "rotational_stiffness": "N*m/rad",
+                 "pressure": "GPa"}
 _KIND_TEXT = {"length": "a length (e.g. '135 mm')", "angle": "an angle (e.g. '15 deg')",
+              "stiffness": "a stiffness (e.g. '2e7 N/m')",
+              "rotational_stiffness": "a rotational stiffness (e.g. '3e5 N*m/rad')",
+              "pressure": "a modulus (e.g. '210 GPa')",
               "dimensionless": "a number", None: "a number"}
+#: SI unit of each parameter kind (messages).
+_SI_UNIT = {"length": "m", "angle": "rad", "stiffness": "N/m", "rotational_stiffness": "N*m/rad", "pressure": "Pa",
+            "dimensionless": "a plain number"}
+#: Kinds whose values are positive by nature: zero or negative is refused even without bounds.
+_POSITIVE_KINDS = ("stiffness", "rotational_stiffness", "pressure")
 
 
 def _bare_number_error(path, raw, kind):
@@ -78,7 +87,9 @@ class _Scalar:
         return v
 
 
-_PARAM_KINDS = ("length", "angle", "dimensionless")
+#: Parameter kinds, in the order a value's unit is tried when no ``kind`` is given (a value in
+#: N*m is taken as a rotational stiffness: a torque is not a parameter kind).
+_PARAM_KINDS = ("length", "angle", "stiffness", "rotational_stiffness", "pressure", "dimensionless")
 _NAME_RE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 
 
@@ -111,7 +122,7 @@ def _infer_kind(value, path):
         raise DescriptionError(f"{path}: an empty list cannot be a parameter value")
     if isinstance(leaf, bool):
         raise DescriptionError(f"{path}: booleans are not parameters (descriptions have no switches); "
-                               f"give a length, an angle or a number")
+                               f"give a length, an angle, a stiffness, a modulus or a number")
     if isinstance(leaf, (int, float)):
         return "dimensionless"
     if isinstance(leaf, str):
@@ -122,7 +133,8 @@ def _infer_kind(value, path):
             except QuantityError:
                 continue
         raise DescriptionError(f"{path}: cannot read {leaf!r} as a length (e.g. '135 mm'), an angle (e.g. "
-                               f"'15 deg') or a plain number: unknown or unsuitable unit")
+                               f"'15 deg'), a stiffness (e.g. '2e7 N/m', '3e5 N*m/rad'), a modulus (e.g. "
+                               f"'210 GPa') or a plain number: unknown or unsuitable unit")
     raise DescriptionError(f"{path}: expected a value with its unit, got {value!r}")
 
 
@@ -165,7 +177,7 @@ class _Param:
     below: float | None = None
 
     def coerce(self, value, where: str):
-        unit = {"length": "m", "angle": "rad", "dimensionless": "a plain number"}[self.kind]
+        unit = _SI_UNIT[self.kind]
         if self.shape == ():
             if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
                 raise ValueError(f"{where} must be a number ({self.kind}, SI: {unit}), got {value!r}")
@@ -190,6 +202,9 @@ class _Param:
             raise ValueError(f"{where} must be > {self.above} ({unit}), got {value!r}")
         if self.below is not None and np.any(a >= self.below):
             raise ValueError(f"{where} must be < {self.below} ({unit}), got {value!r}")
+        if self.kind in _POSITIVE_KINDS and np.any(a <= 0):
+            raise ValueError(f"{where} must be > 0 ({unit}): {_KIND_TEXT[self.kind].split(' (')[0]} is positive, "
+                             f"got {value!r}")
         return float(a) if self.shape == () else _to_tuple(a)
 
 

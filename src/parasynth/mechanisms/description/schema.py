@@ -20,10 +20,11 @@ from .legs import _LegGroup
 from .task import _Task
 from .constraints import _ConstraintSpec
 from .outputs import parse_outputs
+from .stiffness import _StiffnessSpec
 from .variants import apply_variants, parse_variants
 
 _TOP_KEYS = {"name", "summary", "description", "parameters", "variants", "checks", "base", "platform", "legs",
-             "task", "length_scale", "constraints", "outputs"}
+             "task", "length_scale", "constraints", "outputs", "stiffness"}
 
 
 class Description:
@@ -97,6 +98,8 @@ class Description:
         dup = sorted({n for n in self.leg_names if self.leg_names.count(n) > 1})
         if dup:
             raise DescriptionError(f"legs: leg name(s) {dup} used twice")
+        self.stiffness = _StiffnessSpec(data.get("stiffness"), self.legs, pscope,
+                                        {p.name: p.kind for p in self.params})
         self.task = _Task(data.get("task"), pscope, set(self.param_by_name))
         self.length_scale = (_Scalar(data["length_scale"], "length", "length_scale", pscope)
                              if "length_scale" in data else None)
@@ -165,7 +168,7 @@ def _make_params_class(desc: Description, cls_name: str, resolve=None):
 
     fields = [(p.name, float if p.shape == () else tuple, dataclasses.field(default=p.default)) for p in plist]
     fields += [(v.name, bool if v.is_switch else str, dataclasses.field(default=v.default)) for v in variants]
-    doc = (f"Parameters of {mname} in SI (m, rad); defaults from its description. Units: "
+    doc = (f"Parameters of {mname} in SI (m, rad, N/m, N*m/rad, Pa); defaults from its description. Units: "
            + ", ".join(f"{p.name} ({p.kind})" for p in plist))
     if variants:
         doc += ". Variants: " + "; ".join(f"{v.name} ({v.allowed}; default {v.default!r})" for v in variants)
