@@ -192,14 +192,14 @@ def test_4ups_1rps_geometry_and_grinding_point_against_closed_forms():
                   "hinge_points": "length", "hinge_scale": "dimensionless", "hinge_rotation": "angle",
                   "hinge_shift_y": "length", "pentagon_radius": "length", "slider_angles": "angle",
                   "upu_base_z": "length", "slider_min": "length", "slider_max": "length", "sphere_max": "angle",
-                  "ujoint_max": "angle", "link_diameter": "length"}),
+                  "ujoint_max": "angle", "link_diameter": "length", "link_modulus": "pressure"}),
     ("2rpu_2sps", {**{k: "length" for k in ("a1", "a2", "a3", "a4", "b1", "b2", "b3", "b4", "q_min", "q_max",
                                            "leg_diameter")}, "psi_max": "angle", "theta_max": "angle",
-                   "coupled": None}),
+                   "leg_modulus": "pressure", "coupled": None}),
     ("4ups_1rps", {**{k: "length" for k in ("platform_radius", "base_radius", "l_s0", "y_t", "base_offset", "l_min",
                                            "l_max", "d2_min", "d2_max", "leg_diameter")},
                    **{k: "angle" for k in ("mu1", "mu2", "u_phase", "platform_angles", "theta1_max", "sphere_max",
-                                           "ujoint_max")}}),
+                                           "ujoint_max")}, "leg_modulus": "pressure"}),
 ])
 def test_paper_model_parameters_and_units(name, expected):
     """Every parameter of the paper models keeps its name and quantity kind (studies, CLI
