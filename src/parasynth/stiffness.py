@@ -15,9 +15,25 @@ lower-mobility mechanism gets a full 6 x 6 matrix). Legs are massless, joints id
 clearance, rigid bearings); the matrix is that of the unloaded pose: the geometric stiffening or
 softening of a preloaded mechanism (the term in the derivative of W under load) is neglected.
 
-Default spring values are documented estimates from the leg geometry, for a solid steel rod of
-the leg's diameter ``d`` (the model parameter ``leg_diameter`` or ``link_diameter``) and its
-length ``L`` at the pose (base joint centre to platform joint centre)::
+Where the values come from, per value and per leg (first that applies):
+
+1. an explicit setting (a keyword of :func:`stiffness_matrix`, a measure setting of a study):
+   ``axial_stiffness``, ``actuator_stiffness``, ``constraint_force_stiffness``,
+   ``constraint_couple_stiffness``; for the estimate ``diameter``, ``constraint_diameter``,
+   ``youngs_modulus``, ``shear_modulus``;
+2. the value the mechanism description declares for the leg in its ``stiffness:`` section
+   (keys ``axial``, ``actuator``, ``constraint_force``, ``constraint_couple``, and for the
+   estimate ``diameter``, ``youngs_modulus``, ``shear_modulus``; usually parameters with units
+   such as ``leg_stiffness: 2e7 N/m``, so that they can be study design variables), available
+   as ``mech.declared_stiffness`` ({leg name: {key: SI value}});
+3. the geometric estimate below (rod diameter: the model parameter ``leg_diameter`` or
+   ``link_diameter``; steel moduli); the drive: rigid.
+
+An estimate input given by a setting or the description (e.g. ``diameter``) only matters for
+the values that neither a setting nor the description gives.
+
+The geometric estimate is that of a solid steel rod of the leg's diameter ``d`` and its length
+``L`` at the pose (base joint centre to platform joint centre)::
 
     axial (actuated legs, along the leg line):   k = E A / L,         A = pi d^2 / 4
     constraint force, lateral to the leg:        k = 3 E I / L^3,     I = pi d^4 / 64
@@ -228,7 +244,9 @@ def stiffness_matrix(mech, X, **stiffness) -> np.ndarray:
     coordinate, ``constraint_force_stiffness`` (N/m) and ``constraint_couple_stiffness``
     (N m/rad; one value or one per constraint row), ``diameter`` and ``constraint_diameter``
     (m, the steel rod of the estimates; default the model's ``leg_diameter`` or
-    ``link_diameter``), ``youngs_modulus`` and ``shear_modulus`` (Pa). Values may also be
+    ``link_diameter``), ``youngs_modulus`` and ``shear_modulus`` (Pa). A setting given here
+    beats the value the description declares for a leg (``stiffness:`` section,
+    ``mech.declared_stiffness``), which beats the geometric estimate. Values may also be
     strings with their unit (``"2e7 N/m"``, ``"300 N*m/rad"``, ``"35 mm"``, ``"210 GPa"``). Zero,
     negative or non-finite values raise ``ValueError`` naming the setting. Unreachable poses
     give NaN.

@@ -34,6 +34,7 @@ Modules (one per section of a description)::
     constraints.py  constraints:
     variants.py     variants: named structural choices overlaid on the base description
     outputs.py      outputs: named pose quantities (tool points, dependent coordinates) as methods
+    stiffness.py    stiffness: the legs' spring values (or the estimate's rod and material)
     schema.py       Description: the whole document, validated; the generated Params class
     mechanism.py    DescribedMechanism, DescribedMobility
     loading.py      description_class, load_description, from_description
