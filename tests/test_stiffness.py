@@ -379,6 +379,9 @@ def test_study_with_stiffness_variable(tmp_path):
     v = s.variables[0]
     assert v.kind == "stiffness" and v.low == pytest.approx(1e7) and v.high == pytest.approx(5e7)
     assert v.values == pytest.approx((1e7, 3e7, 5e7))
+    from parasynth.display import quantity_unit
+
+    assert quantity_unit(s, "leg_stiffness").symbol == "N/m"  # reports show the variable's unit
     ev = Evaluator(s)
     r1 = ev.evaluate({"leg_stiffness": 1e7})
     r3 = ev.evaluate({"leg_stiffness": 3e7})

@@ -12,6 +12,8 @@ area           cm^2         1e4
 volume         cm^3         1e6
 force          N            1
 stiffness      N/m          1
+rot. stiffness N*m/rad      1
+pressure       GPa          1e-9
 torque         N*m          1
 mass           kg           1
 time           s            1
@@ -65,6 +67,8 @@ UNITS = {
     "volume": Unit("cm^3", 1e6),
     "force": Unit("N", 1.0),
     "stiffness": Unit("N/m", 1.0),
+    "rotational_stiffness": Unit("N*m/rad", 1.0),
+    "pressure": Unit("GPa", 1e-9),
     "torque": Unit("N*m", 1.0),
     "mass": Unit("kg", 1.0),
     "time": Unit("s", 1.0),
