@@ -382,6 +382,9 @@ def test_study_with_stiffness_variable(tmp_path):
     from parasynth.display import quantity_unit
 
     assert quantity_unit(s, "leg_stiffness").symbol == "N/m"  # reports show the variable's unit
+    from parasynth.study.spec import check_study
+
+    assert check_study(s) == []  # what `parasynth validate` runs: designs built, measure evaluated
     ev = Evaluator(s)
     r1 = ev.evaluate({"leg_stiffness": 1e7})
     r3 = ev.evaluate({"leg_stiffness": 3e7})
