@@ -574,6 +574,7 @@ def test_api_pose_of_wrong_type_is_refused(name, what):
 @pytest.mark.parametrize("big", [1e308, -1e308, 1e200, 1e7])
 def test_api_huge_pose_is_masked(name, big):
     mech = parasynth.load_mechanism(name)
+    assert mech.task_coordinates[0] not in mech.angular_coordinates  # a position coordinate
     X = np.array([mech.home, mech.home])
     X[1, 0] = big
     with warnings.catch_warnings():
@@ -607,3 +608,15 @@ def test_api_sample_count_is_refused_up_front(n):
     with pytest.raises(ValueError):
         get("workspace_volume")(mech, n=n)
     assert time.perf_counter() - t0 < 5.0
+
+
+@pytest.mark.parametrize("name", parasynth.list_mechanisms())
+@pytest.mark.parametrize("what", ["str", "complex", "bool"])
+def test_api_actuators_of_wrong_type_are_refused(name, what):
+    mech = parasynth.load_mechanism(name)
+    q = np.asarray(mech.inverse_kinematics(mech.home).actuators, dtype=float)
+    bad = {"str": np.array([str(x) for x in q]), "complex": q + 0j, "bool": np.ones(q.shape, dtype=bool)}[what]
+    fixed = {"gamma": 0.0} if name == "4ups_1rps" else None
+    with pytest.raises(ValueError) as e:
+        mech.forward_kinematics(bad, fixed=fixed)
+    assert "actuator" in str(e.value)

@@ -24,6 +24,7 @@ import numpy as np
 
 from .legs import JOINT_DOF, Leg, LegState
 from .spatial import reciprocal_basis
+from .validation import check_pose_array, is_real_number, mask_huge_poses
 
 __all__ = ["Mechanism", "IKResult", "Mobility", "ForwardKinematicsError"]
 
@@ -204,7 +205,9 @@ class Mechanism:
         return f"<{type(self).__name__} {self.name!r} task={self.task_coordinates} actuators={self.actuators}>"
 
     def _poses(self, X) -> tuple[np.ndarray, bool]:
-        X0 = np.asarray(X, dtype=float)
+        # Real numbers only (strings, booleans, complex refused); lengths beyond 1e6 m masked as NaN.
+        X0 = check_pose_array(f"{self.name}: poses", X)
+        X0 = mask_huge_poses(X0, [c not in self.angular_coordinates for c in self.task_coordinates])
         single = X0.ndim == 1
         X = X0[None, :] if single else X0
         if X.ndim != 2 or X.shape[1] != self.n_task:
@@ -410,7 +413,7 @@ class Mechanism:
         actuators than free coordinates, actuator values rounded as in a paper's table are
         slightly inconsistent and cannot be met exactly.
         """
-        q = np.asarray(actuators, dtype=float)
+        q = check_pose_array(f"{self.name}: actuators", actuators)
         single = q.ndim == 1
         q = np.atleast_2d(q)
         if q.shape[1] != self.n_actuators:
@@ -683,6 +686,8 @@ class Mechanism:
 
 def check_length(field_name: str, value, allow_zero: bool = False) -> float:
     """Validate a length parameter (m): finite and positive (or >= 0)."""
+    if not is_real_number(value):  # True is not 1 m, "0.2" is not 0.2 m
+        raise ValueError(f"{field_name} must be a length in m (a number), got {value!r}")
     try:
         v = float(value)
     except (TypeError, ValueError):
@@ -694,6 +699,8 @@ def check_length(field_name: str, value, allow_zero: bool = False) -> float:
 
 
 def check_finite(field_name: str, value) -> float:
+    if not is_real_number(value):
+        raise ValueError(f"{field_name} must be a number, got {value!r}")
     try:
         v = float(value)
     except (TypeError, ValueError):

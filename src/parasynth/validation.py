@@ -16,7 +16,7 @@ memory or time before any work is done:
 * :data:`MAX_TRIALS`: evaluation budget of a study (``n_trials``, ``maxeval``);
 * :data:`MAX_LEGS`: points one anchor pattern of a described mechanism generates (the
   description reader's ``MAX_PATTERN_POINTS``);
-* :data:`MAX_POSE_MAGNITUDE`: a pose coordinate beyond this (1e6 m or rad) is outside any
+* :data:`MAX_POSE_MAGNITUDE`: a position coordinate beyond this (1e6 m) is outside any
   mechanism and is treated as unreachable, as NaN is (it would overflow squares of lengths).
 """
 
@@ -50,7 +50,7 @@ MAX_TRIALS = 1_000_000
 #: Largest number of points one anchor pattern of a described mechanism generates (the same
 #: value as ``parasynth.mechanisms.description.anchors.MAX_PATTERN_POINTS``).
 MAX_LEGS = 1000
-#: Largest |pose coordinate| (m or rad) that is evaluated; beyond it a pose is unreachable.
+#: Largest |pose coordinate| (m) that is evaluated; beyond it a pose is unreachable.
 MAX_POSE_MAGNITUDE = 1e6
 #: Seeds are integers in [0, MAX_SEED] (NumPy's SeedSequence and Optuna's samplers accept them).
 MAX_SEED = 2**32 - 1
@@ -206,12 +206,16 @@ def pose_finite(X: np.ndarray) -> np.ndarray:
         return np.all(np.isfinite(X) & (np.abs(X) <= MAX_POSE_MAGNITUDE), axis=-1)
 
 
-def mask_huge_poses(X: np.ndarray) -> np.ndarray:
+def mask_huge_poses(X: np.ndarray, columns=None) -> np.ndarray:
     """``X`` with every coordinate beyond :data:`MAX_POSE_MAGNITUDE` replaced by NaN (a copy
     when any is), so that the models mask such poses as unreachable as they do NaN poses;
-    squares of 1e308 m overflow to inf and would otherwise reach the kinematics."""
+    squares of 1e308 m overflow to inf and would otherwise reach the kinematics. ``columns``
+    (bool per task coordinate) limits the check to some coordinates: the models check their
+    lengths; a huge angle is a whole number of turns plus a finite angle and stays defined."""
     with np.errstate(invalid="ignore"):
         huge = np.abs(X) > MAX_POSE_MAGNITUDE
+    if columns is not None and X.ndim >= 1 and X.shape[-1] == len(columns):
+        huge &= np.asarray(columns, dtype=bool)
     if not np.any(huge):
         return X
     X = np.array(X, dtype=float, copy=True)
