@@ -991,6 +991,11 @@ if HAVE_NUMBA:
             okm = np.empty(SUB, dtype=np.uint8)
             und = np.empty(SUB, dtype=np.uint8)
             Sg = np.empty((nl, 6, SUB))
+            Bb = np.empty((nl, 6, SUB))
+            pleg = np.zeros(nl, dtype=np.uint8)
+            for q in range(pair.shape[0]):
+                pleg[int(pair[q, 0])] = 1
+                pleg[int(pair[q, 1])] = 1
             Q = np.empty((nl, SUB))
             n_amb = 0
             i1 = min(N, (blk + 1) * block)
@@ -1116,6 +1121,33 @@ if HAVE_NUMBA:
                         r2 = leg_f[k, 17]
                         plat = end == 1
                         sgn = -1.0 if plat else 1.0
+                        if lo_mode == 0 and hi_mode == 1:  # the usual cone: hi < pi/2, no lower limit
+                            if plat:
+                                for ii in range(nb):
+                                    wx = sgn * (Sg[k, 3, ii] - Sg[k, 0, ii])
+                                    wy = sgn * (Sg[k, 4, ii] - Sg[k, 1, ii])
+                                    wz = sgn * (Sg[k, 5, ii] - Sg[k, 2, ii])
+                                    vx = Tm[3, ii] * r0 + Tm[4, ii] * r1 + Tm[5, ii] * r2
+                                    vy = Tm[6, ii] * r0 + Tm[7, ii] * r1 + Tm[8, ii] * r2
+                                    vz = Tm[9, ii] * r0 + Tm[10, ii] * r1 + Tm[11, ii] * r2
+                                    dot = wx * vx + wy * vy + wz * vz
+                                    cx = wy * vz - wz * vy
+                                    cy = wz * vx - wx * vz
+                                    cz = wx * vy - wy * vx
+                                    cr2 = cx * cx + cy * cy + cz * cz
+                                    okm[ii] = okm[ii] & (dot >= 0.0) & (sh2 * (dot * dot) >= ch2 * cr2)
+                            else:
+                                for ii in range(nb):
+                                    wx = sgn * (Sg[k, 3, ii] - Sg[k, 0, ii])
+                                    wy = sgn * (Sg[k, 4, ii] - Sg[k, 1, ii])
+                                    wz = sgn * (Sg[k, 5, ii] - Sg[k, 2, ii])
+                                    dot = wx * q0 + wy * q1 + wz * q2
+                                    cx = wy * q2 - wz * q1
+                                    cy = wz * q0 - wx * q2
+                                    cz = wx * q1 - wy * q0
+                                    cr2 = cx * cx + cy * cy + cz * cz
+                                    okm[ii] = okm[ii] & (dot >= 0.0) & (sh2 * (dot * dot) >= ch2 * cr2)
+                            continue
                         for ii in range(nb):
                             wx = sgn * (Sg[k, 3, ii] - Sg[k, 0, ii])
                             wy = sgn * (Sg[k, 4, ii] - Sg[k, 1, ii])
@@ -1178,7 +1210,17 @@ if HAVE_NUMBA:
                         for ii in range(nb):
                             okm[ii] = okm[ii] & (Rg[r, ii] >= 0.0)
                 # 4. leg interference, last: segment-segment distance (spatial.segment_distance,
-                # branch-free) compared squared
+                # branch-free) compared squared. Each leg's bounding box (lo, hi per axis) is
+                # computed once per sub-block, not once per pair.
+                if pair.shape[0] > 0 and _any(okm, nb):
+                    for k in range(nl):
+                        if pleg[k]:
+                            for c in range(3):
+                                for ii in range(nb):
+                                    u = Sg[k, c, ii]
+                                    v = Sg[k, 3 + c, ii]
+                                    Bb[k, c, ii] = u if u < v else v
+                                    Bb[k, 3 + c, ii] = v if u < v else u
                 for q in range(pair.shape[0]):
                     if not _any(okm, nb):
                         break
@@ -1191,23 +1233,25 @@ if HAVE_NUMBA:
                     # of the sub-block is not settled so is the distance computed.
                     need = 0
                     for ii in range(nb):
-                        gap = -1.0
-                        for c in range(3):
-                            u = Sg[ka, c, ii]
-                            v = Sg[ka, 3 + c, ii]
-                            a_lo = u if u < v else v
-                            a_hi = v if u < v else u
-                            u = Sg[kb, c, ii]
-                            v = Sg[kb, 3 + c, ii]
-                            b_lo = u if u < v else v
-                            b_hi = v if u < v else u
-                            g1 = b_lo - a_hi
-                            g2 = a_lo - b_hi
-                            g = g1 if g1 > g2 else g2
-                            gap = g if g > gap else gap
+                        g1 = Bb[kb, 0, ii] - Bb[ka, 3, ii]
+                        g2 = Bb[ka, 0, ii] - Bb[kb, 3, ii]
+                        g = g1 if g1 > g2 else g2
+                        gap = g if g > -1.0 else -1.0
+                        g1 = Bb[kb, 1, ii] - Bb[ka, 4, ii]
+                        g2 = Bb[ka, 1, ii] - Bb[kb, 4, ii]
+                        g = g1 if g1 > g2 else g2
+                        gap = g if g > gap else gap
+                        g1 = Bb[kb, 2, ii] - Bb[ka, 5, ii]
+                        g2 = Bb[ka, 2, ii] - Bb[kb, 5, ii]
+                        g = g1 if g1 > g2 else g2
+                        gap = g if g > gap else gap
                         need |= okm[ii] & (gap < Dq)
                     if not need:
                         continue
+                    # two passes: the general case branch-free for the whole sub-block (SIMD;
+                    # the selects discard what a (nearly) parallel pair computes), then the
+                    # (nearly) parallel pairs, if any, one by one
+                    par = False
                     for ii in range(nb):
                         p1x = Sg[ka, 0, ii]
                         p1y = Sg[ka, 1, ii]
@@ -1230,20 +1274,45 @@ if HAVE_NUMBA:
                         c = d1x * rx + d1y * ry + d1z * rz
                         b = d1x * d2x + d1y * d2y + d1z * d2z
                         denom = a * e - b * b
-                        if denom > 1e-12 * max(a * e, 1e-300):
-                            s = _clip01((b * f - c * e) / denom)
-                            t = (b * s + f) / e if e > 1e-300 else 0.0
-                            s_lo = _clip01(-c / a) if a > 1e-300 else 0.0
-                            s_hi = _clip01((b - c) / a) if a > 1e-300 else 0.0
-                            s = s_lo if t < 0.0 else (s_hi if t > 1.0 else s)
-                            t = _clip01(t)
-                            cx = (p1x + s * d1x) - (p2x + t * d2x)
-                            cy = (p1y + s * d1y) - (p2y + t * d2y)
-                            cz = (p1z + s * d1z) - (p2z + t * d2z)
-                            dist2 = cx * cx + cy * cy + cz * cz
-                        else:
-                            dist2 = _parallel_seg2(p1x, p1y, p1z, d1x, d1y, d1z, a, p2x, p2y, p2z, d2x, d2y, d2z, e)
-                        okm[ii] = okm[ii] & (dist2 >= D2)
+                        ae = a * e
+                        general = denom > 1e-12 * (ae if ae > 1e-300 else 1e-300)
+                        s = _clip01((b * f - c * e) / denom)
+                        t = (b * s + f) / e
+                        t = t if e > 1e-300 else 0.0
+                        s_lo = _clip01(-c / a)
+                        s_lo = s_lo if a > 1e-300 else 0.0
+                        s_hi = _clip01((b - c) / a)
+                        s_hi = s_hi if a > 1e-300 else 0.0
+                        s = s_lo if t < 0.0 else (s_hi if t > 1.0 else s)
+                        t = _clip01(t)
+                        cx = (p1x + s * d1x) - (p2x + t * d2x)
+                        cy = (p1y + s * d1y) - (p2y + t * d2y)
+                        cz = (p1z + s * d1z) - (p2z + t * d2z)
+                        dist2 = cx * cx + cy * cy + cz * cz
+                        okm[ii] = okm[ii] & ((dist2 >= D2) | (not general))
+                        par |= not general
+                    if par:
+                        for ii in range(nb):
+                            p1x = Sg[ka, 0, ii]
+                            p1y = Sg[ka, 1, ii]
+                            p1z = Sg[ka, 2, ii]
+                            p2x = Sg[kb, 0, ii]
+                            p2y = Sg[kb, 1, ii]
+                            p2z = Sg[kb, 2, ii]
+                            d1x = Sg[ka, 3, ii] - p1x
+                            d1y = Sg[ka, 4, ii] - p1y
+                            d1z = Sg[ka, 5, ii] - p1z
+                            d2x = Sg[kb, 3, ii] - p2x
+                            d2y = Sg[kb, 4, ii] - p2y
+                            d2z = Sg[kb, 5, ii] - p2z
+                            a = d1x * d1x + d1y * d1y + d1z * d1z
+                            e = d2x * d2x + d2y * d2y + d2z * d2z
+                            b = d1x * d2x + d1y * d2y + d1z * d2z
+                            denom = a * e - b * b
+                            if not denom > 1e-12 * max(a * e, 1e-300):
+                                dist2 = _parallel_seg2(p1x, p1y, p1z, d1x, d1y, d1z, a, p2x, p2y, p2z, d2x, d2y,
+                                                       d2z, e)
+                                okm[ii] = okm[ii] & (dist2 >= D2)
                 for ii in range(nb):
                     out[j0 + ii] = okm[ii] != 0
                     n_amb += okm[ii] & und[ii]
