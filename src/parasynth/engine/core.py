@@ -552,6 +552,11 @@ if HAVE_NUMBA:
     _CLIP = 33
     _SIN1 = 34
     _COS1 = 35
+    _MADD = 36
+    _MSUB = 37
+    _RMSUB = 38
+    _MMADD = 39
+    _MMSUB = 40
 
     # The pose travels as a tuple T = (px, py, pz, R00, R01, R02, R10, ..., R22) in the scalar
     # kernel so that it stays in registers.
@@ -759,6 +764,23 @@ if HAVE_NUMBA:
             elif op == _MUL:
                 for ii in range(nb):
                     Rg[d, ii] = Rg[a, ii] * Rg[b, ii]
+            elif op == _MMADD:
+                e = ins[k, 5]
+                for ii in range(nb):
+                    Rg[d, ii] = Rg[a, ii] * Rg[b, ii] + Rg[c, ii] * Rg[e, ii]
+            elif op == _MMSUB:
+                e = ins[k, 5]
+                for ii in range(nb):
+                    Rg[d, ii] = Rg[a, ii] * Rg[b, ii] - Rg[c, ii] * Rg[e, ii]
+            elif op == _MADD:
+                for ii in range(nb):
+                    Rg[d, ii] = Rg[a, ii] * Rg[b, ii] + Rg[c, ii]
+            elif op == _MSUB:
+                for ii in range(nb):
+                    Rg[d, ii] = Rg[a, ii] * Rg[b, ii] - Rg[c, ii]
+            elif op == _RMSUB:
+                for ii in range(nb):
+                    Rg[d, ii] = Rg[c, ii] - Rg[a, ii] * Rg[b, ii]
             elif op == _DIV:
                 for ii in range(nb):
                     Rg[d, ii] = Rg[a, ii] / Rg[b, ii]
@@ -913,17 +935,30 @@ if HAVE_NUMBA:
         """Task-coordinate ranges, finiteness, the pose part of the program and the pose's
         validity for poses X[j0:j0+nb]: okm, and Tm (12, nb) = (p, R row-major)."""
         nt = X.shape[1]
+        # column by column (straight loops over the sub-block): the coordinates into their
+        # registers with finiteness and magnitude, the coordinate ranges, then the
+        # coordinates of rejected poses set to 0
         for ii in range(nb):
-            i = j0 + ii
-            v = True
+            okm[ii] = 1
+        for j in range(nt):
+            for ii in range(nb):
+                x = X[j0 + ii, j]
+                Rg[j, ii] = x
+                okm[ii] = okm[ii] & (abs(x) < np.inf) & (abs(x) <= plim)
+        for q in range(coord.shape[0]):
+            c = int(coord[q, 0])
+            lo = coord[q, 1]
+            hi = coord[q, 2]
+            for ii in range(nb):
+                x = Rg[c, ii]
+                okm[ii] = okm[ii] & (x - lo >= 0.0) & (hi - x >= 0.0)
+        rejected = False
+        for ii in range(nb):
+            rejected |= okm[ii] == 0
+        if rejected:
             for j in range(nt):
-                v = v & (abs(X[i, j]) < np.inf) & (abs(X[i, j]) <= plim)
-            for q in range(coord.shape[0]):
-                x = X[i, int(coord[q, 0])]
-                v = v & (x - coord[q, 1] >= 0.0) & (coord[q, 2] - x >= 0.0)
-            okm[ii] = v
-            for j in range(nt):
-                Rg[j, ii] = X[i, j] if v else 0.0
+                for ii in range(nb):
+                    Rg[j, ii] = Rg[j, ii] if okm[ii] else 0.0
         _run(ins, 0, n_pose, Rg, Sc, nb)
         for q in range(valid_regs.shape[0]):
             r = valid_regs[q]

@@ -53,7 +53,14 @@ class Untranslatable(Exception):
 OPS = {name: i for i, name in enumerate(
     ["nop", "add", "sub", "mul", "div", "pow", "neg", "sqrt", "tan", "asin", "acos", "atan", "exp", "log",
      "abs", "sinh", "cosh", "tanh", "atan2", "hypot", "min", "max", "lt", "le", "gt", "ge", "and", "sincos",
-     "sincos_atan2", "sign", "select", "square", "copy", "clip", "sin", "cos"])}
+     "sincos_atan2", "sign", "select", "square", "copy", "clip", "sin", "cos",
+     # fused (see _fuse): the same operations and roundings in one pass over the sub-block
+     "madd", "msub", "rmsub", "mmadd", "mmsub"])}
+
+#: Fused opcodes: madd d = a*b + c, msub d = a*b - c, rmsub d = c - a*b, mmadd d = a*b + c*e,
+#: mmsub d = a*b - c*e (each product and the sum rounded separately, as the unfused code: no
+#: fused multiply-add).
+_FUSED = ("madd", "msub", "rmsub", "mmadd", "mmsub")
 
 _UNARY_NP = {"sqrt": np.sqrt, "tan": np.tan, "asin": np.arcsin, "acos": np.arccos, "atan": np.arctan,
              "exp": np.exp, "log": np.log, "abs": np.abs, "sinh": np.sinh, "cosh": np.cosh, "tanh": np.tanh,
@@ -522,13 +529,62 @@ def _operands(row):
         return [row[2]], [row[1], row[3]]
     if op == OPS["sincos_atan2"]:
         return [row[2], row[3]], [row[1], row[4]]
-    if op in (OPS["clip"], OPS["select"]):
+    if op in (OPS["clip"], OPS["select"], OPS["madd"], OPS["msub"], OPS["rmsub"]):
         return [row[2], row[3], row[4]], [row[1]]
+    if op in (OPS["mmadd"], OPS["mmsub"]):
+        return [row[2], row[3], row[4], row[5]], [row[1]]
     if op in (OPS["neg"], OPS["sqrt"], OPS["tan"], OPS["asin"], OPS["acos"], OPS["atan"], OPS["exp"], OPS["log"],
               OPS["abs"], OPS["sinh"], OPS["cosh"], OPS["tanh"], OPS["sign"], OPS["square"], OPS["copy"],
               OPS["sin"], OPS["cos"]):
         return [row[2]], [row[1]]
     return [row[2], row[3]], [row[1]]
+
+
+def _fuse(code, uses):
+    """Peephole: an add or sub whose operand(s) are products used nowhere else becomes one
+    fused instruction (fewer passes over the registers, identical arithmetic). The code is
+    in single assignment (every temporary written once), so a product can be computed at
+    its use. ``uses``: {register: number of reads} over the whole program and its outputs."""
+    mul = OPS["mul"]
+    prod = {row[1]: row for row in code if row[0] == mul and row[1] >= 1_000_000}
+
+    def single(r):
+        return r in prod and uses.get(r, 0) == 1
+
+    fused: set = set()
+    out = []
+    for row in code:
+        op = row[0]
+        if op in (OPS["add"], OPS["sub"]):
+            a, b = row[2], row[3]
+            if single(a) and single(b) and a != b:
+                pa, pb = prod[a], prod[b]
+                name = "mmadd" if op == OPS["add"] else "mmsub"
+                row = [OPS[name], row[1], pa[2], pa[3], pb[2], pb[3]]
+                fused.update((a, b))
+            elif single(a):
+                pa = prod[a]
+                row = [OPS["madd" if op == OPS["add"] else "msub"], row[1], pa[2], pa[3], b, 0]
+                fused.add(a)
+            elif single(b):
+                pb = prod[b]
+                if op == OPS["add"]:  # a + p == p + a (IEEE addition commutes)
+                    row = [OPS["madd"], row[1], pb[2], pb[3], a, 0]
+                else:
+                    row = [OPS["rmsub"], row[1], pb[2], pb[3], a, 0]
+                fused.add(b)
+        out.append(row)
+    return [row for row in out if not (row[0] == mul and row[1] in fused)]
+
+
+def _uses(code, keep):
+    n: dict = {}
+    for row in code:
+        for r in _operands(row)[0]:
+            n[r] = n.get(r, 0) + 1
+    for r in keep:
+        n[r] = n.get(r, 0) + 2  # outputs are never fused away
+    return n
 
 
 def _allocate(code, n_task, n_const, keep):
@@ -719,6 +775,9 @@ def build_program(mech, margin_exprs: dict, twist: bool = False) -> Program:
     rest = _prune(em.code[n_pose_virt:], keep)
     rest_srcs = [r for row in rest for r in _operands(row)[0]]
     pose_code = _prune(em.code[:n_pose_virt], pose_out + valid_out + rest_srcs)
+    uses = _uses(pose_code + rest, keep)
+    pose_code = _fuse(pose_code, uses)
+    rest = _fuse(rest, uses)
     code = pose_code + rest
     n_const = len(em.consts)
     ins, n_reg, loc = _allocate(code, n, n_const, keep)
