@@ -93,3 +93,31 @@ def test_fused_margins_and_feasibility_random(seed, monkeypatch):
         outs.append((core.run_feasible(plan, X)[0], core.run_margins(plan, X)[0]))
     assert np.array_equal(outs[0][0], outs[1][0])
     assert _same(outs[0][1], outs[1][1])
+
+
+@pytest.mark.parametrize("name", ["5pus_upu", "3rps", "gough_stewart_6ups"])
+def test_huge_coordinates_in_the_kernel_as_in_numpy(name):
+    """The compiled entry points test coordinate magnitudes in the kernel (no NumPy masking
+    pass): huge lengths and angles give the NumPy answer."""
+    from parasynth import engine
+
+    mech = load_mechanism(name)
+    X = np.repeat(mech.home[None, :], 8, axis=0)
+    lengths = [j for j, c in enumerate(mech.task_coordinates) if c not in mech.angular_coordinates]
+    angles = [j for j, c in enumerate(mech.task_coordinates) if c in mech.angular_coordinates]
+    X[1, lengths[0]] = 2e6
+    X[2, lengths[-1]] = -1e300
+    X[3, lengths[0]] = 1e6  # at the limit: evaluated
+    if angles:
+        X[4, angles[0]] += 2 * np.pi * 1e6
+        X[5, angles[-1]] = 1e300
+    X[6, 0] = np.nan
+    ref = mech.is_feasible(X, engine="numpy")
+    assert np.array_equal(engine.feasible(mech, X), ref)
+    assert ref[0] and not ref[1] and not ref[2]
+    m_ref = mech.constraint_margins(X, engine="numpy")
+    m = engine.margins(mech, X)
+    for k in m_ref:
+        fin = np.isfinite(m_ref[k])
+        assert np.array_equal(np.isneginf(m[k]), np.isneginf(m_ref[k]))
+        assert np.allclose(m[k][fin], m_ref[k][fin], rtol=0, atol=1e-9)

@@ -138,6 +138,20 @@ def _compiled_plan(mech, names, engine):
 # ---------------------------------------------------------------------------------------------
 # entry points
 # ---------------------------------------------------------------------------------------------
+def _kernel_poses(mech, X):
+    """(contiguous float64 (N, n_task), single) for the kernels: ``mech._poses`` without its
+    NumPy pass that masks huge lengths as NaN -- the kernels test every coordinate against
+    its limit (``Program.pose_limit``, the same magnitude), with the same outcome, and a
+    serial pass over the whole batch would cost a third of the parallel kernel's time. Input
+    that is not a float batch of the right shape goes through ``mech._poses`` (and its errors)."""
+    if isinstance(X, np.ndarray) and X.dtype == np.float64 and X.ndim in (1, 2) and X.shape[-1] == mech.n_task:
+        single = X.ndim == 1
+        Xa = X[None, :] if single else X
+        return np.ascontiguousarray(Xa), single
+    Xa, single = mech._poses(X)
+    return np.ascontiguousarray(Xa, dtype=np.float64), single
+
+
 def feasible(mech, X, names=None, engine: str = "compiled"):
     """(N,) bool: reachable and every selected constraint satisfied at poses ``X`` -- the
     answer of ``mech.is_feasible(X, names, engine="numpy")`` (see the agreement contract in
@@ -145,8 +159,7 @@ def feasible(mech, X, names=None, engine: str = "compiled"):
     p = _compiled_plan(mech, names, engine)
     if p is None:
         return mech._is_feasible_numpy(X, names)
-    Xa, single = mech._poses(X)
-    Xc = np.ascontiguousarray(Xa, dtype=np.float64)
+    Xc, single = _kernel_poses(mech, X)
     out, amb = core.run_feasible(p, Xc)
     if amb:  # batch-dependent RPS/RPU reachability: NumPy decides
         return mech._is_feasible_numpy(X, names)
@@ -159,8 +172,7 @@ def margins(mech, X, names=None, engine: str = "compiled") -> dict:
     p = _compiled_plan(mech, names, engine)
     if p is None:
         return mech._constraint_margins_numpy(X, names)
-    Xa, single = mech._poses(X)
-    Xc = np.ascontiguousarray(Xa, dtype=np.float64)
+    Xc, single = _kernel_poses(mech, X)
     M, amb = core.run_margins(p, Xc)
     if amb:
         return mech._constraint_margins_numpy(X, names)

@@ -394,25 +394,29 @@ def program_for(mech, exprs: dict, twist: bool = False) -> Program:
     return prog
 
 
-def _pose_limit(mech) -> float:
-    """The coordinate magnitude beyond which the NumPy path treats a pose as unreachable
-    (``parasynth.validation.MAX_POSE_MAGNITUDE`` if it does so, else inf): probed with the home
-    pose turned by a whole number of turns past that magnitude in an angular coordinate,
-    which is the home pose again to rounding."""
+def _pose_limit(mech) -> np.ndarray:
+    """Per task coordinate, the magnitude beyond which the NumPy path treats a pose as
+    unreachable: ``parasynth.validation.MAX_POSE_MAGNITUDE`` for lengths (``Mechanism._poses``
+    masks them; a length beyond it is unreachable either way) and, for angles, that value if
+    the NumPy path masks huge angles too, else inf -- probed with the home pose turned by a
+    whole number of turns past that magnitude in an angular coordinate, which is the home pose
+    again to rounding. The kernels test ``|x| <= limit`` per coordinate, so the compiled entry
+    points need no separate NumPy pass over the poses."""
     try:
         from ..validation import MAX_POSE_MAGNITUDE as lim
     except ImportError:  # pragma: no cover
-        return np.inf
+        return np.full(mech.n_task, np.inf)
     ang = [j for j, c in enumerate(mech.task_coordinates) if c in mech.angular_coordinates]
+    out = np.full(mech.n_task, float(lim))
     if not ang:
-        return float(lim)  # a length beyond it is unreachable either way
+        return out
     X = np.array([mech.home, mech.home])
     X[1, ang[0]] += 2 * np.pi * math.ceil(2 * lim / (2 * np.pi))
     with np.errstate(all="ignore"):
         reach = mech.pose_context(X).reachable
-    if reach[0] and not reach[1]:
-        return float(lim)
-    return np.inf
+    if not (reach[0] and not reach[1]):
+        out[ang] = np.inf
+    return out
 
 
 def _probe_poses(mech) -> np.ndarray:
@@ -941,10 +945,11 @@ if HAVE_NUMBA:
         for ii in range(nb):
             okm[ii] = 1
         for j in range(nt):
+            lim = plim[j]
             for ii in range(nb):
                 x = X[j0 + ii, j]
                 Rg[j, ii] = x
-                okm[ii] = okm[ii] & (abs(x) < np.inf) & (abs(x) <= plim)
+                okm[ii] = okm[ii] & (abs(x) < np.inf) & (abs(x) <= lim)
         for q in range(coord.shape[0]):
             c = int(coord[q, 0])
             lo = coord[q, 1]
@@ -1026,11 +1031,6 @@ if HAVE_NUMBA:
             okm = np.empty(SUB, dtype=np.uint8)
             und = np.empty(SUB, dtype=np.uint8)
             Sg = np.empty((nl, 6, SUB))
-            Bb = np.empty((nl, 6, SUB))
-            pleg = np.zeros(nl, dtype=np.uint8)
-            for q in range(pair.shape[0]):
-                pleg[int(pair[q, 0])] = 1
-                pleg[int(pair[q, 1])] = 1
             Q = np.empty((nl, SUB))
             n_amb = 0
             i1 = min(N, (blk + 1) * block)
@@ -1245,17 +1245,7 @@ if HAVE_NUMBA:
                         for ii in range(nb):
                             okm[ii] = okm[ii] & (Rg[r, ii] >= 0.0)
                 # 4. leg interference, last: segment-segment distance (spatial.segment_distance,
-                # branch-free) compared squared. Each leg's bounding box (lo, hi per axis) is
-                # computed once per sub-block, not once per pair.
-                if pair.shape[0] > 0 and _any(okm, nb):
-                    for k in range(nl):
-                        if pleg[k]:
-                            for c in range(3):
-                                for ii in range(nb):
-                                    u = Sg[k, c, ii]
-                                    v = Sg[k, 3 + c, ii]
-                                    Bb[k, c, ii] = u if u < v else v
-                                    Bb[k, 3 + c, ii] = v if u < v else u
+                # branch-free) compared squared
                 for q in range(pair.shape[0]):
                     if not _any(okm, nb):
                         break
@@ -1268,18 +1258,20 @@ if HAVE_NUMBA:
                     # of the sub-block is not settled so is the distance computed.
                     need = 0
                     for ii in range(nb):
-                        g1 = Bb[kb, 0, ii] - Bb[ka, 3, ii]
-                        g2 = Bb[ka, 0, ii] - Bb[kb, 3, ii]
-                        g = g1 if g1 > g2 else g2
-                        gap = g if g > -1.0 else -1.0
-                        g1 = Bb[kb, 1, ii] - Bb[ka, 4, ii]
-                        g2 = Bb[ka, 1, ii] - Bb[kb, 4, ii]
-                        g = g1 if g1 > g2 else g2
-                        gap = g if g > gap else gap
-                        g1 = Bb[kb, 2, ii] - Bb[ka, 5, ii]
-                        g2 = Bb[ka, 2, ii] - Bb[kb, 5, ii]
-                        g = g1 if g1 > g2 else g2
-                        gap = g if g > gap else gap
+                        gap = -1.0
+                        for c in range(3):
+                            u = Sg[ka, c, ii]
+                            v = Sg[ka, 3 + c, ii]
+                            a_lo = u if u < v else v
+                            a_hi = v if u < v else u
+                            u = Sg[kb, c, ii]
+                            v = Sg[kb, 3 + c, ii]
+                            b_lo = u if u < v else v
+                            b_hi = v if u < v else u
+                            g1 = b_lo - a_hi
+                            g2 = a_lo - b_hi
+                            g = g1 if g1 > g2 else g2
+                            gap = g if g > gap else gap
                         need |= okm[ii] & (gap < Dq)
                     if not need:
                         continue

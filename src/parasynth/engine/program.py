@@ -406,7 +406,7 @@ class Program:
         self.margin_regs = margin_regs  # {constraint name: register}
         self.twist_regs = twist_regs  # (6, n_task) or None
         #: Poses with a coordinate beyond this magnitude are invalid (as in the NumPy path).
-        self.pose_limit = np.inf
+        self.pose_limit = np.full(n_task, np.inf)  # per coordinate (core._pose_limit)
 
     def constants(self, penv) -> np.ndarray:
         """The constant rows' values for a parameter environment."""
