@@ -14,6 +14,13 @@ settles most pairs; the segment distance is computed only for a sub-block with a
 feasible pose). A sub-block stops at the first stage after which none of its poses is
 feasible. Nothing of size N is allocated but the result.
 
+Costs per pose (5pus_upu, every pose feasible, one core): the program's pose part (after
+fusing products into their sums, :func:`parasynth.engine.program._fuse`) ~14 ns, the six legs'
+inverse kinematics ~10 ns, the ten cone limits ~11 ns, the ten interference pairs ~19 ns (two
+of them need the segment distance in every sub-block), the rest (coordinates in, pose out,
+actuator ranges) ~9 ns. Coordinate magnitudes are tested in the kernel (``Program.pose_limit``
+per coordinate), so the entry points make no NumPy pass over a float batch.
+
 Agreement with the NumPy path
 -----------------------------
 The kernels evaluate the same conditions, not always in the same arithmetic form: a cone
