@@ -578,3 +578,96 @@ def test_stale_final_without_the_knee_is_said(tmp_path):
     txt = (write_report(_write_run(tmp_path / "stale", study, recs, fin), out=tmp_path / "rep") / "report.md").read_text()
     assert "final.csv does not hold this design" in txt
     assert "| recommended (knee) |" not in txt and "| best |" in txt
+
+
+class _PatternEvaluator:
+    """Stands in for the Evaluator in the final re-evaluation: each design's objectives are
+    its given true values plus ``sigma`` times the pattern +1, -1, +1, -1 over the repeats, so
+    the re-evaluated mean is the true value and the standard error is known in closed form
+    (sigma * sqrt(4/3) / 2 for four repeats)."""
+
+    def __init__(self, truth: dict, sigma: float, base_seed: int):
+        self.truth, self.sigma, self.base = truth, sigma, base_seed
+
+    def evaluate(self, values, n, seed):
+        from types import SimpleNamespace
+
+        key = (round(float(values["link_length"]), 9), round(float(values["slider_radius"]), 9))
+        q, two = self.truth[key]
+        s = self.sigma * (1.0 if (seed - self.base) % 2 == 0 else -1.0)
+        return SimpleNamespace(objectives={"test_quadratic": q + s, "test_two": two + s}, feasible=True)
+
+
+def _screen_case():
+    """A run whose front is a line q = -1 + x (maximise), two = 0.4 + x (minimise), x = i / 8,
+    and a paper design just behind its middle (q = -0.55, two = 0.95). Single-sample
+    dominators of the paper's design: the front's middle design (gains 0.05, 0.05) and three
+    designs off the front (gains 0.03/0.02, 0.01/0.01, 0.04/0.001, all dominated by it)."""
+    spec = yaml.safe_load(_mo_study().to_yaml())
+    spec["evaluation"] = {"samples": 256, "final_samples": 512, "final_repeats": 4, "final_top": 3}
+    study = load_study(yaml.safe_dump(spec), is_text=True)
+    recs, truth = [], {}
+
+    def add(trial, L, R, q, two, source="run"):
+        recs.append(_rec(trial, L, R, q, two, source=source))
+        truth[(round(L, 9), round(R, 9))] = (q, two)
+
+    add(-1, 0.205, 0.135, -0.55, 0.95, source="reference")
+    for i in range(9):
+        add(i, 0.150 + 0.01 * i, 0.100 + 0.005 * i, -1 + i / 8, 0.4 + i / 8)
+    add(20, 0.231, 0.171, -0.52, 0.93)    # least gain 0.02
+    add(21, 0.232, 0.172, -0.54, 0.94)    # least gain 0.01
+    add(22, 0.233, 0.173, -0.51, 0.949)   # least gain 0.001: fourth, not re-evaluated
+    add(23, 0.234, 0.174, -0.60, 0.90)    # trade-off with the paper's design, not a dominator
+    return study, recs, truth
+
+
+def test_screening_dominators_ordered_by_normalised_margin(tmp_path):
+    from parasynth.study.final import final_candidates, screening_dominators
+
+    study, recs, _ = _screen_case()
+    table = load_run(_write_run(tmp_path / "run", study, recs)).table
+    scr = screening_dominators(study, table)
+    # by hand: least normalised gain (both ranges are 1 over the feasible designs)
+    assert [int(t) for t in scr["trial"]] == [4, 20, 21, 22]
+    assert np.allclose(scr["screen_margin"], [0.05, 0.02, 0.01, 0.001])
+    cand = final_candidates(study, table)
+    trials = [int(t) for t in cand["trial"]]
+    # the crowding spread of the front (3 designs) does not hold the off-front dominators
+    assert 20 not in trials[:3] and 21 not in trials[:3]
+    # the three by the largest margin are candidates, the fourth is not
+    assert {4, 20, 21} <= set(trials) and 22 not in trials and 23 not in trials
+    flag = dict(zip(trials, cand["dominates_reference_screen"]))
+    assert flag[4] and flag[20] and flag[21] and not flag[0] and not flag[8]
+    role = dict(zip(trials, cand["role"]))
+    assert role[20] == role[21] == "screen"
+    assert len(set(trials)) == len(trials)
+
+
+@pytest.mark.parametrize("sigma", [1e-4, 1.0])
+def test_verdict_decides_on_the_screening_dominators(tmp_path, sigma):
+    from parasynth.study.final import reevaluate_best
+
+    study, recs, truth = _screen_case()
+    run_dir = _write_run(tmp_path / "run", study, recs)
+    table = load_run(run_dir).table
+    fin = reevaluate_best(study, _PatternEvaluator(truth, sigma, study.evaluation["seed"] + 1000), table, run_dir)
+    best = fin[fin.source == "best"]
+    assert {4, 20, 21} <= set(best.trial[best.dominates_reference_screen].astype(int))
+    assert set(fin.role) >= {"screen", "reference"}
+    # closed-form standard error of the pattern
+    assert np.allclose(best["test_two_stderr"], sigma * np.sqrt(4 / 3) / 2)
+    txt = (write_report(run_dir, out=tmp_path / "rep") / "report.md").read_text()
+    paper = txt.split("## Paper design")[1].split("## ")[0]
+    assert "Screening dominators re-evaluated: 3 of the 4 distinct ones (the ones by the largest normalised margin)" in paper
+    if sigma < 0.01:
+        # gains of 0.01 and more against a combined standard error of 8e-5: all three dominate
+        assert "3 of them dominate it beyond noise (trial 4, trial 20, trial 21)" in paper
+        assert "trial 22" not in paper
+    else:
+        # gains of at most 0.05 against 2 x 0.82 combined standard errors: all within noise
+        assert "none of them dominates it beyond noise: all of them are equal to it within noise" in paper
+        assert "none of the" in paper and "re-evaluated designs dominates it beyond noise" in paper
+    # the re-evaluation table marks them
+    sec = txt.split("## Re-evaluation of the best designs")[1]
+    assert sec.count("dominates paper (screening)") >= 2

@@ -510,7 +510,15 @@ def _final_analysis(run: Run, knee_row, noise_z: float) -> dict | None:
         mi, si = mse(ri)
         dominated_by[i] = [int(rj["trial"]) for j, rj in best.iterrows()
                            if j != i and compare_with_noise(*mse(rj), mi, si, senses, noise_z).verdict == "dominates"]
-    out = {"table": fin, "best": best, "dominated_by": dominated_by, "ref": None, "vs_ref": []}
+    # Which re-evaluated designs dominate the reference on the single-sample values: decided
+    # from the run's table (the screening the report states), by design values.
+    from ..study.final import screening_dominators
+    screen_keys = {design_key(study, r) for _, r in screening_dominators(study, run.table).iterrows()}
+    fin["dominates_reference_screen"] = [r["source"] == "best" and design_key(study, r) in screen_keys
+                                         for _, r in fin.iterrows()]
+    best = fin[fin["source"] == "best"]
+    out = {"table": fin, "best": best, "dominated_by": dominated_by, "ref": None, "vs_ref": [],
+           "n_screen": len(screen_keys)}
     if len(ref):
         r = ref.iloc[0]
         out["ref"] = r
@@ -609,7 +617,48 @@ def _paper_text(run: Run, a: dict) -> str:
         txt += " Dominated by it: " + ", ".join(f"trial {int(row['trial'])}" for row, _ in worse) + "."
     if st is not None:
         txt += f"\n\n(Single-sample screening: {screened}; the re-evaluation above decides.)"
+        txt += _screen_text(fa, fa.get("n_screen", 0))
     return txt
+
+
+def _screen_text(fa: dict, n_screen: int) -> str:
+    """How the designs that dominate the reference on single-sample values fared once
+    re-evaluated (the ones re-evaluated: the largest normalised margins, see
+    :func:`parasynth.study.final.screening_dominators`)."""
+    if not n_screen:
+        return ""
+    sel = [(row, c) for row, c in fa["vs_ref"] if bool(row.get("dominates_reference_screen", False))]
+    if not sel:
+        return (f" None of the {n_screen} screening dominators is in final.csv (it was written before this "
+                "selection); run the study again with --resume to redo the final stage.")
+
+    def trials(group):
+        return ", ".join(f"trial {int(row['trial'])}" for row, _ in group)
+
+    dom = [(r, c) for r, c in sel if c.verdict == "dominates"]
+    same = [(r, c) for r, c in sel if c.verdict == "within noise"]
+    trade = [(r, c) for r, c in sel if c.verdict == "trade-off"]
+    worse = [(r, c) for r, c in sel if c.verdict == "dominated"]
+    n = len(sel)
+    txt = (f" Screening dominators re-evaluated: {n} of the {n_screen} distinct ones"
+           + (" (the ones by the largest normalised margin)" if n < n_screen else "") + "; ")
+    if dom:
+        txt += f"{len(dom)} of them {'dominates' if len(dom) == 1 else 'dominate'} it beyond noise ({trials(dom)})"
+    else:
+        txt += "none of them dominates it beyond noise"
+    if same and len(same) == n:
+        txt += ": all of them are equal to it within noise"
+    else:
+        rest = []
+        if same:
+            rest.append(f"within noise: {trials(same)}")
+        if trade:
+            rest.append(f"trade-off (better and worse beyond noise): {trials(trade)}")
+        if worse:
+            rest.append(f"dominated by it: {trials(worse)}")
+        if rest:
+            txt += "; " + "; ".join(rest)
+    return txt + "."
 
 
 def final_display_table(study, fa: dict) -> pd.DataFrame:
@@ -621,7 +670,10 @@ def final_display_table(study, fa: dict) -> pd.DataFrame:
     for i, r in fin.iterrows():
         other = "sweep point" if study.optimizer.kind == "sweep" else "best"
         rec = "recommended (knee)" if len(study.objectives) > 1 else "recommended (best)"
-        row = {"design": ("paper" if r["source"] == "reference" else (rec if r["knee"] else other)),
+        role = other
+        if r["source"] == "best" and bool(r.get("dominates_reference_screen", False)):
+            role = "dominates paper (screening)"
+        row = {"design": ("paper" if r["source"] == "reference" else (rec if r["knee"] else role)),
                "trial": fmt_number(int(r["trial"]))}
         if "count" in fin:
             row["evaluations"] = fmt_number(int(r["count"])) if r["source"] == "best" else ""
@@ -712,7 +764,8 @@ def _sections(run: Run, a: dict) -> list[tuple[str, str, pd.DataFrame | None]]:
         sec.append(("Re-evaluation of the best designs",
                     f"Mean ± standard error over {int(fin['repeats'].iloc[0])} seeds with "
                     f"{int(fin['samples'].iloc[0])} samples each, for the best designs, the recommended (knee) "
-                    f"design and the paper's design. A design is dominated beyond noise when another is better by "
+                    f"design, the designs that dominate the paper's design on single samples by the largest "
+                    f"normalised margin and the paper's design. A design is dominated beyond noise when another is better by "
                     f"more than {fmt_number(a['noise_z'])} combined standard errors on some objective and worse by "
                     f"as much on none.", final_display_table(study, fa)))
     elif run.final is not None and len(run.final):

@@ -9,9 +9,14 @@
 * :func:`best_designs` -- the feasible designs a run recommends: for one objective the best
   ``k``; for several, ``k`` designs spread along the front by crowding distance
   (:func:`spread_by_crowding`);
-* :func:`reevaluate_best` -- those designs, the knee (always) and the reference evaluated
-  again with ``final_samples`` samples and ``final_repeats`` seeds, written to ``final.csv``
-  (mean and standard error of each objective, ``knee`` and ``count`` columns).
+* :func:`screening_dominators` -- the feasible designs that dominate the paper's reference
+  design on the single-sample values, the ones by the largest normalised margin first;
+* :func:`reevaluate_best` -- those designs, the knee (always), up to
+  ``max(3, final_top)`` screening dominators and the reference evaluated again with
+  ``final_samples`` samples and ``final_repeats`` seeds, written to ``final.csv`` (mean and
+  standard error of each objective, ``knee``, ``role``, ``dominates_reference_screen`` and
+  ``count`` columns), so that the paper-design verdict is decided on the designs the
+  screening says beat it, not only on the front's spread.
 """
 
 from __future__ import annotations
@@ -25,7 +30,7 @@ from ..report.pareto import knee_index, pareto_mask, to_min
 from .evaluate import Evaluator
 from .spec import ResolvedStudy
 
-__all__ = ["best_designs", "reevaluate_best", "merge_duplicates", "pareto_front", "knee_of", "crowding_distance",
+__all__ = ["best_designs", "reevaluate_best", "screening_dominators", "final_candidates", "n_screen_dominators", "merge_duplicates", "pareto_front", "knee_of", "crowding_distance",
            "spread_by_crowding", "design_key"]
 
 
@@ -158,10 +163,65 @@ def _non_dominated(F: np.ndarray) -> np.ndarray:
     return np.flatnonzero(keep)
 
 
+def n_screen_dominators(final_top: int) -> int:
+    """How many screening dominators of the reference the final re-evaluation adds at most:
+    ``max(3, final_top)`` (a handful even when few front designs are asked for)."""
+    return max(3, int(final_top))
+
+
+def screening_dominators(study: ResolvedStudy, table: pd.DataFrame) -> pd.DataFrame:
+    """Distinct feasible run designs that dominate the reference design on the single-sample
+    values of ``table`` (the reference row: ``source == "reference"``, status ok), ordered by
+    their normalised margin, largest first.
+
+    Margin (assumption, stated so it can be checked): in objectives turned into minimisation
+    and normalised by their range over the feasible run designs, ``min_j (r_j - f_j)`` -- how
+    much the design is better than the reference in its *least* improved objective (the
+    negated additive epsilon of that single design); ties broken by the sum of the normalised
+    improvements, then by row order. Designs better by a large margin everywhere are the most
+    likely to stay better once re-evaluated. Columns as ``table`` plus ``count`` and
+    ``screen_margin``. Empty without a usable reference."""
+    runs = table[table["source"] == "run"] if len(table) else table
+    ref = table[(table["source"] == "reference") & (table["status"] == "ok")] if len(table) else table
+    ok = merge_duplicates(study, _feasible(runs))
+    labels = [o.label for o in study.objectives]
+    senses = [o.goal for o in study.objectives]
+    if not len(ok) or not len(ref):
+        out = ok.iloc[:0].copy()
+        out["screen_margin"] = pd.Series(dtype=float)
+        return out
+    Fm = to_min(ok[labels].to_numpy(float), senses)
+    r = to_min(ref.iloc[[0]][labels].to_numpy(float), senses)[0]
+    fin = np.all(np.isfinite(Fm), axis=1)
+    if not np.all(np.isfinite(r)) or not fin.any():
+        out = ok.iloc[:0].copy()
+        out["screen_margin"] = pd.Series(dtype=float)
+        return out
+    span = Fm[fin].max(axis=0) - Fm[fin].min(axis=0)
+    span = np.where(span > 0, span, 1.0)
+    with np.errstate(invalid="ignore"):
+        dom = fin & np.all(Fm <= r, axis=1) & np.any(Fm < r, axis=1)
+    idx = np.flatnonzero(dom)
+    gain = (r - Fm[idx]) / span
+    least, total = gain.min(axis=1), gain.sum(axis=1)
+    order = np.lexsort((np.arange(len(idx)), -total, -least))
+    out = ok.iloc[idx[order]].copy()
+    out["screen_margin"] = least[order]
+    return out
+
+
 def final_candidates(study: ResolvedStudy, table: pd.DataFrame) -> pd.DataFrame:
     """The run designs the final re-evaluation covers: every completed design for a sweep (read
     as a curve), otherwise :func:`best_designs` with ``final_top``; the knee of the front is
-    added when it is not among them. Column ``knee`` marks it."""
+    added when it is not among them, and so are up to :func:`n_screen_dominators` designs that
+    dominate the reference on the single-sample values (:func:`screening_dominators`, largest
+    margin first), so that the paper-design verdict decides on them too.
+
+    Columns: ``knee`` marks the knee; ``role`` says why a design is re-evaluated (``best``: the
+    best / crowding spread of the front, or a sweep point; ``knee``: added as the knee;
+    ``screen``: added as a screening dominator of the reference); ``dominates_reference_screen``
+    marks every candidate that dominates the reference on the single-sample values, whatever
+    its role."""
     ev = study.evaluation
     runs = table[table["source"] == "run"] if len(table) else table
     if study.optimizer.kind == "sweep":
@@ -170,26 +230,45 @@ def final_candidates(study: ResolvedStudy, table: pd.DataFrame) -> pd.DataFrame:
         best = best_designs(study, runs, k=ev.get("final_top", 5))
     best = best.copy()
     best["knee"] = False
+    best["role"] = "best"
+    keys = [design_key(study, r) for _, r in best.iterrows()]
     knee = knee_of(study, pareto_front(study, runs))
     if knee is not None:
         kk = design_key(study, knee)
-        hit = [design_key(study, r) == kk for _, r in best.iterrows()]
-        if any(hit):
-            best.loc[best.index[int(np.argmax(hit))], "knee"] = True
+        if kk in keys:
+            best.loc[best.index[keys.index(kk)], "knee"] = True
         else:
             row = knee.to_frame().T
-            row["knee"] = True
+            row["knee"], row["role"] = True, "knee"
             best = pd.concat([best, row])
+            keys.append(kk)
+    screen = screening_dominators(study, table)
+    screen_keys = [design_key(study, r) for _, r in screen.iterrows()]
+    if study.optimizer.kind != "sweep":
+        limit = n_screen_dominators(ev.get("final_top", 5))
+        # The ``limit`` dominators by the largest margin are all re-evaluated: those already
+        # among the candidates keep their role, the others are added.
+        for (_, r), k in list(zip(screen.iterrows(), screen_keys))[:limit]:
+            if k in keys:
+                continue
+            row = r.drop(labels=["screen_margin"]).to_frame().T
+            row["knee"], row["role"] = False, "screen"
+            best = pd.concat([best, row])
+            keys.append(k)
+    sk = set(screen_keys)
+    best["dominates_reference_screen"] = [k in sk for k in keys]
+    best["knee"] = best["knee"].astype(bool)
     return best
 
 
 def reevaluate_best(study: ResolvedStudy, evaluator: Evaluator, table: pd.DataFrame, out_dir: Path) -> pd.DataFrame:
-    """Re-evaluate the final candidates (:func:`final_candidates`: the best feasible designs and
-    the knee) and the reference with ``final_samples`` samples and ``final_repeats`` seeds
+    """Re-evaluate the final candidates (:func:`final_candidates`: the best feasible designs, the
+    knee and the screening dominators of the reference) and the reference with ``final_samples`` samples and ``final_repeats`` seeds
     (``seed + 1000 + j``): mean and standard error of each objective, written to
     ``final.csv`` (columns ``source`` (best | reference), ``trial``, the design variables,
     ``<objective>`` and ``<objective>_stderr``, ``feasible``, ``samples``, ``repeats``,
-    ``knee``, ``count``)."""
+    ``knee``, ``role`` (best | knee | screen | reference), ``dominates_reference_screen``,
+    ``count``)."""
     ev = study.evaluation
     best = final_candidates(study, table)
     ref = table[table["source"] == "reference"] if len(table) else table
@@ -210,6 +289,8 @@ def reevaluate_best(study: ResolvedStudy, evaluator: Evaluator, table: pd.DataFr
             out["samples"] = ev["final_samples"]
             out["repeats"] = ev["final_repeats"]
             out["knee"] = bool(row.get("knee", False)) if src == "best" else False
+            out["role"] = str(row.get("role", "best")) if src == "best" else "reference"
+            out["dominates_reference_screen"] = bool(row.get("dominates_reference_screen", False)) if src == "best" else False
             out["count"] = int(row.get("count", 1)) if src == "best" else 1
             rows.append(out)
     df = pd.DataFrame(rows)
