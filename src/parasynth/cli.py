@@ -263,11 +263,13 @@ def cmd_run(args) -> int:
         _out_dir(args.out, "--out")
     if args.report_dir is not None and not args.no_report:
         _out_dir(args.report_dir, "--report-dir")
-    res = run_study(study, out_dir=args.out, resume=args.resume, n_trials=args.n_trials, progress=not args.quiet)
+    res = run_study(study, out_dir=args.out, resume=args.resume, n_trials=args.n_trials, progress=not args.quiet,
+                    storage=args.storage, workers=args.workers)
     print(res.summary(study))
     if res.interrupted:
-        print(f"interrupted: {res.n_total} designs are saved; continue with {_run_hint(args)}", file=sys.stderr)
-        return EXIT_INTERRUPTED
+        from .study.workers import interrupted_run
+
+        return interrupted_run(args, res)
     if not args.no_report:
         from .report import ReportError, write_report
 
@@ -340,6 +342,15 @@ def cmd_run_all(args) -> int:
 def cmd_report(args) -> int:
     from .report import ReportError, write_report
 
+    if args.storage or args.study:
+        from .study.workers import cmd_report_storage
+
+        if not args.storage or args.run_dir:
+            raise CliError("report --storage URL --study NAME rebuilds a run from a storage (no RUN_DIR); "
+                           "report RUN_DIR reports a run directory")
+        return cmd_report_storage(args)
+    if not args.run_dir:
+        raise CliError("report needs a RUN_DIR (or --storage URL --study NAME)")
     run_dir = Path(args.run_dir)
     if not run_dir.exists():
         raise CliError(f"run directory {str(run_dir)!r} does not exist")
@@ -495,6 +506,22 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-report", action="store_true", help="do not write the report at the end, e.g. --no-report")
     p.add_argument("--report-dir", type=_path_arg("--report-dir"),
                    help="report directory (default reports/<study name>/), e.g. --report-dir reports/qs")
+    p.add_argument("--workers", type=_count_type("--workers", 1, 1024), metavar="N",
+                   help="local worker processes for an Optuna study (e.g. --workers 2); sweeps and NLopt run in one")
+    p.add_argument("--storage", metavar="URL",
+                   help="Optuna storage, e.g. postgresql://user:pw@host/db, sqlite:///optuna.db, journal:FILE "
+                        "(default: optuna.journal in the run directory); see docs/scaling.md")
+    p = add("worker", None, "join a running Optuna study from any machine",
+            "parasynth worker studies/quickstart.yaml --storage postgresql://user:pw@host:5432/db")
+    p.add_argument("study", type=_path_arg("the study file"),
+                   help="the study YAML file the run was started with, e.g. studies/quickstart.yaml")
+    p.add_argument("--storage", metavar="URL", help="the study's storage, e.g. postgresql://user:pw@host:5432/db")
+    p.add_argument("--n-trials", type=_n_trials, metavar="N",
+                   help="study budget (default: the one the run stored), e.g. --n-trials 200")
+    p.add_argument("--quiet", action="store_true", help="no progress bar, e.g. --quiet")
+    from .study.workers import cmd_worker
+
+    p.set_defaults(func=cmd_worker)
     p = add("run-all", cmd_run_all, "run every study in a folder and write the reports",
             "parasynth run-all studies --only quickstart")
     p.add_argument("folder", nargs="?", default="studies", help="folder of study files (default studies), e.g. studies")
@@ -505,8 +532,13 @@ def build_parser() -> argparse.ArgumentParser:
                    help="reports folder (default reports/), e.g. --reports reports")
     p.add_argument("--quiet", action="store_true", help="no progress bars, e.g. --quiet")
     p = add("report", cmd_report, "write the report of a run directory", "parasynth report runs/quickstart --out reports/qs")
-    p.add_argument("run_dir", type=_path_arg("the run directory"), help="run directory, e.g. runs/quickstart")
+    p.add_argument("run_dir", nargs="?", type=_path_arg("the run directory"), help="run directory, e.g. runs/quickstart")
     p.add_argument("--out", type=_path_arg("--out"), help="report directory (default reports/<study name>/), e.g. --out reports/qs")
+    p.add_argument("--storage", metavar="URL", help="rebuild the run from this storage (with --study NAME), "
+                                                     "e.g. --storage sqlite:///optuna.db")
+    p.add_argument("--study", metavar="NAME", help="study name in --storage, e.g. --study quickstart")
+    p.add_argument("--run-dir", dest="rebuild_dir", metavar="DIR",
+                   help="where --storage rebuilds the run directory (default runs/NAME), e.g. --run-dir runs/qs")
     p = add("validate", cmd_validate, "check a study file: names, units, ranges, and that its designs can be built "
             "and its measures evaluated", "parasynth validate studies/quickstart.yaml")
     p.add_argument("study", type=_path_arg("the study file"), help="study YAML file, e.g. studies/quickstart.yaml")
