@@ -368,7 +368,8 @@ def test_check_study_probes_every_measure_with_its_settings():
         objectives.OBJECTIVES.pop("test_refuses_flag", None)
 
 
-@pytest.mark.parametrize("label", ["trial", "feasible", "status", "time_s", "link_length"])
+@pytest.mark.parametrize("label", ["trial", "feasible", "status", "time_s", "link_length", "role",
+                                   "dominates_reference_screen", "count"])
 def test_labels_may_not_clash_with_result_columns(label):
     msg = error_of({**BASE, "objectives": [{"name": "test_quadratic", "label": label}]})
     assert "objectives[0].label" in msg and repr(label) in msg

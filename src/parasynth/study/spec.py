@@ -51,7 +51,7 @@ NLOPT_WITH_CONSTRAINTS = ("LN_COBYLA", "GN_ISRES")
 #: Columns of results.csv and final.csv besides the design variables, objectives and
 #: constraints: a label may not take one of these names.
 RESERVED_COLUMNS = ("trial", "source", "feasible", "status", "error", "seed", "samples", "time_s", "repeats",
-                    "knee", "count")
+                    "knee", "count", "role", "dominates_reference_screen")
 #: Suffixes of derived columns: ``<constraint>_margin`` (results.csv), ``<objective>_stderr`` (final.csv).
 DERIVED_SUFFIXES = ("_margin", "_stderr")
 
@@ -891,8 +891,11 @@ KEY_DOCS = {
                               "`parasynth list`).",
     "evaluation.final_samples": "Samples of the final re-evaluation of the best designs (1 to "
                                 f"{MAX_SAMPLES}); leave out to skip it.",
-    "evaluation.final_repeats": "Seeds of the final re-evaluation (1 to 1000, default 4).",
-    "evaluation.final_top": "Best designs re-evaluated at the end (0 to 1000, default 5).",
+    "evaluation.final_repeats": "Seeds of the final re-evaluation (1 to 1000, default 4): mean and standard "
+                                "error over them.",
+    "evaluation.final_top": "Front designs re-evaluated at the end (0 to 1000, default 5): the k best (one "
+                            "objective) or k spread along the front by crowding distance, plus the knee and up to "
+                            "max(3, final_top) designs that dominate the reference on single samples; 0 skips it.",
     "evaluation.engine": "Evaluation engine: compiled (default; NumPy, with a warning, for a mechanism it does "
                          "not cover) or numpy (the NumPy reference).",
     "optimizer": "The search: a sweep over listed values, NLopt (one objective) or Optuna (several).",
