@@ -59,7 +59,6 @@ from __future__ import annotations
 
 import logging
 import math
-import os
 import warnings
 
 import numpy as np
@@ -80,14 +79,10 @@ __all__ = [
 
 log = logging.getLogger("parasynth.engine")
 
-try:  # pragma: no cover - depends on the environment
-    if os.environ.get("PARASYNTH_NO_NUMBA", "").strip() not in ("", "0"):
-        raise ImportError("disabled by PARASYNTH_NO_NUMBA")
-    from numba import njit, prange
+from .core import HAVE_NUMBA  # one decision (PARASYNTH_NO_NUMBA, a broken install) for the whole engine
 
-    HAVE_NUMBA = True
-except Exception:  # ImportError, or a broken numba/llvmlite install
-    HAVE_NUMBA = False
+if HAVE_NUMBA:
+    from numba import njit, prange
 
 # Leg type codes in the kernels.
 _SPS, _UPS, _PUS, _RPS, _RPU, _UPU, _PRS = 0, 1, 2, 3, 4, 5, 6
