@@ -400,3 +400,25 @@ def test_postgres_lost_server_worker_retries_then_exits_and_resume_completes(tmp
         assert sorted(table["trial"]) == sorted(counted)
     finally:
         stop()
+
+
+def test_trial_abandoned_before_its_owner_was_recorded_is_failed(monkeypatch):
+    """A process that stopped between asking for a trial and recording its owner (the storage went
+    away then) leaves a running trial that neither the owner check nor the heartbeat can fail:
+    after ORPHAN_AGE_S it is failed, so a resumed run does not wait for it forever."""
+    import optuna
+    from optuna.trial import TrialState
+
+    from parasynth.study import workers
+
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    ostudy = optuna.create_study()
+    orphan = ostudy.ask()  # running, no owner
+    owned = ostudy.ask()
+    owned.set_user_attr(workers.OWNER_ATTR, f"{socket.gethostname()}:{os.getpid()}")  # alive: this process
+    monkeypatch.setattr(workers, "ORPHAN_AGE_S", 3600.0)
+    assert workers.budget_state(ostudy) == (0, 2, 0)  # young: may still be a live worker's
+    monkeypatch.setattr(workers, "ORPHAN_AGE_S", 0.0)
+    assert workers.budget_state(ostudy) == (0, 1, 0)
+    states = {t.number: t.state for t in ostudy.get_trials(deepcopy=False)}
+    assert states == {orphan.number: TrialState.FAIL, owned.number: TrialState.RUNNING}

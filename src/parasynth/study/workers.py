@@ -302,9 +302,28 @@ def _stale_here(t) -> bool:
     return host == socket.gethostname() and pid.isdigit() and int(pid) != os.getpid() and not _pid_alive(int(pid))
 
 
+#: Seconds after which a running trial that never recorded its owner counts as abandoned: its
+#: process stopped between asking for the trial and its first write (e.g. the storage went away
+#: then), so neither the owner check below nor Optuna's heartbeat (no beat was ever stored) can
+#: fail it. A live process records its owner milliseconds after asking.
+ORPHAN_AGE_S = float(os.environ.get("PARASYNTH_ORPHAN_AGE", "30"))
+
+
+def _orphaned(t) -> bool:
+    """A running trial without a recorded owner, started over ``ORPHAN_AGE_S`` seconds ago."""
+    import datetime
+
+    if t.user_attrs.get(OWNER_ATTR) is not None or t.datetime_start is None:
+        return False
+    start = t.datetime_start
+    now = datetime.datetime.now(start.tzinfo) if start.tzinfo is not None else datetime.datetime.now()
+    return (now - start).total_seconds() > ORPHAN_AGE_S
+
+
 def budget_state(ostudy):
     """(counted, running, waiting) trials of the study; running trials of dead local
-    processes are marked failed on the way (their designs are proposed again)."""
+    processes, and trials abandoned before their owner was recorded, are marked failed on the
+    way (their designs are proposed again)."""
     from optuna.trial import TrialState
 
     from .storage import counts
@@ -314,7 +333,7 @@ def budget_state(ostudy):
         if counts(t):
             counted += 1
         elif t.state == TrialState.RUNNING:
-            if _stale_here(t):
+            if _stale_here(t) or _orphaned(t):
                 with contextlib.suppress(Exception):
                     ostudy._storage.set_trial_state_values(t._trial_id, state=TrialState.FAIL)
             else:
