@@ -38,7 +38,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .mechanism import _use_compiled
+from . import engine as _engine
 
 
 __all__ = [
@@ -222,10 +222,8 @@ def pressure_angle_indices(mech, X, definition: str = "paper", engine: str = "co
     if definition not in ("paper", "pressure"):
         raise ValueError(f"definition must be 'paper' or 'pressure', got {definition!r}")
     Xa, single = _as_poses(mech, X)
-    if _use_compiled(mech, engine, "pressure_angle_indices"):
-        from .engine import indices as _ei
-
-        dirs, reachable = _ei.leg_directions(mech, Xa)
+    if _engine.use_compiled(mech, engine, "pressure_angle_indices"):
+        dirs, reachable = _engine.leg_directions(mech, Xa)
         w = {leg.name: dirs[:, k] for k, leg in enumerate(mech.legs)}
     else:
         _, states, _ = mech.leg_states(Xa)
@@ -373,10 +371,8 @@ def input_transmission_index(mech, X) -> np.ndarray:
 def output_transmission_index(mech, X, rtol: float = 1e-9, engine: str = "compiled") -> np.ndarray:
     """Output transmission index of every actuated leg, (N, n_act) (see
     :func:`transmission_indices`). ``engine`` as in :func:`local_transmission_index`."""
-    if _use_compiled(mech, engine, "output_transmission_index"):
-        from .engine import indices as _ei
-
-        return _ei.transmission(mech, X, rtol)[1]
+    if _engine.use_compiled(mech, engine, "output_transmission_index"):
+        return _engine.transmission(mech, X, rtol)[1]
     return transmission_indices(mech, X, rtol).output
 
 
@@ -389,10 +385,8 @@ def local_transmission_index(mech, X, rtol: float = 1e-9, engine: str = "compile
     ``engine="compiled"`` (default): the compiled kernels of :mod:`parasynth.engine.indices`
     (the same definitions, agreeing with the NumPy path to 1e-9; NumPy with the reason logged
     once for a mechanism they do not cover); ``engine="numpy"``: :func:`transmission_indices`."""
-    if _use_compiled(mech, engine, "local_transmission_index"):
-        from .engine import indices as _ei
-
-        return _ei.transmission(mech, X, rtol)[2]
+    if _engine.use_compiled(mech, engine, "local_transmission_index"):
+        return _engine.transmission(mech, X, rtol)[2]
     return transmission_indices(mech, X, rtol).lti
 
 
@@ -474,14 +468,10 @@ def local_condition_number(mech, X, length: float | None = None, space: str = "t
     if space not in ("task", "twist"):
         raise ValueError(f"space must be 'task' or 'twist', got {space!r}")
     if space == "twist" and engine == "compiled":
-        from .engine import indices as _ei
-
-        _ei.warn_fallback("local_condition_number", mech, "space='twist' has no compiled form")
+        _engine.warn_fallback("local_condition_number", mech, "space='twist' has no compiled form")
         engine = "numpy"
-    if _use_compiled(mech, engine, "local_condition_number"):
-        from .engine import indices as _ei
-
-        return _ei.condition_number(mech, X, L)
+    if _engine.use_compiled(mech, engine, "local_condition_number"):
+        return _engine.condition_number(mech, X, L)
     if space == "task":
         Xa, single = _as_poses(mech, X)
         J = np.array(mech.jacobian(Xa), dtype=float, copy=True)

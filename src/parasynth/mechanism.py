@@ -12,21 +12,37 @@ A concrete model supplies only its legs and its task-space parametrisation:
   coordinates ``X`` (N, n_task), including any dependent coordinates;
 * ``twist_map(X)``: the matrix (N, 6, n_task) mapping task-coordinate rates to the platform
   twist ``(v_P, omega)``.
+
+This is the NumPy model: it never imports the compiled engine. The methods that have a compiled
+path (``is_feasible``, ``constraint_margins``, ``singularity_margin``,
+``structural_constraint_rank``) take ``engine="compiled"`` (default) or ``"numpy"``; here they
+are the NumPy reference, and "compiled" on a model class written in Python runs them on NumPy
+with one :class:`EngineFallbackWarning` per class. Described mechanisms
+(:class:`~parasynth.mechanisms.description.DescribedMechanism`) override them to run on
+:mod:`parasynth.engine`.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import logging
+import warnings
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
+from .constraints import PoseContext
 from .legs import JOINT_DOF, Leg, LegState
 from .spatial import reciprocal_basis
-from .validation import check_pose_array, is_real_number, mask_huge_poses
+from .validation import check_engine, check_pose_array, is_real_number, mask_huge_poses
 
-__all__ = ["Mechanism", "IKResult", "Mobility", "ForwardKinematicsError"]
+__all__ = ["Mechanism", "IKResult", "Mobility", "ForwardKinematicsError", "EngineFallbackWarning"]
+
+
+class EngineFallbackWarning(UserWarning):
+    """The compiled engine does not cover a mechanism; NumPy evaluates it (the message says why).
+    Also :class:`parasynth.engine.EngineFallbackWarning`."""
 
 
 class ForwardKinematicsError(RuntimeError):
@@ -107,20 +123,21 @@ class Mobility:
         )
 
 
-def _use_compiled(mech, engine: str, what: str) -> bool:
-    """Whether ``what`` runs on the compiled index kernels for ``mech``: ``engine`` is
-    "compiled" or "numpy" (``ValueError`` otherwise); "compiled" falls back to NumPy, saying
-    why once, when the kernels do not cover the mechanism."""
-    from .engine import check_engine
-    from .engine import indices as _ei
+_FALLBACK_WARNED: set = set()
 
-    if check_engine(engine) == "numpy":
-        return False
 
-    ok, why = _ei.coverage(mech)
-    if not ok:
-        _ei.warn_fallback(what, mech, why)
-    return ok
+def _numpy_only(mech, engine) -> None:
+    """Validate ``engine`` ("compiled" or "numpy"; ``ValueError`` otherwise) for a method of a
+    model class without a compiled path: "compiled" says once per class, as an
+    :class:`EngineFallbackWarning` and on the ``parasynth.engine`` logger, that NumPy evaluates
+    it."""
+    if check_engine(engine) == "numpy" or type(mech) in _FALLBACK_WARNED:
+        return
+    _FALLBACK_WARNED.add(type(mech))
+    msg = (f"{getattr(mech, 'name', type(mech).__name__)}: the compiled engine does not cover the model class "
+           f"{type(mech).__name__} (not a mechanism description); evaluated with NumPy")
+    logging.getLogger("parasynth.engine").info(msg)
+    warnings.warn(msg, EngineFallbackWarning, stacklevel=3)
 
 
 def _rank(A: np.ndarray, rtol: float = 1e-8) -> int:
@@ -320,10 +337,7 @@ class Mechanism:
         the tolerance of :meth:`mobility` (1e-8). One batched SVD over the legs instead of
         per-leg canonical bases, so that the per-design cost of the singularity margin stays
         small; the same span, so the same rank. ``engine`` as in :meth:`singularity_margin`."""
-        if _use_compiled(self, engine, "constraint rank"):
-            from .engine import indices as _ei
-
-            return _ei.constraint_rank(self, X)
+        _numpy_only(self, engine)
         X0 = self.home if X is None else np.asarray(X, dtype=float)
         _, states, p = self.leg_states(X0[None, :])
         if not all(st.reachable[0] for st in states):
@@ -376,14 +390,12 @@ class Mechanism:
         value is returned, so for an under-actuated mechanism it measures the independence
         of the wrenches it has. NaN for unreachable poses.
 
-        ``engine="compiled"`` (default) evaluates it with the compiled kernels of
-        :mod:`parasynth.engine.indices` (agreeing with the NumPy path to 1e-9); a mechanism
-        they do not cover (a leg type of its own, an overridden wrench method, no numba) runs
-        on NumPy, with the reason logged once. ``engine="numpy"``: the NumPy reference."""
-        if _use_compiled(self, engine, "singularity_margin"):
-            from .engine import indices as _ei
-
-            return _ei.singularity_margin(self, X)
+        ``engine="compiled"`` (default): a described mechanism evaluates it with the compiled
+        kernels of :mod:`parasynth.engine.indices` (agreeing with the NumPy path to 1e-9); a
+        mechanism they do not cover (a leg type of its own, an overridden wrench method, no
+        numba) and a model class written in Python run on NumPy, saying so once.
+        ``engine="numpy"``: the NumPy reference (this method)."""
+        _numpy_only(self, engine)
         Xa, single = self._poses(X)
         M = self.normalized_wrench_system(Xa)
         ok = np.all(np.isfinite(M), axis=(1, 2))
@@ -611,8 +623,6 @@ class Mechanism:
 
     def pose_context(self, X):
         """Inverse kinematics of poses ``X`` packed for constraint evaluation."""
-        from .constraints import PoseContext
-
         Xa, _ = self._poses(X)
         valid = self.pose_valid(Xa)
         Xs = np.where(valid[:, None], Xa, self.home)
@@ -637,12 +647,12 @@ class Mechanism:
     def constraint_margins(self, X, names=None, engine: str = "compiled") -> dict[str, np.ndarray]:
         """{constraint name: margins (N,)}, >= 0 where satisfied, in each constraint's unit
         (``self.constraints[name].unit``). Poses the legs cannot reach get -inf in every
-        margin (never NaN). ``names`` selects a subset. ``engine``: "compiled" (the compiled
-        engine, :mod:`parasynth.engine`, falling back to NumPy with a warning where it does not
-        cover the mechanism) or "numpy" (the reference)."""
-        from . import engine as _engine
-
-        return _engine.margins(self, X, names, engine)
+        margin (never NaN). ``names`` selects a subset. ``engine``: "compiled" (default: a
+        described mechanism runs on the compiled engine, :mod:`parasynth.engine`, falling back to
+        NumPy with a warning where it does not cover the mechanism; a model class written in
+        Python runs on NumPy, saying so once) or "numpy" (the reference)."""
+        _numpy_only(self, engine)
+        return self._constraint_margins_numpy(X, names)
 
     def _constraint_margins_numpy(self, X, names=None) -> dict[str, np.ndarray]:
         """The NumPy reference of :meth:`constraint_margins`."""
@@ -661,9 +671,8 @@ class Mechanism:
     def is_feasible(self, X, names=None, engine: str = "compiled") -> np.ndarray:
         """(N,) bool: reachable and every selected constraint margin >= 0. ``engine``:
         "compiled" (default, see :meth:`constraint_margins`) or "numpy" (the reference)."""
-        from . import engine as _engine
-
-        return _engine.feasible(self, X, names, engine)
+        _numpy_only(self, engine)
+        return self._is_feasible_numpy(X, names)
 
     def _is_feasible_numpy(self, X, names=None) -> np.ndarray:
         """The NumPy reference of :meth:`is_feasible`."""

@@ -18,6 +18,9 @@ memory or time before any work is done:
   description reader's ``MAX_PATTERN_POINTS``);
 * :data:`MAX_POSE_MAGNITUDE`: a position coordinate beyond this (1e6 m) is outside any
   mechanism and is treated as unreachable, as NaN is (it would overflow squares of lengths).
+
+:func:`check_engine` validates the ``engine=`` argument of the evaluations that have a compiled
+path (:data:`ENGINES`: ``"compiled"``, ``"numpy"``).
 """
 
 from __future__ import annotations
@@ -36,6 +39,8 @@ __all__ = [
     "mask_huge_poses",
     "pose_finite",
     "is_real_number",
+    "ENGINES",
+    "check_engine",
     "MAX_SAMPLES",
     "MAX_TRIALS",
     "MAX_LEGS",
@@ -58,6 +63,17 @@ MAX_SEED = 2**32 - 1
 
 class InputError(ValueError):
     """A value given through the API that is not allowed; the message names the field."""
+
+
+#: Values of the ``engine=`` argument: the compiled engine (default) or the NumPy reference.
+ENGINES = ("compiled", "numpy")
+
+
+def check_engine(engine, arg: str = "engine") -> str:
+    """Validate an engine name ("compiled" or "numpy"); the lower-cased name."""
+    if not isinstance(engine, str) or engine.lower() not in ENGINES:
+        raise ValueError(f"{arg} must be one of {', '.join(ENGINES)}; got {engine!r}")
+    return engine.lower()
 
 
 def is_real_number(value) -> bool:

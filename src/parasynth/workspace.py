@@ -82,6 +82,7 @@ from typing import Any, Callable
 
 import numpy as np
 
+from .engine import check_engine, pose_batch
 from .validation import MAX_SAMPLES
 
 #: Largest ``n`` of :func:`workspace`. Samples stream chunk by chunk, so the limit is time, not
@@ -656,8 +657,6 @@ def workspace(mech, ranges=None, n: int = 2**16, method: str = "sobol", seed: in
         if isinstance(max_points, (bool, np.bool_)) or not isinstance(max_points, (int, np.integer)) or max_points < 0:
             raise ValueError(f"max_points must be a non-negative integer or None, got {max_points!r}")
     cap = 0 if not keep_points else (None if max_points is None else int(max_points))
-    from .engine import check_engine, pose_batch
-
     engine = check_engine(engine, "engine")
     if not (progress is None or isinstance(progress, (bool, np.bool_)) or callable(progress)):
         raise ValueError(f"progress must be None, True, False or a callable(n_done, n_total, n_feasible); got {progress!r}")

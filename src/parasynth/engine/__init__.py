@@ -14,13 +14,27 @@ Entry points (``engine="compiled"`` is the default everywhere; ``"numpy"`` the r
   like the NumPy methods evaluated on home-substituted poses -- here they are simply not
   meaningful: use ``valid``);
 * :func:`available` ``(mech, names=None)`` and :func:`reason` ``(mech, names=None)``: whether
-  the compiled path covers ``mech`` and, if not, why.
+  the compiled path covers ``mech`` and, if not, why;
+* the compiled pose-wise indices (:mod:`parasynth.engine.indices`): :func:`use_compiled`
+  ``(mech, engine, what)`` says whether they cover ``mech`` (and, once, why not), then
+  :func:`singularity_margin`, :func:`transmission`, :func:`condition_number`,
+  :func:`leg_directions`, :func:`constraint_rank` evaluate them.
 
 How it works: :mod:`parasynth.engine.program` translates the task parametrisation and the
 expression margins into a register program (parameters as a constants vector, so one program
 serves every design of a description); :mod:`parasynth.engine.core` holds the plans (leg
 geometry and limits as arrays, read for every mechanism) and the numba kernels that interpret
-the program per sub-block of poses and run the legs' inverse kinematics and checks.
+the program per sub-block of poses and run the legs' inverse kinematics and checks;
+:mod:`parasynth.engine.evaluate` runs them on pose batches.
+
+Layering: the engine imports the NumPy model (:mod:`parasynth.mechanism`, legs, constraints)
+and never the mechanism descriptions; described mechanisms
+(:class:`~parasynth.mechanisms.description.DescribedMechanism`) call these entry points from
+their ``is_feasible``, ``constraint_margins``, ``singularity_margin`` and
+``structural_constraint_rank``. This package itself imports only NumPy: the modules holding
+the numba kernels (``core``, ``evaluate``, ``indices``) are loaded at the first compiled
+evaluation, so ``import parasynth`` does not import numba. ``HAVE_NUMBA``, ``BLOCK``, ``SUB``,
+``KernelPlan`` and ``Unsupported`` are looked up in :mod:`parasynth.engine.core` on first use.
 
 Anything the compiled path does not handle -- a model class that is not a description, a leg
 or constraint type it does not know, an expression construct it cannot translate, a
@@ -32,151 +46,66 @@ translation that does not reproduce ``mech.pose`` on probe poses, numba missing 
 
 from __future__ import annotations
 
-import logging
-import warnings
-import weakref
-
 import numpy as np
 
-from . import core
-from .core import BLOCK, HAVE_NUMBA, SUB, KernelPlan, Unsupported
+from ..mechanism import EngineFallbackWarning
+from ..validation import ENGINES, check_engine
 
 __all__ = ["HAVE_NUMBA", "ENGINES", "EngineFallbackWarning", "feasible", "margins", "pose_batch", "available",
-           "reason", "check_engine", "plan"]
+           "reason", "check_engine", "plan", "use_compiled", "warn_fallback", "coverage", "singularity_margin",
+           "transmission", "local_transmission_index", "condition_number", "leg_directions", "constraint_rank"]
 
-ENGINES = ("compiled", "numpy")
-_log = logging.getLogger("parasynth.engine")
-
-
-class EngineFallbackWarning(UserWarning):
-    """The compiled engine does not cover a mechanism; NumPy evaluates it (the message says why)."""
+#: Names looked up in :mod:`parasynth.engine.core` when first asked for.
+_CORE_NAMES = ("HAVE_NUMBA", "BLOCK", "SUB", "KernelPlan", "Unsupported")
 
 
-def check_engine(engine, arg: str = "engine") -> str:
-    """Validate an engine name ("compiled" or "numpy")."""
-    if not isinstance(engine, str) or engine.lower() not in ENGINES:
-        raise ValueError(f"{arg} must be one of {', '.join(ENGINES)}; got {engine!r}")
-    return engine.lower()
+def _compiled():
+    """The modules of the compiled path, ``(core, evaluate, indices)``."""
+    # lazy: they import numba and define its kernels (~0.5 s): loaded at the first compiled evaluation
+    from . import core, evaluate, indices
+
+    return core, evaluate, indices
+
+
+def __getattr__(name):
+    if name in _CORE_NAMES:
+        return getattr(_compiled()[0], name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 # ---------------------------------------------------------------------------------------------
-# plans, cached per mechanism object and constraint selection
+# feasibility, margins, poses
 # ---------------------------------------------------------------------------------------------
-_PLANS: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
-_WARNED: set = set()
-
-
-def _selection(mech, names):
-    return mech._select(names)
-
-
-def _kind(mech) -> str:
-    d = getattr(mech, "description", None)
-    src = getattr(d, "source", None) if d is not None else None
-    return f"{getattr(mech, 'name', type(mech).__name__)}" + (f" ({src})" if src else "")
-
-
-def _warn(mech, why: str) -> None:
-    key = (type(mech), why)
-    if key in _WARNED:
-        return
-    _WARNED.add(key)
-    msg = f"{_kind(mech)}: the compiled engine does not cover {why}; evaluated with NumPy"
-    _log.info(msg)
-    warnings.warn(msg, EngineFallbackWarning, stacklevel=4)
-
-
 def plan(mech, names=None):
     """(KernelPlan or None, reason or None) for ``mech`` and the constraints ``names``."""
-    if not HAVE_NUMBA:
-        return None, "numba (not importable, or disabled by PARASYNTH_NO_NUMBA)"
-    cons = _selection(mech, names)
-    key = tuple(id(c) for c in cons)
-    legs = tuple(id(leg) for leg in mech.legs)
-    try:
-        per = _PLANS.get(mech)
-    except TypeError:
-        per = None
-    if per is None:
-        per = {}
-        try:
-            _PLANS[mech] = per
-        except TypeError:
-            pass
-    hit = per.get(key)
-    if hit is not None and hit[0] == legs and hit[1] is mech.constraints and hit[2] == key:
-        return hit[3], hit[4]
-    try:
-        p, why = core.build_plan(mech, cons), None
-    except Unsupported as e:
-        p, why = None, str(e)
-    except (KeyError, AttributeError, ImportError, ValueError, TypeError, IndexError) as e:
-        p, why = None, f"this mechanism ({type(e).__name__}: {e})"
-    per[key] = (legs, mech.constraints, key, p, why, cons)  # cons kept alive: ids stay unique
-    return p, why
+    return _compiled()[1].plan(mech, names)
 
 
 def available(mech, names=None) -> bool:
     """Whether the compiled path covers ``mech`` (with the constraints ``names``)."""
-    return plan(mech, names)[0] is not None
+    return _compiled()[1].available(mech, names)
 
 
 def reason(mech, names=None) -> str | None:
     """Why the compiled path does not cover ``mech`` (None if it does)."""
-    return plan(mech, names)[1]
-
-
-def _compiled_plan(mech, names, engine):
-    if check_engine(engine) == "numpy":
-        return None
-    p, why = plan(mech, names)
-    if p is None:
-        _warn(mech, why)
-    return p
-
-
-# ---------------------------------------------------------------------------------------------
-# entry points
-# ---------------------------------------------------------------------------------------------
-def _kernel_poses(mech, X):
-    """(contiguous float64 (N, n_task), single) for the kernels: ``mech._poses`` without its
-    NumPy pass that masks huge lengths as NaN -- the kernels test every coordinate against
-    its limit (``Program.pose_limit``, the same magnitude), with the same outcome, and a
-    serial pass over the whole batch would cost a third of the parallel kernel's time. Input
-    that is not a float batch of the right shape goes through ``mech._poses`` (and its errors)."""
-    if isinstance(X, np.ndarray) and X.dtype == np.float64 and X.ndim in (1, 2) and X.shape[-1] == mech.n_task:
-        single = X.ndim == 1
-        Xa = X[None, :] if single else X
-        return np.ascontiguousarray(Xa), single
-    Xa, single = mech._poses(X)
-    return np.ascontiguousarray(Xa, dtype=np.float64), single
+    return _compiled()[1].reason(mech, names)
 
 
 def feasible(mech, X, names=None, engine: str = "compiled"):
     """(N,) bool: reachable and every selected constraint satisfied at poses ``X`` -- the
     answer of ``mech.is_feasible(X, names, engine="numpy")`` (see the agreement contract in
     :mod:`parasynth.engine.core`). A single pose (n_task,) gives a scalar bool."""
-    p = _compiled_plan(mech, names, engine)
-    if p is None:
+    if check_engine(engine) == "numpy":
         return mech._is_feasible_numpy(X, names)
-    Xc, single = _kernel_poses(mech, X)
-    out, amb = core.run_feasible(p, Xc)
-    if amb:  # batch-dependent RPS/RPU reachability: NumPy decides
-        return mech._is_feasible_numpy(X, names)
-    return out[0] if single else out
+    return _compiled()[1].feasible(mech, X, names)
 
 
 def margins(mech, X, names=None, engine: str = "compiled") -> dict:
     """{constraint name: (N,) margin} as ``mech.constraint_margins(X, names, engine="numpy")``
     (-inf where a leg cannot reach the pose or a margin is undefined)."""
-    p = _compiled_plan(mech, names, engine)
-    if p is None:
+    if check_engine(engine) == "numpy":
         return mech._constraint_margins_numpy(X, names)
-    Xc, single = _kernel_poses(mech, X)
-    M, amb = core.run_margins(p, Xc)
-    if amb:
-        return mech._constraint_margins_numpy(X, names)
-    return {n: (M[0, j] if single else M[:, j]) for j, n in enumerate(p.names)}
+    return _compiled()[1].margins(mech, X, names)
 
 
 def pose_batch(mech, X, twist: bool = False, engine: str = "compiled"):
@@ -185,25 +114,69 @@ def pose_batch(mech, X, twist: bool = False, engine: str = "compiled"):
     the twist map (N, 6, n_task) (as ``mech.twist_map``; else None). Entries of invalid
     poses are unspecified."""
     Xa, _ = mech._poses(X)
-    prog = None
     if check_engine(engine) == "compiled":
-        if not HAVE_NUMBA:
-            _warn(mech, "numba (not importable, or disabled by PARASYNTH_NO_NUMBA)")
-        elif not core._is_described(mech):
-            _warn(mech, f"the model class {type(mech).__name__} (not a mechanism description)")
-        else:
-            try:
-                prog = core.program_for(mech, {}, twist)
-                consts = prog.constants(mech._penv)
-            except (Unsupported, KeyError, IndexError, TypeError, ValueError) as e:
-                _warn(mech, str(e))
-                prog = None
-    if prog is not None:
-        ok, P, R, T = core.run_pose(prog, consts, Xa, twist)
-        return ok, P, R, T
+        out = _compiled()[1].compiled_pose_batch(mech, Xa, twist)
+        if out is not None:
+            return out
     with np.errstate(all="ignore"):
         valid = mech.pose_valid(Xa)
         Xs = np.where(valid[:, None], Xa, mech.home)
         P, R = mech.pose(Xs)
         T = mech.twist_map(Xs) if twist else None
     return valid, np.asarray(P, dtype=float), np.asarray(R, dtype=float), T
+
+
+# ---------------------------------------------------------------------------------------------
+# compiled pose-wise indices (parasynth.engine.indices)
+# ---------------------------------------------------------------------------------------------
+def coverage(mech) -> tuple[bool, str]:
+    """``(True, "")`` when the compiled indices cover ``mech``, else ``(False, reason)``."""
+    return _compiled()[2].coverage(mech)
+
+
+def warn_fallback(what: str, mech, reason: str) -> None:
+    """Say once per (what, model class, reason) that ``what`` runs on NumPy and why."""
+    _compiled()[2].warn_fallback(what, mech, reason)
+
+
+def use_compiled(mech, engine, what: str) -> bool:
+    """Whether ``what`` runs on the compiled index kernels for ``mech``: ``engine`` is
+    "compiled" or "numpy" (``ValueError`` otherwise); "compiled" falls back to NumPy, saying
+    why once, when the kernels do not cover the mechanism."""
+    if check_engine(engine) == "numpy":
+        return False
+    ei = _compiled()[2]
+    ok, why = ei.coverage(mech)
+    if not ok:
+        ei.warn_fallback(what, mech, why)
+    return ok
+
+
+def singularity_margin(mech, X) -> np.ndarray:
+    """Compiled :meth:`Mechanism.singularity_margin` (N,) (see :func:`use_compiled`)."""
+    return _compiled()[2].singularity_margin(mech, X)
+
+
+def constraint_rank(mech, X=None) -> int:
+    """Compiled :meth:`Mechanism.structural_constraint_rank` at pose ``X`` (default ``home``)."""
+    return _compiled()[2].constraint_rank(mech, X)
+
+
+def transmission(mech, X, rtol: float = 1e-9):
+    """Compiled input (N, n_act), output (N, n_act) and local (N,) transmission indices."""
+    return _compiled()[2].transmission(mech, X, rtol)
+
+
+def local_transmission_index(mech, X, rtol: float = 1e-9) -> np.ndarray:
+    """Compiled local transmission index (N,)."""
+    return _compiled()[2].local_transmission_index(mech, X, rtol)
+
+
+def condition_number(mech, X, length: float | None = None) -> np.ndarray:
+    """Compiled task-space condition number (N,) of :func:`parasynth.indices.local_condition_number`."""
+    return _compiled()[2].condition_number(mech, X, length)
+
+
+def leg_directions(mech, X) -> tuple[np.ndarray, np.ndarray]:
+    """Compiled unit leg directions (N, n_legs, 3) and reachability (N,)."""
+    return _compiled()[2].leg_directions(mech, X)

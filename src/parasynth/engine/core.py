@@ -50,6 +50,8 @@ import numpy as np
 from ..constraints import (ActuatorRange, CoordinateRange, JointAngleLimit, LegAxisAngle, LegInterference,
                            LegLengthRange)
 from ..legs import GEOM_TOL, PRS, PUS, RPS, RPU, SPS, UPS, UPU
+from ..spatial import unit
+from ..validation import MAX_POSE_MAGNITUDE
 from .program import OPS, Program, Untranslatable, build_program
 
 try:  # pragma: no cover - depends on the environment
@@ -202,8 +204,6 @@ def _cos_limit(hi: float) -> float:
 
 def _revolute_frame(r_axis: np.ndarray, ref: np.ndarray):
     """r0 and b of legs._u_angles (same operations), for the signed revolute angle."""
-    from ..spatial import unit
-
     a1 = r_axis
     r0 = unit(ref - np.dot(ref, a1) * a1)
     if not np.any(r0):
@@ -231,9 +231,12 @@ def expression_of(mech, c):
 
 
 def _is_described(mech) -> bool:
-    from ..mechanisms.description import DescribedMechanism
-
-    return isinstance(mech, DescribedMechanism)
+    """Whether ``mech`` carries a mechanism description the programs translate (its
+    ``description`` with a task section, and the parameter values ``_penv``), as
+    :class:`parasynth.mechanisms.description.DescribedMechanism` does. Asked of the object: the
+    engine does not import the description layer above it."""
+    d = getattr(mech, "description", None)
+    return d is not None and hasattr(d, "task") and hasattr(mech, "_penv")
 
 
 _KEYS: dict = {}
@@ -409,10 +412,7 @@ def _pose_limit(mech) -> np.ndarray:
     whole number of turns past that magnitude in an angular coordinate, which is the home pose
     again to rounding. The kernels test ``|x| <= limit`` per coordinate, so the compiled entry
     points need no separate NumPy pass over the poses."""
-    try:
-        from ..validation import MAX_POSE_MAGNITUDE as lim
-    except ImportError:  # pragma: no cover
-        return np.full(mech.n_task, np.inf)
+    lim = MAX_POSE_MAGNITUDE
     ang = [j for j, c in enumerate(mech.task_coordinates) if c in mech.angular_coordinates]
     out = np.full(mech.n_task, float(lim))
     if not ang:

@@ -32,8 +32,8 @@ Batches of at least :data:`PARALLEL_MIN` poses run on all threads (``prange``); 
 
 Every function is generic over the leg types ``SPS, UPS, PUS, RPS, RPU, UPU, PRS``; nothing is
 written per model class. The platform pose and the twist map come from the model's own
-``pose``/``twist_map`` (vectorised NumPy), or from ``parasynth.engine.pose_batch`` when that
-compiled path is present.
+``pose``/``twist_map`` (vectorised NumPy), or, for a described mechanism, from its compiled
+program (:func:`parasynth.engine.evaluate.compiled_pose_batch`).
 
 Entry points (each ``(mech, X)`` with poses ``X`` (N, n_task), results as the NumPy methods):
 
@@ -64,6 +64,8 @@ import warnings
 import numpy as np
 
 from ..legs import GEOM_TOL, PRS, PUS, RPS, RPU, SPS, UPS, UPU, Leg
+from ..mechanism import EngineFallbackWarning, Mechanism
+from .evaluate import compiled_pose_batch
 
 __all__ = [
     "HAVE_NUMBA",
@@ -109,11 +111,7 @@ def warn_fallback(what: str, mech, reason: str) -> None:
     _WARNED.add(key)
     msg = f"{getattr(mech, 'name', type(mech).__name__)}: {what} runs on NumPy: {reason}"
     log.info(msg)
-    try:
-        from . import EngineFallbackWarning as category
-    except ImportError:  # pragma: no cover - the engine package without its warning class
-        category = UserWarning
-    warnings.warn(msg, category, stacklevel=4)
+    warnings.warn(msg, EngineFallbackWarning, stacklevel=4)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -126,8 +124,6 @@ class _Unsupported(Exception):
 def _check_covered(mech) -> None:
     if not HAVE_NUMBA:
         raise _Unsupported("numba is not available")
-    from ..mechanism import Mechanism
-
     for m in _MECH_METHODS:
         if getattr(type(mech), m, None) is not getattr(Mechanism, m):
             raise _Unsupported(f"{type(mech).__name__} overrides Mechanism.{m}")
@@ -220,18 +216,16 @@ def _plan(mech):
 def _poses(mech, X, need_twist: bool):
     """(Xa, single, valid, p, R, T): poses, validity of the parametrisation, platform positions,
     rotations and (with ``need_twist``) twist maps, with invalid poses replaced by ``home`` (as
-    ``Mechanism.leg_states`` does). From the compiled ``parasynth.engine.pose_batch`` when the
-    engine provides it for a described mechanism, else from the model's NumPy
-    ``pose_valid``/``_pose``/``_twist_map`` (model classes written in Python)."""
+    ``Mechanism.leg_states`` does). From the compiled program of a described mechanism
+    (:func:`parasynth.engine.evaluate.compiled_pose_batch`) where it covers the description, else
+    from the model's NumPy ``pose_valid``/``_pose``/``_twist_map`` (model classes written in
+    Python)."""
     Xa, single = mech._poses(X)
-    pose_batch = None
+    compiled = None
     if getattr(mech, "description", None) is not None:  # a description: its pose is compiled too
-        try:
-            from . import pose_batch
-        except ImportError:  # pragma: no cover - the engine package without its pose path
-            pose_batch = None
-    if pose_batch is not None:
-        valid, p, R, T = pose_batch(mech, Xa, twist=need_twist)
+        compiled = compiled_pose_batch(mech, Xa, twist=need_twist)
+    if compiled is not None:
+        valid, p, R, T = compiled
         valid = np.asarray(valid, dtype=bool)
         p = np.array(p, dtype=float)
         R = np.array(R, dtype=float)

@@ -42,6 +42,8 @@ import operator
 
 import numpy as np
 
+from ..spatial import EULER_CONVENTIONS
+
 __all__ = ["Untranslatable", "Program", "build_program", "OPS"]
 
 
@@ -671,8 +673,6 @@ def _prune(code, needed):
 def _rotation(g: Graph, task, angle_nodes):
     """R (3x3 nodes) and the rate-map columns [R_1..R_{k-1} e_k] for the orientation."""
     if task.convention is not None:
-        from ..spatial import EULER_CONVENTIONS
-
         axes = [np.array(_AXES[a]) for a in EULER_CONVENTIONS[task.convention]]
     else:
         axes = [np.asarray(a, dtype=float) for a in task.rot_axes]

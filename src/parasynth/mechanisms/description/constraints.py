@@ -6,20 +6,19 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Callable
+from typing import Callable
 
 import numpy as np
 
 from ...constraints import (ActuatorRange, Constraint, CoordinateRange, JointAngleLimit, LegAxisAngle, LegInterference,
                             LegLengthRange)
+from ...mechanism import Mechanism
 from .errors import DescriptionError
 from .expressions import Expression, POSE_NAMES, R_NAMES, _Scope
 from .parameters import _Scalar, _check_keys
 from .legs import _ANCHOR_AXES, _Axis
 from .task import _Task
 
-if TYPE_CHECKING:
-    from .mechanism import DescribedMechanism
 
 _CONSTRAINT_KEYS = {
     "actuator_range": {"min", "max"},
@@ -118,7 +117,8 @@ class _ConstraintSpec:
                 raise DescriptionError(f"{path}.unit: the margin's unit: m, rad or 1, got {unit!r}")
             self.unit = unit
 
-    def build(self, mech: "DescribedMechanism") -> Constraint:
+    def build(self, mech: Mechanism) -> Constraint:
+        """The constraint for the described mechanism ``mech`` (a ``DescribedMechanism``)."""
         env = mech._penv
         lo = self.min(env) if self.min is not None else None
         hi = self.max(env) if self.max is not None else None

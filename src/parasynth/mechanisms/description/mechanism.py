@@ -1,6 +1,8 @@
 """:class:`DescribedMechanism`: the :class:`~parasynth.mechanism.Mechanism` of a description
 (pose and twist map from the task expressions, construction checks, mobility with
-consistency checks).
+consistency checks). Its feasibility, constraint margins, singularity margin and constraint
+rank run on the compiled engine (:mod:`parasynth.engine`) by default: the NumPy model
+above which the engine sits has only the NumPy reference.
 """
 
 from __future__ import annotations
@@ -11,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ... import engine as _engine
 from ...mechanism import Mechanism, Mobility
 from ...spatial import euler_rate_map, euler_to_matrix, reciprocal_basis, rot_axis, skew
 from .errors import DescriptionError, DescriptionWarning
@@ -257,6 +260,27 @@ class DescribedMechanism(Mechanism):
                 raise DescriptionError(f"{self.name}: {e}") from None
             except (ValueError, KeyError) as e:
                 raise DescriptionError(f"{self.name}: {spec.path}: {e}") from None
+
+    # -- the compiled path (parasynth.engine), NumPy reference in Mechanism ---------------------------
+    def is_feasible(self, X, names=None, engine: str = "compiled") -> np.ndarray:
+        return _engine.feasible(self, X, names, engine)
+
+    def constraint_margins(self, X, names=None, engine: str = "compiled") -> dict[str, np.ndarray]:
+        return _engine.margins(self, X, names, engine)
+
+    def singularity_margin(self, X, engine: str = "compiled") -> np.ndarray:
+        if _engine.use_compiled(self, engine, "singularity_margin"):
+            return _engine.singularity_margin(self, X)
+        return super().singularity_margin(X, engine="numpy")
+
+    def structural_constraint_rank(self, X=None, engine: str = "compiled") -> int:
+        if _engine.use_compiled(self, engine, "constraint rank"):
+            return _engine.constraint_rank(self, X)
+        return super().structural_constraint_rank(X, engine="numpy")
+
+    for _m in (is_feasible, constraint_margins, singularity_margin, structural_constraint_rank):
+        _m.__doc__ = getattr(Mechanism, _m.__name__).__doc__
+    del _m
 
     # -- mobility with consistency checks ----------------------------------------------------------
     @property

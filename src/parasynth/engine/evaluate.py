@@ -1,0 +1,162 @@
+"""Feasibility, constraint margins and poses of pose batches on the compiled kernels, behind the
+entry points of :mod:`parasynth.engine` (which loads this module at the first compiled
+evaluation: it imports :mod:`parasynth.engine.core` and with it numba).
+
+Plans are cached per mechanism object and constraint selection. Where the kernels do not cover
+a mechanism (see :mod:`parasynth.engine`), the mechanism's NumPy reference answers and an
+:class:`~parasynth.mechanism.EngineFallbackWarning` says why, once per mechanism kind and
+reason.
+"""
+
+from __future__ import annotations
+
+import logging
+import warnings
+import weakref
+
+import numpy as np
+
+from ..mechanism import EngineFallbackWarning
+from . import core
+from .core import HAVE_NUMBA, Unsupported
+
+__all__ = ["feasible", "margins", "compiled_pose_batch", "available", "reason", "plan"]
+
+_log = logging.getLogger("parasynth.engine")
+
+
+# ---------------------------------------------------------------------------------------------
+# plans, cached per mechanism object and constraint selection
+# ---------------------------------------------------------------------------------------------
+_PLANS: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+_WARNED: set = set()
+
+
+def _selection(mech, names):
+    return mech._select(names)
+
+
+def _kind(mech) -> str:
+    d = getattr(mech, "description", None)
+    src = getattr(d, "source", None) if d is not None else None
+    return f"{getattr(mech, 'name', type(mech).__name__)}" + (f" ({src})" if src else "")
+
+
+def _warn(mech, why: str) -> None:
+    key = (type(mech), why)
+    if key in _WARNED:
+        return
+    _WARNED.add(key)
+    msg = f"{_kind(mech)}: the compiled engine does not cover {why}; evaluated with NumPy"
+    _log.info(msg)
+    warnings.warn(msg, EngineFallbackWarning, stacklevel=4)
+
+
+def plan(mech, names=None):
+    """(KernelPlan or None, reason or None) for ``mech`` and the constraints ``names``."""
+    if not HAVE_NUMBA:
+        return None, "numba (not importable, or disabled by PARASYNTH_NO_NUMBA)"
+    cons = _selection(mech, names)
+    key = tuple(id(c) for c in cons)
+    legs = tuple(id(leg) for leg in mech.legs)
+    try:
+        per = _PLANS.get(mech)
+    except TypeError:
+        per = None
+    if per is None:
+        per = {}
+        try:
+            _PLANS[mech] = per
+        except TypeError:
+            pass
+    hit = per.get(key)
+    if hit is not None and hit[0] == legs and hit[1] is mech.constraints and hit[2] == key:
+        return hit[3], hit[4]
+    try:
+        p, why = core.build_plan(mech, cons), None
+    except Unsupported as e:
+        p, why = None, str(e)
+    except (KeyError, AttributeError, ImportError, ValueError, TypeError, IndexError) as e:
+        p, why = None, f"this mechanism ({type(e).__name__}: {e})"
+    per[key] = (legs, mech.constraints, key, p, why, cons)  # cons kept alive: ids stay unique
+    return p, why
+
+
+def available(mech, names=None) -> bool:
+    """Whether the compiled path covers ``mech`` (with the constraints ``names``)."""
+    return plan(mech, names)[0] is not None
+
+
+def reason(mech, names=None) -> str | None:
+    """Why the compiled path does not cover ``mech`` (None if it does)."""
+    return plan(mech, names)[1]
+
+
+def _compiled_plan(mech, names):
+    p, why = plan(mech, names)
+    if p is None:
+        _warn(mech, why)
+    return p
+
+
+# ---------------------------------------------------------------------------------------------
+# entry points
+# ---------------------------------------------------------------------------------------------
+def _kernel_poses(mech, X):
+    """(contiguous float64 (N, n_task), single) for the kernels: ``mech._poses`` without its
+    NumPy pass that masks huge lengths as NaN -- the kernels test every coordinate against
+    its limit (``Program.pose_limit``, the same magnitude), with the same outcome, and a
+    serial pass over the whole batch would cost a third of the parallel kernel's time. Input
+    that is not a float batch of the right shape goes through ``mech._poses`` (and its errors)."""
+    if isinstance(X, np.ndarray) and X.dtype == np.float64 and X.ndim in (1, 2) and X.shape[-1] == mech.n_task:
+        single = X.ndim == 1
+        Xa = X[None, :] if single else X
+        return np.ascontiguousarray(Xa), single
+    Xa, single = mech._poses(X)
+    return np.ascontiguousarray(Xa, dtype=np.float64), single
+
+
+def feasible(mech, X, names=None):
+    """(N,) bool: reachable and every selected constraint satisfied at poses ``X`` -- the
+    answer of ``mech.is_feasible(X, names, engine="numpy")`` (see the agreement contract in
+    :mod:`parasynth.engine.core`). A single pose (n_task,) gives a scalar bool."""
+    p = _compiled_plan(mech, names)
+    if p is None:
+        return mech._is_feasible_numpy(X, names)
+    Xc, single = _kernel_poses(mech, X)
+    out, amb = core.run_feasible(p, Xc)
+    if amb:  # batch-dependent RPS/RPU reachability: NumPy decides
+        return mech._is_feasible_numpy(X, names)
+    return out[0] if single else out
+
+
+def margins(mech, X, names=None) -> dict:
+    """{constraint name: (N,) margin} as ``mech.constraint_margins(X, names, engine="numpy")``
+    (-inf where a leg cannot reach the pose or a margin is undefined)."""
+    p = _compiled_plan(mech, names)
+    if p is None:
+        return mech._constraint_margins_numpy(X, names)
+    Xc, single = _kernel_poses(mech, X)
+    M, amb = core.run_margins(p, Xc)
+    if amb:
+        return mech._constraint_margins_numpy(X, names)
+    return {n: (M[0, j] if single else M[:, j]) for j, n in enumerate(p.names)}
+
+
+def compiled_pose_batch(mech, Xa, twist: bool = False):
+    """``(valid, p, R, T)`` of poses ``Xa`` (N, n_task) from the description's compiled program
+    (as :func:`parasynth.engine.pose_batch`), or None, having said why once, when the program
+    does not cover ``mech`` (the caller then evaluates the NumPy methods)."""
+    if not HAVE_NUMBA:
+        _warn(mech, "numba (not importable, or disabled by PARASYNTH_NO_NUMBA)")
+        return None
+    if not core._is_described(mech):
+        _warn(mech, f"the model class {type(mech).__name__} (not a mechanism description)")
+        return None
+    try:
+        prog = core.program_for(mech, {}, twist)
+        consts = prog.constants(mech._penv)
+    except (Unsupported, KeyError, IndexError, TypeError, ValueError, AttributeError) as e:
+        _warn(mech, str(e))
+        return None
+    return core.run_pose(prog, consts, Xa, twist)
