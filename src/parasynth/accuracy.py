@@ -63,6 +63,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .spatial import rot_axis, unit
+from .units import parse_quantity
 
 __all__ = [
     "TOLERANCE_SETTINGS",
@@ -100,8 +101,6 @@ def _check_tolerances(tol: dict) -> dict:
     for k in TOLERANCE_SETTINGS:
         v = tol.get(k, 0.0)
         if isinstance(v, str):  # a quantity with its unit, e.g. "0.02 mm", "0.05 deg"
-            from .units import parse_quantity
-
             v = parse_quantity(v, TOLERANCE_SETTINGS[k], field=k)
         try:
             v = float(v)

@@ -37,6 +37,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .mechanisms import load_mechanism
+from .objectives import OBJECTIVES
+
 __all__ = ["Unit", "UNITS", "unit_for_kind", "unit_for_si", "quantity_unit", "fmt_number", "fmt_quantity",
            "fmt_mean_se", "fmt_value", "column_header", "text_table", "fmt_column_value", "fmt_design",
            "fmt_evaluation"]
@@ -122,8 +125,6 @@ def compound_unit(n_length: int, n_angle: int) -> Unit:
 # -- which unit for a study column ---------------------------------------------------------------
 def _sampled_coordinates(study, settings: dict) -> tuple[list[str], set]:
     """Names of the coordinates a workspace measure samples, and the angular ones."""
-    from .mechanisms import load_mechanism
-
     ranges = settings.get("ranges") or study.evaluation.get("ranges")
     try:
         mech = load_mechanism(study.mechanism, **{**study.fixed, **(study.reference or {})})
@@ -171,8 +172,6 @@ def quantity_known(study, name: str) -> bool:
 
 def measure_unit(study, measure_name: str, settings: dict | None = None) -> Unit:
     """Display unit of a registered measure's value (with the study's settings for the sampled units)."""
-    from .objectives import OBJECTIVES
-
     m = OBJECTIVES.get(measure_name)
     if m is None:
         return NONE
@@ -263,7 +262,7 @@ def fmt_mean_se(mean, se, unit: Unit = NONE, with_unit: bool = False) -> str:
 def text_table(study, df, columns) -> str:
     """Plain-text table of ``columns`` of a results table: headers with display units, values
     in display units without float noise (console summaries)."""
-    import pandas as pd
+    import pandas as pd  # lazy: pandas is slow to import; only console tables need it
 
     out = pd.DataFrame(index=df.index)
     for c in columns:

@@ -56,8 +56,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .indices import StaticForces, _as_poses, _lstsq_balance, _pack, default_gravity, wrench_system
+from .indices import (StaticForces, _as_poses, _lstsq_balance, _pack, default_gravity, point_force_wrench,
+                      wrench_system)
 from .legs import PUS, RPS, RPU, SPS, UPS, UPU
+from .mechanisms import load_mechanism
 
 __all__ = [
     "RigidBody",
@@ -638,9 +640,6 @@ def force_decoupling(mech=None, inertia: InertiaModel | None = None, grinding_fo
     Gravity along ``-Y`` (the model's vertical) unless ``gravity`` is given; inertia
     :data:`GRINDING_INERTIA` unless given; samples every ``dt`` seconds.
     """
-    from .indices import point_force_wrench
-    from .mechanisms import load_mechanism
-
     mech = mech or load_mechanism("4ups_1rps")
     if mech.name != "4ups_1rps":
         raise ValueError(f"force_decoupling is the grinding robot's study (4ups_1rps); got {mech.name!r}")

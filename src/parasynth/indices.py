@@ -34,6 +34,8 @@ unbalanced residual is measured) depend on ``L``, and each function says where.
 
 from __future__ import annotations
 
+import os
+import sys
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -728,7 +730,7 @@ def min_max_forces(mech, X, wrench, weights=None, length: float | None = None) -
     under-actuated model still gets the best distribution for the balanceable part.
     ``weights`` (n_act,) default 1 (e.g. the actuators' force ratings).
     """
-    import cvxpy as cp
+    import cvxpy as cp  # lazy: cvxpy takes seconds to import; only the LP/QP force measures need it
 
     ws = wrench_system(mech, X)
     L = float(mech.length_scale if length is None else length)
@@ -783,7 +785,7 @@ def wrench_capability(mech, X, directions, force_limits, gravity_wrench=None,
     imposed to 1e-9 of the force limits (moments divided by ``length``, default
     ``mech.length_scale``), so a direction the wrench system cannot produce gets (about) 0.
     """
-    import cvxpy as cp
+    import cvxpy as cp  # lazy: cvxpy takes seconds to import; only the LP/QP force measures need it
 
     ws = wrench_system(mech, X)
     L = float(mech.length_scale if length is None else length)
@@ -847,7 +849,7 @@ def _solve(prob, kw) -> str:
 
     HiGHS prints a banner on the process's standard output (at C level) the first time it
     runs; that first solve runs with file descriptor 1 pointed at the null device."""
-    import cvxpy as cp
+    import cvxpy as cp  # lazy: as in min_max_forces
 
     global _HIGHS_BANNER_DONE
     quiet = kw.get("solver") == cp.HIGHS and not _HIGHS_BANNER_DONE
@@ -870,9 +872,6 @@ class _stdout_to_devnull:
     """Point file descriptor 1 at os.devnull for the duration (C-level output)."""
 
     def __enter__(self):
-        import os
-        import sys
-
         self._saved = None
         try:
             sys.stdout.flush()
@@ -884,8 +883,6 @@ class _stdout_to_devnull:
         return self
 
     def __exit__(self, *exc):
-        import os
-
         if self._saved is not None:
             os.dup2(self._saved, 1)
             os.close(self._saved)
@@ -894,6 +891,6 @@ class _stdout_to_devnull:
 
 
 def _lp_solver():
-    import cvxpy as cp
+    import cvxpy as cp  # lazy: as in min_max_forces
 
     return {"solver": cp.HIGHS} if "HIGHS" in cp.installed_solvers() else {}

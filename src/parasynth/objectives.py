@@ -28,6 +28,17 @@ from typing import Callable
 
 import numpy as np
 
+from .accuracy import TOLERANCE_SETTINGS as _TOL_SETTINGS
+from .accuracy import pose_error_bound, pose_error_monte_carlo
+from .dynamics import force_decoupling
+from .indices import (global_conditioning_index, gravity_wrench, local_transmission_index, point_force_wrench,
+                      static_forces)
+from .indices import wrench_capability as _wrench_capability
+from .stiffness import STIFFNESS_SETTINGS as _STIFF_SETTINGS
+from .stiffness import part_stiffness, point_deflection, stiffness_along
+from .validation import MAX_SAMPLES, check_count
+from .workspace import workspace
+
 __all__ = [
     "Measure",
     "register",
@@ -121,9 +132,6 @@ def workspace_of(mech, ranges=None, n: int = 4096, method: str = "sobol", seed: 
                  constraints=None, engine: str = "compiled"):
     """The (cached) workspace of ``mech`` for these settings; see :func:`parasynth.workspace`
     (``engine``: "compiled" or "numpy", the evaluation engine)."""
-    from .validation import MAX_SAMPLES, check_count
-    from .workspace import workspace
-
     n = check_count("n", n, 1, MAX_SAMPLES, what="a sample count")  # no truncation of 2.5, True, "100"
     seed = check_count("seed", seed, 0, what="an integer seed")
     ranges = dict(ranges) if ranges else mech.default_ranges()
@@ -275,8 +283,6 @@ def min_lti(mech, quantile: float = 0.0, **kw) -> float:
     """Smallest (or the given quantile of the) local transmission index (Wang, Liu, Wang &
     Gosselin 2010: min of input and output transmission indices) over the feasible workspace
     samples; 0 for an empty workspace."""
-    from .indices import local_transmission_index
-
     _, pts = _points(mech, kw)
     if not len(pts):
         return 0.0
@@ -288,8 +294,6 @@ def min_lti(mech, quantile: float = 0.0, **kw) -> float:
 @register("mean_lti", unit="1", sense="maximize", settings=_IDX_SETTINGS)
 def mean_lti(mech, **kw) -> float:
     """Mean local transmission index over the feasible workspace samples."""
-    from .indices import local_transmission_index
-
     _, pts = _points(mech, kw)
     if not len(pts):
         return 0.0
@@ -303,8 +307,6 @@ def mean_lti(mech, **kw) -> float:
 def good_transmission_volume(mech, threshold: float = 0.7, **kw) -> float:
     """Volume of the part of the workspace where LTI >= ``threshold`` (default 0.7):
     workspace volume times the fraction of feasible samples above the threshold."""
-    from .indices import local_transmission_index
-
     ws, pts = _points(mech, kw)
     if not len(pts):
         return 0.0
@@ -316,8 +318,6 @@ def good_transmission_volume(mech, threshold: float = 0.7, **kw) -> float:
 def gci(mech, **kw) -> float:
     """Global conditioning index (Gosselin & Angeles): mean of the inverse condition number
     of the dimensionally homogeneous actuator Jacobian over the feasible workspace."""
-    from .indices import global_conditioning_index
-
     _, pts = _points(mech, kw)
     if not len(pts):
         return 0.0
@@ -328,8 +328,6 @@ _LOAD_SETTINGS = {**_SUB_SETTINGS, "mass": "mass", "force": "force", "com": "len
 
 
 def _load(mech, X, mass, force, com):
-    from .indices import gravity_wrench, point_force_wrench
-
     com = tuple(com) if com is not None else (0.0, 0.0, 0.0)
     w = gravity_wrench(mech, X, float(mass), com=com)
     if force is not None:
@@ -344,8 +342,6 @@ def max_actuator_force(mech, mass: float = 5.0, force=None, com=None, **kw) -> f
     ``mass`` kg at ``com`` (platform frame, m) under gravity plus an optional external
     ``force`` [Fx, Fy, Fz] (N, base frame) at the same point. For an under-actuated model the
     least-squares balance is used (see indices.static_forces). 0 for an empty workspace."""
-    from .indices import static_forces
-
     _, pts = _points(mech, kw, default_max=1024)
     if not len(pts):
         return 0.0
@@ -360,16 +356,13 @@ def wrench_capability(mech, force_limit: float = 100.0, directions=None, mass: f
     (default +-X, +-Y, +-Z), of the largest force the actuators can balance within
     ``force_limit`` (N) each, with the payload's weight (``mass`` kg) included (cvxpy LP).
     Directions taken entirely by the constraints count as unlimited."""
-    from .indices import gravity_wrench
-    from .indices import wrench_capability as cap
-
     _, pts = _points(mech, kw, default_max=32)
     if not len(pts):
         return 0.0
     D = np.asarray(directions if directions is not None else
                    [[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], dtype=float)
     g = gravity_wrench(mech, pts, float(mass)) if mass else None
-    c = cap(mech, pts, D, float(force_limit), gravity_wrench=g)
+    c = _wrench_capability(mech, pts, D, float(force_limit), gravity_wrench=g)
     c = np.where(np.isnan(c), 0.0, c)
     return float(np.min(c))
 
@@ -397,8 +390,6 @@ def force_decoupling_ratio(mech, dt: float = 0.25, grinding_force: float = 50.0,
 
 
 def _decoupling(mech, dt, grinding_force, load_point):
-    from .dynamics import force_decoupling
-
     if load_point not in ("grinding_point", "centre"):
         raise ValueError(f"load_point must be 'grinding_point' or 'centre', got {load_point!r}")
     lp = (0.0, mech.params.y_t, 0.0) if load_point == "grinding_point" else (0.0, 0.0, 0.0)
@@ -406,9 +397,6 @@ def _decoupling(mech, dt, grinding_force, load_point):
 
 
 # -- stiffness and accuracy (parasynth.stiffness, parasynth.accuracy) ---------------------------------
-from .accuracy import TOLERANCE_SETTINGS as _TOL_SETTINGS  # noqa: E402
-from .stiffness import STIFFNESS_SETTINGS as _STIFF_SETTINGS  # noqa: E402
-
 _STIFF_MEASURE = {**_SUB_SETTINGS, **_STIFF_SETTINGS, "quantile": "float"}
 
 
@@ -435,8 +423,6 @@ def stiffness_min(mech, quantile: float = 0.0, part: str = "translational", **kw
     1 / largest eigenvalue of the force-to-translation (couple-to-rotation) compliance block.
     Stiffness settings as ``parasynth.stiffness_matrix``. 0 for an empty workspace or where a
     force (couple) is not carried (a singular stiffness matrix)."""
-    from .stiffness import part_stiffness
-
     _, pts = _points(mech, kw, default_max=1024)
     if not len(pts):
         return 0.0
@@ -453,8 +439,6 @@ def stiffness_along_measure(mech, direction=(0.0, 0.0, 1.0), point=(0.0, 0.0, 0.
     "platform"; e.g. the grinding normal at the grinding point) over the feasible workspace
     samples: force along the direction / displacement of the point along it. 0 where such a
     force is not carried; 0 for an empty workspace."""
-    from .stiffness import stiffness_along
-
     _, pts = _points(mech, kw, default_max=1024)
     if not len(pts):
         return 0.0
@@ -470,8 +454,6 @@ def deflection_measure(mech, force=None, moment=None, point=(0.0, 0.0, 0.0), qua
     point and a couple ``moment`` [Mx, My, Mz] (N m, base frame), over the feasible workspace
     samples. ``inf`` where the load is not carried (singular stiffness matrix); 0 for an empty
     workspace."""
-    from .stiffness import point_deflection
-
     if force is None and moment is None:
         raise ValueError("deflection: give force (N) and/or moment (N*m)")
     _, pts = _points(mech, kw, default_max=1024)
@@ -489,8 +471,6 @@ _ERROR_METHODS = ("first_order", "monte_carlo")
 
 
 def _pose_errors(mech, part, method="first_order", quantile=1.0, samples=200, sampling=None, **kw):
-    from .accuracy import pose_error_bound, pose_error_monte_carlo
-
     # ``method`` names the error model; a workspace sampling method passed in its place (a study's
     # evaluation.method) selects the sampler instead, and the error model stays first order.
     if method in ("sobol", "grid", "random"):

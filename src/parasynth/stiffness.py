@@ -61,6 +61,8 @@ import math
 
 import numpy as np
 
+from .units import parse_quantity
+
 __all__ = [
     "STEEL_E",
     "STEEL_G",
@@ -96,8 +98,6 @@ RTOL = 1e-9
 
 def _positive(name, value, allow_inf=False):
     if isinstance(value, str):  # a quantity with its unit, e.g. "2e7 N/m"
-        from .units import parse_quantity
-
         value = parse_quantity(value, STIFFNESS_SETTINGS.get(name.split("[")[0], "dimensionless"), field=name)
     try:
         v = float(value)

@@ -36,7 +36,7 @@ class QuantityError(ValueError):
 
 @lru_cache(maxsize=1)
 def _ureg():
-    import pint
+    import pint  # lazy: pint is slow to import; only quantities written with a unit need it
 
     return pint.UnitRegistry()
 

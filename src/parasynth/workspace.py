@@ -204,6 +204,7 @@ class _Raster:
         occ = (self.total > 0) & (self.feasible == self.total)
         empty = self.total == 0
         if empty.any() and not empty.all():
+            # lazy: SciPy is slow to import; only rasters with empty cells need it
             from scipy.ndimage import distance_transform_edt
 
             idx = distance_transform_edt(empty, sampling=[1.0 / s for s in self.shape],
@@ -257,7 +258,7 @@ class _Sampler:
 
 
 def _sobol_engine(d: int, seed: int, n: int):
-    from scipy.stats import qmc
+    from scipy.stats import qmc  # lazy: scipy.stats takes about a second to import; only Sobol' sampling needs it
 
     kw: dict[str, Any] = {"scramble": True}
     if n > 2**30:
@@ -514,7 +515,7 @@ class WorkspaceResult:
         """pandas DataFrame of the stored feasible points, one column per task coordinate
         (SI); ``positions=True`` adds the platform reference point ``p_x``, ``p_y``, ``p_z``
         (m). ``attrs["units"]`` holds the column units."""
-        import pandas as pd
+        import pandas as pd  # lazy: pandas is slow to import; only this export needs it
 
         if not self.points_complete and len(self.points) == 0 and self.n_feasible:
             raise ValueError("to_frame: this workspace was sampled with keep_points=False; no points were stored")

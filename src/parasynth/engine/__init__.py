@@ -61,7 +61,7 @@ _CORE_NAMES = ("HAVE_NUMBA", "BLOCK", "SUB", "KernelPlan", "Unsupported")
 
 def _compiled():
     """The modules of the compiled path, ``(core, evaluate, indices)``."""
-    # lazy: they import numba and define its kernels (~0.5 s): loaded at the first compiled evaluation
+    # lazy: they import numba (about a second) and define its kernels: loaded at the first compiled evaluation
     from . import core, evaluate, indices
 
     return core, evaluate, indices

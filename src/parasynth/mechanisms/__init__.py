@@ -35,6 +35,7 @@ def register(name: str, loader: Callable[[], type], summary: str) -> None:
 
 def _described_class(path: Path) -> type:
     """The class of the description file ``path`` (cached while the file is unchanged)."""
+    # lazy: the description language and PyYAML load with the first mechanism, not at `import parasynth`
     from .description import load_description
 
     st = path.stat()
