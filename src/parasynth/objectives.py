@@ -11,18 +11,32 @@ A study turns a measure into an objective (minimise or maximise) or into a desig
 with a bound (``min`` or ``max``): its margin is ``value - min`` or ``max - value`` (>= 0
 feasible), in the measure's unit.
 
-Workspace-based measures share their settings: ``ranges`` ({coordinate: (lo, hi)} SI,
-default the model's ``default_ranges()``), ``n`` samples, ``method`` ("sobol", "grid",
-"random"), ``seed``, ``fixed`` coordinates and ``constraints`` (pose constraint names, default
-all). With a fixed seed the same sample points are used for every design (common random
-numbers), so an optimiser sees a deterministic function. Workspaces are cached per
-(mechanism parameters, settings) so that several measures of one design sample it once.
+Workspace-based measures take a workspace sample: a
+:class:`~parasynth.workspace.WorkspaceSample` (``ranges`` {coordinate: (lo, hi)} SI, default
+the model's ``default_ranges()``; ``n`` samples; ``method`` "sobol", "grid" or "random";
+``seed``; ``fixed`` coordinates), passed whole::
+
+    from parasynth.workspace import WorkspaceSample
+    s = WorkspaceSample(n=4096, seed=0)
+    objectives.get("position_error_max")(mech, sample=s, method="monte_carlo")
+
+besides their own settings, of which ``constraints`` (pose constraint names, default all) and
+``engine`` ("compiled" or "numpy") are common to all. The older call form naming the sample's
+fields among the settings (``measure(mech, n=4096, seed=0)``) still works; there a field shares
+its name with a measure's own setting of that name (the accuracy measures' ``method``, their
+error model). Each :class:`Measure` declares ``sample`` (whether it takes one) and
+``own_settings`` (its settings apart from the sample's fields); ``settings`` lists every name
+the older form accepts. With a fixed seed the same sample points are used for every design
+(common random numbers), so an optimiser sees a deterministic function. Workspaces are cached
+per (mechanism parameters, sample, constraints, engine) so that several measures of one design
+sample it once.
 """
 
 from __future__ import annotations
 
 import dataclasses
 from collections import OrderedDict
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Callable
 
@@ -37,7 +51,7 @@ from .indices import wrench_capability as _wrench_capability
 from .stiffness import STIFFNESS_SETTINGS as _STIFF_SETTINGS
 from .stiffness import part_stiffness, point_deflection, stiffness_along
 from .validation import MAX_SAMPLES, check_count
-from .workspace import workspace
+from .workspace import WorkspaceSample, workspace
 
 __all__ = [
     "Measure",
@@ -46,6 +60,7 @@ __all__ = [
     "list_objectives",
     "OBJECTIVES",
     "workspace_of",
+    "SAMPLE_SETTINGS",
 ]
 
 
@@ -58,7 +73,10 @@ class Measure:
     ("maximize" or "minimize"); ``settings``: {setting name: kind} accepted by the function
     (kinds: "length", "angle", "force", "mass", "int", "float", "str", "bool", "ranges",
     "dict", "list"); ``models``: model names it applies to (None = all); ``cost``: "cheap"
-    or "workspace" (needs a workspace sample) or "expensive".
+    or "workspace" (needs a workspace sample) or "expensive"; ``sample``: whether it takes a
+    :class:`~parasynth.workspace.WorkspaceSample` (``measure(mech, sample=..., **own)``);
+    ``own_settings``: its settings apart from the sample's fields (``settings`` also lists
+    those, accepted by name in the older call form).
     """
 
     name: str
@@ -70,10 +88,28 @@ class Measure:
     settings: dict = field(default_factory=dict)
     models: tuple | None = None
     cost: str = "workspace"
+    sample: bool = False
+    own_settings: dict = field(default_factory=dict)
 
-    def __call__(self, mech, **settings) -> float:
+    def __call__(self, mech, sample: WorkspaceSample | None = None, **settings) -> float:
         if self.models is not None and mech.name not in self.models:
             raise ValueError(f"measure {self.name!r} applies to {list(self.models)}, not to {mech.name!r}")
+        if sample is not None:
+            if not self.sample:
+                raise ValueError(f"measure {self.name!r} takes no workspace sample")
+            if isinstance(sample, Mapping):
+                sample = WorkspaceSample(**sample)
+            if not isinstance(sample, WorkspaceSample):
+                raise ValueError(f"measure {self.name!r}: sample must be a WorkspaceSample, got {sample!r}")
+            beside = sorted(set(settings) & (set(SAMPLE_SETTINGS) - set(self.own_settings)))
+            if beside:
+                raise ValueError(f"measure {self.name!r}: {beside} belong to the workspace sample; give them in it, "
+                                 f"not beside it")
+            unknown = sorted(set(settings) - set(self.own_settings))
+            if unknown:
+                raise ValueError(f"measure {self.name!r}: unknown setting(s) {unknown}; allowed with a sample: "
+                                 f"{sorted(self.own_settings) or '(none)'}")
+            return float(self.func(mech, sample=sample, **settings))
         unknown = sorted(set(settings) - set(self.settings))
         if unknown:
             raise ValueError(
@@ -84,19 +120,31 @@ class Measure:
 
 OBJECTIVES: "OrderedDict[str, Measure]" = OrderedDict()
 
-_WS_SETTINGS = {"ranges": "ranges", "n": "int", "method": "str", "seed": "int", "fixed": "dict",
-                "constraints": "list", "engine": "str"}
+#: The fields of a :class:`~parasynth.workspace.WorkspaceSample` as settings (the older call form).
+SAMPLE_SETTINGS = {"ranges": "ranges", "n": "int", "method": "str", "seed": "int", "fixed": "dict"}
+_WS_SETTINGS = {**SAMPLE_SETTINGS, "constraints": "list", "engine": "str"}
 
 
 def register(name: str, unit: str, sense: str, settings: dict | None = None, kind: str | None = None,
-             models: tuple | None = None, cost: str = "workspace"):
-    """Decorator registering ``f(mech, **settings) -> float`` as measure ``name``."""
+             models: tuple | None = None, cost: str = "workspace", sample: bool | None = None, own: tuple = ()):
+    """Decorator registering ``f(mech, **settings) -> float`` as measure ``name``.
+
+    ``settings``: {name: kind} of every setting the measure accepts by name. ``sample``:
+    whether it takes a workspace sample (default: when ``settings`` has every field of
+    :data:`SAMPLE_SETTINGS`); such a measure's function receives either the sample's fields by
+    name (older call form) or ``sample=`` a :class:`~parasynth.workspace.WorkspaceSample`.
+    ``own``: settings named like a sample field that are the measure's own (e.g. an error
+    model's ``method``): with a sample they are passed to the function, not taken from it."""
     if sense not in ("maximize", "minimize"):
         raise ValueError(f"sense must be 'maximize' or 'minimize', got {sense!r}")
+    settings = dict(settings or {})
+    if sample is None:
+        sample = set(SAMPLE_SETTINGS) <= set(settings)
+    own_settings = {k: v for k, v in settings.items() if not sample or k not in SAMPLE_SETTINGS or k in own}
 
     def deco(func):
         OBJECTIVES[name] = Measure(name, func, unit, sense, (func.__doc__ or "").strip(), kind,
-                                   dict(settings or {}), models, cost)
+                                   settings, models, cost, bool(sample), own_settings)
         return func
 
     return deco
@@ -129,9 +177,16 @@ def _freeze(v):
 
 
 def workspace_of(mech, ranges=None, n: int = 4096, method: str = "sobol", seed: int = 0, fixed=None,
-                 constraints=None, engine: str = "compiled"):
+                 constraints=None, engine: str = "compiled", sample: WorkspaceSample | None = None):
     """The (cached) workspace of ``mech`` for these settings; see :func:`parasynth.workspace`
-    (``engine``: "compiled" or "numpy", the evaluation engine)."""
+    (``engine``: "compiled" or "numpy", the evaluation engine). ``sample``: a
+    :class:`~parasynth.workspace.WorkspaceSample`, which then gives ``ranges``, ``n``,
+    ``method``, ``seed`` and ``fixed`` (the same workspace, and cache entry, as those
+    arguments)."""
+    if sample is not None:
+        if not isinstance(sample, WorkspaceSample):
+            raise ValueError(f"sample must be a WorkspaceSample, got {sample!r}")
+        ranges, n, method, seed, fixed = (sample.kwargs()[k] for k in WorkspaceSample.FIELDS)
     n = check_count("n", n, 1, MAX_SAMPLES, what="a sample count")  # no truncation of 2.5, True, "100"
     seed = check_count("seed", seed, 0, what="an integer seed")
     ranges = dict(ranges) if ranges else mech.default_ranges()
@@ -150,6 +205,11 @@ def workspace_of(mech, ranges=None, n: int = 4096, method: str = "sobol", seed: 
 
 
 def _ws(mech, kw):
+    """The workspace of a measure's settings ``kw``: its ``sample`` (a WorkspaceSample) or the
+    sample's fields named among the settings (older call form)."""
+    if kw.get("sample") is not None:
+        return workspace_of(mech, constraints=kw.get("constraints"), engine=kw.get("engine", "compiled"),
+                            sample=kw["sample"])
     return workspace_of(mech, **{k: v for k, v in kw.items() if k in _WS_SETTINGS})
 
 
@@ -471,10 +531,16 @@ _ERROR_METHODS = ("first_order", "monte_carlo")
 
 
 def _pose_errors(mech, part, method="first_order", quantile=1.0, samples=200, sampling=None, **kw):
-    # ``method`` names the error model; a workspace sampling method passed in its place (a study's
-    # evaluation.method) selects the sampler instead, and the error model stays first order.
-    if method in ("sobol", "grid", "random"):
+    # ``method`` names the error model. In the older call form (no ``sample``), a workspace
+    # sampling method passed in its place (a study's evaluation.method merged by name) selects the
+    # sampler instead, and the error model stays first order.
+    sample = kw.get("sample")
+    if sample is None and method in ("sobol", "grid", "random"):
         sampling, method = sampling or method, "first_order"
+    if sample is not None and sampling is not None:
+        raise ValueError("sampling: give the sampling method in the workspace sample (sample.method)")
+    if method not in _ERROR_METHODS and sample is not None:
+        raise ValueError(f"method must be one of {', '.join(_ERROR_METHODS)} (the error model), got {method!r}")
     if method not in _ERROR_METHODS:
         raise ValueError(f"method must be one of {', '.join(_ERROR_METHODS)} (the error model; a sampling method "
                          f"sobol, grid or random selects the workspace sampler instead), got {method!r}")
@@ -488,12 +554,13 @@ def _pose_errors(mech, part, method="first_order", quantile=1.0, samples=200, sa
     if method == "first_order":
         e = np.linalg.norm(pose_error_bound(mech, pts, **tol)[:, sl], axis=-1)
     else:
-        t, _ = pose_error_monte_carlo(mech, pts, samples=int(samples), seed=int(kw.get("seed", 0)), **tol)
+        seed = sample.seed if sample is not None else int(kw.get("seed", 0))
+        t, _ = pose_error_monte_carlo(mech, pts, samples=int(samples), seed=seed, **tol)
         e = np.max(np.linalg.norm(t[..., sl], axis=-1), axis=0)
     return _quantile(e, quantile, 0.0)
 
 
-@register("position_error_max", unit="m", kind="length", sense="minimize", settings=_ACC_SETTINGS)
+@register("position_error_max", unit="m", kind="length", sense="minimize", settings=_ACC_SETTINGS, own=("method",))
 def position_error_max(mech, **kw) -> float:
     """Largest (or the ``quantile`` of the) position error (m) of the platform point over the
     feasible workspace samples, from actuator errors, manufacturing errors of the legs'
@@ -504,7 +571,8 @@ def position_error_max(mech, **kw) -> float:
     return _pose_errors(mech, "position", **kw)
 
 
-@register("orientation_error_max", unit="rad", kind="angle", sense="minimize", settings=_ACC_SETTINGS)
+@register("orientation_error_max", unit="rad", kind="angle", sense="minimize", settings=_ACC_SETTINGS,
+          own=("method",))
 def orientation_error_max(mech, **kw) -> float:
     """Largest (or the ``quantile`` of the) orientation error (rad, norm of the rotation
     vector) of the platform over the feasible workspace samples; settings and error model as

@@ -78,19 +78,19 @@ import warnings
 from collections import OrderedDict
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import Any, Callable, ClassVar
 
 import numpy as np
 
 from .engine import check_engine, pose_batch
-from .validation import MAX_SAMPLES
+from .validation import MAX_SAMPLES, check_count
 
 #: Largest ``n`` of :func:`workspace`. Samples stream chunk by chunk, so the limit is time, not
 #: memory (2**34 samples is about half an hour at 1e7 poses/s); the measures and studies keep
 #: the smaller per-evaluation limit ``parasynth.validation.MAX_SAMPLES``.
 MAX_WORKSPACE_SAMPLES = 2**34
 
-__all__ = ["workspace", "WorkspaceResult", "Section", "Box", "METHODS"]
+__all__ = ["workspace", "WorkspaceResult", "WorkspaceSample", "Section", "Box", "METHODS"]
 
 #: Sampling methods accepted by :func:`workspace`.
 METHODS = ("grid", "sobol", "random")
@@ -597,6 +597,83 @@ class WorkspaceResult:
 # ---------------------------------------------------------------------------------------------
 # the sampler
 # ---------------------------------------------------------------------------------------------
+def _pairs(name: str, value, width: int | None):
+    """A mapping {coordinate: value} (``width`` numbers per value, or one number) as a tuple of
+    (coordinate, value) pairs in the given order; None stays None."""
+    if value is None:
+        return None
+    items = value.items() if isinstance(value, Mapping) else value
+    try:
+        items = list(items)
+    except TypeError:
+        raise ValueError(f"{name} must be a dict {{coordinate: value}} (SI) or None, got {value!r}") from None
+    out = []
+    for item in items:
+        if not (isinstance(item, (tuple, list)) and len(item) == 2 and isinstance(item[0], str)):
+            raise ValueError(f"{name} must be a dict {{coordinate: value}} (SI) or None, got {value!r}")
+        k, v = item
+        try:
+            if width is None:
+                v = float(v)
+            else:
+                v = tuple(float(x) for x in v)
+                if len(v) != width:
+                    raise ValueError
+        except (TypeError, ValueError):
+            what = "a number" if width is None else f"{width} numbers (lo, hi)"
+            raise ValueError(f"{name}[{k!r}] must be {what} (SI), got {item[1]!r}") from None
+        out.append((k, v))
+    return tuple(out)
+
+
+@dataclass(frozen=True)
+class WorkspaceSample:
+    """How a workspace is sampled, as one value: the task box ``ranges`` ({coordinate: (lo,
+    hi)}, SI; None: the model's ``default_ranges()``), ``n`` samples (at most
+    :data:`parasynth.validation.MAX_SAMPLES`), the sampling ``method`` (:data:`METHODS`), the
+    ``seed`` and the ``fixed`` coordinates ({coordinate: value}, SI; None: the home pose's).
+
+    The workspace-based measures of :mod:`parasynth.objectives` take it whole,
+    ``measure(mech, sample=WorkspaceSample(...), **own_settings)``, so that no setting of a
+    measure is merged with the sample by name (the accuracy measures' own ``method`` is their
+    error model, not the sampling method). The default seed is 0: every design of a study is
+    sampled on the same points.
+
+    Frozen and hashable: ``ranges`` and ``fixed`` are stored as tuples of (coordinate, value)
+    pairs; :meth:`kwargs` gives the arguments of :func:`workspace` back as dicts. Fields are
+    validated on construction (``ValueError`` naming the field)."""
+
+    ranges: tuple | None = None
+    n: int = 4096
+    method: str = "sobol"
+    seed: int = 0
+    fixed: tuple | None = None
+
+    #: Names of the fields, as settings of the workspace-based measures.
+    FIELDS: ClassVar[tuple] = ("ranges", "n", "method", "seed", "fixed")
+
+    def __post_init__(self):
+        object.__setattr__(self, "ranges", _pairs("ranges", self.ranges, 2))
+        object.__setattr__(self, "fixed", _pairs("fixed", self.fixed, None))
+        object.__setattr__(self, "n", check_count("n", self.n, 1, MAX_SAMPLES, what="a sample count"))
+        object.__setattr__(self, "seed", check_count("seed", self.seed, 0, what="an integer seed"))
+        if not isinstance(self.method, str) or self.method.lower() not in METHODS:
+            raise ValueError(f"method must be one of {', '.join(METHODS)}; got {self.method!r}")
+        object.__setattr__(self, "method", self.method.lower())
+
+    @classmethod
+    def from_settings(cls, settings: Mapping) -> "WorkspaceSample":
+        """The sample named by the keys ``ranges, n, method, seed, fixed`` of ``settings`` (other
+        keys are ignored; missing or None ones take the defaults)."""
+        return cls(**{k: settings[k] for k in cls.FIELDS if settings.get(k) is not None})
+
+    def kwargs(self) -> dict:
+        """``ranges``, ``n``, ``method``, ``seed``, ``fixed`` as arguments of :func:`workspace`
+        (the mappings as dicts)."""
+        return {"ranges": None if self.ranges is None else dict(self.ranges), "n": self.n, "method": self.method,
+                "seed": self.seed, "fixed": None if self.fixed is None else dict(self.fixed)}
+
+
 def workspace(mech, ranges=None, n: int = 2**16, method: str = "sobol", seed: int | None = 0,
               fixed: Mapping | None = None, constraints=None, chunk_size: int = DEFAULT_CHUNK, *,
               keep_points: bool = True, max_points: int | None = DEFAULT_MAX_POINTS, raster=None,
