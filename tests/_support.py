@@ -95,3 +95,49 @@ def closest_point_to_lines(points: np.ndarray, dirs: np.ndarray):
     c = np.linalg.lstsq(A, b, rcond=None)[0]
     dist = [np.linalg.norm((np.eye(3) - np.outer(u, u)) @ (c - p)) for p, u in zip(points, d)]
     return c, max(dist)
+
+
+# -- Pareto fronts by their definitions (no sorting, no library) ------------------------------------
+def brute_force_front(F, senses, feasible):
+    """Non-dominated feasible set by the definition, pair by pair."""
+    sign = np.array([1 if s == "minimize" else -1 for s in senses])
+    G = F * sign
+    out = []
+    for i in range(len(G)):
+        if not feasible[i]:
+            continue
+        dominated = False
+        for j in range(len(G)):
+            if j != i and feasible[j] and all(G[j] <= G[i]) and any(G[j] < G[i]):
+                dominated = True
+                break
+        out.append(not dominated)
+    mask = np.zeros(len(G), bool)
+    mask[np.flatnonzero(feasible)] = out
+    return mask
+
+
+def brute_crowding(F):
+    """Crowding distance by its definition, without sorting: for every design and objective the
+    nearest values above and below among the others (distinct values assumed)."""
+    n, m = F.shape
+    d = np.zeros(n)
+    for i in range(n):
+        for j in range(m):
+            above = [F[k, j] for k in range(n) if F[k, j] > F[i, j]]
+            below = [F[k, j] for k in range(n) if F[k, j] < F[i, j]]
+            if not above or not below:
+                d[i] = np.inf
+                continue
+            d[i] += (min(above) - max(below)) / (F[:, j].max() - F[:, j].min())
+    return d
+
+
+def brute_spread(F, k):
+    keep = list(range(len(F)))
+    while len(keep) > k:
+        d = brute_crowding(F[keep]) if len(keep) > 2 else np.full(len(keep), np.inf)
+        smallest = min(d)
+        worst = max(i for i in range(len(keep)) if d[i] == smallest)  # the later one on a tie
+        keep.pop(worst)
+    return keep

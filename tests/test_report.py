@@ -1,4 +1,4 @@
-"""Pareto analysis against brute force and known values; the report files."""
+"""The report files and the analysis they state (the Pareto maths itself: test_pareto.py)."""
 
 import itertools
 import re
@@ -12,90 +12,13 @@ import pandas as pd
 import pytest
 import yaml
 
+from _support import brute_force_front, brute_spread
 from parasynth.cli import load_plugins
-from parasynth.report import (ReportError, hypervolume, knee_index, non_dominated_ranks, pareto_mask,
-                              reference_standing, to_min, write_report)
+from parasynth.report import ReportError, write_report
 from parasynth.study import load_study, run_study
 
 PLUGIN = str(Path(__file__).parent / "data" / "analytic_plugin.py")
 load_plugins(PLUGIN)
-
-
-def brute_force_front(F, senses, feasible):
-    """Non-dominated feasible set by the definition, pair by pair."""
-    sign = np.array([1 if s == "minimize" else -1 for s in senses])
-    G = F * sign
-    out = []
-    for i in range(len(G)):
-        if not feasible[i]:
-            continue
-        dominated = False
-        for j in range(len(G)):
-            if j != i and feasible[j] and all(G[j] <= G[i]) and any(G[j] < G[i]):
-                dominated = True
-                break
-        out.append(not dominated)
-    mask = np.zeros(len(G), bool)
-    mask[np.flatnonzero(feasible)] = out
-    return mask
-
-
-@pytest.mark.parametrize("seed", range(8))
-def test_pareto_mask_matches_brute_force(seed):
-    rng = np.random.default_rng(seed)
-    n, m = 60, 2 + seed % 3
-    F = rng.integers(0, 6, size=(n, m)).astype(float)  # ties on purpose
-    senses = [("minimize", "maximize")[k % 2] for k in range(m)]
-    feas = rng.random(n) > 0.3
-    np.testing.assert_array_equal(pareto_mask(F, senses, feas), brute_force_front(F, senses, feas))
-
-
-def test_constraint_domination_ranks():
-    F = np.array([[1, 5], [2, 3], [3, 4], [4, 1], [5, 5]], float)
-    v = np.array([0, 0, 0, 1.0, 0.5])
-    r = non_dominated_ranks(F, v)
-    # feasible fronts first ({0, 1}, then {2}); infeasible by violation (4: 0.5, then 3: 1.0)
-    assert list(r) == [0, 0, 1, 3, 2]
-    # no infeasible design ever ranks before a feasible one
-    assert r[v > 0].min() > r[v == 0].max()
-
-
-def test_hypervolume_known_values():
-    assert hypervolume(np.array([[1.0, 5], [2, 3], [4, 1]]), [6, 6]) == pytest.approx(17.0)
-    # one point: a box
-    assert hypervolume(np.array([[1.0, 2, 3]]), [2, 4, 7]) == pytest.approx(1 * 2 * 4)
-    # two boxes in 3-D with a known overlap: [0,2]x[0,1]x[0,1] and [0,1]x[0,2]x[0,1] from ref 2,2,1
-    P = np.array([[0.0, 1, 0], [1, 0, 0]])
-    assert hypervolume(P, [2, 2, 1]) == pytest.approx(2 + 2 - 1)
-    # points not better than the reference contribute nothing
-    assert hypervolume(np.array([[3.0, 3]]), [2, 2]) == 0.0
-
-
-def test_hypervolume_against_monte_carlo():
-    rng = np.random.default_rng(0)
-    P = rng.random((12, 3))
-    ref = np.ones(3) * 1.1
-    exact = hypervolume(P, ref)
-    S = rng.random((400_000, 3)) * 1.1
-    dominated = np.zeros(len(S), bool)
-    for p in P:
-        dominated |= np.all(S >= p, axis=1)
-    mc = dominated.mean() * 1.1**3
-    assert exact == pytest.approx(mc, rel=0.01)
-
-
-def test_knee_of_a_convex_front():
-    x = np.linspace(0, 1, 21)
-    F = np.column_stack([x, (1 - np.sqrt(x)) ** 2])  # symmetric about x = y, knee at x = 0.25
-    k = knee_index(F)
-    assert F[k, 0] == pytest.approx(0.25, abs=0.051)
-
-
-def test_reference_standing_counts_dominators():
-    F = np.array([[1.0, 1], [2, 2], [0.5, 3], [3, 0.5]])
-    st = reference_standing(F, ["minimize", "minimize"], np.ones(4, bool), np.array([2.5, 2.5]), ["a", "b"])
-    assert st.n_dominating == 2 and set(st.dominating_indices) == {0, 1}
-    assert st.best_improvements["a"] == pytest.approx((2.5 - 1) / 2.5)
 
 
 # -- report files ------------------------------------------------------------------------------------
@@ -259,57 +182,13 @@ from parasynth.display import fmt_mean_se, fmt_number, fmt_quantity, quantity_un
 from parasynth.objectives import OBJECTIVES, register  # noqa: E402
 from parasynth.report.render import analyse, load_run, make_figures  # noqa: E402
 from parasynth.study.evaluate import Record  # noqa: E402
-from parasynth.study.final import best_designs, crowding_distance, spread_by_crowding  # noqa: E402
+from parasynth.study.final import best_designs  # noqa: E402
 
 if "test_volume_m3" not in OBJECTIVES:
     @register("test_volume_m3", unit="m^3", sense="maximize", cost="cheap")
     def _test_volume_m3(mech):
         """L^2 R (m^3), a volume-like measure for the display tests."""
         return mech.params.link_length ** 2 * mech.params.slider_radius
-
-
-def brute_crowding(F):
-    """Crowding distance by its definition, without sorting: for every design and objective the
-    nearest values above and below among the others (distinct values assumed)."""
-    n, m = F.shape
-    d = np.zeros(n)
-    for i in range(n):
-        for j in range(m):
-            above = [F[k, j] for k in range(n) if F[k, j] > F[i, j]]
-            below = [F[k, j] for k in range(n) if F[k, j] < F[i, j]]
-            if not above or not below:
-                d[i] = np.inf
-                continue
-            d[i] += (min(above) - max(below)) / (F[:, j].max() - F[:, j].min())
-    return d
-
-
-def brute_spread(F, k):
-    keep = list(range(len(F)))
-    while len(keep) > k:
-        d = brute_crowding(F[keep]) if len(keep) > 2 else np.full(len(keep), np.inf)
-        smallest = min(d)
-        worst = max(i for i in range(len(keep)) if d[i] == smallest)  # the later one on a tie
-        keep.pop(worst)
-    return keep
-
-
-@pytest.mark.parametrize("seed", range(6))
-def test_crowding_selection_matches_brute_force(seed):
-    rng = np.random.default_rng(seed)
-    n, m = 25, 2 + seed % 2
-    if m == 2:
-        x = np.sort(rng.random(n))
-        F = np.column_stack([x, (1 - x) ** (0.5 + seed)])  # a front (minimisation), uneven spacing
-    else:
-        F = rng.dirichlet(np.ones(3), size=n)  # points on a simplex: mutually non-dominated
-    np.testing.assert_allclose(crowding_distance(F), brute_crowding(F))
-    for k in (3, 7, 12):
-        sel = spread_by_crowding(F, k)
-        assert list(sel) == brute_spread(F, k)
-        # the extremes of every objective are kept when k allows
-        for j in range(m if k >= 2 * m else 0):
-            assert int(np.argmin(F[:, j])) in sel and int(np.argmax(F[:, j])) in sel
 
 
 def _mo_study():

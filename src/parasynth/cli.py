@@ -267,7 +267,7 @@ def cmd_run(args) -> int:
                     storage=args.storage, workers=args.workers)
     print(res.summary(study))
     if res.interrupted:
-        from .study.workers import interrupted_run
+        from .cli_study import interrupted_run
 
         return interrupted_run(args, res)
     if not args.no_report:
@@ -343,7 +343,7 @@ def cmd_report(args) -> int:
     from .report import ReportError, write_report
 
     if args.storage or args.study:
-        from .study.workers import cmd_report_storage
+        from .cli_study import cmd_report_storage
 
         if not args.storage or args.run_dir:
             raise CliError("report --storage URL --study NAME rebuilds a run from a storage (no RUN_DIR); "
@@ -370,21 +370,23 @@ def cmd_report(args) -> int:
     return EXIT_OK
 
 
+def cmd_worker(args) -> int:
+    """``parasynth worker`` (:func:`parasynth.cli_study.cmd_worker`)."""
+    from .cli_study import cmd_worker as worker
+
+    return worker(args)
+
+
 def cmd_evaluate(args) -> int:
     from .study import Evaluator
+    from .study.design import box_centre
     from .study.spec import _q
 
     study = _checked_study(args.study)
     byname = {v.name: v for v in study.variables}
-    values = {}
     base = dict(study.reference or {})
-    for v in study.variables:
-        if v.name in base:
-            values[v.name] = base[v.name]
-        elif v.low is not None:
-            values[v.name] = 0.5 * (v.low + v.high)
-        else:
-            values[v.name] = (v.values or v.choices)[0]
+    centre = box_centre(study)  # the reference design, else the centre of the variable box
+    values = {v.name: base[v.name] if v.name in base else centre[v.name] for v in study.variables}
     for item in args.set or []:
         if "=" not in item:
             raise CliError(f"--set expects NAME=VALUE with units, got {item!r}")
@@ -519,8 +521,6 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--n-trials", type=_n_trials, metavar="N",
                    help="study budget (default: the one the run stored), e.g. --n-trials 200")
     p.add_argument("--quiet", action="store_true", help="no progress bar, e.g. --quiet")
-    from .study.workers import cmd_worker
-
     p.set_defaults(func=cmd_worker)
     p = add("run-all", cmd_run_all, "run every study in a folder and write the reports",
             "parasynth run-all studies --only quickstart")

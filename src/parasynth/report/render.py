@@ -11,18 +11,23 @@ from __future__ import annotations
 
 import base64
 import html
+import importlib.metadata as md
 import io
 import json
 import platform
+import re
 import time
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
 from ..display import Unit, fmt_mean_se, fmt_number, fmt_quantity, fmt_value, quantity_unit
-from .pareto import compare_with_noise, default_reference_point, hypervolume, reference_standing, to_min
+from ..mechanisms import load_mechanism
+from ..objectives import workspace_of
+from ..pareto import compare_with_noise, default_reference_point, hypervolume, reference_standing, to_min
+from ..study.rundir import (Run, RunDirError, design_key, design_params, knee_of, pareto_front, read_run,
+                            screening_dominators)
 
 __all__ = ["write_report", "ReportError", "load_run"]
 
@@ -31,62 +36,13 @@ class ReportError(ValueError):
     """The run directory cannot be reported (missing, empty, unreadable)."""
 
 
-@dataclass
-class Run:
-    study: object  # ResolvedStudy
-    table: pd.DataFrame
-    final: pd.DataFrame | None
-    run_dir: Path
-    partial: bool
-    partial_reason: str
-    expected: int | None
-
-
-def _expected(study) -> int | None:
-    opt = study.optimizer
-    if opt.kind == "sweep":
-        if opt.designs:
-            return len(opt.designs)
-        n = 1
-        for v in study.variables:
-            n *= len(v.values if v.values is not None else v.choices)
-        return n
-    if opt.kind == "optuna":
-        return opt.n_trials or 50
-    return None  # NLopt may stop early on its tolerances
-
-
 def load_run(run_dir) -> Run:
-    from ..study import load_study
-    from ..study.runner import read_journal, results_table
-    from ..study.spec import StudyError
-
-    run_dir = Path(run_dir)
-    if not run_dir.exists():
-        raise ReportError(f"run directory {str(run_dir)!r} does not exist; run the study first (parasynth run STUDY.yaml)")
-    sy = run_dir / "study.yaml"
-    if not sy.exists():
-        raise ReportError(f"{str(run_dir)!r} is not a run directory (no study.yaml); run the study first")
+    """The run directory read (:func:`parasynth.study.rundir.read_run`); :class:`ReportError`
+    when there is no run to report."""
     try:
-        study = load_study(sy)
-    except StudyError as e:
-        raise ReportError(f"{sy}: {e}") from None
-    records = read_journal(run_dir)
-    if not records:
-        raise ReportError(f"{str(run_dir)!r} holds no evaluated designs yet; run (or resume) the study")
-    table = results_table(study, records)
-    final = None
-    if (run_dir / "final.csv").exists():
-        try:
-            final = pd.read_csv(run_dir / "final.csv")
-        except (pd.errors.EmptyDataError, pd.errors.ParserError):
-            final = None
-    n_run = int((table["source"] == "run").sum())
-    expected = _expected(study)
-    partial, reason = False, ""
-    if expected is not None and n_run < expected:
-        partial, reason = True, f"{n_run} of {expected} planned designs evaluated (interrupted run?)"
-    return Run(study, table, final, run_dir, partial, reason, expected)
+        return read_run(run_dir)
+    except RunDirError as e:
+        raise ReportError(str(e)) from None
 
 
 # -- formatting ----------------------------------------------------------------------------------
@@ -131,10 +87,10 @@ def display_table(study, df: pd.DataFrame, constraints: bool = True) -> pd.DataF
 
 # -- plots -------------------------------------------------------------------------------------------
 def _plt():
-    import matplotlib
+    import matplotlib  # lazy: matplotlib takes about a second to import; only figures need it
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # lazy: as above
 
     return plt
 
@@ -168,7 +124,7 @@ def _label(study, lab) -> tuple[str, Unit]:
 def _tidy(ax, x=True, y=True):
     """Few, plainly formatted ticks (no offset text, no scientific multiplier) so that tick
     labels do not run into each other at the figure's size."""
-    from matplotlib.ticker import MaxNLocator, ScalarFormatter
+    from matplotlib.ticker import MaxNLocator, ScalarFormatter  # lazy: matplotlib, as in _plt
 
     for on, axis in ((x, ax.xaxis), (y, ax.yaxis)):
         if not on:
@@ -334,15 +290,11 @@ def plot_sweep(figs, study, run_df, final):
 
 def plot_designs(figs, study, designs: dict):
     """Mechanism sketches at home and workspace projections of named designs."""
-    from ..mechanisms import load_mechanism
-    from ..objectives import workspace_of
-
     plt = _plt()
     mechs = {}
     for name, values in designs.items():
         try:
-            tied = {k: values[v] for k, v in study.tied.items() if v in values}
-            mechs[name] = load_mechanism(study.mechanism, **{**study.fixed, **values, **tied})
+            mechs[name] = load_mechanism(study.mechanism, **design_params(study, values))
         except ValueError:
             continue
     if not mechs:
@@ -393,8 +345,6 @@ def plot_designs(figs, study, designs: dict):
 
 # -- report ---------------------------------------------------------------------------------------------
 def _versions() -> dict:
-    import importlib.metadata as md
-
     out = {"python": platform.python_version()}
     for pkg in ("parasynth", "numpy", "scipy", "pandas", "optuna", "nlopt", "cvxpy", "matplotlib"):
         try:
@@ -407,8 +357,6 @@ def _versions() -> dict:
 def analyse(run: Run, noise_z: float = NOISE_Z) -> dict:
     """Front, knee, hypervolume and the paper design's standing (single-sample screening and,
     when ``final.csv`` holds it, the re-evaluated verdict) of a loaded run."""
-    from ..study.final import knee_of, pareto_front
-
     study, t = run.study, run.table
     runs = t[t["source"] == "run"].copy()
     objs = study.objectives
@@ -486,8 +434,6 @@ def write_report(run_dir, out=None, noise_z: float = NOISE_Z) -> Path:
 
 def _final_analysis(run: Run, knee_row, noise_z: float) -> dict | None:
     """Re-evaluated designs compared with each other and with the reference, beyond noise."""
-    from ..study.final import design_key
-
     study, fin = run.study, run.final
     labels = [o.label for o in study.objectives]
     senses = [o.goal for o in study.objectives]
@@ -512,7 +458,6 @@ def _final_analysis(run: Run, knee_row, noise_z: float) -> dict | None:
                            if j != i and compare_with_noise(*mse(rj), mi, si, senses, noise_z).verdict == "dominates"]
     # Which re-evaluated designs dominate the reference on the single-sample values: decided
     # from the run's table (the screening the report states), by design values.
-    from ..study.final import screening_dominators
     screen_keys = {design_key(study, r) for _, r in screening_dominators(study, run.table).iterrows()}
     fin["dominates_reference_screen"] = [r["source"] == "best" and design_key(study, r) in screen_keys
                                          for _, r in fin.iterrows()]
@@ -696,8 +641,6 @@ def final_display_table(study, fa: dict) -> pd.DataFrame:
 
 def _sections(run: Run, a: dict) -> list[tuple[str, str, pd.DataFrame | None]]:
     """(title, text, table) triples shared by the HTML and Markdown renderers."""
-    from ..study.final import design_key
-
     study, t = run.study, run.table
     runs, front = a["runs"], a["front"]
     sec = []
@@ -873,6 +816,4 @@ def _html(run, sections, figs) -> str:
 
 
 def _md_inline(s: str) -> str:
-    import re
-
     return re.sub(r"\*\*(.+?)\*\*", r"<b>\1</b>", s).replace("\n\n", "</p><p>")

@@ -14,12 +14,10 @@ from dataclasses import dataclass, field
 
 from ..mechanisms import load_mechanism
 from ..objectives import get as get_measure
+from .design import design_params, measure_settings
 from .spec import ResolvedStudy
 
 __all__ = ["Record", "Evaluator"]
-
-_WS_KEYS = {"ranges": "ranges", "n": "n", "method": "method", "seed": "seed", "fixed": "fixed",
-            "constraints": "constraints", "engine": "engine"}
 
 
 @dataclass
@@ -68,31 +66,11 @@ class Evaluator:
         self.study = study
 
     def settings_for(self, measure_name: str, own: dict, n: int | None = None, seed: int | None = None) -> dict:
-        m = get_measure(measure_name)
-        ev = self.study.evaluation
-        base = {}
-        for key in _WS_KEYS:
-            if key in m.settings:
-                v = ev.get(key)
-                if key == "n" and n is not None:
-                    v = n
-                if key == "seed" and seed is not None:
-                    v = seed
-                if v is not None:
-                    base[key] = v
-        base.update(own)
-        if n is not None and "n" in m.settings:
-            base["n"] = n
-        if seed is not None and "seed" in m.settings:
-            base["seed"] = seed
-        return base
+        """Settings of a measure for this study (:func:`~parasynth.study.design.measure_settings`)."""
+        return measure_settings(self.study, measure_name, own, n, seed)
 
     def build(self, values: dict):
-        params = {**self.study.fixed, **values}
-        for k, src in self.study.tied.items():
-            if src in values:
-                params[k] = values[src]
-        return load_mechanism(self.study.mechanism, **params)
+        return load_mechanism(self.study.mechanism, **design_params(self.study, values))
 
     def evaluate(self, values: dict, n: int | None = None, seed: int | None = None, trial: int = -1,
                  source: str = "run") -> Record:

@@ -5,10 +5,10 @@
 * :func:`pareto_front` -- the non-dominated feasible designs, duplicates merged; the report
   and the re-evaluation use this one definition;
 * :func:`knee_of` -- the recommended design: the knee of that front
-  (:func:`parasynth.report.pareto.knee_index`);
+  (:func:`parasynth.pareto.knee_index`);
 * :func:`best_designs` -- the feasible designs a run recommends: for one objective the best
   ``k``; for several, ``k`` designs spread along the front by crowding distance
-  (:func:`spread_by_crowding`);
+  (:func:`parasynth.pareto.spread_by_crowding`);
 * :func:`screening_dominators` -- the feasible designs that dominate the paper's reference
   design on the single-sample values, the ones by the largest normalised margin first;
 * :func:`reevaluate_best` -- those designs, the knee (always), up to
@@ -26,26 +26,14 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..report.pareto import knee_index, pareto_mask, to_min
+from ..pareto import crowding_distance, dominators_of, knee_index, pareto_mask, spread_by_crowding, to_min
+from .design import design_key
 from .evaluate import Evaluator
 from .spec import ResolvedStudy
 
 __all__ = ["best_designs", "reevaluate_best", "screening_dominators", "final_candidates", "n_screen_dominators", "merge_duplicates", "pareto_front", "knee_of", "crowding_distance",
-           "spread_by_crowding", "design_key"]
-
-
-def design_key(study: ResolvedStudy, row) -> tuple:
-    """Identity of a design: its design-variable values (floats to 12 significant digits, so
-    that a value read back from CSV matches the one evaluated)."""
-    out = []
-    for v in study.variables:
-        x = row[v.name]
-        if isinstance(x, (float, np.floating)) and np.isfinite(x):
-            x = float(f"{float(x):.12g}")
-        elif isinstance(x, (np.integer,)):
-            x = int(x)
-        out.append(x)
-    return tuple(out)
+           "spread_by_crowding", "design_key"]  # crowding_distance, spread_by_crowding (parasynth.pareto) and
+# design_key (study.design) are re-exported here for existing imports.
 
 
 def merge_duplicates(study: ResolvedStudy, df: pd.DataFrame) -> pd.DataFrame:
@@ -93,42 +81,6 @@ def knee_of(study: ResolvedStudy, front: pd.DataFrame):
     return front.iloc[knee_index(Fm)]
 
 
-def crowding_distance(F: np.ndarray) -> np.ndarray:
-    """NSGA-II crowding distance of the rows of ``F`` (n, m): per objective, the rows sorted by
-    it, the two extremes get infinity and every other row the gap between its neighbours
-    divided by the objective's range; distances summed over the objectives. An objective with
-    zero range contributes nothing. Ties in an objective are ordered by row index."""
-    F = np.asarray(F, dtype=float)
-    n, m = F.shape
-    d = np.zeros(n)
-    if n <= 2:
-        return np.full(n, np.inf)
-    for j in range(m):
-        order = np.lexsort((np.arange(n), F[:, j]))
-        col = F[order, j]
-        span = col[-1] - col[0]
-        d[order[0]] = d[order[-1]] = np.inf
-        if span > 0:
-            d[order[1:-1]] += (col[2:] - col[:-2]) / span
-    return d
-
-
-def spread_by_crowding(F: np.ndarray, k: int) -> np.ndarray:
-    """Indices (ascending) of ``k`` rows of a front ``F`` spread along it: repeatedly drop the
-    row with the smallest crowding distance among those left (recomputed after each drop;
-    on a tie the later row goes), as in NSGA-II's truncation with recomputed crowding. The
-    extremes of every objective stay as long as ``k`` allows."""
-    F = np.asarray(F, dtype=float)
-    keep = list(range(len(F)))
-    if k <= 0:
-        return np.array([], int)
-    while len(keep) > k:
-        d = crowding_distance(F[keep])
-        worst = min(range(len(keep)), key=lambda i: (d[i], -i))
-        keep.pop(worst)
-    return np.array(keep, int)
-
-
 def best_designs(study: ResolvedStudy, df: pd.DataFrame, k: int = 5) -> pd.DataFrame:
     """Feasible designs a run recommends, duplicates merged (``count`` column).
 
@@ -148,19 +100,6 @@ def best_designs(study: ResolvedStudy, df: pd.DataFrame, k: int = 5) -> pd.DataF
         front = front.iloc[spread_by_crowding(Fm, k)]
     o = objs[0]
     return front.sort_values(o.label, ascending=(o.goal == "minimize"), kind="stable")
-
-
-def _non_dominated(F: np.ndarray) -> np.ndarray:
-    """Indices of the non-dominated rows of F (minimisation)."""
-    n = len(F)
-    keep = np.ones(n, bool)
-    for i in range(n):
-        if not keep[i]:
-            continue
-        dominated = np.all(F <= F[i], axis=1) & np.any(F < F[i], axis=1)
-        if dominated.any():
-            keep[i] = False
-    return np.flatnonzero(keep)
 
 
 def n_screen_dominators(final_top: int) -> int:
@@ -199,8 +138,7 @@ def screening_dominators(study: ResolvedStudy, table: pd.DataFrame) -> pd.DataFr
         return out
     span = Fm[fin].max(axis=0) - Fm[fin].min(axis=0)
     span = np.where(span > 0, span, 1.0)
-    with np.errstate(invalid="ignore"):
-        dom = fin & np.all(Fm <= r, axis=1) & np.any(Fm < r, axis=1)
+    dom = fin & dominators_of(Fm, r)
     idx = np.flatnonzero(dom)
     gain = (r - Fm[idx]) / span
     least, total = gain.min(axis=1), gain.sum(axis=1)

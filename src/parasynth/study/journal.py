@@ -25,6 +25,7 @@ file itself stays behind, harmless.
 
 from __future__ import annotations
 
+import fcntl
 import json
 import os
 import socket
@@ -37,7 +38,8 @@ import numpy as np
 from .evaluate import Record
 from .spec import StudyError
 
-__all__ = ["Journal", "read_journal", "JournalError", "RunLock", "RunLockedError", "json_default"]
+__all__ = ["Journal", "read_journal", "rewrite_journal", "JournalError", "RunLock", "RunLockedError", "json_default",
+           "jsonable"]
 
 LOCK_NAME = "run.lock"
 
@@ -60,6 +62,12 @@ def json_default(o):
     if isinstance(o, tuple):
         return list(o)
     raise TypeError(f"{type(o).__name__} is not JSON serialisable")
+
+
+def jsonable(d: dict) -> dict:
+    """``d`` with NumPy scalars and arrays and tuples turned into JSON types (as stored in an
+    Optuna storage's attributes)."""
+    return json.loads(json.dumps(d, default=json_default))
 
 
 def record_json(rec: Record) -> str:
@@ -173,8 +181,6 @@ class RunLock:
         self.f = None
 
     def acquire(self) -> "RunLock":
-        import fcntl
-
         f = open(self.path, "a+", encoding="utf-8")
         try:
             fcntl.flock(f.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
@@ -196,8 +202,6 @@ class RunLock:
 
     def release(self):
         if self.f is not None:
-            import fcntl
-
             try:
                 fcntl.flock(self.f.fileno(), fcntl.LOCK_UN)
             finally:

@@ -38,7 +38,6 @@ Completed evaluations are neither lost nor repeated.
 from __future__ import annotations
 
 import itertools
-import json
 import math
 import os
 import sys
@@ -49,10 +48,19 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from ..display import text_table
+from . import storage as st
+from .defaults import nlopt_algorithm, nlopt_budget, optimizer_seed, optuna_algorithm, optuna_budget
+from .design import BOX_CENTRE_U, design_key
 from .evaluate import Evaluator, Record
-from .final import _non_dominated, best_designs, reevaluate_best  # noqa: F401
-from .journal import Journal, RunLock, json_default, read_journal, rewrite_journal
-from .spec import NLOPT_WITH_CONSTRAINTS, ResolvedStudy, StudyError
+from .final import best_designs, reevaluate_best
+from .journal import Journal, RunLock, jsonable, read_journal, rewrite_journal
+from .optuna_adapter import fail_trial
+from .progress import Progress
+from .signals import Interrupt
+from .spec import NLOPT_WITH_CONSTRAINTS, ResolvedStudy, StudyError, _q
+from .tables import results_table, write_tables
+from .workers import make_sampler, optimize_loop, optuna_objective, run_local_workers
 
 __all__ = ["run_study", "RunResult", "results_table", "read_journal"]
 
@@ -70,8 +78,6 @@ class RunResult:
     storage: str | None = None  # the storage URL when given explicitly (for the resume hint)
 
     def summary(self, study: ResolvedStudy) -> str:
-        from ..display import text_table
-
         t = self.table
         run = t[t["source"] == "run"] if len(t) else t
         n_new_run = sum(1 for r in self.new_records if r.source == "run") if self.new_records else self.n_new
@@ -89,49 +95,6 @@ class RunResult:
             lines.append(text_table(study, ref, [o.label for o in study.objectives] + ["feasible"]))
         lines.append(f"results: {self.out_dir / 'results.csv'}")
         return "\n".join(lines)
-
-
-# -- journal and tables ----------------------------------------------------------------------------
-_json_default = json_default
-
-
-def results_table(study: ResolvedStudy, records: list[Record]) -> pd.DataFrame:
-    rows = []
-    for r in records:
-        row = {"trial": r.trial, "source": r.source}
-        for v in study.variables:
-            row[v.name] = r.values.get(v.name)
-        for o in study.objectives:
-            row[o.label] = r.objectives.get(o.label, np.nan)
-        for c in study.constraints:
-            row[c.label] = r.constraint_values.get(c.label, np.nan)
-            row[f"{c.label}_margin"] = r.margins.get(c.label, np.nan)
-        row.update(feasible=r.feasible, status=r.status, error=r.error, seed=r.seed, samples=r.samples,
-                   time_s=r.time_s)
-        rows.append(row)
-    cols = (["trial", "source"] + [v.name for v in study.variables] + [o.label for o in study.objectives]
-            + sum(([c.label, f"{c.label}_margin"] for c in study.constraints), [])
-            + ["feasible", "status", "error", "seed", "samples", "time_s"])
-    df = pd.DataFrame(rows, columns=cols)
-    if len(df):
-        df = df.sort_values(["source", "trial"], ascending=[False, True], kind="stable").reset_index(drop=True)
-    return df
-
-
-def write_tables(study: ResolvedStudy, out_dir: Path, records: list[Record]) -> pd.DataFrame:
-    df = results_table(study, records)
-    tmp = out_dir / "results.csv.tmp"
-    df.to_csv(tmp, index=False)
-    os.replace(tmp, out_dir / "results.csv")
-    try:
-        df2 = df.copy()
-        for v in study.variables:  # mixed-type object columns do not go to Parquet
-            if df2[v.name].dtype == object:
-                df2[v.name] = df2[v.name].astype(str)
-        df2.to_parquet(out_dir / "results.parquet", index=False)
-    except ImportError:
-        pass
-    return df
 
 
 # -- run directory -------------------------------------------------------------------------------------
@@ -164,35 +127,6 @@ def prepare_dir(study: ResolvedStudy, out_dir: Path, resume: bool, lock: RunLock
     tmp.write_text(text)
     os.replace(tmp, sy)
     return read_journal(out_dir, repair=True) if resume else []
-
-
-def _key(values: dict) -> str:
-    return json.dumps({k: (round(v, 12) if isinstance(v, float) else v) for k, v in sorted(values.items())},
-                      default=_json_default)
-
-
-class _Progress:
-    def __init__(self, total, enabled, desc, initial=0):
-        self.bar = None
-        if enabled:
-            try:
-                from tqdm import tqdm
-
-                # disable=None: a bar on a terminal, nothing in logs (the summary follows).
-                self.bar = tqdm(total=total, desc=desc, unit="design", file=sys.stderr, dynamic_ncols=True,
-                                disable=None, mininterval=0.5, initial=initial)
-            except ImportError:
-                self.bar = None
-
-    def update(self, rec: Record, best=None, n: int = 1):
-        if self.bar is not None:
-            self.bar.update(n)
-            if best is not None:
-                self.bar.set_postfix_str(best, refresh=False)
-
-    def close(self):
-        if self.bar is not None:
-            self.bar.close()
 
 
 TABLES_EVERY_S = 5.0
@@ -238,8 +172,6 @@ def _workers_of(study, workers):
 
 
 def _run_locked(study, out_dir, previous, resume, n_trials, progress, storage, n_workers) -> RunResult:
-    from .workers import Interrupt
-
     evaluator = Evaluator(study)
     t0 = time.perf_counter()
     records = list(previous)
@@ -310,8 +242,6 @@ def _run_locked(study, out_dir, previous, resume, n_trials, progress, storage, n
 
 def _sweep_designs(study: ResolvedStudy) -> list[dict]:
     if study.optimizer.designs:
-        from .spec import _q
-
         out = []
         byname = {v.name: v for v in study.variables}
         for j, d in enumerate(study.optimizer.designs):
@@ -335,7 +265,7 @@ def _run_sweep(study, evaluator, records, record, progress, guard):
     designs = _sweep_designs(study)
     done = {r.trial for r in records if r.source == "run"}
     todo = [(i, d) for i, d in enumerate(designs) if i not in done]
-    bar = _Progress(len(designs), progress, f"sweep {study.name}", initial=len(designs) - len(todo))
+    bar = Progress(len(designs), progress, f"sweep {study.name}", initial=len(designs) - len(todo))
     try:
         for i, d in todo:
             if guard.requested:
@@ -349,16 +279,16 @@ def _run_sweep(study, evaluator, records, record, progress, guard):
 
 
 def _run_nlopt(study, evaluator, records, record, progress, n_trials, guard):
-    import nlopt
+    import nlopt  # lazy: only NLopt runs need it
 
     opt_spec = study.optimizer
-    alg = opt_spec.algorithm or "LN_COBYLA"
+    alg = nlopt_algorithm(study)
     vars_ = study.variables
     nv = len(vars_)
     o = study.objectives[0]
     sign = -1.0 if o.goal == "maximize" else 1.0  # NLopt minimises sign * f
-    maxeval = n_trials or opt_spec.maxeval or 100
-    seed = opt_spec.seed if opt_spec.seed is not None else study.evaluation["seed"]
+    maxeval = nlopt_budget(study, n_trials)
+    seed = optimizer_seed(study)
     nlopt.srand(int(seed))
     opt = nlopt.opt(getattr(nlopt, alg), nv)
     opt.set_lower_bounds([0.0] * nv)
@@ -374,16 +304,16 @@ def _run_nlopt(study, evaluator, records, record, progress, n_trials, guard):
         opt.set_population(int(opt_spec.population_size))
     # Trial numbers are the order of first evaluation along the (deterministic) path, the same
     # in an uninterrupted and a resumed run.
-    cache = {_key(r.values): r for r in records if r.source == "run"}
+    cache = {design_key(study, r.values): r for r in records if r.source == "run"}
     state = {"worst": None, "stop": None}
-    bar = _Progress(int(maxeval), progress, f"nlopt {alg} {study.name}", initial=min(len(cache), int(maxeval)))
+    bar = Progress(int(maxeval), progress, f"nlopt {alg} {study.name}", initial=min(len(cache), int(maxeval)))
 
     def values_of(u):
         return {v.name: v.denormalize(float(np.clip(x, 0, 1))) for v, x in zip(vars_, u)}
 
     def get(u) -> Record:
         vals = values_of(u)
-        k = _key(vals)
+        k = design_key(study, vals)
         rec = cache.get(k)
         if rec is None:
             if guard.requested:
@@ -435,15 +365,13 @@ def _run_nlopt(study, evaluator, records, record, progress, n_trials, guard):
             opt.add_inequality_constraint(g, 0.0)
     opt.set_min_objective(f)
     if opt_spec.start:
-        from .spec import _q
-
         byname = {v.name: v for v in vars_}
         x0 = [byname[v.name].normalize(_q(opt_spec.start[v.name], v.kind, f"optimizer.start.{v.name}"))
-              if v.name in opt_spec.start else 0.5 for v in vars_]
+              if v.name in opt_spec.start else BOX_CENTRE_U for v in vars_]
     elif study.reference and all(v.name in study.reference for v in vars_):
         x0 = [v.normalize(study.reference[v.name]) for v in vars_]
     else:
-        x0 = [0.5] * nv
+        x0 = [BOX_CENTRE_U] * nv  # the centre of the box
     x0 = list(np.clip(x0, 0, 1))
     try:
         opt.optimize(x0)
@@ -457,24 +385,18 @@ def _run_nlopt(study, evaluator, records, record, progress, n_trials, guard):
 
 
 # -- Optuna ----------------------------------------------------------------------------------------------
-def _optuna_total(study, n_trials):
-    return int(n_trials or study.optimizer.n_trials or 50)
-
-
 def _optuna_setup(study, out_dir, resume, n_trials, storage_override, journal_records):
     """Open (and check) the storage, create or load the study, rebuild the embedded storage on
     resume, and return the records the run starts from (the reference from the journal, the
     designs from the storage)."""
-    import optuna
-
-    from . import storage as st
+    import optuna  # lazy: optuna takes about a second to import; sweeps and NLopt never need it
 
     optuna.logging.set_verbosity(optuna.logging.ERROR)
     url = st.resolve_storage_url(study, out_dir, storage_override)
     explicit = bool(storage_override or study.optimizer.storage)
     shared = st.is_shared_server(url)
-    seed = study.optimizer.seed if study.optimizer.seed is not None else study.evaluation["seed"]
-    total = _optuna_total(study, n_trials)
+    seed = optimizer_seed(study)
+    total = optuna_budget(study, n_trials)
     if resume and not shared and st._is_journal(url):
         dropped = st.rebuild_journal_storage(url, study.name)
         if dropped:
@@ -500,15 +422,13 @@ def _optuna_setup(study, out_dir, resume, n_trials, storage_override, journal_re
     if stored is None:
         ostudy.set_user_attr(st.ATTR_STUDY, text)
     ostudy.set_user_attr(st.ATTR_BUDGET, total)
-    from optuna.trial import TrialState
+    from optuna.trial import TrialState  # lazy: optuna
 
     if resume and not shared and not st._is_journal(url):
         # SQLite: trials left running by the killed process are failed, their designs
         # proposed again.
         for t in ostudy.get_trials(deepcopy=False, states=(TrialState.RUNNING,)):
-            ostudy._storage.set_trial_state_values(t._trial_id, state=TrialState.FAIL)
-    from .workers import make_sampler
-
+            fail_trial(ostudy, t)
     ostudy.sampler = make_sampler(study, seed)
     trials = ostudy.get_trials(deepcopy=False)
     recs = st.records_from_trials(trials)
@@ -529,34 +449,26 @@ def _optuna_setup(study, out_dir, resume, n_trials, storage_override, journal_re
 
 
 def _store_reference(ostudy, rec):
-    from .storage import ATTR_REFERENCE
-    from .workers import _jsonable
-
     try:
-        ostudy.set_user_attr(ATTR_REFERENCE, _jsonable(rec.to_dict()))
+        ostudy.set_user_attr(st.ATTR_REFERENCE, jsonable(rec.to_dict()))
     except Exception as e:  # the reference stays in the journal
         print(f"warning: could not store the reference design in the storage ({type(e).__name__})", file=sys.stderr)
 
 
 def _store_final(ostudy, out_dir):
-    from .storage import ATTR_FINAL
-
     try:
-        ostudy.set_user_attr(ATTR_FINAL, (Path(out_dir) / "final.csv").read_text())
+        ostudy.set_user_attr(st.ATTR_FINAL, (Path(out_dir) / "final.csv").read_text())
     except Exception as e:
         print(f"warning: could not store final.csv in the storage ({type(e).__name__})", file=sys.stderr)
 
 
 def _run_optuna(study, evaluator, records, record, progress, ctx, n_workers, out_dir, guard, journal):
-    from . import storage as st
-    from .workers import optimize_loop, optuna_objective, run_local_workers
-
     ostudy, total = ctx["ostudy"], ctx["total"]
     counted = sum(1 for r in records if r.source == "run")
     if counted >= total and not ctx["shared"]:
         return
-    alg = study.optimizer.algorithm or ("nsga2" if len(study.objectives) > 1 else "tpe")
-    bar = _Progress(total, progress, f"optuna {alg} {study.name}", initial=min(counted, total))
+    alg = optuna_algorithm(study)
+    bar = Progress(total, progress, f"optuna {alg} {study.name}", initial=min(counted, total))
     try:
         if n_workers > 1:
             def on_new(recs):
@@ -575,14 +487,9 @@ def _run_optuna(study, evaluator, records, record, progress, ctx, n_workers, out
                 record(rec)
                 bar.update(rec, _best_str(study, records))
 
-            def on_count(n):
-                if bar.bar is not None and n != bar.bar.n:
-                    bar.bar.n = n
-                    bar.bar.refresh()
-
             objective = optuna_objective(study, evaluator, on_record, guard=guard, mark_owner=ctx["shared"])
             optimize_loop(ostudy, objective, total, guard, shared=ctx["shared"], counted=counted,
-                          on_count=on_count)
+                          on_count=bar.set_count)
     finally:
         bar.close()
     if ctx["shared"] or n_workers > 1:

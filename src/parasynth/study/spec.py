@@ -24,17 +24,22 @@ Example::
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import math
-from dataclasses import dataclass, field
+import re
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, Strict, ValidationError
 
+from ..mechanisms import load_mechanism, mechanism_class, resolve_mechanism_name
+from ..objectives import OBJECTIVES, get as get_measure
 from ..units import QuantityError, parse_quantity
 from ..validation import MAX_SAMPLES, MAX_SEED, MAX_TRIALS, check_count, check_number, is_real_number
 from ..yamlio import YamlError, load_yaml
+from .design import box_centre, design_params, measure_settings
 
 __all__ = ["StudyError", "StudySpec", "ResolvedStudy", "load_study", "resolve_study", "check_study", "OPTIMIZERS",
            "RESERVED_COLUMNS", "SETTING_RANGES"]
@@ -318,9 +323,6 @@ def _check_variant_choices(mech_cls, name, choices, path, single=None):
 
 def resolve_study(data: dict, source: str | None = None) -> ResolvedStudy:
     """Validate names and units of a parsed study mapping and convert to SI."""
-    from ..mechanisms import mechanism_class, resolve_mechanism_name
-    from ..objectives import OBJECTIVES, get as get_measure
-
     spec = parse_spec(data)
     # A registry name, or a mechanism description file: a relative path is taken from the study
     # file's directory and recorded as an absolute path (so that run copies still find it).
@@ -709,15 +711,9 @@ def check_study(study: ResolvedStudy, *, measures: bool = True, max_corners: int
     recorded as failed by the run, with their reason. ``stats``, when given, receives the
     counts of what was checked (``designs``, ``corners``, ``measures``).
     """
-    import itertools
-
-    from ..mechanisms import load_mechanism
-    from .evaluate import Evaluator
-
     problems: list[str] = []
     stats = {} if stats is None else stats
     stats.update(designs=0, corners=0, measures=0)
-    ev = Evaluator(study)
     mech = study.mechanism
 
     def try_build(params):
@@ -750,7 +746,7 @@ def check_study(study: ResolvedStudy, *, measures: bool = True, max_corners: int
                             and study.spec.variables[i].values is None):
                 probes += [(f"{path}.{key}[{j}]", x) for j, x in enumerate(seq)]
         for where, x in probes:
-            _, err = try_build(ev_params(ev, {var.name: x}))
+            _, err = try_build(design_params(study, {var.name: x}))
             if err:
                 problems.append(f"{where}: {err}")
                 break
@@ -762,16 +758,9 @@ def check_study(study: ResolvedStudy, *, measures: bool = True, max_corners: int
         base = dict(study.reference)
         base_where = "reference"
     else:
-        base = {}
-        for v in study.variables:
-            if v.low is not None and v.high is not None:
-                base[v.name] = v.denormalize(0.5) if v.type == "continuous" else round(0.5 * (v.low + v.high))
-            elif v.values:
-                base[v.name] = v.values[len(v.values) // 2]
-            elif v.choices:
-                base[v.name] = v.choices[0]
+        base = box_centre(study)
         base_where = "variables (the centre of the box)"
-    base_mech, err = try_build(ev_params(ev, base))
+    base_mech, err = try_build(design_params(study, base))
     if err:
         problems.append(f"{base_where}: the design {_design_str(base)} cannot be built: {err}")
     axes = []
@@ -792,7 +781,7 @@ def check_study(study: ResolvedStudy, *, measures: bool = True, max_corners: int
     stats["designs"] = 1 + len(combos) + len(study.optimizer.designs or ())
     for combo in combos:
         d = dict(zip([a for a, _ in axes], combo))
-        _, err = try_build(ev_params(ev, d))
+        _, err = try_build(design_params(study, d))
         if err:
             bad.append((d, err))
     if bad:
@@ -803,13 +792,11 @@ def check_study(study: ResolvedStudy, *, measures: bool = True, max_corners: int
     for j, d in enumerate(study.optimizer.designs or ()):
         byname = {v.name: v for v in study.variables}
         dd = {k: _q(x, byname[k].kind, f"optimizer.designs[{j}].{k}") for k, x in d.items()}
-        _, err = try_build(ev_params(ev, dd))
+        _, err = try_build(design_params(study, dd))
         if err:
             problems.append(f"optimizer.designs[{j}]: the design cannot be built: {err}")
     if not measures or base_mech is None:
         return problems
-
-    from ..objectives import get as get_measure
 
     n = min(int(study.evaluation["n"]), probe_samples)
     items = [(f"objectives[{i}]", o) for i, o in enumerate(study.objectives)]
@@ -818,29 +805,17 @@ def check_study(study: ResolvedStudy, *, measures: bool = True, max_corners: int
     for where, item in items:
         m = get_measure(item.name)
         try:
-            m(base_mech, **ev.settings_for(item.name, item.settings, n=n))
+            m(base_mech, **measure_settings(study, item.name, item.settings, n=n))
         except KeyboardInterrupt:
             raise
         except Exception as e:
             msg = str(e) if isinstance(e, ValueError) else f"{type(e).__name__}: {e}"
-            import re
-
             named = [k for k in item.settings if re.search(rf"\b{re.escape(k)}\b", msg)]
             if len(named) == 1:  # the message names the setting at fault
                 where = f"{where}.settings.{named[0]}"
             problems.append(f"{where} ({item.label}): measure {item.name!r} fails on the {base_where.split(' ')[0]} "
                             f"design with these settings: {msg}")
     return problems
-
-
-def ev_params(evaluator, values: dict) -> dict:
-    """Parameters of the mechanism for design ``values`` (fixed and tied parameters added)."""
-    st = evaluator.study
-    params = {**st.fixed, **values}
-    for k, src in st.tied.items():
-        if src in values:
-            params[k] = values[src]
-    return params
 
 
 def _design_str(d: dict) -> str:

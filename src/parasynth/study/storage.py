@@ -29,13 +29,17 @@ worker's trial is found by the missing heartbeat, marked ``FAIL`` and retried on
 
 from __future__ import annotations
 
-import json
+import importlib.util
 import os
 import re
+import warnings
 from pathlib import Path
 
 from .evaluate import Record
-from .spec import StudyError
+from .journal import rewrite_journal
+from .optuna_adapter import copy_study_system_attrs, journal_storage
+from .spec import StudyError, load_study
+from .tables import write_tables
 
 __all__ = ["StorageError", "resolve_storage_url", "open_storage", "describe_url", "counts", "records_from_trials",
            "load_parasynth_study", "rebuild_journal_storage", "materialize_run", "is_shared_server",
@@ -86,7 +90,7 @@ def _journal_path(url: str) -> Path:
 def describe_url(url: str) -> str:
     """The URL with its password hidden, for messages."""
     try:
-        from sqlalchemy.engine import make_url
+        from sqlalchemy.engine import make_url  # lazy: SQLAlchemy is needed only for server storages
 
         if not _is_journal(url):
             return make_url(url).render_as_string(hide_password=True)
@@ -114,92 +118,14 @@ def is_shared_server(url: str) -> bool:
 
 
 # -- the embedded journal file --------------------------------------------------------------------------
-def _journal_backend(path: Path):
-    from optuna.storages.journal import JournalFileBackend
-
-    class FlockJournalBackend(JournalFileBackend):
-        """Optuna's journal file, appended under ``fcntl.flock`` (released by the operating
-        system when a process dies, so a killed worker never leaves it locked), ``fsync`` only
-        with ``PARASYNTH_FSYNC=1``. A line cut by a crash at the end of the file is removed
-        on open, under the lock, so the next operation does not append onto it."""
-
-        def __init__(self, file_path: str):
-            import fcntl
-
-            self._fcntl = fcntl
-            self._lock_path = file_path + ".flock"
-            self._fsync = os.environ.get("PARASYNTH_FSYNC", "").strip().lower() in ("1", "true", "yes", "on")
-            self._lock_fd = os.open(self._lock_path, os.O_CREAT | os.O_RDWR, 0o644)
-            super().__init__(file_path, lock_obj=None)
-            fcntl.flock(self._lock_fd, fcntl.LOCK_EX)
-            try:
-                with open(file_path, "rb+") as f:
-                    data = f.read()
-                    if data and not data.endswith(b"\n"):
-                        f.truncate(data.rfind(b"\n") + 1)
-            finally:
-                fcntl.flock(self._lock_fd, fcntl.LOCK_UN)
-            self._fd = os.open(file_path, os.O_WRONLY | os.O_APPEND)
-
-        def read_logs(self, log_number_from: int):
-            # As Optuna's, on a file handle kept open (no open/close per storage operation).
-            f = getattr(self, "_rf", None)
-            if f is None:
-                f = self._rf = open(self._file_path, "rb")
-            remaining = os.fstat(f.fileno()).st_size
-            start = 0
-            if log_number_from in self._log_number_offset:
-                f.seek(self._log_number_offset[log_number_from])
-                start = log_number_from
-                remaining -= self._log_number_offset[log_number_from]
-            else:
-                f.seek(0)
-            last_error = None
-            for number, line in enumerate(f, start=start):
-                remaining -= len(line)
-                if remaining < 0:
-                    break
-                if last_error is not None:
-                    raise last_error
-                if not line.endswith(b"\n"):
-                    last_error = ValueError("Invalid log format.")
-                    continue
-                if number + 1 not in self._log_number_offset:
-                    self._log_number_offset[number + 1] = self._log_number_offset[number] + len(line)
-                if number < log_number_from:
-                    continue
-                try:
-                    yield json.loads(line)
-                except json.JSONDecodeError as err:
-                    last_error = err
-                    del self._log_number_offset[number + 1]
-
-        def append_logs(self, logs):
-            data = ("\n".join(json.dumps(log, separators=(",", ":")) for log in logs) + "\n").encode("utf-8")
-            self._fcntl.flock(self._lock_fd, self._fcntl.LOCK_EX)
-            try:
-                os.write(self._fd, data)
-                if self._fsync:
-                    os.fsync(self._fd)
-            finally:
-                self._fcntl.flock(self._lock_fd, self._fcntl.LOCK_UN)
-
-        def __getstate__(self):
-            raise TypeError("the journal backend holds open files; open it again in each process")
-
-    return FlockJournalBackend(str(path))
-
-
 def _open_journal(url: str):
-    from optuna.storages import JournalStorage
-
     path = _journal_path(url)
     if path.exists() and path.is_dir():
         raise StorageError(f"storage {url!r}: {str(path)!r} is a directory; give a file path")
     if not path.parent.exists():
         raise StorageError(f"storage {url!r}: folder {str(path.parent)!r} does not exist")
     try:
-        return JournalStorage(_journal_backend(path))
+        return journal_storage(path)
     except PermissionError:
         raise StorageError(f"storage {url!r}: no permission to write {str(path)!r}") from None
     except ValueError as e:
@@ -210,9 +136,9 @@ def _open_journal(url: str):
 def _check_rdb(url: str):
     """Parse the URL, import its driver and connect once: one clear message for each way
     this fails, before any work starts."""
-    from sqlalchemy import create_engine, text
-    from sqlalchemy.engine import make_url
-    from sqlalchemy.exc import ArgumentError, NoSuchModuleError, OperationalError, SQLAlchemyError
+    from sqlalchemy import create_engine, text  # lazy: SQLAlchemy is needed only for server storages
+    from sqlalchemy.engine import make_url  # lazy: as above
+    from sqlalchemy.exc import ArgumentError, NoSuchModuleError, OperationalError, SQLAlchemyError  # lazy: as above
 
     shown = describe_url(url)
     try:
@@ -223,8 +149,6 @@ def _check_rdb(url: str):
                            f"postgresql://USER:PASSWORD@HOST:5432/DATABASE, sqlite:///optuna.db or journal:FILE") from None
     if u.drivername in ("postgresql", "postgres"):
         # No driver named: psycopg (3) or psycopg2, whichever is installed.
-        import importlib.util
-
         for mod, name in (("psycopg", "postgresql+psycopg"), ("psycopg2", "postgresql+psycopg2")):
             if importlib.util.find_spec(mod) is not None:
                 u = u.set(drivername=name)
@@ -278,15 +202,13 @@ def open_storage(url: str, heartbeat: bool = True):
         return _open_journal(url)
     u, kw = _check_rdb(url)
     url = u.render_as_string(hide_password=False)
-    import optuna
-    from optuna.storages import RDBStorage
+    import optuna  # lazy: optuna takes about a second to import
+    from optuna.storages import RDBStorage  # lazy: as above
 
     try:
-        from optuna.storages import RetryHeartbeatStaleTrialCallback as Retry
+        from optuna.storages import RetryHeartbeatStaleTrialCallback as Retry  # lazy: optuna
     except ImportError:  # Optuna < 4.9
-        from optuna.storages import RetryFailedTrialCallback as Retry
-
-    import warnings
+        from optuna.storages import RetryFailedTrialCallback as Retry  # lazy: optuna
 
     engine_kwargs = {"pool_pre_ping": True, **kw}
     try:
@@ -313,7 +235,7 @@ def study_names(storage) -> list[str]:
 
 def load_parasynth_study(storage, url: str, name: str):
     """The Optuna study ``name`` in ``storage``, or a clear error listing the studies there."""
-    import optuna
+    import optuna  # lazy: optuna takes about a second to import
 
     try:
         return optuna.load_study(study_name=name, storage=storage)
@@ -337,7 +259,7 @@ def trial_record(t) -> Record | None:
 
 def counts(t) -> bool:
     """Does trial ``t`` count as an evaluated design (see the module docstring)?"""
-    from optuna.trial import TrialState
+    from optuna.trial import TrialState  # lazy: optuna takes about a second to import
 
     if t.state == TrialState.COMPLETE:
         return True
@@ -368,8 +290,7 @@ def rebuild_journal_storage(url: str, name: str) -> int:
     only, in their order: the interrupted trials disappear, so trial numbers -- and with the
     per-trial seeding of the sampler, its proposals -- continue exactly as in an uninterrupted
     run. Returns the number of trials dropped."""
-    import optuna
-    from optuna.storages import JournalStorage
+    import optuna  # lazy: optuna takes about a second to import
 
     path = _journal_path(url)
     if not path.exists():
@@ -387,10 +308,9 @@ def rebuild_journal_storage(url: str, name: str) -> int:
     for p in (tmp, Path(str(tmp) + ".flock")):
         if p.exists():
             p.unlink()
-    new_storage = JournalStorage(_journal_backend(tmp))
+    new_storage = journal_storage(tmp)
     dst = optuna.create_study(study_name=name, storage=new_storage, directions=src.directions)
-    for k, v in old.get_study_system_attrs(src._study_id).items():
-        new_storage.set_study_system_attr(dst._study_id, k, v)
+    copy_study_system_attrs(old, src, new_storage, dst)
     for k, v in src.user_attrs.items():
         dst.set_user_attr(k, v)
     dst.add_trials(keep)
@@ -406,9 +326,6 @@ def rebuild_journal_storage(url: str, name: str) -> int:
 def materialize_run(url: str, name: str, run_dir) -> Path:
     """Write a run directory (``study.yaml``, ``journal.jsonl``, ``results.csv``,
     ``final.csv``) from a storage alone, for ``parasynth report --storage URL --study NAME``."""
-    from .journal import rewrite_journal
-    from .spec import load_study
-
     storage = open_storage(url, heartbeat=False)
     ostudy = load_parasynth_study(storage, url, name)
     text = ostudy.user_attrs.get(ATTR_STUDY)
@@ -425,7 +342,5 @@ def materialize_run(url: str, name: str, run_dir) -> Path:
     final = ostudy.user_attrs.get(ATTR_FINAL)
     if final:
         (run_dir / "final.csv").write_text(final)
-    from .runner import write_tables
-
     write_tables(study, run_dir, ([ref] if ref is not None else []) + recs)
     return run_dir

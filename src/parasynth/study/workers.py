@@ -1,12 +1,8 @@
-"""Optuna studies on several processes and machines, and safe interrupts for every runner.
+"""Optuna studies on several processes and machines.
 
-Interrupts
-----------
-:class:`Interrupt` replaces the SIGINT (Ctrl-C) and SIGTERM handlers while a run works. The
-first signal asks the run to stop after the design being evaluated; it is finished and
-recorded, the tables are written and the run returns ``interrupted=True``. A second signal
-while a design is being evaluated drops that design (it is not recorded, a resumed run
-evaluates it again). A signal never interrupts a write to the journal or the storage.
+Interrupts are handled by :class:`~parasynth.study.signals.Interrupt` (also importable from
+here). The command ``parasynth worker`` that runs this loop in a process of its own is
+:func:`parasynth.cli_study.cmd_worker`.
 
 Reproducible proposals
 ----------------------
@@ -37,6 +33,7 @@ or when its process is found dead (local storage) and is proposed again.
 from __future__ import annotations
 
 import contextlib
+import datetime
 import math
 import os
 import signal
@@ -45,67 +42,25 @@ import subprocess
 import sys
 import threading
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
 
-from .evaluate import Evaluator, Record
+from .defaults import optuna_algorithm
+from .evaluate import Evaluator
+from .journal import jsonable
+from .optuna_adapter import fail_stale, fail_trial, heartbeat_enabled, heartbeat_thread
+from .signals import Interrupt
 from .spec import StudyError
+from .storage import ATTR_RECORD, counts, trial_record
 
 __all__ = ["Interrupt", "PerTrialSeeded", "make_sampler", "optuna_objective", "optimize_loop", "run_local_workers",
-           "cmd_worker", "cmd_report_storage", "StorageLost"]
+           "StorageLost", "owner_id", "budget_state"]
 
 
 class StorageLost(StudyError):
     """The storage stopped answering and did not come back within the retries."""
-
-
-# -- interrupts ------------------------------------------------------------------------------------------
-class Interrupt:
-    """Graceful SIGINT/SIGTERM handling (see the module docstring). ``on_signal(signum)`` is
-    called on every signal (the parent of local workers forwards it)."""
-
-    def __init__(self, on_signal=None, quiet: bool = False):
-        self.requested = False
-        self.count = 0
-        self._evaluating = False
-        self._old = {}
-        self.on_signal = on_signal
-        self.quiet = quiet
-
-    def _handler(self, signum, frame):
-        self.count += 1
-        first = not self.requested
-        self.requested = True
-        if self.on_signal is not None:
-            self.on_signal(signum)
-        if first:
-            if not self.quiet:
-                print("\ninterrupt: finishing the current design, then stopping "
-                      "(press Ctrl-C again to drop it)", file=sys.stderr, flush=True)
-        elif self._evaluating:
-            self._evaluating = False
-            raise KeyboardInterrupt
-
-    @contextlib.contextmanager
-    def evaluating(self):
-        """Around a design evaluation: the only place a second signal may raise."""
-        self._evaluating = True
-        try:
-            yield
-        finally:
-            self._evaluating = False
-
-    def __enter__(self):
-        if threading.current_thread() is threading.main_thread():
-            for s in (signal.SIGINT, signal.SIGTERM):
-                self._old[s] = signal.signal(s, self._handler)
-        return self
-
-    def __exit__(self, *exc):
-        for s, h in self._old.items():
-            signal.signal(s, h)
-        self._old = {}
 
 
 # -- samplers --------------------------------------------------------------------------------------------
@@ -114,9 +69,9 @@ def derive_seed(seed: int, number: int) -> int:
 
 
 def _base_sampler(study, seed, constraints_func):
-    import optuna
+    import optuna  # lazy: optuna takes about a second to import; sweeps and NLopt never need it
 
-    alg = study.optimizer.algorithm or ("nsga2" if len(study.objectives) > 1 else "tpe")
+    alg = optuna_algorithm(study)
     pop = study.optimizer.population_size
     if alg == "tpe":
         return optuna.samplers.TPESampler(seed=seed, constraints_func=constraints_func, multivariate=True)
@@ -145,7 +100,7 @@ def _per_trial_class():
     global _PER_TRIAL_CLASS
     if _PER_TRIAL_CLASS is not None:
         return _PER_TRIAL_CLASS
-    from optuna.samplers import BaseSampler
+    from optuna.samplers import BaseSampler  # lazy: optuna takes about a second to import
 
     class PerTrialSeeded(BaseSampler):
         """A sampler whose proposal for trial ``k`` comes from ``factory(derive_seed(seed, k))``;
@@ -200,7 +155,7 @@ def PerTrialSeeded(factory, seed: int, per_trial: bool = True):  # noqa: N802 (a
 
 
 def _uses_set_constraint() -> bool:
-    import optuna
+    import optuna  # lazy: optuna takes about a second to import
 
     return hasattr(optuna.trial.Trial, "set_constraint")
 
@@ -212,7 +167,7 @@ def _constraints_func(trial):
 def make_sampler(study, seed):
     """The study's sampler, seeded per trial (see :class:`PerTrialSeeded`)."""
     cf = _constraints_func if study.constraints and not _uses_set_constraint() else None
-    alg = study.optimizer.algorithm or ("nsga2" if len(study.objectives) > 1 else "tpe")
+    alg = optuna_algorithm(study)
     return PerTrialSeeded(lambda s: _base_sampler(study, s, cf), seed, per_trial=(alg != "qmc"))
 
 
@@ -230,14 +185,6 @@ def _set_optuna_constraints(trial, study, rec):
         trial.set_user_attr("constraints", vals or [0.0])
 
 
-def _jsonable(d: dict) -> dict:
-    import json
-
-    from .journal import json_default
-
-    return json.loads(json.dumps(d, default=json_default))
-
-
 OWNER_ATTR = "parasynth:owner"
 
 
@@ -251,8 +198,6 @@ def optuna_objective(study, evaluator: Evaluator, on_record=None, guard: Interru
     store its record (trial user attribute ``record``) and constraints, hand the record to
     ``on_record``, return the objectives (NaN for a failed design, which Optuna records as a
     failed trial that still counts as an evaluated design)."""
-    from .storage import ATTR_RECORD
-
     guard = guard or Interrupt()
 
     def objective(trial):
@@ -269,7 +214,7 @@ def optuna_objective(study, evaluator: Evaluator, on_record=None, guard: Interru
         with guard.evaluating():
             rec = evaluator.evaluate(values, trial=trial.number)
         _set_optuna_constraints(trial, study, rec)
-        trial.set_user_attr(ATTR_RECORD, _jsonable(rec.to_dict()))
+        trial.set_user_attr(ATTR_RECORD, jsonable(rec.to_dict()))
         objective.stats["records"] += 1
         if on_record is not None:
             on_record(rec)
@@ -311,8 +256,6 @@ ORPHAN_AGE_S = float(os.environ.get("PARASYNTH_ORPHAN_AGE", "30"))
 
 def _orphaned(t) -> bool:
     """A running trial without a recorded owner, started over ``ORPHAN_AGE_S`` seconds ago."""
-    import datetime
-
     if t.user_attrs.get(OWNER_ATTR) is not None or t.datetime_start is None:
         return False
     start = t.datetime_start
@@ -324,9 +267,7 @@ def budget_state(ostudy):
     """(counted, running, waiting) trials of the study; running trials of dead local
     processes, and trials abandoned before their owner was recorded, are marked failed on the
     way (their designs are proposed again)."""
-    from optuna.trial import TrialState
-
-    from .storage import counts
+    from optuna.trial import TrialState  # lazy: optuna takes about a second to import
 
     counted = running = waiting = 0
     for t in ostudy.get_trials(deepcopy=False):
@@ -335,7 +276,7 @@ def budget_state(ostudy):
         elif t.state == TrialState.RUNNING:
             if _stale_here(t) or _orphaned(t):
                 with contextlib.suppress(Exception):
-                    ostudy._storage.set_trial_state_values(t._trial_id, state=TrialState.FAIL)
+                    fail_trial(ostudy, t)
             else:
                 running += 1
         elif t.state == TrialState.WAITING:
@@ -344,11 +285,11 @@ def budget_state(ostudy):
 
 
 def _storage_errors():
-    import optuna
+    import optuna  # lazy: optuna takes about a second to import
 
     errs = [optuna.exceptions.StorageInternalError, OSError, ConnectionError]
     try:
-        from sqlalchemy.exc import DBAPIError, OperationalError
+        from sqlalchemy.exc import DBAPIError, OperationalError  # lazy: only server storages need it
 
         errs += [OperationalError, DBAPIError]
     except ImportError:
@@ -369,40 +310,18 @@ def _root_cause(e: BaseException) -> str:
     return f"{type(e).__name__}: {text[0]}" if text else type(e).__name__
 
 
-def _fail_stale(ostudy):
-    import warnings
-
-    import optuna
-
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        with contextlib.suppress(Exception):
-            optuna.storages.fail_stale_trials(ostudy)
-
-
-def _heartbeat():
-    try:
-        from optuna.storages._heartbeat import get_heartbeat_thread, is_heartbeat_enabled
-    except ImportError:  # pragma: no cover (an Optuna without heartbeats)
-        return (lambda trial_id, storage: contextlib.nullcontext()), (lambda storage: False)
-    return get_heartbeat_thread, is_heartbeat_enabled
-
-
 def run_one_trial(ostudy, objective, storage_errors=()):
     """Ask for a trial, evaluate it, tell the result: Optuna's ask-and-tell with its heartbeat
     (server storages), so that a storage error reaches the caller as itself (Optuna's own
     loop turns a storage error while telling into an ``UnboundLocalError``)."""
-    from optuna.trial import TrialState
+    from optuna.trial import TrialState  # lazy: optuna takes about a second to import
 
-    get_thread, enabled = _heartbeat()
-    if enabled(ostudy._storage):
-        _fail_stale(ostudy)
-    import warnings
-
+    if heartbeat_enabled(ostudy):
+        fail_stale(ostudy)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # "heartbeat is supposed to be used with Study.optimize": it is, below
         trial = ostudy.ask()
-    with get_thread(trial._trial_id, ostudy._storage):
+    with heartbeat_thread(ostudy, trial):
         try:
             value = objective(trial)
         except KeyboardInterrupt:
@@ -430,13 +349,9 @@ def optimize_loop(ostudy, objective, total: int, guard: Interrupt, shared: bool,
     trial, wait for their running trials); otherwise ``counted`` is the number of counted
     trials at the start and this process is the only one. Returns the number of trials run
     here."""
-    import optuna
-
     log = log or (lambda msg: print(msg, file=sys.stderr, flush=True))
     retries = int(os.environ.get("PARASYNTH_STORAGE_RETRIES", "3")) if retries is None else retries
     errors = _storage_errors()
-    failures = 0
-    ran = 0
     old_hook = threading.excepthook
 
     def quiet_hook(hook_args):
@@ -452,7 +367,7 @@ def optimize_loop(ostudy, objective, total: int, guard: Interrupt, shared: bool,
 
 
 def _loop(ostudy, objective, total, guard, shared, counted, on_count, poll_s, retries, log, errors):
-    import optuna
+    import optuna  # lazy: optuna takes about a second to import
 
     failures = 0
     ran = 0
@@ -467,7 +382,7 @@ def _loop(ostudy, objective, total, guard, shared, counted, on_count, poll_s, re
                 if waiting == 0 and counted + running >= total:
                     # The others' trials complete the budget unless their worker died:
                     # wait for them (a dead worker's trial is failed and proposed again).
-                    _fail_stale(ostudy)
+                    fail_stale(ostudy)
                     time.sleep(poll_s)
                     continue
             elif counted >= total:
@@ -514,8 +429,6 @@ def run_local_workers(study_file: Path, url: str, n_workers: int, total: int, os
     until they exit; ``on_new(records)`` receives the newly counted designs. Signals that
     reach this process are forwarded to the workers (each in its own process group, so a
     terminal Ctrl-C reaches them once, through here). Returns the workers' exit codes."""
-    from .storage import counts, trial_record
-
     cmd = [sys.executable, "-m", "parasynth.cli", "worker", str(study_file), "--storage", url,
            "--n-trials", str(total), "--quiet"]
     env = worker_env(n_workers)
@@ -562,128 +475,3 @@ def run_local_workers(study_file: Path, url: str, n_workers: int, total: int, os
         guard.on_signal = None
     sync()
     return [p.returncode for p in procs]
-
-
-# -- commands ----------------------------------------------------------------------------------------------
-def _err(msg) -> int:
-    print(f"error: {msg}", file=sys.stderr)
-    return 2
-
-
-def cmd_worker(args) -> int:
-    """``parasynth worker STUDY --storage URL``: join a study started by ``parasynth run``."""
-    import optuna
-
-    from .spec import load_study
-    from .storage import ATTR_BUDGET, ATTR_STUDY, describe_url, load_parasynth_study, open_storage
-
-    try:
-        study = load_study(args.study)
-        if study.optimizer.kind != "optuna":
-            return _err(f"{args.study}: optimizer.kind is {study.optimizer.kind!r}; workers join Optuna studies "
-                        f"(sweeps and NLopt run in one process: parasynth run)")
-        url = args.storage or study.optimizer.storage
-        if not url:
-            return _err("parasynth worker needs the study's storage: --storage URL (or optimizer.storage in the file)")
-        storage = open_storage(url)
-        name = getattr(args, "study_name", None) or study.name
-        seed = study.optimizer.seed if study.optimizer.seed is not None else study.evaluation["seed"]
-        ostudy = load_parasynth_study(storage, url, name)
-        stored = ostudy.user_attrs.get(ATTR_STUDY)
-        if stored is not None and stored != study.to_yaml():
-            return _err(f"{args.study}: differs from the study {name!r} stored in {describe_url(url)!r}; "
-                        f"use the same study file as the run that started it")
-        ostudy.sampler = make_sampler(study, seed)
-        total = args.n_trials or ostudy.user_attrs.get(ATTR_BUDGET) or study.optimizer.n_trials or 50
-        if total < 1:
-            return _err(f"--n-trials must be a positive number of trials, got {total}")
-    except StudyError as e:
-        return _err(e)
-    optuna.logging.set_verbosity(optuna.logging.ERROR)
-    evaluator = Evaluator(study)
-    from .runner import _Progress
-
-    bar = _Progress(int(total), not args.quiet, f"worker {name}")
-    mine = []
-
-    def on_count(n):
-        if bar.bar is not None:
-            bar.bar.n = n
-            bar.bar.refresh()
-
-    with Interrupt(quiet=args.quiet) as guard:
-        objective = optuna_objective(study, evaluator, on_record=mine.append, guard=guard, mark_owner=True)
-        try:
-            optimize_loop(ostudy, objective, int(total), guard, shared=True, on_count=on_count)
-        except KeyboardInterrupt:
-            guard.requested = True
-        except StorageLost as e:
-            bar.close()
-            print(f"error: worker {owner_id()}: {e}", file=sys.stderr)
-            return 3
-        finally:
-            bar.close()
-    try:
-        from .storage import counts
-
-        n = sum(1 for t in ostudy.get_trials(deepcopy=False) if counts(t))
-    except Exception:
-        n = None
-    state = f"the study holds {n} of {total} designs" if n is not None else "the storage did not answer at the end"
-    print(f"worker {owner_id()}: {len(mine)} designs evaluated here; {state}")
-    if guard.requested:
-        print(f"interrupted; join again with: parasynth worker {args.study} --storage URL", file=sys.stderr)
-        return 130
-    return 0
-
-
-def cmd_report_storage(args) -> int:
-    """``parasynth report --storage URL --study NAME``: rebuild the run directory from the
-    storage (``--run-dir``, default ``runs/NAME``) and write its report."""
-    from ..report import ReportError, write_report
-    from .storage import materialize_run
-
-    name = args.study
-    if not name:
-        return _err("report --storage needs --study NAME (the study's name)")
-    run_dir = Path(getattr(args, "rebuild_dir", None) or Path("runs") / name)
-    try:
-        materialize_run(args.storage, name, run_dir)
-        rdir = write_report(run_dir, out=args.out)
-    except (StudyError, ReportError) as e:
-        return _err(e)
-    print(f"run directory rebuilt from the storage: {run_dir}")
-    print(f"report: {rdir / 'index.html'} (and report.md, pareto.csv)")
-    return 0
-
-
-def resume_command(args, res) -> str:
-    """The command that continues an interrupted ``parasynth run``."""
-    import shlex
-
-    parts = ["parasynth", "run", str(args.study), "--resume"]
-    if getattr(args, "out", None):
-        parts += ["--out", str(args.out)]
-    if getattr(args, "storage", None):
-        parts += ["--storage", str(args.storage)]
-    if getattr(args, "workers", None):
-        parts += ["--workers", str(args.workers)]
-    if getattr(args, "n_trials", None):
-        parts += ["--n-trials", str(args.n_trials)]
-    return " ".join(shlex.quote(p) for p in parts)
-
-
-def interrupted_run(args, res) -> int:
-    """After an interrupted ``parasynth run``: write the partial report (unless
-    ``--no-report``), say how to resume, exit code 130."""
-    if not getattr(args, "no_report", False) and res.n_total:
-        from ..report import ReportError, write_report
-
-        try:
-            rdir = write_report(res.out_dir, out=getattr(args, "report_dir", None))
-            print(f"partial report: {rdir / 'index.html'}")
-        except (ReportError, StudyError) as e:
-            print(f"no report: {e}", file=sys.stderr)
-    print(f"interrupted: {res.n_total} designs are saved in {res.out_dir}; continue with: "
-          f"{resume_command(args, res)}", file=sys.stderr)
-    return 130

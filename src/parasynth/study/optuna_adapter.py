@@ -1,0 +1,159 @@
+"""Every use of Optuna's private interfaces, in one place.
+
+Optuna's public API does not cover what parasynth needs for safe parallel runs; what it
+reaches into is kept here, so that an Optuna release that changes it breaks one module:
+
+* :func:`flock_journal_backend` -- a subclass of ``JournalFileBackend`` that appends under
+  ``fcntl.flock`` and reads on a kept file handle; its ``read_logs`` follows Optuna's own
+  (it uses the backend's ``_file_path`` and ``_log_number_offset``);
+* :func:`heartbeat` -- ``optuna.storages._heartbeat`` (the heartbeat thread of ask-and-tell
+  loops on server storages);
+* :func:`fail_trial`, :func:`trial_storage` -- a study's ``_storage`` and a trial's
+  ``_trial_id`` (to fail a trial left running by a dead process);
+* :func:`copy_study_system_attrs` -- ``_study_id`` (to rebuild a journal storage with the
+  study's system attributes).
+
+Optuna is imported inside the functions: a sweep or an NLopt run never imports it.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import fcntl
+import json
+import os
+import warnings
+
+__all__ = ["flock_journal_backend", "journal_storage", "heartbeat", "trial_storage", "fail_trial",
+           "copy_study_system_attrs", "fail_stale"]
+
+
+def flock_journal_backend(path):
+    """Optuna's journal file backend on ``path``, appended under ``fcntl.flock`` (see the class)."""
+    from optuna.storages.journal import JournalFileBackend  # lazy: optuna takes about a second to import
+
+    class FlockJournalBackend(JournalFileBackend):
+        """Optuna's journal file, appended under ``fcntl.flock`` (released by the operating
+        system when a process dies, so a killed worker never leaves it locked), ``fsync`` only
+        with ``PARASYNTH_FSYNC=1``. A line cut by a crash at the end of the file is removed
+        on open, under the lock, so the next operation does not append onto it."""
+
+        def __init__(self, file_path: str):
+            self._fcntl = fcntl
+            self._lock_path = file_path + ".flock"
+            self._fsync = os.environ.get("PARASYNTH_FSYNC", "").strip().lower() in ("1", "true", "yes", "on")
+            self._lock_fd = os.open(self._lock_path, os.O_CREAT | os.O_RDWR, 0o644)
+            super().__init__(file_path, lock_obj=None)
+            fcntl.flock(self._lock_fd, fcntl.LOCK_EX)
+            try:
+                with open(file_path, "rb+") as f:
+                    data = f.read()
+                    if data and not data.endswith(b"\n"):
+                        f.truncate(data.rfind(b"\n") + 1)
+            finally:
+                fcntl.flock(self._lock_fd, fcntl.LOCK_UN)
+            self._fd = os.open(file_path, os.O_WRONLY | os.O_APPEND)
+
+        def read_logs(self, log_number_from: int):
+            # As Optuna's, on a file handle kept open (no open/close per storage operation).
+            f = getattr(self, "_rf", None)
+            if f is None:
+                f = self._rf = open(self._file_path, "rb")
+            remaining = os.fstat(f.fileno()).st_size
+            start = 0
+            if log_number_from in self._log_number_offset:
+                f.seek(self._log_number_offset[log_number_from])
+                start = log_number_from
+                remaining -= self._log_number_offset[log_number_from]
+            else:
+                f.seek(0)
+            last_error = None
+            for number, line in enumerate(f, start=start):
+                remaining -= len(line)
+                if remaining < 0:
+                    break
+                if last_error is not None:
+                    raise last_error
+                if not line.endswith(b"\n"):
+                    last_error = ValueError("Invalid log format.")
+                    continue
+                if number + 1 not in self._log_number_offset:
+                    self._log_number_offset[number + 1] = self._log_number_offset[number] + len(line)
+                if number < log_number_from:
+                    continue
+                try:
+                    yield json.loads(line)
+                except json.JSONDecodeError as err:
+                    last_error = err
+                    del self._log_number_offset[number + 1]
+
+        def append_logs(self, logs):
+            data = ("\n".join(json.dumps(log, separators=(",", ":")) for log in logs) + "\n").encode("utf-8")
+            self._fcntl.flock(self._lock_fd, self._fcntl.LOCK_EX)
+            try:
+                os.write(self._fd, data)
+                if self._fsync:
+                    os.fsync(self._fd)
+            finally:
+                self._fcntl.flock(self._lock_fd, self._fcntl.LOCK_UN)
+
+        def __getstate__(self):
+            raise TypeError("the journal backend holds open files; open it again in each process")
+
+    return FlockJournalBackend(str(path))
+
+
+def journal_storage(path):
+    """Optuna's ``JournalStorage`` on the file ``path`` (:func:`flock_journal_backend`)."""
+    from optuna.storages import JournalStorage  # lazy: optuna takes about a second to import
+
+    return JournalStorage(flock_journal_backend(path))
+
+
+def trial_storage(ostudy):
+    """The storage object of an Optuna study (``Study._storage``)."""
+    return ostudy._storage
+
+
+def fail_trial(ostudy, trial):
+    """Mark ``trial`` (a trial or frozen trial of ``ostudy``) failed in the storage."""
+    from optuna.trial import TrialState  # lazy: optuna takes about a second to import
+
+    ostudy._storage.set_trial_state_values(trial._trial_id, state=TrialState.FAIL)
+
+
+def copy_study_system_attrs(src_storage, src_study, dst_storage, dst_study):
+    """Copy the system attributes of ``src_study`` (in ``src_storage``) to ``dst_study``."""
+    for k, v in src_storage.get_study_system_attrs(src_study._study_id).items():
+        dst_storage.set_study_system_attr(dst_study._study_id, k, v)
+
+
+def heartbeat():
+    """``(get_thread(trial_id, storage), is_enabled(storage))`` of Optuna's heartbeat; no-ops
+    for an Optuna without heartbeats."""
+    try:
+        from optuna.storages._heartbeat import get_heartbeat_thread, is_heartbeat_enabled  # lazy: optuna
+    except ImportError:  # pragma: no cover (an Optuna without heartbeats)
+        return (lambda trial_id, storage: contextlib.nullcontext()), (lambda storage: False)
+    return get_heartbeat_thread, is_heartbeat_enabled
+
+
+def heartbeat_thread(ostudy, trial):
+    """The heartbeat context of ``trial`` while it is evaluated (a no-op without heartbeat)."""
+    get_thread, _ = heartbeat()
+    return get_thread(trial._trial_id, ostudy._storage)
+
+
+def heartbeat_enabled(ostudy) -> bool:
+    return bool(heartbeat()[1](ostudy._storage))
+
+
+def fail_stale(ostudy):
+    """Fail the trials whose heartbeat stopped (``optuna.storages.fail_stale_trials``, an
+    experimental function: its warning is silenced), ignoring storage errors."""
+    import optuna  # lazy: optuna takes about a second to import
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        with contextlib.suppress(Exception):
+            optuna.storages.fail_stale_trials(ostudy)

@@ -1,0 +1,89 @@
+"""A run directory, read: the one interface through which the report (and any other reader)
+sees a run.
+
+:func:`read_run` loads ``runs/<name>/`` -- ``study.yaml`` (the study as run), the journal (the
+records; a torn last line skipped) rebuilt into the results table, ``final.csv`` when the run
+wrote one -- into a :class:`Run`. The selection rules a reader needs to agree with the run
+are re-exported here from where they are defined, so that a reader imports this module only:
+:func:`design_key`, :func:`design_params`, :func:`pareto_front`, :func:`knee_of`,
+:func:`screening_dominators`, :func:`merge_duplicates`, :func:`best_designs`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import pandas as pd
+
+from .defaults import planned_designs
+from .design import design_key, design_params
+from .final import best_designs, knee_of, merge_duplicates, pareto_front, screening_dominators
+from .journal import read_journal
+from .spec import ResolvedStudy, StudyError, load_study
+from .tables import results_table
+
+__all__ = ["Run", "RunDirError", "read_run", "design_key", "design_params", "pareto_front", "knee_of",
+           "screening_dominators", "merge_duplicates", "best_designs"]
+
+
+class RunDirError(StudyError):
+    """A directory that is not a readable run (missing, no study.yaml, no designs yet)."""
+
+
+@dataclass
+class Run:
+    """A run directory as read by :func:`read_run`: the study as run, ``table`` (results.csv's
+    rows: the reference first, then the run designs by trial), ``final`` (final.csv, or None)
+    and ``budget`` (the designs the run plans: :func:`~parasynth.study.defaults.planned_designs`;
+    None for NLopt, which may stop early)."""
+
+    study: ResolvedStudy
+    table: pd.DataFrame
+    final: pd.DataFrame | None
+    run_dir: Path
+    budget: int | None
+
+    @property
+    def n_run(self) -> int:
+        """Designs of the run (the reference not counted)."""
+        return int((self.table["source"] == "run").sum()) if len(self.table) else 0
+
+    @property
+    def partial(self) -> bool:
+        """True when the run holds fewer designs than its budget (an interrupted run)."""
+        return self.budget is not None and self.n_run < self.budget
+
+    @property
+    def partial_reason(self) -> str:
+        return f"{self.n_run} of {self.budget} planned designs evaluated (interrupted run?)" if self.partial else ""
+
+    @property
+    def expected(self) -> int | None:
+        """Same as :attr:`budget`."""
+        return self.budget
+
+
+def read_run(run_dir) -> Run:
+    """Load a run directory; :class:`RunDirError` when there is no run to read."""
+    run_dir = Path(run_dir)
+    if not run_dir.exists():
+        raise RunDirError(f"run directory {str(run_dir)!r} does not exist; run the study first (parasynth run STUDY.yaml)")
+    sy = run_dir / "study.yaml"
+    if not sy.exists():
+        raise RunDirError(f"{str(run_dir)!r} is not a run directory (no study.yaml); run the study first")
+    try:
+        study = load_study(sy)
+    except StudyError as e:
+        raise RunDirError(f"{sy}: {e}") from None
+    records = read_journal(run_dir)
+    if not records:
+        raise RunDirError(f"{str(run_dir)!r} holds no evaluated designs yet; run (or resume) the study")
+    table = results_table(study, records)
+    final = None
+    if (run_dir / "final.csv").exists():
+        try:
+            final = pd.read_csv(run_dir / "final.csv")
+        except (pd.errors.EmptyDataError, pd.errors.ParserError):
+            final = None
+    return Run(study, table, final, run_dir, planned_designs(study))

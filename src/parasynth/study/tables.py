@@ -1,0 +1,59 @@
+"""The result tables of a run directory: ``results.csv`` and ``results.parquet``, rebuilt from
+the records (the journal or an Optuna storage)."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from .evaluate import Record
+from .spec import ResolvedStudy
+
+__all__ = ["results_table", "write_tables"]
+
+
+def results_table(study: ResolvedStudy, records: list[Record]) -> pd.DataFrame:
+    """One row per record: ``trial``, ``source``, the design variables, the objectives, each
+    design constraint and its ``<label>_margin``, ``feasible``, ``status``, ``error``, ``seed``,
+    ``samples``, ``time_s``; the reference first, then the run designs by trial."""
+    rows = []
+    for r in records:
+        row = {"trial": r.trial, "source": r.source}
+        for v in study.variables:
+            row[v.name] = r.values.get(v.name)
+        for o in study.objectives:
+            row[o.label] = r.objectives.get(o.label, np.nan)
+        for c in study.constraints:
+            row[c.label] = r.constraint_values.get(c.label, np.nan)
+            row[f"{c.label}_margin"] = r.margins.get(c.label, np.nan)
+        row.update(feasible=r.feasible, status=r.status, error=r.error, seed=r.seed, samples=r.samples,
+                   time_s=r.time_s)
+        rows.append(row)
+    cols = (["trial", "source"] + [v.name for v in study.variables] + [o.label for o in study.objectives]
+            + sum(([c.label, f"{c.label}_margin"] for c in study.constraints), [])
+            + ["feasible", "status", "error", "seed", "samples", "time_s"])
+    df = pd.DataFrame(rows, columns=cols)
+    if len(df):
+        df = df.sort_values(["source", "trial"], ascending=[False, True], kind="stable").reset_index(drop=True)
+    return df
+
+
+def write_tables(study: ResolvedStudy, out_dir: Path, records: list[Record]) -> pd.DataFrame:
+    """Write ``results.csv`` (atomically) and ``results.parquet`` (when pyarrow is there)."""
+    out_dir = Path(out_dir)
+    df = results_table(study, records)
+    tmp = out_dir / "results.csv.tmp"
+    df.to_csv(tmp, index=False)
+    os.replace(tmp, out_dir / "results.csv")
+    try:
+        df2 = df.copy()
+        for v in study.variables:  # mixed-type object columns do not go to Parquet
+            if df2[v.name].dtype == object:
+                df2[v.name] = df2[v.name].astype(str)
+        df2.to_parquet(out_dir / "results.parquet", index=False)
+    except ImportError:
+        pass
+    return df
