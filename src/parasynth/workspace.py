@@ -33,7 +33,9 @@ Sampling methods
 ``seed``), drawn in successive blocks from one engine -- the same sequence as one draw of
 ``n`` points. The balance properties of the sequence hold exactly when ``n`` is a power of
 two (``random_base2`` is used then, or successive blocks of the same points when ``n``
-exceeds ``chunk_size``); other ``n`` take the first ``n`` points of the sequence.
+exceeds ``chunk_size``); other ``n`` take the first ``n`` points of the sequence. Point sets
+of up to 64 MiB are kept on disk once drawn (:mod:`parasynth.qmc`), so later processes read
+the same numbers back without importing ``scipy.stats``.
 
 ``"random"``: ``numpy.random.default_rng(seed).random((n, d))`` mapped affinely to the box
 (``lo + (hi - lo) * u``), drawn in blocks (the same numbers as one draw).
@@ -70,7 +72,6 @@ units: ``rad`` for ``mech.angular_coordinates``, ``m`` otherwise.
 
 from __future__ import annotations
 
-import inspect
 import math
 import sys
 import time
@@ -83,6 +84,7 @@ from typing import Any, Callable, ClassVar
 import numpy as np
 
 from .engine import check_engine, pose_batch
+from .qmc import sobol_engine, sobol_points
 from .validation import MAX_SAMPLES, check_count
 
 #: Largest ``n`` of :func:`workspace`. Samples stream chunk by chunk, so the limit is time, not
@@ -244,30 +246,16 @@ class _Sampler:
                 e = min(s + chunk, self.n)
                 yield s, self.lows + span * rng.random((e - s, self.d)), None
         else:
-            eng = _sobol_engine(self.d, self.seed, self.n)
-            power2 = self.n & (self.n - 1) == 0
+            u_all = sobol_points(self.d, self.seed, self.n)
+            if u_all is not None:
+                for s in range(0, self.n, chunk):
+                    yield s, self.lows + span * u_all[s:s + chunk], None
+                return
+            eng = sobol_engine(self.d, self.seed, self.n)
             with warnings.catch_warnings():
                 warnings.filterwarnings("ignore", message=".*balance properties of Sobol.*")
                 for s in range(0, self.n, chunk):
-                    e = min(s + chunk, self.n)
-                    if s == 0 and e == self.n and power2:
-                        u = eng.random_base2(int(self.n).bit_length() - 1)
-                    else:
-                        u = eng.random(e - s)
-                    yield s, self.lows + span * u, None
-
-
-def _sobol_engine(d: int, seed: int, n: int):
-    from scipy.stats import qmc  # lazy: scipy.stats takes about a second to import; only Sobol' sampling needs it
-
-    kw: dict[str, Any] = {"scramble": True}
-    if n > 2**30:
-        kw["bits"] = 64
-    if "rng" in inspect.signature(qmc.Sobol).parameters:
-        kw["rng"] = seed
-    else:  # pragma: no cover - scipy < 1.15
-        kw["seed"] = seed
-    return qmc.Sobol(d, **kw)
+                    yield s, self.lows + span * eng.random(min(s + chunk, self.n) - s), None
 
 
 class _SampleCache:
