@@ -1,0 +1,82 @@
+"""Compare the result tables of two run trees (e.g. two ``parasynth run-all --runs DIR``
+outputs) column by column.
+
+    python benchmarks/compare_results.py RUNS_A RUNS_B [--ignore time_s] [--final]
+
+For every study directory in either tree, ``results.csv`` must have the same columns in the
+same order and the same rows, cell by cell, as text (no tolerance: the values written by the
+run are compared exactly), except the ignored columns (default ``time_s``, the wall-clock
+time of each design). ``--final`` compares ``final.csv`` the same way. Prints one line per
+study and the first differing cells; exit status 0 when everything agrees, 1 otherwise.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import sys
+from pathlib import Path
+
+
+def _read(path: Path) -> tuple[list[str], list[list[str]]]:
+    with open(path, newline="", encoding="utf-8") as f:
+        rows = list(csv.reader(f))
+    return (rows[0], rows[1:]) if rows else ([], [])
+
+
+def compare_tables(a: Path, b: Path, ignore: set[str], show: int = 5) -> list[str]:
+    """Differences between two CSV files (empty when they agree outside ``ignore``)."""
+    ha, ra = _read(a)
+    hb, rb = _read(b)
+    if ha != hb:
+        return [f"columns differ: {ha} vs {hb}"]
+    out = []
+    if len(ra) != len(rb):
+        out.append(f"{len(ra)} rows vs {len(rb)} rows")
+    keep = [j for j, c in enumerate(ha) if c not in ignore]
+    n_diff = 0
+    for i, (x, y) in enumerate(zip(ra, rb)):
+        for j in keep:
+            if x[j] != y[j]:
+                n_diff += 1
+                if n_diff <= show:
+                    out.append(f"row {i + 1} column {ha[j]!r}: {x[j]!r} vs {y[j]!r}")
+    if n_diff > show:
+        out.append(f"... {n_diff - show} more differing cells")
+    return out
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("a", type=Path, help="first run tree (one directory per study)")
+    ap.add_argument("b", type=Path, help="second run tree")
+    ap.add_argument("--ignore", nargs="*", default=["time_s"], help="columns not compared (default time_s)")
+    ap.add_argument("--final", action="store_true", help="compare final.csv as well")
+    args = ap.parse_args(argv)
+    names = sorted({p.name for p in args.a.iterdir() if p.is_dir()} | {p.name for p in args.b.iterdir() if p.is_dir()})
+    files = ["results.csv"] + (["final.csv"] if args.final else [])
+    ok = True
+    for name in names:
+        for fname in files:
+            fa, fb = args.a / name / fname, args.b / name / fname
+            if not fa.exists() and not fb.exists():
+                continue
+            if not fa.exists() or not fb.exists():
+                print(f"{name}/{fname}: only in {args.a if fa.exists() else args.b}")
+                ok = False
+                continue
+            diffs = compare_tables(fa, fb, set(args.ignore))
+            n = len(_read(fa)[1])
+            if diffs:
+                ok = False
+                print(f"{name}/{fname}: DIFFERENT")
+                for d in diffs:
+                    print(f"    {d}")
+            else:
+                print(f"{name}/{fname}: identical ({n} rows; ignored: {', '.join(args.ignore) or 'none'})")
+    print("all identical" if ok else "differences found")
+    return 0 if ok else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
