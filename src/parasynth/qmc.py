@@ -4,7 +4,7 @@ The points themselves come from ``scipy.stats.qmc.Sobol`` (scrambled, seeded); t
 keeps them. Importing ``scipy.stats`` costs about 1.4 s on a 2-core machine, more than a whole
 small study spends evaluating designs, and every study, ``validate`` and report asks for the
 same few point sets (its ``evaluation.samples`` and ``seed`` in its dimension). So a point set
-of at most :data:`DISK_MAX_BYTES` is saved the first time it is drawn, as a ``.npy`` file under
+of at most :data:`DISK_MAX_BYTES` (16 MiB) is saved the first time it is drawn, as a ``.npy`` file under
 the cache folder, and read back (bit for bit the same numbers) by later processes, which then
 never import ``scipy.stats``.
 
@@ -26,8 +26,9 @@ from typing import Any
 
 import numpy as np
 
-#: Largest point set (bytes of float64) kept on disk; larger ones are drawn every time.
-DISK_MAX_BYTES = 64 * 2**20
+#: Largest point set (bytes of float64) kept on disk; larger ones are drawn block by block every
+#: time, so that a very large workspace streams in bounded memory.
+DISK_MAX_BYTES = 16 * 2**20
 
 __all__ = ["sobol_engine", "sobol_points", "cache_dir", "DISK_MAX_BYTES"]
 
@@ -79,7 +80,7 @@ def sobol_points(d: int, seed: int, n: int) -> np.ndarray | None:
     path = _path(folder, d, seed, n) if folder is not None else None
     if path is not None and path.is_file():
         try:
-            u = np.load(path, allow_pickle=False)
+            u = np.load(path, mmap_mode="r", allow_pickle=False)
             if u.shape == (n, d) and u.dtype == np.float64:
                 return u
         except (OSError, ValueError):

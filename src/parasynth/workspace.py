@@ -34,7 +34,7 @@ Sampling methods
 ``n`` points. The balance properties of the sequence hold exactly when ``n`` is a power of
 two (``random_base2`` is used then, or successive blocks of the same points when ``n``
 exceeds ``chunk_size``); other ``n`` take the first ``n`` points of the sequence. Point sets
-of up to 64 MiB are kept on disk once drawn (:mod:`parasynth.qmc`), so later processes read
+of up to 16 MiB are kept on disk once drawn (:mod:`parasynth.qmc`), so later processes read
 the same numbers back without importing ``scipy.stats``.
 
 ``"random"``: ``numpy.random.default_rng(seed).random((n, d))`` mapped affinely to the box
