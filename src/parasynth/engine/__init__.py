@@ -14,7 +14,14 @@ Entry points (``engine="compiled"`` is the default everywhere; ``"numpy"`` the r
   like the NumPy methods evaluated on home-substituted poses -- here they are simply not
   meaningful: use ``valid``);
 * :func:`available` ``(mech, names=None)`` and :func:`reason` ``(mech, names=None)``: whether
-  the compiled path covers ``mech`` and, if not, why.
+  the compiled path covers ``mech`` and, if not, why;
+* :func:`warm_up` ``(work, progress=..., stop=...)``: run ``work`` (one design, or
+  :func:`exercise` of a mechanism) on a compiling thread, saying "compiling the evaluation
+  engine (once per installation) ..." only when numba actually compiles, and staying
+  interruptible (see :mod:`parasynth.engine.warmup`);
+* :func:`reference` (a context manager): inside it every entry point evaluates with the NumPy
+  reference, ``engine="compiled"`` requests included -- for work too small to repay compiling
+  (``parasynth validate``).
 
 How it works: :mod:`parasynth.engine.program` translates the task parametrisation and the
 expression margins into a register program (parameters as a constants vector, so one program
@@ -32,6 +39,8 @@ translation that does not reproduce ``mech.pose`` on probe poses, numba missing 
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import logging
 import warnings
 import weakref
@@ -40,9 +49,10 @@ import numpy as np
 
 from . import core
 from .core import BLOCK, HAVE_NUMBA, SUB, KernelPlan, Unsupported
+from .warmup import COMPILING, WarmUp, exercise, warm_up
 
 __all__ = ["HAVE_NUMBA", "ENGINES", "EngineFallbackWarning", "feasible", "margins", "pose_batch", "available",
-           "reason", "check_engine", "plan"]
+           "reason", "check_engine", "plan", "warm_up", "exercise", "WarmUp", "COMPILING", "reference"]
 
 ENGINES = ("compiled", "numpy")
 _log = logging.getLogger("parasynth.engine")
@@ -52,11 +62,29 @@ class EngineFallbackWarning(UserWarning):
     """The compiled engine does not cover a mechanism; NumPy evaluates it (the message says why)."""
 
 
+_FORCED: contextvars.ContextVar = contextvars.ContextVar("parasynth_engine_forced", default=None)
+
+
 def check_engine(engine, arg: str = "engine") -> str:
-    """Validate an engine name ("compiled" or "numpy")."""
+    """Validate an engine name ("compiled" or "numpy") and return the engine to use: "numpy"
+    inside :func:`reference`."""
     if not isinstance(engine, str) or engine.lower() not in ENGINES:
         raise ValueError(f"{arg} must be one of {', '.join(ENGINES)}; got {engine!r}")
-    return engine.lower()
+    return _FORCED.get() or engine.lower()
+
+
+@contextlib.contextmanager
+def reference():
+    """Within the block (this thread or task), every engine entry point -- feasibility,
+    margins, poses, the pose-wise indices -- evaluates with the NumPy reference, whatever
+    ``engine`` it is asked for: nothing is compiled. For a handful of evaluations (checking a
+    study file) that should not wait for a cold compile; the answers agree with the compiled
+    path to ~1e-12 (see the agreement contracts)."""
+    token = _FORCED.set("numpy")
+    try:
+        yield
+    finally:
+        _FORCED.reset(token)
 
 
 # ---------------------------------------------------------------------------------------------

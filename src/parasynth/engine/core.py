@@ -573,7 +573,11 @@ def run_pose(prog: Program, consts, X: np.ndarray, twist: bool = False):
 # ---------------------------------------------------------------------------------------------
 if HAVE_NUMBA:
     _jit = dict(nogil=True, error_model="numpy", fastmath=False, cache=True)
+    # Helpers are ordinary calls (LLVM inlines the small ones); numba-level inlining
+    # (inline="always") re-types a helper at every call site and is kept only for the two
+    # whose own compiled module would just repeat the interpreter's (see docs/architecture.md).
     _jit_inline = _jit
+    _jit_ir_inline = dict(_jit, inline="always")
 
     # Opcodes (parasynth.engine.program.OPS)
     _NOP = 0
@@ -983,14 +987,14 @@ if HAVE_NUMBA:
             return math.cos(u)
         return np.nan
 
-    @njit(**_jit_inline)
+    @njit(**_jit_ir_inline)
     def _fill_consts(Rg, consts, cbase):
         for j in range(consts.shape[0]):
             v = consts[j]
             for ii in range(Rg.shape[1]):
                 Rg[cbase + j, ii] = v
 
-    @njit(**_jit_inline)
+    @njit(**_jit_ir_inline)
     def _pose_prog(X, j0, nb, coord, okm, Rg, Sc, Tm, ins, n_pose, pose_regs, valid_regs, plim):
         """Task-coordinate ranges, finiteness, the pose part of the program and the pose's
         validity for poses X[j0:j0+nb]: okm, and Tm (12, nb) = (p, R row-major)."""

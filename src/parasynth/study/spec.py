@@ -702,11 +702,12 @@ def check_study(study: ResolvedStudy, *, measures: bool = True, max_corners: int
     bounds, values and choices alone (naming the key that is at fault), then the reference
     design (or the centre of the variable box), up to ``max_corners`` corners of the box and
     every listed design (``optimizer.designs``); with ``measures`` it evaluates every objective
-    and design constraint once on the reference design with ``probe_samples`` workspace samples,
-    so that a setting the measure rejects is reported here and not as a failure of every
-    design. An empty list means none was found. A model whose designs are valid at the
-    corners may still be invalid inside the box (a non-convex parameter set); such designs are
-    recorded as failed by the run, with their reason. ``stats``, when given, receives the
+    and design constraint once on the reference design with ``probe_samples`` workspace samples
+    and the NumPy reference engine (nothing waits for compilation), so that a setting the
+    measure rejects is reported here and not as a failure of every design. An empty list means
+    none was found. A model whose designs are valid at the corners may still be invalid inside
+    the box (a non-convex parameter set); such designs are recorded as failed by the run, with
+    their reason. ``stats``, when given, receives the
     counts of what was checked (``designs``, ``corners``, ``measures``).
     """
     import itertools
@@ -815,10 +816,13 @@ def check_study(study: ResolvedStudy, *, measures: bool = True, max_corners: int
     items = [(f"objectives[{i}]", o) for i, o in enumerate(study.objectives)]
     items += [(f"constraints[{i}]", c) for i, c in enumerate(study.constraints)]
     stats["measures"] = len(items)
+    from ..engine import reference  # a probe: the NumPy reference, no wait for a cold compile
+
     for where, item in items:
         m = get_measure(item.name)
         try:
-            m(base_mech, **ev.settings_for(item.name, item.settings, n=n))
+            with reference():
+                m(base_mech, **ev.settings_for(item.name, item.settings, n=n))
         except KeyboardInterrupt:
             raise
         except Exception as e:
