@@ -25,6 +25,8 @@ path (:data:`ENGINES`: ``"compiled"``, ``"numpy"``).
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import math
 import numbers
 
@@ -41,6 +43,7 @@ __all__ = [
     "is_real_number",
     "ENGINES",
     "check_engine",
+    "numpy_reference",
     "MAX_SAMPLES",
     "MAX_TRIALS",
     "MAX_LEGS",
@@ -69,11 +72,29 @@ class InputError(ValueError):
 ENGINES = ("compiled", "numpy")
 
 
+_FORCED: contextvars.ContextVar = contextvars.ContextVar("parasynth_engine_forced", default=None)
+
+
 def check_engine(engine, arg: str = "engine") -> str:
-    """Validate an engine name ("compiled" or "numpy"); the lower-cased name."""
+    """Validate an engine name ("compiled" or "numpy") and return the engine to use: the
+    lower-cased name, or "numpy" inside :func:`numpy_reference`."""
     if not isinstance(engine, str) or engine.lower() not in ENGINES:
         raise ValueError(f"{arg} must be one of {', '.join(ENGINES)}; got {engine!r}")
-    return engine.lower()
+    return _FORCED.get() or engine.lower()
+
+
+@contextlib.contextmanager
+def numpy_reference():
+    """Within the block (this thread or task), every engine entry point -- feasibility,
+    margins, poses, the pose-wise indices -- evaluates with the NumPy reference, whatever
+    ``engine`` it is asked for: nothing is compiled. For a handful of evaluations (checking a
+    study file) that should not wait for a cold compile; the answers agree with the compiled
+    path to ~1e-12 (see the agreement contracts). Also ``parasynth.engine.reference``."""
+    token = _FORCED.set("numpy")
+    try:
+        yield
+    finally:
+        _FORCED.reset(token)
 
 
 def is_real_number(value) -> bool:

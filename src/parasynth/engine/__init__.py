@@ -18,7 +18,14 @@ Entry points (``engine="compiled"`` is the default everywhere; ``"numpy"`` the r
 * the compiled pose-wise indices (:mod:`parasynth.engine.indices`): :func:`use_compiled`
   ``(mech, engine, what)`` says whether they cover ``mech`` (and, once, why not), then
   :func:`singularity_margin`, :func:`transmission`, :func:`condition_number`,
-  :func:`leg_directions`, :func:`constraint_rank` evaluate them.
+  :func:`leg_directions`, :func:`constraint_rank` evaluate them;
+* :func:`warm_up` ``(work, progress=..., stop=...)``: run ``work`` (one design, or
+  :func:`exercise` of a mechanism) on a compiling thread, saying "compiling the evaluation
+  engine (once per installation) ..." only when numba actually compiles, and staying
+  interruptible (see :mod:`parasynth.engine.warmup`);
+* :func:`reference` (a context manager, :func:`parasynth.validation.numpy_reference`): inside
+  it every entry point evaluates with the NumPy reference, ``engine="compiled"`` requests
+  included -- for work too small to repay compiling (``parasynth validate``).
 
 How it works: :mod:`parasynth.engine.program` translates the task parametrisation and the
 expression margins into a register program (parameters as a constants vector, so one program
@@ -46,14 +53,21 @@ translation that does not reproduce ``mech.pose`` on probe poses, numba missing 
 
 from __future__ import annotations
 
+import contextlib
+import warnings
+
 import numpy as np
 
 from ..mechanism import EngineFallbackWarning
 from ..validation import ENGINES, check_engine
+from ..validation import numpy_reference as reference
+from . import warmup as _warmup
+from .warmup import COMPILING, WarmUp
 
 __all__ = ["HAVE_NUMBA", "ENGINES", "EngineFallbackWarning", "feasible", "margins", "pose_batch", "available",
            "reason", "check_engine", "plan", "use_compiled", "warn_fallback", "coverage", "singularity_margin",
-           "transmission", "local_transmission_index", "condition_number", "leg_directions", "constraint_rank"]
+           "transmission", "local_transmission_index", "condition_number", "leg_directions", "constraint_rank",
+           "warm_up", "exercise", "WarmUp", "COMPILING", "reference"]
 
 #: Names looked up in :mod:`parasynth.engine.core` when first asked for.
 _CORE_NAMES = ("HAVE_NUMBA", "BLOCK", "SUB", "KernelPlan", "Unsupported")
@@ -180,3 +194,52 @@ def condition_number(mech, X, length: float | None = None) -> np.ndarray:
 def leg_directions(mech, X) -> tuple[np.ndarray, np.ndarray]:
     """Compiled unit leg directions (N, n_legs, 3) and reachability (N,)."""
     return _compiled()[2].leg_directions(mech, X)
+
+
+# ---------------------------------------------------------------------------------------------
+# compiling ahead of the work
+# ---------------------------------------------------------------------------------------------
+#: What :func:`exercise` may compile.
+EXERCISES = ("feasible", "margins", "pose", "twist", "singularity_margin", "transmission", "condition_number",
+             "leg_directions", "constraint_rank")
+
+
+def exercise(mech, what=EXERCISES) -> None:
+    """Call the engine's entry points named in ``what`` (see :data:`EXERCISES`) for ``mech``
+    on its home pose, so that the kernels they use are compiled (or loaded from the cache).
+    A mechanism the engine does not cover runs on NumPy, as it would later."""
+    X = np.asarray(mech.home, dtype=float)[None, :]
+    what = set(what)
+    with warnings.catch_warnings(), np.errstate(all="ignore"):
+        warnings.simplefilter("ignore")
+        if "feasible" in what:
+            feasible(mech, X)
+        if "margins" in what:
+            margins(mech, X)
+        if "pose" in what:
+            pose_batch(mech, X)
+        if "twist" in what:
+            pose_batch(mech, X, twist=True)
+        idx = what & {"singularity_margin", "transmission", "condition_number", "leg_directions", "constraint_rank"}
+        if idx:
+            ok, _ = coverage(mech)
+            if not ok:
+                return
+            calls = {"singularity_margin": singularity_margin, "transmission": transmission,
+                     "condition_number": condition_number, "leg_directions": leg_directions,
+                     "constraint_rank": lambda m, _X: constraint_rank(m)}
+            for name in sorted(idx):
+                with contextlib.suppress(ValueError):  # constraint_rank: home unreachable
+                    calls[name](mech, X)
+
+
+def warm_up(work, **options) -> WarmUp:
+    """:func:`parasynth.engine.warmup.warm_up` of ``work``: a callable, or a mechanism, which is
+    :func:`exercise`\\ d on its home pose."""
+    if not callable(work):
+        mech = work
+
+        def work():
+            return exercise(mech)
+
+    return _warmup.warm_up(work, **options)

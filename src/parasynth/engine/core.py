@@ -44,6 +44,8 @@ from __future__ import annotations
 
 import math
 import os
+import threading
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
@@ -57,7 +59,7 @@ from .program import OPS, Program, Untranslatable, build_program
 try:  # pragma: no cover - depends on the environment
     if os.environ.get("PARASYNTH_NO_NUMBA", "").strip() not in ("", "0"):
         raise ImportError("disabled by PARASYNTH_NO_NUMBA")
-    from numba import njit, prange
+    from numba import njit
 
     HAVE_NUMBA = True
 except Exception:  # ImportError, or a broken numba/llvmlite install
@@ -85,35 +87,82 @@ _CONE_KEYS = {
 BLOCK = 4096
 #: Poses per SIMD sub-block (the scratch of one sub-block stays in the L1 cache).
 SUB = 64
-#: Batches of fewer poses run on the calling thread only: waking the thread pool costs more
-#: than it saves for them (and, on a machine busy with other work, far more).
+#: Batches of fewer poses run on the calling thread only: handing blocks to other threads costs
+#: more than it saves for them (and, on a machine busy with other work, far more).
 PARALLEL_MIN = 2**17
 
 
-class _threads:
-    """Run the enclosed kernel call on one thread for small batches."""
+def n_threads() -> int:
+    """Threads a large batch is spread over: numba's thread count (``NUMBA_NUM_THREADS``,
+    default the number of cores)."""
+    if not HAVE_NUMBA:
+        return 1
+    import numba
 
-    def __init__(self, n: int):
-        self.serial = HAVE_NUMBA and n < PARALLEL_MIN
-        self.prev = None
+    return max(1, int(numba.config.NUMBA_NUM_THREADS))
 
-    def __enter__(self):
-        if self.serial:
-            import numba
 
-            self.prev = numba.get_num_threads()
-            if self.prev != 1:
-                numba.set_num_threads(1)
-            else:
-                self.prev = None
-        return self
+_POOL = None
+_POOL_LOCK = threading.Lock()
+_IN_POOL = threading.local()
 
-    def __exit__(self, *exc):
-        if self.prev is not None:
-            import numba
 
-            numba.set_num_threads(self.prev)
-        return False
+def _pool(n: int):
+    global _POOL
+    with _POOL_LOCK:
+        if _POOL is None or _POOL._max_workers < n:
+            _POOL = ThreadPoolExecutor(max_workers=n, thread_name_prefix="parasynth-engine")
+        return _POOL
+
+
+def _drain(fn, edges, nxt, lock, failed):
+    """Take the next range of ``edges`` until none is left (or one failed)."""
+    _IN_POOL.active = True
+    try:
+        while not failed:
+            with lock:
+                i = nxt[0]
+                nxt[0] += 1
+            if i >= len(edges) - 1:
+                return
+            try:
+                fn(edges[i], edges[i + 1])
+            except BaseException:
+                failed.append(True)
+                raise
+    finally:
+        _IN_POOL.active = False
+
+
+def over_blocks(fn, n_blocks: int, parallel: bool = True) -> None:
+    """Run ``fn(b0, b1)`` over the work items ``0 .. n_blocks - 1``: on the calling thread, or,
+    when ``parallel`` and there are several items and threads, as contiguous ranges taken in
+    turn by the calling thread and ``n_threads() - 1`` pool threads (a thread slowed by other
+    work on the machine takes fewer). The kernels are compiled ``nogil`` and write disjoint
+    parts of their outputs, so the threads run in parallel and the result does not depend on
+    the split."""
+    nt = n_threads() if parallel else 1
+    if nt <= 1 or n_blocks < 2 or getattr(_IN_POOL, "active", False):
+        fn(0, n_blocks)
+        return
+    parts = min(n_blocks, 8 * nt)
+    edges = [n_blocks * i // parts for i in range(parts + 1)]
+    nxt, lock, failed = [0], threading.Lock(), []
+    pool = _pool(nt - 1)
+    futs = [pool.submit(_drain, fn, edges, nxt, lock, failed) for _ in range(min(nt, parts) - 1)]
+    err = None
+    try:
+        _drain(fn, edges, nxt, lock, failed)
+    except BaseException as e:  # noqa: BLE001 - re-raised once the pool threads stopped
+        err = e
+        failed.append(True)
+    for f in futs:
+        try:
+            f.result()
+        except BaseException as e:  # noqa: BLE001
+            err = err or e
+    if err is not None:
+        raise err
 
 
 class Unsupported(Exception):
@@ -482,8 +531,8 @@ def run_feasible(plan: KernelPlan, X: np.ndarray):
     out = np.empty(X.shape[0], dtype=np.bool_)
     nblk = (X.shape[0] + BLOCK - 1) // BLOCK
     amb = np.zeros(max(nblk, 1), dtype=np.int64)
-    with _threads(X.shape[0]):
-        _feasible_kernel(X, *plan.args(), BLOCK, out, amb)
+    args = plan.args()
+    over_blocks(lambda b0, b1: _feasible_kernel(X, *args, BLOCK, out, amb, b0, b1), nblk, X.shape[0] >= PARALLEL_MIN)
     return out, bool(amb.any())
 
 
@@ -492,8 +541,8 @@ def run_margins(plan: KernelPlan, X: np.ndarray):
     M = np.empty((X.shape[0], len(plan.names)))
     nblk = (X.shape[0] + BLOCK - 1) // BLOCK
     amb = np.zeros(max(nblk, 1), dtype=np.int64)
-    with _threads(X.shape[0]):
-        _margins_kernel(X, *plan.args(), BLOCK, M, amb)
+    args = plan.args()
+    over_blocks(lambda b0, b1: _margins_kernel(X, *args, BLOCK, M, amb, b0, b1), nblk, X.shape[0] >= PARALLEL_MIN)
     return M, bool(amb.any())
 
 
@@ -512,10 +561,10 @@ def run_pose(prog: Program, consts, X: np.ndarray, twist: bool = False):
         tr = np.zeros((0, 0), dtype=np.int64)
         Tw = np.empty((0, 0, 0))
         n_run = prog.n_pose
-    with _threads(N):
-        _pose_kernel(X, prog.ins, consts, prog.const_base, prog.n_reg, n_run, prog.pose_regs, prog.valid_regs,
-                     prog.pose_limit, tr,
-                     BLOCK, ok, P, Rm, Tw)
+    nblk = (N + BLOCK - 1) // BLOCK
+    over_blocks(lambda b0, b1: _pose_kernel(X, prog.ins, consts, prog.const_base, prog.n_reg, n_run, prog.pose_regs,
+                                            prog.valid_regs, prog.pose_limit, tr, BLOCK, ok, P, Rm, Tw, b0, b1),
+                nblk, N >= PARALLEL_MIN)
     return ok, P, Rm.reshape(N, 3, 3), (Tw if twist else None)
 
 
@@ -524,7 +573,11 @@ def run_pose(prog: Program, consts, X: np.ndarray, twist: bool = False):
 # ---------------------------------------------------------------------------------------------
 if HAVE_NUMBA:
     _jit = dict(nogil=True, error_model="numpy", fastmath=False, cache=True)
-    _jit_inline = dict(_jit, inline="always")
+    # Helpers are ordinary calls (LLVM inlines the small ones); numba-level inlining
+    # (inline="always") re-types a helper at every call site and is kept only for the two
+    # whose own compiled module would just repeat the interpreter's (see docs/architecture.md).
+    _jit_inline = _jit
+    _jit_ir_inline = dict(_jit, inline="always")
 
     # Opcodes (parasynth.engine.program.OPS)
     _NOP = 0
@@ -934,14 +987,14 @@ if HAVE_NUMBA:
             return math.cos(u)
         return np.nan
 
-    @njit(**_jit_inline)
+    @njit(**_jit_ir_inline)
     def _fill_consts(Rg, consts, cbase):
         for j in range(consts.shape[0]):
             v = consts[j]
             for ii in range(Rg.shape[1]):
                 Rg[cbase + j, ii] = v
 
-    @njit(**_jit_inline)
+    @njit(**_jit_ir_inline)
     def _pose_prog(X, j0, nb, coord, okm, Rg, Sc, Tm, ins, n_pose, pose_regs, valid_regs, plim):
         """Task-coordinate ranges, finiteness, the pose part of the program and the pose's
         validity for poses X[j0:j0+nb]: okm, and Tm (12, nb) = (p, R row-major)."""
@@ -971,7 +1024,7 @@ if HAVE_NUMBA:
             for j in range(nt):
                 for ii in range(nb):
                     Rg[j, ii] = Rg[j, ii] if okm[ii] else 0.0
-        _run(ins, 0, n_pose, Rg, Sc, nb)
+        _run(ins, np.int64(0), n_pose, Rg, Sc, nb)  # (not a literal: one specialisation)
         for q in range(valid_regs.shape[0]):
             r = valid_regs[q]
             for ii in range(nb):
@@ -983,16 +1036,15 @@ if HAVE_NUMBA:
                 Tm[j, ii] = t
                 okm[ii] = okm[ii] & (abs(t) < np.inf)
 
-    @njit(parallel=True, **_jit)
+    @njit(**_jit)
     def _pose_kernel(X, ins, consts, cbase, n_reg, n_run, pose_regs, valid_regs, plim, twist_regs, block, ok, P, Rm,
-                     Tw):
+                     Tw, b0, b1):
         """Validity, positions, rotations (row-major) and, if twist_regs is not empty, the
         twist map of poses X: the program alone."""
         N = X.shape[0]
-        nblk = (N + block - 1) // block
         coord = np.zeros((0, 4))
         n_pose = n_run
-        for blk in prange(nblk):
+        for blk in range(b0, b1):
             Rg = np.empty((n_reg, SUB))
             _fill_consts(Rg, consts, cbase)
             Sc = np.empty((2, SUB))
@@ -1015,9 +1067,9 @@ if HAVE_NUMBA:
                         for j in range(twist_regs.shape[1]):
                             Tw[i, r, j] = Rg[twist_regs[r, j], ii]
 
-    @njit(parallel=True, **_jit)
+    @njit(**_jit)
     def _feasible_kernel(X, ins, consts, cbase, n_reg, n_pose, pose_regs, valid_regs, plim, expr, tol, leg_kind, leg_act,
-                         leg_f, coord, actr, lenr, cone, rang, axang, pair, offs, block, out, amb):
+                         leg_f, coord, actr, lenr, cone, rang, axang, pair, offs, block, out, amb, b0, b1):
         """Boolean feasibility of poses X (N, n_task) -> out (N,), amb[block] = number of
         poses whose RPS/RPU reachability NumPy decides batch-dependently.
 
@@ -1029,8 +1081,7 @@ if HAVE_NUMBA:
         module docstring)."""
         N = X.shape[0]
         nl = leg_kind.shape[0]
-        nblk = (N + block - 1) // block
-        for blk in prange(nblk):
+        for blk in range(b0, b1):
             Tm = np.empty((12, SUB))
             Rg = np.empty((n_reg, SUB))
             _fill_consts(Rg, consts, cbase)
@@ -1365,18 +1416,17 @@ if HAVE_NUMBA:
         if m < M[i, ci] or m != m:
             M[i, ci] = m
 
-    @njit(parallel=True, **_jit)
+    @njit(**_jit)
     def _margins_kernel(X, ins, consts, cbase, n_reg, n_pose, pose_regs, valid_regs, plim, expr, tol, leg_kind, leg_act,
-                        leg_f, coord, actr, lenr, cone, rang, axang, pair, offs, block, M, amb):
+                        leg_f, coord, actr, lenr, cone, rang, axang, pair, offs, block, M, amb, b0, b1):
         """All constraint margins with NumPy's formulas (arctan2, arccos, sqrt), no early
         exit -- Mechanism.constraint_margins. The program runs per sub-block; the rest per
         pose."""
         N = X.shape[0]
         nl = leg_kind.shape[0]
         nc = M.shape[1]
-        nblk = (N + block - 1) // block
         nocoord = np.zeros((0, 4))
-        for blk in prange(nblk):
+        for blk in range(b0, b1):
             seg = np.empty((nl, 6))
             lens = np.empty(nl)
             qv = np.empty(nl)

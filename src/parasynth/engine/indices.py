@@ -264,7 +264,7 @@ def _upu_lengths(plan, p, R) -> np.ndarray:
 # ---------------------------------------------------------------------------------------------
 if HAVE_NUMBA:
     _jit = dict(nogil=True, error_model="numpy", fastmath=False, cache=True)
-    _jit_inline = dict(_jit, inline="always")
+    _jit_inline = _jit
 
     #: Round-robin ordering of the 15 column pairs of six columns: five rounds of three
     #: disjoint pairs, so that consecutive rotations are independent and their square roots
@@ -734,7 +734,7 @@ if HAVE_NUMBA:
             for a in range(k):
                 for q in range(6):
                     Twt[q, a] = Tw[a, q]
-            _jacobi_sv(Twt, k, 6, V, True, sv)
+            _jacobi_sv(Twt, k, np.int64(6), V, np.int64(1), sv)
             smax = 0.0
             for q in range(6):
                 smax = max(smax, sv[q])
@@ -751,7 +751,7 @@ if HAVE_NUMBA:
             for a in range(nu):
                 Ut[q, a] = U[q, a]
         sv2 = np.empty(6)
-        _jacobi_sv(Ut, nu, 6, V, False, sv2)
+        _jacobi_sv(Ut, np.int64(nu), np.int64(6), V, np.int64(0), sv2)
         smax = 0.0
         for q in range(6):
             smax = max(smax, sv2[q])
@@ -812,7 +812,7 @@ if HAVE_NUMBA:
                     out[i] = np.nan
                     continue
                 if rcu > 0:
-                    _jacobi_sv(Ct, 6, nc, Vd, False, svc)
+                    _jacobi_sv(Ct, np.int64(6), nc, Vd, np.int64(0), svc)
                     for r in range(nc):
                         used[r] = False
                     s0 = 0.0
@@ -840,7 +840,7 @@ if HAVE_NUMBA:
                     for a in range(na):
                         for q in range(6):
                             M[q, a] = A[a, q]
-                    _jacobi_sv(M, k, 6, Vd, False, sv)
+                    _jacobi_sv(M, k, np.int64(6), Vd, np.int64(0), sv)
                 else:
                     for a in range(na):
                         for q in range(6):
@@ -903,7 +903,7 @@ if HAVE_NUMBA:
                     for r in range(6):
                         for q in range(6):
                             WV[q, r] = A[r, q] if r < na else C[r - na, q]
-                    _jacobi_sv(WV, 6, 6, V, True, sv)
+                    _jacobi_sv(WV, np.int64(6), np.int64(6), V, np.int64(1), sv)
                     smax = 0.0
                     smin = np.inf
                     for q in range(6):
@@ -950,7 +950,7 @@ if HAVE_NUMBA:
                             O[q, row] = C[r, q]
                         row += 1
                     if m > 0:
-                        _jacobi_sv(O, m, 6, V, True, sv)
+                        _jacobi_sv(O, m, np.int64(6), V, np.int64(1), sv)
                     else:
                         for q in range(6):
                             sv[q] = 0.0
@@ -985,7 +985,7 @@ if HAVE_NUMBA:
                             g = VB[0, 0] * VB[0, 0] + VB[0, 1] * VB[0, 1] + VB[0, 2] * VB[0, 2]
                             val = bb[0] * bb[0] / g if g > 0.0 else 0.0
                         else:
-                            _jacobi_sv(VB, 3, d, P, True, svb)
+                            _jacobi_sv(VB, np.int64(3), d, P, np.int64(1), svb)
                             s0 = 0.0
                             for e in range(d):
                                 s0 = max(s0, svb[e])
@@ -1042,9 +1042,9 @@ if HAVE_NUMBA:
                     out[i] = np.nan
                     continue
                 if na >= nt:
-                    _jacobi_sv(J, na, nt, Vd, False, sv)
+                    _jacobi_sv(J, na, nt, Vd, np.int64(0), sv)
                 else:
-                    _jacobi_sv(J, nt, na, Vd, False, sv)
+                    _jacobi_sv(J, nt, na, Vd, np.int64(0), sv)
                 smax = 0.0
                 smin = np.inf
                 for q in range(mn):

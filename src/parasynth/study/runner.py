@@ -49,6 +49,7 @@ import numpy as np
 import pandas as pd
 
 from ..display import text_table
+from ..engine import warm_up
 from . import storage as st
 from .defaults import nlopt_algorithm, nlopt_budget, optimizer_seed, optuna_algorithm, optuna_budget
 from .design import BOX_CENTRE_U, design_key
@@ -198,7 +199,13 @@ def _run_locked(study, out_dir, previous, resume, n_trials, progress, storage, n
                     write_tables(study, out_dir, records)
                     last_tables[0] = now
 
-            if study.reference is not None and not any(r.source == "reference" for r in records):
+            # compile before any design is timed; says so when it compiles
+            n_warm = max(1, int(study.evaluation["n"]) // 2)  # not the run's sample count: no cache hit later
+            warm_up(lambda: evaluator.evaluate(_warm_up_design(study), n=n_warm, source="warm-up"),
+                    progress=None if not progress else print_err, stop=lambda: guard.requested)
+            if guard.requested:
+                pass
+            elif study.reference is not None and not any(r.source == "reference" for r in records):
                 with guard.evaluating():
                     rec = evaluator.evaluate(dict(study.reference), trial=-1, source="reference")
                 record(rec)
@@ -238,6 +245,28 @@ def _run_locked(study, out_dir, previous, resume, n_trials, progress, storage, n
     new = [r for r in records if (r.source, r.trial) not in before]
     return RunResult(out_dir, table, final, len(new), len(records), time.perf_counter() - t0, interrupted, new,
                      storage=ctx.get("url") if ctx and ctx.get("explicit") else None)
+
+
+def _warm_up_design(study: ResolvedStudy) -> dict:
+    """A design whose evaluation compiles what the run needs: the reference, else the first
+    listed design, else the centre of the variable box (its record is not kept)."""
+    if study.reference is not None:
+        return dict(study.reference)
+    if study.optimizer.designs:
+        return _sweep_designs(study)[0]
+    d = {}
+    for v in study.variables:
+        if v.low is not None and v.high is not None and v.type == "continuous":
+            d[v.name] = v.denormalize(0.5)
+        elif v.low is not None and v.high is not None:
+            d[v.name] = round(0.5 * (v.low + v.high))
+        else:
+            d[v.name] = (v.values or v.choices)[0]
+    return d
+
+
+def print_err(msg: str) -> None:
+    print(msg, file=sys.stderr, flush=True)
 
 
 def _sweep_designs(study: ResolvedStudy) -> list[dict]:

@@ -37,7 +37,7 @@ from pydantic import BaseModel, ConfigDict, Field, Strict, ValidationError
 from ..mechanisms import load_mechanism, mechanism_class, resolve_mechanism_name
 from ..objectives import OBJECTIVES, get as get_measure
 from ..units import QuantityError, parse_quantity
-from ..validation import MAX_SAMPLES, MAX_SEED, MAX_TRIALS, check_count, check_number, is_real_number
+from ..validation import MAX_SAMPLES, MAX_SEED, MAX_TRIALS, check_count, check_number, is_real_number, numpy_reference
 from ..yamlio import YamlError, load_yaml
 from .design import box_centre, design_params, measure_settings
 
@@ -704,11 +704,12 @@ def check_study(study: ResolvedStudy, *, measures: bool = True, max_corners: int
     bounds, values and choices alone (naming the key that is at fault), then the reference
     design (or the centre of the variable box), up to ``max_corners`` corners of the box and
     every listed design (``optimizer.designs``); with ``measures`` it evaluates every objective
-    and design constraint once on the reference design with ``probe_samples`` workspace samples,
-    so that a setting the measure rejects is reported here and not as a failure of every
-    design. An empty list means none was found. A model whose designs are valid at the
-    corners may still be invalid inside the box (a non-convex parameter set); such designs are
-    recorded as failed by the run, with their reason. ``stats``, when given, receives the
+    and design constraint once on the reference design with ``probe_samples`` workspace samples
+    and the NumPy reference engine (nothing waits for compilation), so that a setting the
+    measure rejects is reported here and not as a failure of every design. An empty list means
+    none was found. A model whose designs are valid at the corners may still be invalid inside
+    the box (a non-convex parameter set); such designs are recorded as failed by the run, with
+    their reason. ``stats``, when given, receives the
     counts of what was checked (``designs``, ``corners``, ``measures``).
     """
     problems: list[str] = []
@@ -805,7 +806,8 @@ def check_study(study: ResolvedStudy, *, measures: bool = True, max_corners: int
     for where, item in items:
         m = get_measure(item.name)
         try:
-            m(base_mech, **measure_settings(study, item.name, item.settings, n=n))
+            with numpy_reference():  # a probe: no wait for a cold compile
+                m(base_mech, **measure_settings(study, item.name, item.settings, n=n))
         except KeyboardInterrupt:
             raise
         except Exception as e:

@@ -1,0 +1,118 @@
+"""Cold start: the quick start with an empty compile cache, then warm, and the compile alone.
+
+Three fresh processes (``python -m parasynth.cli ...``), each with this benchmark's own
+temporary ``NUMBA_CACHE_DIR`` and output directories:
+
+1. **cold**: ``parasynth run STUDY --quiet`` with the cache empty (everything the run uses is
+   compiled, then the run);
+2. **warm**: the same run again, the cache now filled;
+3. **compile**: in a fresh process on another empty cache, ``parasynth.engine.warm_up`` of one
+   design of the study (what the runner does before its timed loop): every kernel the study
+   uses, and nothing else but the import and that one design;
+4. **validate**: ``parasynth validate STUDY`` on a third empty cache.
+
+The ``results.csv`` of the cold and the warm run are compared column by column (``time_s``
+excepted): they must be identical. Times are wall clock; the CPU time (user + sys of the
+process and its children) follows each, and the load average of the machine is printed,
+since on a shared machine wall time depends on it. The last line::
+
+    cold_s=<float> warm_s=<float> compile_s=<float> validate_s=<float> identical=<bool>
+
+Usage::
+
+    python benchmarks/cold_start.py                      # studies/quickstart.yaml
+    python benchmarks/cold_start.py studies/quickstart.yaml --n-trials 80
+
+Not part of the test suite.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+
+COMPILE_ONLY = r"""
+import sys, time, warnings
+t0 = time.perf_counter()
+from parasynth.engine import warm_up
+from parasynth.study.evaluate import Evaluator
+from parasynth.study.runner import _warm_up_design
+from parasynth.study.spec import load_study
+study = load_study(sys.argv[1])
+ev = Evaluator(study)
+t1 = time.perf_counter()
+with warnings.catch_warnings():
+    warnings.simplefilter("ignore")
+    w = warm_up(lambda: ev.evaluate(_warm_up_design(study)), progress=None)
+print(f"import_s={t1 - t0:.3f} warm_up_s={w.seconds:.3f} compiled={w.compiled} kernels={len(set(w.kernels))}")
+"""
+
+
+def _run(cmd, cache: str, cwd=ROOT) -> tuple[float, float, str]:
+    env = dict(os.environ, NUMBA_CACHE_DIR=cache)
+    t0 = time.perf_counter()
+    r0 = os.times()
+    p = subprocess.run(cmd, cwd=cwd, env=env, capture_output=True, text=True)
+    r1 = os.times()
+    dt = time.perf_counter() - t0
+    cpu = (r1.children_user - r0.children_user) + (r1.children_system - r0.children_system)
+    if p.returncode != 0:
+        sys.stderr.write(p.stdout + p.stderr)
+        raise SystemExit(f"{' '.join(map(str, cmd))}: exit status {p.returncode}")
+    return dt, cpu, p.stdout + p.stderr
+
+
+def _identical(a: Path, b: Path) -> bool:
+    import pandas as pd
+
+    ta = pd.read_csv(a).drop(columns=["time_s"], errors="ignore")
+    tb = pd.read_csv(b).drop(columns=["time_s"], errors="ignore")
+    return ta.shape == tb.shape and ta.equals(tb)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("study", nargs="?", default=str(ROOT / "studies" / "quickstart.yaml"))
+    ap.add_argument("--n-trials", type=int, default=None, help="budget of the runs (default: the study's)")
+    ap.add_argument("--keep", action="store_true", help="keep the temporary directories (printed)")
+    args = ap.parse_args(argv)
+    tmp = Path(tempfile.mkdtemp(prefix="parasynth-cold-"))
+    py = [sys.executable, "-m", "parasynth.cli"]
+    extra = ["--n-trials", str(args.n_trials)] if args.n_trials else []
+    try:
+        load = os.getloadavg()[0]
+        cache = str(tmp / "cache")
+        cold_s, cold_cpu, out = _run(py + ["run", args.study, "--quiet", "--no-report", "--out", str(tmp / "cold")]
+                                     + extra, cache)
+        print(f"cold run: {cold_s:.1f} s wall, {cold_cpu:.1f} s CPU", file=sys.stderr)
+        warm_s, warm_cpu, _ = _run(py + ["run", args.study, "--quiet", "--no-report", "--out", str(tmp / "warm")]
+                                   + extra, cache)
+        print(f"warm run: {warm_s:.1f} s wall, {warm_cpu:.1f} s CPU", file=sys.stderr)
+        comp_s, comp_cpu, comp_out = _run([sys.executable, "-c", COMPILE_ONLY, args.study], str(tmp / "cache2"))
+        print(f"compile (fresh process, empty cache): {comp_s:.1f} s wall, {comp_cpu:.1f} s CPU; "
+              f"{comp_out.strip()}", file=sys.stderr)
+        val_s, val_cpu, _ = _run(py + ["validate", args.study], str(tmp / "cache3"))
+        print(f"validate (empty cache): {val_s:.1f} s wall, {val_cpu:.1f} s CPU", file=sys.stderr)
+        same = _identical(tmp / "cold" / "results.csv", tmp / "warm" / "results.csv")
+        print(f"load average: {load:.2f} before, {os.getloadavg()[0]:.2f} after ({os.cpu_count()} cores)",
+              file=sys.stderr)
+        print(f"cold_s={cold_s:.2f} warm_s={warm_s:.2f} compile_s={comp_s:.2f} validate_s={val_s:.2f} "
+              f"identical={same}")
+        return 0 if same else 1
+    finally:
+        if args.keep:
+            print(f"kept {tmp}", file=sys.stderr)
+        else:
+            shutil.rmtree(tmp, ignore_errors=True)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

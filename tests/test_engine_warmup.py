@@ -1,0 +1,131 @@
+"""Compiling up front: the warm-up says so only when numba compiles, stays interruptible, and
+``engine.reference()`` answers with the NumPy path without compiling; Ctrl-C during the
+compile of a real run (empty cache) ends with the interrupt line, the resume hint and 130."""
+
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from parasynth import engine
+from parasynth.mechanisms import load_mechanism
+
+pytestmark = pytest.mark.skipif(not engine.HAVE_NUMBA, reason="numba not available")
+
+
+def _fresh_kernel():
+    from numba import njit
+
+    def f(x):  # a new function each time: never in the cache (cache=False)
+        s = 0.0
+        for i in range(x.shape[0]):
+            s += x[i] * x[i]
+        return s
+
+    return njit(f)
+
+
+def test_warm_up_reports_only_when_compiling():
+    k = _fresh_kernel()
+    x = np.arange(5.0)
+    msgs = []
+    w = engine.warm_up(lambda: k(x), progress=msgs.append)
+    assert w.done and w.compiled and w.result == 30.0 and w.error is None
+    assert msgs and msgs[0] == engine.COMPILING and "compiled in" in msgs[-1]
+    assert "f" in w.kernels
+    msgs.clear()
+    w = engine.warm_up(lambda: k(x), progress=msgs.append)  # compiled now: silent
+    assert w.done and not w.compiled and w.result == 30.0 and msgs == []
+
+
+def test_warm_up_returns_errors_and_stops_on_request():
+    w = engine.warm_up(lambda: 1 / 0, progress=None)
+    assert w.done and isinstance(w.error, ZeroDivisionError)
+    gate = threading.Event()
+    t0 = time.perf_counter()
+    w = engine.warm_up(lambda: gate.wait(30), progress=None, stop=lambda: time.perf_counter() - t0 > 0.3)
+    assert not w.done and time.perf_counter() - t0 < 5
+    gate.set()
+
+
+def test_reference_uses_numpy_and_compiles_nothing():
+    from numba.core import event
+
+    mech = load_mechanism("5pus_upu")
+    rng = np.random.default_rng(3)
+    X = mech.home + rng.uniform(-1, 1, size=(500, mech.n_task)) * np.array([0.1, 0.1, 0.1, 0.3, 0.3])
+    seen = []
+
+    class L(event.Listener):
+        def on_start(self, e):
+            seen.append(e.data["dispatcher"].py_func.__name__)
+
+        def on_end(self, e):
+            pass
+
+    lis = L()
+    event.register("numba:compile", lis)
+    try:
+        with engine.reference():
+            assert engine.check_engine("compiled") == "numpy"
+            got = engine.feasible(mech, X)
+            marg = mech.singularity_margin(X)
+    finally:
+        event.unregister("numba:compile", lis)
+    assert engine.check_engine("compiled") == "compiled"
+    assert seen == []
+    np.testing.assert_array_equal(got, mech.is_feasible(X, engine="numpy"))
+    np.testing.assert_array_equal(marg, mech.singularity_margin(X, engine="numpy"))
+
+
+def test_sigint_during_compile_ends_with_resume_hint(tmp_path):
+    """A run on an empty compile cache, Ctrl-C as soon as it says it is compiling: the run
+    stops at once (not after the compile), with the interrupt line, the resume hint and exit
+    status 130 -- no traceback, no "Exception ignored"."""
+    study = {"name": "cold_sigint", "mechanism": "5pus_upu",
+             "variables": [{"name": "link_length", "values": ["190 mm", "210 mm"]}],
+             "objectives": [{"name": "workspace_volume", "goal": "maximize"}],
+             "evaluation": {"samples": 256, "ranges": {"x": ["-200 mm", "200 mm"], "y": ["-200 mm", "200 mm"],
+                                                       "z": ["-450 mm", "300 mm"]}},
+             "optimizer": {"kind": "sweep"}}
+    path = tmp_path / "study.yaml"
+    path.write_text(yaml.safe_dump(study))
+    out = tmp_path / "run"
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "numba-cache"), "PYTHONUNBUFFERED": "1"}
+    env.pop("PARASYNTH_DEBUG", None)
+    proc = subprocess.Popen([sys.executable, "-m", "parasynth.cli", "run", str(path), "--out", str(out),
+                             "--no-report"], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    err_lines = []
+
+    def read():
+        for line in proc.stderr:
+            err_lines.append(line)
+
+    reader = threading.Thread(target=read, daemon=True)
+    reader.start()
+    deadline = time.time() + 120
+    while time.time() < deadline and not any(engine.COMPILING in x for x in err_lines):
+        if proc.poll() is not None:
+            break
+        time.sleep(0.05)
+    assert any(engine.COMPILING in x for x in err_lines), "".join(err_lines)
+    time.sleep(0.5)
+    t0 = time.time()
+    proc.send_signal(signal.SIGINT)
+    stdout, _ = proc.communicate(timeout=60)
+    reader.join(5)
+    waited = time.time() - t0
+    stderr = "".join(err_lines)
+    assert proc.returncode == 130, stderr
+    assert waited < 10, f"the run went on compiling for {waited:.1f} s after Ctrl-C"
+    assert "Traceback" not in stderr and "Exception ignored" not in stderr
+    last = [x for x in stderr.splitlines() if x.strip()][-1]
+    assert last.startswith("interrupted:") and "--resume" in last and str(out) in last, stderr
+    assert not (out / "journal.jsonl").exists() or not (out / "journal.jsonl").read_text().strip()
