@@ -261,7 +261,9 @@ def cmd_run(args) -> int:
     study = _checked_study(args.study)
     if args.out is not None:
         _out_dir(args.out, "--out")
-    if args.report_dir is not None and not args.no_report:
+    if args.report_dir is not None and args.no_report:
+        raise CliError("--report-dir and --no-report contradict each other: drop one")
+    if args.report_dir is not None:
         _out_dir(args.report_dir, "--report-dir")
     res = run_study(study, out_dir=args.out, resume=args.resume, n_trials=args.n_trials, progress=not args.quiet,
                     storage=args.storage, workers=args.workers)
@@ -349,6 +351,9 @@ def cmd_report(args) -> int:
             raise CliError("report --storage URL --study NAME rebuilds a run from a storage (no RUN_DIR); "
                            "report RUN_DIR reports a run directory")
         return cmd_report_storage(args)
+    if args.rebuild_dir:
+        raise CliError("--run-dir applies with --storage URL --study NAME (where the rebuilt run directory goes); "
+                       "give the run directory to report as RUN_DIR")
     if not args.run_dir:
         raise CliError("report needs a RUN_DIR (or --storage URL --study NAME)")
     run_dir = Path(args.run_dir)

@@ -159,6 +159,13 @@ def workspace_fraction(mech, **kw) -> float:
     return _ws(mech, kw).fraction
 
 
+@register("workspace_face_fraction", unit="1", sense="minimize", settings=_WS_SETTINGS)
+def workspace_face_fraction(mech, **kw) -> float:
+    """Share of the feasible samples within 1 % of a coordinate's range from a face of the
+    sampled box: above a few per cent the box cuts the workspace (widen evaluation.ranges)."""
+    return _ws(mech, kw).face_fraction(0.01)
+
+
 def _extent(ws, axis):
     lo, hi = ws.extents[axis]
     return 0.0 if not np.isfinite(hi - lo) else float(hi - lo)

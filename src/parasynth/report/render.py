@@ -21,7 +21,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..display import Unit, fmt_mean_se, fmt_number, fmt_quantity, fmt_value, quantity_unit
+from ..display import (Unit, fmt_mean_se, fmt_number, fmt_quantity, fmt_value, quantity_unit, reference_name,
+                       reference_short)
 from .pareto import compare_with_noise, default_reference_point, hypervolume, reference_standing, to_min
 
 __all__ = ["write_report", "ReportError", "load_run"]
@@ -215,7 +216,7 @@ def plot_pareto(figs, study, run_df, front, ref_row, knee_row):
                        edgecolors="#2ca02c", linewidths=2, label="recommended (knee)", zorder=5)
         if ref_row is not None:
             ax.scatter([fa(ref_row[a])], [fb(ref_row[b])], s=220, marker="*", c="#ff7f0e", edgecolors="k",
-                       label="paper design", zorder=6)
+                       label=reference_short(study), zorder=6)
         ax.set_xlabel(f"{la} ({objs[i].goal})", fontsize=9)
         ax.set_ylabel(f"{lb} ({objs[j].goal})", fontsize=9)
         ax.grid(alpha=0.3)
@@ -224,7 +225,7 @@ def plot_pareto(figs, study, run_df, front, ref_row, knee_row):
     fig.legend(handles, names, loc="outside lower center", ncols=3 if len(pairs) == 1 else 5, fontsize=8)
     fig.suptitle(f"Pareto front: {study.name}")
     figs.add(fig, "pareto", "Objective space: every evaluated design, the non-dominated feasible set, the "
-             "recommended design and the paper's design.")
+             f"recommended design and {reference_name(study)}.")
 
 
 def plot_parallel(figs, study, run_df, front):
@@ -318,7 +319,7 @@ def plot_sweep(figs, study, run_df, final):
                             fmt="s", c="#d62728", capsize=4, ms=4,
                             label=f"re-evaluated, +-2 s.e. ({int(fb['samples'].iloc[0])} x {int(fb['repeats'].iloc[0])})")
         if study.reference and v.name in study.reference and numeric:
-            ax.axvline(xu(study.reference[v.name]), c="#ff7f0e", ls="--", label="paper's choice")
+            ax.axvline(xu(study.reference[v.name]), c="#ff7f0e", ls="--", label=reference_short(study))
         ax.set_xlabel(xl, fontsize=9)
         ax.set_ylabel(lab, fontsize=9)
         ax.set_title(o.label, fontsize=9)
@@ -387,8 +388,8 @@ def plot_designs(figs, study, designs: dict):
         ax.grid(alpha=0.3)
         _tidy(ax)
         ax.legend(fontsize=8, markerscale=4)
-    figs.add(fig, "workspace", "Feasible platform positions (projections on XY and XZ) of the recommended and the "
-             "paper's design, from the study's evaluation samples.")
+    figs.add(fig, "workspace", "Feasible platform positions (projections on XY and XZ) of the recommended design and "
+             f"{reference_name(study)}, from the study's evaluation samples.")
 
 
 # -- report ---------------------------------------------------------------------------------------------
@@ -438,6 +439,9 @@ def analyse(run: Run, noise_z: float = NOISE_Z) -> dict:
         out["standing"] = reference_standing(F[feas], senses, np.ones(feas.sum(), bool),
                                              out["ref_row"][labels].to_numpy(float), labels)
     out["final"] = _final_analysis(run, knee_row, noise_z)
+    from .checks import design_warnings
+
+    out["warnings"] = design_warnings(study, out)
     return out
 
 
@@ -453,7 +457,7 @@ def make_figures(run: Run, a: dict, keep: bool = False) -> Figures:
     if a["knee_row"] is not None:
         designs["recommended"] = {v.name: a["knee_row"][v.name] for v in study.variables}
     if study.reference:
-        designs["paper"] = dict(study.reference)
+        designs[reference_short(study)] = dict(study.reference)
     try:
         plot_designs(figs, study, designs)
     except Exception as e:  # a picture must not cost the report
@@ -575,7 +579,8 @@ def _comparison_text(study, row, cmp, ref) -> str:
 def _paper_text(run: Run, a: dict) -> str:
     study = run.study
     r = a["ref_row"]
-    txt = ("Paper's design: " + ", ".join(_fmt_design(study, r)) + " (single sample); feasible: "
+    txt = (reference_name(study, capital=True, with_source=True) + ": " + ", ".join(_fmt_design(study, r))
+           + " (single sample); feasible: "
            + ("yes" if bool(r["feasible"]) else "no") + ".")
     st = a.get("standing")
     fa = a.get("final")
@@ -672,8 +677,8 @@ def final_display_table(study, fa: dict) -> pd.DataFrame:
         rec = "recommended (knee)" if len(study.objectives) > 1 else "recommended (best)"
         role = other
         if r["source"] == "best" and bool(r.get("dominates_reference_screen", False)):
-            role = "dominates paper (screening)"
-        row = {"design": ("paper" if r["source"] == "reference" else (rec if r["knee"] else role)),
+            role = f"dominates {reference_short(study)} (screening)"
+        row = {"design": (reference_short(study) if r["source"] == "reference" else (rec if r["knee"] else role)),
                "trial": fmt_number(int(r["trial"]))}
         if "count" in fin:
             row["evaluations"] = fmt_number(int(r["count"])) if r["source"] == "best" else ""
@@ -716,6 +721,8 @@ def _sections(run: Run, a: dict) -> list[tuple[str, str, pd.DataFrame | None]]:
     if study.spec.description:
         text = study.spec.description.strip() + "\n\n" + text
     sec.append(("Summary", text, None))
+    if a.get("warnings"):
+        sec.append(("Warnings", "\n\n".join("**Warning:** " + w[:1].upper() + w[1:] for w in a["warnings"]), None))
     if len(study.objectives) > 1 and "hv" in a:
         refs = []
         for o, x in zip(study.objectives, a["hv_ref"]):
@@ -757,15 +764,16 @@ def _sections(run: Run, a: dict) -> list[tuple[str, str, pd.DataFrame | None]]:
     else:
         sec.append(("Non-dominated designs", "No feasible design was found.", None))
     if a["ref_row"] is not None:
-        sec.append(("Paper design", _paper_text(run, a), display_table(study, t[t["source"] == "reference"])))
+        sec.append((reference_name(study, capital=True), _paper_text(run, a),
+                    display_table(study, t[t["source"] == "reference"])))
     fa = a.get("final")
     if fa is not None:
         fin = fa["table"]
         sec.append(("Re-evaluation of the best designs",
                     f"Mean ± standard error over {int(fin['repeats'].iloc[0])} seeds with "
                     f"{int(fin['samples'].iloc[0])} samples each, for the best designs, the recommended (knee) "
-                    f"design, the designs that dominate the paper's design on single samples by the largest "
-                    f"normalised margin and the paper's design. A design is dominated beyond noise when another is better by "
+                    f"design, the designs that dominate {reference_name(study)} on single samples by the largest "
+                    f"normalised margin and {reference_name(study)}. A design is dominated beyond noise when another is better by "
                     f"more than {fmt_number(a['noise_z'])} combined standard errors on some objective and worse by "
                     f"as much on none.", final_display_table(study, fa)))
     elif run.final is not None and len(run.final):

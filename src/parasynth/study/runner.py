@@ -69,24 +69,28 @@ class RunResult:
     new_records: list | None = None
     storage: str | None = None  # the storage URL when given explicitly (for the resume hint)
 
+    def saved_counts(self) -> tuple[int, bool]:
+        """(designs of the search saved in the run's table, whether the reference design is
+        among them): the one count the summary and the interrupt message give."""
+        t = self.table
+        if not len(t):
+            return 0, False
+        return int((t["source"] == "run").sum()), bool((t["source"] == "reference").any())
+
     def summary(self, study: ResolvedStudy) -> str:
-        from ..display import text_table
+        from ..display import reference_name
 
         t = self.table
         run = t[t["source"] == "run"] if len(t) else t
         n_new_run = sum(1 for r in self.new_records if r.source == "run") if self.new_records else self.n_new
-        lines = [f"study {study.name}: {len(run)} designs evaluated ({n_new_run} in this run, "
+        n_run, has_ref = self.saved_counts()
+        ref = f" and {reference_name(study)}" if has_ref else ""
+        lines = [f"study {study.name}: {n_run} designs evaluated{ref} ({n_new_run} in this run, "
                  f"{self.elapsed_s:.1f} s); {int(run['feasible'].sum()) if len(run) else 0} feasible, "
                  f"{int((run['status'] == 'failed').sum()) if len(run) else 0} failed"]
-        best = best_designs(study, run, k=3)
-        if len(best):
-            lines.append("best feasible designs:")
-            cols = [v.name for v in study.variables] + [o.label for o in study.objectives]
-            lines.append(text_table(study, best, cols + (["count"] if "count" in best and (best["count"] > 1).any() else [])))
-        ref = t[t["source"] == "reference"] if len(t) else t
-        if len(ref):
-            lines.append("reference design (paper):")
-            lines.append(text_table(study, ref, [o.label for o in study.objectives] + ["feasible"]))
+        from ..report.summary import terminal_summary
+
+        lines += terminal_summary(study, t, self.final, self.out_dir)
         lines.append(f"results: {self.out_dir / 'results.csv'}")
         return "\n".join(lines)
 
@@ -156,7 +160,9 @@ def prepare_dir(study: ResolvedStudy, out_dir: Path, resume: bool, lock: RunLock
     text = study.to_yaml()
     sy = out_dir / "study.yaml"
     if resume and sy.exists() and existing:
-        if sy.read_text() != text:
+        from .budget import same_study
+
+        if not same_study(sy.read_text(), text):
             raise StudyError(
                 f"cannot resume: the study differs from the one run in {str(out_dir)!r} (compare with its study.yaml)"
             )
@@ -220,6 +226,12 @@ def run_study(study: ResolvedStudy, out_dir=None, resume: bool = False, n_trials
                   f"--workers applies to Optuna studies", file=sys.stderr)
             n_workers = 1
     out_dir = Path(out_dir or study.spec.output or Path("runs") / study.name)
+    if resume and not out_dir.exists() and not (kind == "optuna" and (storage or study.optimizer.storage)):
+        raise StudyError(f"--resume: the run directory {str(out_dir)!r} does not exist, so there is nothing to "
+                         f"resume; give the directory of the run (--out) or drop --resume to start a new run")
+    from .budget import budget_for_run
+
+    study = budget_for_run(study, out_dir, resume, n_trials, note=lambda m: print(m, file=sys.stderr))
     lock = RunLock(out_dir)
     try:
         previous = prepare_dir(study, out_dir, resume, lock=lock)
@@ -494,7 +506,9 @@ def _optuna_setup(study, out_dir, resume, n_trials, storage_override, journal_re
                               f"({len(ostudy.directions)} directions); give the study another name")
     text = study.to_yaml()
     stored = ostudy.user_attrs.get(st.ATTR_STUDY)
-    if stored is not None and stored != text:
+    from .budget import same_study
+
+    if stored is not None and not same_study(stored, text):
         raise st.StorageError(f"storage {st.describe_url(url)!r}: the study {study.name!r} stored there differs "
                               f"from this study file; give the study another name or use the same file")
     if stored is None:

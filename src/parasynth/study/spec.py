@@ -219,6 +219,8 @@ class ResolvedStudy:
     reference: dict | None
     source: str | None = None
     tied: dict = dataclasses.field(default_factory=dict)  # parameter -> design variable it equals
+    reference_label: str | None = None  # what the reference design is ("the paper's design")
+    reference_source: str | None = None  # where it comes from (a paper, a drawing)
 
     @property
     def name(self) -> str:
@@ -536,9 +538,19 @@ def resolve_study(data: dict, source: str | None = None) -> ResolvedStudy:
                 _q(x, byname[k].kind, f"optimizer.designs[{j}].{k}")
 
     reference = None
+    ref_label = ref_source = None
     if spec.reference is not None:
         reference = {}
         for k, v in spec.reference.items():
+            if k in REFERENCE_TEXT_KEYS:
+                if not isinstance(v, str) or not v.strip() or "\n" in v.strip():
+                    raise StudyError(f"reference.{k}: give one line of text, e.g. {REFERENCE_TEXT_KEYS[k]!r}, "
+                                     f"got {v!r}")
+                if k == "label":
+                    ref_label = " ".join(v.split())
+                else:
+                    ref_source = " ".join(v.split())
+                continue
             check_param(k, f"reference.{k}")
             reference[k] = _q_nested(v, kinds.get(k), f"reference.{k}")
 
@@ -568,7 +580,11 @@ def resolve_study(data: dict, source: str | None = None) -> ResolvedStudy:
         tied[k] = src
 
     return ResolvedStudy(spec, spec.mechanism, fixed, tuple(variables), tuple(objectives), tuple(constraints),
-                         evaluation, opt, reference, source, tied)
+                         evaluation, opt, reference, source, tied, ref_label, ref_source)
+
+
+#: Text keys of ``reference`` beside the parameter values, with an example each.
+REFERENCE_TEXT_KEYS = {"label": "the paper's design", "source": "Wang, Lyu & Liu 2021, Table 2"}
 
 
 _ANGULAR = {"alpha", "beta", "gamma", "psi", "theta", "phi"}
@@ -917,6 +933,10 @@ KEY_DOCS = {
     "optimizer.population_size": "Population of the evolutionary Optuna samplers (2 to 100000).",
     "reference": "A reference design (e.g. the paper's), {parameter: value with unit}: evaluated first and "
                  "compared in the report.",
+    "reference.label": "What the reference design is, named so in the report and the summary (e.g. \"the "
+                       "paper's design\"; default \"the reference design\").",
+    "reference.source": "Where the reference design comes from (e.g. \"Wang, Lyu & Liu 2021, Table 2\"); "
+                        "shown beside its label.",
     "tied": "Parameters that follow a design variable, {parameter: variable}; same unit.",
     "output": "Run directory (default runs/<name>/); --out overrides it.",
 }
