@@ -623,10 +623,11 @@ class Mechanism:
         return PoseContext(Xa, p, R, list(self.legs), states, reachable, act)
 
     def _select(self, names):
+        from .validation import check_names
+
+        names = check_names("names", names)
         if names is None:
             return list(self.constraints.values())
-        if isinstance(names, str):
-            names = [names]
         unknown = [n for n in names if n not in self.constraints]
         if unknown:
             raise ValueError(

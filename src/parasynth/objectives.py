@@ -61,6 +61,11 @@ class Measure:
     cost: str = "workspace"
 
     def __call__(self, mech, **settings) -> float:
+        from .validation import check_mechanism, check_names
+
+        check_mechanism("mech", mech)
+        if "constraints" in settings:
+            check_names("constraints", settings["constraints"])
         if self.models is not None and mech.name not in self.models:
             raise ValueError(f"measure {self.name!r} applies to {list(self.models)}, not to {mech.name!r}")
         unknown = sorted(set(settings) - set(self.settings))

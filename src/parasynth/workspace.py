@@ -668,6 +668,10 @@ def workspace(mech, ranges=None, n: int = 2**16, method: str = "sobol", seed: in
     Returns a :class:`WorkspaceResult`. An empty workspace is a valid result (volume 0).
     Raises ``ValueError`` naming the argument for bad input.
     """
+    from .validation import check_mechanism, check_names
+
+    check_mechanism("mech", mech)
+    check_names("constraints", constraints)
     if ranges is None:
         ranges = getattr(mech, "default_ranges", dict)()
         if not ranges:

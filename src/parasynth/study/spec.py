@@ -565,6 +565,9 @@ def resolve_study(data: dict, source: str | None = None) -> ResolvedStudy:
             if v.low is not None and is_real_number(val) and not v.low <= val <= v.high:
                 raise StudyError(f"{where}: {x!r} is outside the variable's bounds [{v.low:.6g}, {v.high:.6g}] (SI)")
 
+    if opt.storage is not None and "://" not in opt.storage and not opt.storage.startswith("journal:"):
+        raise StudyError(f"optimizer.storage: {opt.storage!r} is neither a URL (postgresql://user:password@host/db, "
+                         f"sqlite:///FILE) nor a journal file (journal:FILE)")
     if spec.output is not None and (not spec.output.strip() or "\x00" in spec.output):
         raise StudyError("output: give a run directory (e.g. runs/my_study) or leave the key out for runs/<name>/")
 
@@ -790,6 +793,11 @@ def check_study(study: ResolvedStudy, *, measures: bool = True, max_corners: int
     base_mech, err = try_build(ev_params(ev, base))
     if err:
         problems.append(f"{base_where}: the design {_design_str(base)} cannot be built: {err}")
+    else:
+        from ..geometry_checks import degenerate_geometry
+
+        problems += [f"mechanism: {why} (design {_design_str(base)})"
+                     for why in degenerate_geometry(base_mech, study.evaluation.get("ranges"))]
     axes = []
     for v in study.variables:
         if v.low is not None and v.high is not None and v.type != "categorical":
