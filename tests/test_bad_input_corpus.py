@@ -624,15 +624,17 @@ def test_api_actuators_of_wrong_type_are_refused(name, what):
 
 # -- options that would be silently ignored ---------------------------------------------------
 IGNORED_OPTION_CASES = [
-    (["run", Q, "--resume", "--out", "{tmp}/no_such_run", "--quiet"], "does not exist"),
+    (["run", Q, "--resume", "--out", "{tmp}/no_such_run", "--quiet", "--n-trials", "1", "--no-report"],
+     "does not exist"),
     (["report", "{tmp}", "--run-dir", "{tmp}/elsewhere"], "--run-dir"),
     (["run", Q, "--no-report", "--report-dir", "{tmp}/rep", "--quiet"], "--report-dir"),
-    (["run", Q, "--storage", "optuna.db", "--out", "{tmp}/r", "--quiet"], "journal:optuna.db"),
+    (["run", Q, "--storage", "optuna.db", "--out", "{tmp}/r", "--quiet", "--n-trials", "1", "--no-report"],
+     "journal:optuna.db"),
 ]
 
 
-@pytest.mark.parametrize("args,needle", IGNORED_OPTION_CASES, ids=[" ".join(a[:3]) + " " + a[-2] if len(a) > 3 else
-                                                                   " ".join(a) for a, _ in IGNORED_OPTION_CASES])
+@pytest.mark.parametrize("args,needle", IGNORED_OPTION_CASES, ids=["resume-missing-dir", "report-run-dir",
+                                                                  "report-dir-no-report", "bare-storage"])
 def test_an_option_acts_or_is_refused(tmp_path, args, needle):
     code, out, err = run_cli([a.replace("{tmp}", str(tmp_path)) for a in args])
     assert_refused(code, err, needle)

@@ -3,6 +3,7 @@ budget actually run, one count of saved designs, warnings on bounds and on a wor
 the sampled box, and a terminal summary that recommends what the report recommends."""
 
 import json
+import re
 import types
 from pathlib import Path
 
@@ -276,3 +277,83 @@ def test_design_roles_name_the_objective():
     assert roles == ["knee", "best test_two", "best test_quadratic"]
     one = _study(objectives=[{"name": "test_two"}])
     assert design_roles(one, fr) == ["rank 1", "best test_two", "rank 3"]
+
+
+# -- figures and the hypervolume ------------------------------------------------------------------
+def _figures(study, recs, tmp_path):
+    from parasynth.report.render import analyse, load_run, make_figures
+
+    run = load_run(_write_run(tmp_path / "run", study, recs))
+    a = analyse(run)
+    return make_figures(run, a, keep=True), a
+
+
+def test_three_objective_pareto_panels_are_not_joined_by_lines(tmp_path):
+    study = _study(objectives=[{"name": "test_quadratic"}, {"name": "test_two"}, {"name": "test_link_length"}])
+    rng = np.random.default_rng(3)
+    recs = []
+    for t in range(25):
+        L, R = 0.15 + 0.1 * rng.random(), 0.10 + 0.08 * rng.random()
+        r = _rec(t, L, R, -((L - 0.2) ** 2) - (R - 0.14) ** 2, L + 2 * R)
+        r.objectives["test_link_length"] = L
+        recs.append(r)
+    figs, a = _figures(study, recs, tmp_path)
+    assert len(a["front"]) >= 3
+    fig = figs.figures["pareto"]
+    panels = [ax for ax in fig.axes if ax.collections]
+    assert len(panels) == 3
+    for ax in panels:
+        assert all(len(line.get_xdata()) <= 1 for line in ax.get_lines()), "front points joined by a line"
+    import matplotlib.pyplot as plt
+
+    plt.close("all")
+
+
+def test_two_objective_front_is_a_staircase(tmp_path):
+    study = _study()
+    recs = [_rec(t, 0.15 + 0.01 * t, 0.10 + 0.005 * t, -1 + 0.1 * t, 0.3 + 0.05 * t) for t in range(6)]
+    figs, a = _figures(study, recs, tmp_path)
+    ax = [ax for ax in figs.figures["pareto"].axes if ax.collections][0]
+    lines = [line for line in ax.get_lines() if len(line.get_xdata()) > 1]
+    assert len(lines) == 1
+    from matplotlib.cbook import STEP_LOOKUP_MAP
+
+    line = lines[0]
+    assert line.get_drawstyle().startswith("steps")
+    x, y = np.asarray(line.get_xdata(), float), np.asarray(line.get_ydata(), float)
+    vx, vy = STEP_LOOKUP_MAP[line.get_drawstyle()](x, y)
+    # a staircase (segments horizontal or vertical) along the boundary of the region the front
+    # dominates: every corner is weakly dominated by a front point (test_quadratic maximised on
+    # x, test_two minimised on y)
+    assert np.all((np.abs(np.diff(vx)) < 1e-12) | (np.abs(np.diff(vy)) < 1e-12))
+    for cx, cy in zip(vx, vy):
+        assert np.any((x >= cx - 1e-9) & (y <= cy + 1e-9)), (cx, cy)
+
+
+def test_hypervolume_only_for_a_front_of_several_designs_and_in_display_units(tmp_path):
+    study = _study()
+    one = [_rec(0, 0.2, 0.14, 0.0, 0.3), _rec(1, 0.21, 0.15, -0.1, 0.4)]  # trial 0 dominates trial 1
+    md = (write_report(_write_run(tmp_path / "one", study, one), out=tmp_path / "r1") / "report.md").read_text()
+    assert "## Hypervolume" not in md
+    many = [_rec(t, 0.15 + 0.01 * t, 0.10 + 0.005 * t, -1e-4 + 1e-5 * t, 0.3 + 0.05 * t) for t in range(6)]
+    md = (write_report(_write_run(tmp_path / "many", study, many), out=tmp_path / "r2") / "report.md").read_text()
+    sec = md.split("## Hypervolume")[1].split("## ")[0]
+    assert "SI" not in sec and not re.search(r"\de-\d", sec), sec
+    assert "normalised" in sec and "cm^2 x mm in display units" in sec
+
+
+def test_reevaluation_rows_say_for_which_objective_they_are_best(tmp_path):
+    study = _study()
+    fin = [_final_row("best", 0, 0.200, 0.132, -0.00100, 0.00001, 0.5000, 0.0001),
+           _final_row("best", 2, 0.190, 0.120, -0.01000, 0.00001, 0.4300, 0.0001),
+           _final_row("best", 3, 0.195, 0.125, -0.00500, 0.00001, 0.4600, 0.0001),
+           _final_row("reference", -1, 0.205, 0.135, -0.0030, 0.00001, 0.4750, 0.0001)]
+    recs = RECS[:2] + RECS[3:] + [_rec(3, 0.195, 0.125, -0.005, 0.46)]
+    md = (write_report(_write_run(tmp_path / "run", study, recs, fin), out=tmp_path / "rep") / "report.md").read_text()
+    sec = md.split("## Re-evaluation of the best designs")[1].split("## ")[0]
+    rows = {ln.split("|")[2].strip(): ln.split("|")[1].strip() for ln in sec.splitlines() if ln.startswith("| ")
+            and ln.split("|")[2].strip().lstrip("-").isdigit()}
+    assert rows["2"] == "best test_two"
+    assert "best test_quadratic" in rows["0"] or rows["0"].startswith("recommended")
+    assert rows["-1"] == "reference design"
+    assert all(r != "best" for r in rows.values())

@@ -78,10 +78,9 @@ def load_run(run_dir) -> Run:
     table = results_table(study, records)
     final = None
     if (run_dir / "final.csv").exists():
-        try:
-            final = pd.read_csv(run_dir / "final.csv")
-        except (pd.errors.EmptyDataError, pd.errors.ParserError):
-            final = None
+        from .final_table import read_final
+
+        final = read_final(study, run_dir / "final.csv")
     n_run = int((table["source"] == "run").sum())
     expected = _expected(study)
     partial, reason = False, ""
@@ -210,7 +209,14 @@ def plot_pareto(figs, study, run_df, front, ref_row, knee_row):
         ax.scatter(fa(inf[a]), fb(inf[b]), s=10, c="#d62728", alpha=0.35, label="infeasible")
         ax.scatter(fa(fea[a]), fb(fea[b]), s=12, c="#7f7f7f", alpha=0.6, label="feasible")
         fr = front.sort_values(a)
-        ax.plot(fa(fr[a]), fb(fr[b]), "o-", c="#1f77b4", ms=5, lw=1.2, label="non-dominated")
+        if len(objs) == 2 and len(fr) > 1:
+            # Two objectives: the front is a staircase; joining its points in order of one
+            # objective is meaningful. With more, a pair panel is a projection: points only.
+            # (the boundary of the region the front dominates, sorted by the x objective)
+            step = "pre" if objs[i].goal == "maximize" else "post"
+            ax.step(fa(fr[a]), fb(fr[b]), where=step, c="#1f77b4", lw=1.0, alpha=0.7)
+        ax.scatter(fa(fr[a]), fb(fr[b]), s=28, c="#1f77b4", zorder=4,
+                   label="non-dominated" if len(objs) == 2 else "non-dominated (in all objectives)")
         if knee_row is not None:
             ax.scatter([fa(knee_row[a])], [fb(knee_row[b])], s=140, marker="D", facecolors="none",
                        edgecolors="#2ca02c", linewidths=2, label="recommended (knee)", zorder=5)
@@ -237,7 +243,7 @@ def plot_parallel(figs, study, run_df, front):
     d[cols] = d[cols].astype(float)
     lo, hi = d[cols].min(), d[cols].max()
     Z = (d[cols] - lo) / (hi - lo).replace(0, 1)
-    fig, ax = plt.subplots(figsize=(max(6.0, 1.9 * len(cols)), 4), layout="constrained")
+    fig, ax = plt.subplots(figsize=(max(6.0, 2.2 * len(cols)), 4.4), layout="constrained")
     x = np.arange(len(cols))
     on_front = set(front["trial"]) if "trial" in front else set()
     trials = run_df.loc[d.index, "trial"] if "trial" in run_df else pd.Series(-1, index=d.index)
@@ -250,8 +256,10 @@ def plot_parallel(figs, study, run_df, front):
     labels = []
     for c in cols:
         u = _unit(study, c)
-        labels.append(f"{c}\n[{fmt_value(lo[c], u, 3)}, {fmt_value(hi[c], u, 3)}]" + (f"\n{u.symbol}" if u.symbol else ""))
-    ax.set_xticklabels(labels, fontsize=8)
+        name = c if len(c) <= 14 else c.replace("_", "_\n", 1)  # long names on two lines
+        labels.append(f"{name}\n{fmt_value(lo[c], u, 3)} to {fmt_value(hi[c], u, 3)}" + (f" {u.symbol}" if u.symbol else ""))
+    ax.set_xticklabels(labels, fontsize=9)
+    ax.set_xlim(-0.3, len(cols) - 0.7)
     ax.set_yticks([])
     ax.set_title("Parallel coordinates (blue: non-dominated feasible; grey: feasible; red: infeasible)", fontsize=10)
     figs.add(fig, "parallel", "Design variables and objectives of every design, scaled to their ranges.")
@@ -356,7 +364,10 @@ def plot_designs(figs, study, designs: dict):
             b, a = st.base_point[0] * 1e3, st.platform_point[0] * 1e3
             ax.plot([b[0], a[0]], [b[1], a[1]], [b[2], a[2]], "-", lw=2.5,
                     c="#1f77b4" if leg.is_actuated else "#2ca02c")
-            ax.scatter(*leg.base * 1e3, c="k", s=12)
+            anchor = np.asarray(leg.base, float) * 1e3
+            ax.scatter(*anchor, c="k", s=12)  # the fixed end of the leg (caption)
+            if np.linalg.norm(anchor - b) > 1e-6:  # a prismatic joint first: its anchor to the slider
+                ax.plot(*np.vstack([anchor, b]).T, ls=":", c="#555555", lw=1.2)
         plat = np.array([st.platform_point[0] for st in states]) * 1e3
         if len(plat) >= 3:
             ax.plot(*np.vstack([plat, plat[:1]]).T, c="#ff7f0e", lw=1.5)
@@ -365,7 +376,8 @@ def plot_designs(figs, study, designs: dict):
         ax.set_ylabel("Y")
         ax.set_zlabel("Z")
     figs.add(fig, "designs", "Mechanism sketches at the home pose (blue: actuated legs, green: passive legs, "
-             "orange: platform anchors).")
+             "black dots: the legs' fixed base anchors, dotted: a leg's first prismatic joint from its anchor to "
+             "the slider, orange outline: the platform anchors).")
     ev = study.evaluation
     fig, axes = plt.subplots(1, 2, figsize=(10, 4.2), layout="constrained")
     colors = ["#1f77b4", "#ff7f0e", "#2ca02c"]
@@ -672,8 +684,12 @@ def final_display_table(study, fa: dict) -> pd.DataFrame:
     dominate each one beyond noise."""
     fin = fa["table"]
     rows = []
+    from .summary import design_roles
+
+    best_rows = fin[fin["source"] == "best"]
+    why = dict(zip(best_rows.index, design_roles(study, best_rows))) if len(best_rows) else {}
     for i, r in fin.iterrows():
-        other = "sweep point" if study.optimizer.kind == "sweep" else "best"
+        other = "sweep point" if study.optimizer.kind == "sweep" else why.get(i, "best")
         rec = "recommended (knee)" if len(study.objectives) > 1 else "recommended (best)"
         role = other
         if r["source"] == "best" and bool(r.get("dominates_reference_screen", False)):
@@ -723,15 +739,20 @@ def _sections(run: Run, a: dict) -> list[tuple[str, str, pd.DataFrame | None]]:
     sec.append(("Summary", text, None))
     if a.get("warnings"):
         sec.append(("Warnings", "\n\n".join("**Warning:** " + w[:1].upper() + w[1:] for w in a["warnings"]), None))
-    if len(study.objectives) > 1 and "hv" in a:
+    if len(study.objectives) > 1 and "hv" in a and len(front) >= 2:
         refs = []
         for o, x in zip(study.objectives, a["hv_ref"]):
             val = x if o.goal == "minimize" else -x
             refs.append(f"{o.label} {fmt_quantity(val, _unit(study, o.label))}")
+        units = [_unit(study, o.label) for o in study.objectives]
+        sym = " x ".join(u.symbol for u in units if u.symbol)
+        hv_disp = a["hv"] * float(np.prod([u.factor for u in units]))
         sec.append(("Hypervolume", f"Hypervolume of the feasible non-dominated set: {fmt_number(a['hv_fraction'], 3)} "
-                    f"of the box between the ideal point and the reference point ({fmt_number(a['hv'])} in SI units, "
-                    f"objectives in minimisation form). Reference point: the worst feasible value of each objective "
-                    f"plus 10 % of its range: " + ", ".join(refs) + ".", None))
+                    f"of the box between the ideal point and the reference point (normalised: 1 would be a front "
+                    f"at the ideal point; {fmt_number(hv_disp)}{' ' + sym if sym else ''} in display units). "
+                    f"Reference point: the worst feasible value of each objective plus 10 % of its range: "
+                    + ", ".join(refs) + ". It measures how much of the objective space the front covers; "
+                    "compare it between runs of this study only.", None))
     if len(front):
         k = a["knee_row"]
         n_dup = int((front["count"] > 1).sum()) if "count" in front else 0
