@@ -709,8 +709,8 @@ def test_report_of_a_garbage_final_csv(tiny_run, tmp_path, cid, content, needle)
         df = pd.read_csv(f)
         assert len(df) >= 2
         if cid == "text-value":
-            df["volume"] = df["volume"].astype(object)
-            df.loc[1, "volume"] = "lots"
+            df["volume_m3"] = df["volume_m3"].astype(object)  # final.csv names its units
+            df.loc[1, "volume_m3"] = "lots"
         else:
             df.loc[0, "source"] = "somewhere"
         df.to_csv(f, index=False)

@@ -165,7 +165,9 @@ def test_report_files_and_pareto_csv(mo_run):
         groups.setdefault(key, []).append(int(r["trial"]))
     assert sorted(pareto["trial"]) == sorted(g[0] for g in groups.values())
     assert dict(zip(pareto["trial"], pareto["count"])) == {g[0]: len(g) for g in groups.values()}
-    assert list(pareto.columns) == list(res.table.columns) + ["count"]
+    # columns as results.csv (units in the names, e.g. link_length_m) plus count
+    assert list(pareto.columns) == list(pd.read_csv(res.out_dir / "results.csv").columns) + ["count"]
+    assert "link_length_m" in pareto.columns and "test_two_m" in pareto.columns
 
 
 def test_html_self_contained_and_tables_list_front(mo_run):

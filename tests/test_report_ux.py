@@ -357,3 +357,33 @@ def test_reevaluation_rows_say_for_which_objective_they_are_best(tmp_path):
     assert "best test_quadratic" in rows["0"] or rows["0"].startswith("recommended")
     assert rows["-1"] == "reference design"
     assert all(r != "best" for r in rows.values())
+
+
+# -- units in the CSV column names ---------------------------------------------------------------
+def test_csv_files_name_their_units_and_hold_si_values(tmp_path):
+    from parasynth.study.columns import read_run_csv
+
+    study = _study(objectives=[{"name": "test_quadratic"}, {"name": "test_two"}],
+                   constraints=[{"name": "test_link_length", "label": "link", "max": "240 mm"}],
+                   evaluation={"samples": 64, "final_samples": 64, "final_repeats": 2, "final_top": 2},
+                   optimizer={"kind": "optuna", "algorithm": "nsga2", "n_trials": 6, "population_size": 4, "seed": 1})
+    res = run_study(study, out_dir=tmp_path / "r", progress=False)
+    raw = pd.read_csv(tmp_path / "r" / "results.csv")
+    assert {"link_length_m", "slider_radius_m", "test_quadratic_m2", "test_two_m", "link_m", "link_margin_m",
+            "trial", "time_s", "feasible"} <= set(raw.columns)
+    assert "link_length" not in raw.columns and "test_two" not in raw.columns
+    t = res.table.sort_values(["source", "trial"]).reset_index(drop=True)
+    r = raw.sort_values(["source", "trial"]).reset_index(drop=True)
+    # SI values: link_length in m (0.15 to 0.25), test_two = L + 2 R in m
+    assert r["link_length_m"].between(0.15, 0.25).all()
+    np.testing.assert_allclose(r["test_two_m"], r["link_length_m"] + 2 * r["slider_radius_m"])
+    back = read_run_csv(study, tmp_path / "r" / "results.csv").sort_values(["source", "trial"]).reset_index(drop=True)
+    assert list(back.columns) == list(res.table.columns)
+    np.testing.assert_allclose(back["test_quadratic"], t["test_quadratic"])
+    fin = pd.read_csv(tmp_path / "r" / "final.csv")
+    assert {"test_quadratic_m2", "test_quadratic_stderr_m2", "test_two_m", "test_two_stderr_m", "count"} <= set(fin.columns)
+    rep = write_report(tmp_path / "r", out=tmp_path / "rep")
+    par = pd.read_csv(rep / "pareto.csv")
+    assert "link_length_m" in par.columns and "test_two_m" in par.columns
+    md = (rep / "report.md").read_text()
+    assert "## Re-evaluation of the best designs" in md  # final.csv with unit names is read back

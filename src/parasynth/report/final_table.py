@@ -20,6 +20,9 @@ def read_final(study, path) -> pd.DataFrame:
     path = Path(path)
     try:
         df = pd.read_csv(path)
+        from ..study.columns import from_csv_columns
+
+        df = from_csv_columns(study, df)
     except pd.errors.EmptyDataError:
         raise ReportError(f"{path}: the file is empty; delete it and run the study again with --resume to redo "
                           f"the final re-evaluation") from None
@@ -31,6 +34,9 @@ def read_final(study, path) -> pd.DataFrame:
     need = ["source"] + labels + [f"{lab}_stderr" for lab in labels]
     missing = [c for c in need if c not in df.columns]
     if missing:
+        from ..study.columns import csv_column
+
+        missing = [csv_column(study, c) for c in missing]
         raise ReportError(f"{path}: line 1 (the header) lacks the column(s) {', '.join(missing)}; this is not the "
                           f"final.csv of this study -- delete it and run the study again with --resume")
     bad = ~df["source"].isin(["best", "reference"])
@@ -45,6 +51,9 @@ def read_final(study, path) -> pd.DataFrame:
             wrong |= df[c].isna()
         if wrong.any():
             i = int(np.flatnonzero(wrong.to_numpy())[0])
-            raise ReportError(f"{path}: line {i + 2}: column {c} holds {df[c].iloc[i]!r}, not a number")
+            from ..study.columns import csv_column
+
+            raise ReportError(f"{path}: line {i + 2}: column {csv_column(study, c)} holds {df[c].iloc[i]!r}, "
+                              f"not a number")
         df[c] = vals
     return df

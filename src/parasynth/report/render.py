@@ -488,7 +488,9 @@ def write_report(run_dir, out=None, noise_z: float = NOISE_Z) -> Path:
     out = Path(out) if out else Path("reports") / study.name
     out.mkdir(parents=True, exist_ok=True)
     a = analyse(run, noise_z=noise_z)
-    a["front"].to_csv(out / "pareto.csv", index=False)
+    from ..study.columns import to_csv_columns
+
+    to_csv_columns(study, a["front"]).to_csv(out / "pareto.csv", index=False)  # unit suffixes, SI values
     figs = make_figures(run, a)
     sections = _sections(run, a)
     (out / "img").mkdir(exist_ok=True)

@@ -54,8 +54,10 @@ def terminal_summary(study, table: pd.DataFrame, final: pd.DataFrame | None, out
     out_dir = Path(out_dir)
     if final is None and (out_dir / "final.csv").exists():
         try:
-            final = pd.read_csv(out_dir / "final.csv")
-        except (pd.errors.EmptyDataError, pd.errors.ParserError, OSError, UnicodeError):
+            from .final_table import read_final
+
+            final = read_final(study, out_dir / "final.csv")
+        except (ValueError, OSError):
             final = None
     lines: list[str] = []
     runs = table[table["source"] == "run"] if len(table) else table

@@ -294,5 +294,7 @@ def reevaluate_best(study: ResolvedStudy, evaluator: Evaluator, table: pd.DataFr
             out["count"] = int(row.get("count", 1)) if src == "best" else 1
             rows.append(out)
     df = pd.DataFrame(rows)
-    df.to_csv(out_dir / "final.csv", index=False)
+    from .columns import to_csv_columns
+
+    to_csv_columns(study, df).to_csv(out_dir / "final.csv", index=False)  # unit suffixes in the names
     return df

@@ -11,7 +11,9 @@ Run directory (default ``runs/<study name>/``):
 * ``results.csv`` and ``results.parquet``: every evaluated design (one column per design
   variable, objective and design constraint named as in the YAML, ``<constraint>_margin``,
   ``feasible``, ``status``, ``error``, ``seed``, ``samples``, ``time_s``, ``trial``,
-  ``source``); all values SI; rewritten at most every few seconds during a run and at its end;
+  ``source``); all values SI, and in ``results.csv`` every column with a unit names it as a
+  suffix (``link_length_m``, ``volume_m3``; :mod:`parasynth.study.columns`); rewritten at most
+  every few seconds during a run and at its end;
 * ``final.csv``: the best designs re-evaluated with more samples and several seeds (mean and
   standard error of each objective);
 * ``optuna.journal``: the embedded Optuna storage of an Optuna study, unless ``--storage`` /
@@ -125,7 +127,9 @@ def results_table(study: ResolvedStudy, records: list[Record]) -> pd.DataFrame:
 def write_tables(study: ResolvedStudy, out_dir: Path, records: list[Record]) -> pd.DataFrame:
     df = results_table(study, records)
     tmp = out_dir / "results.csv.tmp"
-    df.to_csv(tmp, index=False)
+    from .columns import to_csv_columns
+
+    to_csv_columns(study, df).to_csv(tmp, index=False)  # unit suffixes in the names (SI values)
     os.replace(tmp, out_dir / "results.csv")
     try:
         df2 = df.copy()
