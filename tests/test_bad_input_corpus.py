@@ -620,3 +620,192 @@ def test_api_actuators_of_wrong_type_are_refused(name, what):
     with pytest.raises(ValueError) as e:
         mech.forward_kinematics(bad, fixed=fixed)
     assert "actuator" in str(e.value)
+
+
+# -- options that would be silently ignored ---------------------------------------------------
+IGNORED_OPTION_CASES = [
+    (["run", Q, "--resume", "--out", "{tmp}/no_such_run", "--quiet", "--n-trials", "1", "--no-report"],
+     "does not exist"),
+    (["report", "{tmp}", "--run-dir", "{tmp}/elsewhere"], "--run-dir"),
+    (["run", Q, "--no-report", "--report-dir", "{tmp}/rep", "--quiet"], "--report-dir"),
+    (["run", Q, "--storage", "optuna.db", "--out", "{tmp}/r", "--quiet", "--n-trials", "1", "--no-report"],
+     "journal:optuna.db"),
+]
+
+
+@pytest.mark.parametrize("args,needle", IGNORED_OPTION_CASES, ids=["resume-missing-dir", "report-run-dir",
+                                                                  "report-dir-no-report", "bare-storage"])
+def test_an_option_acts_or_is_refused(tmp_path, args, needle):
+    code, out, err = run_cli([a.replace("{tmp}", str(tmp_path)) for a in args])
+    assert_refused(code, err, needle)
+    assert len(err.strip().splitlines()) == 1, err
+    assert not (tmp_path / "no_such_run").exists() and not (tmp_path / "r" / "journal.jsonl").exists()
+
+
+def test_optimizer_storage_that_is_no_url_is_refused():
+    d = _load(ROOT / "studies" / "quickstart.yaml")
+    d["optimizer"]["storage"] = "optuna.db"
+    with pytest.raises(parasynth.study.StudyError, match=r"optimizer\.storage"):
+        parasynth.study.load_study(yaml.safe_dump(d), is_text=True)
+
+
+# -- damaged run directories -------------------------------------------------------------------
+def _tiny_run(tmp_path):
+    from parasynth.study import load_study, run_study
+
+    d = _load(ROOT / "studies" / "quickstart.yaml")
+    d["evaluation"].update(samples=64, final_samples=64, final_repeats=2, final_top=1)
+    d["optimizer"].update(n_trials=2, population_size=2)
+    run_study(load_study(yaml.safe_dump(d), is_text=True), out_dir=tmp_path / "run", progress=False)
+    return tmp_path / "run"
+
+
+@pytest.fixture(scope="module")
+def tiny_run(tmp_path_factory):
+    return _tiny_run(tmp_path_factory.mktemp("tiny"))
+
+
+JOURNAL_NOT_RECORDS = [("list", "[1, 2]"), ("number", "3.5"), ("string", '"trial"'), ("null", "null"),
+                       ("object-without-values", '{"trial": 7, "source": "run"}'),
+                       ("values-not-a-mapping", '{"trial": 7, "values": [1, 2]}'),
+                       ("unknown-source", '{"trial": 7, "source": "elsewhere", "values": {}}')]
+
+
+@pytest.mark.parametrize("where", ["last", "middle"])
+@pytest.mark.parametrize("cid,line", JOURNAL_NOT_RECORDS, ids=[c for c, _ in JOURNAL_NOT_RECORDS])
+def test_report_of_a_journal_line_that_is_not_a_record(tiny_run, tmp_path, cid, line, where):
+    import shutil
+
+    run = tmp_path / "run"
+    shutil.copytree(tiny_run, run)
+    j = run / "journal.jsonl"
+    lines = j.read_text().splitlines()
+    k = len(lines) if where == "last" else 1
+    lines.insert(k, line)
+    j.write_text("\n".join(lines) + "\n")
+    code, out, err = run_cli(["report", run, "--out", tmp_path / "rep"])
+    assert_refused(code, err, "journal.jsonl", f"line {k + 1}")
+    assert len(err.strip().splitlines()) == 1, err
+
+
+FINAL_GARBAGE = [("binary", b"\xff\xfe\x00garbage,\n1,2,3\n4", "final.csv"),
+                 ("no-columns", b"a,b\n1,2\n", "line 1"),
+                 ("text-value", None, "line 3"),
+                 ("bad-source", None, "line 2"),
+                 ("empty", b"", "empty"),
+                 ("ragged", b"source,volume\nbest,1\nbest,1,2,3,4\n", "final.csv")]
+
+
+@pytest.mark.parametrize("cid,content,needle", FINAL_GARBAGE, ids=[c for c, _, _ in FINAL_GARBAGE])
+def test_report_of_a_garbage_final_csv(tiny_run, tmp_path, cid, content, needle):
+    import shutil
+
+    import pandas as pd
+
+    run = tmp_path / "run"
+    shutil.copytree(tiny_run, run)
+    f = run / "final.csv"
+    if content is None:
+        df = pd.read_csv(f)
+        assert len(df) >= 2
+        if cid == "text-value":
+            df["volume_m3"] = df["volume_m3"].astype(object)  # final.csv names its units
+            df.loc[1, "volume_m3"] = "lots"
+        else:
+            df.loc[0, "source"] = "somewhere"
+        df.to_csv(f, index=False)
+    else:
+        f.write_bytes(content)
+    code, out, err = run_cli(["report", run, "--out", tmp_path / "rep"])
+    assert_refused(code, err, "final.csv", needle)
+    assert len(err.strip().splitlines()) == 1, err
+
+
+# -- absurd values, wrong types in the Python API ----------------------------------------------
+@pytest.mark.parametrize("name", parasynth.list_mechanisms())
+@pytest.mark.parametrize("big", [1e300, -1e300, 1e7])
+def test_absurd_parameter_value_is_a_clear_error(name, big):
+    from parasynth.mechanisms import mechanism_class
+
+    P = mechanism_class(name).Params
+    units = getattr(P, "UNITS", {})
+    for f in dataclasses.fields(P()):
+        if units.get(f.name) not in ("length", "angle") or not isinstance(getattr(P(), f.name), float):
+            continue
+        with pytest.raises(ValueError, match=re.escape(f.name)):
+            parasynth.load_mechanism(name, **{f.name: big})
+
+
+def test_absurd_parameter_on_the_command_line():
+    code, out, err = run_cli(["analyze", "5pus_upu", "--param", "link_length=1e300 mm"])
+    assert_refused(code, err, "link_length", "at most")
+    assert code == 2 and "OverflowError" not in err
+
+
+API_TYPE_CASES = [
+    ("workspace-mech-str", lambda m: parasynth.workspace("5pus_upu", {"x": (-0.1, 0.1)}), "mech"),
+    ("workspace-mech-none", lambda m: parasynth.workspace(None, {"x": (-0.1, 0.1)}), "mech"),
+    ("measure-mech-str", lambda m: parasynth.objectives.get("workspace_volume")("5pus_upu"), "mech"),
+    ("measure-mech-number", lambda m: parasynth.objectives.get("footprint_radius")(3.0), "mech"),
+    ("workspace-constraints-number", lambda m: parasynth.workspace(m, {"x": (-0.1, 0.1)}, constraints=5),
+     "constraints"),
+    ("measure-constraints-number", lambda m: parasynth.objectives.get("workspace_volume")(m, constraints=2.5),
+     "constraints"),
+    ("is_feasible-names-number", lambda m: m.is_feasible(m.home, names=5), "names"),
+    ("margins-names-dict", lambda m: m.constraint_margins(m.home, names={"stroke": 1}), "names"),
+]
+
+
+@pytest.mark.parametrize("cid,call,arg", API_TYPE_CASES, ids=[c for c, _, _ in API_TYPE_CASES])
+def test_api_argument_of_wrong_type_is_a_type_error(cid, call, arg):
+    import parasynth.objectives  # noqa: F401
+
+    mech = parasynth.load_mechanism("5pus_upu")
+    with pytest.raises(TypeError) as e:
+        call(mech)
+    assert str(e.value).startswith(f"{arg} must be"), str(e.value)
+
+
+# -- degenerate geometry -----------------------------------------------------------------------
+def _degenerate_description(tmp_path) -> Path:
+    text = (ROOT / "src" / "parasynth" / "mechanisms" / "gough_stewart_6ups.yaml").read_text()
+    text = text.replace("name: gough_stewart_6ups", "name: coincident_6ups")
+    text = re.sub(r"  A: \{pattern: paired.*\}", "  A: {pattern: polygon, n: 6, radius: 0 mm, phase: 0 deg}", text)
+    text = text.replace('platform: "A[5, 0, 1, 2, 3, 4]"', "platform: A")
+    p = tmp_path / "coincident.yaml"
+    p.write_text(text)
+    return p
+
+
+def test_validate_refuses_coincident_anchors_and_a_mechanism_singular_everywhere(tmp_path):
+    desc = _degenerate_description(tmp_path)
+    study = {"name": "degenerate", "mechanism": desc.name,
+             "variables": [{"name": "base_radius", "low": "400 mm", "high": "600 mm"}],
+             "objectives": [{"name": "workspace_volume", "goal": "maximize"}],
+             "evaluation": {"samples": 256, "ranges": {"x": ["-100 mm", "100 mm"], "y": ["-100 mm", "100 mm"],
+                                                       "z": ["400 mm", "800 mm"]}},
+             "optimizer": {"kind": "optuna", "n_trials": 4}}
+    p = tmp_path / "degenerate.yaml"
+    p.write_text(yaml.safe_dump(study))
+    code, out, err = run_cli(["validate", p])
+    assert_refused(code, err, "degenerate geometry: the 6 platform anchors coincide", "singular at its home pose")
+    assert code == 2
+    # the shipped classic is not degenerate
+    ok = dict(study, mechanism="gough_stewart_6ups")
+    p.write_text(yaml.safe_dump(ok))
+    code, out, err = run_cli(["validate", "--quick", p])
+    assert code == 0, err
+
+
+def test_analyze_reports_a_singular_home_as_a_finding(tmp_path):
+    desc = _degenerate_description(tmp_path)
+    code, out, err = run_cli(["analyze", desc, "--samples", "50"])
+    assert code == 0 and "internal error" not in err and "Traceback" not in err, err
+    findings = out.split("findings:")[1]
+    assert "the home pose is singular" in findings
+    assert "the pose limit interference is violated at home" in findings
+    assert "the 6 platform anchors coincide" in findings
+    # parameters in display units, angles in degrees
+    assert "base_separation = 20 deg" in out and "base_radius = 500 mm" in out
+    code, out, err = run_cli(["analyze", "5pus_upu", "--samples", "50"])
+    assert code == 0 and "findings:" not in out, out

@@ -15,6 +15,7 @@ import yaml
 from _support import brute_force_front, brute_spread
 from parasynth.cli import load_plugins
 from parasynth.report import ReportError, write_report
+from parasynth.report.summary import run_summary
 from parasynth.study import load_study, run_study
 
 PLUGIN = str(Path(__file__).parent / "data" / "analytic_plugin.py")
@@ -88,7 +89,9 @@ def test_report_files_and_pareto_csv(mo_run):
         groups.setdefault(key, []).append(int(r["trial"]))
     assert sorted(pareto["trial"]) == sorted(g[0] for g in groups.values())
     assert dict(zip(pareto["trial"], pareto["count"])) == {g[0]: len(g) for g in groups.values()}
-    assert list(pareto.columns) == list(res.table.columns) + ["count"]
+    # columns as results.csv (units in the names, e.g. link_length_m) plus count
+    assert list(pareto.columns) == list(pd.read_csv(res.out_dir / "results.csv").columns) + ["count"]
+    assert "link_length_m" in pareto.columns and "test_two_m" in pareto.columns
 
 
 def test_html_self_contained_and_tables_list_front(mo_run):
@@ -117,7 +120,7 @@ def test_markdown_references_existing_images(mo_run):
     md = (out / "report.md").read_text()
     imgs = re.findall(r"!\[[^\]]*\]\(([^)]+)\)", md)
     assert imgs and all((out / i).exists() for i in imgs)
-    paper = md.split("## Paper design")[1].split("## ")[0]
+    paper = md.split("## The reference design")[1].split("## ")[0]
     assert re.search(r"(\d+ evaluated feasible designs? dominates? it|no evaluated feasible design dominates it)", paper)
 
 
@@ -276,7 +279,7 @@ def test_verdict_uses_reevaluated_values_and_says_within_noise(tmp_path):
             _rec(1, 0.190, 0.120, -0.01000, 0.4300)]
     single = _write_run(tmp_path / "single", study, recs)
     txt = (write_report(single, out=tmp_path / "r0") / "report.md").read_text()
-    paper = txt.split("## Paper design")[1].split("## ")[0]
+    paper = txt.split("## The reference design")[1].split("## ")[0]
     assert "1 evaluated feasible design dominates it" in paper and "not re-evaluated" in paper
     # Re-evaluated: the differences between A and the paper's design are within 2 standard errors
     # (test_two: 0.504 vs 0.506, combined s.e. 0.0028; test_quadratic: -0.00105 vs -0.00108).
@@ -285,7 +288,7 @@ def test_verdict_uses_reevaluated_values_and_says_within_noise(tmp_path):
            _final_row("reference", -1, 0.205, 0.135, -0.00108, 0.00010, 0.5060, 0.0020)]
     noisy = _write_run(tmp_path / "noisy", study, recs, fin)
     txt = (write_report(noisy, out=tmp_path / "r1") / "report.md").read_text()
-    paper = txt.split("## Paper design")[1].split("## ")[0]
+    paper = txt.split("## The reference design")[1].split("## ")[0]
     assert "none of the 2 re-evaluated designs dominates it beyond noise" in paper
     assert "Equal to it within noise on every objective: trial 0" in paper
     assert "1 evaluated feasible design dominates it; the re-evaluation above decides" in paper
@@ -294,7 +297,7 @@ def test_verdict_uses_reevaluated_values_and_says_within_noise(tmp_path):
             for r in fin]
     sharp = _write_run(tmp_path / "sharp", study, recs, fin2)
     txt = (write_report(sharp, out=tmp_path / "r2") / "report.md").read_text()
-    paper = txt.split("## Paper design")[1].split("## ")[0]
+    paper = txt.split("## The reference design")[1].split("## ")[0]
     assert "1 of the 2 re-evaluated designs dominates it" in paper
     # test_quadratic: -0.00105 vs -0.00108 with s.e. 1e-5 each: 3e-5 < 2 * 1.41e-5 * ... is 2.1 s.e.
     assert "better on test_quadratic" in paper and "test_two" in paper.split("better on")[1]
@@ -339,7 +342,7 @@ def test_display_units_without_float_noise():
 
 def test_run_summary_in_display_units(mo_run):
     study, res, _ = mo_run
-    text = res.summary(study)
+    text = run_summary(study, res)
     assert "link_length [mm]" in text and "'" not in text.splitlines()[0]
     # no float noise: no number with more than 6 significant digits
     for num in re.findall(r"\d+\.\d+", text):
@@ -456,7 +459,7 @@ def test_stale_final_without_the_knee_is_said(tmp_path):
     fin.append(_final_row("reference", -1, 0.205, 0.135, -0.0011, 1e-5, 0.505, 1e-3))
     txt = (write_report(_write_run(tmp_path / "stale", study, recs, fin), out=tmp_path / "rep") / "report.md").read_text()
     assert "final.csv does not hold this design" in txt
-    assert "| recommended (knee) |" not in txt and "| best |" in txt
+    assert "| recommended (knee) |" not in txt and re.search(r"\| best test_(quadratic|two) \|", txt)
 
 
 class _PatternEvaluator:
@@ -537,7 +540,7 @@ def test_verdict_decides_on_the_screening_dominators(tmp_path, sigma):
     # closed-form standard error of the pattern
     assert np.allclose(best["test_two_stderr"], sigma * np.sqrt(4 / 3) / 2)
     txt = (write_report(run_dir, out=tmp_path / "rep") / "report.md").read_text()
-    paper = txt.split("## Paper design")[1].split("## ")[0]
+    paper = txt.split("## The reference design")[1].split("## ")[0]
     assert "Screening dominators re-evaluated: 3 of the 4 distinct ones (the ones by the largest normalised margin)" in paper
     if sigma < 0.01:
         # gains of 0.01 and more against a combined standard error of 8e-5: all three dominate
@@ -549,4 +552,4 @@ def test_verdict_decides_on_the_screening_dominators(tmp_path, sigma):
         assert "none of the" in paper and "re-evaluated designs dominates it beyond noise" in paper
     # the re-evaluation table marks them
     sec = txt.split("## Re-evaluation of the best designs")[1]
-    assert sec.count("dominates paper (screening)") >= 2
+    assert sec.count("dominates reference design (screening)") >= 2

@@ -241,7 +241,7 @@ def test_killed_and_resumed_run_has_the_uninterrupted_pareto_front(tmp_path):
     s = load_study(path)
     run_study(s, out_dir=out, resume=True, progress=False)
     run_study(s, out_dir=ref, progress=False)
-    _compare_runs(out, ref, [("test_quadratic", -1), ("test_two", 1)])
+    _compare_runs(out, ref, [("test_quadratic_m2", -1), ("test_two_m", 1)])  # results.csv names: units as suffixes
 
 
 @pytest.mark.parametrize("algorithm", ["tpe", "nsga2", "random"])
@@ -262,7 +262,7 @@ def test_resume_after_unfinished_trial_equals_uninterrupted(tmp_path, algorithm)
     res = run_study(s, out_dir=tmp_path / "a", progress=False, resume=True, n_trials=22)
     assert res.n_new == 12
     run_study(s, out_dir=tmp_path / "b", progress=False, n_trials=22)
-    _compare_runs(tmp_path / "a", tmp_path / "b", [("test_quadratic", -1), ("test_two", 1)])
+    _compare_runs(tmp_path / "a", tmp_path / "b", [("test_quadratic_m2", -1), ("test_two_m", 1)])  # results.csv names: units as suffixes
 
 
 def test_resume_refuses_another_study_in_the_storage(tmp_path):

@@ -141,6 +141,36 @@ def _fmt_value(v, kind) -> str:
     return repr(v)
 
 
+def _fmt_settings(measure: str, settings: dict | None) -> str:
+    """A measure's settings (SI inside) in display units: 'mass=20 kg, point=[0 mm, 75 mm, 0 mm]'."""
+    from .objectives import get
+    from .units import UNIT_KINDS
+
+    kinds = get(measure).settings
+    parts = []
+    for k, x in (settings or {}).items():
+        kind = kinds.get(k)
+        if kind == "ranges" and isinstance(x, dict):
+            parts.append(f"{k}={{" + ", ".join(f"{c}: {_fmt_value(list(v), 'angle' if c in _ANGLES else 'length')}"
+                                               for c, v in x.items()) + "}")
+        elif kind in UNIT_KINDS and kind != "dimensionless":
+            parts.append(f"{k}={_fmt_value(x, kind)}")
+        elif isinstance(x, float):
+            parts.append(f"{k}={x:.6g}")
+        else:
+            parts.append(f"{k}={x}")
+    return ", ".join(parts)
+
+
+_ANGLES = {"alpha", "beta", "gamma", "psi", "theta", "phi"}
+
+
+def _first_paragraph(doc: str) -> str:
+    """A docstring's first paragraph on one line (whole sentences, never cut mid-sentence)."""
+    para = doc.strip().split("\n\n")[0] if doc else ""
+    return " ".join(para.split())
+
+
 def _param_range(spec, kind) -> str:
     """', > 0 mm', ', in [0 deg, 90 deg]' for a described parameter's declared bounds."""
     if spec is None:
@@ -204,7 +234,7 @@ def cmd_list(args) -> int:
     from .study.spec import SETTING_RANGES
 
     for name, m in OBJECTIVES.items():
-        doc = m.doc.splitlines()[0] if m.doc else ""
+        doc = _first_paragraph(m.doc)
         only = f" (only {', '.join(m.models)})" if m.models else ""
         print(f"  {name} [{m.unit}], {m.sense}{only}: {doc}")
         if m.settings:
@@ -237,11 +267,12 @@ def cmd_validate(args) -> int:
         ch = " choices " + ", ".join(fq(study, v.name, x) for x in v.choices) if v.choices else ""
         print(f"  variable {v.name} ({v.type}) {rng}{vals}{ch}".replace(")  ", ") "))
     for o in study.objectives:
-        sets = ", ".join(f"{k}={x}" for k, x in (o.settings or {}).items())
+        sets = _fmt_settings(o.name, o.settings)
         print(f"  objective {o.label}: {o.goal} {o.name}" + (f" ({sets})" if sets else ""))
     for c in study.constraints:
         bounds = [f"{b} {fq(study, c.label, x)}" for b, x in (("min", c.min), ("max", c.max)) if x is not None]
-        print(f"  constraint {c.label}: {c.name} " + " ".join(bounds))
+        sets = _fmt_settings(c.name, c.settings)
+        print(f"  constraint {c.label}: {c.name} " + " ".join(bounds) + (f" ({sets})" if sets else ""))
     print(f"  evaluation: {fmt_evaluation(study)}")
     probe = (f"; {stats['measures']} measure(s) evaluated once on the first of them"
              if stats.get("measures") else "")
@@ -259,13 +290,23 @@ def cmd_run(args) -> int:
     from .study import run_study
 
     study = _checked_study(args.study)
+    if args.resume:
+        target = Path(args.out or study.spec.output or Path("runs") / study.name)
+        shared = study.optimizer.kind == "optuna" and (args.storage or study.optimizer.storage)
+        if not target.exists() and not shared:
+            raise CliError(f"--resume: the run directory {str(target)!r} does not exist, so there is nothing to "
+                           f"resume; give the directory of the run (--out) or drop --resume to start a new run")
     if args.out is not None:
         _out_dir(args.out, "--out")
-    if args.report_dir is not None and not args.no_report:
+    if args.report_dir is not None and args.no_report:
+        raise CliError("--report-dir and --no-report contradict each other: drop one")
+    if args.report_dir is not None:
         _out_dir(args.report_dir, "--report-dir")
     res = run_study(study, out_dir=args.out, resume=args.resume, n_trials=args.n_trials, progress=not args.quiet,
                     storage=args.storage, workers=args.workers)
-    print(res.summary(study))
+    from .report.summary import run_summary
+
+    print(run_summary(study, res))
     if res.interrupted:
         from .cli_study import interrupted_run
 
@@ -287,6 +328,7 @@ def cmd_run_all(args) -> int:
     import shutil
 
     from .report import ReportError, write_report
+    from .report.summary import run_summary
     from .study import StudyError, load_study, run_study
 
     folder = Path(args.folder)
@@ -307,7 +349,7 @@ def cmd_run_all(args) -> int:
             shutil.rmtree(out)
         print(f"== {f} -> {out}", flush=True)
         res = run_study(study, out_dir=out, resume=out.exists(), progress=not args.quiet)
-        print(res.summary(study))
+        print(run_summary(study, res))
         if res.interrupted:
             print("interrupted; run the same command again to continue", file=sys.stderr)
             return EXIT_INTERRUPTED
@@ -349,6 +391,9 @@ def cmd_report(args) -> int:
             raise CliError("report --storage URL --study NAME rebuilds a run from a storage (no RUN_DIR); "
                            "report RUN_DIR reports a run directory")
         return cmd_report_storage(args)
+    if args.rebuild_dir:
+        raise CliError("--run-dir applies with --storage URL --study NAME (where the rebuilt run directory goes); "
+                       "give the run directory to report as RUN_DIR")
     if not args.run_dir:
         raise CliError("report needs a RUN_DIR (or --storage URL --study NAME)")
     run_dir = Path(args.run_dir)
@@ -422,20 +467,14 @@ def cmd_evaluate(args) -> int:
 def cmd_analyze(args) -> int:
     mech = load_mechanism(args.name, **_parse_params(args.name, args.param))
     print(f"parasynth {__version__} -- {mech.name}: {getattr(mech, 'paper', '')}")
-    print("\nparameters (SI):")
+    units = getattr(type(mech.params), "UNITS", {}) or getattr(mech.params, "UNITS", {})
+    print("\nparameters:")
     for f in dataclasses.fields(mech.params):
-        print(f"  {f.name} = {getattr(mech.params, f.name)}")
-    print(f"\ntask coordinates: {mech.task_coordinates}; actuators: {mech.actuators}")
+        print(f"  {f.name} = {_fmt_value(getattr(mech.params, f.name), units.get(f.name))}")
+    print(f"\ntask coordinates: {', '.join(mech.task_coordinates)}; actuators: {', '.join(mech.actuators)}")
     mob = mech.mobility()
     print(f"\nmobility: {mob.summary()}")
-    print(f"\nhome pose: {_fmt_pose(mech, mech.home)}")
-    ik = mech.inverse_kinematics(mech.home)
-    print("actuators at home: " + ", ".join(f"{n}={v * 1e3:.4f} mm" for n, v in zip(mech.actuators, ik.actuators)))
-    J = mech.jacobian(mech.home)
-    print(f"actuator Jacobian at home ({J.shape[0]}x{J.shape[1]}):")
-    for row in J:
-        print("  [" + " ".join(f"{v:9.4f}" for v in row) + "]")
-    print(f"singularity margin at home: {mech.singularity_margin(mech.home):.4g}")
+    findings = _analyze_home(mech)
     # A pose sample around home: reachability and margin statistics.
     rng = np.random.default_rng(args.seed)
     span = np.array([0.35 if c in mech.angular_coordinates else 0.15 * mech.length_scale * 2
@@ -443,16 +482,74 @@ def cmd_analyze(args) -> int:
     X = mech.home + span * rng.uniform(-1, 1, size=(args.samples, mech.n_task))
     ik = mech.inverse_kinematics(X)
     reach = ik.reachable
-    print(f"\n{args.samples} random poses within +-{span.round(3).tolist()} of home: {reach.sum()} reachable")
+    spans = ", ".join(f"{c} +-{np.rad2deg(w):.4g} deg" if c in mech.angular_coordinates else f"{c} +-{w * 1e3:.4g} mm"
+                      for c, w in zip(mech.task_coordinates, span))
+    print(f"\n{args.samples} random poses around home ({spans}): {reach.sum()} reachable")
     if reach.any():
         m = mech.singularity_margin(X[reach])
-        print(f"singularity margin over reachable poses: min {np.nanmin(m):.4g}, median {np.nanmedian(m):.4g}, max {np.nanmax(m):.4g}")
+        print(f"singularity margin over reachable poses (dimensionless): min {np.nanmin(m):.4g}, median "
+              f"{np.nanmedian(m):.4g}, max {np.nanmax(m):.4g}")
         if mech.n_actuators >= mech.n_task:
+            from .mechanism import ForwardKinematicsError
+
             q = ik.actuators[reach][:5]
-            Xfk = mech.forward_kinematics(q)
-            err = np.max(np.abs(Xfk - X[reach][:5]))
-            print(f"forward kinematics from home on 5 poses: max |X_fk - X| = {err:.2e} (a large value means another assembly mode)")
+            try:
+                Xfk = mech.forward_kinematics(q)
+                err = np.abs(Xfk - X[reach][:5])
+                ang = np.array([c in mech.angular_coordinates for c in mech.task_coordinates])
+                print(f"forward kinematics from home on {len(q)} poses: max error {np.max(err[:, ~ang]) * 1e3 if (~ang).any() else 0:.2e} mm"
+                      + (f", {np.rad2deg(np.max(err[:, ang])):.2e} deg" if ang.any() else "")
+                      + " (a large value means another assembly mode)")
+            except ForwardKinematicsError as e:
+                findings.append(f"forward kinematics fails on the sampled poses: {e}")
+    from .geometry_checks import degenerate_geometry
+
+    findings += degenerate_geometry(mech)
+    if findings:
+        print("\nfindings:")
+        for f in dict.fromkeys(findings):
+            print(f"  - {f}")
     return EXIT_OK
+
+
+def _analyze_home(mech) -> list[str]:
+    """Print the home pose's actuators, pose limits, Jacobian and singularity margin; return
+    the findings (an unreachable or singular home, a pose limit violated at home)."""
+    from .geometry_checks import SINGULAR_MARGIN
+
+    findings = []
+    print(f"\nhome pose: {_fmt_pose(mech, mech.home)}")
+    ik = mech.inverse_kinematics(mech.home)
+    if not bool(np.all(ik.reachable)):
+        findings.append("the home pose is not reachable (a leg cannot close there)")
+        print("actuators at home: not reachable")
+        return findings
+    acts = []
+    for n, v in zip(mech.actuators, np.atleast_1d(ik.actuators)):
+        kind = getattr(mech, "actuator_kinds", {}).get(n) if isinstance(getattr(mech, "actuator_kinds", None), dict) else None
+        acts.append(f"{n}={np.rad2deg(v):.4f} deg" if kind == "angle" else f"{n}={v * 1e3:.4f} mm")
+    print("actuators at home: " + ", ".join(acts))
+    margins = mech.constraint_margins(mech.home)
+    for cname, mv in margins.items():
+        mv = float(np.asarray(mv))
+        c = mech.constraints[cname]
+        unit = getattr(c, "unit", "")
+        shown = (f"{np.rad2deg(mv):.4g} deg" if unit == "rad" else f"{mv * 1e3:.4g} mm" if unit == "m"
+                 else f"{mv:.4g} {unit}".rstrip())
+        print(f"pose limit {cname} at home: margin {shown}" + ("" if mv >= 0 else "  (violated)"))
+        if mv < 0:
+            findings.append(f"the pose limit {cname} is violated at home (margin {shown})")
+    J = mech.jacobian(mech.home)
+    print(f"actuator Jacobian at home ({J.shape[0]}x{J.shape[1]}; rows: actuators, columns: "
+          f"{', '.join(mech.task_coordinates)}; SI: m or rad per m or rad):")
+    for row in J:
+        print("  [" + " ".join(f"{v:9.4f}" for v in row) + "]")
+    sm = float(mech.singularity_margin(mech.home))
+    print(f"singularity margin at home (dimensionless): {sm:.4g}")
+    if not np.isfinite(sm) or sm < SINGULAR_MARGIN:
+        findings.append(f"the home pose is singular (singularity margin {sm:.2g} < {SINGULAR_MARGIN:g}): the "
+                        f"actuators do not determine the platform there")
+    return findings
 
 
 def cmd_schema(args) -> int:

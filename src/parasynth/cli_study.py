@@ -11,6 +11,7 @@ import sys
 from pathlib import Path
 
 from .report import ReportError, write_report
+from .study.budget import same_study
 from .study.defaults import optimizer_seed, optuna_budget
 from .study.evaluate import Evaluator
 from .study.progress import Progress
@@ -45,7 +46,7 @@ def cmd_worker(args) -> int:
         seed = optimizer_seed(study)
         ostudy = load_parasynth_study(storage, url, name)
         stored = ostudy.user_attrs.get(ATTR_STUDY)
-        if stored is not None and stored != study.to_yaml():
+        if stored is not None and not same_study(stored, study.to_yaml()):
             return _err(f"{args.study}: differs from the study {name!r} stored in {describe_url(url)!r}; "
                         f"use the same study file as the run that started it")
         ostudy.sampler = make_sampler(study, seed)
@@ -123,6 +124,8 @@ def interrupted_run(args, res) -> int:
             print(f"partial report: {rdir / 'index.html'}")
         except (ReportError, StudyError) as e:
             print(f"no report: {e}", file=sys.stderr)
-    print(f"interrupted: {res.n_total} designs are saved in {res.out_dir}; continue with: "
+    n_run, has_ref = res.saved_counts()
+    ref = " and the reference design" if has_ref else ""
+    print(f"interrupted: {n_run} designs{ref} are saved in {res.out_dir}; continue with: "
           f"{resume_command(args, res)}", file=sys.stderr)
     return 130

@@ -42,7 +42,7 @@ from .objectives import OBJECTIVES
 
 __all__ = ["Unit", "UNITS", "unit_for_kind", "unit_for_si", "quantity_unit", "fmt_number", "fmt_quantity",
            "fmt_mean_se", "fmt_value", "column_header", "text_table", "fmt_column_value", "fmt_design",
-           "fmt_evaluation"]
+           "fmt_evaluation", "reference_name", "reference_short"]
 
 
 @dataclass(frozen=True)
@@ -305,3 +305,26 @@ def fmt_evaluation(study) -> str:
         parts.append(f"final re-evaluation: top {ev.get('final_top')} with {ev['final_samples']} samples x "
                      f"{ev.get('final_repeats')} seeds")
     return "; ".join(parts)
+
+
+def reference_name(study, capital: bool = False, with_source: bool = False) -> str:
+    """What the study's reference design is: its ``reference.label`` ("the paper's design")
+    or "the reference design"; ``capital`` for the start of a sentence or a heading,
+    ``with_source`` adds ``reference.source`` in parentheses."""
+    name = getattr(study, "reference_label", None) or "the reference design"
+    if capital:
+        name = name[:1].upper() + name[1:]
+    src = getattr(study, "reference_source", None)
+    if with_source and src:
+        name += f" ({src})"
+    return name
+
+
+def reference_short(study) -> str:
+    """The reference design's name for a table row or a legend entry, without its article
+    ("paper's design", "reference design")."""
+    name = reference_name(study)
+    for art in ("the ", "The ", "a ", "A ", "an ", "An "):
+        if name.startswith(art):
+            return name[len(art):]
+    return name

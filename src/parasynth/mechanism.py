@@ -35,7 +35,7 @@ import numpy as np
 from .constraints import PoseContext
 from .legs import JOINT_DOF, Leg, LegState
 from .spatial import reciprocal_basis
-from .validation import check_engine, check_pose_array, is_real_number, mask_huge_poses
+from .validation import check_engine, check_names, check_pose_array, is_real_number, mask_huge_poses
 
 __all__ = ["Mechanism", "IKResult", "Mobility", "ForwardKinematicsError", "EngineFallbackWarning"]
 
@@ -633,10 +633,9 @@ class Mechanism:
         return PoseContext(Xa, p, R, list(self.legs), states, reachable, act)
 
     def _select(self, names):
+        names = check_names("names", names)
         if names is None:
             return list(self.constraints.values())
-        if isinstance(names, str):
-            names = [names]
         unknown = [n for n in names if n not in self.constraints]
         if unknown:
             raise ValueError(

@@ -50,7 +50,7 @@ from .indices import (global_conditioning_index, gravity_wrench, local_transmiss
 from .indices import wrench_capability as _wrench_capability
 from .stiffness import STIFFNESS_SETTINGS as _STIFF_SETTINGS
 from .stiffness import part_stiffness, point_deflection, stiffness_along
-from .validation import MAX_SAMPLES, check_count
+from .validation import MAX_SAMPLES, check_count, check_mechanism, check_names
 from .workspace import WorkspaceSample, workspace
 
 __all__ = [
@@ -92,6 +92,9 @@ class Measure:
     own_settings: dict = field(default_factory=dict)
 
     def __call__(self, mech, sample: WorkspaceSample | None = None, **settings) -> float:
+        check_mechanism("mech", mech)
+        if "constraints" in settings:
+            check_names("constraints", settings["constraints"])
         if self.models is not None and mech.name not in self.models:
             raise ValueError(f"measure {self.name!r} applies to {list(self.models)}, not to {mech.name!r}")
         if sample is not None:
@@ -225,6 +228,13 @@ def workspace_volume(mech, **kw) -> float:
 def workspace_fraction(mech, **kw) -> float:
     """Fraction of the sampled task box that is feasible."""
     return _ws(mech, kw).fraction
+
+
+@register("workspace_face_fraction", unit="1", sense="minimize", settings=_WS_SETTINGS)
+def workspace_face_fraction(mech, **kw) -> float:
+    """Share of the feasible samples within 1 % of a coordinate's range from a face of the
+    sampled box: above a few per cent the box cuts the workspace (widen evaluation.ranges)."""
+    return _ws(mech, kw).face_fraction(0.01)
 
 
 def _extent(ws, axis):

@@ -35,6 +35,8 @@ import numpy as np
 __all__ = [
     "InputError",
     "check_number",
+    "check_mechanism",
+    "check_names",
     "check_count",
     "check_array",
     "check_pose_array",
@@ -158,6 +160,34 @@ def check_number(field: str, value, kind: str | None = None, lo: float | None = 
     if hi is not None and (v >= hi if hi_open else v > hi):
         raise InputError(f"{field} must be {allowed}, got {value!r}")
     return v
+
+
+def check_mechanism(field: str, value):
+    """``value`` when it is a mechanism (has task coordinates and a feasibility test); a
+    :class:`TypeError` naming ``field`` otherwise (a model's name given where the model is
+    expected, a number, None)::
+
+        >>> check_mechanism("mech", "5pus_upu")
+        Traceback (most recent call last):
+        ...
+        TypeError: mech must be a mechanism, e.g. parasynth.load_mechanism('5pus_upu'), got a string ('5pus_upu')
+    """
+    if hasattr(value, "task_coordinates") and callable(getattr(value, "is_feasible", None)):
+        return value
+    hint = repr(value) if isinstance(value, str) else "'5pus_upu'"
+    raise TypeError(f"{field} must be a mechanism, e.g. parasynth.load_mechanism({hint}), got {_describe(value)}")
+
+
+def check_names(field: str, value, what: str = "constraint") -> list[str] | None:
+    """``None`` (all), one name or a list of names as a list; a :class:`TypeError` naming
+    ``field`` for a number, a mapping or another object that is not a list of names."""
+    if value is None:
+        return None
+    if isinstance(value, str):
+        return [value]
+    if isinstance(value, (list, tuple, set, frozenset)) or (isinstance(value, np.ndarray) and value.ndim == 1):
+        return list(value)
+    raise TypeError(f"{field} must be a {what} name or a list of {what} names, got {_describe(value)}")
 
 
 def check_count(field: str, value, lo: int = 1, hi: int | None = None, *, what: str = "an integer") -> int:

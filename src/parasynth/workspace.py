@@ -85,7 +85,7 @@ import numpy as np
 
 from .engine import check_engine, pose_batch
 from .qmc import sobol_engine, sobol_points
-from .validation import MAX_SAMPLES, check_count
+from .validation import MAX_SAMPLES, check_count, check_mechanism, check_names
 
 #: Largest ``n`` of :func:`workspace`. Samples stream chunk by chunk, so the limit is time, not
 #: memory (2**34 samples is about half an hour at 1e7 poses/s); the measures and studies keep
@@ -382,6 +382,39 @@ class WorkspaceResult:
     def fraction(self) -> float:
         """Feasible fraction of the samples."""
         return self.n_feasible / self.n_samples if self.n_samples else 0.0
+
+    def face_fractions(self, tol: float = 0.01) -> dict[str, float]:
+        """Share of the feasible samples within ``tol`` of a coordinate's range from each face
+        of the sampled box, ``{"z high": 0.12, "x low": 0.0, ...}`` (from :attr:`points`, a
+        uniform subsample when it is capped). A large share means the feasible set is cut by
+        the box: the volume and extents then measure the box as much as the design."""
+        P = np.asarray(self.points, dtype=float)
+        if not len(P):
+            return {f"{c} {side}": 0.0 for c in self.coordinates for side in ("low", "high")}
+        task = tuple(self.mechanism.task_coordinates)
+        out = {}
+        for c in self.coordinates:
+            lo, hi = self.box[c]
+            x = P[:, task.index(c)]
+            w = tol * (hi - lo)
+            out[f"{c} low"] = float(np.mean(x <= lo + w))
+            out[f"{c} high"] = float(np.mean(x >= hi - w))
+        return out
+
+    def face_fraction(self, tol: float = 0.01) -> float:
+        """Share of the feasible samples within ``tol`` of a coordinate's range from any face of
+        the sampled box (0 for an empty workspace); see :meth:`face_fractions`."""
+        P = np.asarray(self.points, dtype=float)
+        if not len(P):
+            return 0.0
+        task = tuple(self.mechanism.task_coordinates)
+        near = np.zeros(len(P), bool)
+        for c in self.coordinates:
+            lo, hi = self.box[c]
+            x = P[:, task.index(c)]
+            w = tol * (hi - lo)
+            near |= (x <= lo + w) | (x >= hi - w)
+        return float(near.mean())
 
     @property
     def box_volume(self) -> float:
@@ -702,6 +735,8 @@ def workspace(mech, ranges=None, n: int = 2**16, method: str = "sobol", seed: in
     Returns a :class:`WorkspaceResult`. An empty workspace is a valid result (volume 0).
     Raises ``ValueError`` naming the argument for bad input.
     """
+    check_mechanism("mech", mech)
+    check_names("constraints", constraints)
     if ranges is None:
         ranges = getattr(mech, "default_ranges", dict)()
         if not ranges:

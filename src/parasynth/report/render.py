@@ -13,7 +13,6 @@ import base64
 import html
 import importlib.metadata as md
 import io
-import json
 import platform
 import re
 import time
@@ -22,12 +21,14 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..display import Unit, fmt_mean_se, fmt_number, fmt_quantity, fmt_value, quantity_unit
+from ..display import (Unit, fmt_mean_se, fmt_number, fmt_quantity, fmt_value, quantity_unit, reference_name,
+                       reference_short)
 from ..mechanisms import load_mechanism
 from ..objectives import workspace_of
 from ..pareto import compare_with_noise, default_reference_point, hypervolume, reference_standing, to_min
 from ..study.rundir import (Run, RunDirError, design_key, design_params, knee_of, pareto_front, read_run,
-                            screening_dominators)
+                            screening_dominators, to_csv_columns)
+from .checks import design_roles, design_warnings
 
 __all__ = ["write_report", "ReportError", "load_run"]
 
@@ -165,13 +166,20 @@ def plot_pareto(figs, study, run_df, front, ref_row, knee_row):
         ax.scatter(fa(inf[a]), fb(inf[b]), s=10, c="#d62728", alpha=0.35, label="infeasible")
         ax.scatter(fa(fea[a]), fb(fea[b]), s=12, c="#7f7f7f", alpha=0.6, label="feasible")
         fr = front.sort_values(a)
-        ax.plot(fa(fr[a]), fb(fr[b]), "o-", c="#1f77b4", ms=5, lw=1.2, label="non-dominated")
+        if len(objs) == 2 and len(fr) > 1:
+            # Two objectives: the front is a staircase; joining its points in order of one
+            # objective is meaningful. With more, a pair panel is a projection: points only.
+            # (the boundary of the region the front dominates, sorted by the x objective)
+            step = "pre" if objs[i].goal == "maximize" else "post"
+            ax.step(fa(fr[a]), fb(fr[b]), where=step, c="#1f77b4", lw=1.0, alpha=0.7)
+        ax.scatter(fa(fr[a]), fb(fr[b]), s=28, c="#1f77b4", zorder=4,
+                   label="non-dominated" if len(objs) == 2 else "non-dominated (in all objectives)")
         if knee_row is not None:
             ax.scatter([fa(knee_row[a])], [fb(knee_row[b])], s=140, marker="D", facecolors="none",
                        edgecolors="#2ca02c", linewidths=2, label="recommended (knee)", zorder=5)
         if ref_row is not None:
             ax.scatter([fa(ref_row[a])], [fb(ref_row[b])], s=220, marker="*", c="#ff7f0e", edgecolors="k",
-                       label="paper design", zorder=6)
+                       label=reference_short(study), zorder=6)
         ax.set_xlabel(f"{la} ({objs[i].goal})", fontsize=9)
         ax.set_ylabel(f"{lb} ({objs[j].goal})", fontsize=9)
         ax.grid(alpha=0.3)
@@ -180,7 +188,7 @@ def plot_pareto(figs, study, run_df, front, ref_row, knee_row):
     fig.legend(handles, names, loc="outside lower center", ncols=3 if len(pairs) == 1 else 5, fontsize=8)
     fig.suptitle(f"Pareto front: {study.name}")
     figs.add(fig, "pareto", "Objective space: every evaluated design, the non-dominated feasible set, the "
-             "recommended design and the paper's design.")
+             f"recommended design and {reference_name(study)}.")
 
 
 def plot_parallel(figs, study, run_df, front):
@@ -192,7 +200,7 @@ def plot_parallel(figs, study, run_df, front):
     d[cols] = d[cols].astype(float)
     lo, hi = d[cols].min(), d[cols].max()
     Z = (d[cols] - lo) / (hi - lo).replace(0, 1)
-    fig, ax = plt.subplots(figsize=(max(6.0, 1.9 * len(cols)), 4), layout="constrained")
+    fig, ax = plt.subplots(figsize=(max(6.0, 2.2 * len(cols)), 4.4), layout="constrained")
     x = np.arange(len(cols))
     on_front = set(front["trial"]) if "trial" in front else set()
     trials = run_df.loc[d.index, "trial"] if "trial" in run_df else pd.Series(-1, index=d.index)
@@ -205,8 +213,10 @@ def plot_parallel(figs, study, run_df, front):
     labels = []
     for c in cols:
         u = _unit(study, c)
-        labels.append(f"{c}\n[{fmt_value(lo[c], u, 3)}, {fmt_value(hi[c], u, 3)}]" + (f"\n{u.symbol}" if u.symbol else ""))
-    ax.set_xticklabels(labels, fontsize=8)
+        name = c if len(c) <= 14 else c.replace("_", "_\n", 1)  # long names on two lines
+        labels.append(f"{name}\n{fmt_value(lo[c], u, 3)} to {fmt_value(hi[c], u, 3)}" + (f" {u.symbol}" if u.symbol else ""))
+    ax.set_xticklabels(labels, fontsize=9)
+    ax.set_xlim(-0.3, len(cols) - 0.7)
     ax.set_yticks([])
     ax.set_title("Parallel coordinates (blue: non-dominated feasible; grey: feasible; red: infeasible)", fontsize=10)
     figs.add(fig, "parallel", "Design variables and objectives of every design, scaled to their ranges.")
@@ -274,7 +284,7 @@ def plot_sweep(figs, study, run_df, final):
                             fmt="s", c="#d62728", capsize=4, ms=4,
                             label=f"re-evaluated, +-2 s.e. ({int(fb['samples'].iloc[0])} x {int(fb['repeats'].iloc[0])})")
         if study.reference and v.name in study.reference and numeric:
-            ax.axvline(xu(study.reference[v.name]), c="#ff7f0e", ls="--", label="paper's choice")
+            ax.axvline(xu(study.reference[v.name]), c="#ff7f0e", ls="--", label=reference_short(study))
         ax.set_xlabel(xl, fontsize=9)
         ax.set_ylabel(lab, fontsize=9)
         ax.set_title(o.label, fontsize=9)
@@ -307,7 +317,10 @@ def plot_designs(figs, study, designs: dict):
             b, a = st.base_point[0] * 1e3, st.platform_point[0] * 1e3
             ax.plot([b[0], a[0]], [b[1], a[1]], [b[2], a[2]], "-", lw=2.5,
                     c="#1f77b4" if leg.is_actuated else "#2ca02c")
-            ax.scatter(*leg.base * 1e3, c="k", s=12)
+            anchor = np.asarray(leg.base, float) * 1e3
+            ax.scatter(*anchor, c="k", s=12)  # the fixed end of the leg (caption)
+            if np.linalg.norm(anchor - b) > 1e-6:  # a prismatic joint first: its anchor to the slider
+                ax.plot(*np.vstack([anchor, b]).T, ls=":", c="#555555", lw=1.2)
         plat = np.array([st.platform_point[0] for st in states]) * 1e3
         if len(plat) >= 3:
             ax.plot(*np.vstack([plat, plat[:1]]).T, c="#ff7f0e", lw=1.5)
@@ -316,7 +329,8 @@ def plot_designs(figs, study, designs: dict):
         ax.set_ylabel("Y")
         ax.set_zlabel("Z")
     figs.add(fig, "designs", "Mechanism sketches at the home pose (blue: actuated legs, green: passive legs, "
-             "orange: platform anchors).")
+             "black dots: the legs' fixed base anchors, dotted: a leg's first prismatic joint from its anchor to "
+             "the slider, orange outline: the platform anchors).")
     ev = study.evaluation
     fig, axes = plt.subplots(1, 2, figsize=(10, 4.2), layout="constrained")
     colors = ["#1f77b4", "#ff7f0e", "#2ca02c"]
@@ -339,8 +353,8 @@ def plot_designs(figs, study, designs: dict):
         ax.grid(alpha=0.3)
         _tidy(ax)
         ax.legend(fontsize=8, markerscale=4)
-    figs.add(fig, "workspace", "Feasible platform positions (projections on XY and XZ) of the recommended and the "
-             "paper's design, from the study's evaluation samples.")
+    figs.add(fig, "workspace", "Feasible platform positions (projections on XY and XZ) of the recommended design and "
+             f"{reference_name(study)}, from the study's evaluation samples.")
 
 
 # -- report ---------------------------------------------------------------------------------------------
@@ -386,6 +400,7 @@ def analyse(run: Run, noise_z: float = NOISE_Z) -> dict:
         out["standing"] = reference_standing(F[feas], senses, np.ones(feas.sum(), bool),
                                              out["ref_row"][labels].to_numpy(float), labels)
     out["final"] = _final_analysis(run, knee_row, noise_z)
+    out["warnings"] = design_warnings(study, out)
     return out
 
 
@@ -401,7 +416,7 @@ def make_figures(run: Run, a: dict, keep: bool = False) -> Figures:
     if a["knee_row"] is not None:
         designs["recommended"] = {v.name: a["knee_row"][v.name] for v in study.variables}
     if study.reference:
-        designs["paper"] = dict(study.reference)
+        designs[reference_short(study)] = dict(study.reference)
     try:
         plot_designs(figs, study, designs)
     except Exception as e:  # a picture must not cost the report
@@ -420,7 +435,7 @@ def write_report(run_dir, out=None, noise_z: float = NOISE_Z) -> Path:
     out = Path(out) if out else Path("reports") / study.name
     out.mkdir(parents=True, exist_ok=True)
     a = analyse(run, noise_z=noise_z)
-    a["front"].to_csv(out / "pareto.csv", index=False)
+    to_csv_columns(study, a["front"]).to_csv(out / "pareto.csv", index=False)  # unit suffixes, SI values
     figs = make_figures(run, a)
     sections = _sections(run, a)
     (out / "img").mkdir(exist_ok=True)
@@ -520,7 +535,8 @@ def _comparison_text(study, row, cmp, ref) -> str:
 def _paper_text(run: Run, a: dict) -> str:
     study = run.study
     r = a["ref_row"]
-    txt = ("Paper's design: " + ", ".join(_fmt_design(study, r)) + " (single sample); feasible: "
+    txt = (reference_name(study, capital=True, with_source=True) + ": " + ", ".join(_fmt_design(study, r))
+           + " (single sample); feasible: "
            + ("yes" if bool(r["feasible"]) else "no") + ".")
     st = a.get("standing")
     fa = a.get("final")
@@ -612,13 +628,15 @@ def final_display_table(study, fa: dict) -> pd.DataFrame:
     dominate each one beyond noise."""
     fin = fa["table"]
     rows = []
+    best_rows = fin[fin["source"] == "best"]
+    why = dict(zip(best_rows.index, design_roles(study, best_rows))) if len(best_rows) else {}
     for i, r in fin.iterrows():
-        other = "sweep point" if study.optimizer.kind == "sweep" else "best"
+        other = "sweep point" if study.optimizer.kind == "sweep" else why.get(i, "best")
         rec = "recommended (knee)" if len(study.objectives) > 1 else "recommended (best)"
         role = other
         if r["source"] == "best" and bool(r.get("dominates_reference_screen", False)):
-            role = "dominates paper (screening)"
-        row = {"design": ("paper" if r["source"] == "reference" else (rec if r["knee"] else role)),
+            role = f"dominates {reference_short(study)} (screening)"
+        row = {"design": (reference_short(study) if r["source"] == "reference" else (rec if r["knee"] else role)),
                "trial": fmt_number(int(r["trial"]))}
         if "count" in fin:
             row["evaluations"] = fmt_number(int(r["count"])) if r["source"] == "best" else ""
@@ -659,15 +677,22 @@ def _sections(run: Run, a: dict) -> list[tuple[str, str, pd.DataFrame | None]]:
     if study.spec.description:
         text = study.spec.description.strip() + "\n\n" + text
     sec.append(("Summary", text, None))
-    if len(study.objectives) > 1 and "hv" in a:
+    if a.get("warnings"):
+        sec.append(("Warnings", "\n\n".join("**Warning:** " + w[:1].upper() + w[1:] for w in a["warnings"]), None))
+    if len(study.objectives) > 1 and "hv" in a and len(front) >= 2:
         refs = []
         for o, x in zip(study.objectives, a["hv_ref"]):
             val = x if o.goal == "minimize" else -x
             refs.append(f"{o.label} {fmt_quantity(val, _unit(study, o.label))}")
+        units = [_unit(study, o.label) for o in study.objectives]
+        sym = " x ".join(u.symbol for u in units if u.symbol)
+        hv_disp = a["hv"] * float(np.prod([u.factor for u in units]))
         sec.append(("Hypervolume", f"Hypervolume of the feasible non-dominated set: {fmt_number(a['hv_fraction'], 3)} "
-                    f"of the box between the ideal point and the reference point ({fmt_number(a['hv'])} in SI units, "
-                    f"objectives in minimisation form). Reference point: the worst feasible value of each objective "
-                    f"plus 10 % of its range: " + ", ".join(refs) + ".", None))
+                    f"of the box between the ideal point and the reference point (normalised: 1 would be a front "
+                    f"at the ideal point; {fmt_number(hv_disp)}{' ' + sym if sym else ''} in display units). "
+                    f"Reference point: the worst feasible value of each objective plus 10 % of its range: "
+                    + ", ".join(refs) + ". It measures how much of the objective space the front covers; "
+                    "compare it between runs of this study only.", None))
     if len(front):
         k = a["knee_row"]
         n_dup = int((front["count"] > 1).sum()) if "count" in front else 0
@@ -700,15 +725,16 @@ def _sections(run: Run, a: dict) -> list[tuple[str, str, pd.DataFrame | None]]:
     else:
         sec.append(("Non-dominated designs", "No feasible design was found.", None))
     if a["ref_row"] is not None:
-        sec.append(("Paper design", _paper_text(run, a), display_table(study, t[t["source"] == "reference"])))
+        sec.append((reference_name(study, capital=True), _paper_text(run, a),
+                    display_table(study, t[t["source"] == "reference"])))
     fa = a.get("final")
     if fa is not None:
         fin = fa["table"]
         sec.append(("Re-evaluation of the best designs",
                     f"Mean ± standard error over {int(fin['repeats'].iloc[0])} seeds with "
                     f"{int(fin['samples'].iloc[0])} samples each, for the best designs, the recommended (knee) "
-                    f"design, the designs that dominate the paper's design on single samples by the largest "
-                    f"normalised margin and the paper's design. A design is dominated beyond noise when another is better by "
+                    f"design, the designs that dominate {reference_name(study)} on single samples by the largest "
+                    f"normalised margin and {reference_name(study)}. A design is dominated beyond noise when another is better by "
                     f"more than {fmt_number(a['noise_z'])} combined standard errors on some objective and worse by "
                     f"as much on none.", final_display_table(study, fa)))
     elif run.final is not None and len(run.final):

@@ -27,6 +27,7 @@ import numpy as np
 import pandas as pd
 
 from ..pareto import crowding_distance, dominators_of, knee_index, pareto_mask, spread_by_crowding, to_min
+from .columns import to_csv_columns
 from .design import design_key
 from .evaluate import Evaluator
 from .spec import ResolvedStudy
@@ -232,5 +233,5 @@ def reevaluate_best(study: ResolvedStudy, evaluator: Evaluator, table: pd.DataFr
             out["count"] = int(row.get("count", 1)) if src == "best" else 1
             rows.append(out)
     df = pd.DataFrame(rows)
-    df.to_csv(out_dir / "final.csv", index=False)
+    to_csv_columns(study, df).to_csv(out_dir / "final.csv", index=False)  # unit suffixes in the names
     return df

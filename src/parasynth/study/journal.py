@@ -103,6 +103,22 @@ class Journal:
         self.close()
 
 
+def _not_a_record(obj) -> str:
+    """Why a parsed journal line is not a design record ('' when it is one)."""
+    if not isinstance(obj, dict):
+        return f"a JSON {type(obj).__name__.replace('dict', 'object').replace('str', 'string')}, not an object"
+    if not isinstance(obj.get("values"), dict):
+        return "no 'values' mapping of design variables"
+    for key in ("objectives", "constraint_values", "margins"):
+        if key in obj and not isinstance(obj[key], dict):
+            return f"'{key}' is not a mapping"
+    if "trial" in obj and (not isinstance(obj["trial"], int) or isinstance(obj["trial"], bool)):
+        return "'trial' is not an integer"
+    if "source" in obj and obj["source"] not in ("run", "reference"):
+        return f"'source' is {obj['source']!r}, not 'run' or 'reference'"
+    return ""
+
+
 def _scan(path: Path):
     """(records, good_bytes, torn) of one journal file: ``good_bytes`` is the length of the
     intact part; ``torn`` the text of a damaged last line, if any."""
@@ -120,8 +136,24 @@ def _scan(path: Path):
             try:
                 if end < 0:
                     raise ValueError("no final newline")
-                records.append(Record.from_dict(json.loads(line.decode("utf-8"))))
-            except (ValueError, KeyError, TypeError, AttributeError, UnicodeDecodeError) as e:
+                obj = json.loads(line.decode("utf-8"))
+            except (ValueError, UnicodeDecodeError) as e:
+                obj, err = None, e
+            else:
+                err = None
+            if err is None:
+                # A whole line of valid JSON is no cut left by a crash: it must be a record.
+                problem = _not_a_record(obj)
+                if problem:
+                    raise JournalError(f"{path}: line {lineno} is valid JSON but not a design record ({problem}); "
+                                       f"remove or repair the line, or start a new run (--out)")
+                try:
+                    records.append(Record.from_dict(obj))
+                except (ValueError, KeyError, TypeError, AttributeError) as e:
+                    raise JournalError(f"{path}: line {lineno} is not a design record ({type(e).__name__}: {e}); "
+                                       f"remove or repair the line, or start a new run (--out)") from None
+            else:
+                e = err
                 if last:
                     return records, pos, line
                 raise JournalError(

@@ -14,16 +14,19 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
+from .columns import csv_column, from_csv_columns, to_csv_columns
+
 from .defaults import planned_designs
-from .design import design_key, design_params
+from .design import design_key, design_params, measure_settings
 from .final import best_designs, knee_of, merge_duplicates, pareto_front, screening_dominators
 from .journal import read_journal
 from .spec import ResolvedStudy, StudyError, load_study
 from .tables import results_table
 
-__all__ = ["Run", "RunDirError", "read_run", "design_key", "design_params", "pareto_front", "knee_of",
+__all__ = ["Run", "RunDirError", "read_run", "read_final", "to_csv_columns", "measure_settings", "design_key", "design_params", "pareto_front", "knee_of",
            "screening_dominators", "merge_duplicates", "best_designs"]
 
 
@@ -82,8 +85,45 @@ def read_run(run_dir) -> Run:
     table = results_table(study, records)
     final = None
     if (run_dir / "final.csv").exists():
-        try:
-            final = pd.read_csv(run_dir / "final.csv")
-        except (pd.errors.EmptyDataError, pd.errors.ParserError):
-            final = None
+        final = read_final(study, run_dir / "final.csv")
     return Run(study, table, final, run_dir, planned_designs(study))
+
+
+def read_final(study, path) -> pd.DataFrame:
+    """``final.csv`` of a run as written by the final re-evaluation; raises
+:class:`RunDirError` naming the file and the line for a file that is not
+    such a table (not CSV, missing columns, text where numbers belong, unknown sources)."""
+    path = Path(path)
+    try:
+        df = pd.read_csv(path)
+        df = from_csv_columns(study, df)
+    except pd.errors.EmptyDataError:
+        raise RunDirError(f"{path}: the file is empty; delete it and run the study again with --resume to redo "
+                          f"the final re-evaluation") from None
+    except (pd.errors.ParserError, UnicodeDecodeError, ValueError) as e:
+        first = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
+        raise RunDirError(f"{path}: not a table of re-evaluated designs ({first}); delete it and run the study again "
+                          f"with --resume to redo the final re-evaluation") from None
+    labels = [o.label for o in study.objectives]
+    need = ["source"] + labels + [f"{lab}_stderr" for lab in labels]
+    missing = [c for c in need if c not in df.columns]
+    if missing:
+        missing = [csv_column(study, c) for c in missing]
+        raise RunDirError(f"{path}: line 1 (the header) lacks the column(s) {', '.join(missing)}; this is not the "
+                          f"final.csv of this study -- delete it and run the study again with --resume")
+    bad = ~df["source"].isin(["best", "reference"])
+    if bad.any():
+        i = int(np.flatnonzero(bad.to_numpy())[0])
+        raise RunDirError(f"{path}: line {i + 2}: source is {df['source'].iloc[i]!r}, not 'best' or 'reference'")
+    numeric = labels + [f"{lab}_stderr" for lab in labels] + [c for c in ("trial", "samples", "repeats") if c in df]
+    for c in numeric:
+        vals = pd.to_numeric(df[c], errors="coerce")
+        wrong = vals.isna() & df[c].notna()
+        if c in labels or c in ("trial",):
+            wrong |= df[c].isna()
+        if wrong.any():
+            i = int(np.flatnonzero(wrong.to_numpy())[0])
+            raise RunDirError(f"{path}: line {i + 2}: column {csv_column(study, c)} holds {df[c].iloc[i]!r}, "
+                              f"not a number")
+        df[c] = vals
+    return df

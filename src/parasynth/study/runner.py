@@ -11,7 +11,9 @@ Run directory (default ``runs/<study name>/``):
 * ``results.csv`` and ``results.parquet``: every evaluated design (one column per design
   variable, objective and design constraint named as in the YAML, ``<constraint>_margin``,
   ``feasible``, ``status``, ``error``, ``seed``, ``samples``, ``time_s``, ``trial``,
-  ``source``); all values SI; rewritten at most every few seconds during a run and at its end;
+  ``source``); all values SI, and in ``results.csv`` every column with a unit names it as a
+  suffix (``link_length_m``, ``volume_m3``; :mod:`parasynth.study.columns`); rewritten at most
+  every few seconds during a run and at its end;
 * ``final.csv``: the best designs re-evaluated with more samples and several seeds (mean and
   standard error of each objective);
 * ``optuna.journal``: the embedded Optuna storage of an Optuna study, unless ``--storage`` /
@@ -48,9 +50,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..display import text_table
+from ..display import reference_name, text_table
 from ..engine import warm_up
 from . import storage as st
+from .budget import budget_for_run, same_study
 from .defaults import nlopt_algorithm, nlopt_budget, optimizer_seed, optuna_algorithm, optuna_budget
 from .design import BOX_CENTRE_U, design_key
 from .evaluate import Evaluator, Record
@@ -78,22 +81,26 @@ class RunResult:
     new_records: list | None = None
     storage: str | None = None  # the storage URL when given explicitly (for the resume hint)
 
-    def summary(self, study: ResolvedStudy) -> str:
+    def saved_counts(self) -> tuple[int, bool]:
+        """(designs of the search saved in the run's table, whether the reference design is
+        among them): the one count the summary and the interrupt message give."""
+        t = self.table
+        if not len(t):
+            return 0, False
+        return int((t["source"] == "run").sum()), bool((t["source"] == "reference").any())
+
+    def summary(self, study: ResolvedStudy, details=()) -> str:
+        """The counts line, then ``details`` (the report layer's recommendations:
+        :func:`parasynth.report.summary.run_summary`), then where the results are."""
         t = self.table
         run = t[t["source"] == "run"] if len(t) else t
         n_new_run = sum(1 for r in self.new_records if r.source == "run") if self.new_records else self.n_new
-        lines = [f"study {study.name}: {len(run)} designs evaluated ({n_new_run} in this run, "
+        n_run, has_ref = self.saved_counts()
+        ref = f" and {reference_name(study)}" if has_ref else ""
+        lines = [f"study {study.name}: {n_run} designs evaluated{ref} ({n_new_run} in this run, "
                  f"{self.elapsed_s:.1f} s); {int(run['feasible'].sum()) if len(run) else 0} feasible, "
                  f"{int((run['status'] == 'failed').sum()) if len(run) else 0} failed"]
-        best = best_designs(study, run, k=3)
-        if len(best):
-            lines.append("best feasible designs:")
-            cols = [v.name for v in study.variables] + [o.label for o in study.objectives]
-            lines.append(text_table(study, best, cols + (["count"] if "count" in best and (best["count"] > 1).any() else [])))
-        ref = t[t["source"] == "reference"] if len(t) else t
-        if len(ref):
-            lines.append("reference design (paper):")
-            lines.append(text_table(study, ref, [o.label for o in study.objectives] + ["feasible"]))
+        lines += list(details)
         lines.append(f"results: {self.out_dir / 'results.csv'}")
         return "\n".join(lines)
 
@@ -120,7 +127,7 @@ def prepare_dir(study: ResolvedStudy, out_dir: Path, resume: bool, lock: RunLock
     text = study.to_yaml()
     sy = out_dir / "study.yaml"
     if resume and sy.exists() and existing:
-        if sy.read_text() != text:
+        if not same_study(sy.read_text(), text):
             raise StudyError(
                 f"cannot resume: the study differs from the one run in {str(out_dir)!r} (compare with its study.yaml)"
             )
@@ -155,6 +162,10 @@ def run_study(study: ResolvedStudy, out_dir=None, resume: bool = False, n_trials
                   f"--workers applies to Optuna studies", file=sys.stderr)
             n_workers = 1
     out_dir = Path(out_dir or study.spec.output or Path("runs") / study.name)
+    if resume and not out_dir.exists() and not (kind == "optuna" and (storage or study.optimizer.storage)):
+        raise StudyError(f"--resume: the run directory {str(out_dir)!r} does not exist, so there is nothing to "
+                         f"resume; give the directory of the run (--out) or drop --resume to start a new run")
+    study = budget_for_run(study, out_dir, resume, n_trials, note=lambda m: print(m, file=sys.stderr))
     lock = RunLock(out_dir)
     try:
         previous = prepare_dir(study, out_dir, resume, lock=lock)
@@ -445,7 +456,7 @@ def _optuna_setup(study, out_dir, resume, n_trials, storage_override, journal_re
                               f"({len(ostudy.directions)} directions); give the study another name")
     text = study.to_yaml()
     stored = ostudy.user_attrs.get(st.ATTR_STUDY)
-    if stored is not None and stored != text:
+    if stored is not None and not same_study(stored, text):
         raise st.StorageError(f"storage {st.describe_url(url)!r}: the study {study.name!r} stored there differs "
                               f"from this study file; give the study another name or use the same file")
     if stored is None:

@@ -34,6 +34,7 @@ from typing import Annotated, Any, Literal
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, Strict, ValidationError
 
+from ..geometry_checks import degenerate_geometry
 from ..mechanisms import load_mechanism, mechanism_class, resolve_mechanism_name
 from ..objectives import OBJECTIVES, get as get_measure
 from ..units import QuantityError, parse_quantity
@@ -224,6 +225,8 @@ class ResolvedStudy:
     reference: dict | None
     source: str | None = None
     tied: dict = dataclasses.field(default_factory=dict)  # parameter -> design variable it equals
+    reference_label: str | None = None  # what the reference design is ("the paper's design")
+    reference_source: str | None = None  # where it comes from (a paper, a drawing)
 
     @property
     def name(self) -> str:
@@ -538,9 +541,19 @@ def resolve_study(data: dict, source: str | None = None) -> ResolvedStudy:
                 _q(x, byname[k].kind, f"optimizer.designs[{j}].{k}")
 
     reference = None
+    ref_label = ref_source = None
     if spec.reference is not None:
         reference = {}
         for k, v in spec.reference.items():
+            if k in REFERENCE_TEXT_KEYS:
+                if not isinstance(v, str) or not v.strip() or "\n" in v.strip():
+                    raise StudyError(f"reference.{k}: give one line of text, e.g. {REFERENCE_TEXT_KEYS[k]!r}, "
+                                     f"got {v!r}")
+                if k == "label":
+                    ref_label = " ".join(v.split())
+                else:
+                    ref_source = " ".join(v.split())
+                continue
             check_param(k, f"reference.{k}")
             reference[k] = _q_nested(v, kinds.get(k), f"reference.{k}")
 
@@ -555,6 +568,9 @@ def resolve_study(data: dict, source: str | None = None) -> ResolvedStudy:
             if v.low is not None and is_real_number(val) and not v.low <= val <= v.high:
                 raise StudyError(f"{where}: {x!r} is outside the variable's bounds [{v.low:.6g}, {v.high:.6g}] (SI)")
 
+    if opt.storage is not None and "://" not in opt.storage and not opt.storage.startswith("journal:"):
+        raise StudyError(f"optimizer.storage: {opt.storage!r} is neither a URL (postgresql://user:password@host/db, "
+                         f"sqlite:///FILE) nor a journal file (journal:FILE)")
     if spec.output is not None and (not spec.output.strip() or "\x00" in spec.output):
         raise StudyError("output: give a run directory (e.g. runs/my_study) or leave the key out for runs/<name>/")
 
@@ -570,7 +586,11 @@ def resolve_study(data: dict, source: str | None = None) -> ResolvedStudy:
         tied[k] = src
 
     return ResolvedStudy(spec, spec.mechanism, fixed, tuple(variables), tuple(objectives), tuple(constraints),
-                         evaluation, opt, reference, source, tied)
+                         evaluation, opt, reference, source, tied, ref_label, ref_source)
+
+
+#: Text keys of ``reference`` beside the parameter values, with an example each.
+REFERENCE_TEXT_KEYS = {"label": "the paper's design", "source": "Wang, Lyu & Liu 2021, Table 2"}
 
 
 _ANGULAR = {"alpha", "beta", "gamma", "psi", "theta", "phi"}
@@ -764,6 +784,9 @@ def check_study(study: ResolvedStudy, *, measures: bool = True, max_corners: int
     base_mech, err = try_build(design_params(study, base))
     if err:
         problems.append(f"{base_where}: the design {_design_str(base)} cannot be built: {err}")
+    else:
+        problems += [f"mechanism: {why} (design {_design_str(base)})"
+                     for why in degenerate_geometry(base_mech, study.evaluation.get("ranges"))]
     axes = []
     for v in study.variables:
         if v.low is not None and v.high is not None and v.type != "categorical":
@@ -894,6 +917,10 @@ KEY_DOCS = {
     "optimizer.population_size": "Population of the evolutionary Optuna samplers (2 to 100000).",
     "reference": "A reference design (e.g. the paper's), {parameter: value with unit}: evaluated first and "
                  "compared in the report.",
+    "reference.label": "What the reference design is, named so in the report and the summary (e.g. \"the "
+                       "paper's design\"; default \"the reference design\").",
+    "reference.source": "Where the reference design comes from (e.g. \"Wang, Lyu & Liu 2021, Table 2\"); "
+                        "shown beside its label.",
     "tied": "Parameters that follow a design variable, {parameter: variable}; same unit.",
     "output": "Run directory (default runs/<name>/); --out overrides it.",
 }

@@ -99,6 +99,16 @@ def describe_url(url: str) -> str:
     return re.sub(r"(://[^:/@]*):[^@]*@", r"\1:***@", url)
 
 
+def check_storage_url(url: str) -> str:
+    """``url`` when it is a URL (``scheme://...``) or a journal file (``journal:FILE``); a
+    :class:`StorageError` otherwise (a bare name is not silently taken as a file name)."""
+    if "://" not in url and not url.startswith("journal:"):
+        raise StorageError(f"storage {url!r} is neither a URL (postgresql://user:password@host/db, "
+                           f"sqlite:///FILE) nor a journal file (journal:FILE); write journal:{url} for a "
+                           f"journal file")
+    return url
+
+
 def resolve_storage_url(study, out_dir, override: str | None = None) -> str:
     """``override`` (``--storage``), else ``optimizer.storage``, else the run directory's
     journal file."""
@@ -108,6 +118,7 @@ def resolve_storage_url(study, out_dir, override: str | None = None) -> str:
         if not url:
             raise StorageError("storage: empty URL; give a URL such as postgresql://user:password@host/db, "
                                "sqlite:///optuna.db or journal:optuna.journal")
+        check_storage_url(url)
         return url
     return f"journal:{(Path(out_dir) / DEFAULT_JOURNAL).resolve()}"
 
@@ -198,6 +209,7 @@ def open_storage(url: str, heartbeat: bool = True):
     """An Optuna storage for ``url``, checked (driver, connection) first. Database servers get
     a heartbeat: a trial whose worker stopped beating for ``grace_period`` seconds is marked
     failed and retried once (``PARASYNTH_HEARTBEAT`` sets the interval, default 5 s)."""
+    check_storage_url(url)
     if _is_journal(url):
         return _open_journal(url)
     u, kw = _check_rdb(url)

@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from .columns import to_csv_columns
 from .evaluate import Record
 from .spec import ResolvedStudy
 
@@ -46,7 +47,7 @@ def write_tables(study: ResolvedStudy, out_dir: Path, records: list[Record]) -> 
     out_dir = Path(out_dir)
     df = results_table(study, records)
     tmp = out_dir / "results.csv.tmp"
-    df.to_csv(tmp, index=False)
+    to_csv_columns(study, df).to_csv(tmp, index=False)  # unit suffixes in the names (SI values)
     os.replace(tmp, out_dir / "results.csv")
     try:
         df2 = df.copy()

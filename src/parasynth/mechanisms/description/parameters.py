@@ -164,6 +164,11 @@ def _parse_value(value, kind, path):
     return v
 
 
+#: Largest |value| of a parameter (SI) by kind: a length or an angle beyond 1e6 (m, rad) is
+#: no mechanism and would overflow when squared; other kinds (stiffness, modulus) up to 1e30.
+MAX_PARAM_MAGNITUDE = {"length": 1e6, "angle": 1e6, None: 1e30}
+
+
 @dataclass(frozen=True)
 class _Param:
     name: str
@@ -194,6 +199,10 @@ class _Param:
                                  f"entries is fixed by the description, got {value!r}")
         if not np.all(np.isfinite(a)):
             raise ValueError(f"{where} must be finite, got {value!r}")
+        big = MAX_PARAM_MAGNITUDE.get(self.kind, MAX_PARAM_MAGNITUDE[None])
+        if np.any(np.abs(a) > big):
+            raise ValueError(f"{where} must be at most {big:g} {unit} in magnitude (the documented limit; a "
+                             f"larger value would overflow the kinematics), got {value!r}")
         if self.lo is not None and np.any(a < self.lo):
             raise ValueError(f"{where} must be >= {self.lo} ({unit}), got {value!r}")
         if self.hi is not None and np.any(a > self.hi):

@@ -1,0 +1,166 @@
+"""Warnings a designer should act on, shared by the report and the terminal summary.
+
+* a recommended or best design on a design variable's bound (within ``BOUND_TOL`` of the
+  variable's range): the optimum may lie beyond the box, widen the variable's bounds;
+* a design whose feasible workspace reaches the faces of the sampled box (feasible samples
+  within ``FACE_TOL`` of a coordinate's range from a face, more than ``FACE_SHARE`` of them):
+  the box cuts the workspace, so volumes and extents measure the box; widen
+  ``evaluation.ranges``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from ..display import fmt_number, fmt_quantity, quantity_unit, reference_name
+from ..mechanisms import load_mechanism
+from ..objectives import _WS_SETTINGS, workspace_of
+from ..objectives import get as get_measure
+from ..study.rundir import design_key, design_params, measure_settings
+
+__all__ = ["design_roles", "design_warnings", "bound_warnings", "face_warnings", "BOUND_TOL", "FACE_TOL", "FACE_SHARE"]
+
+#: A design lies on a bound when within this share of the variable's range from it.
+BOUND_TOL = 0.01
+#: Width of the layer at each face of the sampled box, as a share of the coordinate's range.
+FACE_TOL = 0.01
+#: Share of the feasible samples in the face layers above which the report warns. A feasible
+#: set well inside the box puts none there; one that fills a box uniformly puts about
+#: 2 * FACE_TOL per coordinate there.
+FACE_SHARE = 0.005
+
+
+def _named_designs(study, a: dict) -> list[tuple[str, object]]:
+    """(name, row) of the designs the report recommends: the knee (or the best design) and
+    the best design of each objective on the front."""
+    out = []
+    knee = a.get("knee_row")
+    several = len(study.objectives) > 1
+    if knee is not None:
+        out.append((f"the recommended design (trial {int(knee['trial'])})", knee))
+    front = a.get("front")
+    if several and front is not None and len(front):
+        for o in study.objectives:
+            col = front[o.label].astype(float)
+            i = col.idxmax() if o.goal == "maximize" else col.idxmin()
+            row = front.loc[i]
+            if knee is not None and int(row["trial"]) == int(knee["trial"]):
+                continue
+            out.append((f"the best {o.label} design (trial {int(row['trial'])})", row))
+    return out
+
+
+def bound_warnings(study, a: dict, tol: float = BOUND_TOL) -> list[str]:
+    """A recommended or best design with a variable within ``tol`` of its range from a bound."""
+    out = []
+    for name, row in _named_designs(study, a):
+        hits = []
+        for k, v in enumerate(study.variables):
+            if v.type == "categorical" or v.low is None or v.high is None or v.name not in row:
+                continue
+            x = float(row[v.name])
+            u = quantity_unit(study, v.name)
+            if v.log and v.low > 0 and x > 0:
+                s = (np.log(x) - np.log(v.low)) / (np.log(v.high) - np.log(v.low))
+            else:
+                s = (x - v.low) / (v.high - v.low)
+            if s <= tol:
+                hits.append(f"{v.name} = {fmt_quantity(x, u)} at its lower bound {fmt_quantity(v.low, u)} "
+                            f"(variables[{k}].low)")
+            elif s >= 1 - tol:
+                hits.append(f"{v.name} = {fmt_quantity(x, u)} at its upper bound {fmt_quantity(v.high, u)} "
+                            f"(variables[{k}].high)")
+        if hits:
+            out.append(f"{name} lies on a bound of the design variables: " + "; ".join(hits)
+                       + ". The best design may lie beyond it: widen the bound if the design allows it.")
+    return out
+
+
+def _uses_workspace(study) -> object | None:
+    """The first objective or design constraint that samples the workspace, or None."""
+    for m in list(study.objectives) + list(study.constraints):
+        if "ranges" in get_measure(m.name).settings:
+            return m
+    return None
+
+
+def face_fraction_of(study, values: dict) -> dict | None:
+    """Face shares of the workspace of the design ``values`` with the study's evaluation
+    settings (as its first workspace measure sees them): ``{"total": share, "z high": ...}``;
+    None when the study samples no workspace or the design cannot be built."""
+    m = _uses_workspace(study)
+    if m is None:
+        return None
+    try:
+        mech = load_mechanism(study.mechanism, **design_params(study, dict(values)))
+        kw = {k: x for k, x in measure_settings(study, m.name, m.settings).items() if k in _WS_SETTINGS}
+        ws = workspace_of(mech, **kw)
+    except (ValueError, ArithmeticError):
+        return None
+    if ws.n_feasible == 0:
+        return None
+    return {"total": ws.face_fraction(FACE_TOL), **ws.face_fractions(FACE_TOL)}
+
+
+def face_warnings(study, a: dict, share: float = FACE_SHARE) -> list[str]:
+    """The recommended design or the reference design whose feasible samples reach the faces
+    of the sampled box."""
+    if _uses_workspace(study) is None:
+        return []
+    designs = []
+    knee = a.get("knee_row")
+    if knee is not None:
+        designs.append((f"the recommended design (trial {int(knee['trial'])})",
+                        {v.name: knee[v.name] for v in study.variables}))
+    if study.reference:
+        designs.append((reference_name(study), dict(study.reference)))
+    out = []
+    for name, values in designs:
+        f = face_fraction_of(study, values)
+        if f is None or f["total"] <= share:
+            continue
+        faces = sorted(((k, x) for k, x in f.items() if k != "total" and x > 0), key=lambda kx: -kx[1])
+        where = ", ".join(f"{k} {fmt_number(100 * x, 2)} %" for k, x in faces[:4])
+        out.append(f"the workspace of {name} reaches the faces of the sampled box: {fmt_number(100 * f['total'], 2)} % "
+                   f"of its feasible samples lie within {fmt_number(100 * FACE_TOL)} % of a coordinate's range "
+                   f"from a face ({where}). The box cuts the workspace, so its volume and extents measure the box "
+                   f"too: widen evaluation.ranges.")
+    return out
+
+
+def design_warnings(study, a: dict) -> list[str]:
+    """Every warning of :mod:`parasynth.report.checks` for an analysed run (a failing check is
+    skipped: a warning must not cost the report)."""
+    out = []
+    for check in (bound_warnings, face_warnings):
+        try:
+            out += check(study, a)
+        except Exception:  # noqa: BLE001 - best effort
+            continue
+    return out
+
+
+def design_roles(study, rows: pd.DataFrame, knee_key=None) -> list[str]:
+    """Why each row of a set of front designs is listed: ``knee`` (the recommended design of
+    several objectives), ``best <label>`` (the best value of that objective among ``rows``;
+    several objectives joined by ``and``), else ``on the front``. One objective: ``best
+    <label>`` for the best row, ``rank k`` for the others."""
+    objs = study.objectives
+    out = []
+    best_of = {}
+    for o in objs:
+        col = rows[o.label].astype(float)
+        if len(col) and col.notna().any():
+            best_of[o.label] = col.idxmax() if o.goal == "maximize" else col.idxmin()
+    for rank, (i, r) in enumerate(rows.iterrows(), start=1):
+        tags = []
+        if len(objs) > 1 and knee_key is not None and design_key(study, r) == knee_key:
+            tags.append("knee")
+        best = [o.label for o in objs if best_of.get(o.label) == i]
+        if best:
+            tags.append("best " + " and ".join(best))
+        if not tags:
+            tags.append("on the front" if len(objs) > 1 else f"rank {rank}")
+        out.append(", ".join(tags))
+    return out

@@ -1,0 +1,83 @@
+"""Units in the column names of the CSV files a run writes (``results.csv``, ``final.csv``,
+``pareto.csv``): values stay numbers in SI, and each column that carries a unit names it as a
+suffix, so that ``pandas.read_csv`` needs no option and a reader sees the unit:
+``link_length_m``, ``hinge_rotation_rad``, ``volume_m3``, ``footprint_margin_m``,
+``max_force_N``, ``volume_stderr_m3``; dimensionless columns keep their name (``margin_q05``,
+``trial``; ``time_s`` is already in seconds). Inside the library tables keep the study's
+names; :func:`to_csv_columns` and :func:`from_csv_columns` convert between the two.
+"""
+
+from __future__ import annotations
+
+import pandas as pd
+
+from ..display import quantity_known, quantity_unit
+
+__all__ = ["si_suffix", "csv_column", "csv_columns", "to_csv_columns", "from_csv_columns", "read_run_csv"]
+
+_SI = {"mm": "m", "cm": "m", "deg": "rad", "GPa": "Pa"}
+
+
+def si_suffix(study, name: str) -> str:
+    """The SI unit of result column ``name`` as a column-name suffix ('' for none):
+    'm', 'rad', 'm3', 'm3_rad2', 'N', 'N_per_m', 'Pa'."""
+    base = name
+    for sfx in ("_stderr", "_margin"):
+        if name.endswith(sfx) and quantity_known(study, name[: -len(sfx)]):
+            base = name[: -len(sfx)]
+    if not quantity_known(study, base):
+        return ""
+    sym = quantity_unit(study, name).symbol
+    if not sym:
+        return ""
+    parts = []
+    for factor in sym.split("*"):
+        unit, _, power = factor.partition("^")
+        num, _, den = unit.partition("/")
+        num = _SI.get(num, num)
+        den = _SI.get(den, den)
+        parts.append(num + power + (f"_per_{den}" if den else ""))
+    return "_".join(parts)
+
+
+def csv_column(study, name: str) -> str:
+    """``name`` with its SI unit: ``link_length`` -> ``link_length_m``."""
+    sfx = si_suffix(study, name)
+    return f"{name}_{sfx}" if sfx else name
+
+
+def csv_columns(study, columns) -> dict[str, str]:
+    """{study column: CSV column} for the columns that carry a unit."""
+    out = {}
+    for c in columns:
+        new = csv_column(study, str(c))
+        if new != c:
+            out[c] = new
+    return out
+
+
+def to_csv_columns(study, df: pd.DataFrame) -> pd.DataFrame:
+    """``df`` with the unit suffixes of :func:`csv_column` in its column names."""
+    return df.rename(columns=csv_columns(study, df.columns))
+
+
+def from_csv_columns(study, df: pd.DataFrame) -> pd.DataFrame:
+    """A table read from a run's CSV file with the study's column names (the inverse of
+    :func:`to_csv_columns`; a file of an older version without suffixes is read as it is)."""
+    names = [v.name for v in study.variables] + [o.label for o in study.objectives]
+    for c in study.constraints:
+        names += [c.label, f"{c.label}_margin"]
+    names += [f"{o.label}_stderr" for o in study.objectives]
+    back = {}
+    for n in names:
+        if n in df.columns or not (quantity_known(study, n) or n.endswith(("_stderr", "_margin"))):
+            continue
+        c = csv_column(study, n)
+        if c in df.columns:
+            back[c] = n
+    return df.rename(columns=back)
+
+
+def read_run_csv(study, path) -> pd.DataFrame:
+    """A run's CSV file (results.csv, final.csv, pareto.csv) with the study's column names."""
+    return from_csv_columns(study, pd.read_csv(path))

@@ -1,0 +1,40 @@
+"""The README's quick start: two commands, a clean clone, and what a newcomer needs to know."""
+
+import re
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+README = (ROOT / "README.md").read_text()
+
+
+def _quick_start() -> str:
+    return README.split("## Quick start")[1].split("\n## ")[0]
+
+
+def test_quick_start_has_exactly_two_commands():
+    block = re.search(r"```bash\n(.*?)```", _quick_start(), re.S).group(1)
+    lines = [ln for ln in block.splitlines() if ln.strip()]
+    assert len(lines) == 2
+    assert "parasynth run studies/quickstart.yaml" in lines[0] and "pytest" in lines[1]
+
+
+def test_quick_start_report_does_not_dirty_the_clone():
+    block = re.search(r"```bash\n(.*?)```", _quick_start(), re.S).group(1)
+    first = block.splitlines()[0]
+    m = re.search(r"--report-dir (\S+)", first)
+    assert m, "the quick start must say where its report goes"
+    top = m.group(1).split("/")[0] + "/"
+    ignored = (ROOT / ".gitignore").read_text().split()
+    assert top in ignored and not m.group(1).startswith("reports/")
+    assert m.group(1) + "/index.html" in _quick_start()
+
+
+def test_quick_start_names_python_venv_and_test_duration():
+    qs = _quick_start()
+    assert "3.11" in qs and "venv" in qs
+    assert "5 minutes" in qs
+
+
+def test_workers_example_says_when_workers_pay_off():
+    part = README.split("--workers 2")[1][:600]
+    assert "2.7 s" in part and "quick start" in part
