@@ -387,3 +387,13 @@ def test_csv_files_name_their_units_and_hold_si_values(tmp_path):
     assert "link_length_m" in par.columns and "test_two_m" in par.columns
     md = (rep / "report.md").read_text()
     assert "## Re-evaluation of the best designs" in md  # final.csv with unit names is read back
+
+
+def test_progress_best_value_names_its_unit():
+    from parasynth.study.runner import _best_str
+
+    study = _study(objectives=[{"name": "test_two"}])
+    recs = [_rec(0, 0.2, 0.14, 0, 0.48), _rec(1, 0.2, 0.12, 0, 0.44)]
+    for r in recs:
+        r.objectives = {"test_two": r.objectives["test_two"]}
+    assert _best_str(study, recs) == "best test_two = 440 mm"

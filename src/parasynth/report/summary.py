@@ -89,6 +89,7 @@ def terminal_summary(study, table: pd.DataFrame, final: pd.DataFrame | None, out
     ref = table[table["source"] == "reference"]
     if len(ref):
         lines.append(reference_name(study, capital=True, with_source=True) + ":")
+        ref = ref.assign(feasible=["yes" if bool(x) else "no" for x in ref["feasible"]])
         lines.append(text_table(study, ref, [o.label for o in study.objectives] + ["feasible"]))
     lines += [f"warning: {w}" for w in a.get("warnings", [])]
     return lines

@@ -298,7 +298,9 @@ def _best_str(study, records):
     o = study.objectives[0]
     vals = [r.objectives[o.label] for r in ok]
     b = max(vals) if o.goal == "maximize" else min(vals)
-    return f"best {o.label}={b:.4g}"
+    from ..display import fmt_column_value
+
+    return f"best {o.label} = {fmt_column_value(study, o.label, b)}"
 
 
 def _run_sweep(study, evaluator, records, record, progress, guard):
