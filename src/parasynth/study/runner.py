@@ -50,14 +50,14 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..display import reference_name, text_table
+from ..display import reference_name
 from ..engine import warm_up
 from . import storage as st
 from .budget import budget_for_run, same_study
 from .defaults import nlopt_algorithm, nlopt_budget, optimizer_seed, optuna_algorithm, optuna_budget
 from .design import BOX_CENTRE_U, design_key
 from .evaluate import Evaluator, Record
-from .final import best_designs, reevaluate_best
+from .final import reevaluate_best
 from .journal import Journal, RunLock, jsonable, read_journal, rewrite_journal
 from .optuna_adapter import fail_trial
 from .progress import Progress
