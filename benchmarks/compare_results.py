@@ -28,12 +28,19 @@ def compare_tables(a: Path, b: Path, ignore: set[str], show: int = 5) -> list[st
     """Differences between two CSV files (empty when they agree outside ``ignore``)."""
     ha, ra = _read(a)
     hb, rb = _read(b)
-    if ha != hb:
-        return [f"columns differ: {ha} vs {hb}"]
     out = []
+    if ha != hb:
+        # The same columns, one side with unit suffixes in the names (link_length vs
+        # link_length_m): compared as the same columns, and said so.
+        same = len(ha) == len(hb) and all(x == y or y.startswith(x + "_") or x.startswith(y + "_")
+                                          for x, y in zip(ha, hb))
+        if not same:
+            return [f"columns differ: {ha} vs {hb}"]
+        out.append("note: column names differ only by unit suffixes: "
+                   + ", ".join(f"{x} -> {y}" for x, y in zip(ha, hb) if x != y))
     if len(ra) != len(rb):
         out.append(f"{len(ra)} rows vs {len(rb)} rows")
-    keep = [j for j, c in enumerate(ha) if c not in ignore]
+    keep = [j for j, (c, d) in enumerate(zip(ha, hb)) if c not in ignore and d not in ignore]
     n_diff = 0
     for i, (x, y) in enumerate(zip(ra, rb)):
         for j in keep:
@@ -66,6 +73,10 @@ def main(argv=None) -> int:
                 ok = False
                 continue
             diffs = compare_tables(fa, fb, set(args.ignore))
+            notes = [d for d in diffs if d.startswith("note: ")]
+            diffs = [d for d in diffs if not d.startswith("note: ")]
+            for d in notes:
+                print(f"{name}/{fname}: {d}")
             n = len(_read(fa)[1])
             if diffs:
                 ok = False
