@@ -25,7 +25,6 @@ with one :class:`EngineFallbackWarning` per class. Described mechanisms
 from __future__ import annotations
 
 import dataclasses
-import logging
 import warnings
 from dataclasses import dataclass, field
 from typing import Any
@@ -129,14 +128,12 @@ _FALLBACK_WARNED: set = set()
 def _numpy_only(mech, engine) -> None:
     """Validate ``engine`` ("compiled" or "numpy"; ``ValueError`` otherwise) for a method of a
     model class without a compiled path: "compiled" says once per class, as an
-    :class:`EngineFallbackWarning` and on the ``parasynth.engine`` logger, that NumPy evaluates
-    it."""
+    :class:`EngineFallbackWarning`, that NumPy evaluates it."""
     if check_engine(engine) == "numpy" or type(mech) in _FALLBACK_WARNED:
         return
     _FALLBACK_WARNED.add(type(mech))
     msg = (f"{getattr(mech, 'name', type(mech).__name__)}: the compiled engine does not cover the model class "
            f"{type(mech).__name__} (not a mechanism description); evaluated with NumPy")
-    logging.getLogger("parasynth.engine").info(msg)
     warnings.warn(msg, EngineFallbackWarning, stacklevel=3)
 
 
