@@ -157,7 +157,7 @@ def test_resume_of_a_missing_directory_is_refused(tmp_path):
 
 def test_one_count_of_saved_designs(tmp_path, capsys):
     from parasynth.study.runner import RunResult, results_table
-    from parasynth.study.workers import interrupted_run
+    from parasynth.cli_study import interrupted_run
 
     study = _study()
     table = results_table(study, RECS)

@@ -50,7 +50,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..display import reference_name
+from ..display import fmt_column_value, reference_name
 from ..engine import warm_up
 from . import storage as st
 from .budget import budget_for_run, same_study
@@ -298,8 +298,6 @@ def _best_str(study, records):
     o = study.objectives[0]
     vals = [r.objectives[o.label] for r in ok]
     b = max(vals) if o.goal == "maximize" else min(vals)
-    from ..display import fmt_column_value
-
     return f"best {o.label} = {fmt_column_value(study, o.label, b)}"
 
 
