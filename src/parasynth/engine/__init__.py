@@ -41,25 +41,17 @@ from __future__ import annotations
 
 import contextlib
 import contextvars
-import logging
-import warnings
-import weakref
 
 import numpy as np
 
 from . import core
-from .core import BLOCK, HAVE_NUMBA, SUB, KernelPlan, Unsupported
+from .core import BLOCK, HAVE_NUMBA, SUB, EngineFallbackWarning, KernelPlan, Unsupported, warn_fallback
 from .warmup import COMPILING, WarmUp, exercise, warm_up
 
 __all__ = ["HAVE_NUMBA", "ENGINES", "EngineFallbackWarning", "feasible", "margins", "pose_batch", "available",
            "reason", "check_engine", "plan", "warm_up", "exercise", "WarmUp", "COMPILING", "reference"]
 
 ENGINES = ("compiled", "numpy")
-_log = logging.getLogger("parasynth.engine")
-
-
-class EngineFallbackWarning(UserWarning):
-    """The compiled engine does not cover a mechanism; NumPy evaluates it (the message says why)."""
 
 
 _FORCED: contextvars.ContextVar = contextvars.ContextVar("parasynth_engine_forced", default=None)
@@ -88,30 +80,14 @@ def reference():
 
 
 # ---------------------------------------------------------------------------------------------
-# plans, cached per mechanism object and constraint selection
+# plans: one record per mechanism object (core.record_of), one plan per constraint selection
 # ---------------------------------------------------------------------------------------------
-_PLANS: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
-_WARNED: set = set()
-
-
 def _selection(mech, names):
     return mech._select(names)
 
 
-def _kind(mech) -> str:
-    d = getattr(mech, "description", None)
-    src = getattr(d, "source", None) if d is not None else None
-    return f"{getattr(mech, 'name', type(mech).__name__)}" + (f" ({src})" if src else "")
-
-
-def _warn(mech, why: str) -> None:
-    key = (type(mech), why)
-    if key in _WARNED:
-        return
-    _WARNED.add(key)
-    msg = f"{_kind(mech)}: the compiled engine does not cover {why}; evaluated with NumPy"
-    _log.info(msg)
-    warnings.warn(msg, EngineFallbackWarning, stacklevel=4)
+def _warn(mech, why: str, what: str = "is_feasible/constraint_margins") -> None:
+    warn_fallback(what, mech, why, stacklevel=5)
 
 
 def plan(mech, names=None):
@@ -121,16 +97,7 @@ def plan(mech, names=None):
     cons = _selection(mech, names)
     key = tuple(id(c) for c in cons)
     legs = tuple(id(leg) for leg in mech.legs)
-    try:
-        per = _PLANS.get(mech)
-    except TypeError:
-        per = None
-    if per is None:
-        per = {}
-        try:
-            _PLANS[mech] = per
-        except TypeError:
-            pass
+    per = core.record_of(mech).setdefault("feasibility", {})
     hit = per.get(key)
     if hit is not None and hit[0] == legs and hit[1] is mech.constraints and hit[2] == key:
         return hit[3], hit[4]
@@ -216,15 +183,15 @@ def pose_batch(mech, X, twist: bool = False, engine: str = "compiled"):
     prog = None
     if check_engine(engine) == "compiled":
         if not HAVE_NUMBA:
-            _warn(mech, "numba (not importable, or disabled by PARASYNTH_NO_NUMBA)")
+            _warn(mech, "numba (not importable, or disabled by PARASYNTH_NO_NUMBA)", "pose_batch")
         elif not core._is_described(mech):
-            _warn(mech, f"the model class {type(mech).__name__} (not a mechanism description)")
+            _warn(mech, f"the model class {type(mech).__name__} (not a mechanism description)", "pose_batch")
         else:
             try:
                 prog = core.program_for(mech, {}, twist)
                 consts = prog.constants(mech._penv)
             except (Unsupported, KeyError, IndexError, TypeError, ValueError) as e:
-                _warn(mech, str(e))
+                _warn(mech, str(e), "pose_batch")
                 prog = None
     if prog is not None:
         ok, P, R, T = core.run_pose(prog, consts, Xa, twist)

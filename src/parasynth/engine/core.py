@@ -42,9 +42,12 @@ the whole batch to NumPy.
 
 from __future__ import annotations
 
+import logging
 import math
 import os
 import threading
+import warnings
+import weakref
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
@@ -161,6 +164,54 @@ def over_blocks(fn, n_blocks: int, parallel: bool = True) -> None:
             err = err or e
     if err is not None:
         raise err
+
+
+class EngineFallbackWarning(UserWarning):
+    """The compiled engine does not cover a mechanism; NumPy evaluates it (the message says why)."""
+
+
+_log = logging.getLogger("parasynth.engine")
+#: (what, model class, reason) already said: one warning each (the one fallback policy of
+#: the engine, for feasibility, margins, poses and the pose-wise indices alike).
+_WARNED: set = set()
+
+
+def warn_fallback(what: str, mech, reason: str, stacklevel: int = 4) -> None:
+    """Say once per (what, model class, reason) that ``what`` runs on NumPy for ``mech`` and
+    why: an :class:`EngineFallbackWarning` and a record on the ``parasynth.engine`` logger."""
+    key = (what, type(mech), reason)
+    if key in _WARNED:
+        return
+    _WARNED.add(key)
+    d = getattr(mech, "description", None)
+    src = getattr(d, "source", None) if d is not None else None
+    kind = f"{getattr(mech, 'name', type(mech).__name__)}" + (f" ({src})" if src else "")
+    msg = f"{kind}: {what} runs on NumPy: the compiled engine does not cover {reason}"
+    _log.info(msg)
+    warnings.warn(msg, EngineFallbackWarning, stacklevel=stacklevel)
+
+
+#: Per mechanism object, what the engine derived from it (the one plan record of a
+#: mechanism): ``"feasibility"`` {constraint selection: (legs, constraints, key, KernelPlan
+#: or None, reason, constraints)} and ``"indices"`` (legs, leg arrays). Weak keys: a
+#: mechanism's record goes with it; nothing is stored on the mechanism itself.
+_RECORDS: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+
+
+def record_of(mech) -> dict:
+    """The engine's record of ``mech`` (a dict; a fresh one, not kept, for an object that
+    cannot be weakly referenced or hashed)."""
+    try:
+        rec = _RECORDS.get(mech)
+    except TypeError:
+        return {}
+    if rec is None:
+        rec = {}
+        try:
+            _RECORDS[mech] = rec
+        except TypeError:
+            pass
+    return rec
 
 
 class Unsupported(Exception):
@@ -579,48 +630,49 @@ if HAVE_NUMBA:
     _jit_inline = _jit
     _jit_ir_inline = dict(_jit, inline="always")
 
-    # Opcodes (parasynth.engine.program.OPS)
-    _NOP = 0
-    _ADD = 1
-    _SUBT = 2
-    _MUL = 3
-    _DIV = 4
-    _POW = 5
-    _NEG = 6
-    _SQRT = 7
-    _TAN = 8
-    _ASIN = 9
-    _ACOS = 10
-    _ATAN = 11
-    _EXP = 12
-    _LOG = 13
-    _ABS = 14
-    _SINH = 15
-    _COSH = 16
-    _TANH = 17
-    _ATAN2 = 18
-    _HYPOT = 19
-    _MIN = 20
-    _MAX = 21
-    _LT = 22
-    _LE = 23
-    _GT = 24
-    _GE = 25
-    _AND = 26
-    _SINCOS = 27
-    _SINCOS_ATAN2 = 28
-    _SIGN = 29
-    _SELECT = 30
-    _SQUARE = 31
-    _COPY = 32
-    _CLIP = 33
-    _SIN1 = 34
-    _COS1 = 35
-    _MADD = 36
-    _MSUB = 37
-    _RMSUB = 38
-    _MMADD = 39
-    _MMSUB = 40
+    # Opcodes: the one table, parasynth.engine.program.OPS (module constants, which numba
+    # folds into the interpreter)
+    _NOP = OPS["nop"]
+    _ADD = OPS["add"]
+    _SUBT = OPS["sub"]
+    _MUL = OPS["mul"]
+    _DIV = OPS["div"]
+    _POW = OPS["pow"]
+    _NEG = OPS["neg"]
+    _SQRT = OPS["sqrt"]
+    _TAN = OPS["tan"]
+    _ASIN = OPS["asin"]
+    _ACOS = OPS["acos"]
+    _ATAN = OPS["atan"]
+    _EXP = OPS["exp"]
+    _LOG = OPS["log"]
+    _ABS = OPS["abs"]
+    _SINH = OPS["sinh"]
+    _COSH = OPS["cosh"]
+    _TANH = OPS["tanh"]
+    _ATAN2 = OPS["atan2"]
+    _HYPOT = OPS["hypot"]
+    _MIN = OPS["min"]
+    _MAX = OPS["max"]
+    _LT = OPS["lt"]
+    _LE = OPS["le"]
+    _GT = OPS["gt"]
+    _GE = OPS["ge"]
+    _AND = OPS["and"]
+    _SINCOS = OPS["sincos"]
+    _SINCOS_ATAN2 = OPS["sincos_atan2"]
+    _SIGN = OPS["sign"]
+    _SELECT = OPS["select"]
+    _SQUARE = OPS["square"]
+    _COPY = OPS["copy"]
+    _CLIP = OPS["clip"]
+    _SIN1 = OPS["sin"]
+    _COS1 = OPS["cos"]
+    _MADD = OPS["madd"]
+    _MSUB = OPS["msub"]
+    _RMSUB = OPS["rmsub"]
+    _MMADD = OPS["mmadd"]
+    _MMSUB = OPS["mmsub"]
 
     # The pose travels as a tuple T = (px, py, pz, R00, R01, R02, R10, ..., R22) in the scalar
     # kernel so that it stays in registers.
