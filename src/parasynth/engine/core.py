@@ -577,8 +577,19 @@ def build_plan(mech, cons) -> KernelPlan:
     return KernelPlan(prog, consts, kind, act, F, [c.name for c in cons], tables, expr)
 
 
+def _readonly(X: np.ndarray) -> np.ndarray:
+    """``X`` as a read-only array (a view if needed, no copy): numba types read-only and
+    writable arrays differently, and the poses come both ways (a study's cached samples are
+    read-only), so the kernels always get read-only poses -- one specialisation each."""
+    if X.flags.writeable:
+        X = X.view()
+        X.flags.writeable = False
+    return X
+
+
 def run_feasible(plan: KernelPlan, X: np.ndarray):
     """(out (N,) bool, ambiguous: bool) for contiguous float64 poses X."""
+    X = _readonly(X)
     out = np.empty(X.shape[0], dtype=np.bool_)
     nblk = (X.shape[0] + BLOCK - 1) // BLOCK
     amb = np.zeros(max(nblk, 1), dtype=np.int64)
@@ -589,6 +600,7 @@ def run_feasible(plan: KernelPlan, X: np.ndarray):
 
 def run_margins(plan: KernelPlan, X: np.ndarray):
     """(M (N, n_constraints), ambiguous: bool)."""
+    X = _readonly(X)
     M = np.empty((X.shape[0], len(plan.names)))
     nblk = (X.shape[0] + BLOCK - 1) // BLOCK
     amb = np.zeros(max(nblk, 1), dtype=np.int64)
@@ -599,7 +611,7 @@ def run_margins(plan: KernelPlan, X: np.ndarray):
 
 def run_pose(prog: Program, consts, X: np.ndarray, twist: bool = False):
     """(valid (N,), p (N, 3), R (N, 3, 3), T (N, 6, n_task) or None)."""
-    X = np.ascontiguousarray(X, dtype=np.float64)
+    X = _readonly(np.ascontiguousarray(X, dtype=np.float64))
     N = X.shape[0]
     ok = np.empty(N, dtype=np.bool_)
     P = np.empty((N, 3))
