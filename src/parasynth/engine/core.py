@@ -637,8 +637,10 @@ def run_pose(prog: Program, consts, X: np.ndarray, twist: bool = False):
 if HAVE_NUMBA:
     _jit = dict(nogil=True, error_model="numpy", fastmath=False, cache=True)
     # Helpers are ordinary calls (LLVM inlines the small ones); numba-level inlining
-    # (inline="always") re-types a helper at every call site and is kept only for the two
-    # whose own compiled module would just repeat the interpreter's (see docs/architecture.md).
+    # (inline="always") re-types a helper at every call site and is kept for _pose_prog and
+    # _fill_consts, whose own compiled module would just repeat the interpreter's, and for the
+    # helpers inside vectorised loops (_sincos, _clip01, _any), which LLVM does not always
+    # inline (see docs/architecture.md).
     _jit_inline = _jit
     _jit_ir_inline = dict(_jit, inline="always")
 
@@ -826,11 +828,11 @@ if HAVE_NUMBA:
         return cx * cx + cy * cy + cz * cz
 
 
-    @njit(**_jit_inline)
+    @njit(**_jit_ir_inline)
     def _clip01(x):
         return min(max(x, 0.0), 1.0)
 
-    @njit(**_jit_inline)
+    @njit(**_jit_ir_inline)
     def _any(m, nb):
         r = False
         for ii in range(nb):
@@ -852,7 +854,7 @@ if HAVE_NUMBA:
                                     -1.38888888888730564116e-3, 4.16666666666665929218e-2)
     _BIG_ANGLE = 1e6
 
-    @njit(**_jit_inline)
+    @njit(**_jit_ir_inline)
     def _sincos(x):
         # np.floor (float result): math.floor returns an integer, which keeps the loop scalar
         ax = abs(x)
