@@ -150,7 +150,7 @@ def coverage(mech) -> tuple[bool, str]:
 
 def warn_fallback(what: str, mech, reason: str) -> None:
     """Say once per (what, model class, reason) that ``what`` runs on NumPy and why."""
-    _compiled()[2].warn_fallback(what, mech, reason)
+    _compiled()[0].warn_fallback(what, mech, reason, stacklevel=5)
 
 
 def use_compiled(mech, engine, what: str) -> bool:

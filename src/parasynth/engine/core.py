@@ -42,15 +42,19 @@ the whole batch to NumPy.
 
 from __future__ import annotations
 
+import logging
 import math
 import os
 import threading
+import warnings
+import weakref
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
 from ..constraints import (ActuatorRange, CoordinateRange, JointAngleLimit, LegAxisAngle, LegInterference,
                            LegLengthRange)
+from ..mechanism import EngineFallbackWarning
 from ..legs import GEOM_TOL, PRS, PUS, RPS, RPU, SPS, UPS, UPU
 from ..spatial import unit
 from ..validation import MAX_POSE_MAGNITUDE
@@ -163,6 +167,50 @@ def over_blocks(fn, n_blocks: int, parallel: bool = True) -> None:
             err = err or e
     if err is not None:
         raise err
+
+
+_log = logging.getLogger("parasynth.engine")
+#: (what, model class, reason) already said: one warning each (the one fallback policy of
+#: the engine, for feasibility, margins, poses and the pose-wise indices alike).
+_WARNED: set = set()
+
+
+def warn_fallback(what: str, mech, reason: str, stacklevel: int = 4) -> None:
+    """Say once per (what, model class, reason) that ``what`` runs on NumPy for ``mech`` and
+    why: an :class:`EngineFallbackWarning` and a record on the ``parasynth.engine`` logger."""
+    key = (what, type(mech), reason)
+    if key in _WARNED:
+        return
+    _WARNED.add(key)
+    d = getattr(mech, "description", None)
+    src = getattr(d, "source", None) if d is not None else None
+    kind = f"{getattr(mech, 'name', type(mech).__name__)}" + (f" ({src})" if src else "")
+    msg = f"{kind}: {what} runs on NumPy: the compiled engine does not cover {reason}"
+    _log.info(msg)
+    warnings.warn(msg, EngineFallbackWarning, stacklevel=stacklevel)
+
+
+#: Per mechanism object, what the engine derived from it (the one plan record of a
+#: mechanism): ``"feasibility"`` {constraint selection: (legs, constraints, key, KernelPlan
+#: or None, reason, constraints)} and ``"indices"`` (legs, leg arrays). Weak keys: a
+#: mechanism's record goes with it; nothing is stored on the mechanism itself.
+_RECORDS: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+
+
+def record_of(mech) -> dict:
+    """The engine's record of ``mech`` (a dict; a fresh one, not kept, for an object that
+    cannot be weakly referenced or hashed)."""
+    try:
+        rec = _RECORDS.get(mech)
+    except TypeError:
+        return {}
+    if rec is None:
+        rec = {}
+        try:
+            _RECORDS[mech] = rec
+        except TypeError:
+            pass
+    return rec
 
 
 class Unsupported(Exception):
@@ -526,8 +574,19 @@ def build_plan(mech, cons) -> KernelPlan:
     return KernelPlan(prog, consts, kind, act, F, [c.name for c in cons], tables, expr)
 
 
+def _readonly(X: np.ndarray) -> np.ndarray:
+    """``X`` as a read-only array (a view if needed, no copy): numba types read-only and
+    writable arrays differently, and the poses come both ways (a study's cached samples are
+    read-only), so the kernels always get read-only poses -- one specialisation each."""
+    if X.flags.writeable:
+        X = X.view()
+        X.flags.writeable = False
+    return X
+
+
 def run_feasible(plan: KernelPlan, X: np.ndarray):
     """(out (N,) bool, ambiguous: bool) for contiguous float64 poses X."""
+    X = _readonly(X)
     out = np.empty(X.shape[0], dtype=np.bool_)
     nblk = (X.shape[0] + BLOCK - 1) // BLOCK
     amb = np.zeros(max(nblk, 1), dtype=np.int64)
@@ -538,6 +597,7 @@ def run_feasible(plan: KernelPlan, X: np.ndarray):
 
 def run_margins(plan: KernelPlan, X: np.ndarray):
     """(M (N, n_constraints), ambiguous: bool)."""
+    X = _readonly(X)
     M = np.empty((X.shape[0], len(plan.names)))
     nblk = (X.shape[0] + BLOCK - 1) // BLOCK
     amb = np.zeros(max(nblk, 1), dtype=np.int64)
@@ -548,7 +608,7 @@ def run_margins(plan: KernelPlan, X: np.ndarray):
 
 def run_pose(prog: Program, consts, X: np.ndarray, twist: bool = False):
     """(valid (N,), p (N, 3), R (N, 3, 3), T (N, 6, n_task) or None)."""
-    X = np.ascontiguousarray(X, dtype=np.float64)
+    X = _readonly(np.ascontiguousarray(X, dtype=np.float64))
     N = X.shape[0]
     ok = np.empty(N, dtype=np.bool_)
     P = np.empty((N, 3))
@@ -574,53 +634,56 @@ def run_pose(prog: Program, consts, X: np.ndarray, twist: bool = False):
 if HAVE_NUMBA:
     _jit = dict(nogil=True, error_model="numpy", fastmath=False, cache=True)
     # Helpers are ordinary calls (LLVM inlines the small ones); numba-level inlining
-    # (inline="always") re-types a helper at every call site and is kept only for the two
-    # whose own compiled module would just repeat the interpreter's (see docs/architecture.md).
+    # (inline="always") re-types a helper at every call site and is kept for _pose_prog and
+    # _fill_consts, whose own compiled module would just repeat the interpreter's, and for the
+    # helpers inside vectorised loops (_sincos, _clip01, _any), which LLVM does not always
+    # inline (see docs/architecture.md).
     _jit_inline = _jit
     _jit_ir_inline = dict(_jit, inline="always")
 
-    # Opcodes (parasynth.engine.program.OPS)
-    _NOP = 0
-    _ADD = 1
-    _SUBT = 2
-    _MUL = 3
-    _DIV = 4
-    _POW = 5
-    _NEG = 6
-    _SQRT = 7
-    _TAN = 8
-    _ASIN = 9
-    _ACOS = 10
-    _ATAN = 11
-    _EXP = 12
-    _LOG = 13
-    _ABS = 14
-    _SINH = 15
-    _COSH = 16
-    _TANH = 17
-    _ATAN2 = 18
-    _HYPOT = 19
-    _MIN = 20
-    _MAX = 21
-    _LT = 22
-    _LE = 23
-    _GT = 24
-    _GE = 25
-    _AND = 26
-    _SINCOS = 27
-    _SINCOS_ATAN2 = 28
-    _SIGN = 29
-    _SELECT = 30
-    _SQUARE = 31
-    _COPY = 32
-    _CLIP = 33
-    _SIN1 = 34
-    _COS1 = 35
-    _MADD = 36
-    _MSUB = 37
-    _RMSUB = 38
-    _MMADD = 39
-    _MMSUB = 40
+    # Opcodes: the one table, parasynth.engine.program.OPS (module constants, which numba
+    # folds into the interpreter)
+    _NOP = OPS["nop"]
+    _ADD = OPS["add"]
+    _SUBT = OPS["sub"]
+    _MUL = OPS["mul"]
+    _DIV = OPS["div"]
+    _POW = OPS["pow"]
+    _NEG = OPS["neg"]
+    _SQRT = OPS["sqrt"]
+    _TAN = OPS["tan"]
+    _ASIN = OPS["asin"]
+    _ACOS = OPS["acos"]
+    _ATAN = OPS["atan"]
+    _EXP = OPS["exp"]
+    _LOG = OPS["log"]
+    _ABS = OPS["abs"]
+    _SINH = OPS["sinh"]
+    _COSH = OPS["cosh"]
+    _TANH = OPS["tanh"]
+    _ATAN2 = OPS["atan2"]
+    _HYPOT = OPS["hypot"]
+    _MIN = OPS["min"]
+    _MAX = OPS["max"]
+    _LT = OPS["lt"]
+    _LE = OPS["le"]
+    _GT = OPS["gt"]
+    _GE = OPS["ge"]
+    _AND = OPS["and"]
+    _SINCOS = OPS["sincos"]
+    _SINCOS_ATAN2 = OPS["sincos_atan2"]
+    _SIGN = OPS["sign"]
+    _SELECT = OPS["select"]
+    _SQUARE = OPS["square"]
+    _COPY = OPS["copy"]
+    _CLIP = OPS["clip"]
+    _SIN1 = OPS["sin"]
+    _COS1 = OPS["cos"]
+    _MADD = OPS["madd"]
+    _MSUB = OPS["msub"]
+    _RMSUB = OPS["rmsub"]
+    _MMADD = OPS["mmadd"]
+    _MMSUB = OPS["mmsub"]
 
     # The pose travels as a tuple T = (px, py, pz, R00, R01, R02, R10, ..., R22) in the scalar
     # kernel so that it stays in registers.
@@ -762,11 +825,11 @@ if HAVE_NUMBA:
         return cx * cx + cy * cy + cz * cz
 
 
-    @njit(**_jit_inline)
+    @njit(**_jit_ir_inline)
     def _clip01(x):
         return min(max(x, 0.0), 1.0)
 
-    @njit(**_jit_inline)
+    @njit(**_jit_ir_inline)
     def _any(m, nb):
         r = False
         for ii in range(nb):
@@ -788,7 +851,7 @@ if HAVE_NUMBA:
                                     -1.38888888888730564116e-3, 4.16666666666665929218e-2)
     _BIG_ANGLE = 1e6
 
-    @njit(**_jit_inline)
+    @njit(**_jit_ir_inline)
     def _sincos(x):
         # np.floor (float result): math.floor returns an integer, which keeps the loop scalar
         ax = abs(x)

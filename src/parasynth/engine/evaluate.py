@@ -2,54 +2,31 @@
 entry points of :mod:`parasynth.engine` (which loads this module at the first compiled
 evaluation: it imports :mod:`parasynth.engine.core` and with it numba).
 
-Plans are cached per mechanism object and constraint selection. Where the kernels do not cover
-a mechanism (see :mod:`parasynth.engine`), the mechanism's NumPy reference answers and an
-:class:`~parasynth.mechanism.EngineFallbackWarning` says why, once per mechanism kind and
-reason.
+Plans live in the engine's one record of each mechanism object (:func:`core.record_of`), one per
+constraint selection. Where the kernels do not cover a mechanism (see :mod:`parasynth.engine`),
+the mechanism's NumPy reference answers and :func:`core.warn_fallback` -- the engine's one
+fallback policy -- says why with an :class:`~parasynth.mechanism.EngineFallbackWarning`, once
+per entry point, model class and reason.
 """
 
 from __future__ import annotations
 
-import logging
-import warnings
-import weakref
-
 import numpy as np
 
-from ..mechanism import EngineFallbackWarning
 from . import core
-from .core import HAVE_NUMBA, Unsupported
+from .core import HAVE_NUMBA, Unsupported, warn_fallback
 
 __all__ = ["feasible", "margins", "compiled_pose_batch", "available", "reason", "plan"]
 
-_log = logging.getLogger("parasynth.engine")
-
-
 # ---------------------------------------------------------------------------------------------
-# plans, cached per mechanism object and constraint selection
+# plans: one record per mechanism object (core.record_of), one plan per constraint selection
 # ---------------------------------------------------------------------------------------------
-_PLANS: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
-_WARNED: set = set()
-
-
 def _selection(mech, names):
     return mech._select(names)
 
 
-def _kind(mech) -> str:
-    d = getattr(mech, "description", None)
-    src = getattr(d, "source", None) if d is not None else None
-    return f"{getattr(mech, 'name', type(mech).__name__)}" + (f" ({src})" if src else "")
-
-
-def _warn(mech, why: str) -> None:
-    key = (type(mech), why)
-    if key in _WARNED:
-        return
-    _WARNED.add(key)
-    msg = f"{_kind(mech)}: the compiled engine does not cover {why}; evaluated with NumPy"
-    _log.info(msg)
-    warnings.warn(msg, EngineFallbackWarning, stacklevel=4)
+def _warn(mech, why: str, what: str = "is_feasible/constraint_margins") -> None:
+    warn_fallback(what, mech, why, stacklevel=6)
 
 
 def plan(mech, names=None):
@@ -59,16 +36,7 @@ def plan(mech, names=None):
     cons = _selection(mech, names)
     key = tuple(id(c) for c in cons)
     legs = tuple(id(leg) for leg in mech.legs)
-    try:
-        per = _PLANS.get(mech)
-    except TypeError:
-        per = None
-    if per is None:
-        per = {}
-        try:
-            _PLANS[mech] = per
-        except TypeError:
-            pass
+    per = core.record_of(mech).setdefault("feasibility", {})
     hit = per.get(key)
     if hit is not None and hit[0] == legs and hit[1] is mech.constraints and hit[2] == key:
         return hit[3], hit[4]
@@ -148,15 +116,15 @@ def compiled_pose_batch(mech, Xa, twist: bool = False):
     (as :func:`parasynth.engine.pose_batch`), or None, having said why once, when the program
     does not cover ``mech`` (the caller then evaluates the NumPy methods)."""
     if not HAVE_NUMBA:
-        _warn(mech, "numba (not importable, or disabled by PARASYNTH_NO_NUMBA)")
+        _warn(mech, "numba (not importable, or disabled by PARASYNTH_NO_NUMBA)", "pose_batch")
         return None
     if not core._is_described(mech):
-        _warn(mech, f"the model class {type(mech).__name__} (not a mechanism description)")
+        _warn(mech, f"the model class {type(mech).__name__} (not a mechanism description)", "pose_batch")
         return None
     try:
         prog = core.program_for(mech, {}, twist)
         consts = prog.constants(mech._penv)
     except (Unsupported, KeyError, IndexError, TypeError, ValueError, AttributeError) as e:
-        _warn(mech, str(e))
+        _warn(mech, str(e), "pose_batch")
         return None
     return core.run_pose(prog, consts, Xa, twist)

@@ -2,7 +2,7 @@
 
 The NumPy reference builds the legs' wrench system for a whole batch of poses with (N, k, 6)
 temporaries and then calls LAPACK on the stack. Here one compiled pass (``numba.njit``,
-``parallel=True``, float64, no fastmath) takes the platform poses and, pose by pose, forms the
+``nogil``, float64, no fastmath) takes the platform poses and, pose by pose, forms the
 same wrench rows from the legs' geometry and runs small decompositions on them in scratch
 arrays that stay in the L1 cache:
 
@@ -27,7 +27,8 @@ twist is the leg's column of the inverse, ``V S^-1 U^T e_i`` (by interlacing the
 then have rank 5 at the NumPy path's 1e-9 threshold, so the NumPy path finds the same
 one-dimensional set); otherwise each leg gets the SVD of its other rows, as in NumPy.
 
-Batches of at least :data:`PARALLEL_MIN` poses run on all threads (``prange``); smaller ones
+Batches of at least :data:`PARALLEL_MIN` poses are spread over threads (ranges of chunks on a
+thread pool, :func:`parasynth.engine.core.over_blocks`); smaller ones
 (one design's feasible poses) serially, where starting threads would cost more than it saves.
 
 Every function is generic over the leg types ``SPS, UPS, PUS, RPS, RPU, UPU, PRS``; nothing is
@@ -57,14 +58,12 @@ singularity) may fall on either side.
 
 from __future__ import annotations
 
-import logging
 import math
-import warnings
 
 import numpy as np
 
 from ..legs import GEOM_TOL, PRS, PUS, RPS, RPU, SPS, UPS, UPU, Leg
-from ..mechanism import EngineFallbackWarning, Mechanism
+from ..mechanism import Mechanism
 from .evaluate import compiled_pose_batch
 
 __all__ = [
@@ -79,12 +78,14 @@ __all__ = [
     "warn_fallback",
 ]
 
-log = logging.getLogger("parasynth.engine")
 
-from .core import HAVE_NUMBA  # one decision (PARASYNTH_NO_NUMBA, a broken install) for the whole engine
+# One decision (PARASYNTH_NO_NUMBA, a broken install), one fallback policy and warning
+# (warn_fallback, said once per what, model class and reason) and one per-mechanism record of
+# plans (record_of) for the whole engine.
+from .core import _WARNED, HAVE_NUMBA, over_blocks, record_of, warn_fallback  # noqa: F401
 
 if HAVE_NUMBA:
-    from numba import njit, prange
+    from numba import njit
 
 # Leg type codes in the kernels.
 _SPS, _UPS, _PUS, _RPS, _RPU, _UPU, _PRS = 0, 1, 2, 3, 4, 5, 6
@@ -98,21 +99,6 @@ _MECH_METHODS = ("leg_states", "_actuation_rows", "wrench_matrix", "normalized_w
 
 #: Poses per parallel work item.
 CHUNK = 256
-
-_WARNED: set = set()
-
-
-def warn_fallback(what: str, mech, reason: str) -> None:
-    """Say once per (what, model class, reason) that ``what`` runs on NumPy and why: an
-    :class:`parasynth.engine.EngineFallbackWarning` and a log record (``parasynth.engine``)."""
-    key = (what, type(mech).__name__, reason)
-    if key in _WARNED:
-        return
-    _WARNED.add(key)
-    msg = f"{getattr(mech, 'name', type(mech).__name__)}: {what} runs on NumPy: {reason}"
-    log.info(msg)
-    warnings.warn(msg, EngineFallbackWarning, stacklevel=4)
-
 
 # ---------------------------------------------------------------------------------------------
 # Plan: the legs packed into arrays
@@ -171,8 +157,10 @@ def _leg_code(leg: Leg) -> int:
 
 
 def _plan(mech):
-    """Leg arrays of ``mech`` (cached on the instance: the legs do not change within a design)."""
-    plan = getattr(mech, "_engine_indices_plan", None)
+    """Leg arrays of ``mech`` (kept in the engine's record of the mechanism, beside its
+    feasibility plans, while its legs are the same object)."""
+    rec = record_of(mech)
+    plan = rec.get("indices")
     if plan is not None and plan[0] is mech.legs:
         return plan[1]
     ok, why = coverage(mech)
@@ -209,7 +197,7 @@ def _plan(mech):
             sc[j] = (float(leg.link_length), float(leg.branch))
     nc = int(sum(_NC[c] for c in code))
     plan = (code, act, geo, sc, nc)
-    mech._engine_indices_plan = (mech.legs, plan)
+    rec["indices"] = (mech.legs, plan)
     return plan
 
 
@@ -761,13 +749,12 @@ if HAVE_NUMBA:
                 r += 1
         return r
 
-    def _margin_kernel(p, R, valid, code, act, geo, sc, upuL, na, nc, rc, L, out):
+    def _margin_kernel(p, R, valid, code, act, geo, sc, upuL, na, nc, rc, L, out, c0, c1):
         N = p.shape[0]
-        nchunk = (N + CHUNK - 1) // CHUNK
         rcu = min(rc, nc, 6) if nc > 0 else 0
         k = na + rcu
         kk = min(k, 6)
-        for c in prange(nchunk):
+        for c in range(c0, c1):
             A = np.empty((max(na, 1), 6))
             scale = np.empty(max(na, 1))
             anchor = np.empty((max(na, 1), 3))
@@ -851,11 +838,10 @@ if HAVE_NUMBA:
                     smin = min(smin, sv[q])
                 out[i] = smin
 
-    def _lti_kernel(p, R, valid, code, act, geo, sc, upuL, na, nc, L, rtol, inp, outp, lti):
+    def _lti_kernel(p, R, valid, code, act, geo, sc, upuL, na, nc, L, rtol, inp, outp, lti, c0, c1):
         N = p.shape[0]
-        nchunk = (N + CHUNK - 1) // CHUNK
         m = na - 1 + nc
-        for c in prange(nchunk):
+        for c in range(c0, c1):
             A = np.empty((max(na, 1), 6))
             scale = np.empty(max(na, 1))
             anchor = np.empty((max(na, 1), 3))
@@ -1005,12 +991,11 @@ if HAVE_NUMBA:
                     low = min(low, o, ii)
                 lti[i] = low
 
-    def _kappa_kernel(p, R, valid, T, angcol, code, act, geo, sc, upuL, na, nc, L, out):
+    def _kappa_kernel(p, R, valid, T, angcol, code, act, geo, sc, upuL, na, nc, L, out, c0, c1):
         N = p.shape[0]
         nt = T.shape[2]
-        nchunk = (N + CHUNK - 1) // CHUNK
         mn = min(na, nt)
-        for c in prange(nchunk):
+        for c in range(c0, c1):
             A = np.empty((max(na, 1), 6))
             scale = np.empty(max(na, 1))
             anchor = np.empty((max(na, 1), 3))
@@ -1055,12 +1040,11 @@ if HAVE_NUMBA:
                 else:
                     out[i] = np.inf
 
-    def _dir_kernel(p, R, valid, code, act, geo, sc, upuL, na, nc, dirs, reach):
+    def _dir_kernel(p, R, valid, code, act, geo, sc, upuL, na, nc, dirs, reach, c0, c1):
         """Unit leg directions (N, n_legs, 3) base -> platform and reachability."""
         N = p.shape[0]
         nl = code.shape[0]
-        nchunk = (N + CHUNK - 1) // CHUNK
-        for c in prange(nchunk):
+        for c in range(c0, c1):
             A = np.empty((max(na, 1), 6))
             scale = np.empty(max(na, 1))
             anchor = np.empty((max(na, 1), 3))
@@ -1092,19 +1076,28 @@ if HAVE_NUMBA:
                         dirs[i, j, 0], dirs[i, j, 1], dirs[i, j, 2] = ux, uy, uz
 
 
-    # Each kernel twice: threaded for large batches, serial for the few thousand poses of one
-    # design (where starting threads costs more than it saves, and studies parallelise over
-    # designs).
+    # Each kernel once, serial over a range of chunks (nogil): large batches are spread over
+    # threads by core.over_blocks, one design's few thousand poses run on the calling thread
+    # (studies parallelise over designs).
     _KERNELS = {}
     for _f in (_margin_kernel, _lti_kernel, _kappa_kernel, _dir_kernel):
-        _KERNELS[_f.__name__] = (njit(**_jit)(_f), njit(parallel=True, **_jit)(_f))
+        _KERNELS[_f.__name__] = njit(**_jit)(_f)
 
-#: Batches of at least this many poses run on all threads.
+#: Batches of at least this many poses are spread over threads.
 PARALLEL_MIN = 16384
 
 
 def _kernel(name: str, n: int):
-    return _KERNELS[name][1 if n >= PARALLEL_MIN else 0]
+    """``kernel(*args)`` for ``n`` poses: the compiled kernel over all chunks of CHUNK poses,
+    spread over threads when ``n >= PARALLEL_MIN``."""
+    k = _KERNELS[name]
+    nchunk = (n + CHUNK - 1) // CHUNK
+
+    def run(*args):
+        over_blocks(lambda c0, c1: k(*args, c0, c1), nchunk, n >= PARALLEL_MIN)
+
+    return run
+
 
 # ---------------------------------------------------------------------------------------------
 # Entry points

@@ -199,6 +199,10 @@ def _run_locked(study, out_dir, previous, resume, n_trials, progress, storage, n
                 # with it: the storage is the record of an Optuna study.
                 ctx = _optuna_setup(study, out_dir, resume, n_trials, storage, records)
                 records[:] = ctx["records"]
+
+            n_warm = max(1, int(study.evaluation["n"]) // 2)  # not the run's sample count: no cache hit later
+            warm_up(lambda: evaluator.evaluate(_warm_up_design(study), n=n_warm, source="warm-up"),
+                    progress=None if not progress else print_err, stop=lambda: guard.requested)
             journal = Journal(out_dir / "journal.jsonl")
 
             def record(rec: Record):
@@ -210,10 +214,6 @@ def _run_locked(study, out_dir, previous, resume, n_trials, progress, storage, n
                     write_tables(study, out_dir, records)
                     last_tables[0] = now
 
-            # compile before any design is timed; says so when it compiles
-            n_warm = max(1, int(study.evaluation["n"]) // 2)  # not the run's sample count: no cache hit later
-            warm_up(lambda: evaluator.evaluate(_warm_up_design(study), n=n_warm, source="warm-up"),
-                    progress=None if not progress else print_err, stop=lambda: guard.requested)
             if guard.requested:
                 pass
             elif study.reference is not None and not any(r.source == "reference" for r in records):
