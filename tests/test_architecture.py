@@ -1,0 +1,271 @@
+"""The layers of ``src/parasynth`` go one way.
+
+The import graph is built from the source (every ``import``/``from ... import`` of parasynth's
+own modules, at module level or inside functions, plus ``importlib.import_module("...")`` and
+``__import__("...")`` calls with a literal name), then checked:
+
+* no import cycle between modules;
+* the NumPy model layer (``spatial``, ``legs``, ``constraints``, ``mechanism``) imports nothing
+  above it (in particular not the engine);
+* the engine does not import the description language or anything above it;
+* the study layer never imports the report layer; the report reads a run through the study
+  layer's public run-directory module only;
+* at most 10 imports of parasynth's own modules sit inside functions outside ``cli.py``, each
+  with a one-line reason on its line or the line above.
+
+The tests of the checker itself build small synthetic packages, so a checker that found
+nothing could not pass them.
+"""
+from __future__ import annotations
+
+import ast
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import pytest
+
+SRC = Path(__file__).resolve().parents[1] / "src"
+MAX_INNER = 10
+
+MODEL = ("parasynth.spatial", "parasynth.legs", "parasynth.constraints", "parasynth.mechanism")
+BASE = ("parasynth.spatial", "parasynth.units", "parasynth.validation", "parasynth.yamlio")
+
+
+@dataclass
+class Graph:
+    modules: dict[str, Path]
+    edges: dict[str, set[str]] = field(default_factory=dict)
+    inner: list[tuple[str, int, str, str]] = field(default_factory=list)  # (module, line, target, reason)
+
+
+def _module_names(root: Path, package: str) -> dict[str, Path]:
+    mods = {}
+    for p in sorted((root / package).rglob("*.py")):
+        rel = p.relative_to(root).with_suffix("")
+        name = ".".join(rel.parts)
+        if name.endswith(".__init__"):
+            name = name[: -len(".__init__")]
+        mods[name] = p
+    return mods
+
+
+def _own(name: str, mods: dict) -> str | None:
+    """The longest module of ours that ``name`` names or lies in, else None."""
+    while name:
+        if name in mods:
+            return name
+        if "." not in name:
+            return None
+        name = name.rsplit(".", 1)[0]
+    return None
+
+
+def _targets(mod: str, node, mods: dict) -> list[str]:
+    is_pkg = mods[mod].name == "__init__.py"
+    pkg = mod if is_pkg else mod.rsplit(".", 1)[0]
+    out = []
+    if isinstance(node, ast.Import):
+        out = [a.name for a in node.names]
+    elif isinstance(node, ast.ImportFrom):
+        base = node.module or ""
+        if node.level:
+            parts = pkg.split(".")
+            parts = parts[: len(parts) - node.level + 1]
+            base = ".".join(parts + ([base] if base else []))
+        out = [f"{base}.{a.name}" if f"{base}.{a.name}" in mods else base for a in node.names]
+    elif isinstance(node, ast.Call):
+        f = node.func
+        fname = f.attr if isinstance(f, ast.Attribute) else getattr(f, "id", None)
+        if fname in ("import_module", "__import__") and node.args and isinstance(node.args[0], ast.Constant) \
+                and isinstance(node.args[0].value, str):
+            name = node.args[0].value
+            if name.startswith(".") and len(node.args) > 1 and isinstance(node.args[1], ast.Constant):
+                name = node.args[1].value + name
+            out = [name]
+    return [t for t in (_own(o, mods) for o in out) if t is not None]
+
+
+def _is_import(node) -> bool:
+    if isinstance(node, (ast.Import, ast.ImportFrom)):
+        return True
+    if isinstance(node, ast.Call):
+        f = node.func
+        return (f.attr if isinstance(f, ast.Attribute) else getattr(f, "id", None)) in ("import_module", "__import__")
+    return False
+
+
+def _reason(lines: list[str], lineno: int) -> str:
+    """The comment on the import's line or the line above it."""
+    for i in (lineno - 1, lineno - 2):
+        if 0 <= i < len(lines) and "#" in lines[i]:
+            return lines[i].split("#", 1)[1].strip()
+    return ""
+
+
+def build_graph(root: Path, package: str = "parasynth") -> Graph:
+    mods = _module_names(root, package)
+    g = Graph(mods, {m: set() for m in mods})
+    for m, p in mods.items():
+        text = p.read_text()
+        lines = text.splitlines()
+        tree = ast.parse(text)
+        in_func: set[int] = set()
+        for fn in ast.walk(tree):
+            if isinstance(fn, (ast.FunctionDef, ast.AsyncFunctionDef, ast.Lambda)):
+                for node in ast.walk(fn):
+                    if _is_import(node):
+                        in_func.add(id(node))
+        for node in ast.walk(tree):
+            if not _is_import(node):
+                continue
+            for t in sorted(set(_targets(m, node, mods))):
+                if t == m or t == package:
+                    continue
+                g.edges[m].add(t)
+                if id(node) in in_func and not m.endswith(".cli"):
+                    g.inner.append((m, node.lineno, t, _reason(lines, node.lineno)))
+    return g
+
+
+def cycles(g: Graph) -> list[list[str]]:
+    """Strongly connected components with more than one module (Tarjan, iterative)."""
+    index, low, stack, on, comps = {}, {}, [], set(), []
+    counter = 0
+    for start in g.edges:
+        if start in index:
+            continue
+        work = [(start, iter(sorted(g.edges[start])))]
+        index[start] = low[start] = counter
+        counter += 1
+        stack.append(start)
+        on.add(start)
+        while work:
+            v, it = work[-1]
+            for w in it:
+                if w not in index:
+                    index[w] = low[w] = counter
+                    counter += 1
+                    stack.append(w)
+                    on.add(w)
+                    work.append((w, iter(sorted(g.edges[w]))))
+                    break
+                if w in on:
+                    low[v] = min(low[v], index[w])
+            else:
+                work.pop()
+                if work:
+                    low[work[-1][0]] = min(low[work[-1][0]], low[v])
+                if low[v] == index[v]:
+                    comp = []
+                    while True:
+                        w = stack.pop()
+                        on.discard(w)
+                        comp.append(w)
+                        if w == v:
+                            break
+                    if len(comp) > 1:
+                        comps.append(sorted(comp))
+    return comps
+
+
+def _imports_of(g: Graph, prefix: str) -> dict[str, set[str]]:
+    return {m: t for m, t in g.edges.items() if m == prefix or m.startswith(prefix + ".")}
+
+
+# ---------------------------------------------------------------------------------------------
+# the checker on synthetic packages: it finds what it must find
+# ---------------------------------------------------------------------------------------------
+def _package(tmp_path: Path, files: dict[str, str]) -> Path:
+    for rel, text in files.items():
+        p = tmp_path / "pkg" / rel
+        p.parent.mkdir(parents=True, exist_ok=True)
+        p.write_text(text)
+    return tmp_path
+
+
+def test_checker_finds_a_cycle_hidden_in_a_function(tmp_path):
+    root = _package(tmp_path, {
+        "__init__.py": "",
+        "a.py": "from . import b\n",
+        "b.py": "def f():\n    from .a import x  # hidden\n    return x\n",
+        "c.py": "import pkg.a\n",
+    })
+    g = build_graph(root, "pkg")
+    assert cycles(g) == [["pkg.a", "pkg.b"]]
+    assert g.inner == [("pkg.b", 2, "pkg.a", "hidden")]
+
+
+def test_checker_counts_importlib_and_dunder_import(tmp_path):
+    root = _package(tmp_path, {
+        "__init__.py": "",
+        "a.py": "import importlib\ndef f():\n    return importlib.import_module('pkg.sub.b')\n",
+        "sub/__init__.py": "",
+        "sub/b.py": "def g():\n    return __import__('pkg.a')\n",
+    })
+    g = build_graph(root, "pkg")
+    assert g.edges["pkg.a"] == {"pkg.sub.b"} and g.edges["pkg.sub.b"] == {"pkg.a"}
+    assert cycles(g) == [["pkg.a", "pkg.sub.b"]]
+    assert len(g.inner) == 2
+
+
+def test_checker_resolves_relative_imports_from_packages(tmp_path):
+    root = _package(tmp_path, {
+        "__init__.py": "",
+        "sub/__init__.py": "from .x import y\nfrom .. import top\n",
+        "sub/x.py": "y = 1\n",
+        "top.py": "",
+    })
+    g = build_graph(root, "pkg")
+    assert g.edges["pkg.sub"] == {"pkg.sub.x", "pkg.top"}
+    assert cycles(g) == []
+
+
+# ---------------------------------------------------------------------------------------------
+# the real package
+# ---------------------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def graph() -> Graph:
+    g = build_graph(SRC)
+    assert len(g.modules) > 30, "the package was not found where the test looks for it"
+    return g
+
+
+def test_no_import_cycles(graph):
+    assert cycles(graph) == []
+
+
+def test_model_layer_imports_only_the_base(graph):
+    for m in MODEL:
+        above = sorted(t for t in graph.edges[m] if t not in MODEL + BASE)
+        assert above == [], f"{m} (NumPy model layer) imports {above}"
+
+
+def test_engine_does_not_import_descriptions_or_above(graph):
+    allowed = MODEL + BASE
+    for m, targets in _imports_of(graph, "parasynth.engine").items():
+        above = sorted(t for t in targets if t not in allowed and not t.startswith("parasynth.engine"))
+        assert above == [], f"{m} (engine) imports {above}"
+
+
+def test_study_layer_never_imports_the_report(graph):
+    for m, targets in _imports_of(graph, "parasynth.study").items():
+        bad = sorted(t for t in targets if t.startswith("parasynth.report"))
+        assert bad == [], f"{m} (study layer) imports {bad}"
+
+
+def test_nothing_below_the_cli_imports_it(graph):
+    for m, targets in graph.edges.items():
+        assert "parasynth.cli" not in targets or m == "parasynth.__main__", f"{m} imports the CLI"
+
+
+def test_few_function_level_imports_each_with_a_reason(graph):
+    listing = "\n".join(f"  {m}:{line} -> {t}  # {why}" for m, line, t, why in graph.inner)
+    assert len(graph.inner) <= MAX_INNER, f"{len(graph.inner)} imports of our own modules inside functions:\n{listing}"
+    missing = [(m, line) for m, line, _, why in graph.inner if not why]
+    assert missing == [], f"function-level imports without a one-line reason: {missing}"
+
+
+def test_the_report_reads_runs_through_one_study_module(graph):
+    for m, targets in _imports_of(graph, "parasynth.report").items():
+        study = sorted(t for t in targets if t.startswith("parasynth.study"))
+        assert set(study) <= {"parasynth.study.rundir"}, f"{m} imports {study}"
