@@ -201,3 +201,27 @@ def test_study_keeps_variables_and_spec_variable_importable():
     assert SpecVariable is Variable
     assert study.space.variables == study.variables
     assert study.space.key({"link_length": 0.2, "slider_radius": 0.13}) == (0.2, 0.13)
+
+
+def test_a_conditional_sweep_runs_end_to_end(tmp_path):
+    import csv
+
+    from parasynth.study import run_study
+
+    text = (BASE.replace("evaluation: {samples: 64}", "evaluation: {samples: 64, final_samples: 64, final_repeats: 1, "
+                                                      "final_top: 3}")
+            + "fixed: {link_length: 205 mm}\nvariables:\n"
+            + "  - {name: hinge_layout, type: categorical, choices: [scheme1, scheme2]}\n"
+            + "  - {name: hinge_scale, values: [0.9, 1.1], when: {hinge_layout: [scheme2]}}\n"
+            + "optimizer: {kind: sweep}\n")
+    study = load_study(text, is_text=True)
+    res = run_study(study, out_dir=tmp_path / "run", progress=False)
+    assert res.n_new == 3 and not res.interrupted
+    rows = list(csv.DictReader(open(tmp_path / "run" / "results.csv")))
+    assert [(r["hinge_layout"], r["hinge_scale"]) for r in rows] == [("scheme1", ""), ("scheme2", "0.9"),
+                                                                      ("scheme2", "1.1")]
+    assert [r["status"] for r in rows] == ["ok"] * 3
+    assert res.final is not None and len(res.final)
+    # resuming finds every design done
+    again = run_study(study, out_dir=tmp_path / "run", resume=True, progress=False)
+    assert again.n_new == 0 and again.n_total == 3
