@@ -37,7 +37,6 @@ from pydantic import BaseModel, ConfigDict, Field, Strict, ValidationError
 
 from ..mechanisms import load_mechanism, mechanism_class, resolve_mechanism_name
 from ..objectives import OBJECTIVES, get as get_measure
-from ..units import QuantityError, parse_quantity
 from ..validation import MAX_SAMPLES, MAX_SEED, MAX_TRIALS, check_count, check_number, is_real_number
 from ..yamlio import YamlError, load_yaml
 from .design import box_centre, design_params, measure_settings
