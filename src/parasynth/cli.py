@@ -425,13 +425,13 @@ def cmd_worker(args) -> int:
 def cmd_evaluate(args) -> int:
     from .study import Evaluator
     from .study.design import box_centre
-    from .study.spec import _q
 
     study = _checked_study(args.study)
     byname = {v.name: v for v in study.variables}
     base = dict(study.reference or {})
     centre = box_centre(study)  # the reference design, else the centre of the variable box
-    values = {v.name: base[v.name] if v.name in base else centre[v.name] for v in study.variables}
+    values = {v.name: base[v.name] if v.name in base else centre[v.name] for v in study.variables
+              if v.name in base or v.name in centre}
     for item in args.set or []:
         if "=" not in item:
             raise CliError(f"--set expects NAME=VALUE with units, got {item!r}")
@@ -439,7 +439,7 @@ def cmd_evaluate(args) -> int:
         if k not in byname:
             raise CliError(f"--set {k}: not a design variable; variables: {', '.join(byname) or '(none)'}")
         var = byname[k]
-        x = _q(val, var.kind, f"--set {k}")
+        x = study.space.parse_value(k, val, f"--set {k}")
         if var.type == "categorical" and x not in var.choices:
             print(f"warning: --set {k}={val} is not one of the variable's choices "
                   f"{_fmt_value(list(var.choices), var.kind)}", file=sys.stderr)
@@ -451,6 +451,8 @@ def cmd_evaluate(args) -> int:
             print(f"warning: --set {k}={val} is not one of the swept values "
                   f"{_fmt_value(list(var.values), var.kind)}", file=sys.stderr)
         values[k] = x
+    if study.space.conditional:  # a conditional variable exists only for some choices
+        values = study.space.restrict({**centre, **values})
     rec = Evaluator(study).evaluate(values, n=args.samples)
     from .display import fmt_column_value as fq, fmt_design
 

@@ -3,6 +3,8 @@ algorithm of each kind and the seed of the optimiser."""
 
 from __future__ import annotations
 
+from .space import DesignSpace
+
 __all__ = ["OPTUNA_TRIALS", "NLOPT_MAXEVAL", "NLOPT_ALGORITHM", "optuna_algorithm", "nlopt_algorithm",
            "optuna_budget", "nlopt_budget", "optimizer_seed", "planned_designs"]
 
@@ -48,10 +50,7 @@ def planned_designs(study) -> int | None:
     if opt.kind == "sweep":
         if opt.designs:
             return len(opt.designs)
-        n = 1
-        for v in study.variables:
-            n *= len(v.values if v.values is not None else v.choices)
-        return n
+        return DesignSpace(study.variables).grid_size()
     if opt.kind == "optuna":
         return optuna_budget(study)
     return None

@@ -9,14 +9,15 @@
   workspace sample where the measure takes it, then the measure's own settings.
 
 The functions take a resolved study (:class:`~parasynth.study.spec.ResolvedStudy`) by its
-attributes; this module imports nothing of the study layer.
+attributes; of the study layer this module imports only the design space
+(:mod:`parasynth.study.space`, where the identity and the centre are defined).
 """
 
 from __future__ import annotations
 
-import numpy as np
-
 from ..objectives import get as get_measure
+from .space import BOX_CENTRE_U, DesignSpace, centre_value
+from .space import design_key as key_of
 
 __all__ = ["design_params", "design_key", "BOX_CENTRE_U", "centre_value", "box_centre", "measure_settings",
            "WORKSPACE_SETTINGS"]
@@ -33,47 +34,14 @@ def design_params(study, values: dict) -> dict:
 
 
 def design_key(study, values) -> tuple:
-    """Identity of a design: its design-variable values in the study's order, floats to 12
-    significant digits (so that a value read back from CSV or JSON matches the one
-    evaluated), NumPy integers as ints. ``values`` is a mapping or a table row."""
-    out = []
-    for v in study.variables:
-        x = values[v.name]
-        if isinstance(x, (float, np.floating)) and np.isfinite(x):
-            x = float(f"{float(x):.12g}")
-        elif isinstance(x, np.integer):
-            x = int(x)
-        out.append(x)
-    return tuple(out)
-
-
-#: The centre of a variable's range in normalised coordinates (0 = low, 1 = high; on a log
-#: scale for ``log`` variables).
-BOX_CENTRE_U = 0.5
-
-
-def centre_value(v):
-    """The centre of one variable: the middle of [low, high] on its scale (geometric mean for
-    ``log``), rounded for an integer variable; the middle listed value of a variable with
-    values only; the first choice of a categorical one."""
-    if v.type != "categorical" and v.low is not None and v.high is not None:
-        x = v.denormalize(BOX_CENTRE_U)
-        return round(x) if v.type == "integer" else x
-    if v.values:
-        return v.values[len(v.values) // 2]
-    if v.choices:
-        return v.choices[0]
-    return None
+    """Identity of a design of ``study`` (:func:`parasynth.study.space.design_key` over the
+    study's variables). ``values`` is a mapping or a table row."""
+    return key_of(study.variables, values)
 
 
 def box_centre(study) -> dict:
     """The centre of the variable box, {variable: value} (see :func:`centre_value`)."""
-    out = {}
-    for v in study.variables:
-        x = centre_value(v)
-        if x is not None:
-            out[v.name] = x
-    return out
+    return DesignSpace(study.variables).centre()
 
 
 #: Study evaluation keys -> measure setting names: the workspace sample shared by the measures.

@@ -215,6 +215,8 @@ def reevaluate_best(study: ResolvedStudy, evaluator: Evaluator, table: pd.DataFr
     for src, df in (("best", best), ("reference", ref.head(1))):
         for _, row in df.iterrows():
             values = {v.name: row[v.name] for v in study.variables} if src == "best" else dict(study.reference)
+            if src == "best" and study.space.conditional:  # inactive variables are empty cells
+                values = study.space.restrict(values)
             recs = [evaluator.evaluate(values, n=ev["final_samples"], seed=ev["seed"] + 1000 + j)
                     for j in range(ev["final_repeats"])]
             out = {"source": src, "trial": int(row["trial"])}

@@ -1,4 +1,7 @@
-"""Study runners (sweep, NLopt, Optuna), the run directory and its result tables.
+"""Running a study: the run directory and its result tables, the journal, resuming, and the
+dispatch to the runner of the study's kind (:data:`RUNNERS`: :mod:`~parasynth.study.run_sweep`,
+:mod:`~parasynth.study.run_nlopt`, :mod:`~parasynth.study.run_optuna`, each a function
+``run(problem, ctx)`` against :class:`~parasynth.study.problem.Problem`).
 
 Run directory (default ``runs/<study name>/``):
 
@@ -39,34 +42,36 @@ Completed evaluations are neither lost nor repeated.
 
 from __future__ import annotations
 
-import itertools
-import math
 import os
 import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
 import pandas as pd
 
-from ..display import fmt_column_value, reference_name
+from ..display import reference_name
 from ..engine import warm_up
 from . import storage as st
 from .budget import budget_for_run, same_study
-from .defaults import nlopt_algorithm, nlopt_budget, optimizer_seed, optuna_algorithm, optuna_budget
-from .design import BOX_CENTRE_U, design_key
-from .evaluate import Evaluator, Record
+from .defaults import optimizer_seed, optuna_budget
+from .evaluate import Record
 from .final import reevaluate_best
 from .journal import Journal, RunLock, jsonable, read_journal, rewrite_journal
 from .optuna_adapter import fail_trial
-from .progress import Progress
+from .problem import Problem, RunContext
+from .run_nlopt import run_nlopt
+from .run_optuna import run_optuna
+from .run_sweep import run_sweep
 from .signals import Interrupt
-from .spec import NLOPT_WITH_CONSTRAINTS, ResolvedStudy, StudyError, _q
+from .spec import ResolvedStudy, StudyError
 from .tables import results_table, write_tables
-from .workers import make_sampler, optimize_loop, optuna_objective, run_local_workers
+from .workers import make_sampler
 
-__all__ = ["run_study", "RunResult", "results_table", "read_journal"]
+__all__ = ["run_study", "RunResult", "results_table", "read_journal", "RUNNERS"]
+
+#: The runner of each ``optimizer.kind``: ``run(problem, ctx)`` (see :mod:`parasynth.study.problem`).
+RUNNERS = {"sweep": run_sweep, "nlopt": run_nlopt, "optuna": run_optuna}
 
 
 @dataclass
@@ -140,7 +145,7 @@ def prepare_dir(study: ResolvedStudy, out_dir: Path, resume: bool, lock: RunLock
 TABLES_EVERY_S = 5.0
 
 
-# -- runners ---------------------------------------------------------------------------------------------
+# -- running a study -------------------------------------------------------------------------------------
 def run_study(study: ResolvedStudy, out_dir=None, resume: bool = False, n_trials: int | None = None,
               progress: bool = True, storage: str | None = None, workers: int | None = None,
               study_file=None) -> RunResult:
@@ -184,7 +189,7 @@ def _workers_of(study, workers):
 
 
 def _run_locked(study, out_dir, previous, resume, n_trials, progress, storage, n_workers) -> RunResult:
-    evaluator = Evaluator(study)
+    problem = Problem(study)
     t0 = time.perf_counter()
     records = list(previous)
     new = []
@@ -201,7 +206,7 @@ def _run_locked(study, out_dir, previous, resume, n_trials, progress, storage, n
                 records[:] = ctx["records"]
 
             n_warm = max(1, int(study.evaluation["n"]) // 2)  # not the run's sample count: no cache hit later
-            warm_up(lambda: evaluator.evaluate(_warm_up_design(study), n=n_warm, source="warm-up"),
+            warm_up(lambda: problem.evaluate(_warm_up_design(problem), n=n_warm, source="warm-up"),
                     progress=None if not progress else print_err, stop=lambda: guard.requested)
             journal = Journal(out_dir / "journal.jsonl")
 
@@ -218,19 +223,14 @@ def _run_locked(study, out_dir, previous, resume, n_trials, progress, storage, n
                 pass
             elif study.reference is not None and not any(r.source == "reference" for r in records):
                 with guard.evaluating():
-                    rec = evaluator.evaluate(dict(study.reference), trial=-1, source="reference")
+                    rec = problem.evaluate(dict(study.reference), trial=-1, source="reference")
                 record(rec)
                 if ctx:
                     _store_reference(ctx["ostudy"], rec)
-            kind = study.optimizer.kind
-            if guard.requested:
-                pass
-            elif kind == "sweep":
-                _run_sweep(study, evaluator, records, record, progress, guard)
-            elif kind == "nlopt":
-                _run_nlopt(study, evaluator, records, record, progress, n_trials, guard)
-            else:
-                _run_optuna(study, evaluator, records, record, progress, ctx, n_workers, out_dir, guard, journal)
+            if not guard.requested:
+                run = RUNNERS[study.optimizer.kind]
+                run(problem, RunContext(records, record, progress=progress, guard=guard, n_trials=n_trials,
+                                        out_dir=out_dir, workers=n_workers, journal=journal, backend=ctx))
         except KeyboardInterrupt:
             guard.requested = True
         finally:
@@ -245,7 +245,7 @@ def _run_locked(study, out_dir, previous, resume, n_trials, progress, storage, n
     if not interrupted and study.evaluation.get("final_samples") and study.evaluation.get("final_top", 0) > 0:
         with Interrupt(quiet=not progress) as guard2:
             try:
-                final = reevaluate_best(study, evaluator, table, out_dir)
+                final = reevaluate_best(study, problem.evaluator, table, out_dir)
             except KeyboardInterrupt:
                 interrupted = True
             interrupted = interrupted or guard2.requested
@@ -258,170 +258,18 @@ def _run_locked(study, out_dir, previous, resume, n_trials, progress, storage, n
                      storage=ctx.get("url") if ctx and ctx.get("explicit") else None)
 
 
-def _warm_up_design(study: ResolvedStudy) -> dict:
+def _warm_up_design(problem: Problem) -> dict:
     """A design whose evaluation compiles what the run needs: the reference, else the first
     listed design, else the centre of the variable box (its record is not kept)."""
-    if study.reference is not None:
-        return dict(study.reference)
-    if study.optimizer.designs:
-        return _sweep_designs(study)[0]
-    d = {}
-    for v in study.variables:
-        if v.low is not None and v.high is not None and v.type == "continuous":
-            d[v.name] = v.denormalize(0.5)
-        elif v.low is not None and v.high is not None:
-            d[v.name] = round(0.5 * (v.low + v.high))
-        else:
-            d[v.name] = (v.values or v.choices)[0]
-    return d
+    if problem.reference is not None:
+        return dict(problem.reference)
+    if problem.study.optimizer.designs:
+        return problem.designs()[0]
+    return problem.space.centre()
 
 
 def print_err(msg: str) -> None:
     print(msg, file=sys.stderr, flush=True)
-
-
-def _sweep_designs(study: ResolvedStudy) -> list[dict]:
-    if study.optimizer.designs:
-        out = []
-        byname = {v.name: v for v in study.variables}
-        for j, d in enumerate(study.optimizer.designs):
-            out.append({k: _q(x, byname[k].kind, f"optimizer.designs[{j}].{k}") for k, x in d.items()})
-        return out
-    axes = [(v.name, v.values if v.values is not None else v.choices) for v in study.variables]
-    return [dict(zip([a for a, _ in axes], combo)) for combo in itertools.product(*[vals for _, vals in axes])]
-
-
-def _best_str(study, records):
-    ok = [r for r in records if r.feasible and r.source == "run"]
-    if not ok or len(study.objectives) != 1:
-        return f"{len(ok)} feasible"
-    o = study.objectives[0]
-    vals = [r.objectives[o.label] for r in ok]
-    b = max(vals) if o.goal == "maximize" else min(vals)
-    return f"best {o.label} = {fmt_column_value(study, o.label, b)}"
-
-
-def _run_sweep(study, evaluator, records, record, progress, guard):
-    designs = _sweep_designs(study)
-    done = {r.trial for r in records if r.source == "run"}
-    todo = [(i, d) for i, d in enumerate(designs) if i not in done]
-    bar = Progress(len(designs), progress, f"sweep {study.name}", initial=len(designs) - len(todo))
-    try:
-        for i, d in todo:
-            if guard.requested:
-                break
-            with guard.evaluating():
-                rec = evaluator.evaluate(d, trial=i)
-            record(rec)
-            bar.update(rec, _best_str(study, records))
-    finally:
-        bar.close()
-
-
-def _run_nlopt(study, evaluator, records, record, progress, n_trials, guard):
-    import nlopt  # lazy: only NLopt runs need it
-
-    opt_spec = study.optimizer
-    alg = nlopt_algorithm(study)
-    vars_ = study.variables
-    nv = len(vars_)
-    o = study.objectives[0]
-    sign = -1.0 if o.goal == "maximize" else 1.0  # NLopt minimises sign * f
-    maxeval = nlopt_budget(study, n_trials)
-    seed = optimizer_seed(study)
-    nlopt.srand(int(seed))
-    opt = nlopt.opt(getattr(nlopt, alg), nv)
-    opt.set_lower_bounds([0.0] * nv)
-    opt.set_upper_bounds([1.0] * nv)
-    opt.set_maxeval(int(maxeval))
-    if opt_spec.xtol_rel:
-        opt.set_xtol_rel(opt_spec.xtol_rel)
-    if opt_spec.ftol_rel:
-        opt.set_ftol_rel(opt_spec.ftol_rel)
-    if alg.startswith("LN_"):
-        opt.set_initial_step([0.1] * nv)
-    if opt_spec.population_size:
-        opt.set_population(int(opt_spec.population_size))
-    # Trial numbers are the order of first evaluation along the (deterministic) path, the same
-    # in an uninterrupted and a resumed run.
-    cache = {design_key(study, r.values): r for r in records if r.source == "run"}
-    state = {"worst": None, "stop": None}
-    bar = Progress(int(maxeval), progress, f"nlopt {alg} {study.name}", initial=min(len(cache), int(maxeval)))
-
-    def values_of(u):
-        return {v.name: v.denormalize(float(np.clip(x, 0, 1))) for v, x in zip(vars_, u)}
-
-    def get(u) -> Record:
-        vals = values_of(u)
-        k = design_key(study, vals)
-        rec = cache.get(k)
-        if rec is None:
-            if guard.requested:
-                raise KeyboardInterrupt
-            with guard.evaluating():
-                rec = evaluator.evaluate(vals, trial=len(cache))
-            cache[k] = rec
-            record(rec)
-            bar.update(rec, _best_str(study, list(cache.values())))
-        return rec
-
-    use_constraints = alg in NLOPT_WITH_CONSTRAINTS
-    penalty_weight = 10.0
-
-    def penalty_value(rec):
-        # NLopt has no "infeasible" return: a failed design gets a value worse than any seen.
-        w = state["worst"]
-        return (abs(w) * 2 + 1.0) if w is not None else 1e6
-
-    def get_or_stop(u) -> Record:
-        # NLopt swallows Python exceptions: turn an interrupt into its forced stop.
-        try:
-            return get(u)
-        except KeyboardInterrupt:
-            state["stop"] = "interrupt"
-            raise nlopt.ForcedStop
-
-    def f(u, grad):
-        rec = get_or_stop(u)
-        if rec.status != "ok":
-            return penalty_value(rec)
-        val = sign * rec.objectives[o.label]
-        state["worst"] = val if state["worst"] is None else max(state["worst"], val)
-        if not use_constraints and rec.margins:
-            viol = sum(max(0.0, -m) for m in rec.margins.values() if math.isfinite(m))
-            if any(not math.isfinite(m) for m in rec.margins.values()):
-                return penalty_value(rec)
-            val += penalty_weight * viol * (1 + abs(val))
-        return val
-
-    if use_constraints:
-        for c in study.constraints:
-            def g(u, grad, label=c.label):
-                rec = get_or_stop(u)
-                if rec.status != "ok":
-                    return 1.0
-                m = rec.margins[label]
-                return -m if math.isfinite(m) else 1e6
-            opt.add_inequality_constraint(g, 0.0)
-    opt.set_min_objective(f)
-    if opt_spec.start:
-        byname = {v.name: v for v in vars_}
-        x0 = [byname[v.name].normalize(_q(opt_spec.start[v.name], v.kind, f"optimizer.start.{v.name}"))
-              if v.name in opt_spec.start else BOX_CENTRE_U for v in vars_]
-    elif study.reference and all(v.name in study.reference for v in vars_):
-        x0 = [v.normalize(study.reference[v.name]) for v in vars_]
-    else:
-        x0 = [BOX_CENTRE_U] * nv  # the centre of the box
-    x0 = list(np.clip(x0, 0, 1))
-    try:
-        opt.optimize(x0)
-    except nlopt.ForcedStop:
-        if state["stop"] == "interrupt":
-            guard.requested = True
-    except (nlopt.RoundoffLimited, ValueError, RuntimeError) as e:
-        print(f"nlopt stopped: {type(e).__name__}: {e}", file=sys.stderr)
-    finally:
-        bar.close()
 
 
 # -- Optuna ----------------------------------------------------------------------------------------------
@@ -500,42 +348,3 @@ def _store_final(ostudy, out_dir):
         ostudy.set_user_attr(st.ATTR_FINAL, (Path(out_dir) / "final.csv").read_text())
     except Exception as e:
         print(f"warning: could not store final.csv in the storage ({type(e).__name__})", file=sys.stderr)
-
-
-def _run_optuna(study, evaluator, records, record, progress, ctx, n_workers, out_dir, guard, journal):
-    ostudy, total = ctx["ostudy"], ctx["total"]
-    counted = sum(1 for r in records if r.source == "run")
-    if counted >= total and not ctx["shared"]:
-        return
-    alg = optuna_algorithm(study)
-    bar = Progress(total, progress, f"optuna {alg} {study.name}", initial=min(counted, total))
-    try:
-        if n_workers > 1:
-            def on_new(recs):
-                for r in recs:
-                    record(r)
-                bar.update(None, _best_str(study, records), n=len(recs))
-
-            codes = run_local_workers(Path(out_dir) / "study.yaml", ctx["url"], n_workers, total, ostudy, guard,
-                                      on_new=on_new)
-            bad = [c for c in codes if c not in (0, 130, -2)]
-            if bad and not guard.requested:
-                print(f"warning: {len(bad)} worker(s) stopped with an error (exit codes {bad}); the study keeps "
-                      f"their stored trials", file=sys.stderr)
-        else:
-            def on_record(rec):
-                record(rec)
-                bar.update(rec, _best_str(study, records))
-
-            objective = optuna_objective(study, evaluator, on_record, guard=guard, mark_owner=ctx["shared"])
-            optimize_loop(ostudy, objective, total, guard, shared=ctx["shared"], counted=counted,
-                          on_count=bar.set_count)
-    finally:
-        bar.close()
-    if ctx["shared"] or n_workers > 1:
-        # Designs of every worker (other machines included), each trial once, in trial order.
-        ref = [r for r in records if r.source == "reference"]
-        recs = st.records_from_trials(ostudy.get_trials(deepcopy=False))
-        records[:] = ref + recs
-        journal.close()
-        rewrite_journal(Path(out_dir) / "journal.jsonl", records)

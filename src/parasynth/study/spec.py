@@ -24,6 +24,7 @@ Example::
 from __future__ import annotations
 
 import dataclasses
+import functools
 import itertools
 import math
 import re
@@ -37,10 +38,11 @@ from pydantic import BaseModel, ConfigDict, Field, Strict, ValidationError
 from ..geometry_checks import degenerate_geometry
 from ..mechanisms import load_mechanism, mechanism_class, resolve_mechanism_name
 from ..objectives import OBJECTIVES, get as get_measure
-from ..units import QuantityError, parse_quantity
 from ..validation import MAX_SAMPLES, MAX_SEED, MAX_TRIALS, check_count, check_number, is_real_number, numpy_reference
 from ..yamlio import YamlError, load_yaml
 from .design import box_centre, design_params, measure_settings
+from .errors import StudyError
+from .space import DesignSpace, Variable, quantity
 
 __all__ = ["StudyError", "StudySpec", "ResolvedStudy", "load_study", "resolve_study", "check_study", "OPTIMIZERS",
            "RESERVED_COLUMNS", "SETTING_RANGES"]
@@ -79,10 +81,6 @@ METHODS = ("sobol", "grid", "random")
 MAX_DESIGNS = MAX_TRIALS
 
 
-class StudyError(ValueError):
-    """An invalid study: the message names the key path and what is allowed."""
-
-
 Scalar = float | int | str | bool
 #: Integers of the study file: true/false and 4096.5 are not counts.
 Int = Annotated[int, Strict()]
@@ -101,6 +99,7 @@ class VariableSpec(_Model):
     choices: list[Any] | None = None
     num: Int | None = Field(default=None, ge=1, le=10_000)
     log: bool = False
+    when: dict[str, list[Any]] | None = None
 
 
 class MeasureRef(_Model):
@@ -163,26 +162,7 @@ class StudySpec(_Model):
 
 
 # -- resolved, SI -------------------------------------------------------------------------------
-@dataclass(frozen=True)
-class Variable:
-    name: str
-    type: str
-    kind: str | None  # quantity kind of the parameter (length, angle, None)
-    low: float | None = None
-    high: float | None = None
-    values: tuple | None = None  # explicit values (SI) for sweeps
-    choices: tuple | None = None
-    log: bool = False
-
-    def normalize(self, v: float) -> float:
-        if self.log:
-            return (math.log(v) - math.log(self.low)) / (math.log(self.high) - math.log(self.low))
-        return (v - self.low) / (self.high - self.low)
-
-    def denormalize(self, u: float) -> float:
-        if self.log:
-            return math.exp(math.log(self.low) + u * (math.log(self.high) - math.log(self.low)))
-        return self.low + u * (self.high - self.low)
+# Variable (a design variable, SI) is defined in parasynth.study.space and importable from here.
 
 
 @dataclass(frozen=True)
@@ -231,6 +211,11 @@ class ResolvedStudy:
     @property
     def name(self) -> str:
         return self.spec.name
+
+    @functools.cached_property
+    def space(self) -> DesignSpace:
+        """The design space of the study's variables (:class:`~parasynth.study.space.DesignSpace`)."""
+        return DesignSpace(self.variables)
 
     def to_yaml(self) -> str:
         return yaml.safe_dump(self.spec.model_dump(exclude_none=True), sort_keys=False)
@@ -294,14 +279,8 @@ def _param_kinds(mech_cls) -> dict:
     return dict(getattr(mech_cls.Params, "UNITS", {}))
 
 
-def _q(value, kind, path):
-    """A scalar quantity of ``kind`` (None: pass through) to SI."""
-    if kind is None:
-        return value
-    try:
-        return parse_quantity(value, kind, field=path)
-    except QuantityError as e:
-        raise StudyError(str(e)) from None
+#: A scalar quantity to SI (:func:`parasynth.study.space.quantity`), under its former name.
+_q = quantity
 
 
 def _q_nested(value, kind, path):
@@ -384,6 +363,8 @@ def resolve_study(data: dict, source: str | None = None) -> ResolvedStudy:
             n = v.num
             values = tuple(low + (high - low) * j / (n - 1) for j in range(n)) if n > 1 else (low,)
         variables.append(Variable(v.name, v.type, kind, low, high, values, choices, v.log))
+    variables = _resolve_when(spec.variables, variables)
+    space = DesignSpace(variables)  # checks the conditions for cycles
 
     def resolve_settings(measure, settings, path):
         out = {}
@@ -523,22 +504,17 @@ def resolve_study(data: dict, source: str | None = None) -> ResolvedStudy:
             if v.type != "categorical" and (v.low is None or v.high is None):
                 raise StudyError(f"variables: optuna needs low/high for {v.name!r} (or type: categorical with choices)")
     if opt.kind == "sweep" and not opt.designs:
-        n_designs = 1
         for v in variables:
             if v.values is None and v.choices is None:
                 raise StudyError(f"variables: a sweep needs values (or num with low/high, or choices) for {v.name!r}")
-            n_designs *= len(v.values if v.values is not None else v.choices)
+        n_designs = space.grid_size()
         if n_designs > MAX_DESIGNS:
             raise StudyError(f"variables: the sweep grid has {n_designs} designs; the maximum is {MAX_DESIGNS}")
     if opt.designs:
-        byname = {v.name: v for v in variables}
         if len(opt.designs) > MAX_DESIGNS:
             raise StudyError(f"optimizer.designs: {len(opt.designs)} designs; the maximum is {MAX_DESIGNS}")
         for j, d in enumerate(opt.designs):
-            for k, x in d.items():
-                if k not in byname:
-                    raise StudyError(f"optimizer.designs[{j}].{k}: not a design variable; variables: {', '.join(v.name for v in variables)}")
-                _q(x, byname[k].kind, f"optimizer.designs[{j}].{k}")
+            space.parse(d, f"optimizer.designs[{j}]")
 
     reference = None
     ref_label = ref_source = None
@@ -564,7 +540,7 @@ def resolve_study(data: dict, source: str | None = None) -> ResolvedStudy:
             if k not in byname:
                 raise StudyError(f"{where}: not a design variable; variables: {', '.join(byname) or '(none)'}")
             v = byname[k]
-            val = _q(x, v.kind, where)
+            val = space.parse_value(k, x, where)
             if v.low is not None and is_real_number(val) and not v.low <= val <= v.high:
                 raise StudyError(f"{where}: {x!r} is outside the variable's bounds [{v.low:.6g}, {v.high:.6g}] (SI)")
 
@@ -591,6 +567,39 @@ def resolve_study(data: dict, source: str | None = None) -> ResolvedStudy:
 
 #: Text keys of ``reference`` beside the parameter values, with an example each.
 REFERENCE_TEXT_KEYS = {"label": "the paper's design", "source": "Wang, Lyu & Liu 2021, Table 2"}
+
+
+def _resolve_when(specs, variables) -> list:
+    """The variables with their ``when`` conditions resolved: each names another categorical
+    variable and some of its choices (with units, as the choices)."""
+    byname = {v.name: v for v in variables}
+    out = []
+    for i, (vs, var) in enumerate(zip(specs, variables)):
+        if not vs.when:
+            out.append(var)
+            continue
+        conds = []
+        for parent, choices in vs.when.items():
+            where = f"variables[{i}].when.{parent}"
+            if parent == var.name:
+                raise StudyError(f"{where}: a variable cannot depend on itself")
+            if parent not in byname:
+                raise StudyError(f"{where}: not a design variable; variables: {', '.join(byname)}")
+            p = byname[parent]
+            if p.type != "categorical":
+                raise StudyError(f"{where}: {parent!r} is {p.type}; a condition names a categorical variable")
+            if not isinstance(choices, list) or not choices:
+                raise StudyError(f"{where}: give a non-empty list of choices of {parent!r}")
+            vals = []
+            for j, x in enumerate(choices):
+                val = quantity(x, p.kind, f"{where}[{j}]") if p.kind else x
+                if val not in p.choices:
+                    raise StudyError(f"{where}[{j}]: {x!r} is not a choice of {parent!r}; choices: "
+                                     f"{', '.join(str(c) for c in p.choices)}")
+                vals.append(val)
+            conds.append((parent, tuple(vals)))
+        out.append(dataclasses.replace(var, when=tuple(conds)))
+    return out
 
 
 _ANGULAR = {"alpha", "beta", "gamma", "psi", "theta", "phi"}
@@ -814,8 +823,7 @@ def check_study(study: ResolvedStudy, *, measures: bool = True, max_corners: int
         problems.append(f"variables: the corner {_design_str(d)} of the variable box cannot be built{more}: {err}; "
                         f"narrow the bounds")
     for j, d in enumerate(study.optimizer.designs or ()):
-        byname = {v.name: v for v in study.variables}
-        dd = {k: _q(x, byname[k].kind, f"optimizer.designs[{j}].{k}") for k, x in d.items()}
+        dd = study.space.parse(d, f"optimizer.designs[{j}]")
         _, err = try_build(design_params(study, dd))
         if err:
             problems.append(f"optimizer.designs[{j}]: the design cannot be built: {err}")
@@ -866,6 +874,9 @@ KEY_DOCS = {
     "variables[].choices": "The choices of a categorical variable.",
     "variables[].num": "Number of evenly spaced sweep values from low to high (1 to 10000).",
     "variables[].log": "Sample on a log scale (needs low > 0).",
+    "variables[].when": "Makes the variable conditional, {categorical variable: [choice, ...]}: it exists only "
+                        "when each named variable takes one of the listed choices (absent from the design and "
+                        "empty in results.csv otherwise).",
     "objectives": "Measures to optimise (at least one); see `parasynth list` for names and settings.",
     "objectives[].name": "A registered measure, e.g. workspace_volume.",
     "objectives[].label": "Column name in the results (default the measure name); must not clash with "

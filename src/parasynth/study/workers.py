@@ -203,14 +203,7 @@ def optuna_objective(study, evaluator: Evaluator, on_record=None, guard: Interru
     def objective(trial):
         if mark_owner:
             trial.set_user_attr(OWNER_ATTR, owner_id())
-        values = {}
-        for v in study.variables:
-            if v.type == "categorical":
-                values[v.name] = trial.suggest_categorical(v.name, list(v.choices))
-            elif v.type == "integer":
-                values[v.name] = trial.suggest_int(v.name, int(v.low), int(v.high), log=v.log)
-            else:
-                values[v.name] = trial.suggest_float(v.name, v.low, v.high, log=v.log)
+        values = study.space.suggest(trial)  # conditional variables only when active
         with guard.evaluating():
             rec = evaluator.evaluate(values, trial=trial.number)
         _set_optuna_constraints(trial, study, rec)
