@@ -390,10 +390,10 @@ def test_csv_files_name_their_units_and_hold_si_values(tmp_path):
 
 
 def test_progress_best_value_names_its_unit():
-    from parasynth.study.runner import _best_str
+    from parasynth.study.problem import Problem
 
     study = _study(objectives=[{"name": "test_two"}])
     recs = [_rec(0, 0.2, 0.14, 0, 0.48), _rec(1, 0.2, 0.12, 0, 0.44)]
     for r in recs:
         r.objectives = {"test_two": r.objectives["test_two"]}
-    assert _best_str(study, recs) == "best test_two = 440 mm"
+    assert Problem(study).best_str(recs) == "best test_two = 440 mm"
