@@ -88,6 +88,8 @@ class Setting:
         """``value`` checked (and with ``resolve``, converted to SI); :class:`SettingError`
         naming ``where`` otherwise."""
         k = self.kind
+        if value is None and resolve is None and self.default is None:
+            return None  # from Python: None leaves the measure's own default
         if k == "int":
             v = _wrap(check_count, where, value, 1 if self.low is None else self.low, self.high)
             return v if resolve is not None else value

@@ -69,6 +69,7 @@ __all__ = [
     "workspace_of",
     "SAMPLE_SETTINGS",
     "SAMPLE_PARAMS",
+    "COMMON_PARAMS",
     "Setting",
 ]
 
