@@ -231,18 +231,15 @@ def cmd_list(args) -> int:
         for cname, c in mech.constraints.items():
             print(f"      pose constraint {cname} [{c.unit}]: {c.doc}")
     print("\nobjectives and design-constraint measures (name [unit], natural goal; settings: kind):")
-    from .study.spec import SETTING_RANGES
-
     for name, m in OBJECTIVES.items():
         doc = _first_paragraph(m.doc)
         only = f" (only {', '.join(m.models)})" if m.models else ""
         print(f"  {name} [{m.unit}], {m.sense}{only}: {doc}")
         if m.settings:
             parts = []
-            for k, kind in m.settings.items():
-                lo, hi = SETTING_RANGES.get(k, (None, None))
-                rng = f" in [{lo}, {hi if hi is not None else 'inf'}]" if lo is not None else ""
-                parts.append(f"{k} ({kind}{rng})")
+            for k, p in m.params.items():
+                field = f", sets the workspace sample's {p.sample_field}" if p.sample_field else ""
+                parts.append(f"{k} ({p.allowed()}{field})")
             print(f"      settings: {', '.join(parts)}")
     print("\noptimisers (optimizer.kind: algorithms):")
     for kind, algs in OPTIMIZERS.items():

@@ -24,9 +24,15 @@ besides their own settings, of which ``constraints`` (pose constraint names, def
 ``engine`` ("compiled" or "numpy") are common to all. The older call form naming the sample's
 fields among the settings (``measure(mech, n=4096, seed=0)``) still works; there a field shares
 its name with a measure's own setting of that name (the accuracy measures' ``method``, their
-error model). Each :class:`Measure` declares ``sample`` (whether it takes one) and
-``own_settings`` (its settings apart from the sample's fields); ``settings`` lists every name
-the older form accepts. With a fixed seed the same sample points are used for every design
+error model).
+
+Each :class:`Measure` declares its settings as typed :class:`~parasynth.measure_spec.Setting`
+values (``measure.params``: kind, range or choices, default, and for a setting that overrides a
+field of the workspace sample in a study, that field); one validator
+(:meth:`Measure.check_settings`) checks a study's settings against them and names the field
+path. ``sample`` says whether the measure takes a sample, ``own_settings`` its settings apart
+from the sample's fields, ``settings`` every name the older form accepts. With a fixed seed the
+same sample points are used for every design
 (common random numbers), so an optimiser sees a deterministic function. Workspaces are cached
 per (mechanism parameters, sample, constraints, engine) so that several measures of one design
 sample it once.
@@ -49,8 +55,9 @@ from .indices import (global_conditioning_index, gravity_wrench, local_transmiss
                       static_forces)
 from .indices import wrench_capability as _wrench_capability
 from .stiffness import STIFFNESS_SETTINGS as _STIFF_SETTINGS
+from .measure_spec import Setting, SettingError, as_setting, check_settings
 from .stiffness import part_stiffness, point_deflection, stiffness_along
-from .validation import MAX_SAMPLES, check_count, check_mechanism, check_names
+from .validation import MAX_SAMPLES, MAX_SEED, check_count, check_mechanism, check_names
 from .workspace import WorkspaceSample, workspace
 
 __all__ = [
@@ -61,6 +68,9 @@ __all__ = [
     "OBJECTIVES",
     "workspace_of",
     "SAMPLE_SETTINGS",
+    "SAMPLE_PARAMS",
+    "COMMON_PARAMS",
+    "Setting",
 ]
 
 
@@ -71,12 +81,14 @@ class Measure:
     ``unit``: unit of the value (SI, e.g. "m^3", "N", "1"); ``kind``: quantity kind for
     display ("length", "force", ... or None); ``sense``: the natural direction
     ("maximize" or "minimize"); ``settings``: {setting name: kind} accepted by the function
-    (kinds: "length", "angle", "force", "mass", "int", "float", "str", "bool", "ranges",
-    "dict", "list"); ``models``: model names it applies to (None = all); ``cost``: "cheap"
+    (kinds: :data:`parasynth.measure_spec.KINDS`, e.g. "length", "int", "str", "ranges",
+    "pose"); ``models``: model names it applies to (None = all); ``cost``: "cheap"
     or "workspace" (needs a workspace sample) or "expensive"; ``sample``: whether it takes a
     :class:`~parasynth.workspace.WorkspaceSample` (``measure(mech, sample=..., **own)``);
     ``own_settings``: its settings apart from the sample's fields (``settings`` also lists
-    those, accepted by name in the older call form).
+    those, accepted by name in the older call form); ``params``: {setting name:
+    :class:`~parasynth.measure_spec.Setting`}, the typed declaration of every setting (kinds,
+    ranges, choices, defaults; which settings override a field of the workspace sample).
     """
 
     name: str
@@ -90,6 +102,24 @@ class Measure:
     cost: str = "workspace"
     sample: bool = False
     own_settings: dict = field(default_factory=dict)
+    params: dict = field(default_factory=dict)
+
+    def check_settings(self, settings: Mapping, path: str = "settings", resolve=None) -> dict:
+        """``settings`` checked against the declared :attr:`params` (with ``resolve``, the
+        study loader's, converted to SI); :class:`~parasynth.measure_spec.SettingError` (a
+        ValueError) naming ``<path>.<setting>`` and what is allowed."""
+        return check_settings(self.name, self.params, settings, path, resolve)
+
+    def sample_overrides(self, settings: Mapping) -> dict:
+        """The fields of the workspace sample that ``settings`` override, {field: value}
+        (settings declared with a ``sample_field``)."""
+        return {self.params[k].sample_field: v for k, v in settings.items()
+                if k in self.params and self.params[k].sample_field}
+
+    def own(self, settings: Mapping) -> dict:
+        """``settings`` without those that override a field of the workspace sample: the
+        keyword settings of the function beside ``sample=``."""
+        return {k: v for k, v in settings.items() if not (k in self.params and self.params[k].sample_field)}
 
     def __call__(self, mech, sample: WorkspaceSample | None = None, **settings) -> float:
         check_mechanism("mech", mech)
@@ -104,50 +134,88 @@ class Measure:
                 sample = WorkspaceSample(**sample)
             if not isinstance(sample, WorkspaceSample):
                 raise ValueError(f"measure {self.name!r}: sample must be a WorkspaceSample, got {sample!r}")
-            beside = sorted(set(settings) & (set(SAMPLE_SETTINGS) - set(self.own_settings)))
+            beside = sorted(set(settings) - set(self.own_settings) & set(self.params))
             if beside:
-                raise ValueError(f"measure {self.name!r}: {beside} belong to the workspace sample; give them in it, "
-                                 f"not beside it")
+                fields = ", ".join(f"sample.{self.params[k].sample_field}" for k in beside)
+                raise ValueError(f"measure {self.name!r}: {beside} belong to the workspace sample; give them in it "
+                                 f"({fields}), not beside it")
             unknown = sorted(set(settings) - set(self.own_settings))
             if unknown:
                 raise ValueError(f"measure {self.name!r}: unknown setting(s) {unknown}; allowed with a sample: "
                                  f"{sorted(self.own_settings) or '(none)'}")
+            self.check_settings(settings, self.name)
             return float(self.func(mech, sample=sample, **settings))
         unknown = sorted(set(settings) - set(self.settings))
         if unknown:
             raise ValueError(
                 f"measure {self.name!r}: unknown setting(s) {unknown}; allowed: {sorted(self.settings) or '(none)'}"
             )
+        # the older form: a sample field's name may stand for a setting of the measure's own
+        # (the accuracy measures' method), checked by the measure itself
+        self.check_settings({k: v for k, v in settings.items() if k not in SAMPLE_PARAMS}, self.name)
         return float(self.func(mech, **settings))
 
 
 OBJECTIVES: "OrderedDict[str, Measure]" = OrderedDict()
 
-#: The fields of a :class:`~parasynth.workspace.WorkspaceSample` as settings (the older call form).
-SAMPLE_SETTINGS = {"ranges": "ranges", "n": "int", "method": "str", "seed": "int", "fixed": "dict"}
-_WS_SETTINGS = {**SAMPLE_SETTINGS, "constraints": "list", "engine": "str"}
+#: Workspace sampling methods, as a study names them.
+SAMPLING_METHODS = ("sobol", "grid", "random")
+
+#: The fields of a :class:`~parasynth.workspace.WorkspaceSample` as settings of a measure: in a
+#: study, each overrides that field of the measure's sample; in the older call form they name
+#: the sample's fields among the settings.
+SAMPLE_PARAMS = {
+    "ranges": Setting("ranges", sample_field="ranges", doc="sampled task box {coordinate: [low, high]}"),
+    "n": Setting("int", default=4096, low=1, high=MAX_SAMPLES, sample_field="n", doc="workspace samples"),
+    "method": Setting("str", default="sobol", choices=SAMPLING_METHODS, sample_field="method",
+                      doc="the sampling method"),
+    "seed": Setting("int", default=0, low=0, high=MAX_SEED, sample_field="seed", doc="seed of the sample"),
+    "fixed": Setting("pose", sample_field="fixed", doc="task coordinates held fixed {coordinate: value}"),
+}
+#: The fields of a :class:`~parasynth.workspace.WorkspaceSample` as settings, {name: kind}.
+SAMPLE_SETTINGS = {k: s.kind for k, s in SAMPLE_PARAMS.items()}
+#: Settings common to the workspace measures, given by the study's evaluation section unless the
+#: measure's settings give them.
+COMMON_PARAMS = {
+    "constraints": Setting("pose_constraints", evaluation_key="constraints",
+                           doc="pose constraints that define the workspace (default all)"),
+    "engine": Setting("str", default="compiled", choices=("compiled", "numpy"), evaluation_key="engine",
+                      doc="the evaluation engine"),
+}
+_WS_SETTINGS = {**SAMPLE_PARAMS, **COMMON_PARAMS}
 
 
 def register(name: str, unit: str, sense: str, settings: dict | None = None, kind: str | None = None,
              models: tuple | None = None, cost: str = "workspace", sample: bool | None = None, own: tuple = ()):
     """Decorator registering ``f(mech, **settings) -> float`` as measure ``name``.
 
-    ``settings``: {name: kind} of every setting the measure accepts by name. ``sample``:
-    whether it takes a workspace sample (default: when ``settings`` has every field of
-    :data:`SAMPLE_SETTINGS`); such a measure's function receives either the sample's fields by
-    name (older call form) or ``sample=`` a :class:`~parasynth.workspace.WorkspaceSample`.
-    ``own``: settings named like a sample field that are the measure's own (e.g. an error
-    model's ``method``): with a sample they are passed to the function, not taken from it."""
+    ``settings``: {name: :class:`~parasynth.measure_spec.Setting` or kind name} of every
+    setting the measure accepts by name (a kind name, e.g. ``"bool"`` or ``"length"``, declares
+    a setting of that kind without range or default; a kind name for a field of
+    :data:`SAMPLE_SETTINGS` declares that field). ``sample``: whether it takes a workspace
+    sample (default: when a setting overrides a field of the sample, e.g. every field of
+    :data:`SAMPLE_SETTINGS` is declared); such a measure's function receives either the
+    sample's fields by name (older call form) or ``sample=`` a
+    :class:`~parasynth.workspace.WorkspaceSample`. ``own``: settings named like a sample field
+    that are the measure's own (e.g. an error model's ``method``): with a sample they are
+    passed to the function, not taken from it."""
     if sense not in ("maximize", "minimize"):
         raise ValueError(f"sense must be 'maximize' or 'minimize', got {sense!r}")
-    settings = dict(settings or {})
+    params = {}
+    for k, spec in (settings or {}).items():
+        if not isinstance(spec, Setting) and k in _WS_SETTINGS and k not in own:
+            spec = _WS_SETTINGS[k]  # a sample field or a common setting named by its kind
+        params[k] = as_setting(spec)
     if sample is None:
-        sample = set(SAMPLE_SETTINGS) <= set(settings)
-    own_settings = {k: v for k, v in settings.items() if not sample or k not in SAMPLE_SETTINGS or k in own}
+        sample = any(s.sample_field for s in params.values())
+    elif not sample:
+        params = {k: dataclasses.replace(s, sample_field=None) for k, s in params.items()}
+    kinds = {k: s.kind for k, s in params.items()}
+    own_settings = {k: s.kind for k, s in params.items() if not s.sample_field}
 
     def deco(func):
         OBJECTIVES[name] = Measure(name, func, unit, sense, (func.__doc__ or "").strip(), kind,
-                                   settings, models, cost, bool(sample), own_settings)
+                                   kinds, models, cost, bool(sample), own_settings, params)
         return func
 
     return deco
@@ -242,7 +310,14 @@ def _extent(ws, axis):
     return 0.0 if not np.isfinite(hi - lo) else float(hi - lo)
 
 
-@register("extent", unit="m", kind="length", sense="maximize", settings={**_WS_SETTINGS, "axis": "str"})
+#: Typed settings shared by several measures.
+_QUANTILE = Setting("float", default=0.0, low=0.0, high=1.0, doc="quantile over the feasible samples (0: the least)")
+_AXIS = Setting("str", default="z", choices=("x", "y", "z"), doc="base axis")
+_RESOLUTION = Setting("int", low=1, high=4096, doc="raster cells per axis (default the sampling raster)")
+_COORDS = Setting("str", default="position", doc="the sampled coordinates of the box ('position' or all)")
+
+
+@register("extent", unit="m", kind="length", sense="maximize", settings={**_WS_SETTINGS, "axis": _AXIS})
 def extent(mech, axis: str = "z", **kw) -> float:
     """Range (m) of the platform reference point along base axis ``axis`` ("x", "y" or
     "z") over the feasible samples (a projection size, like the papers' XOY sizes)."""
@@ -261,7 +336,7 @@ def xy_isotropy(mech, **kw) -> float:
 
 
 @register("inscribed_box_volume", unit="sampled units", sense="maximize",
-          settings={**_WS_SETTINGS, "resolution": "int", "coords": "str"})
+          settings={**_WS_SETTINGS, "resolution": _RESOLUTION, "coords": _COORDS})
 def inscribed_box_volume(mech, resolution: int | None = None, coords="position", **kw) -> float:
     """Volume of the largest axis-aligned box inside the feasible set, over the sampled
     position coordinates by default (``coords``; positions feasible for every sampled
@@ -272,7 +347,8 @@ def inscribed_box_volume(mech, resolution: int | None = None, coords="position",
 
 
 @register("inscribed_box_size", unit="sampled unit", sense="maximize",
-          settings={**_WS_SETTINGS, "resolution": "int", "axis": "str", "coords": "str"})
+          settings={**_WS_SETTINGS, "resolution": _RESOLUTION, "axis": Setting("str", default="z", doc="a sampled coordinate"),
+                    "coords": _COORDS})
 def inscribed_box_size(mech, axis: str = "z", resolution: int | None = None, coords="position", **kw) -> float:
     """Side along coordinate ``axis`` of the largest inscribed axis-aligned box."""
     ws = _ws(mech, kw)
@@ -285,7 +361,7 @@ def inscribed_box_size(mech, axis: str = "z", resolution: int | None = None, coo
 
 
 @register("singularity_margin_min", unit="1", sense="maximize",
-          settings={**_WS_SETTINGS, "quantile": "float", "engine": "str"})
+          settings={**_WS_SETTINGS, "quantile": _QUANTILE})
 def singularity_margin_min(mech, quantile: float = 0.0, **kw) -> float:
     """Smallest (or the given quantile of the) singularity margin over the feasible
     workspace samples; 0 for an empty workspace. ``engine``: "compiled" (default) or "numpy"
@@ -333,9 +409,10 @@ def max_leg_length_home(mech) -> float:
 
 
 # -- transmission, conditioning, forces -------------------------------------------------------------
-_SUB_SETTINGS = {**_WS_SETTINGS, "max_points": "int"}
-#: Index measures choose the compiled or the NumPy pose-wise indices ("compiled" default).
-_IDX_SETTINGS = {**_SUB_SETTINGS, "engine": "str"}
+_SUB_SETTINGS = {**_WS_SETTINGS, "max_points": Setting("int", low=1, high=MAX_SAMPLES,
+                                                      doc="feasible points used at most (evenly subsampled)")}
+#: Index measures choose the compiled or the NumPy pose-wise indices (``engine``, "compiled" default).
+_IDX_SETTINGS = _SUB_SETTINGS
 
 
 def _points(mech, kw, default_max=4096):
@@ -348,7 +425,7 @@ def _points(mech, kw, default_max=4096):
     return ws, pts
 
 
-@register("min_lti", unit="1", sense="maximize", settings={**_IDX_SETTINGS, "quantile": "float"})
+@register("min_lti", unit="1", sense="maximize", settings={**_IDX_SETTINGS, "quantile": _QUANTILE})
 def min_lti(mech, quantile: float = 0.0, **kw) -> float:
     """Smallest (or the given quantile of the) local transmission index (Wang, Liu, Wang &
     Gosselin 2010: min of input and output transmission indices) over the feasible workspace
@@ -373,7 +450,7 @@ def mean_lti(mech, **kw) -> float:
 
 
 @register("good_transmission_volume", unit="sampled units", sense="maximize",
-          settings={**_IDX_SETTINGS, "threshold": "float"})
+          settings={**_IDX_SETTINGS, "threshold": Setting("float", default=0.7, low=0.0, doc="LTI threshold")})
 def good_transmission_volume(mech, threshold: float = 0.7, **kw) -> float:
     """Volume of the part of the workspace where LTI >= ``threshold`` (default 0.7):
     workspace volume times the fraction of feasible samples above the threshold."""
@@ -394,7 +471,9 @@ def gci(mech, **kw) -> float:
     return float(global_conditioning_index(mech, pts, engine=kw.get("engine", "compiled")).value)
 
 
-_LOAD_SETTINGS = {**_SUB_SETTINGS, "mass": "mass", "force": "force", "com": "length"}
+_LOAD_SETTINGS = {**_SUB_SETTINGS, "mass": Setting("mass", default=5.0, doc="payload (kg)"),
+                  "force": Setting("force", doc="external force [Fx, Fy, Fz] (N, base frame)"),
+                  "com": Setting("length", doc="payload centre [x, y, z] (platform frame)")}
 
 
 def _load(mech, X, mass, force, com):
@@ -420,7 +499,9 @@ def max_actuator_force(mech, mass: float = 5.0, force=None, com=None, **kw) -> f
 
 
 @register("wrench_capability", unit="N", kind="force", sense="maximize",
-          settings={**_SUB_SETTINGS, "force_limit": "force", "directions": "list", "mass": "mass"})
+          settings={**_SUB_SETTINGS, "force_limit": Setting("force", default=100.0, doc="actuator force limit"),
+                    "directions": Setting("list", doc="force directions (default +-X, +-Y, +-Z)"),
+                    "mass": Setting("mass", default=0.0, doc="payload (kg)")})
 def wrench_capability(mech, force_limit: float = 100.0, directions=None, mass: float = 0.0, **kw) -> float:
     """Smallest, over the feasible workspace samples and the given force ``directions``
     (default +-X, +-Y, +-Z), of the largest force the actuators can balance within
@@ -437,8 +518,15 @@ def wrench_capability(mech, force_limit: float = 100.0, directions=None, mass: f
     return float(np.min(c))
 
 
+_DECOUPLING_SETTINGS = {
+    "dt": Setting("float", default=0.25, low=1e-9, doc="time step of the trajectory (s)"),
+    "grinding_force": Setting("force", default=50.0, doc="grinding force along Z"),
+    "load_point": Setting("str", default="grinding_point", choices=("grinding_point", "centre")),
+}
+
+
 @register("max_force_trajectory", unit="N", kind="force", sense="minimize", models=("4ups_1rps",),
-          settings={"dt": "float", "grinding_force": "force", "load_point": "str"})
+          settings=_DECOUPLING_SETTINGS)
 def max_force_trajectory(mech, dt: float = 0.25, grinding_force: float = 50.0, load_point: str = "grinding_point") -> float:
     """Largest driving-leg force (N) along the 2022 paper's trajectory, eqs. (66)-(68), with
     the Table 3 inertias, gravity and the grinding force (N) along Z applied at the grinding
@@ -448,7 +536,7 @@ def max_force_trajectory(mech, dt: float = 0.25, grinding_force: float = 50.0, l
 
 
 @register("force_decoupling_ratio", unit="1", sense="minimize", models=("4ups_1rps",),
-          settings={"dt": "float", "grinding_force": "force", "load_point": "str"})
+          settings=_DECOUPLING_SETTINGS)
 def force_decoupling_ratio(mech, dt: float = 0.25, grinding_force: float = 50.0,
                            load_point: str = "grinding_point") -> float:
     """How much of the grinding force reaches the driving legs: the largest change of a
@@ -467,7 +555,7 @@ def _decoupling(mech, dt, grinding_force, load_point):
 
 
 # -- stiffness and accuracy (parasynth.stiffness, parasynth.accuracy) ---------------------------------
-_STIFF_MEASURE = {**_SUB_SETTINGS, **_STIFF_SETTINGS, "quantile": "float"}
+_STIFF_MEASURE = {**_SUB_SETTINGS, **{k: Setting(kind) for k, kind in _STIFF_SETTINGS.items()}, "quantile": _QUANTILE}
 
 
 def _quantile(v, quantile, empty):
@@ -486,7 +574,8 @@ def _split(kw, keys):
 
 
 @register("stiffness_min", unit="N/m (translational) or N*m/rad (rotational)", sense="maximize",
-          settings={**_STIFF_MEASURE, "part": "str"})
+          settings={**_STIFF_MEASURE, "part": Setting("str", default="translational",
+                                                      choices=("translational", "rotational"))})
 def stiffness_min(mech, quantile: float = 0.0, part: str = "translational", **kw) -> float:
     """Smallest (or the ``quantile`` of the) translational (N/m) or rotational (N m/rad)
     stiffness over the feasible workspace samples (``parasynth.stiffness.part_stiffness``):
@@ -501,7 +590,9 @@ def stiffness_min(mech, quantile: float = 0.0, part: str = "translational", **kw
 
 
 @register("stiffness_along", unit="N/m", kind="stiffness", sense="maximize",
-          settings={**_STIFF_MEASURE, "direction": "list", "point": "length", "frame": "str"})
+          settings={**_STIFF_MEASURE, "direction": Setting("list", default=(0.0, 0.0, 1.0), doc="unitless components"),
+                    "point": Setting("length", default=(0.0, 0.0, 0.0), doc="platform point (platform frame)"),
+                    "frame": Setting("str", default="base", choices=("base", "platform"))})
 def stiffness_along_measure(mech, direction=(0.0, 0.0, 1.0), point=(0.0, 0.0, 0.0), frame: str = "base",
                             quantile: float = 0.0, **kw) -> float:
     """Smallest (or the ``quantile`` of the) stiffness (N/m) of the platform point ``point``
@@ -517,7 +608,10 @@ def stiffness_along_measure(mech, direction=(0.0, 0.0, 1.0), point=(0.0, 0.0, 0.
 
 
 @register("deflection", unit="m", kind="length", sense="minimize",
-          settings={**_STIFF_MEASURE, "force": "force", "moment": "torque", "point": "length"})
+          settings={**_STIFF_MEASURE, "force": Setting("force", doc="[Fx, Fy, Fz] (base frame)"),
+                    "moment": Setting("torque", doc="[Mx, My, Mz] (base frame)"),
+                    "point": Setting("length", default=(0.0, 0.0, 0.0), doc="platform point (platform frame)"),
+                    "quantile": dataclasses.replace(_QUANTILE, default=1.0)})
 def deflection_measure(mech, force=None, moment=None, point=(0.0, 0.0, 0.0), quantile: float = 1.0, **kw) -> float:
     """Largest (or the ``quantile`` of the) displacement (m) of the platform point ``point``
     (platform frame) under a task wrench: ``force`` [Fx, Fy, Fz] (N, base frame) applied at the
@@ -535,9 +629,15 @@ def deflection_measure(mech, force=None, moment=None, point=(0.0, 0.0, 0.0), qua
     return _quantile(np.linalg.norm(u, axis=-1), quantile, 0.0)
 
 
-_ACC_SETTINGS = {**_SUB_SETTINGS, **_TOL_SETTINGS, "quantile": "float", "method": "choice", "samples": "int",
-                 "sampling": "str"}
 _ERROR_METHODS = ("first_order", "monte_carlo")
+#: The accuracy measures' settings: ``method`` is their own (the error model); ``sampling`` sets
+#: the method of their workspace sample.
+_ACC_SETTINGS = {**_SUB_SETTINGS, **{k: Setting(kind, default=0.0, low=0.0) for k, kind in _TOL_SETTINGS.items()},
+                 "quantile": dataclasses.replace(_QUANTILE, default=1.0),
+                 "method": Setting("str", default="first_order", choices=_ERROR_METHODS, doc="the error model"),
+                 "samples": Setting("int", default=200, low=1, high=MAX_SAMPLES, doc="error draws per pose"),
+                 "sampling": dataclasses.replace(SAMPLE_PARAMS["method"], default=None,
+                                                 doc="the sampling method of the workspace sample")}
 
 
 def _pose_errors(mech, part, method="first_order", quantile=1.0, samples=200, sampling=None, **kw):
@@ -570,7 +670,7 @@ def _pose_errors(mech, part, method="first_order", quantile=1.0, samples=200, sa
     return _quantile(e, quantile, 0.0)
 
 
-@register("position_error_max", unit="m", kind="length", sense="minimize", settings=_ACC_SETTINGS, own=("method",))
+@register("position_error_max", unit="m", kind="length", sense="minimize", settings=_ACC_SETTINGS)
 def position_error_max(mech, **kw) -> float:
     """Largest (or the ``quantile`` of the) position error (m) of the platform point over the
     feasible workspace samples, from actuator errors, manufacturing errors of the legs'
@@ -581,8 +681,7 @@ def position_error_max(mech, **kw) -> float:
     return _pose_errors(mech, "position", **kw)
 
 
-@register("orientation_error_max", unit="rad", kind="angle", sense="minimize", settings=_ACC_SETTINGS,
-          own=("method",))
+@register("orientation_error_max", unit="rad", kind="angle", sense="minimize", settings=_ACC_SETTINGS)
 def orientation_error_max(mech, **kw) -> float:
     """Largest (or the ``quantile`` of the) orientation error (rad, norm of the rotation
     vector) of the platform over the feasible workspace samples; settings and error model as

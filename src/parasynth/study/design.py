@@ -5,8 +5,14 @@
 * :func:`design_key` -- the identity of a design (two rows or records with the same key are
   the same design);
 * :func:`box_centre` -- the centre of the variable box (log scale and integers respected);
-* :func:`measure_settings` -- the settings a measure is called with for a design: the study's
-  workspace sample where the measure takes it, then the measure's own settings.
+* :func:`evaluation_sample` -- the workspace sample of a design, one
+  :class:`~parasynth.workspace.WorkspaceSample` built from the study's evaluation section;
+* :func:`measure_arguments` -- the keyword arguments of a measure for a design: that sample
+  (with the fields the measure's settings override) where the measure takes one, and the
+  measure's own settings. Nothing is merged by name: each setting's declaration
+  (:class:`~parasynth.measure_spec.Setting`) says whether it sets a field of the sample
+  (``sample_field``) or defaults to an evaluation key (``evaluation_key``);
+* :func:`measure_settings` -- the same as the older flat call form (``measure(mech, **flat)``).
 
 The functions take a resolved study (:class:`~parasynth.study.spec.ResolvedStudy`) by its
 attributes; of the study layer this module imports only the design space
@@ -15,12 +21,15 @@ attributes; of the study layer this module imports only the design space
 
 from __future__ import annotations
 
+import dataclasses
+
 from ..objectives import get as get_measure
+from ..workspace import WorkspaceSample
 from .space import BOX_CENTRE_U, DesignSpace, centre_value
 from .space import design_key as key_of
 
-__all__ = ["design_params", "design_key", "BOX_CENTRE_U", "centre_value", "box_centre", "measure_settings",
-           "WORKSPACE_SETTINGS"]
+__all__ = ["design_params", "design_key", "BOX_CENTRE_U", "centre_value", "box_centre", "evaluation_sample",
+           "measure_arguments", "measure_settings"]
 
 
 def design_params(study, values: dict) -> dict:
@@ -44,30 +53,43 @@ def box_centre(study) -> dict:
     return DesignSpace(study.variables).centre()
 
 
-#: Study evaluation keys -> measure setting names: the workspace sample shared by the measures.
-WORKSPACE_SETTINGS = {"ranges": "ranges", "n": "n", "method": "method", "seed": "seed", "fixed": "fixed",
-                      "constraints": "constraints", "engine": "engine"}
+def evaluation_sample(study, n: int | None = None, seed: int | None = None) -> WorkspaceSample:
+    """The workspace sample of the study's evaluation section (``ranges``, ``n``, ``method``,
+    ``seed``, ``fixed`` pose), with ``n`` and ``seed`` replaced when given (a re-evaluation)."""
+    ev = study.evaluation
+    return WorkspaceSample(ranges=ev.get("ranges"), n=ev["n"] if n is None else n, method=ev["method"],
+                           seed=ev["seed"] if seed is None else seed, fixed=ev.get("fixed"))
+
+
+def measure_arguments(study, measure_name: str, settings: dict, sample: WorkspaceSample,
+                      pinned: tuple = ()) -> dict:
+    """Keyword arguments of measure ``measure_name`` for one design: ``sample=`` the design's
+    workspace sample (with the fields the measure's ``settings`` override, except those in
+    ``pinned``, e.g. ``n`` and ``seed`` of a re-evaluation) where the measure takes one, the
+    measure's own settings, and the study's evaluation value of each own setting declared with
+    an ``evaluation_key`` that ``settings`` leave out."""
+    m = get_measure(measure_name)
+    out = m.own(settings)
+    for k, p in m.params.items():
+        if p.evaluation_key and k not in out and study.evaluation.get(p.evaluation_key) is not None:
+            out[k] = study.evaluation[p.evaluation_key]
+    if m.sample:
+        over = {f: v for f, v in m.sample_overrides(settings).items() if f not in pinned}
+        out["sample"] = dataclasses.replace(sample, **over) if over else sample
+    return out
 
 
 def measure_settings(study, measure_name: str, own: dict, n: int | None = None, seed: int | None = None) -> dict:
-    """Settings of measure ``measure_name``: the study's evaluation settings the measure takes
-    (``n`` and ``seed`` replaced when given), then ``own`` (the objective's or constraint's
-    settings), then ``n`` and ``seed`` again when given (they win over ``own``)."""
+    """Settings of measure ``measure_name`` in the older flat call form
+    (``measure(mech, **settings)``, the same value as :func:`measure_arguments`): the fields of
+    its workspace sample under the names of the settings that set them (an accuracy measure's
+    sampling method as ``sampling``), then its own settings."""
     m = get_measure(measure_name)
-    ev = study.evaluation
-    base = {}
-    for key in WORKSPACE_SETTINGS:
-        if key in m.settings:
-            v = ev.get(key)
-            if key == "n" and n is not None:
-                v = n
-            if key == "seed" and seed is not None:
-                v = seed
-            if v is not None:
-                base[key] = v
-    base.update(own)
-    if n is not None and "n" in m.settings:
-        base["n"] = n
-    if seed is not None and "seed" in m.settings:
-        base["seed"] = seed
-    return base
+    pinned = tuple(f for f, v in (("n", n), ("seed", seed)) if v is not None)
+    args = measure_arguments(study, measure_name, own, evaluation_sample(study, n, seed), pinned)
+    sample = args.pop("sample", None)
+    if sample is None:
+        return args
+    name_of = {p.sample_field: k for k, p in m.params.items() if p.sample_field}
+    flat = {name_of[f]: v for f, v in sample.kwargs().items() if v is not None and f in name_of}
+    return {**flat, **args}

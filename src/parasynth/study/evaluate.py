@@ -1,5 +1,9 @@
 """Evaluation of one design: build the mechanism, compute design constraints and objectives.
 
+Each design is evaluated on one workspace sample (:func:`~parasynth.study.design.evaluation_sample`,
+from the study's evaluation section) passed whole to every measure that samples the workspace,
+with that measure's own validated settings (:func:`~parasynth.study.design.measure_arguments`).
+
 A design that cannot be built (non-physical parameters) or whose measures raise is recorded
 with ``status = "failed"`` and its error message; a design that violates a constraint is
 recorded with ``feasible = False``; neither stops a run.
@@ -14,7 +18,7 @@ from dataclasses import dataclass, field
 
 from ..mechanisms import load_mechanism
 from ..objectives import get as get_measure
-from .design import design_params, measure_settings
+from .design import design_params, evaluation_sample, measure_arguments, measure_settings
 from .spec import ResolvedStudy
 
 __all__ = ["Record", "Evaluator"]
@@ -66,8 +70,13 @@ class Evaluator:
         self.study = study
 
     def settings_for(self, measure_name: str, own: dict, n: int | None = None, seed: int | None = None) -> dict:
-        """Settings of a measure for this study (:func:`~parasynth.study.design.measure_settings`)."""
+        """Settings of a measure for this study in the older flat call form
+        (:func:`~parasynth.study.design.measure_settings`)."""
         return measure_settings(self.study, measure_name, own, n, seed)
+
+    def sample(self, n: int | None = None, seed: int | None = None):
+        """The workspace sample of a design (:func:`~parasynth.study.design.evaluation_sample`)."""
+        return evaluation_sample(self.study, n, seed)
 
     def build(self, values: dict):
         return load_mechanism(self.study.mechanism, **design_params(self.study, values))
@@ -77,16 +86,19 @@ class Evaluator:
         ev = self.study.evaluation
         rec = Record(values=dict(values), seed=ev["seed"] if seed is None else seed,
                      samples=ev["n"] if n is None else n, trial=trial, source=source)
+        # n and seed of a re-evaluation win over a measure's own sample settings
+        pinned = tuple(f for f, x in (("n", n), ("seed", seed)) if x is not None)
         t0 = time.perf_counter()
         try:
+            sample = self.sample(n, seed)
             mech = self.build(values)
             cons = sorted(self.study.constraints, key=lambda c: get_measure(c.name).cost != "cheap")
             for c in cons:
-                v = get_measure(c.name)(mech, **self.settings_for(c.name, c.settings, n, seed))
+                v = get_measure(c.name)(mech, **measure_arguments(self.study, c.name, c.settings, sample, pinned))
                 rec.constraint_values[c.label] = v
                 rec.margins[c.label] = c.margin(v) if math.isfinite(v) else -math.inf
             for o in self.study.objectives:
-                v = get_measure(o.name)(mech, **self.settings_for(o.name, o.settings, n, seed))
+                v = get_measure(o.name)(mech, **measure_arguments(self.study, o.name, o.settings, sample, pinned))
                 if not math.isfinite(v):
                     raise FloatingPointError(f"objective {o.label!r} is not finite ({v})")
                 rec.objectives[o.label] = v

@@ -37,15 +37,16 @@ from pydantic import BaseModel, ConfigDict, Field, Strict, ValidationError
 
 from ..geometry_checks import degenerate_geometry
 from ..mechanisms import load_mechanism, mechanism_class, resolve_mechanism_name
+from ..measure_spec import SettingError
 from ..objectives import OBJECTIVES, get as get_measure
-from ..validation import MAX_SAMPLES, MAX_SEED, MAX_TRIALS, check_count, check_number, is_real_number, numpy_reference
+from ..validation import MAX_SAMPLES, MAX_SEED, MAX_TRIALS, is_real_number, numpy_reference
 from ..yamlio import YamlError, load_yaml
-from .design import box_centre, design_params, measure_settings
+from .design import box_centre, design_params, evaluation_sample, measure_arguments
 from .errors import StudyError
 from .space import DesignSpace, Variable, quantity
 
 __all__ = ["StudyError", "StudySpec", "ResolvedStudy", "load_study", "resolve_study", "check_study", "OPTIMIZERS",
-           "RESERVED_COLUMNS", "SETTING_RANGES"]
+           "RESERVED_COLUMNS"]
 
 #: Optimiser kinds and their algorithms.
 OPTIMIZERS = {
@@ -63,20 +64,8 @@ RESERVED_COLUMNS = ("trial", "source", "feasible", "status", "error", "seed", "s
 #: Suffixes of derived columns: ``<constraint>_margin`` (results.csv), ``<objective>_stderr`` (final.csv).
 DERIVED_SUFFIXES = ("_margin", "_stderr")
 
-#: Allowed range of measure settings by name (lo, hi; None = open): checked for every measure
-#: that takes the setting.
-SETTING_RANGES = {
-    "quantile": (0.0, 1.0),
-    "n": (1, MAX_SAMPLES),
-    "seed": (0, MAX_SEED),
-    "max_points": (1, MAX_SAMPLES),
-    "resolution": (1, 4096),
-    "threshold": (0.0, None),
-    "dt": (1e-9, None),
-    "samples": (1, MAX_SAMPLES),
-}
-#: Workspace sampling methods.
-METHODS = ("sobol", "grid", "random")
+# The settings of each measure (kinds, ranges, choices) are declared with the measure
+# (parasynth.objectives, parasynth.measure_spec) and checked by its own validator.
 #: Most designs a sweep may list (the product of the variables' value counts).
 MAX_DESIGNS = MAX_TRIALS
 
@@ -367,45 +356,22 @@ def resolve_study(data: dict, source: str | None = None) -> ResolvedStudy:
     space = DesignSpace(variables)  # checks the conditions for cycles
 
     def resolve_settings(measure, settings, path):
-        out = {}
-        for k, val in settings.items():
-            if k not in measure.settings:
-                raise StudyError(
-                    f"{path}.{k}: unknown setting of {measure.name!r}; allowed: {', '.join(measure.settings) or '(none)'}"
-                )
-            sk = measure.settings[k]
-            where = f"{path}.{k}"
-            lo, hi = SETTING_RANGES.get(k, (None, None))
-            if sk == "ranges":
-                out[k] = _resolve_ranges(val, mech_cls, where, task)
-            elif sk in ("length", "angle", "force", "mass", "time", "torque", "stiffness", "rotational_stiffness",
-                        "pressure"):
-                out[k] = _q_nested(val, sk, where)
-            elif sk == "int":
-                out[k] = _check_int(val, where, 1 if lo is None else lo, hi)
-            elif sk == "float":
-                out[k] = _check_float(val, where, lo, hi)
-            elif k == "method" and sk == "str":
-                if val not in METHODS:
-                    raise StudyError(f"{where}: {val!r} is not a sampling method; allowed: {', '.join(METHODS)}")
-                out[k] = val
-            elif k == "constraints" and sk == "list":
-                out[k] = _check_pose_constraints(val, where, pose_constraints)
-            elif k == "fixed" and sk == "dict":
-                if not isinstance(val, dict):
-                    raise StudyError(f"{where}: give a mapping {{coordinate: value with unit}}, e.g. {{alpha: 0 deg}}")
-                out[k] = {c: _pose_value(c, x, f"{where}.{c}", task, mech_cls) for c, x in val.items()}
-            elif sk == "str":
-                if not isinstance(val, str):
-                    raise StudyError(f"{where}: must be a string, got {val!r}")
-                out[k] = val
-            elif sk == "bool":
-                if not isinstance(val, bool):
-                    raise StudyError(f"{where}: must be true or false, got {val!r}")
-                out[k] = val
-            else:
-                out[k] = val
-        return out
+        # one validator per measure (its declared settings); the model-dependent kinds are
+        # resolved here, against the mechanism's task coordinates and pose constraints
+        resolve = {
+            "ranges": lambda val, where: _resolve_ranges(val, mech_cls, where, task),
+            "pose_constraints": lambda val, where: _check_pose_constraints(val, where, pose_constraints),
+            "pose": _resolve_pose,
+        }
+        try:
+            return measure.check_settings(settings, path, resolve)
+        except SettingError as e:
+            raise StudyError(str(e)) from None
+
+    def _resolve_pose(val, where):
+        if not isinstance(val, dict):
+            raise StudyError(f"{where}: give a mapping {{coordinate: value with unit}}, e.g. {{alpha: 0 deg}}")
+        return {c: _pose_value(c, x, f"{where}.{c}", task, mech_cls) for c, x in val.items()}
 
     # The model's task coordinates and pose constraints (from a model built with the fixed
     # parameters; a model that cannot be built is reported by check_study).
@@ -637,25 +603,6 @@ def _resolve_ranges(val, mech_cls, path, task=None) -> dict:
     return out
 
 
-def _check_int(val, where, lo, hi) -> int:
-    try:
-        return check_count(where, val, lo, hi)
-    except ValueError as e:
-        raise StudyError(_path_first(str(e), where)) from None
-
-
-def _check_float(val, where, lo, hi) -> float:
-    try:
-        return check_number(where, val, None, lo, hi)
-    except ValueError as e:
-        raise StudyError(_path_first(str(e), where)) from None
-
-
-def _path_first(msg: str, where: str) -> str:
-    """'<where> must be ...' as '<where>: must be ...' (the study's message style)."""
-    return f"{where}:{msg[len(where):]}" if msg.startswith(where + " ") else msg
-
-
 _MODEL_NAMES: dict = {}
 
 
@@ -831,6 +778,7 @@ def check_study(study: ResolvedStudy, *, measures: bool = True, max_corners: int
         return problems
 
     n = min(int(study.evaluation["n"]), probe_samples)
+    sample = evaluation_sample(study, n=n)
     items = [(f"objectives[{i}]", o) for i, o in enumerate(study.objectives)]
     items += [(f"constraints[{i}]", c) for i, c in enumerate(study.constraints)]
     stats["measures"] = len(items)
@@ -838,7 +786,7 @@ def check_study(study: ResolvedStudy, *, measures: bool = True, max_corners: int
         m = get_measure(item.name)
         try:
             with numpy_reference():  # a probe: no wait for a cold compile
-                m(base_mech, **measure_settings(study, item.name, item.settings, n=n))
+                m(base_mech, **measure_arguments(study, item.name, item.settings, sample, pinned=("n",)))
         except KeyboardInterrupt:
             raise
         except Exception as e:
@@ -882,8 +830,11 @@ KEY_DOCS = {
     "objectives[].label": "Column name in the results (default the measure name); must not clash with "
                           "another column (trial, feasible, a design variable, <constraint>_margin, ...).",
     "objectives[].goal": "maximize or minimize (default the measure's natural goal).",
-    "objectives[].settings": "Settings of the measure, {setting: value}, checked against the kinds and ranges "
-                             "the measure declares (e.g. quantile in [0, 1]).",
+    "objectives[].settings": "Settings of the measure, {setting: value}, checked against the kinds, ranges and "
+                             "choices the measure declares (e.g. quantile in [0, 1]; see `parasynth list`). "
+                             "Workspace measures may override a field of their workspace sample here (samples "
+                             "as n, seed, ranges, fixed, method; the accuracy measures' sampling method is "
+                             "`sampling`, their `method` is the error model).",
     "constraints": "Design constraints: a measure with a bound; a design is feasible when every margin >= 0.",
     "constraints[].name": "A registered measure, e.g. footprint_radius.",
     "constraints[].label": "Column name in the results (default the measure name); <label>_margin is added.",
