@@ -32,6 +32,7 @@ import numpy as np
 from . import __version__
 from .mechanisms import list_mechanisms, load_mechanism, mechanism_summaries
 from .plugins import load_plugins  # noqa: F401  (also parasynth.cli.load_plugins)
+from .units import SI_UNIT_KINDS, UNIT_KINDS
 from .validation import MAX_SAMPLES, MAX_SEED, MAX_TRIALS
 
 EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_INTERRUPTED, EXIT_PIPE = 0, 1, 2, 130, 141
@@ -118,13 +119,16 @@ def _parse_params(name: str, items: list[str]) -> dict:
     return out
 
 
+def _in_display(value, kind: str, spec: str) -> str:
+    """``value`` (SI) in the display unit of ``kind``, formatted with ``spec``: '205.000 mm'."""
+    u = UNIT_KINDS[kind]
+    return f"{value * u.factor:{spec}} {u.display}"
+
+
 def _fmt_pose(mech, X) -> str:
     parts = []
     for name, v in zip(mech.task_coordinates, np.atleast_1d(X)):
-        if name in mech.angular_coordinates:
-            parts.append(f"{name}={np.rad2deg(v):.3f} deg")
-        else:
-            parts.append(f"{name}={v * 1e3:.3f} mm")
+        parts.append(f"{name}={_in_display(v, 'angle' if name in mech.angular_coordinates else 'length', '.3f')}")
     return ", ".join(parts)
 
 
@@ -144,7 +148,6 @@ def _fmt_value(v, kind) -> str:
 def _fmt_settings(measure: str, settings: dict | None) -> str:
     """A measure's settings (SI inside) in display units: 'mass=20 kg, point=[0 mm, 75 mm, 0 mm]'."""
     from .objectives import get
-    from .units import UNIT_KINDS
 
     kinds = get(measure).settings
     parts = []
@@ -163,6 +166,8 @@ def _fmt_settings(measure: str, settings: dict | None) -> str:
 
 
 _ANGLES = {"alpha", "beta", "gamma", "psi", "theta", "phi"}
+#: How `parasynth list` names a parameter kind where the kind's own name does not read well.
+_KIND_NOUN = {"rotational_stiffness": "rotational stiffness", "pressure": "modulus"}
 
 
 def _first_paragraph(doc: str) -> str:
@@ -221,9 +226,9 @@ def cmd_list(args) -> int:
         specs = getattr(getattr(cls, "description", None), "param_by_name", None) or {}
         for f in dataclasses.fields(params):
             kind = units.get(f.name)
-            unit = {"length": "length, mm", "angle": "angle, deg", "dimensionless": "number",
-                    "stiffness": "stiffness, N/m", "rotational_stiffness": "rotational stiffness, N*m/rad",
-                    "pressure": "modulus, GPa"}.get(kind, kind or "option")
+            unit = ("number" if kind == "dimensionless" else
+                    f"{_KIND_NOUN.get(kind, kind)}, {UNIT_KINDS[kind].display}" if kind in UNIT_KINDS else
+                    kind or "option")
             rng = _param_range(specs.get(f.name), kind)
             print(f"      {f.name} ({unit}{rng}) = {_fmt_value(getattr(params, f.name), kind)}")
         mech = cls(params)
@@ -481,7 +486,7 @@ def cmd_analyze(args) -> int:
     X = mech.home + span * rng.uniform(-1, 1, size=(args.samples, mech.n_task))
     ik = mech.inverse_kinematics(X)
     reach = ik.reachable
-    spans = ", ".join(f"{c} +-{np.rad2deg(w):.4g} deg" if c in mech.angular_coordinates else f"{c} +-{w * 1e3:.4g} mm"
+    spans = ", ".join(f"{c} +-{_in_display(w, 'angle' if c in mech.angular_coordinates else 'length', '.4g')}"
                       for c, w in zip(mech.task_coordinates, span))
     print(f"\n{args.samples} random poses around home ({spans}): {reach.sum()} reachable")
     if reach.any():
@@ -496,8 +501,9 @@ def cmd_analyze(args) -> int:
                 Xfk = mech.forward_kinematics(q)
                 err = np.abs(Xfk - X[reach][:5])
                 ang = np.array([c in mech.angular_coordinates for c in mech.task_coordinates])
-                print(f"forward kinematics from home on {len(q)} poses: max error {np.max(err[:, ~ang]) * 1e3 if (~ang).any() else 0:.2e} mm"
-                      + (f", {np.rad2deg(np.max(err[:, ang])):.2e} deg" if ang.any() else "")
+                print(f"forward kinematics from home on {len(q)} poses: max error "
+                      f"{_in_display(np.max(err[:, ~ang]) if (~ang).any() else 0.0, 'length', '.2e')}"
+                      + (f", {_in_display(np.max(err[:, ang]), 'angle', '.2e')}" if ang.any() else "")
                       + " (a large value means another assembly mode)")
             except ForwardKinematicsError as e:
                 findings.append(f"forward kinematics fails on the sampled poses: {e}")
@@ -526,14 +532,14 @@ def _analyze_home(mech) -> list[str]:
     acts = []
     for n, v in zip(mech.actuators, np.atleast_1d(ik.actuators)):
         kind = getattr(mech, "actuator_kinds", {}).get(n) if isinstance(getattr(mech, "actuator_kinds", None), dict) else None
-        acts.append(f"{n}={np.rad2deg(v):.4f} deg" if kind == "angle" else f"{n}={v * 1e3:.4f} mm")
+        acts.append(f"{n}={_in_display(v, 'angle' if kind == 'angle' else 'length', '.4f')}")
     print("actuators at home: " + ", ".join(acts))
     margins = mech.constraint_margins(mech.home)
     for cname, mv in margins.items():
         mv = float(np.asarray(mv))
         c = mech.constraints[cname]
         unit = getattr(c, "unit", "")
-        shown = (f"{np.rad2deg(mv):.4g} deg" if unit == "rad" else f"{mv * 1e3:.4g} mm" if unit == "m"
+        shown = (_in_display(mv, SI_UNIT_KINDS[unit], ".4g") if unit in ("m", "rad")
                  else f"{mv:.4g} {unit}".rstrip())
         print(f"pose limit {cname} at home: margin {shown}" + ("" if mv >= 0 else "  (violated)"))
         if mv < 0:

@@ -1,24 +1,9 @@
 """How quantities are shown to people: display units per quantity kind, numbers without float noise.
 
 Inside the library every value is SI (m, rad, N, m^3, ...). Tables, figure axes and console
-summaries show each quantity in the unit a designer reads:
-
-=============  ===========  =====================================
-kind           display      SI -> display factor
-=============  ===========  =====================================
-length         mm           1e3
-angle          deg          180/pi
-area           cm^2         1e4
-volume         cm^3         1e6
-force          N            1
-stiffness      N/m          1
-rot. stiffness N*m/rad      1
-pressure       GPa          1e-9
-torque         N*m          1
-mass           kg           1
-time           s            1
-dimensionless  (none)       1
-=============  ===========  =====================================
+summaries show each quantity in the unit a designer reads: the display unit of its kind in the
+units table :data:`parasynth.units.UNIT_KINDS` (length in mm, angle in deg, area in cm^2, volume
+in cm^3, pressure in GPa, force, stiffness, torque, mass and time in SI).
 
 A quantity's kind comes from the measure registry (``Measure.kind`` or ``Measure.unit``) for
 objectives and design constraints, and from the design variable's kind for variables. The
@@ -39,6 +24,7 @@ import numpy as np
 
 from .mechanisms import load_mechanism
 from .objectives import OBJECTIVES
+from .units import SI_UNIT_KINDS, UNIT_KINDS
 
 __all__ = ["Unit", "UNITS", "unit_for_kind", "unit_for_si", "quantity_unit", "fmt_number", "fmt_quantity",
            "fmt_mean_se", "fmt_value", "column_header", "text_table", "fmt_column_value", "fmt_design",
@@ -62,28 +48,12 @@ class Unit:
 
 NONE = Unit("", 1.0)
 
-#: Display unit of each quantity kind.
-UNITS = {
-    "length": Unit("mm", 1e3),
-    "angle": Unit("deg", 180.0 / math.pi),
-    "area": Unit("cm^2", 1e4),
-    "volume": Unit("cm^3", 1e6),
-    "force": Unit("N", 1.0),
-    "stiffness": Unit("N/m", 1.0),
-    "rotational_stiffness": Unit("N*m/rad", 1.0),
-    "pressure": Unit("GPa", 1e-9),
-    "torque": Unit("N*m", 1.0),
-    "mass": Unit("kg", 1.0),
-    "time": Unit("s", 1.0),
-    "dimensionless": NONE,
-}
-
-#: SI unit strings (as measures declare them) -> kind.
-_SI_KIND = {"m": "length", "rad": "angle", "m^2": "area", "m^3": "volume", "N": "force", "N/m": "stiffness",
-            "N*m": "torque", "N m": "torque", "Nm": "torque", "kg": "mass", "s": "time", "1": "dimensionless",
-            "": "dimensionless"}
+#: Display unit of each quantity kind (from the one units table, :data:`parasynth.units.UNIT_KINDS`).
+UNITS = {k: Unit(u.display, u.factor) if u.display else NONE for k, u in UNIT_KINDS.items()}
 
 _POWER = {1: "", 2: "^2", 3: "^3"}
+#: Kind of a product of 1, 2, 3 lengths.
+_LENGTH_POWER = {1: "length", 2: "area", 3: "volume"}
 
 
 def unit_for_kind(kind: str | None) -> Unit:
@@ -97,8 +67,8 @@ def unit_for_si(unit: str | None) -> Unit:
     if unit is None:
         return NONE
     u = unit.strip()
-    if u in _SI_KIND:
-        return UNITS[_SI_KIND[u]]
+    if u in SI_UNIT_KINDS:
+        return UNITS[SI_UNIT_KINDS[u]]
     if u == "mixed":
         return NONE
     return Unit(u, 1.0)
@@ -108,17 +78,15 @@ def compound_unit(n_length: int, n_angle: int) -> Unit:
     """Display unit of a product of ``n_length`` lengths and ``n_angle`` angles: lengths in mm
     for one, cm^2 / cm^3 for two / three (m^n beyond), angles in deg."""
     parts, factor = [], 1.0
-    if n_length == 1:
-        parts.append("mm")
-        factor *= 1e3
-    elif n_length in (2, 3):
-        parts.append(f"cm{_POWER[n_length]}")
-        factor *= 100.0**n_length
+    if n_length in _LENGTH_POWER:
+        u = UNITS[_LENGTH_POWER[n_length]]
+        parts.append(u.symbol)
+        factor *= u.factor
     elif n_length > 3:
-        parts.append(f"m^{n_length}")
+        parts.append(f"{UNIT_KINDS['length'].si}^{n_length}")
     if n_angle:
-        parts.append(f"deg{_POWER.get(n_angle, f'^{n_angle}')}")
-        factor *= (180.0 / math.pi) ** n_angle
+        parts.append(f"{UNITS['angle'].symbol}{_POWER.get(n_angle, f'^{n_angle}')}")
+        factor *= UNITS["angle"].factor ** n_angle
     return Unit("*".join(parts), factor)
 
 

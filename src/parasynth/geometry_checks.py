@@ -6,6 +6,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from .units import UNIT_KINDS
+
+_LENGTH = UNIT_KINDS["length"]
+
 __all__ = ["degenerate_geometry", "SINGULAR_MARGIN"]
 
 #: A singularity margin (dimensionless) below this is a singular pose.
@@ -30,7 +34,7 @@ def degenerate_geometry(mech, ranges=None, n: int = 256, seed: int = 0) -> list[
             pts = [getattr(leg, side, None) for leg in legs]
             if all(p is not None for p in pts) and _coincide(np.array(pts), scale):
                 out.append(f"degenerate geometry: the {len(legs)} {side} anchors coincide "
-                           f"(at {np.round(np.asarray(pts[0], float) * 1e3, 3).tolist()} mm)")
+                           f"(at {np.round(np.asarray(pts[0], float) * _LENGTH.factor, 3).tolist()} {_LENGTH.display})")
     try:
         ranges = dict(ranges) if ranges else mech.default_ranges()
         task = list(mech.task_coordinates)

@@ -1,33 +1,80 @@
-"""Quantities with explicit units at the YAML/CLI boundary ("205 mm", "15 deg").
+"""Quantities with explicit units at the YAML/CLI boundary ("205 mm", "15 deg"), and the one
+table of units the library uses.
 
 Inside the library everything is SI (m, rad, N, kg, s). A unit-bearing field given as a bare
 number is an error, not a guess. Parsing and dimension checks are delegated to pint.
+
+:data:`UNIT_KINDS` is the only table of units: for each kind of quantity its SI unit (pint
+spelling), pint dimensionality, display unit and display factor (display value = SI value *
+factor). Everything else is derived from it here or in the modules that use it: the display
+units of reports and summaries (:mod:`parasynth.display`), the SI unit strings measures
+declare (:data:`SI_UNIT_KINDS`), the unit literals of description expressions
+(:data:`LITERAL_UNITS`) and the SI suffixes of CSV column names (:data:`DISPLAY_TO_SI`).
 """
 
 from __future__ import annotations
 
 import math
 from functools import lru_cache
+from typing import NamedTuple
 
-__all__ = ["UNIT_KINDS", "parse_quantity", "format_quantity", "QuantityError"]
+__all__ = ["UnitKind", "UNIT_KINDS", "DISPLAY_UNITS", "SI_UNIT_KINDS", "LITERAL_UNITS", "DISPLAY_TO_SI",
+           "si_unit", "parse_quantity", "format_quantity", "QuantityError"]
 
-#: Kinds of quantities and their SI unit (pint spelling) and pint dimensionality.
+
+class UnitKind(NamedTuple):
+    """One kind of quantity: ``display value = SI value * factor``."""
+
+    si: str  #: SI unit, pint spelling ('' for a pure number)
+    dimensionality: str  #: pint dimensionality ('' for dimensionless, and for angles)
+    display: str  #: the unit people read in reports and summaries ('' for a pure number)
+    factor: float  #: SI -> display
+
+
+#: Kinds of quantities: SI unit, pint dimensionality, display unit, SI -> display factor.
 UNIT_KINDS = {
-    "length": ("m", "[length]"),
-    "angle": ("rad", ""),
-    "force": ("N", "[force]"),
-    "mass": ("kg", "[mass]"),
-    "time": ("s", "[time]"),
-    "torque": ("N*m", "[force] * [length]"),
-    "stiffness": ("N/m", "[force] / [length]"),
-    "rotational_stiffness": ("N*m/rad", "[force] * [length]"),
-    "pressure": ("Pa", "[pressure]"),
-    "dimensionless": ("", ""),
+    "length": UnitKind("m", "[length]", "mm", 1e3),
+    "angle": UnitKind("rad", "", "deg", 180.0 / math.pi),
+    "area": UnitKind("m^2", "[length] ** 2", "cm^2", 1e4),
+    "volume": UnitKind("m^3", "[length] ** 3", "cm^3", 1e6),
+    "force": UnitKind("N", "[force]", "N", 1.0),
+    "stiffness": UnitKind("N/m", "[force] / [length]", "N/m", 1.0),
+    "rotational_stiffness": UnitKind("N*m/rad", "[force] * [length]", "N*m/rad", 1.0),
+    "pressure": UnitKind("Pa", "[pressure]", "GPa", 1e-9),
+    "torque": UnitKind("N*m", "[force] * [length]", "N*m", 1.0),
+    "mass": UnitKind("kg", "[mass]", "kg", 1.0),
+    "time": UnitKind("s", "[time]", "s", 1.0),
+    "dimensionless": UnitKind("", "", "", 1.0),
 }
 
-#: How quantities are shown to people (reports, summaries).
-DISPLAY_UNITS = {"length": "mm", "angle": "deg", "force": "N", "mass": "kg", "time": "s", "torque": "N*m",
-                 "stiffness": "N/m", "rotational_stiffness": "N*m/rad", "pressure": "GPa"}
+#: Other spellings of SI units that measures declare ("N m" for N*m, "1" for a pure number).
+_SI_ALIASES = {"N m": "torque", "Nm": "torque", "1": "dimensionless"}
+
+#: Unit literals of description expressions ("135 mm" inside an expression): {unit: (kind,
+#: unit -> SI factor)}. Any unit works in a quantity on its own (pint parses it).
+LITERAL_UNITS = {"m": ("length", 1.0), "cm": ("length", 1e-2), "mm": ("length", 1e-3), "um": ("length", 1e-6),
+                 "µm": ("length", 1e-6), "deg": ("angle", math.pi / 180.0), "rad": ("angle", 1.0)}
+
+# -- derived -------------------------------------------------------------------------------------
+#: Display unit of each kind with a unit (reports, summaries, examples in messages).
+DISPLAY_UNITS = {k: u.display for k, u in UNIT_KINDS.items() if k != "dimensionless"}
+
+#: SI unit strings (as measures declare them: "m", "m^3", "N*m", "N m", "1", "") -> kind.
+SI_UNIT_KINDS = {**{u.si: k for k, u in UNIT_KINDS.items()}, **_SI_ALIASES}
+
+
+def _base(unit: str) -> str:
+    return unit.partition("^")[0]
+
+
+#: Display unit (without its power: "cm" of "cm^3") -> SI unit ("m"), where the two differ.
+DISPLAY_TO_SI = {_base(u.display): _base(u.si) for u in UNIT_KINDS.values() if u.display != u.si}
+
+
+def si_unit(kind: str | None) -> str:
+    """The SI unit of ``kind`` ('' for a pure number, ``None`` or an unknown kind)."""
+    u = UNIT_KINDS.get(kind or "")
+    return u.si if u else ""
 
 
 class QuantityError(ValueError):
@@ -64,7 +111,7 @@ def parse_quantity(value, kind: str, field: str = "value") -> float:
 def _parse_quantity(value, kind: str, field: str) -> float:
     if kind not in UNIT_KINDS:
         raise ValueError(f"unknown quantity kind {kind!r}; allowed: {sorted(UNIT_KINDS)}")
-    si, dim = UNIT_KINDS[kind]
+    si, dim = UNIT_KINDS[kind][:2]
     if isinstance(value, bool):
         raise QuantityError(f"{field}: expected a {kind}, got a boolean {value!r}")
     if isinstance(value, complex):
@@ -109,5 +156,5 @@ def format_quantity(value_si: float, kind: str, digits: int = 4) -> str:
         return f"{value_si:.{digits}g}"
     unit = DISPLAY_UNITS[kind]
     ureg = _ureg()
-    v = ureg.Quantity(value_si, UNIT_KINDS[kind][0]).to(unit).magnitude
+    v = ureg.Quantity(value_si, UNIT_KINDS[kind].si).to(unit).magnitude
     return f"{v:.{digits}g} {unit}"

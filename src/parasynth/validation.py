@@ -32,6 +32,8 @@ import numbers
 
 import numpy as np
 
+from .units import si_unit
+
 __all__ = [
     "InputError",
     "check_number",
@@ -145,7 +147,7 @@ def check_number(field: str, value, kind: str | None = None, lo: float | None = 
         parasynth.validation.InputError: link_length must be a length in m > 0, got a boolean (True)
     """
     if unit is None:
-        unit = {"length": "m", "angle": "rad", "force": "N", "mass": "kg", "time": "s", "torque": "N*m"}.get(kind or "", "")
+        unit = si_unit(kind)
     what = f"a {kind}" if kind and kind != "dimensionless" else "a number"
     rng = _range_text(lo, hi, lo_open, hi_open, unit)
     allowed = f"{what} in {unit}" if unit else what

@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..display import (Unit, fmt_mean_se, fmt_number, fmt_quantity, fmt_value, quantity_unit, reference_name,
+from ..display import (UNITS, Unit, fmt_mean_se, fmt_number, fmt_quantity, fmt_value, quantity_unit, reference_name,
                        reference_short)
 from ..mechanisms import load_mechanism
 from ..objectives import workspace_of
@@ -301,6 +301,7 @@ def plot_sweep(figs, study, run_df, final):
 def plot_designs(figs, study, designs: dict):
     """Mechanism sketches at home and workspace projections of named designs."""
     plt = _plt()
+    mm = UNITS["length"]
     mechs = {}
     for name, values in designs.items():
         try:
@@ -314,17 +315,17 @@ def plot_designs(figs, study, designs: dict):
         ax = fig.add_subplot(1, len(mechs), k + 1, projection="3d")
         _, states, p = mech.leg_states(mech.home[None, :])
         for leg, st in zip(mech.legs, states):
-            b, a = st.base_point[0] * 1e3, st.platform_point[0] * 1e3
+            b, a = mm(st.base_point[0]), mm(st.platform_point[0])
             ax.plot([b[0], a[0]], [b[1], a[1]], [b[2], a[2]], "-", lw=2.5,
                     c="#1f77b4" if leg.is_actuated else "#2ca02c")
-            anchor = np.asarray(leg.base, float) * 1e3
+            anchor = mm(np.asarray(leg.base, float))
             ax.scatter(*anchor, c="k", s=12)  # the fixed end of the leg (caption)
             if np.linalg.norm(anchor - b) > 1e-6:  # a prismatic joint first: its anchor to the slider
                 ax.plot(*np.vstack([anchor, b]).T, ls=":", c="#555555", lw=1.2)
-        plat = np.array([st.platform_point[0] for st in states]) * 1e3
+        plat = mm(np.array([st.platform_point[0] for st in states]))
         if len(plat) >= 3:
             ax.plot(*np.vstack([plat, plat[:1]]).T, c="#ff7f0e", lw=1.5)
-        ax.set_title(f"{name} at home (mm)", fontsize=9)
+        ax.set_title(f"{name} at home ({mm.symbol})", fontsize=9)
         ax.set_xlabel("X")
         ax.set_ylabel("Y")
         ax.set_zlabel("Z")
@@ -343,12 +344,12 @@ def plot_designs(figs, study, designs: dict):
             continue
         if ws.n_feasible == 0:
             continue
-        P = mech.pose(ws.points)[0] * 1e3
+        P = mm(mech.pose(ws.points)[0])
         axes[0].scatter(P[:, 0], P[:, 1], s=2, alpha=0.25, c=c, label=name)
         axes[1].scatter(P[:, 0], P[:, 2], s=2, alpha=0.25, c=c, label=name)
     for ax, (a, b) in zip(axes, (("X", "Y"), ("X", "Z"))):
-        ax.set_xlabel(f"{a} [mm]")
-        ax.set_ylabel(f"{b} [mm]")
+        ax.set_xlabel(mm.label(a))
+        ax.set_ylabel(mm.label(b))
         ax.set_aspect("equal", adjustable="datalim")
         ax.grid(alpha=0.3)
         _tidy(ax)

@@ -12,10 +12,11 @@ from __future__ import annotations
 import pandas as pd
 
 from ..display import quantity_known, quantity_unit
+from ..units import DISPLAY_TO_SI
 
 __all__ = ["si_suffix", "csv_column", "csv_columns", "to_csv_columns", "from_csv_columns", "read_run_csv"]
 
-_SI = {"mm": "m", "cm": "m", "deg": "rad", "GPa": "Pa"}
+_SI = DISPLAY_TO_SI
 
 
 def si_suffix(study, name: str) -> str:

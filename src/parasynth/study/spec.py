@@ -80,74 +80,147 @@ class _Model(BaseModel):
 
 
 class VariableSpec(_Model):
-    name: str
-    type: Literal["continuous", "integer", "categorical"] = "continuous"
-    low: Scalar | None = None
-    high: Scalar | None = None
-    values: list[Any] | None = None
-    choices: list[Any] | None = None
-    num: Int | None = Field(default=None, ge=1, le=10_000)
-    log: bool = False
-    when: dict[str, list[Any]] | None = None
+    name: str = Field(description="The mechanism parameter (see `parasynth list`).")
+    type: Literal["continuous", "integer", "categorical"] = Field(default="continuous", description=(
+        "continuous (default), integer or categorical."))
+    low: Scalar | None = Field(default=None, description=(
+        "Lower bound with the parameter's unit, e.g. 160 mm; a plain number for dimensionless "
+        "parameters."))
+    high: Scalar | None = Field(default=None, description="Upper bound with the parameter's unit; must be above low.")
+    values: list[Any] | None = Field(default=None, description=(
+        "Explicit values for a sweep, with units, e.g. [165 mm, 185 mm]."))
+    choices: list[Any] | None = Field(default=None, description="The choices of a categorical variable.")
+    num: Int | None = Field(default=None, ge=1, le=10_000, description=(
+        "Number of evenly spaced sweep values from low to high (1 to 10000)."))
+    log: bool = Field(default=False, description="Sample on a log scale (needs low > 0).")
+    when: dict[str, list[Any]] | None = Field(default=None, description=(
+        "Makes the variable conditional, {categorical variable: [choice, ...]}: it exists only "
+        "when each named variable takes one of the listed choices (absent from the design and "
+        "empty in results.csv otherwise)."))
 
 
 class MeasureRef(_Model):
-    name: str
-    label: str | None = None
-    goal: Literal["maximize", "minimize"] | None = None
-    settings: dict[str, Any] = Field(default_factory=dict)
+    name: str = Field(description="A registered measure, e.g. workspace_volume.")
+    label: str | None = Field(default=None, description=(
+        "Column name in the results (default the measure name); must not clash with "
+        "another column (trial, feasible, a design variable, <constraint>_margin, ...)."))
+    goal: Literal["maximize", "minimize"] | None = Field(default=None, description=(
+        "maximize or minimize (default the measure's natural goal)."))
+    settings: dict[str, Any] = Field(default_factory=dict, description=(
+        "Settings of the measure, {setting: value}, checked against the kinds, ranges and choices the "
+        "measure declares (e.g. quantile in [0, 1]; see `parasynth list`). Workspace measures may override "
+        "a field of their workspace sample here (samples as n, seed, ranges, fixed, method; the accuracy "
+        "measures' sampling method is `sampling`, their `method` is the error model)."))
 
 
 class ConstraintRef(_Model):
-    name: str
-    label: str | None = None
-    min: Scalar | None = None
-    max: Scalar | None = None
-    settings: dict[str, Any] = Field(default_factory=dict)
+    name: str = Field(description="A registered measure, e.g. footprint_radius.")
+    label: str | None = Field(default=None, description=(
+        "Column name in the results (default the measure name); <label>_margin is added."))
+    min: Scalar | None = Field(default=None, description=(
+        "Lower bound with the measure's unit (a plain number for dimensionless measures)."))
+    max: Scalar | None = Field(default=None, description=(
+        "Upper bound with the measure's unit; min must not be above max."))
+    settings: dict[str, Any] = Field(default_factory=dict, description="Settings of the measure, as for objectives.")
 
 
 class EvaluationSpec(_Model):
-    method: Literal["sobol", "grid", "random"] = "sobol"
-    samples: Int = Field(default=4096, ge=1, le=MAX_SAMPLES)
-    seed: Int = Field(default=0, ge=0, le=MAX_SEED)
-    ranges: dict[str, list[Scalar]] | None = None
-    fixed_pose: dict[str, Scalar] = Field(default_factory=dict)
-    constraints: list[str] | None = None
-    final_samples: Int | None = Field(default=None, ge=1, le=MAX_SAMPLES)
-    final_repeats: Int = Field(default=4, ge=1, le=1000)
-    final_top: Int = Field(default=5, ge=0, le=1000)
-    engine: Literal["compiled", "numpy"] = "compiled"
+    method: Literal["sobol", "grid", "random"] = Field(default="sobol", description=(
+        "Sampling method: sobol (default), grid or random."))
+    samples: Int = Field(default=4096, ge=1, le=MAX_SAMPLES, description=(
+        f"Workspace samples per design (1 to {MAX_SAMPLES}, default 4096)."))
+    seed: Int = Field(default=0, ge=0, le=MAX_SEED, description=(
+        f"Seed of the sample (0 to {MAX_SEED}); the same points serve every design."))
+    ranges: dict[str, list[Scalar]] | None = Field(default=None, description=(
+        "Sampled task coordinates, {coordinate: [low, high]} with units, e.g. "
+        "{z: [-450 mm, 300 mm]}; leave out for the model's default ranges (an empty "
+        "mapping is an error)."))
+    fixed_pose: dict[str, Scalar] = Field(default_factory=dict, description=(
+        "Task coordinates held fixed while sampling, {coordinate: value with unit}."))
+    constraints: list[str] | None = Field(default=None, description=(
+        "Pose constraints that define the workspace (default all of the model's; see "
+        "`parasynth list`)."))
+    final_samples: Int | None = Field(default=None, ge=1, le=MAX_SAMPLES, description=(
+        "Samples of the final re-evaluation of the best designs (1 to "
+        f"{MAX_SAMPLES}); leave out to skip it."))
+    final_repeats: Int = Field(default=4, ge=1, le=1000, description=(
+        "Seeds of the final re-evaluation (1 to 1000, default 4): mean and standard "
+        "error over them."))
+    final_top: Int = Field(default=5, ge=0, le=1000, description=(
+        "Front designs re-evaluated at the end (0 to 1000, default 5): the k best (one "
+        "objective) or k spread along the front by crowding distance, plus the knee and up to "
+        "max(3, final_top) designs that dominate the reference on single samples; 0 skips it."))
+    engine: Literal["compiled", "numpy"] = Field(default="compiled", description=(
+        "Evaluation engine: compiled (default; NumPy, with a warning, for a mechanism it does "
+        "not cover) or numpy (the NumPy reference)."))
 
 
 class OptimizerSpec(_Model):
-    kind: Literal["sweep", "nlopt", "optuna"] = "sweep"
-    algorithm: str | None = None
-    n_trials: Int | None = Field(default=None, ge=1, le=MAX_TRIALS)
-    maxeval: Int | None = Field(default=None, ge=1, le=MAX_TRIALS)
-    xtol_rel: float | None = Field(default=None, gt=0, allow_inf_nan=False)
-    ftol_rel: float | None = Field(default=None, gt=0, allow_inf_nan=False)
-    start: dict[str, Any] | None = None
-    n_jobs: Int = Field(default=1, ge=1, le=1024)
-    workers: Int | None = Field(default=None, ge=1, le=1024)
-    storage: str | None = None
-    seed: Int | None = Field(default=None, ge=0, le=MAX_SEED)
-    designs: list[dict[str, Any]] | None = None
-    population_size: Int | None = Field(default=None, ge=2, le=100_000)
+    kind: Literal["sweep", "nlopt", "optuna"] = Field(default="sweep", description="sweep (default), nlopt or optuna.")
+    algorithm: str | None = Field(default=None, description=(
+        "Algorithm of the kind: sweep grid|list; NLopt LN_COBYLA, LN_BOBYQA, ...; Optuna "
+        "tpe, nsga2, ... (see `parasynth list`)."))
+    n_trials: Int | None = Field(default=None, ge=1, le=MAX_TRIALS, description=f"Optuna trials (1 to {MAX_TRIALS}).")
+    maxeval: Int | None = Field(default=None, ge=1, le=MAX_TRIALS, description=(
+        f"NLopt evaluations (1 to {MAX_TRIALS})."))
+    xtol_rel: float | None = Field(default=None, gt=0, allow_inf_nan=False, description=(
+        "NLopt relative tolerance on the design variables (> 0)."))
+    ftol_rel: float | None = Field(default=None, gt=0, allow_inf_nan=False, description=(
+        "NLopt relative tolerance on the objective (> 0)."))
+    start: dict[str, Any] | None = Field(default=None, description=(
+        "NLopt start design, {variable: value with unit} (default the reference or the box centre)."))
+    n_jobs: Int = Field(default=1, ge=1, le=1024, description="Same as optimizer.workers (kept for older study files).")
+    workers: Int | None = Field(default=None, ge=1, le=1024, description=(
+        "Local worker processes of an Optuna study (1 to 1024, default 1; --workers overrides; "
+        "see docs/scaling.md)."))
+    storage: str | None = Field(default=None, description=(
+        "Optuna storage URL: postgresql://USER:PASSWORD@HOST/DB, sqlite:///FILE or journal:FILE "
+        "(default the run directory's optuna.journal; --storage overrides; see docs/scaling.md)."))
+    seed: Int | None = Field(default=None, ge=0, le=MAX_SEED, description=f"Seed of the optimiser (0 to {MAX_SEED}).")
+    designs: list[dict[str, Any]] | None = Field(default=None, description=(
+        "For a sweep: the list of designs to evaluate, each {variable: value with unit}."))
+    population_size: Int | None = Field(default=None, ge=2, le=100_000, description=(
+        "Population of the evolutionary Optuna samplers (2 to 100000)."))
 
 
 class StudySpec(_Model):
-    name: str = Field(pattern=r"^[A-Za-z0-9_.\-]+$")
-    description: str = ""
-    mechanism: str
-    fixed: dict[str, Any] = Field(default_factory=dict)
-    variables: list[VariableSpec] = Field(default_factory=list)
-    objectives: list[MeasureRef] = Field(min_length=1)
-    constraints: list[ConstraintRef] = Field(default_factory=list)
-    evaluation: EvaluationSpec = Field(default_factory=EvaluationSpec)
-    optimizer: OptimizerSpec = Field(default_factory=OptimizerSpec)
-    reference: dict[str, Any] | None = None
-    tied: dict[str, str] = Field(default_factory=dict)
-    output: str | None = None
+    """A parasynth design study (docs/study-format.md). Quantities are strings with units, e.g. '205 mm', '15 deg'."""
+
+    model_config = ConfigDict(extra="forbid", title="parasynth study")
+
+    name: str = Field(pattern=r"^[A-Za-z0-9_.\-]+$", description=(
+        "Study name: letters, digits, '_', '.', '-'; names the run directory runs/<name>/ and the report."))
+    description: str = Field(default="", description="Free text shown at the top of the report.")
+    mechanism: str = Field(description=(
+        "A registry name (see `parasynth list`) or a mechanism description file (.yaml; a relative "
+        "path is taken from the study file's folder)."))
+    fixed: dict[str, Any] = Field(default_factory=dict, description=(
+        "Mechanism parameters held fixed, {parameter: value with unit}, e.g. {slider_radius: 135 mm}."))
+    variables: list[VariableSpec] = Field(default_factory=list, description=(
+        "Design variables: mechanism parameters the optimiser or sweep changes."))
+    objectives: list[MeasureRef] = Field(min_length=1, description=(
+        "Measures to optimise (at least one); see `parasynth list` for names and settings."))
+    constraints: list[ConstraintRef] = Field(default_factory=list, description=(
+        "Design constraints: a measure with a bound; a design is feasible when every margin >= 0."))
+    evaluation: EvaluationSpec = Field(default_factory=EvaluationSpec, description=(
+        "How every design is evaluated: the workspace sample shared by the workspace measures."))
+    optimizer: OptimizerSpec = Field(default_factory=OptimizerSpec, description=(
+        "The search: a sweep over listed values, NLopt (one objective) or Optuna (several)."))
+    reference: dict[str, Any] | None = Field(default=None, description=(
+        "A reference design (e.g. the paper's), {parameter: value with unit}: evaluated first and "
+        "compared in the report."))
+    tied: dict[str, str] = Field(default_factory=dict, description=(
+        "Parameters that follow a design variable, {parameter: variable}; same unit."))
+    output: str | None = Field(default=None, description="Run directory (default runs/<name>/); --out overrides it.")
+
+
+#: The keys of ``reference`` that are not mechanism parameters (a mapping, so not fields of a model).
+REFERENCE_KEYS = {
+    "label": "What the reference design is, named so in the report and the summary (e.g. \"the "
+             "paper's design\"; default \"the reference design\").",
+    "source": "Where the reference design comes from (e.g. \"Wang, Lyu & Liu 2021, Table 2\"); "
+              "shown beside its label.",
+}
 
 
 # -- resolved, SI -------------------------------------------------------------------------------
@@ -804,88 +877,8 @@ def _design_str(d: dict) -> str:
 
 
 # -- documentation of every key, for the JSON Schema and docs/study-format.md -------------------
-#: {key path: description}; ``[]`` marks the entries of a list. Every key of the study models
-#: has an entry (a test checks it, and that docs/study-format.md documents each one).
-KEY_DOCS = {
-    "name": "Study name: letters, digits, '_', '.', '-'; names the run directory runs/<name>/ and the report.",
-    "description": "Free text shown at the top of the report.",
-    "mechanism": "A registry name (see `parasynth list`) or a mechanism description file (.yaml; a relative "
-                 "path is taken from the study file's folder).",
-    "fixed": "Mechanism parameters held fixed, {parameter: value with unit}, e.g. {slider_radius: 135 mm}.",
-    "variables": "Design variables: mechanism parameters the optimiser or sweep changes.",
-    "variables[].name": "The mechanism parameter (see `parasynth list`).",
-    "variables[].type": "continuous (default), integer or categorical.",
-    "variables[].low": "Lower bound with the parameter's unit, e.g. 160 mm; a plain number for dimensionless "
-                       "parameters.",
-    "variables[].high": "Upper bound with the parameter's unit; must be above low.",
-    "variables[].values": "Explicit values for a sweep, with units, e.g. [165 mm, 185 mm].",
-    "variables[].choices": "The choices of a categorical variable.",
-    "variables[].num": "Number of evenly spaced sweep values from low to high (1 to 10000).",
-    "variables[].log": "Sample on a log scale (needs low > 0).",
-    "variables[].when": "Makes the variable conditional, {categorical variable: [choice, ...]}: it exists only "
-                        "when each named variable takes one of the listed choices (absent from the design and "
-                        "empty in results.csv otherwise).",
-    "objectives": "Measures to optimise (at least one); see `parasynth list` for names and settings.",
-    "objectives[].name": "A registered measure, e.g. workspace_volume.",
-    "objectives[].label": "Column name in the results (default the measure name); must not clash with "
-                          "another column (trial, feasible, a design variable, <constraint>_margin, ...).",
-    "objectives[].goal": "maximize or minimize (default the measure's natural goal).",
-    "objectives[].settings": "Settings of the measure, {setting: value}, checked against the kinds, ranges and "
-                             "choices the measure declares (e.g. quantile in [0, 1]; see `parasynth list`). "
-                             "Workspace measures may override a field of their workspace sample here (samples "
-                             "as n, seed, ranges, fixed, method; the accuracy measures' sampling method is "
-                             "`sampling`, their `method` is the error model).",
-    "constraints": "Design constraints: a measure with a bound; a design is feasible when every margin >= 0.",
-    "constraints[].name": "A registered measure, e.g. footprint_radius.",
-    "constraints[].label": "Column name in the results (default the measure name); <label>_margin is added.",
-    "constraints[].min": "Lower bound with the measure's unit (a plain number for dimensionless measures).",
-    "constraints[].max": "Upper bound with the measure's unit; min must not be above max.",
-    "constraints[].settings": "Settings of the measure, as for objectives.",
-    "evaluation": "How every design is evaluated: the workspace sample shared by the workspace measures.",
-    "evaluation.method": "Sampling method: sobol (default), grid or random.",
-    "evaluation.samples": f"Workspace samples per design (1 to {MAX_SAMPLES}, default 4096).",
-    "evaluation.seed": f"Seed of the sample (0 to {MAX_SEED}); the same points serve every design.",
-    "evaluation.ranges": "Sampled task coordinates, {coordinate: [low, high]} with units, e.g. "
-                         "{z: [-450 mm, 300 mm]}; leave out for the model's default ranges (an empty "
-                         "mapping is an error).",
-    "evaluation.fixed_pose": "Task coordinates held fixed while sampling, {coordinate: value with unit}.",
-    "evaluation.constraints": "Pose constraints that define the workspace (default all of the model's; see "
-                              "`parasynth list`).",
-    "evaluation.final_samples": "Samples of the final re-evaluation of the best designs (1 to "
-                                f"{MAX_SAMPLES}); leave out to skip it.",
-    "evaluation.final_repeats": "Seeds of the final re-evaluation (1 to 1000, default 4): mean and standard "
-                                "error over them.",
-    "evaluation.final_top": "Front designs re-evaluated at the end (0 to 1000, default 5): the k best (one "
-                            "objective) or k spread along the front by crowding distance, plus the knee and up to "
-                            "max(3, final_top) designs that dominate the reference on single samples; 0 skips it.",
-    "evaluation.engine": "Evaluation engine: compiled (default; NumPy, with a warning, for a mechanism it does "
-                         "not cover) or numpy (the NumPy reference).",
-    "optimizer": "The search: a sweep over listed values, NLopt (one objective) or Optuna (several).",
-    "optimizer.kind": "sweep (default), nlopt or optuna.",
-    "optimizer.algorithm": "Algorithm of the kind: sweep grid|list; NLopt LN_COBYLA, LN_BOBYQA, ...; Optuna "
-                           "tpe, nsga2, ... (see `parasynth list`).",
-    "optimizer.n_trials": f"Optuna trials (1 to {MAX_TRIALS}).",
-    "optimizer.maxeval": f"NLopt evaluations (1 to {MAX_TRIALS}).",
-    "optimizer.xtol_rel": "NLopt relative tolerance on the design variables (> 0).",
-    "optimizer.ftol_rel": "NLopt relative tolerance on the objective (> 0).",
-    "optimizer.start": "NLopt start design, {variable: value with unit} (default the reference or the box centre).",
-    "optimizer.n_jobs": "Same as optimizer.workers (kept for older study files).",
-    "optimizer.workers": "Local worker processes of an Optuna study (1 to 1024, default 1; --workers overrides; "
-                         "see docs/scaling.md).",
-    "optimizer.storage": "Optuna storage URL: postgresql://USER:PASSWORD@HOST/DB, sqlite:///FILE or journal:FILE "
-                         "(default the run directory's optuna.journal; --storage overrides; see docs/scaling.md).",
-    "optimizer.seed": f"Seed of the optimiser (0 to {MAX_SEED}).",
-    "optimizer.designs": "For a sweep: the list of designs to evaluate, each {variable: value with unit}.",
-    "optimizer.population_size": "Population of the evolutionary Optuna samplers (2 to 100000).",
-    "reference": "A reference design (e.g. the paper's), {parameter: value with unit}: evaluated first and "
-                 "compared in the report.",
-    "reference.label": "What the reference design is, named so in the report and the summary (e.g. \"the "
-                       "paper's design\"; default \"the reference design\").",
-    "reference.source": "Where the reference design comes from (e.g. \"Wang, Lyu & Liu 2021, Table 2\"); "
-                        "shown beside its label.",
-    "tied": "Parameters that follow a design variable, {parameter: variable}; same unit.",
-    "output": "Run directory (default runs/<name>/); --out overrides it.",
-}
+# The text of each key is the description of its field in the models above; docs/study-format.md
+# documents each key (a test checks it).
 
 
 def _model_keys(model, prefix="") -> list[str]:
@@ -906,27 +899,27 @@ def study_keys() -> list[str]:
     return _model_keys(StudySpec)
 
 
+def key_docs() -> dict[str, str]:
+    """{key path: description} of every key of the study format (``[]`` marks the entries of a
+    list): the fields' descriptions, and the keys of ``reference`` (:data:`REFERENCE_KEYS`)."""
+    models = {"": StudySpec, "variables[].": VariableSpec, "objectives[].": MeasureRef,
+              "constraints[].": ConstraintRef, "evaluation.": EvaluationSpec, "optimizer.": OptimizerSpec}
+    docs = {}
+    for key in study_keys():
+        prefix, _, leaf = key.rpartition(".")
+        docs[key] = models[prefix + "." if prefix else ""].model_fields[leaf].description
+    docs.update({f"reference.{k}": v for k, v in REFERENCE_KEYS.items()})
+    return docs
+
+
+#: {key path: description} of every key (:func:`key_docs`).
+KEY_DOCS = key_docs()
+
+
 def study_json_schema() -> dict:
-    """The study file format as JSON Schema (draft 2020-12), from the pydantic models, with a
-    description of every key (:data:`KEY_DOCS`)."""
+    """The study file format as JSON Schema (draft 2020-12), from the pydantic models: each key's
+    description is its field's."""
     schema = StudySpec.model_json_schema()
-    defs = schema.get("$defs", {})
-    where = {"": schema, "variables[].": defs.get("VariableSpec"), "objectives[].": defs.get("MeasureRef"),
-             "constraints[].": defs.get("ConstraintRef"), "evaluation.": defs.get("EvaluationSpec"),
-             "optimizer.": defs.get("OptimizerSpec")}
-    for key, doc in KEY_DOCS.items():
-        prefix, _, leaf = key.rpartition(".") if "." in key else ("", "", key)
-        prefix = prefix + "." if prefix else ""
-        node = where.get(prefix)
-        if node is not None and leaf in node.get("properties", {}):
-            node["properties"][leaf]["description"] = doc
-    for key in study_keys():  # a key without a text still gets a pointer to the docs
-        prefix, _, leaf = key.rpartition(".") if "." in key else ("", "", key)
-        node = where.get(prefix + "." if prefix else "")
-        if node is not None and leaf in node.get("properties", {}):
-            node["properties"][leaf].setdefault("description", "See docs/study-format.md.")
     schema["$schema"] = "https://json-schema.org/draft/2020-12/schema"
-    schema["title"] = "parasynth study"
-    schema["description"] = "A parasynth design study (docs/study-format.md). Quantities are strings with units, " \
-                            "e.g. '205 mm', '15 deg'."
     return schema
+

@@ -11,19 +11,20 @@ for code generators.
 from __future__ import annotations
 
 import ast
-import math
 import operator
 import re
 from typing import Callable
 
 import numpy as np
 
+from ...units import LITERAL_UNITS
 from .errors import DescriptionError
 
-#: Units recognised inside expressions; each ``<number> <unit>`` is replaced by its SI value.
-UNIT_FACTORS = {"m": 1.0, "cm": 1e-2, "mm": 1e-3, "um": 1e-6, "µm": 1e-6, "deg": math.pi / 180.0, "rad": 1.0}
+#: Units recognised inside expressions (:data:`parasynth.units.LITERAL_UNITS`) and their factor to
+#: SI; each ``<number> <unit>`` is replaced by its SI value.
+UNIT_FACTORS = {unit: factor for unit, (_kind, factor) in LITERAL_UNITS.items()}
 _NUMBER = r"(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
-_UNIT_LITERAL = re.compile(r"(?<![\w.])(" + _NUMBER + r")\s*(mm|cm|um|µm|m|deg|rad)(?!\w)")
+_UNIT_LITERAL = re.compile(r"(?<![\w.])(" + _NUMBER + r")\s*(" + "|".join(sorted(UNIT_FACTORS, key=len, reverse=True)) + r")(?!\w)")
 #: A string that is a single quantity such as "135 mm" (parsed by pint, so any unit works).
 _PURE_QUANTITY = re.compile(r"^\s*[-+]?" + _NUMBER + r"\s*[^\W\d_][\w\s*/^.]*$")
 

@@ -16,6 +16,7 @@ import numpy as np
 from ... import engine as _engine
 from ...mechanism import Mechanism, Mobility
 from ...spatial import euler_rate_map, euler_to_matrix, reciprocal_basis, rot_axis, skew
+from ...units import UNIT_KINDS
 from .errors import DescriptionError, DescriptionWarning
 from .expressions import R_NAMES, _Dual, _grad, _val
 from .parameters import _param_env
@@ -235,7 +236,8 @@ class DescribedMechanism(Mechanism):
                 if not np.isfinite(st.actuator[0]):
                     why = " (its platform anchor is further than link_length from its slider line)"
                 elif "off_plane" in st.extra:
-                    why = (f" (its platform anchor is {st.extra['off_plane'][0] * 1e3:.4g} mm off the plane its "
+                    why = (f" (its platform anchor is {st.extra['off_plane'][0] * UNIT_KINDS['length'].factor:.4g} "
+                           f"{UNIT_KINDS['length'].display} off the plane its "
                            f"revolute joint allows: the position or orientation misses a dependent coordinate?)")
                 raise DescriptionError(f"{self.name}: task.home: the home pose {self.home.tolist()} is not reachable "
                                        f"by leg {leg.name} ({leg.joints}){why}")

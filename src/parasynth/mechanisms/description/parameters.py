@@ -11,21 +11,21 @@ from typing import Any
 
 import numpy as np
 
-from ...units import QuantityError, parse_quantity
+from ...units import DISPLAY_UNITS, UNIT_KINDS, QuantityError, parse_quantity
 from .errors import DescriptionError
 from .expressions import Expression, RESERVED, _PURE_QUANTITY, _Scope
 
 _UNITFUL = ("length", "angle", "stiffness", "rotational_stiffness", "pressure")
-_EXAMPLE_UNIT = {"length": "mm", "angle": "deg", "stiffness": "N/m", "rotational_stiffness": "N*m/rad",
-                 "pressure": "GPa"}
-_KIND_TEXT = {"length": "a length (e.g. '135 mm')", "angle": "an angle (e.g. '15 deg')",
-              "stiffness": "a stiffness (e.g. '2e7 N/m')",
-              "rotational_stiffness": "a rotational stiffness (e.g. '3e5 N*m/rad')",
-              "pressure": "a modulus (e.g. '210 GPa')",
+#: Display unit of each parameter kind with a unit (examples in messages).
+_EXAMPLE_UNIT = {k: DISPLAY_UNITS[k] for k in _UNITFUL}
+_KIND_TEXT = {"length": f"a length (e.g. '135 {_EXAMPLE_UNIT['length']}')",
+              "angle": f"an angle (e.g. '15 {_EXAMPLE_UNIT['angle']}')",
+              "stiffness": f"a stiffness (e.g. '2e7 {_EXAMPLE_UNIT['stiffness']}')",
+              "rotational_stiffness": f"a rotational stiffness (e.g. '3e5 {_EXAMPLE_UNIT['rotational_stiffness']}')",
+              "pressure": f"a modulus (e.g. '210 {_EXAMPLE_UNIT['pressure']}')",
               "dimensionless": "a number", None: "a number"}
 #: SI unit of each parameter kind (messages).
-_SI_UNIT = {"length": "m", "angle": "rad", "stiffness": "N/m", "rotational_stiffness": "N*m/rad", "pressure": "Pa",
-            "dimensionless": "a plain number"}
+_SI_UNIT = {**{k: UNIT_KINDS[k].si for k in _UNITFUL}, "dimensionless": "a plain number"}
 #: Kinds whose values are positive by nature: zero or negative is refused even without bounds.
 _POSITIVE_KINDS = ("stiffness", "rotational_stiffness", "pressure")
 
