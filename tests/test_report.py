@@ -317,7 +317,7 @@ def test_knee_is_always_reevaluated(mo_run):
                                                        "final_top": 2}}), is_text=True)
         fin = reevaluate_best(s2, Evaluator(s2), res.table, res.out_dir)
     a = analyse(load_run(res.out_dir))
-    knee = a["knee_row"]
+    knee = a.knee_row
     best = fin[fin.source == "best"]
     hit = best[np.isclose(best.link_length, knee.link_length) & np.isclose(best.slider_radius, knee.slider_radius)]
     assert len(hit) == 1 and bool(hit["knee"].iloc[0])
@@ -431,7 +431,7 @@ def test_overlap_check_detects_crowded_panels():
     with many ticks of long SI numbers (m^3) overlap."""
     from matplotlib.ticker import MaxNLocator
 
-    from parasynth.report.render import _plt
+    from parasynth.report.figures import _plt
 
     plt = _plt()
     fig, axes = plt.subplots(1, 6, figsize=(6, 2))
@@ -451,7 +451,7 @@ def test_stale_final_without_the_knee_is_said(tmp_path):
             _rec(1, 0.190, 0.120, -0.01000, 0.4300),
             _rec(2, 0.180, 0.110, -0.00500, 0.4600)]
     run = load_run(_write_run(tmp_path / "probe", study, recs))
-    knee = analyse(run)["knee_row"]
+    knee = analyse(run).knee_row
     others = [r for r in recs[1:] if r.trial != int(knee["trial"])]
     # final.csv written before the knee design existed: it holds the other designs only
     fin = [_final_row("best", r.trial, r.values["link_length"], r.values["slider_radius"], r.objectives["test_quadratic"],
