@@ -431,16 +431,14 @@ def test_overlap_check_detects_crowded_panels():
     with many ticks of long SI numbers (m^3) overlap."""
     from matplotlib.ticker import MaxNLocator
 
-    from parasynth.report.figures import _plt
+    from parasynth.report.figures import _subplots
 
-    plt = _plt()
-    fig, axes = plt.subplots(1, 6, figsize=(6, 2))
+    fig, axes = _subplots(1, 6, figsize=(6, 2), layout=None)
     for ax in axes:
         ax.plot([0.0013943, 0.0032822], [0.0013943, 0.0032822])
         ax.xaxis.set_major_locator(MaxNLocator(nbins=20))
         ax.ticklabel_format(useOffset=False, style="plain")
     bad = _text_boxes_overlap(fig)
-    plt.close(fig)
     assert bad and "labels of two panels overlap" in bad and any(isinstance(b, tuple) for b in bad)
 
 
