@@ -250,6 +250,8 @@ def plot_designs(figs, study, designs: dict):
             continue
     if not mechs:
         return
+    from matplotlib.ticker import MaxNLocator  # lazy: matplotlib, as in _figure
+
     fig = _figure(figsize=(5.2 * len(mechs), 4.6), layout="constrained")
     for k, (name, mech) in enumerate(mechs.items()):
         ax = fig.add_subplot(1, len(mechs), k + 1, projection="3d")
@@ -269,6 +271,9 @@ def plot_designs(figs, study, designs: dict):
         ax.set_xlabel("X")
         ax.set_ylabel("Y")
         ax.set_zlabel("Z")
+        for axis in (ax.xaxis, ax.yaxis, ax.zaxis):  # few ticks: legible, and fewer labels to lay out
+            axis.set_major_locator(MaxNLocator(nbins=4))
+        ax.tick_params(labelsize=8)
     figs.add(fig, "designs", "Mechanism sketches at the home pose (blue: actuated legs, green: passive legs, "
              "black dots: the legs' fixed base anchors, dotted: a leg's first prismatic joint from its anchor to "
              "the slider, orange outline: the platform anchors).")
