@@ -50,9 +50,9 @@ class Figures:
 
     def add(self, fig, name, caption):
         buf = io.BytesIO()
-        # A figure laid out by its layout engine (constrained) fits its canvas already: saving
-        # it "tight" would lay it out and draw it twice.
-        fig.savefig(buf, format="png", dpi=110, bbox_inches=None if fig.get_layout_engine() is not None else "tight")
+        # Every figure is laid out to fit its canvas (a constrained layout, or fixed margins for
+        # the 3D sketches): no "tight" bounding box, which would cost one more layout pass.
+        fig.savefig(buf, format="png", dpi=110)
         if self.keep:
             self.figures[name] = fig
         self.items.append((name, caption, buf.getvalue()))
@@ -252,7 +252,9 @@ def plot_designs(figs, study, designs: dict):
         return
     from matplotlib.ticker import MaxNLocator  # lazy: matplotlib, as in _figure
 
-    fig = _figure(figsize=(5.2 * len(mechs), 4.6), layout="constrained")
+    # 3D panels: fixed margins (a layout engine would draw the figure twice when saving)
+    fig = _figure(figsize=(5.2 * len(mechs), 4.6))
+    fig.subplots_adjust(left=0.0, right=0.96, bottom=0.03, top=0.95, wspace=0.08)
     for k, (name, mech) in enumerate(mechs.items()):
         ax = fig.add_subplot(1, len(mechs), k + 1, projection="3d")
         _, states, p = mech.leg_states(mech.home[None, :])
