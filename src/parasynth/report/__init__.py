@@ -8,5 +8,6 @@ from ..pareto import (NoisyComparison, compare_with_noise, default_reference_poi
 from .analysis import Analysis, FinalAnalysis, analyse
 from .render import ReportError, load_run, write_report
 
-__all__ = ["analyse", "Analysis", "FinalAnalysis", "compare_with_noise", "NoisyComparison", "write_report", "load_run", "ReportError", "pareto_mask", "non_dominated_ranks", "hypervolume",
-           "default_reference_point", "knee_index", "reference_standing", "to_min"]
+__all__ = ["analyse", "Analysis", "FinalAnalysis", "compare_with_noise", "NoisyComparison", "write_report", "load_run",
+           "ReportError", "pareto_mask", "non_dominated_ranks", "hypervolume", "default_reference_point", "knee_index",
+           "reference_standing", "to_min"]

@@ -24,7 +24,7 @@ __all__ = ["Figures", "make_figures", "plot_pareto", "plot_parallel", "plot_conv
 def _figure(**kw):
     """A matplotlib figure drawn by Agg, outside pyplot: no global backend switch, no figure
     manager, nothing to close."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg  # lazy: matplotlib takes about half a second to import; only figures need it
+    from matplotlib.backends.backend_agg import FigureCanvasAgg  # lazy: matplotlib costs ~0.5 s; figures only
     from matplotlib.figure import Figure  # lazy: as above
 
     fig = Figure(**kw)
