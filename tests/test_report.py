@@ -317,7 +317,7 @@ def test_knee_is_always_reevaluated(mo_run):
                                                        "final_top": 2}}), is_text=True)
         fin = reevaluate_best(s2, Evaluator(s2), res.table, res.out_dir)
     a = analyse(load_run(res.out_dir))
-    knee = a["knee_row"]
+    knee = a.knee_row
     best = fin[fin.source == "best"]
     hit = best[np.isclose(best.link_length, knee.link_length) & np.isclose(best.slider_radius, knee.slider_radius)]
     assert len(hit) == 1 and bool(hit["knee"].iloc[0])
@@ -431,16 +431,14 @@ def test_overlap_check_detects_crowded_panels():
     with many ticks of long SI numbers (m^3) overlap."""
     from matplotlib.ticker import MaxNLocator
 
-    from parasynth.report.render import _plt
+    from parasynth.report.figures import _subplots
 
-    plt = _plt()
-    fig, axes = plt.subplots(1, 6, figsize=(6, 2))
+    fig, axes = _subplots(1, 6, figsize=(6, 2), layout=None)
     for ax in axes:
         ax.plot([0.0013943, 0.0032822], [0.0013943, 0.0032822])
         ax.xaxis.set_major_locator(MaxNLocator(nbins=20))
         ax.ticklabel_format(useOffset=False, style="plain")
     bad = _text_boxes_overlap(fig)
-    plt.close(fig)
     assert bad and "labels of two panels overlap" in bad and any(isinstance(b, tuple) for b in bad)
 
 
@@ -451,7 +449,7 @@ def test_stale_final_without_the_knee_is_said(tmp_path):
             _rec(1, 0.190, 0.120, -0.01000, 0.4300),
             _rec(2, 0.180, 0.110, -0.00500, 0.4600)]
     run = load_run(_write_run(tmp_path / "probe", study, recs))
-    knee = analyse(run)["knee_row"]
+    knee = analyse(run).knee_row
     others = [r for r in recs[1:] if r.trial != int(knee["trial"])]
     # final.csv written before the knee design existed: it holds the other designs only
     fin = [_final_row("best", r.trial, r.values["link_length"], r.values["slider_radius"], r.objectives["test_quadratic"],
@@ -553,3 +551,111 @@ def test_verdict_decides_on_the_screening_dominators(tmp_path, sigma):
     # the re-evaluation table marks them
     sec = txt.split("## Re-evaluation of the best designs")[1]
     assert sec.count("dominates reference design (screening)") >= 2
+
+
+# -- the templates state the analysis: content checked without the templating ---------------------
+class _Doc(HTMLParser):
+    """Section titles, paragraph text and tables (header, rows) of the HTML report."""
+
+    def __init__(self):
+        super().__init__()
+        self.sections, self._tag, self._cell, self._table = [], None, None, None
+
+    def handle_starttag(self, tag, attrs):
+        if tag == "h2":
+            self.sections.append({"title": "", "text": "", "tables": []})
+        self._tag = tag if tag in ("h2", "p", "b") or self._tag not in ("p", "b") else self._tag
+        if tag == "table" and self.sections:
+            self._table = {"head": [], "rows": []}
+            self.sections[-1]["tables"].append(self._table)
+        if tag == "tr" and self._table is not None:
+            self._table["rows"].append([])
+        if tag in ("th", "td"):
+            self._cell = ""
+        if tag == "p" and self.sections:
+            self.sections[-1]["text"] += " "
+
+    def handle_endtag(self, tag):
+        if tag in ("th", "td") and self._table is not None:
+            (self._table["head"] if tag == "th" else self._table["rows"][-1]).append(self._cell)
+            self._cell = None
+        if tag == "table":
+            self._table = None
+        if tag in ("h2", "p"):
+            self._tag = None
+
+    def handle_data(self, data):
+        if self._cell is not None:
+            self._cell += data
+        elif self._tag == "h2":
+            self.sections[-1]["title"] += data
+        elif self._tag in ("p", "b") and self.sections:
+            self.sections[-1]["text"] += data
+
+
+def _md_sections(md: str) -> list[dict]:
+    out = []
+    for block in md.split("\n## ")[1:]:
+        title, _, body = block.partition("\n")
+        lines = [ln for ln in body.splitlines() if ln.startswith("| ")]
+        head = [c.strip() for c in lines[0].strip("|").split("|")] if lines else []
+        rows = [[c.strip() for c in ln.strip("|").split("|")] for ln in lines[1:]]
+        text = " ".join(ln for ln in body.split("```")[0].splitlines() if ln and not ln.startswith(("|", "!", "*")))
+        out.append({"title": title.strip(), "text": text, "tables": [{"head": head, "rows": rows}] if lines else []})
+    return out
+
+
+def _words(s: str) -> str:
+    return " ".join(s.replace("**", "").split())
+
+
+def test_html_and_markdown_state_the_same_sections_and_the_run_values(mo_run):
+    study, res, out = mo_run
+    doc = _Doc()
+    doc.feed((out / "index.html").read_text())
+    md = _md_sections((out / "report.md").read_text())
+    titles = [s["title"] for s in doc.sections]
+    assert titles == [s["title"] for s in md]
+    assert titles[0] == "Summary" and titles[-1] == "Study and software" and titles[-2] == "Figures"
+    for h, m in zip(doc.sections, md):
+        if h["title"] != "Figures":  # the same sentences, bold markup aside
+            assert _words(h["text"]) == _words(m["text"]), h["title"]
+        assert [(t["head"], [[c.strip() for c in r] for r in t["rows"] if r]) for t in h["tables"]] == \
+            [(t["head"], t["rows"]) for t in m["tables"]], h["title"]
+    # The non-dominated table holds pareto.csv's designs in display units (mm for lengths,
+    # cm^2 for test_quadratic in m^2), four significant digits.
+    table = next(s for s in doc.sections if s["title"] == "Non-dominated designs")["tables"][0]
+    head = table["head"]
+    assert head[:2] == ["trial", "evaluations"] and "link_length [mm]" in head and "test_two [mm]" in head
+    assert "test_quadratic [cm^2]" in head and head[-1] == "feasible"
+    pareto = pd.read_csv(out / "pareto.csv").set_index("trial")
+    rows = [r for r in table["rows"] if r]
+    assert sorted(int(r[0]) for r in rows) == sorted(pareto.index)
+    for r in rows:
+        cell = dict(zip(head, r))
+        p = pareto.loc[int(cell["trial"])]
+        assert int(cell["evaluations"]) == p["count"]
+        for col, si, factor in (("link_length [mm]", "link_length_m", 1e3), ("slider_radius [mm]", "slider_radius_m", 1e3),
+                                ("test_two [mm]", "test_two_m", 1e3), ("test_quadratic [cm^2]", "test_quadratic_m2", 1e4)):
+            assert float(cell[col]) == pytest.approx(p[si] * factor, rel=5e-4, abs=1e-9), (col, cell[col], p[si])
+        assert cell["feasible"] == "yes"
+    # the reference design's row: the values of the study's reference (205 mm, 135 mm)
+    ref = next(s for s in doc.sections if s["title"] == "The reference design")["tables"][0]
+    cell = dict(zip(ref["head"], [r for r in ref["rows"] if r][0]))
+    assert cell["link_length [mm]"] == "205" and cell["slider_radius [mm]"] == "135"
+    # the summary counts are the run's
+    runs = res.table[res.table.source == "run"]
+    n_feas = int((runs.feasible.astype(bool) & (runs.status == "ok")).sum())
+    assert f"{len(runs)} designs evaluated" in doc.sections[0]["text"] and f"{n_feas} feasible" in doc.sections[0]["text"]
+
+
+def test_html_report_escapes_the_study_text(tmp_path):
+    spec = yaml.safe_load(_mo_study().to_yaml())
+    spec["description"] = "Tags <script>alert(1)</script> & <b>bold</b> are text; **this** is bold."
+    study = load_study(yaml.safe_dump(spec), is_text=True)
+    recs = [_rec(0, 0.200, 0.132, -0.001, 0.50), _rec(1, 0.190, 0.120, -0.01, 0.43)]
+    out = write_report(_write_run(tmp_path / "run", study, recs), out=tmp_path / "rep")
+    text = (out / "index.html").read_text()
+    assert "<script" not in text and "&lt;script&gt;alert(1)&lt;/script&gt; &amp; &lt;b&gt;bold&lt;/b&gt;" in text
+    assert "<b>this</b> is bold" in text
+    assert "Tags <script>alert(1)</script> & <b>bold</b> are text; **this** is bold." in (out / "report.md").read_text()

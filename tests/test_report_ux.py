@@ -181,13 +181,13 @@ def test_bound_warning_within_one_percent_of_the_range():
     # link_length range 100 mm: 0.5 mm from the low bound is on it, 2 mm is not.
     on = _front([(4, 0.1505, 0.140, -0.1, 0.5)])
     near = _front([(4, 0.152, 0.140, -0.1, 0.5)])
-    w = bound_warnings(study, {"knee_row": on.iloc[0], "front": on})
+    w = bound_warnings(study, on.iloc[0], on)
     assert len(w) == 1 and "trial 4" in w[0] and "link_length = 150.5 mm at its lower bound 150 mm" in w[0]
     assert "variables[0].low" in w[0]
-    assert bound_warnings(study, {"knee_row": near.iloc[0], "front": near}) == []
+    assert bound_warnings(study, near.iloc[0], near) == []
     # the best design of an objective at the upper bound of slider_radius (80 mm range: 0.6 mm)
     fr = _front([(4, 0.2, 0.14, -0.1, 0.5), (5, 0.2, 0.1794, -0.2, 0.4), (6, 0.2, 0.12, -0.05, 0.6)])
-    w = bound_warnings(study, {"knee_row": fr.iloc[0], "front": fr})
+    w = bound_warnings(study, fr.iloc[0], fr)
     assert len(w) == 1 and "the best test_two design (trial 5)" in w[0] and "upper bound 180 mm" in w[0]
 
 
@@ -232,12 +232,12 @@ def test_face_warning_names_the_share_and_the_advice():
     study = _study(objectives=[{"name": "workspace_volume"}],
                    evaluation={"samples": 512, "ranges": {"x": ["-20 mm", "20 mm"], "y": ["-20 mm", "20 mm"],
                                                           "z": ["-10 mm", "10 mm"]}})
-    w = face_warnings(study, {"knee_row": None})
+    w = face_warnings(study, None)
     assert len(w) == 1 and w[0].startswith("the workspace of the reference design reaches the faces")
     assert "widen evaluation.ranges" in w[0] and "% of its feasible samples" in w[0]
     wide = _study(objectives=[{"name": "workspace_volume"}], evaluation={
         "samples": 512, "ranges": {"x": ["-200 mm", "200 mm"], "y": ["-200 mm", "200 mm"], "z": ["-450 mm", "300 mm"]}})
-    assert face_warnings(wide, {"knee_row": None}) == []
+    assert face_warnings(wide, None) == []
 
 
 # -- the terminal summary recommends what the report recommends ---------------------------------
@@ -254,7 +254,7 @@ def test_summary_names_the_knee_and_leaves_out_designs_dominated_beyond_noise(tm
 
     r = load_run(run)
     a = analyse(r)
-    knee = int(a["knee_row"]["trial"])
+    knee = int(a.knee_row["trial"])
     lines = terminal_summary(study, r.table, None, run)
     text = "\n".join(lines)
     assert lines[0].startswith(f"recommended (knee of the non-dominated front): trial {knee}:")
@@ -298,7 +298,7 @@ def test_three_objective_pareto_panels_are_not_joined_by_lines(tmp_path):
         r.objectives["test_link_length"] = L
         recs.append(r)
     figs, a = _figures(study, recs, tmp_path)
-    assert len(a["front"]) >= 3
+    assert len(a.front) >= 3
     fig = figs.figures["pareto"]
     panels = [ax for ax in fig.axes if ax.collections]
     assert len(panels) == 3

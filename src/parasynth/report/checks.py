@@ -31,15 +31,13 @@ FACE_TOL = 0.01
 FACE_SHARE = 0.005
 
 
-def _named_designs(study, a: dict) -> list[tuple[str, object]]:
+def _named_designs(study, knee, front) -> list[tuple[str, object]]:
     """(name, row) of the designs the report recommends: the knee (or the best design) and
     the best design of each objective on the front."""
     out = []
-    knee = a.get("knee_row")
     several = len(study.objectives) > 1
     if knee is not None:
         out.append((f"the recommended design (trial {int(knee['trial'])})", knee))
-    front = a.get("front")
     if several and front is not None and len(front):
         for o in study.objectives:
             col = front[o.label].astype(float)
@@ -51,10 +49,11 @@ def _named_designs(study, a: dict) -> list[tuple[str, object]]:
     return out
 
 
-def bound_warnings(study, a: dict, tol: float = BOUND_TOL) -> list[str]:
-    """A recommended or best design with a variable within ``tol`` of its range from a bound."""
+def bound_warnings(study, knee_row, front: pd.DataFrame | None = None, tol: float = BOUND_TOL) -> list[str]:
+    """A recommended (``knee_row``) or best design (of each objective on ``front``) with a
+    variable within ``tol`` of its range from a bound."""
     out = []
-    for name, row in _named_designs(study, a):
+    for name, row in _named_designs(study, knee_row, front):
         hits = []
         for k, v in enumerate(study.variables):
             if v.type == "categorical" or v.low is None or v.high is None or v.name not in row:
@@ -103,13 +102,13 @@ def face_fraction_of(study, values: dict) -> dict | None:
     return {"total": ws.face_fraction(FACE_TOL), **ws.face_fractions(FACE_TOL)}
 
 
-def face_warnings(study, a: dict, share: float = FACE_SHARE) -> list[str]:
-    """The recommended design or the reference design whose feasible samples reach the faces
-    of the sampled box."""
+def face_warnings(study, knee_row, share: float = FACE_SHARE) -> list[str]:
+    """The recommended design (``knee_row``) or the reference design whose feasible samples
+    reach the faces of the sampled box."""
     if _uses_workspace(study) is None:
         return []
     designs = []
-    knee = a.get("knee_row")
+    knee = knee_row
     if knee is not None:
         designs.append((f"the recommended design (trial {int(knee['trial'])})",
                         {v.name: knee[v.name] for v in study.variables}))
@@ -129,13 +128,14 @@ def face_warnings(study, a: dict, share: float = FACE_SHARE) -> list[str]:
     return out
 
 
-def design_warnings(study, a: dict) -> list[str]:
-    """Every warning of :mod:`parasynth.report.checks` for an analysed run (a failing check is
-    skipped: a warning must not cost the report)."""
+def design_warnings(study, knee_row, front: pd.DataFrame | None) -> list[str]:
+    """Every warning of :mod:`parasynth.report.checks` for the recommended design
+    ``knee_row`` and the non-dominated ``front`` of a run (a failing check is skipped: a
+    warning must not cost the report)."""
     out = []
-    for check in (bound_warnings, face_warnings):
+    for check in (lambda: bound_warnings(study, knee_row, front), lambda: face_warnings(study, knee_row)):
         try:
-            out += check(study, a)
+            out += check()
         except Exception:  # noqa: BLE001 - best effort
             continue
     return out

@@ -1,6 +1,6 @@
 """The terminal summary of a run: what the report recommends, in a few lines.
 
-The recommendation is the report's (:func:`parasynth.report.render.analyse`): the knee of the
+The recommendation is the report's (:func:`parasynth.report.analysis.analyse`): the knee of the
 non-dominated feasible front (the best design for one objective), with its re-evaluated
 values when ``final.csv`` holds them, then a few designs spread along the front -- leaving
 out those the re-evaluation shows dominated beyond noise -- each row saying why it is listed
@@ -17,7 +17,7 @@ import pandas as pd
 from ..display import fmt_mean_se, fmt_quantity, quantity_unit, reference_name, text_table
 from ..study.rundir import Run, best_designs, design_key, read_final
 from .checks import design_roles
-from .render import analyse
+from .analysis import analyse
 
 __all__ = ["terminal_summary", "run_summary"]
 
@@ -35,16 +35,16 @@ def terminal_summary(study, table: pd.DataFrame, final: pd.DataFrame | None, out
     if not len(runs):
         return lines
     a = analyse(Run(study, table, final, out_dir, None))
-    knee = a["knee_row"]
-    fa = a.get("final")
+    knee = a.knee_row
+    fa = a.final
     several = len(study.objectives) > 1
     if knee is not None:
         what = "knee of the non-dominated front" if several else "best feasible design"
         vals = ", ".join(f"{x} = {fmt_quantity(knee[x], quantity_unit(study, x))}"
                          for x in [v.name for v in study.variables] + [o.label for o in study.objectives])
         lines.append(f"recommended ({what}): trial {int(knee['trial'])}: {vals} (single sample)")
-        if fa is not None and fa.get("knee") is not None:
-            kr = fa["knee"]
+        if fa is not None and fa.knee is not None:
+            kr = fa.knee
             lines.append("  re-evaluated: " + ", ".join(
                 f"{o.label} = {fmt_mean_se(kr[o.label], kr[o.label + '_stderr'], quantity_unit(study, o.label), True)}"
                 for o in study.objectives))
@@ -54,9 +54,9 @@ def terminal_summary(study, table: pd.DataFrame, final: pd.DataFrame | None, out
     # Designs along the front, without those dominated beyond noise once re-evaluated.
     dominated = {}
     if fa is not None:
-        for i, r in fa["best"].iterrows():
-            if fa["dominated_by"].get(i):
-                dominated[design_key(study, r)] = fa["dominated_by"][i]
+        for i, r in fa.best.iterrows():
+            if fa.dominated_by.get(i):
+                dominated[design_key(study, r)] = fa.dominated_by[i]
     pool = best_designs(study, runs, k=0)
     kept = pool[[design_key(study, r) not in dominated for _, r in pool.iterrows()]]
     dropped = [(int(r["trial"]), dominated[design_key(study, r)]) for _, r in pool.iterrows()
@@ -91,7 +91,7 @@ def terminal_summary(study, table: pd.DataFrame, final: pd.DataFrame | None, out
         lines.append(reference_name(study, capital=True, with_source=True) + ":")
         ref = ref.assign(feasible=["yes" if bool(x) else "no" for x in ref["feasible"]])
         lines.append(text_table(study, ref, [o.label for o in study.objectives] + ["feasible"]))
-    lines += [f"warning: {w}" for w in a.get("warnings", [])]
+    lines += [f"warning: {w}" for w in a.warnings]
     return lines
 
 

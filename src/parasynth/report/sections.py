@@ -1,0 +1,305 @@
+"""What the report says: its sections (title, text, table) built from a loaded run and its
+:class:`~parasynth.report.analysis.Analysis`, shared by the HTML and Markdown templates.
+Text marks bold as ``**...**`` and paragraphs by blank lines; tables hold display strings."""
+
+from __future__ import annotations
+
+import importlib.metadata as md
+import platform
+import time
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from ..display import fmt_mean_se, fmt_number, fmt_quantity, reference_name
+from ..study.rundir import Run, design_key
+from .analysis import Analysis, FinalAnalysis
+from .tables import display_table, final_display_table
+from .tables import is_number_col as _is_number_col
+from .tables import unit as _unit
+
+__all__ = ["Section", "Table", "sections"]
+
+
+@dataclass
+class Table:
+    """A table as the report shows it: column names and rows of display strings."""
+
+    columns: list[str]
+    rows: list[list[str]]
+
+    @classmethod
+    def of(cls, df: pd.DataFrame) -> "Table":
+        return cls([str(c) for c in df.columns], [[_cell(x) for x in r] for r in df.itertuples(index=False)])
+
+
+def _cell(x) -> str:
+    if isinstance(x, (float, np.floating)):
+        return "" if np.isnan(x) else fmt_number(x)
+    return str(x)
+
+
+@dataclass
+class Section:
+    """A section of the report: ``text`` with ``**bold**`` and blank lines between
+    paragraphs; ``table`` (None or empty: no table); ``study_yaml``: the study file as run is
+    shown after the text."""
+
+    title: str
+    text: str
+    table: Table | None = None
+    study_yaml: str | None = None
+
+
+def sections(run: Run, a: Analysis) -> list[Section]:
+    """The report's sections in order; the last one (study file and software) goes after
+    the figures."""
+    out = []
+    for title, text, table in _sections(run, a):
+        t = Table.of(table) if table is not None and len(table) else None
+        out.append(Section(title, text, t))
+    out[-1].study_yaml = run.study.to_yaml()
+    return out
+
+
+def _versions() -> dict:
+    out = {"python": platform.python_version()}
+    for pkg in ("parasynth", "numpy", "scipy", "pandas", "optuna", "nlopt", "cvxpy", "matplotlib"):
+        try:
+            out[pkg] = md.version(pkg)
+        except md.PackageNotFoundError:
+            pass
+    return out
+
+
+def _sections(run: Run, a: Analysis) -> list[tuple[str, str, pd.DataFrame | None]]:
+    """(title, text, table) triples shared by the HTML and Markdown renderers."""
+    study, t = run.study, run.table
+    runs, front = a.runs, a.front
+    sec = []
+    n_ok = int((runs["status"] == "ok").sum())
+    n_feas = int((runs["feasible"].astype(bool) & (runs["status"] == "ok")).sum())
+    ev = study.evaluation
+    opt = study.optimizer
+    elapsed = float(runs["time_s"].sum()) if len(runs) else 0.0
+    text = (f"Mechanism **{study.mechanism}**; optimiser **{opt.kind}** "
+            f"({opt.algorithm or 'default'}); budget {run.expected or opt.maxeval or opt.n_trials or '-'}; "
+            f"evaluation: {ev['method']} sampling, {ev['n']} samples, seed {ev['seed']}. "
+            f"{len(runs)} designs evaluated ({n_ok} completed, {n_feas} feasible, "
+            f"{len(runs) - n_ok} failed); evaluation time {elapsed:.1f} s.")
+    if run.partial:
+        text = f"**PARTIAL REPORT: {run.partial_reason}.** " + text
+    if study.spec.description:
+        text = study.spec.description.strip() + "\n\n" + text
+    sec.append(("Summary", text, None))
+    if a.warnings:
+        sec.append(("Warnings", "\n\n".join("**Warning:** " + w[:1].upper() + w[1:] for w in a.warnings), None))
+    if len(study.objectives) > 1 and a.hv is not None and len(front) >= 2:
+        refs = []
+        for o, x in zip(study.objectives, a.hv_ref):
+            val = x if o.goal == "minimize" else -x
+            refs.append(f"{o.label} {fmt_quantity(val, _unit(study, o.label))}")
+        units = [_unit(study, o.label) for o in study.objectives]
+        sym = " x ".join(u.symbol for u in units if u.symbol)
+        hv_disp = a.hv * float(np.prod([u.factor for u in units]))
+        sec.append(("Hypervolume", f"Hypervolume of the feasible non-dominated set: {fmt_number(a.hv_fraction, 3)} "
+                    f"of the box between the ideal point and the reference point (normalised: 1 would be a front "
+                    f"at the ideal point; {fmt_number(hv_disp)}{' ' + sym if sym else ''} in display units). "
+                    f"Reference point: the worst feasible value of each objective plus 10 % of its range: "
+                    + ", ".join(refs) + ". It measures how much of the objective space the front covers; "
+                    "compare it between runs of this study only.", None))
+    if len(front):
+        k = a.knee_row
+        n_dup = int((front["count"] > 1).sum()) if "count" in front else 0
+        txt = (f"{len(front)} distinct non-dominated feasible designs"
+               + (f" ({n_dup} of them evaluated more than once: column evaluations)" if n_dup else "")
+               + (". Recommended (knee of the front)" if len(study.objectives) > 1 else ". Recommended (the best)")
+               + f": trial {int(k['trial'])}: " + ", ".join(_fmt_design(study, k))
+               + " (single sample)")
+        fa = a.final
+        if fa is not None and fa.knee is not None:
+            kr = fa.knee
+            txt += ("; re-evaluated: " + ", ".join(
+                f"{o.label} = {fmt_mean_se(kr[o.label], kr[o.label + '_stderr'], _unit(study, o.label), True)}"
+                for o in study.objectives))
+        txt += "."
+        if fa is not None:
+            keys = {design_key(study, r): i for i, r in fa.best.iterrows()}
+            notes = []
+            for _, r in front.iterrows():
+                i = keys.get(design_key(study, r))
+                if i is not None and fa.dominated_by.get(i):
+                    notes.append(f"trial {int(r['trial'])} (by " + ", ".join(f"trial {t}" for t in fa.dominated_by[i]) + ")")
+            if notes:
+                txt += (" On the re-evaluated values some of these designs are dominated beyond noise: "
+                        + "; ".join(notes) + ".")
+        if fa is not None and fa.knee_missing:
+            txt += (" final.csv does not hold this design (it was written before the run's last designs): its "
+                    "re-evaluated values are not known; run the study again with --resume to redo the final stage.")
+        sec.append(("Non-dominated designs", txt, display_table(study, front)))
+    else:
+        sec.append(("Non-dominated designs", "No feasible design was found.", None))
+    if a.ref_row is not None:
+        sec.append((reference_name(study, capital=True), _paper_text(run, a),
+                    display_table(study, t[t["source"] == "reference"])))
+    fa = a.final
+    if fa is not None:
+        fin = fa.table
+        sec.append(("Re-evaluation of the best designs",
+                    f"Mean ± standard error over {int(fin['repeats'].iloc[0])} seeds with "
+                    f"{int(fin['samples'].iloc[0])} samples each, for the best designs, the recommended (knee) "
+                    f"design, the designs that dominate {reference_name(study)} on single samples by the largest "
+                    f"normalised margin and {reference_name(study)}. A design is dominated beyond noise when another is better by "
+                    f"more than {fmt_number(a.noise_z)} combined standard errors on some objective and worse by "
+                    f"as much on none.", final_display_table(study, fa)))
+    elif run.final is not None and len(run.final):
+        sec.append(("Re-evaluation of the best designs", "final.csv (columns as written by the run):", run.final))
+    if study.constraints or (runs["status"] != "ok").any():
+        rows = []
+        for c in study.constraints:
+            m = runs[f"{c.label}_margin"]
+            u = _unit(study, c.label)
+            bounds = " and ".join(x for x in ((f"min {fmt_quantity(c.min, u)}" if c.min is not None else ""),
+                                              (f"max {fmt_quantity(c.max, u)}" if c.max is not None else "")) if x)
+            rows.append({"constraint": c.label, "measure": c.name, "bounds": bounds,
+                         "violated": int((m < 0).sum()),
+                         "smallest margin": fmt_quantity(float(m.min()), u) if len(m) else ""})
+        failed = runs[runs["status"] != "ok"]
+        txt = f"{len(failed)} designs failed to evaluate."
+        if len(failed):
+            errs = failed["error"].value_counts().head(5)
+            txt += " Most frequent errors: " + "; ".join(f"{e} ({n}x)" for e, n in errs.items())
+        sec.append(("Constraint violations", txt, pd.DataFrame(rows) if rows else None))
+    v = _versions()
+    sec.append(("Study and software", "Software: " + ", ".join(f"{k} {x}" for k, x in v.items())
+                + f". Report written {time.strftime('%Y-%m-%d %H:%M:%S')}. Study file as run:", None))
+    return sec
+
+
+def _fmt_design(study, row) -> list[str]:
+    parts = [_design_values(study, row)] if study.variables else []
+    for o in study.objectives:
+        parts.append(f"{o.label} = {fmt_quantity(row[o.label], _unit(study, o.label))}")
+    return parts
+
+
+def _design_values(study, row) -> str:
+    parts = []
+    for v in study.variables:
+        val = row[v.name]
+        parts.append(f"{v.name} = {fmt_quantity(val, _unit(study, v.name))}" if _is_number_col(study, v.name)
+                     else f"{v.name} = {val}")
+    return ", ".join(parts)
+
+
+def _pct(diff, se, base) -> str:
+    """Relative difference ``+x % ± y %`` (or the absolute one when ``base`` is 0)."""
+    if base == 0 or not np.isfinite(base):
+        return fmt_mean_se(diff, se)
+    return ("+" if diff >= 0 else "") + fmt_mean_se(100 * diff / abs(base), 100 * se / abs(base)) + " %"
+
+
+def _comparison_text(study, row, cmp, ref) -> str:
+    labels = [o.label for o in study.objectives]
+    groups = {1: [], -1: [], 0: []}
+    for j, lab in enumerate(labels):
+        groups[int(cmp.status[j])].append(f"{lab} ({_pct(cmp.diff[j], cmp.se[j], float(ref[lab]))})")
+    parts = []
+    if groups[1]:
+        parts.append("better on " + ", ".join(groups[1]))
+    if groups[-1]:
+        parts.append("worse on " + ", ".join(groups[-1]))
+    if groups[0]:
+        parts.append(("equal within noise on " if cmp.noise_known else "equal on ") + ", ".join(groups[0]))
+    return f"trial {int(row['trial'])} ({_design_values(study, row)}): " + "; ".join(parts)
+
+
+def _paper_text(run: Run, a: Analysis) -> str:
+    study = run.study
+    r = a.ref_row
+    txt = (reference_name(study, capital=True, with_source=True) + ": " + ", ".join(_fmt_design(study, r))
+           + " (single sample); feasible: "
+           + ("yes" if bool(r["feasible"]) else "no") + ".")
+    st = a.standing
+    fa = a.final
+    screened = ""
+    if st is not None:
+        screened = ((f"{st.n_dominating} evaluated feasible designs dominate it" if st.n_dominating > 1 else
+                     "1 evaluated feasible design dominates it") if st.n_dominating
+                    else "no evaluated feasible design dominates it")
+    if fa is None or fa.ref is None:
+        if st is not None:
+            if st.n_dominating:
+                imp = "; ".join(f"{k} by up to {fmt_number(100 * v, 2)} %" for k, v in st.best_improvements.items())
+                txt += (f" On single-sample values {screened}, improving {imp} (additive epsilon "
+                        f"{fmt_number(st.epsilon, 3)} in range-normalised objectives).")
+            else:
+                txt += " On single-sample values no evaluated feasible design dominates it (it is on or beyond the front found)."
+            txt += (" These single-sample values were not re-evaluated: differences smaller than the sampling noise "
+                    "are not resolved (set evaluation.final_samples to re-evaluate the best designs).")
+        return txt
+    fin = fa.table
+    z = a.noise_z
+    txt += (f"\n\nVerdict on the re-evaluated values ({int(fin['repeats'].iloc[0])} seeds x "
+            f"{int(fin['samples'].iloc[0])} samples; a difference counts when it exceeds {fmt_number(z)} "
+            f"combined standard errors, otherwise it is within noise):")
+    vs = fa.vs_ref
+    dom = [(row, c) for row, c in vs if c.verdict == "dominates"]
+    worse = [(row, c) for row, c in vs if c.verdict == "dominated"]
+    same = [(row, c) for row, c in vs if c.verdict == "within noise"]
+    ref = fa.ref
+    if dom:
+        txt += (f" {len(dom)} of the {len(vs)} re-evaluated designs {'dominates' if len(dom) == 1 else 'dominate'} it (better beyond noise on at least "
+                "one objective, worse beyond noise on none): " + " | ".join(_comparison_text(study, row, c, ref)
+                                                                          for row, c in dom) + ".")
+    else:
+        txt += f" none of the {len(vs)} re-evaluated designs dominates it beyond noise."
+    if same:
+        txt += " Equal to it within noise on every objective: " + ", ".join(f"trial {int(row['trial'])}" for row, _ in same) + "."
+    if worse:
+        txt += " Dominated by it: " + ", ".join(f"trial {int(row['trial'])}" for row, _ in worse) + "."
+    if st is not None:
+        txt += f"\n\n(Single-sample screening: {screened}; the re-evaluation above decides.)"
+        txt += _screen_text(fa, fa.n_screen)
+    return txt
+
+
+def _screen_text(fa: FinalAnalysis, n_screen: int) -> str:
+    """How the designs that dominate the reference on single-sample values fared once
+    re-evaluated (the ones re-evaluated: the largest normalised margins, see
+    :func:`parasynth.study.final.screening_dominators`)."""
+    if not n_screen:
+        return ""
+    sel = [(row, c) for row, c in fa.vs_ref if bool(row.get("dominates_reference_screen", False))]
+    if not sel:
+        return (f" None of the {n_screen} screening dominators is in final.csv (it was written before this "
+                "selection); run the study again with --resume to redo the final stage.")
+
+    def trials(group):
+        return ", ".join(f"trial {int(row['trial'])}" for row, _ in group)
+
+    dom = [(r, c) for r, c in sel if c.verdict == "dominates"]
+    same = [(r, c) for r, c in sel if c.verdict == "within noise"]
+    trade = [(r, c) for r, c in sel if c.verdict == "trade-off"]
+    worse = [(r, c) for r, c in sel if c.verdict == "dominated"]
+    n = len(sel)
+    txt = (f" Screening dominators re-evaluated: {n} of the {n_screen} distinct ones"
+           + (" (the ones by the largest normalised margin)" if n < n_screen else "") + "; ")
+    if dom:
+        txt += f"{len(dom)} of them {'dominates' if len(dom) == 1 else 'dominate'} it beyond noise ({trials(dom)})"
+    else:
+        txt += "none of them dominates it beyond noise"
+    if same and len(same) == n:
+        txt += ": all of them are equal to it within noise"
+    else:
+        rest = []
+        if same:
+            rest.append(f"within noise: {trials(same)}")
+        if trade:
+            rest.append(f"trade-off (better and worse beyond noise): {trials(trade)}")
+        if worse:
+            rest.append(f"dominated by it: {trials(worse)}")
+        if rest:
+            txt += "; " + "; ".join(rest)
+    return txt + "."
