@@ -84,6 +84,23 @@ def test_reference_uses_numpy_and_compiles_nothing():
     np.testing.assert_array_equal(marg, mech.singularity_margin(X, engine="numpy"))
 
 
+def test_validate_checks_never_use_the_compiled_kernels(monkeypatch):
+    """``check_study`` (what ``parasynth validate`` and the start of a run do) evaluates with
+    the NumPy reference only -- the degenerate-geometry probe included -- so that it never
+    waits for a cold compile: any call into the compiled modules fails here."""
+    from pathlib import Path
+
+    from parasynth.study.spec import check_study, load_study
+
+    def no_compiled():
+        raise AssertionError("check_study called the compiled engine")
+
+    monkeypatch.setattr(engine, "_compiled", no_compiled)
+    study = load_study(Path(__file__).resolve().parent.parent / "studies" / "quickstart.yaml")
+    stats = {}
+    assert check_study(study, stats=stats) == []
+    assert stats["measures"] == 3
+
 def test_sigint_during_compile_ends_with_resume_hint(tmp_path):
     """A run on an empty compile cache, Ctrl-C as soon as it says it is compiling: the run
     stops at once (not after the compile), with the interrupt line, the resume hint and exit
