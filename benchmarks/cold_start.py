@@ -43,15 +43,18 @@ COMPILE_ONLY = r"""
 import sys, time, warnings
 t0 = time.perf_counter()
 from parasynth.engine import warm_up
-from parasynth.study.evaluate import Evaluator
+from parasynth.study.problem import Problem
 from parasynth.study.runner import _warm_up_design
 from parasynth.study.spec import load_study
 study = load_study(sys.argv[1])
-ev = Evaluator(study)
+problem = Problem(study)
+n_warm = max(1, int(study.evaluation["n"]) // 2)  # as the runner's warm-up
 t1 = time.perf_counter()
 with warnings.catch_warnings():
     warnings.simplefilter("ignore")
-    w = warm_up(lambda: ev.evaluate(_warm_up_design(study)), progress=None)
+    w = warm_up(lambda: problem.evaluate(_warm_up_design(problem), n=n_warm, source="warm-up"), progress=None)
+if w.error is not None:
+    raise w.error
 print(f"import_s={t1 - t0:.3f} warm_up_s={w.seconds:.3f} compiled={w.compiled} kernels={len(set(w.kernels))}")
 """
 

@@ -269,3 +269,22 @@ def test_the_report_reads_runs_through_one_study_module(graph):
     for m, targets in _imports_of(graph, "parasynth.report").items():
         study = sorted(t for t in targets if t.startswith("parasynth.study"))
         assert set(study) <= {"parasynth.study.rundir"}, f"{m} imports {study}"
+
+
+def test_rotation_entry_names_are_defined_once():
+    """``R_NAMES`` is defined in the model layer (``parasynth.spatial``) and only imported by
+    the engine and the descriptions."""
+    defs = []
+    for path in (SRC / "parasynth").rglob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, (ast.Assign, ast.AnnAssign)):
+                targets = node.targets if isinstance(node, ast.Assign) else [node.target]
+                if any(isinstance(t, ast.Name) and t.id == "R_NAMES" for t in targets):
+                    defs.append(path.relative_to(SRC).as_posix())
+    assert defs == ["parasynth/spatial.py"]
+    from parasynth import spatial
+    from parasynth.engine import program
+    from parasynth.mechanisms.description import expressions
+
+    assert program.R_NAMES is spatial.R_NAMES is expressions.R_NAMES
+    assert spatial.R_NAMES == ("R11", "R12", "R13", "R21", "R22", "R23", "R31", "R32", "R33")

@@ -84,6 +84,80 @@ def test_reference_uses_numpy_and_compiles_nothing():
     np.testing.assert_array_equal(marg, mech.singularity_margin(X, engine="numpy"))
 
 
+def test_validate_checks_never_use_the_compiled_kernels(monkeypatch):
+    """``check_study`` (what ``parasynth validate`` and the start of a run do) evaluates with
+    the NumPy reference only -- the degenerate-geometry probe included -- so that it never
+    waits for a cold compile: any call into the compiled modules fails here."""
+    from pathlib import Path
+
+    from parasynth.study.spec import check_study, load_study
+
+    def no_compiled():
+        raise AssertionError("check_study called the compiled engine")
+
+    monkeypatch.setattr(engine, "_compiled", no_compiled)
+    study = load_study(Path(__file__).resolve().parent.parent / "studies" / "quickstart.yaml")
+    stats = {}
+    assert check_study(study, stats=stats) == []
+    assert stats["measures"] == 3
+
+def test_reference_results_are_not_cached_for_compiled_evaluations():
+    """A workspace evaluated inside ``engine.reference()`` (a probe, ``validate``) is not the
+    cached answer of a compiled evaluation with the same settings."""
+    from parasynth.objectives import workspace_of
+
+    mech = load_mechanism("5pus_upu")
+    with engine.reference():
+        a = workspace_of(mech, n=300, seed=5)
+    b = workspace_of(mech, n=300, seed=5)
+    assert a is not b
+    assert workspace_of(mech, n=300, seed=5) is b
+    c = []
+    engine.needs(lambda: c.append(workspace_of(mech, n=300, seed=5)))
+    assert c and c[0] is not b
+
+
+def test_needs_records_the_compiled_entry_points_without_compiling():
+    mech = load_mechanism("5pus_upu")
+    X = np.repeat(mech.home[None, :], 3, axis=0)
+    assert engine.needs(lambda: engine.feasible(mech, X)) == {"feasible"}
+    got = engine.needs(lambda: (mech.singularity_margin(X), engine.pose_batch(mech, X, twist=True)))
+    assert got == {"singularity_margin", "constraint_rank", "twist"}  # the margin scales by the constraint rank
+    assert engine.needs(lambda: engine.feasible(mech, X, engine="numpy")) == set()
+    assert engine.needs(lambda: 1 / 0) == set()  # errors are swallowed
+
+    def in_reference():
+        with engine.reference():
+            engine.feasible(mech, X)
+
+    assert engine.needs(in_reference) == set()
+
+
+def test_kernel_signatures_are_the_ones_compiled():
+    """Each kernel is called with exactly the one signature the compile helpers compile."""
+    from parasynth.engine import precompile
+
+    mech = load_mechanism("5pus_upu")
+    engine.exercise(mech)
+    sigs = precompile.signatures()
+    assert set(sigs) == {n for names in precompile.KERNELS_OF.values() for n in names}
+    for name, (disp, sig) in sigs.items():
+        assert [tuple(s) for s in disp.signatures] == [tuple(sig)], name
+        assert precompile.in_cache(name)
+
+
+def test_precompile_helper_fills_the_cache(tmp_path):
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "cache")}
+    run = [sys.executable, "-m", "parasynth.engine.precompile"]
+    p = subprocess.run(run + ["_upu_mean_lengths"], env=env, capture_output=True, text=True, timeout=300)
+    assert p.returncode == 0, p.stderr
+    check = ("from parasynth.engine import precompile as p; "
+             "print(p.in_cache('_upu_mean_lengths'), p.in_cache('_dir_kernel'), p.missing(['singularity_margin']))")
+    p = subprocess.run([sys.executable, "-c", check], env=env, capture_output=True, text=True, timeout=300)
+    assert p.stdout.split("\n")[0] == "True False ['_pose_kernel', '_margin_kernel']", p.stderr
+    p = subprocess.run(run + ["_no_such_kernel"], env=env, capture_output=True, text=True, timeout=300)
+    assert p.returncode == 2 and "unknown kernel(s) _no_such_kernel" in p.stderr
+
 def test_sigint_during_compile_ends_with_resume_hint(tmp_path):
     """A run on an empty compile cache, Ctrl-C as soon as it says it is compiling: the run
     stops at once (not after the compile), with the interrupt line, the resume hint and exit

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .validation import numpy_reference
 from .units import UNIT_KINDS
 
 _LENGTH = UNIT_KINDS["length"]
@@ -25,7 +26,8 @@ def degenerate_geometry(mech, ranges=None, n: int = 256, seed: int = 0) -> list[
     """Why ``mech`` is degenerate (empty list: it is not): its platform anchors, or its base
     anchors, all coincide; or it is singular (singularity margin below
     :data:`SINGULAR_MARGIN`) at its home pose and at every reachable pose of ``n`` samples of
-    ``ranges`` (default the model's ranges)."""
+    ``ranges`` (default the model's ranges). Evaluated with the NumPy reference engine:
+    a check never waits for a cold compile."""
     out = []
     scale = float(getattr(mech, "length_scale", 1.0) or 1.0)
     legs = list(getattr(mech, "legs", ()))
@@ -43,9 +45,10 @@ def degenerate_geometry(mech, ranges=None, n: int = 256, seed: int = 0) -> list[
         for c, (lo, hi) in ranges.items():
             X[:, task.index(c)] = rng.uniform(lo, hi, n)
         X = np.vstack([np.asarray(mech.home, float)[None, :], X])
-        reach = np.asarray(mech.inverse_kinematics(X).reachable, bool)
-        if reach.any():
-            m = np.asarray(mech.singularity_margin(X[reach]), float)
+        with numpy_reference():  # a few hundred poses: never wait for a cold compile
+            reach = np.asarray(mech.inverse_kinematics(X).reachable, bool)
+            m = np.asarray(mech.singularity_margin(X[reach]), float) if reach.any() else None
+        if m is not None:
             if np.all(~np.isfinite(m) | (m < SINGULAR_MARGIN)):
                 out.append(f"degenerate geometry: the mechanism is singular at its home pose and at all "
                            f"{int(reach.sum())} reachable sampled poses (largest singularity margin "

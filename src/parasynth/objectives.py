@@ -51,6 +51,7 @@ import numpy as np
 from .accuracy import TOLERANCE_SETTINGS as _TOL_SETTINGS
 from .accuracy import pose_error_bound, pose_error_monte_carlo
 from .dynamics import force_decoupling
+from .engine import effective_engine
 from .indices import (global_conditioning_index, gravity_wrench, local_transmission_index, point_force_wrench,
                       static_forces)
 from .indices import wrench_capability as _wrench_capability
@@ -261,8 +262,10 @@ def workspace_of(mech, ranges=None, n: int = 4096, method: str = "sobol", seed: 
     n = check_count("n", n, 1, MAX_SAMPLES, what="a sample count")  # no truncation of 2.5, True, "100"
     seed = check_count("seed", seed, 0, what="an integer seed")
     ranges = dict(ranges) if ranges else mech.default_ranges()
+    # the engine that evaluates ("numpy" inside engine.reference() and engine.needs()): a probe
+    # on the NumPy reference never answers for a compiled evaluation of the same settings
     key = (type(mech).__name__, _freeze(dataclasses.asdict(mech.params)), _freeze(ranges), int(n), method,
-           int(seed), _freeze(fixed), _freeze(constraints), engine)
+           int(seed), _freeze(fixed), _freeze(constraints), effective_engine(engine))
     hit = _CACHE.get(key)
     if hit is not None:
         _CACHE.move_to_end(key)

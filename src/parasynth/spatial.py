@@ -17,6 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = [
+    "R_NAMES",
     "rot_x",
     "rot_y",
     "rot_z",
@@ -35,6 +36,10 @@ __all__ = [
     "null_space",
     "segment_distance",
 ]
+
+#: Names of the rotation-matrix entries R11 .. R33 (row-major), as task parametrisations and
+#: expressions use them: one definition for the descriptions and the engine.
+R_NAMES = tuple(f"R{i}{j}" for i in (1, 2, 3) for j in (1, 2, 3))
 
 
 def _as_angle_array(a) -> np.ndarray:

@@ -15,6 +15,7 @@ declare (:data:`SI_UNIT_KINDS`), the unit literals of description expressions
 from __future__ import annotations
 
 import math
+import re
 from functools import lru_cache
 from typing import NamedTuple
 
@@ -55,6 +56,11 @@ _SI_ALIASES = {"N m": "torque", "Nm": "torque", "1": "dimensionless"}
 LITERAL_UNITS = {"m": ("length", 1.0), "cm": ("length", 1e-2), "mm": ("length", 1e-3), "um": ("length", 1e-6),
                  "µm": ("length", 1e-6), "deg": ("angle", math.pi / 180.0), "rad": ("angle", 1.0)}
 
+#: Plain units of the other kinds that quantities are commonly written in: with the literals
+#: above (micrometres aside), what :func:`parse_quantity` converts without pint.
+_OTHER_PLAIN_UNITS = {"N": ("force", 1.0), "kg": ("mass", 1.0), "s": ("time", 1.0), "Pa": ("pressure", 1.0),
+                      "MPa": ("pressure", 1e6), "GPa": ("pressure", 1e9)}
+
 # -- derived -------------------------------------------------------------------------------------
 #: Display unit of each kind with a unit (reports, summaries, examples in messages).
 DISPLAY_UNITS = {k: u.display for k, u in UNIT_KINDS.items() if k != "dimensionless"}
@@ -79,6 +85,32 @@ def si_unit(kind: str | None) -> str:
 
 class QuantityError(ValueError):
     """A value without a required unit, with the wrong dimension, or unparsable."""
+
+
+# "<number> <unit>" in the commonest units, converted without pint (importing pint and
+# building its registry takes about half a second at every start): {unit: (kind, factor to
+# SI)}. The factors reproduce pint's conversions exactly (tests/test_units.py compares them);
+# anything else -- other units, prefixes, compound units, "nan", errors -- goes to pint.
+_FAST_UNITS = {**{u: v for u, v in LITERAL_UNITS.items() if u not in ("um", "µm")}, **_OTHER_PLAIN_UNITS}
+_FAST = re.compile(r"\s*(-?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*([A-Za-z]+)\s*")
+
+
+def _fast_quantity(value: str, kind: str, field: str = "value"):
+    """SI magnitude of ``value`` when it is a plain number and one unit of ``kind`` in
+    :data:`_FAST_UNITS` (:class:`QuantityError`, as pint's path, for a unit there of another
+    dimension), else None (pint decides)."""
+    m = _FAST.fullmatch(value)
+    if m is None:
+        return None
+    unit = _FAST_UNITS.get(m.group(2))
+    if unit is None or (unit[0] != kind and kind == "dimensionless"):  # pint takes angles as dimensionless
+        return None
+    if unit[0] != kind:  # a unit of another dimension: pint's answer
+        if kind == "angle":
+            raise QuantityError(f"{field}: {value!r} is not an angle (use deg or rad)")
+        raise QuantityError(f"{field}: {value!r} is not a {kind} (expected units like {DISPLAY_UNITS[kind]})")
+    v = float(m.group(1))
+    return v if unit[1] == 1.0 else v * unit[1]
 
 
 @lru_cache(maxsize=1)
@@ -127,6 +159,9 @@ def _parse_quantity(value, kind: str, field: str) -> float:
         raise QuantityError(f"{field}: expected a {kind} such as '10 {DISPLAY_UNITS.get(kind, '')}', got {value!r}")
     if len(value) > 200:
         raise QuantityError(f"{field}: {value[:40]!r}... is too long for a {kind}")
+    fast = _fast_quantity(value, kind, field)
+    if fast is not None:
+        return fast
     ureg = _ureg()
     try:
         q = ureg.Quantity(value.strip())

@@ -54,6 +54,8 @@ translation that does not reproduce ``mech.pose`` on probe poses, numba missing 
 from __future__ import annotations
 
 import contextlib
+import contextvars
+import os
 import warnings
 
 import numpy as np
@@ -67,18 +69,45 @@ from .warmup import COMPILING, WarmUp
 __all__ = ["HAVE_NUMBA", "ENGINES", "EngineFallbackWarning", "feasible", "margins", "pose_batch", "available",
            "reason", "check_engine", "plan", "use_compiled", "warn_fallback", "coverage", "singularity_margin",
            "transmission", "local_transmission_index", "condition_number", "leg_directions", "constraint_rank",
-           "warm_up", "exercise", "WarmUp", "COMPILING", "reference"]
+           "warm_up", "exercise", "needs", "effective_engine", "WarmUp", "COMPILING", "reference"]
 
 #: Names looked up in :mod:`parasynth.engine.core` when first asked for.
 _CORE_NAMES = ("HAVE_NUMBA", "BLOCK", "SUB", "KernelPlan", "Unsupported")
 
 
 def _compiled():
-    """The modules of the compiled path, ``(core, evaluate, indices)``."""
+    """The modules of the compiled path, ``(core, evaluate, indices, precompile)``."""
     # lazy: they import numba (about a second) and define its kernels: loaded at the first compiled evaluation
-    from . import core, evaluate, indices
+    from . import core, evaluate, indices, precompile
 
-    return core, evaluate, indices
+    return core, evaluate, indices, precompile
+
+
+#: While :func:`needs` runs: the set receiving the compiled entry points asked for.
+_WANTED: contextvars.ContextVar = contextvars.ContextVar("parasynth_engine_wanted", default=None)
+
+#: ``use_compiled``'s ``what`` -> the entry point (a name of :data:`EXERCISES`).
+_WHAT_KIND = {"singularity_margin": "singularity_margin", "constraint rank": "constraint_rank",
+              "pressure_angle_indices": "leg_directions", "output_transmission_index": "transmission",
+              "local_transmission_index": "transmission", "local_condition_number": "condition_number"}
+
+
+def _engine_for(kind: str, engine) -> str:
+    """``check_engine(engine)``, and inside :func:`needs`: "numpy", having recorded that the
+    compiled entry point ``kind`` was asked for."""
+    eng = check_engine(engine)
+    wanted = _WANTED.get()
+    if wanted is not None and eng == "compiled":
+        wanted.add(kind)
+        return "numpy"
+    return eng
+
+
+def effective_engine(engine) -> str:
+    """The engine that answers a request for ``engine``: "numpy" inside :func:`reference` and
+    :func:`needs`, else ``check_engine(engine)`` (for keys of cached results)."""
+    eng = check_engine(engine)
+    return "numpy" if _WANTED.get() is not None else eng
 
 
 def __getattr__(name):
@@ -109,7 +138,7 @@ def feasible(mech, X, names=None, engine: str = "compiled"):
     """(N,) bool: reachable and every selected constraint satisfied at poses ``X`` -- the
     answer of ``mech.is_feasible(X, names, engine="numpy")`` (see the agreement contract in
     :mod:`parasynth.engine.core`). A single pose (n_task,) gives a scalar bool."""
-    if check_engine(engine) == "numpy":
+    if _engine_for("feasible", engine) == "numpy":
         return mech._is_feasible_numpy(X, names)
     return _compiled()[1].feasible(mech, X, names)
 
@@ -117,7 +146,7 @@ def feasible(mech, X, names=None, engine: str = "compiled"):
 def margins(mech, X, names=None, engine: str = "compiled") -> dict:
     """{constraint name: (N,) margin} as ``mech.constraint_margins(X, names, engine="numpy")``
     (-inf where a leg cannot reach the pose or a margin is undefined)."""
-    if check_engine(engine) == "numpy":
+    if _engine_for("margins", engine) == "numpy":
         return mech._constraint_margins_numpy(X, names)
     return _compiled()[1].margins(mech, X, names)
 
@@ -128,7 +157,7 @@ def pose_batch(mech, X, twist: bool = False, engine: str = "compiled"):
     the twist map (N, 6, n_task) (as ``mech.twist_map``; else None). Entries of invalid
     poses are unspecified."""
     Xa, _ = mech._poses(X)
-    if check_engine(engine) == "compiled":
+    if _engine_for("twist" if twist else "pose", engine) == "compiled":
         out = _compiled()[1].compiled_pose_batch(mech, Xa, twist)
         if out is not None:
             return out
@@ -157,7 +186,7 @@ def use_compiled(mech, engine, what: str) -> bool:
     """Whether ``what`` runs on the compiled index kernels for ``mech``: ``engine`` is
     "compiled" or "numpy" (``ValueError`` otherwise); "compiled" falls back to NumPy, saying
     why once, when the kernels do not cover the mechanism."""
-    if check_engine(engine) == "numpy":
+    if _engine_for(_WHAT_KIND.get(what, what), engine) == "numpy":
         return False
     ei = _compiled()[2]
     ok, why = ei.coverage(mech)
@@ -233,13 +262,63 @@ def exercise(mech, what=EXERCISES) -> None:
                     calls[name](mech, X)
 
 
-def warm_up(work, **options) -> WarmUp:
+def needs(work) -> set:
+    """The compiled entry points (names of :data:`EXERCISES`) that ``work()`` asks for: it
+    runs once, each of those entry points answering with the NumPy reference (nothing is
+    compiled); its result and any exception are discarded. Work inside :func:`reference`
+    asks for none."""
+    wanted: set = set()
+    token = _WANTED.set(wanted)
+    try:
+        with warnings.catch_warnings(), np.errstate(all="ignore"):
+            warnings.simplefilter("ignore")
+            try:
+                work()
+            except Exception:  # noqa: BLE001 - what it asked for before failing is recorded
+                pass
+    finally:
+        _WANTED.reset(token)
+    return wanted
+
+
+def _ahead(work):
+    """The kernels to compile ahead of ``work`` (:mod:`parasynth.engine.precompile`): none
+    when the pose
+    kernel, which every compiled evaluation uses, is already in the cache (an installation
+    that compiled before: ``work`` compiles what it still needs itself). Off with
+    ``PARASYNTH_COMPILE_AHEAD=0``."""
+    pre = _compiled()[3]
+    if pre.in_cache("_pose_kernel"):
+        return []
+    return pre.missing(needs(work))
+
+
+def warm_up(work, processes: int | None = None, **options) -> WarmUp:
     """:func:`parasynth.engine.warmup.warm_up` of ``work``: a callable, or a mechanism, which is
-    :func:`exercise`\\ d on its home pose."""
+    :func:`exercise`\\ d on its home pose. On an empty compile cache the kernels ``work``
+    needs (:func:`needs`) are first compiled side by side in ``processes`` processes (default:
+    the number of cores; see :mod:`parasynth.engine.precompile`); ``work`` then loads them."""
     if not callable(work):
         mech = work
 
         def work():
             return exercise(mech)
 
-    return _warmup.warm_up(work, **options)
+    if os.environ.get("PARASYNTH_COMPILE_AHEAD", "").strip() == "0":
+        return _warmup.warm_up(work, **options)
+    loaded = []
+
+    def compile_then_work():
+        # on the compiling thread: importing numba (about a second) included
+        core, _, _, pre = _compiled()
+        loaded.append(pre)
+        ahead = _ahead(work) if core.HAVE_NUMBA else []
+        if ahead:
+            pre.compile_ahead(ahead, processes)
+        return work()
+
+    try:
+        return _warmup.warm_up(compile_then_work, **options)
+    finally:
+        for pre in loaded:
+            pre.stop_helpers()  # interrupted or stopped while they compile

@@ -64,6 +64,7 @@ try:  # pragma: no cover - depends on the environment
     if os.environ.get("PARASYNTH_NO_NUMBA", "").strip() not in ("", "0"):
         raise ImportError("disabled by PARASYNTH_NO_NUMBA")
     from numba import njit
+    from numba import types as _nbt
 
     HAVE_NUMBA = True
 except Exception:  # ImportError, or a broken numba/llvmlite install
@@ -1588,3 +1589,28 @@ if HAVE_NUMBA:
                         M[i, j] = -np.inf
             amb[blk] = n_amb
 
+
+def _array(dtype: str, ndim: int, readonly: bool = False):
+    """The numba type of a C-contiguous array of ``dtype`` ("f8", "i8", "b1")."""
+    dt = {"f8": _nbt.float64, "i8": _nbt.int64, "b1": _nbt.boolean}[dtype]
+    return _nbt.Array(dt, ndim, "C", readonly=readonly)
+
+
+def signatures() -> dict:
+    """{kernel name: (dispatcher, argument types)} of this module's kernels: the one
+    specialisation each is called with (``tests/test_engine_warmup.py`` checks it against
+    what a real evaluation compiles), so that it can be compiled ahead, in another process
+    (:mod:`parasynth.engine.warmup`)."""
+    if not HAVE_NUMBA:
+        return {}
+    f1, f2, f3 = _array("f8", 1), _array("f8", 2), _array("f8", 3)
+    i1, i2, b1 = _array("i8", 1), _array("i8", 2), _array("b1", 1)
+    i8, f8 = _nbt.int64, _nbt.float64
+    X = _array("f8", 2, readonly=True)
+    prog = (X, i2, f1, i8, i8, i8, i1, i1, f1)  # poses, ins, consts, cbase, n_reg, n_pose, regs, plim
+    plan = (i2, f8, i1, i1) + (f2,) * 8 + (i2,)  # expr, tol, leg_kind, leg_act, leg_f .. pair, offs
+    return {
+        "_pose_kernel": (_pose_kernel, prog + (i2, i8, b1, f2, f2, f3, i8, i8)),
+        "_feasible_kernel": (_feasible_kernel, prog + plan + (i8, b1, i1, i8, i8)),
+        "_margins_kernel": (_margins_kernel, prog + plan + (i8, f2, i1, i8, i8)),
+    }

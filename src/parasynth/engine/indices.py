@@ -82,10 +82,11 @@ __all__ = [
 # One decision (PARASYNTH_NO_NUMBA, a broken install), one fallback policy and warning
 # (warn_fallback, said once per what, model class and reason) and one per-mechanism record of
 # plans (record_of) for the whole engine.
-from .core import _WARNED, HAVE_NUMBA, over_blocks, record_of, warn_fallback  # noqa: F401
+from .core import _WARNED, HAVE_NUMBA, _array, over_blocks, record_of, warn_fallback  # noqa: F401
 
 if HAVE_NUMBA:
     from numba import njit
+    from numba import types as _nbt
 
 # Leg type codes in the kernels.
 _SPS, _UPS, _PUS, _RPS, _RPU, _UPU, _PRS = 0, 1, 2, 3, 4, 5, 6
@@ -1181,3 +1182,22 @@ def leg_directions(mech, X) -> tuple[np.ndarray, np.ndarray]:
     dirs, reach = np.empty((N, len(code), 3)), np.empty(N, np.bool_)
     _kernel("_dir_kernel", N)(p, R, valid, code, act, geo, sc, upuL, int(mech.n_actuators), nc, dirs, reach)
     return _out(dirs, single), _out(reach, single)
+
+
+def signatures() -> dict:
+    """{kernel name: (dispatcher, argument types)} of the index kernels, as
+    :func:`parasynth.engine.core.signatures`."""
+    if not HAVE_NUMBA:
+        return {}
+    f1, f2, f3 = _array("f8", 1), _array("f8", 2), _array("f8", 3)
+    i1, b1 = _array("i8", 1), _array("b1", 1)
+    i8, f8 = _nbt.int64, _nbt.float64
+    legs = (i1, i1, f3, f2, f1, i8, i8)  # code, act, geo, sc, upuL, na, nc
+    return {
+        "_upu_mean_lengths": (_upu_mean_lengths, (f2, f3, i1, f3)),
+        "_constraint_rank_kernel": (_constraint_rank_kernel, (f2, f3, i1, f3, f2, f8)),
+        "_margin_kernel": (_KERNELS["_margin_kernel"], (f2, f3, b1) + legs + (i8, f8, f1, i8, i8)),
+        "_lti_kernel": (_KERNELS["_lti_kernel"], (f2, f3, b1) + legs + (f8, f8, f2, f2, f1, i8, i8)),
+        "_kappa_kernel": (_KERNELS["_kappa_kernel"], (f2, f3, b1, f3, b1) + legs + (f8, f1, i8, i8)),
+        "_dir_kernel": (_KERNELS["_dir_kernel"], (f2, f3, b1) + legs + (f3, b1, i8, i8)),
+    }

@@ -42,7 +42,7 @@ import operator
 
 import numpy as np
 
-from ..spatial import EULER_CONVENTIONS
+from ..spatial import EULER_CONVENTIONS, R_NAMES
 
 __all__ = ["Untranslatable", "Program", "build_program", "OPS"]
 
@@ -75,7 +75,6 @@ _AST_CMP = {ast.Lt: "lt", ast.LtE: "le", ast.Gt: "gt", ast.GtE: "ge"}
 _CALLS = {"sin", "cos", "tan", "asin", "acos", "atan", "atan2", "sqrt", "exp", "log", "abs", "hypot", "min", "max",
           "clip", "sinh", "cosh", "tanh"}
 _AXES = {"x": (1.0, 0.0, 0.0), "y": (0.0, 1.0, 0.0), "z": (0.0, 0.0, 1.0)}
-R_NAMES = tuple(f"R{i}{j}" for i in (1, 2, 3) for j in (1, 2, 3))
 
 
 # ---------------------------------------------------------------------------------------------

@@ -17,6 +17,7 @@ from typing import Callable
 
 import numpy as np
 
+from ...spatial import R_NAMES
 from ...units import LITERAL_UNITS
 from .errors import DescriptionError
 
@@ -32,7 +33,6 @@ _ARITY = {"sin": 1, "cos": 1, "tan": 1, "asin": 1, "acos": 1, "atan": 1, "atan2"
           "log": 1, "abs": 1, "hypot": 2, "min": 2, "max": 2, "clip": 3, "sinh": 1, "cosh": 1, "tanh": 1}
 _CONSTANTS = {"pi": np.float64(np.pi)}
 #: Names of the platform pose inside constraint expressions (and R entries in positions).
-R_NAMES = tuple(f"R{i}{j}" for i in (1, 2, 3) for j in (1, 2, 3))
 POSE_NAMES = ("px", "py", "pz") + R_NAMES
 RESERVED = frozenset(_ARITY) | frozenset(_CONSTANTS) | frozenset(POSE_NAMES)
 

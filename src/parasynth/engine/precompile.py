@@ -1,0 +1,183 @@
+"""Compiling the kernels a run needs in several processes at once, ahead of the run.
+
+A cold compile of the kernels one study uses takes tens of seconds of CPU, nearly all of it
+in one kernel at a time (numba holds one compiler lock per process). The kernels are
+independent, and numba's cache (``NUMBA_CACHE_DIR``) is a set of files safe to write from
+several processes, so they can be compiled side by side: :func:`compile_ahead` compiles the
+interpreter kernels (pose, feasibility, margins: they share the expression interpreter) in
+this process and hands the index kernels to helper processes (``python -m
+parasynth.engine.precompile NAME ...``), which compile them by their signature
+(:func:`parasynth.engine.core.signatures`) into the same cache; when it returns, every kernel
+it was given is in the cache and the real work loads them (well under a second).
+
+Which kernels: the work is first run once on the NumPy reference, recording the compiled
+entry points it asks for (:func:`parasynth.engine.needs`), which :data:`KERNELS_OF` maps to
+kernels. Only kernels not yet in the cache are compiled; with the pose kernel in the cache
+(an installation that compiled before) nothing of this runs and the work compiles what it
+still needs itself, as it would without this module. A helper that fails costs nothing but
+time: the work then compiles the kernel itself.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from . import core, indices
+
+__all__ = ["KERNELS_OF", "LOCAL", "signatures", "in_cache", "missing", "compile_ahead", "stop_helpers", "main"]
+
+#: Kernels behind each compiled entry point (the names of :data:`parasynth.engine.EXERCISES`).
+KERNELS_OF = {
+    "pose": ("_pose_kernel",),
+    "twist": ("_pose_kernel",),
+    "feasible": ("_pose_kernel", "_feasible_kernel"),
+    "margins": ("_pose_kernel", "_margins_kernel"),
+    "singularity_margin": ("_pose_kernel", "_upu_mean_lengths", "_margin_kernel"),
+    "transmission": ("_pose_kernel", "_upu_mean_lengths", "_lti_kernel"),
+    "condition_number": ("_pose_kernel", "_upu_mean_lengths", "_kappa_kernel"),
+    "leg_directions": ("_pose_kernel", "_dir_kernel"),
+    "constraint_rank": ("_pose_kernel", "_constraint_rank_kernel"),
+}
+
+#: Kernels compiled in the calling process: they run the expression interpreter, which each
+#: process compiling one of them compiles too (compiled once here for all three).
+LOCAL = ("_pose_kernel", "_feasible_kernel", "_margins_kernel")
+
+# Rough cold-compile CPU seconds (5pus_upu, 2-core development machine), to share the work.
+_COST = {"_pose_kernel": 6.5, "_feasible_kernel": 10.0, "_margins_kernel": 10.0, "_upu_mean_lengths": 0.5,
+         "_margin_kernel": 5.0, "_constraint_rank_kernel": 4.5, "_lti_kernel": 6.0, "_kappa_kernel": 5.0,
+         "_dir_kernel": 2.0}
+#: Helper processes running (see :func:`stop_helpers`).
+_RUNNING: list = []
+
+#: CPU seconds a helper process spends starting (Python, numba, parasynth).
+_START = 1.5
+
+
+def signatures() -> dict:
+    """{kernel name: (dispatcher, argument types)} of every kernel of the engine."""
+    return {**core.signatures(), **indices.signatures()}
+
+
+def in_cache(name: str) -> bool:
+    """Whether kernel ``name`` is compiled in this process or in numba's cache on disk (read
+    from the cache index without loading anything). True when that cannot be told (a numba
+    whose cache internals differ): then nothing is compiled ahead."""
+    disp, sig = signatures()[name]
+    try:
+        if disp.signatures:
+            return True
+        cache = disp._cache
+        key = cache._index_key(tuple(sig), disp.targetctx.codegen())
+        return key in cache._cache_file._load_index()
+    except Exception:  # noqa: BLE001 - numba internals: assume cached, compile on demand
+        return True
+
+
+def missing(kinds) -> list[str]:
+    """The kernels the entry points ``kinds`` use that are neither compiled nor cached."""
+    names = []
+    for kind in kinds:
+        for n in KERNELS_OF.get(kind, ()):
+            if n not in names:
+                names.append(n)
+    return [n for n in names if not in_cache(n)]
+
+
+def _compile(name: str) -> None:
+    disp, sig = signatures()[name]
+    disp.compile(tuple(sig))
+
+
+def _shares(names: list[str], n: int) -> list[list[str]]:
+    """``names`` split over ``n`` processes, longest first onto the least loaded."""
+    bins = [[0.0, []] for _ in range(n)]
+    for name in sorted(names, key=lambda k: -_COST.get(k, 5.0)):
+        b = min(bins, key=lambda b: b[0])
+        b[0] += _COST.get(name, 5.0)
+        b[1].append(name)
+    return [b[1] for b in bins if b[1]]
+
+
+def _helper_env() -> dict:
+    env = dict(os.environ)
+    src = str(Path(__file__).resolve().parent.parent.parent)  # the parasynth this process runs
+    env["PYTHONPATH"] = src + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
+    return env
+
+
+def compile_ahead(names, processes: int | None = None, poll: float = 0.05) -> dict:
+    """Compile kernels ``names`` (not yet cached) into numba's cache: those of :data:`LOCAL`
+    here, the others in up to ``processes - 1`` helper processes (default: one fewer than the
+    cores, at least one; none on a single core) at the same time. Returns ``{"local": [...],
+    "helpers": [[...], ...], "failed": [...]}`` (kernels of helpers that did not finish).
+    Helpers still running when this returns or raises (an interrupt) are terminated."""
+    names = list(names)
+    if processes is None:
+        processes = os.cpu_count() or 1
+    local = [n for n in names if n in LOCAL]
+    rest = [n for n in names if n not in LOCAL]
+    if processes < 2:
+        local, rest = local + rest, []
+    shares = _shares(rest, min(max(1, processes - 1), len(rest))) if rest else []
+    procs = []
+    try:
+        env = _helper_env()
+        for share in shares:
+            p = subprocess.Popen([sys.executable, "-m", "parasynth.engine.precompile", *share], env=env,
+                                 stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+            procs.append((share, p))
+            _RUNNING.append(p)
+        for n in local:
+            _compile(n)
+        failed = []
+        for share, p in procs:
+            while p.poll() is None:
+                time.sleep(poll)
+            if p.returncode != 0:
+                failed += share
+        return {"local": local, "helpers": shares, "failed": failed}
+    finally:
+        _stop([p for _, p in procs])
+
+
+def _stop(procs) -> None:
+    for p in procs:
+        if p.poll() is None:
+            p.terminate()
+    for p in procs:
+        try:
+            p.wait(5)
+        except subprocess.TimeoutExpired:
+            p.kill()
+            p.wait()
+        if p in _RUNNING:
+            _RUNNING.remove(p)
+
+
+def stop_helpers() -> None:
+    """Terminate the helper processes still compiling (the caller was interrupted while
+    :func:`compile_ahead` waited for them on another thread)."""
+    _stop(list(_RUNNING))
+
+
+def main(argv=None) -> int:
+    """``python -m parasynth.engine.precompile NAME ...``: compile those kernels into numba's
+    cache (a helper of :func:`compile_ahead`)."""
+    names = list(sys.argv[1:] if argv is None else argv)
+    known = signatures()
+    bad = [n for n in names if n not in known]
+    if bad:
+        print(f"unknown kernel(s) {', '.join(bad)}; known: {', '.join(known)}", file=sys.stderr)
+        return 2
+    for n in names:
+        _compile(n)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
