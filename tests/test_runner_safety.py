@@ -265,6 +265,38 @@ def test_resume_after_unfinished_trial_equals_uninterrupted(tmp_path, algorithm)
     _compare_runs(tmp_path / "a", tmp_path / "b", [("test_quadratic_m2", -1), ("test_two_m", 1)])  # results.csv names: units as suffixes
 
 
+KILLER = str(Path(__file__).parent / "data" / "kill_at_trial.py")
+
+
+@pytest.mark.parametrize("algorithm,kills", [
+    ("nsga2", [(6, "suggest"), (13, "record"), (24, "evaluate")]),
+    ("qmc", [(13, "evaluate")]),
+])
+def test_killed_at_chosen_trials_and_resumed_equals_uninterrupted(tmp_path, algorithm, kills):
+    """``parasynth run`` killed (SIGKILL) at chosen trials and points -- NSGA-II: while the
+    first trial of a generation stores its variables (trial 6, population 6), after a trial
+    stored its record but before it was told (13), while the first trial of a later generation
+    is evaluated (24) -- and resumed after each kill: the trial running at each kill is asked
+    again with the same values, and results.csv equals the uninterrupted run's (all but
+    time_s). The samplers keep state in the study: NSGA-II each generation's parents, QMC its
+    point counter."""
+    path = write_study(tmp_path, study_dict("optuna", n=30, algorithm=algorithm))
+    out, ref = tmp_path / "killed", tmp_path / "whole"
+    for i, (trial, point) in enumerate(kills):
+        args = ["run", path, "--out", out, "--quiet", "--no-report"] + (["--resume"] if i else [])
+        r = subprocess.run([sys.executable, KILLER, *map(str, args)], env={**ENV, "PARASYNTH_TEST_KILL": f"{trial}:{point}"},
+                           capture_output=True, text=True, timeout=300)
+        assert r.returncode == -signal.SIGKILL, (trial, point, r.returncode, r.stderr)
+        lines = [x for x in journal_lines(out) if x["source"] == "run"]
+        # the killed trial is not counted (with "record" its line may be in the journal mirror)
+        assert trial - 1 <= max(x["trial"] for x in lines) <= trial, (trial, point)
+    s = load_study(path)
+    res = run_study(s, out_dir=out, resume=True, progress=False)
+    assert not res.interrupted and int((res.table["source"] == "run").sum()) == 30
+    run_study(s, out_dir=ref, progress=False)
+    _compare_runs(out, ref, [("test_quadratic_m2", -1), ("test_two_m", 1)])
+
+
 def test_resume_refuses_another_study_in_the_storage(tmp_path):
     s = load_study(yaml.safe_dump(study_dict("optuna", n=4)), is_text=True)
     url = f"journal:{tmp_path / 'shared.journal'}"
