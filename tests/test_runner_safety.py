@@ -127,7 +127,9 @@ def test_sigint_reaches_local_workers(tmp_path):
     storage, exit 130."""
     path = write_study(tmp_path, study_dict("optuna", delay=0.2, n=60, algorithm="random"))
     out = tmp_path / "run"
-    proc = subprocess.Popen(cli("run", path, "--out", out, "--quiet", "--no-report", "--workers", 2), env=ENV,
+    # one thread per worker: the workers are forked from the run (on Linux), as on 2 cores
+    proc = subprocess.Popen(cli("run", path, "--out", out, "--quiet", "--no-report", "--workers", 2),
+                            env={**ENV, "NUMBA_NUM_THREADS": "1"},
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     wait_for_lines(out, 4, proc)
     proc.send_signal(signal.SIGINT)
