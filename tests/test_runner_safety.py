@@ -299,6 +299,38 @@ def test_killed_at_chosen_trials_and_resumed_equals_uninterrupted(tmp_path, algo
     _compare_runs(out, ref, [("test_quadratic_m2", -1), ("test_two_m", 1)])
 
 
+@pytest.mark.parametrize("kept_after", [False, True])
+def test_rebuild_restores_sampler_state_from_before_the_dropped_trial(tmp_path, kept_after):
+    """The rebuilt storage holds the study's system attributes (sampler state) from before the
+    first dropped trial was created -- unless a kept trial was written after that (several
+    processes): then nothing a kept trial may have relied on is taken back."""
+    import optuna
+
+    from parasynth.study.storage import open_storage, rebuild_journal_storage
+
+    url = f"journal:{tmp_path / 'optuna.journal'}"
+    st = optuna.create_study(study_name="s", storage=open_storage(url))
+    sid = st._study_id
+    st._storage.set_study_system_attr(sid, "before", 1)
+    t0 = st.ask()
+    t0.suggest_float("x", 0, 1)
+    if not kept_after:
+        st.tell(t0, 0.5)
+    t1 = st.ask()  # left running: dropped on resume
+    t1.suggest_float("x", 0, 1)
+    st._storage.set_study_system_attr(sid, "during", 2)
+    st._storage.set_study_system_attr(sid, "before", 3)
+    if kept_after:
+        st.tell(t0, 0.5)  # written after the dropped trial was created
+    st.set_user_attr("kept", "yes")
+    assert rebuild_journal_storage(url, "s") == 1
+    new = optuna.load_study(study_name="s", storage=open_storage(url))
+    attrs = new._storage.get_study_system_attrs(new._study_id)
+    assert attrs == ({"before": 3, "during": 2} if kept_after else {"before": 1})
+    assert new.user_attrs == {"kept": "yes"}
+    assert [(t.number, t.state.name, t.params) for t in new.trials] == [(0, "COMPLETE", t0.params)]
+
+
 def test_resume_refuses_another_study_in_the_storage(tmp_path):
     s = load_study(yaml.safe_dump(study_dict("optuna", n=4)), is_text=True)
     url = f"journal:{tmp_path / 'shared.journal'}"

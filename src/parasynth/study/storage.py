@@ -301,7 +301,10 @@ def rebuild_journal_storage(url: str, name: str) -> int:
     rewrite the embedded journal storage with the study's attributes and its counted trials
     only, in their order: the interrupted trials disappear, so trial numbers -- and with the
     per-trial seeding of the sampler, its proposals -- continue exactly as in an uninterrupted
-    run. Returns the number of trials dropped."""
+    run. When the dropped trials are the last ones (a one-process run), the study's system
+    attributes (where samplers keep state: NSGA-II's parents of each generation, QMC's point
+    counter) are those from before the first of them was asked, so it is asked again exactly
+    as then. Returns the number of trials dropped."""
     import optuna  # lazy: optuna takes about a second to import
 
     path = _journal_path(url)

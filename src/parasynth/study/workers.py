@@ -8,8 +8,10 @@ Reproducible proposals
 ----------------------
 :class:`PerTrialSeeded` wraps an Optuna sampler so that every trial is proposed by a fresh
 sampler seeded from ``(seed, trial number)``: a proposal depends only on the seed, the trial
-number and the trials stored before it, not on how many proposals a process made before. A
-run killed and resumed (the storage rebuilt without the interrupted trials, see
+number, the trials stored before it and the sampler state Optuna keeps in the study (NSGA-II's
+cached parents of each generation, QMC's point counter), not on how many proposals a process
+made before. A run killed and resumed (the storage rebuilt without the interrupted trials and
+with the study's sampler state from before the first of them was asked, see
 :func:`~parasynth.study.storage.rebuild_journal_storage`) therefore proposes, evaluates and
 stores exactly what the uninterrupted run would have. With several workers the trials
 finish in an order set by timing, so a parallel run is complete and every trial is recorded
