@@ -101,6 +101,16 @@ def flock_journal_backend(path):
             finally:
                 self._fcntl.flock(self._lock_fd, self._fcntl.LOCK_UN)
 
+        def close(self):
+            """Close the files this backend holds (it is not used afterwards)."""
+            f = getattr(self, "_rf", None)
+            if f is not None:
+                f.close()
+                self._rf = None
+            for fd in (self._fd, self._lock_fd):
+                with contextlib.suppress(OSError):
+                    os.close(fd)
+
         def __getstate__(self):
             raise TypeError("the journal backend holds open files; open it again in each process")
 
@@ -146,8 +156,12 @@ def study_system_attrs_before(path, study, first_dropped: int, kept) -> dict | N
     QMC counts its points there). A trial dropped on resume must be asked again from the state
     it was first asked from, or its proposal differs from the uninterrupted run's."""
     from optuna.storages import JournalStorage  # lazy: optuna takes about a second to import
-    from optuna.storages.journal import BaseJournalBackend  # lazy: as above
-    from optuna.storages.journal._storage import JournalOperation  # lazy: as above
+
+    try:
+        from optuna.storages.journal import BaseJournalBackend  # lazy: as above
+        from optuna.storages.journal._storage import JournalOperation  # lazy: as above
+    except ImportError:  # pragma: no cover (an Optuna < 4 journal layout: the attributes are kept as they are)
+        return None
 
     class _Logs(BaseJournalBackend):
         def __init__(self, logs):
@@ -162,7 +176,10 @@ def study_system_attrs_before(path, study, first_dropped: int, kept) -> dict | N
     sid = study._study_id
     kept_ids = {t._trial_id for t in kept}
     backend = flock_journal_backend(path)
-    logs = list(backend.read_logs(0))
+    try:
+        logs = list(backend.read_logs(0))
+    finally:
+        backend.close()
     created = 0
     cut = None
     for i, log in enumerate(logs):
