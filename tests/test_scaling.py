@@ -60,12 +60,28 @@ def main_in_process(capsys, monkeypatch, *args):
 
 
 # -- local worker processes ----------------------------------------------------------------------------
-def test_local_workers_record_every_trial_once_identical_designs_included(tmp_path, monkeypatch, capsys):
+@pytest.mark.parametrize("start", ["fork", "spawn"])
+def test_local_workers_record_every_trial_once_identical_designs_included(tmp_path, monkeypatch, capsys, start):
+    """Workers forked from the run (the default on Linux with a file storage and one thread
+    per worker) or started as ``parasynth worker`` processes: every trial recorded once."""
     import optuna
 
+    from parasynth.study import workers
     from parasynth.study.storage import counts, open_storage
 
     monkeypatch.setenv("PARASYNTH_PLUGINS", PLUGIN)
+    monkeypatch.setenv("NUMBA_NUM_THREADS", "1")  # read by the workers only (numba is loaded)
+    if start == "fork":
+        if not sys.platform.startswith("linux"):
+            pytest.skip("workers are forked on Linux only")
+
+        def no_spawn(*a, **k):
+            raise AssertionError("a worker was spawned, not forked")
+
+        monkeypatch.setenv("PARASYNTH_SPAWN_WORKERS", "0")
+        monkeypatch.setattr(workers.subprocess, "Popen", no_spawn)
+    else:
+        monkeypatch.setenv("PARASYNTH_SPAWN_WORKERS", "1")
     s = load_study(yaml.safe_dump(study_dict("local_workers", 24, delay=0.05, algorithm="random",
                                              duplicates=True)), is_text=True)
     res = run_study(s, out_dir=tmp_path / "r", progress=False, workers=2)

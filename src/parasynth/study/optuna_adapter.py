@@ -11,7 +11,11 @@ reaches into is kept here, so that an Optuna release that changes it breaks one 
 * :func:`fail_trial`, :func:`trial_storage` -- a study's ``_storage`` and a trial's
   ``_trial_id`` (to fail a trial left running by a dead process);
 * :func:`copy_study_system_attrs` -- ``_study_id`` (to rebuild a journal storage with the
-  study's system attributes).
+  study's system attributes);
+* :func:`study_system_attrs_before` -- the operation log of ``JournalStorage`` (its
+  ``op_code`` values, ``JournalOperation``): the study's system attributes as they were
+  before a given trial was created, for a resume that asks that trial again as the
+  uninterrupted run asked it.
 
 Optuna is imported inside the functions: a sweep or an NLopt run never imports it.
 """
@@ -25,7 +29,7 @@ import os
 import warnings
 
 __all__ = ["flock_journal_backend", "journal_storage", "heartbeat", "trial_storage", "fail_trial",
-           "copy_study_system_attrs", "fail_stale"]
+           "copy_study_system_attrs", "study_system_attrs_before", "fail_stale"]
 
 
 def flock_journal_backend(path):
@@ -97,6 +101,16 @@ def flock_journal_backend(path):
             finally:
                 self._fcntl.flock(self._lock_fd, self._fcntl.LOCK_UN)
 
+        def close(self):
+            """Close the files this backend holds (it is not used afterwards)."""
+            f = getattr(self, "_rf", None)
+            if f is not None:
+                f.close()
+                self._rf = None
+            for fd in (self._fd, self._lock_fd):
+                with contextlib.suppress(OSError):
+                    os.close(fd)
+
         def __getstate__(self):
             raise TypeError("the journal backend holds open files; open it again in each process")
 
@@ -122,10 +136,63 @@ def fail_trial(ostudy, trial):
     ostudy._storage.set_trial_state_values(trial._trial_id, state=TrialState.FAIL)
 
 
-def copy_study_system_attrs(src_storage, src_study, dst_storage, dst_study):
-    """Copy the system attributes of ``src_study`` (in ``src_storage``) to ``dst_study``."""
-    for k, v in src_storage.get_study_system_attrs(src_study._study_id).items():
+def copy_study_system_attrs(src_storage, src_study, dst_storage, dst_study, attrs: dict | None = None):
+    """Copy the system attributes of ``src_study`` (in ``src_storage``) to ``dst_study``, or
+    give it ``attrs`` when given."""
+    if attrs is None:
+        attrs = src_storage.get_study_system_attrs(src_study._study_id)
+    for k, v in attrs.items():
         dst_storage.set_study_system_attr(dst_study._study_id, k, v)
+
+
+def study_system_attrs_before(path, study, first_dropped: int, kept) -> dict | None:
+    """The system attributes of ``study`` (loaded from the journal file ``path``) as they were
+    just before its trial number ``first_dropped`` was created, by replaying the journal's
+    operations up to there; ``None`` when a trial of ``kept`` (trials that stay) was written
+    after that point (then the attributes written since may be theirs, and are kept).
+
+    Samplers keep state in these attributes (NSGA-II/III cache each generation's parents,
+    ordered as their selection returned them, when the first trial of the generation is asked;
+    QMC counts its points there). A trial dropped on resume must be asked again from the state
+    it was first asked from, or its proposal differs from the uninterrupted run's."""
+    from optuna.storages import JournalStorage  # lazy: optuna takes about a second to import
+
+    try:
+        from optuna.storages.journal import BaseJournalBackend  # lazy: as above
+        from optuna.storages.journal._storage import JournalOperation  # lazy: as above
+    except ImportError:  # pragma: no cover (an Optuna < 4 journal layout: the attributes are kept as they are)
+        return None
+
+    class _Logs(BaseJournalBackend):
+        def __init__(self, logs):
+            self._logs = logs
+
+        def read_logs(self, log_number_from):
+            return self._logs[log_number_from:]
+
+        def append_logs(self, logs):  # pragma: no cover (read only)
+            raise TypeError("read-only journal replay")
+
+    sid = study._study_id
+    kept_ids = {t._trial_id for t in kept}
+    backend = flock_journal_backend(path)
+    try:
+        logs = list(backend.read_logs(0))
+    finally:
+        backend.close()
+    created = 0
+    cut = None
+    for i, log in enumerate(logs):
+        if log.get("op_code") == JournalOperation.CREATE_TRIAL and log.get("study_id") == sid:
+            if created == first_dropped:
+                cut = i
+                break
+            created += 1
+    if cut is None:
+        return None
+    if any(log.get("trial_id") in kept_ids for log in logs[cut:]):
+        return None
+    return dict(JournalStorage(_Logs(logs[:cut])).get_study_system_attrs(sid))
 
 
 def heartbeat():

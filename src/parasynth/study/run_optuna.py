@@ -34,7 +34,7 @@ def run_optuna(problem: Problem, ctx: RunContext) -> None:
                 bar.update(None, problem.best_str(records), n=len(recs))
 
             codes = run_local_workers(Path(ctx.out_dir) / "study.yaml", backend["url"], ctx.workers, total, ostudy,
-                                      guard, on_new=on_new)
+                                      guard, on_new=on_new, fork=(study, problem.evaluator, backend["seed"]))
             bad = [c for c in codes if c not in (0, 130, -2)]
             if bad and not guard.requested:
                 print(f"warning: {len(bad)} worker(s) stopped with an error (exit codes {bad}); the study keeps "

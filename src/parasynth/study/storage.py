@@ -37,7 +37,7 @@ from pathlib import Path
 
 from .evaluate import Record
 from .journal import rewrite_journal
-from .optuna_adapter import copy_study_system_attrs, journal_storage
+from .optuna_adapter import copy_study_system_attrs, journal_storage, study_system_attrs_before
 from .spec import StudyError, load_study
 from .tables import write_tables
 
@@ -301,7 +301,10 @@ def rebuild_journal_storage(url: str, name: str) -> int:
     rewrite the embedded journal storage with the study's attributes and its counted trials
     only, in their order: the interrupted trials disappear, so trial numbers -- and with the
     per-trial seeding of the sampler, its proposals -- continue exactly as in an uninterrupted
-    run. Returns the number of trials dropped."""
+    run. When the dropped trials are the last ones (a one-process run), the study's system
+    attributes (where samplers keep state: NSGA-II's parents of each generation, QMC's point
+    counter) are those from before the first of them was asked, so it is asked again exactly
+    as then. Returns the number of trials dropped."""
     import optuna  # lazy: optuna takes about a second to import
 
     path = _journal_path(url)
@@ -322,7 +325,14 @@ def rebuild_journal_storage(url: str, name: str) -> int:
             p.unlink()
     new_storage = journal_storage(tmp)
     dst = optuna.create_study(study_name=name, storage=new_storage, directions=src.directions)
-    copy_study_system_attrs(old, src, new_storage, dst)
+    dropped = [t.number for t in trials if not counts(t)]
+    attrs = None
+    if dropped and min(dropped) >= len(keep):
+        # The interrupted trials are the last ones: give the study the sampler state from
+        # before the first of them was asked, so it is asked again exactly as the
+        # uninterrupted run asks it (same number, same seed, same sampler state).
+        attrs = study_system_attrs_before(path, src, min(dropped), keep)
+    copy_study_system_attrs(old, src, new_storage, dst, attrs)
     for k, v in src.user_attrs.items():
         dst.set_user_attr(k, v)
     dst.add_trials(keep)

@@ -8,8 +8,10 @@ Reproducible proposals
 ----------------------
 :class:`PerTrialSeeded` wraps an Optuna sampler so that every trial is proposed by a fresh
 sampler seeded from ``(seed, trial number)``: a proposal depends only on the seed, the trial
-number and the trials stored before it, not on how many proposals a process made before. A
-run killed and resumed (the storage rebuilt without the interrupted trials, see
+number, the trials stored before it and the sampler state Optuna keeps in the study (NSGA-II's
+cached parents of each generation, QMC's point counter), not on how many proposals a process
+made before. A run killed and resumed (the storage rebuilt without the interrupted trials and
+with the study's sampler state from before the first of them was asked, see
 :func:`~parasynth.study.storage.rebuild_journal_storage`) therefore proposes, evaluates and
 stores exactly what the uninterrupted run would have. With several workers the trials
 finish in an order set by timing, so a parallel run is complete and every trial is recorded
@@ -17,10 +19,13 @@ once, but it is not the same sequence as a one-process run.
 
 Workers
 -------
-``parasynth run STUDY --workers N`` starts N worker processes on the run's storage (each one
-``parasynth worker``, in its own process group, evaluations single-threaded unless
-``NUMBA_NUM_THREADS`` is set) and follows the storage: the progress bar, the journal and the
-tables count every worker's designs. ``parasynth worker STUDY --storage URL`` joins a study
+``parasynth run STUDY --workers N`` starts N worker processes on the run's storage (each in its
+own session, evaluations single-threaded unless ``NUMBA_NUM_THREADS`` is set) and follows the
+storage: the progress bar, the journal and the tables count every worker's designs. On Linux,
+with a file storage (the embedded journal, SQLite) and single-threaded evaluations, the workers
+are forked from the run once it has checked the study and loaded the compiled kernels, so a
+worker starts in milliseconds instead of seconds (imports, the study, the kernels); otherwise
+each is a ``parasynth worker`` process. ``parasynth worker STUDY --storage URL`` joins a study
 from any machine that reaches the storage. Every worker asks the storage for a trial, evaluates
 it and stores the result with the design's record; a worker stops when the study holds its
 budget of counted trials, and waits (instead of stopping early) while trials of other workers
@@ -42,6 +47,7 @@ import subprocess
 import sys
 import threading
 import time
+import traceback
 import warnings
 from pathlib import Path
 
@@ -53,10 +59,10 @@ from .journal import jsonable
 from .optuna_adapter import fail_stale, fail_trial, heartbeat_enabled, heartbeat_thread
 from .signals import Interrupt
 from .spec import StudyError
-from .storage import ATTR_RECORD, counts, trial_record
+from .storage import ATTR_RECORD, counts, is_shared_server, load_parasynth_study, open_storage, trial_record
 
 __all__ = ["Interrupt", "PerTrialSeeded", "make_sampler", "optuna_objective", "optimize_loop", "run_local_workers",
-           "StorageLost", "owner_id", "budget_state"]
+           "StorageLost", "owner_id", "budget_state", "can_fork_workers", "forked_worker_main"]
 
 
 class StorageLost(StudyError):
@@ -281,7 +287,8 @@ def _storage_errors():
     import optuna  # lazy: optuna takes about a second to import
 
     errs = [optuna.exceptions.StorageInternalError, OSError, ConnectionError]
-    # SQLAlchemy's errors only where a server storage has loaded it (importing it costs ~0.3 s)
+    # SQLAlchemy's errors, when a storage loaded it (a server or SQLite storage): importing it
+    # for a journal file would cost a worker 0.2 s of start-up for nothing.
     sa_exc = sys.modules.get("sqlalchemy.exc")
     if sa_exc is not None:
         errs += [sa_exc.OperationalError, sa_exc.DBAPIError]
@@ -414,15 +421,129 @@ def worker_env(n_workers: int) -> dict:
     return env
 
 
+def _env_threads(env: dict) -> int:
+    try:
+        return int(env.get("NUMBA_NUM_THREADS", "1"))
+    except ValueError:
+        return 0
+
+
+def can_fork_workers(url: str, n_workers: int) -> bool:
+    """Are local workers forked from the run (see the module docstring)? On Linux, with a file
+    storage (a server storage's connections are not shared with a child) and one evaluation
+    thread per worker (the engine's thread pool does not survive a fork: a forked worker
+    evaluates on its own thread)."""
+    return (sys.platform.startswith("linux") and hasattr(os, "fork") and not is_shared_server(url)
+            and _env_threads(worker_env(n_workers)) == 1
+            and os.environ.get("PARASYNTH_SPAWN_WORKERS", "").strip().lower() not in ("1", "true", "yes", "on"))
+
+
+class _Forked:
+    """A forked worker, with the part of ``subprocess.Popen``'s interface used here."""
+
+    def __init__(self, pid: int):
+        self.pid = pid
+        self.returncode = None
+
+    def _reap(self, flags: int):
+        if self.returncode is None:
+            try:
+                pid, status = os.waitpid(self.pid, flags)
+            except ChildProcessError:  # reaped elsewhere
+                self.returncode = -1
+                return self.returncode
+            if pid:
+                self.returncode = os.waitstatus_to_exitcode(status)
+        return self.returncode
+
+    def poll(self):
+        return self._reap(os.WNOHANG)
+
+    def wait(self):
+        return self._reap(0)
+
+    def send_signal(self, sig):
+        if self.returncode is None:
+            os.kill(self.pid, sig)
+
+    def kill(self):
+        self.send_signal(signal.SIGKILL)
+
+
+def _single_threaded_evaluations() -> None:
+    """In a forked worker: evaluations on the worker's own thread (the engine spreads a
+    batch over ``numba.config.NUMBA_NUM_THREADS`` threads of a pool the fork did not copy)."""
+    numba = sys.modules.get("numba")
+    if numba is not None:
+        numba.config.NUMBA_NUM_THREADS = 1
+    for k in ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ[k] = "1"
+
+
+def forked_worker_main(study, evaluator, url: str, name: str, total: int, seed: int) -> int:
+    """The loop of a forked worker (what ``parasynth worker`` does, without loading and
+    checking the study again: the run did). Returns the exit code (0, 130 interrupted, 3 lost
+    the storage)."""
+    import optuna  # lazy: optuna takes about a second to import (already imported by the run)
+
+    optuna.logging.set_verbosity(optuna.logging.ERROR)
+    with Interrupt(quiet=True) as guard:
+        try:
+            ostudy = load_parasynth_study(open_storage(url), url, name)
+            ostudy.sampler = make_sampler(study, seed)
+            objective = optuna_objective(study, evaluator, guard=guard, mark_owner=True)
+            # A file storage is cheap to poll: a worker waiting for the others' last trials
+            # sees the budget reached within milliseconds.
+            optimize_loop(ostudy, objective, int(total), guard, shared=True, poll_s=0.05)
+        except KeyboardInterrupt:
+            guard.requested = True
+        except StorageLost as e:
+            print(f"error: worker {owner_id()}: {e}", file=sys.stderr, flush=True)
+            return 3
+        except StudyError as e:
+            print(f"error: worker {owner_id()}: {e}", file=sys.stderr, flush=True)
+            return 2
+    return 130 if guard.requested else 0
+
+
+def _fork_worker(target, quiet: bool) -> _Forked:
+    """Fork a worker running ``target()`` (its exit code) in a session of its own."""
+    sys.stdout.flush()
+    sys.stderr.flush()
+    pid = os.fork()
+    if pid:
+        return _Forked(pid)
+    code = 1
+    try:  # the child: never returns into the parent's code, never runs its exit handlers
+        for s in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(s, signal.SIG_DFL)  # the run's handlers (and their forwarding) are not ours
+        os.setsid()  # a terminal's Ctrl-C reaches the run, which forwards it once
+        if quiet:
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, 1)
+            os.close(devnull)
+        _single_threaded_evaluations()
+        code = target()
+    except BaseException:  # noqa: BLE001 (reported; the exit code tells the run)
+        with contextlib.suppress(Exception):
+            traceback.print_exc()
+    finally:
+        with contextlib.suppress(Exception):
+            sys.stdout.flush()
+            sys.stderr.flush()
+        os._exit(code)
+
+
 def run_local_workers(study_file: Path, url: str, n_workers: int, total: int, ostudy, guard: Interrupt,
-                      on_new=None, poll_s: float = 0.3, quiet: bool = True):
-    """Start ``n_workers`` ``parasynth worker`` processes on ``url`` and follow the storage
-    until they exit; ``on_new(records)`` receives the newly counted designs. Signals that
-    reach this process are forwarded to the workers (each in its own process group, so a
-    terminal Ctrl-C reaches them once, through here). Returns the workers' exit codes."""
-    cmd = [sys.executable, "-m", "parasynth.cli", "worker", str(study_file), "--storage", url,
-           "--n-trials", str(total), "--quiet"]
-    env = worker_env(n_workers)
+                      on_new=None, poll_s: float = 0.3, quiet: bool = True, fork=None):
+    """Start ``n_workers`` workers on ``url`` and follow the storage until they exit;
+    ``on_new(records)`` receives the newly counted designs. Signals that reach this process are
+    forwarded to the workers (each in its own session, so a terminal Ctrl-C reaches them once,
+    through here). Returns the workers' exit codes.
+
+    ``fork``: ``(study, evaluator, seed)`` of this run: the workers are forked from this
+    process when :func:`can_fork_workers` (they start at once, with the study checked and the
+    kernels loaded); otherwise, and without it, each is a ``parasynth worker`` process."""
     procs = []
 
     def forward(signum):
@@ -448,13 +569,25 @@ def run_local_workers(study_file: Path, url: str, n_workers: int, total: int, os
     for t in ostudy.get_trials(deepcopy=False):
         if counts(t):
             seen.add(t.number)
-    for _ in range(n_workers):
-        procs.append(subprocess.Popen(cmd, env=env, start_new_session=True,
-                                      stdout=subprocess.DEVNULL if quiet else None))
+    if fork is not None and can_fork_workers(url, n_workers):
+        study, evaluator, seed = fork
+        name = ostudy.study_name
+        for _ in range(n_workers):
+            procs.append(_fork_worker(lambda: forked_worker_main(study, evaluator, url, name, total, seed), quiet))
+    else:
+        cmd = [sys.executable, "-m", "parasynth.cli", "worker", str(study_file), "--storage", url,
+               "--n-trials", str(total), "--quiet"]
+        env = worker_env(n_workers)
+        for _ in range(n_workers):
+            procs.append(subprocess.Popen(cmd, env=env, start_new_session=True,
+                                          stdout=subprocess.DEVNULL if quiet else None))
     try:
+        last = time.monotonic()
         while any(p.poll() is None for p in procs):
-            time.sleep(poll_s)
-            sync()
+            time.sleep(min(poll_s, 0.02))  # a worker's end is seen at once, the storage read every poll_s
+            if time.monotonic() - last >= poll_s:
+                sync()
+                last = time.monotonic()
     except KeyboardInterrupt:  # a third signal: stop the workers now
         for p in procs:
             with contextlib.suppress(ProcessLookupError):
