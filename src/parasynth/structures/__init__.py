@@ -1,0 +1,17 @@
+"""Structural synthesis: which limbs, actuated where and arranged how, give a motion type.
+
+:mod:`.vocabulary` holds the limb types (a registry), their arrangements, the shared
+parametrisation and the motion templates; :mod:`.synthesis` enumerates candidates from it, writes
+each as a mechanism description and checks it numerically. See docs/structures.md.
+
+This layer sits above the mechanism registry (it builds described mechanisms) and below the
+study layer.
+"""
+
+from .synthesis import DROP_REASONS, Group, Structure, StructureList, candidates, structures
+from .vocabulary import (ARRANGEMENTS, LIMB_TYPES, PARAMETERS, TEMPLATES, Arrangement, LimbType, Template,
+                         limb_type, parse_motion, register_limb)
+
+__all__ = ["structures", "Structure", "StructureList", "Group", "candidates", "DROP_REASONS", "LIMB_TYPES",
+           "ARRANGEMENTS", "PARAMETERS", "TEMPLATES", "Arrangement", "LimbType", "Template", "limb_type",
+           "parse_motion", "register_limb"]
