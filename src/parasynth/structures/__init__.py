@@ -8,6 +8,9 @@ This layer sits above the mechanism registry (it builds described mechanisms) an
 study layer.
 """
 
+import sys
+import types
+
 from .synthesis import DROP_REASONS, Group, Structure, StructureList, candidates, structures
 from .vocabulary import (ARRANGEMENTS, LIMB_TYPES, PARAMETERS, TEMPLATES, Arrangement, LimbType, Template,
                          limb_type, parse_motion, register_limb)
@@ -15,3 +18,16 @@ from .vocabulary import (ARRANGEMENTS, LIMB_TYPES, PARAMETERS, TEMPLATES, Arrang
 __all__ = ["structures", "Structure", "StructureList", "Group", "candidates", "DROP_REASONS", "LIMB_TYPES",
            "ARRANGEMENTS", "PARAMETERS", "TEMPLATES", "Arrangement", "LimbType", "Template", "limb_type",
            "parse_motion", "register_limb"]
+
+
+class _StructuresModule(types.ModuleType):
+    """``parasynth.structures`` is this package and, called, :func:`structures`: the package
+    keeps its name (``import parasynth.structures``, ``parasynth.structures.LIMB_TYPES``) and
+    ``parasynth.structures("3T2R", ...)`` enumerates."""
+
+    def __call__(self, motion, **kwargs) -> StructureList:
+        return structures(motion, **kwargs)
+
+
+_StructuresModule.__call__.__doc__ = structures.__doc__
+sys.modules[__name__].__class__ = _StructuresModule

@@ -12,6 +12,7 @@ actuators must control it at some pose.
 
 from __future__ import annotations
 
+import hashlib
 import itertools
 from collections import Counter
 from dataclasses import dataclass, field
@@ -431,7 +432,8 @@ def structures(motion, *, leg_types=None, legs=None, all_axes: bool = False, n_p
         if c.n_actuated > dof:
             drop("over-actuated", c)
             continue
-        short = f"{len(seen):03d}"
+        arrs = "-".join(dict.fromkeys(g.arrangement for g in c.groups if g.actuated))
+        short = f"{arrs}-{hashlib.sha1(repr(key).encode()).hexdigest()[:6]}"
         desc = _description(c, template, short)
         reason, det, cls = _check(c, motion, desc, n_poses, seed)
         if reason is not None:
