@@ -301,6 +301,7 @@ def _rus_mechanism(**params):
 def test_rus_inverse_kinematics_jacobian_and_round_trip():
     m = _rus_mechanism()
     assert m.actuators == tuple(f"t{i}" for i in range(1, 7))
+    assert set(m.actuator_kinds.values()) == {"angle"}
     rng = np.random.default_rng(5)
     X = m.home + rng.uniform(-1, 1, (60, 6)) * [0.03, 0.03, 0.03, 0.08, 0.08, 0.08]
     ik = m.inverse_kinematics(X)

@@ -172,6 +172,8 @@ class Mechanism:
         prefix = {"length": "q", "slider": "s", "angle": "t"}
         self.actuators = tuple(f"{prefix.get(leg.actuator_kind, 's')}{i + 1}"
                                for i, leg in enumerate(self.legs) if leg.is_actuated)
+        #: {actuator name: "length" | "slider" | "angle"} (angles in rad, the others in m).
+        self.actuator_kinds = dict(zip(self.actuators, (leg.actuator_kind for leg in self.legs if leg.is_actuated)))
         self._constraint_rank: int | None = None
 
     # -- parametrisation (subclass) -------------------------------------------------------------
