@@ -238,11 +238,14 @@ def test_registering_a_limb_type_extends_synthesis(monkeypatch):
     rus = without.pop("RUS")
     monkeypatch.setattr(parasynth.structures.synthesis, "LIMB_TYPES", without)
     monkeypatch.setattr(parasynth.structures.vocabulary, "LIMB_TYPES", without)
-    before = structures("3T3R", leg_types=None)
+    with pytest.raises(ValueError, match="unknown limb type 'RUS'"):
+        structures("3T3R", leg_types=["UPS", "RUS"])
+    before = structures("3T3R", legs=[6])
     assert not any("RUS" in s.leg_counts for s in before)
     parasynth.structures.register_limb(rus)
-    after = structures("3T3R")
+    after = structures("3T3R", legs=[6])
     assert {"6-RUS", "3-UPS&3-RUS"} <= _names(after) - _names(before)
+    assert _names(before) <= _names(after)
 
 
 def test_structure_names_and_counts_follow_the_limbs(default_results):
@@ -291,8 +294,10 @@ def _rus_mechanism(**params):
                   "crank_length": "h", "link_length": "L", "actuated": "R"}],
         "task": {"coordinates": {"x": "length", "y": "length", "z": "length", "alpha": "angle", "beta": "angle",
                                  "gamma": "angle"},
-                 "position": ["x", "y", "z"], "orientation": {"convention": "xyz", "angles": ["alpha", "beta", "gamma"]},
-                 "home": {"x": "0 mm", "y": "0 mm", "z": "400 mm", "alpha": "0 deg", "beta": "0 deg", "gamma": "0 deg"}},
+                 "position": ["x", "y", "z"],
+                 "orientation": {"convention": "xyz", "angles": ["alpha", "beta", "gamma"]},
+                 "home": {"x": "0 mm", "y": "0 mm", "z": "400 mm", "alpha": "0 deg", "beta": "0 deg",
+                          "gamma": "0 deg"}},
     }
     cls = description_class(d)
     return cls(cls.Params(**params))

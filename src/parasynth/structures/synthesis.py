@@ -183,8 +183,8 @@ def _deg(x: float) -> str:
     return f"{x:g} deg"
 
 
-def _anchor_sets(g: Group, i: int, twist: bool):
-    """Base and platform anchor sets of group ``i`` and the platform index list."""
+def _anchor_sets(g: Group, twist: bool):
+    """Base and platform anchor sets of a ring group and its platform index list (None: in order)."""
     n, ph = g.count, g.phase
     if g.arrangement == "paired":
         m = n // 2
@@ -201,7 +201,7 @@ def _anchor_sets(g: Group, i: int, twist: bool):
 
 def _description(c: _Candidate, template, key: str) -> dict:
     twist = not any(g.arrangement == "opposed" for g in c.groups)
-    base, plat, legs, names = {}, {}, [], {}
+    base, plat, legs = {}, {}, []
     index = 1
     telescopic, sliders = [], []
     for i, g in enumerate(c.groups, start=1):
@@ -211,7 +211,7 @@ def _description(c: _Candidate, template, key: str) -> dict:
             entry["base"] = ["0 mm", "0 mm", "0 mm"]
             entry["platform"] = ["0 mm", "0 mm", "0 mm"]
         else:
-            b, p, idx = _anchor_sets(g, i, twist)
+            b, p, idx = _anchor_sets(g, twist)
             base[f"B{i}"], plat[f"A{i}"] = b, p
             entry["base"] = f"B{i}"
             entry["platform"] = f"A{i}" if idx is None else f"A{i}[{', '.join(map(str, idx))}]"
