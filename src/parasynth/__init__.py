@@ -7,7 +7,7 @@ Quick use::
     ik = mech.inverse_kinematics(mech.home)
 """
 
-from .legs import LEG_TYPES, PUS, RPS, RPU, SPS, UPS, UPU, Leg
+from .legs import LEG_TYPES, PRS, PUS, RPS, RPU, RUS, SPS, UPS, UPU, Leg
 from .mechanism import ForwardKinematicsError, IKResult, Mechanism, Mobility
 from .mechanisms import list_mechanisms, load_mechanism
 from .workspace import WorkspaceResult, workspace
@@ -16,6 +16,8 @@ from .indices import (StaticForces, global_conditioning_index, local_condition_n
                       transmission_indices, wrench_capability)
 from .stiffness import stiffness_matrix
 from .dynamics import GRINDING_INERTIA, InertiaModel, force_decoupling, inverse_dynamics
+from . import structures  # the package, callable as parasynth.structures(motion, ...)
+from .structures import Structure
 
 __version__ = "0.1.0"
 
@@ -34,6 +36,10 @@ __all__ = [
     "RPU",
     "RPS",
     "UPU",
+    "PRS",
+    "RUS",
+    "structures",
+    "Structure",
     "workspace",
     "WorkspaceResult",
     "StaticForces",

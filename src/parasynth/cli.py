@@ -10,6 +10,7 @@ run-all [FOLDER]     run every study of a folder and write all reports (reports/
 list                 mechanisms with their parameters, measures with their settings, optimisers
 analyze NAME         kinematic analysis of a mechanism at its home pose and a pose sample
 schema               the study file format as JSON Schema (for editors)
+structures MOTION    candidate structures (limbs, actuation, arrangement) for a motion type such as 3T2R
 
 Errors are handled in one place (:func:`main`): bad input, bad files and environment faults
 (permissions, a full disk, a closed pipe, a missing plugin) give one line ``error: ...`` on
@@ -574,6 +575,44 @@ def cmd_schema(args) -> int:
     return EXIT_OK
 
 
+def _int_list(text: str) -> list[int]:
+    try:
+        vals = [int(v) for v in text.replace(",", " ").split()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--legs must be whole numbers separated by commas (e.g. 5,6), "
+                                         f"got {text!r}") from None
+    if not vals or min(vals) < 2:
+        raise argparse.ArgumentTypeError(f"--legs must be numbers of limbs >= 2 (e.g. 5,6), got {text!r}")
+    return vals
+
+
+def cmd_structures(args) -> int:
+    from . import structures as synthesis
+
+    types = [t for t in args.types.replace(",", " ").split()] if args.types else None
+    try:
+        found = synthesis.structures(args.motion, leg_types=types, legs=args.legs, all_axes=args.all_axes,
+                                     seed=args.seed)
+    except ValueError as e:
+        raise CliError(str(e)) from None
+    kept = len(found)
+    print(f"{found.motion}: {found.enumerated} candidate(s) enumerated, {kept} kept")
+    out = _out_dir(args.out, "--out") if args.out else None
+    for s in found:
+        axes = f"T {', '.join(s.axes['translations'])}; R {', '.join(s.axes['rotations'])}"
+        print(f"\n{s.name}  [{s.key}]")
+        print(f"  limbs:       {s.limbs}")
+        print(f"  actuation:   {s.actuation}")
+        print(f"  arrangement: {s.arrangement}")
+        print(f"  verified:    {s.motion} ({axes}) at {s.checked_poses} random pose(s) of the task box, "
+              f"actuators control it at {s.controlled_poses}")
+        if out is not None:
+            print(f"  written:     {s.write(out)}")
+    dropped = {k: v for k, v in found.dropped.items() if v}
+    print("\ndropped: " + (", ".join(f"{k} {v}" for k, v in dropped.items()) if dropped else "none"))
+    return EXIT_OK
+
+
 # -- parser --------------------------------------------------------------------------------------
 class _Formatter(argparse.RawDescriptionHelpFormatter):
     pass
@@ -665,6 +704,17 @@ def build_parser() -> argparse.ArgumentParser:
     p = add("schema", cmd_schema, "write the study file format as JSON Schema (for editors)",
             "parasynth schema --out study.schema.json")
     p.add_argument("--out", type=_path_arg("--out"), help="output file (default: standard output), e.g. --out study.schema.json")
+    p = add("structures", cmd_structures, "enumerate and check candidate structures for a motion type",
+            "parasynth structures 3T2R --types PUS,UPS,UPU --legs 6 --out structures/")
+    p.add_argument("motion", help="motion type: translations T and rotations R, e.g. 3T2R, 3T3R, 2T2R")
+    p.add_argument("--types", metavar="LIST", help="limb types to draw from (default: the whole vocabulary), "
+                                                   "e.g. --types PUS,UPS,UPU")
+    p.add_argument("--legs", type=_int_list, metavar="LIST",
+                   help="allowed total numbers of limbs (default: any), e.g. --legs 5,6")
+    p.add_argument("--all-axes", action="store_true",
+                   help="every joint-axis choice of the vocabulary, not only the first of each, e.g. --all-axes")
+    p.add_argument("--seed", type=_seed, default=0, help="seed of the checked poses (default 0), e.g. --seed 1")
+    p.add_argument("--out", type=_path_arg("--out"), help="directory to write the descriptions to, e.g. --out structures/")
     return ap
 
 

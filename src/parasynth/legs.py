@@ -36,6 +36,7 @@ __all__ = [
     "RPU",
     "RPS",
     "UPU",
+    "RUS",
     "LEG_TYPES",
     "JOINT_DOF",
 ]
@@ -588,3 +589,103 @@ class PRS(Leg):
 
 LEG_TYPES["PRS"] = PRS
 __all__.append("PRS")
+
+
+@dataclass(frozen=True)
+class RUS(Leg):
+    """Actuated revolute (crank) - universal - spherical leg with a crank and a link of fixed
+    lengths (the leg of a 6-RUS platform).
+
+    The crank turns about the unit ``r_axis`` (base frame) through ``base``; at crank angle
+    ``t`` its tip, the universal joint centre, is ``C = base + crank_length (cos t c0 + sin t
+    (r_axis x c0))``, where ``c0`` is ``crank_direction`` made normal to ``r_axis`` (default: the
+    horizontal direction ``r_axis x z``, radial outwards for a tangential crank axis). The
+    actuator is ``t`` (rad). The link ``C -> S`` has constant ``link_length``; of the two
+    assembly modes ``branch = +1`` takes the larger crank angle of the solution pair. A pose is
+    unreachable when the sphere is out of the link's reach from every crank position. The
+    universal joint's first axis is parallel to ``r_axis`` (carried by the crank), its cross
+    axis normal to it and to the link.
+
+    Passive angles: ``U_base_cone`` (link against ``base_ref``), ``S_platform_cone`` and
+    ``link_crank`` (link against the crank tip's direction of motion; transmission degrades as
+    it nears 90 deg). The leg's six joint freedoms impose no constraint.
+    """
+
+    r_axis: np.ndarray = field(default_factory=lambda: np.array([1.0, 0.0, 0.0]))
+    crank_direction: np.ndarray | None = None
+    crank_length: float = 0.1
+    link_length: float = 0.3
+    branch: int = 1
+    joints: ClassVar[str] = "RUS"
+    actuated: ClassVar[int | None] = 0
+    actuator_kind: ClassVar[str] = "angle"
+
+    def __post_init__(self):
+        super().__post_init__()
+        a = _axis(f"leg {self.name}: r_axis", self.r_axis)
+        object.__setattr__(self, "r_axis", a)
+        c = self.crank_direction
+        if c is None:
+            c = np.cross(a, [0.0, 0.0, 1.0])
+            if np.linalg.norm(c) < 1e-9:
+                c = np.cross(a, [0.0, 1.0, 0.0])
+        c = _vec3(f"leg {self.name}: crank_direction", c)
+        c = c - (c @ a) * a
+        if np.linalg.norm(c) < 1e-9:
+            raise ValueError(f"leg {self.name}: crank_direction must not be parallel to r_axis "
+                             f"{a.tolist()}, got {np.asarray(self.crank_direction, float).tolist()}")
+        object.__setattr__(self, "crank_direction", c / np.linalg.norm(c))
+        for nm in ("crank_length", "link_length"):
+            v = float(getattr(self, nm))
+            if not np.isfinite(v) or v <= 0:
+                raise ValueError(f"leg {self.name}: {nm} must be a positive length in m, got {v}")
+        if self.branch not in (1, -1):
+            raise ValueError(f"leg {self.name}: branch must be +1 or -1, got {self.branch}")
+
+    def _crank(self, t: np.ndarray) -> np.ndarray:
+        """Unit crank directions (N, 3) at crank angles ``t``."""
+        c0 = self.crank_direction
+        c1 = np.cross(self.r_axis, c0)
+        return np.cos(t)[:, None] * c0 + np.sin(t)[:, None] * c1
+
+    def solve(self, p, R):
+        S = self.platform_points(p, R)
+        h, L = float(self.crank_length), float(self.link_length)
+        c0 = self.crank_direction
+        c1 = np.cross(self.r_axis, c0)
+        d = S - self.base
+        # |d - h c(t)|^2 = L^2  <=>  P cos t + Q sin t = K
+        P, Q = d @ c0, d @ c1
+        K = (np.einsum("ij,ij->i", d, d) + h * h - L * L) / (2 * h)
+        rho = np.hypot(P, Q)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            ratio = K / rho
+        reachable = np.abs(ratio) <= 1.0
+        t = np.arctan2(Q, P) + self.branch * np.arccos(np.where(reachable, ratio, np.nan))
+        t = np.arctan2(np.sin(t), np.cos(t))
+        C = self.base + h * self._crank(t)
+        n = (S - C) / L
+        angles = self._cone_angles(n, R, "U_base", "S_platform")
+        tangent = np.cross(np.broadcast_to(self.r_axis, C.shape), C - self.base)
+        angles["link_crank"] = _angle_between(n, unit(tangent))
+        return LegState(t, reachable, C, S, n, np.full(t.shape, L), angles)
+
+    def joint_twists(self, st, P):
+        N = st.length.shape[0]
+        a = np.broadcast_to(self.r_axis, (N, 3))
+        a2 = _perp_unit(a, st.direction)
+        base = np.broadcast_to(self.base, (N, 3))
+        tw = [revolute_twist(a, base, P), revolute_twist(a, st.base_point, P), revolute_twist(a2, st.base_point, P)]
+        tw += _spherical_twists(st.platform_point, P)
+        return np.stack(tw, axis=1)
+
+    def actuation_wrench(self, st, P):
+        # The link is a two-force member along its line through S; a crank rate t' moves C by
+        # t' r_axis x (C - base), so n.(v_S - t' r_axis x (C - base)) = 0 gives
+        # t' = (n . v_S) / (n . (r_axis x (C - base))).
+        w = force_wrench(st.direction, st.platform_point, P)
+        tangent = np.cross(np.broadcast_to(self.r_axis, st.base_point.shape), st.base_point - self.base)
+        return w, np.einsum("ij,ij->i", st.direction, tangent)
+
+
+LEG_TYPES["RUS"] = RUS

@@ -59,7 +59,8 @@ class IKResult:
     """Inverse kinematics of N poses.
 
     ``actuators`` (N, n_act): leg lengths (m) for UPS/SPS/RPU/RPS legs, slider positions (m)
-    for PUS legs, NaN where the pose is not reachable; ``reachable`` (N,) bool;
+    for PUS and PRS legs, crank angles (rad) for RUS legs, NaN where the pose is not
+    reachable; ``reachable`` (N,) bool;
     ``passive_angles``: {"<leg>.<joint angle>": (N,) rad}; ``legs``: the per-leg states
     (joint centres, leg directions, lengths). For a single pose given as shape (n,), arrays
     lose their leading axis.
@@ -168,8 +169,11 @@ class Mechanism:
         self.home = np.asarray(home, dtype=float)
         self.length_scale = float(length_scale)
         self.legs = tuple(self._neutral_refs(legs))
-        self.actuators = tuple(f"q{i + 1}" if leg.actuator_kind == "length" else f"s{i + 1}"
+        prefix = {"length": "q", "slider": "s", "angle": "t"}
+        self.actuators = tuple(f"{prefix.get(leg.actuator_kind, 's')}{i + 1}"
                                for i, leg in enumerate(self.legs) if leg.is_actuated)
+        #: {actuator name: "length" | "slider" | "angle"} (angles in rad, the others in m).
+        self.actuator_kinds = dict(zip(self.actuators, (leg.actuator_kind for leg in self.legs if leg.is_actuated)))
         self._constraint_rank: int | None = None
 
     # -- parametrisation (subclass) -------------------------------------------------------------

@@ -20,7 +20,7 @@ from typing import Callable
 from ..mechanism import Mechanism
 
 __all__ = ["list_mechanisms", "load_mechanism", "register", "mechanism_class", "resolve_mechanism_name",
-           "packaged_descriptions"]
+           "packaged_descriptions", "described_class"]
 
 _PACKAGE_DIR = Path(__file__).resolve().parent
 _DESCRIBED: dict = {}
@@ -33,16 +33,28 @@ def register(name: str, loader: Callable[[], type], summary: str) -> None:
     _REGISTRY[name] = (loader, summary)
 
 
+def _description_language():
+    """The description package, imported on first use."""
+    # lazy: the description language and PyYAML load with the first mechanism, not at `import parasynth`
+    from . import description
+
+    return description
+
+
 def _described_class(path: Path) -> type:
     """The class of the description file ``path`` (cached while the file is unchanged)."""
-    # lazy: the description language and PyYAML load with the first mechanism, not at `import parasynth`
-    from .description import load_description
-
     st = path.stat()
     key = (str(path.resolve()), st.st_mtime_ns, st.st_size)
     if key not in _DESCRIBED:
-        _DESCRIBED[key] = load_description(path)
+        _DESCRIBED[key] = _description_language().load_description(path)
     return _DESCRIBED[key]
+
+
+def described_class(data: dict, source: str | None = None) -> type:
+    """The model class of a description given as a dict (the parsed YAML); see
+    :func:`parasynth.mechanisms.description.description_class`. Loads the description
+    language on first use."""
+    return _description_language().description_class(data, source)
 
 
 def _packaged(filename: str) -> Callable[[], type]:

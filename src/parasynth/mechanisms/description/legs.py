@@ -22,8 +22,12 @@ LEG_OPTIONS = {
     "RPU": {"r_axis": "axis_base", "u_platform_axis": "axis_platform"},
     "UPU": {"u_axis": "axis_base", "u_platform_axis": "axis_platform"},
     "PRS": {"slider_axis": "axis_base", "r_axis": "axis_base", "link_length": "length", "branch": "branch"},
+    "RUS": {"r_axis": "axis_base", "crank_direction": "axis_base", "crank_length": "length",
+            "link_length": "length", "branch": "branch"},
 }
-_LEG_REQUIRED = {"PUS": ("link_length",), "PRS": ("link_length",)}
+_LEG_REQUIRED = {"PUS": ("link_length",), "PRS": ("link_length",), "RUS": ("crank_length", "link_length")}
+#: Names of the joints the leg library actuates, for messages.
+_JOINT_WORDS = {"P": "prismatic", "R": "revolute"}
 #: Leg types the leg library can build without an actuator (a constraining limb).
 PASSIVE_CAPABLE = ("RPS", "UPU")
 _LEG_COMMON = {"type", "name", "names", "base", "platform", "actuated", "doc"}
@@ -187,7 +191,7 @@ class _LegGroup:
         if v is None or v is False or (isinstance(v, str) and v.strip().lower() in passive_words):
             if t not in PASSIVE_CAPABLE:
                 raise DescriptionError(f"{lab}.actuated: the {t} leg cannot be passive in the leg library (it is "
-                                       f"actuated at its prismatic joint '{act_letter}'); passive legs: "
+                                       f"actuated at its {_JOINT_WORDS[act_letter]} joint '{act_letter}'); passive legs: "
                                        f"{', '.join(PASSIVE_CAPABLE)}")
             return False
         if v is True:
@@ -202,7 +206,7 @@ class _LegGroup:
         if letter != act_letter:
             alt = "; or actuated: none for a passive leg" if t in PASSIVE_CAPABLE else ""
             raise DescriptionError(f"{lab}.actuated: joint {v!r} of the {t} leg cannot be actuated in the leg library; "
-                                   f"its actuated joint is the prismatic joint '{act_letter}'{alt}")
+                                   f"its actuated joint is the {_JOINT_WORDS[act_letter]} joint '{act_letter}'{alt}")
         return True
 
     def build(self, env, built_base, built_plat) -> list:

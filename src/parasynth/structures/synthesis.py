@@ -1,0 +1,451 @@
+"""Enumeration of candidate structures for a motion type, their descriptions and their
+numerical check (docs/structures.md).
+
+A candidate is a tuple of limb groups (:class:`Group`): a ring of ``n`` identical actuated
+limbs; a ring plus one passive constraining limb at the centre; or two rings of ``k`` actuated
+limbs of two kinds, interleaved. Each candidate is written as a mechanism description with the
+shared parameters of :data:`~parasynth.structures.vocabulary.PARAMETERS`, its task section taken
+from the motion template its constraining limbs select, then built and checked: the
+screw-theory mobility at random poses of its task box must be the requested motion, and the
+actuators must control it at some pose.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import itertools
+from collections import Counter
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..mechanisms import described_class
+from .vocabulary import ARRANGEMENTS, CHECKS, LIMB_TYPES, PARAMETERS, TEMPLATES, limb_type, parse_motion
+
+__all__ = ["Group", "Structure", "StructureList", "structures", "DROP_REASONS", "candidates"]
+
+#: Why a candidate is dropped, in the order the checks run.
+DROP_REASONS = {
+    "duplicate": "isomorphic to a candidate enumerated before it (same multiset of limbs, joints, actuation "
+                 "and arrangement)",
+    "no task rule": "its constraining limbs select no motion template, or several different ones (e.g. the "
+                    "parasitic motion of a 3-RPS ring)",
+    "under-actuated": "fewer actuators than the requested freedoms",
+    "over-actuated": "more actuators than the requested freedoms (redundant actuation)",
+    "not assemblable": "the description cannot be built: its home pose is out of reach of a limb",
+    "wrong motion": "the screw-theory mobility at the checked poses is not the requested motion (or the task "
+                    "coordinates do not follow the limbs)",
+    "unreachable": "no checked pose of the task box is reachable",
+    "singular everywhere": "the actuators do not control the freedoms at any checked pose",
+}
+
+
+@dataclass(frozen=True)
+class Group:
+    """Limbs of one type in one arrangement: ``count`` limbs, actuated or passive, with the
+    joint-axis choices ``axes`` ({option: value}) and the angular ``phase`` (deg) of the first."""
+
+    limb: str
+    count: int
+    actuated: bool
+    arrangement: str
+    axes: tuple[tuple[str, str], ...] = ()
+    phase: float = 0.0
+
+    @property
+    def constraining(self) -> bool:
+        return LIMB_TYPES[self.limb].constraints > 0
+
+    def label(self) -> str:
+        ax = ",".join(f"{k}={v}" for k, v in self.axes)
+        act = "actuated" if self.actuated else "passive"
+        return f"{self.count} {act} {self.limb} {self.arrangement}" + (f" ({ax})" if ax else "")
+
+    def leg_labels(self, interleaved: bool) -> list[tuple[str, ...]]:
+        """Each limb as the labels of its joints, base to platform (the joint graph's edges)."""
+        lt = LIMB_TYPES[self.limb]
+        where = "interleaved" if interleaved else self.arrangement
+        opts = dict(self.axes)
+        labels = []
+        for j, letter in enumerate(lt.name):
+            lab = letter + ("*" if self.actuated and letter == lt.actuated_joint
+                            and j == lt.name.index(lt.actuated_joint) else "")
+            if j == 0:
+                lab += f"@{where}"
+            labels.append(lab)
+        labels[0] += "|" + ",".join(f"{k}={v}" for k, v in sorted(opts.items()))
+        return [tuple(labels)] * self.count
+
+
+def _name(groups: tuple[Group, ...]) -> str:
+    act = [g for g in groups if g.actuated]
+    pas = [g for g in groups if not g.actuated]
+    s = "&".join(f"{g.count}-{g.limb}" for g in act)
+    for g in pas:
+        s += "/" + (g.limb if g.count == 1 else f"{g.count}-{g.limb}")
+    return s
+
+
+def _key(groups) -> tuple:
+    """The canonical form of the joint graph of parallel limbs: the sorted multiset of limb
+    label paths (two structures of limbs from base to platform have isomorphic labelled joint
+    graphs exactly when these multisets agree)."""
+    inter = len([g for g in groups if g.actuated]) > 1
+    return tuple(sorted(lab for g in groups for lab in g.leg_labels(inter and g.actuated)))
+
+
+@dataclass(frozen=True)
+class _Candidate:
+    groups: tuple[Group, ...]
+
+    @property
+    def name(self) -> str:
+        return _name(self.groups)
+
+    @property
+    def n_legs(self) -> int:
+        return sum(g.count for g in self.groups)
+
+    @property
+    def n_actuated(self) -> int:
+        return sum(g.count for g in self.groups if g.actuated)
+
+    def template(self):
+        """The motion template its constraining groups select (the rule of docs/structures.md),
+        or None when there is none or more than one."""
+        names = set()
+        for g in self.groups:
+            if g.constraining:
+                t = LIMB_TYPES[g.limb].templates.get(g.arrangement)
+                if t is None:
+                    return None
+                names.add(t)
+        if not names:
+            return TEMPLATES["free"]
+        return TEMPLATES[names.pop()] if len(names) == 1 else None
+
+
+def _axis_choices(lt, all_axes: bool):
+    keys = list(lt.axes)
+    values = [lt.axes[k] if all_axes else lt.axes[k][:1] for k in keys]
+    for combo in itertools.product(*values):
+        yield tuple(zip(keys, combo))
+
+
+def candidates(types, legs=None, all_axes: bool = False) -> list[_Candidate]:
+    """Every candidate of the vocabulary restricted to the limb types ``types`` (and to total
+    limb counts in ``legs``), in enumeration order, duplicates included."""
+    out = []
+    ok = (lambda n: True) if legs is None else (lambda n: n in legs)
+    actuable = [t for t in types if LIMB_TYPES[t].actuated_joint is not None]
+    rings = []
+    for t in actuable:
+        lt = LIMB_TYPES[t]
+        for arr in lt.arrangements:
+            for n in ARRANGEMENTS[arr].counts:
+                for axes in _axis_choices(lt, all_axes):
+                    rings.append(Group(t, n, True, arr, axes))
+    # n identical actuated limbs
+    out += [_Candidate((g,)) for g in rings if ok(g.count)]
+    # actuated limbs plus one passive constraining limb at the centre
+    for c in types:
+        lc = LIMB_TYPES[c]
+        if lc.central is None:
+            continue
+        centre = Group(c, 1, False, "central", tuple(lc.central.items()))
+        out += [_Candidate((g, centre)) for g in rings if ok(g.count + 1)]
+    # two kinds of actuated limbs, interleaved: k of one at phase 0, k of the other at 180/k;
+    # constraining kinds first, so that the kept one of two mirror orders has them at phase 0
+    pairs = sorted(itertools.permutations(actuable, 2),
+                   key=lambda p: -(LIMB_TYPES[p[0]].constraints > 0) + (LIMB_TYPES[p[1]].constraints > 0))
+    for t1, t2 in pairs:
+        for k in (2, 3):
+            if not ok(2 * k):
+                continue
+            arrs = []
+            for t in (t1, t2):
+                lt = LIMB_TYPES[t]
+                fit = [a for a in lt.arrangements if k in ARRANGEMENTS[a].counts] or \
+                      (["regular"] if "regular" in lt.arrangements else [])
+                arrs.append(fit[0] if fit else None)
+            if None in arrs:
+                continue
+            for ax1 in _axis_choices(LIMB_TYPES[t1], all_axes):
+                for ax2 in _axis_choices(LIMB_TYPES[t2], all_axes):
+                    out.append(_Candidate((Group(t1, k, True, arrs[0], ax1, 0.0),
+                                           Group(t2, k, True, arrs[1], ax2, 180.0 / k))))
+    return out
+
+
+# -- descriptions ---------------------------------------------------------------------------------
+def _deg(x: float) -> str:
+    return f"{x:g} deg"
+
+
+def _anchor_sets(g: Group, twist: bool):
+    """Base and platform anchor sets of a ring group and its platform index list (None: in order)."""
+    n, ph = g.count, g.phase
+    if g.arrangement == "paired":
+        m = n // 2
+        base = {"pattern": "paired", "n": m, "radius": "base_radius", "phase": _deg(ph),
+                "separation": "base_separation"}
+        plat = {"pattern": "paired", "n": m, "radius": "platform_radius", "phase": _deg(ph + 180.0 / m),
+                "separation": "platform_separation"}
+        return base, plat, [n - 1] + list(range(n - 1))
+    base = {"pattern": "polygon", "n": n, "radius": "base_radius", "phase": _deg(ph)}
+    pphase = f"{ph:g} deg + platform_twist" if twist and g.arrangement == "regular" else _deg(ph)
+    plat = {"pattern": "polygon", "n": n, "radius": "platform_radius", "phase": pphase}
+    return base, plat, None
+
+
+def _description(c: _Candidate, template, key: str) -> dict:
+    twist = not any(g.arrangement == "opposed" for g in c.groups)
+    base, plat, legs = {}, {}, []
+    index = 1
+    telescopic, sliders = [], []
+    for i, g in enumerate(c.groups, start=1):
+        lt = LIMB_TYPES[g.limb]
+        entry = {"type": g.limb}
+        if g.arrangement == "central":
+            entry["base"] = ["0 mm", "0 mm", "0 mm"]
+            entry["platform"] = ["0 mm", "0 mm", "0 mm"]
+        else:
+            b, p, idx = _anchor_sets(g, twist)
+            base[f"B{i}"], plat[f"A{i}"] = b, p
+            entry["base"] = f"B{i}"
+            entry["platform"] = f"A{i}" if idx is None else f"A{i}[{', '.join(map(str, idx))}]"
+        entry.update(lt.options)
+        entry.update(dict(g.axes))
+        entry["actuated"] = lt.actuated_joint if g.actuated else "none"
+        legs.append(entry)
+        group_names = [f"L{index + j}" for j in range(g.count)]
+        index += g.count
+        if g.actuated:
+            if g.limb in ("PUS", "PRS"):
+                sliders += group_names
+            elif g.limb != "RUS":
+                telescopic += group_names
+    constraints = []
+    if telescopic:
+        constraints.append({"name": "stroke_legs", "type": "leg_length", "legs": telescopic, "min": "q_min",
+                            "max": "q_max", "doc": "telescopic limbs within [q_min, q_max]"})
+    if sliders and len(sliders) == c.n_actuated:
+        constraints.append({"name": "stroke_sliders", "type": "actuator_range", "min": "slider_min",
+                            "max": "slider_max", "doc": "slider positions within [slider_min, slider_max]"})
+    slug = "".join(ch if ch.isalnum() else "_" for ch in c.name.lower()).strip("_")
+    arr = "; ".join(g.label() for g in c.groups)
+    return {
+        "name": f"{slug}-{key}",
+        "summary": f"{c.name} ({template.motion}): {arr}",
+        "description": (f"Generated by parasynth.structures: {arr}. Task: template {template.name} "
+                        f"({template.doc})."),
+        "parameters": {k: {"value": v, "doc": d} for k, (v, d) in PARAMETERS.items()},
+        "checks": list(CHECKS),
+        "base": base,
+        "platform": plat,
+        "legs": legs,
+        "task": dict(template.task),
+        "length_scale": "base_radius",
+        "constraints": constraints,
+    }
+
+
+# -- the result -----------------------------------------------------------------------------------
+@dataclass(frozen=True, eq=False)
+class Structure:
+    """A verified candidate structure.
+
+    ``name`` in the field's notation (``5-PUS/UPU``, ``2-RPU&2-SPS``), ``motion`` (the verified
+    motion type), ``leg_counts`` and ``actuated_counts`` ({leg type: number}), ``groups`` (the
+    limb groups), ``arrangement`` (one line per group), ``template`` (the motion template of its
+    task coordinates), ``axes`` (the translation axes and rotation axes of its freedoms),
+    ``description`` (a dict that ``load_mechanism`` accepts once written to YAML),
+    ``checked_poses`` and ``controlled_poses`` (how many random poses of the task box were
+    checked, and at how many the actuators controlled every freedom)."""
+
+    name: str
+    key: str
+    motion: str
+    leg_counts: dict
+    actuated_counts: dict
+    groups: tuple
+    arrangement: str
+    template: str
+    axes: dict
+    description: dict = field(repr=False)
+    checked_poses: int = 0
+    controlled_poses: int = 0
+    _cls: list = field(default_factory=list, repr=False)
+
+    @property
+    def limbs(self) -> str:
+        return " + ".join(f"{g.count}x{g.limb}" for g in self.groups)
+
+    @property
+    def actuation(self) -> str:
+        return ", ".join(f"{g.count} {g.limb} {'at ' + LIMB_TYPES[g.limb].actuated_joint if g.actuated else 'passive'}"
+                         for g in self.groups)
+
+    def mechanism_class(self) -> type:
+        """The described model class (built once per structure)."""
+        if not self._cls:
+            self._cls.append(described_class(self.description, source=self.name))
+        return self._cls[0]
+
+    def mechanism(self, **params):
+        """A mechanism of this structure with the shared parameters ``params`` in SI (m, rad)."""
+        cls = self.mechanism_class()
+        fields = set(cls.Params.__dataclass_fields__)
+        unknown = sorted(set(params) - fields)
+        if unknown:
+            raise ValueError(f"unknown parameter(s) {unknown} for structure {self.name!r}; valid: "
+                             f"{', '.join(sorted(fields))}")
+        return cls(cls.Params(**params))
+
+    def yaml(self) -> str:
+        """The description as YAML text."""
+        import yaml  # lazy: PyYAML is not loaded by `import parasynth`
+
+        return yaml.safe_dump(self.description, sort_keys=False, allow_unicode=True, width=110)
+
+    @property
+    def filename(self) -> str:
+        return f"{self.description['name']}.yaml"
+
+    def write(self, directory) -> Path:
+        """Write the description to ``directory/<description name>.yaml``; returns the path."""
+        d = Path(directory)
+        d.mkdir(parents=True, exist_ok=True)
+        p = d / self.filename
+        p.write_text(self.yaml(), encoding="utf-8")
+        return p
+
+
+class StructureList(list):
+    """The structures found (a list), with ``motion``, ``enumerated`` (candidates generated),
+    ``dropped`` ({reason: count}, reasons of :data:`DROP_REASONS`) and ``dropped_names``
+    ({reason: [candidate names]})."""
+
+    def __init__(self, items, motion, enumerated, dropped, dropped_names):
+        super().__init__(items)
+        self.motion = motion
+        self.enumerated = enumerated
+        self.dropped = dropped
+        self.dropped_names = dropped_names
+
+
+def _check(c: _Candidate, motion: str, desc: dict, n_poses: int, seed: int):
+    """(reason or None, details, class): build the description and check its mobility.
+
+    The motion is verified as follows: at the home pose the screw-theory type
+    (``Mobility.type``) is ``motion``; at every checked random pose of the task box the
+    freedoms number as many as the task coordinates and the description's mobility checks find
+    the coordinates independent and following the limbs (``DescribedMobility.consistent``), so
+    the task coordinates (lengths: translations, angles: rotations) are the finite motion. Away
+    from home the instantaneous type may be counted differently (the 5-PUS/UPU's constraint
+    becomes a screw of non-zero pitch, read as 2T3R); it is kept in the details."""
+    try:
+        cls = described_class(desc, source=c.name)
+        mech = cls(cls.Params())
+        home = mech.mobility(warn=False)
+    except ValueError as e:
+        return "not assemblable", {"error": str(e)}, None
+    lo, hi = (np.array(v) for v in zip(*[mech.default_ranges()[k] for k in mech.task_coordinates]))
+    rng = np.random.default_rng(seed)
+    X = mech.home + 0.25 * (hi - lo) * rng.uniform(-1.0, 1.0, (4 * n_poses, len(lo)))
+    X = X[mech.inverse_kinematics(X).reachable][:n_poses]
+    details = {"home_type": home.type, "types": {}, "checked": len(X), "controlled": 0}
+    if home.type != motion:
+        return "wrong motion", details, None
+    if not len(X):
+        return "unreachable", details, None
+    types, controlled, consistent = Counter(), 0, True
+    for x in X:
+        m = mech.mobility(x, warn=False)
+        types[m.type] += 1
+        consistent &= bool(m.consistent) and m.dof == mech.n_task
+        controlled += int(m.controlled and not m.singular_at_pose)
+    details.update(types=dict(types), controlled=controlled)
+    if not consistent:
+        return "wrong motion", details, None
+    if controlled == 0:
+        return "singular everywhere", details, None
+    return None, details, cls
+
+
+def structures(motion, *, leg_types=None, legs=None, all_axes: bool = False, n_poses: int = 4,
+               seed: int = 0) -> StructureList:
+    """The candidate structures of the vocabulary for ``motion`` (``"3T3R"``, ``"3T2R"``,
+    ``"2T2R"``, ...), each verified numerically.
+
+    ``leg_types``: limb types to draw from (default: the whole vocabulary,
+    ``parasynth.structures.LIMB_TYPES``); ``legs``: allowed total numbers of limbs (e.g. ``[5,
+    6]``; default any); ``all_axes``: every joint-axis choice of the vocabulary instead of the
+    first of each; ``n_poses``: reachable random poses of the task box checked per candidate;
+    ``seed``: their seed. Returns a :class:`StructureList` of :class:`Structure` with the counts
+    of the dropped candidates by reason."""
+    nt, nr = parse_motion(motion)
+    motion = f"{nt}T{nr}R"
+    if leg_types is None:
+        types = list(LIMB_TYPES)
+    else:
+        if isinstance(leg_types, str):
+            leg_types = [s for s in leg_types.replace(",", " ").split() if s]
+        types = [limb_type(t).name for t in leg_types]
+        if not types:
+            raise ValueError(f"leg_types must name at least one limb type of {', '.join(LIMB_TYPES)}")
+    if legs is not None:
+        if isinstance(legs, int) and not isinstance(legs, bool):
+            legs = [legs]
+        try:
+            legs = sorted({int(n) for n in legs})
+        except (TypeError, ValueError):
+            raise ValueError(f"legs must be numbers of limbs (integers >= 2), got {legs!r}") from None
+        if not legs or min(legs) < 2:
+            raise ValueError(f"legs must be numbers of limbs (integers >= 2), got {legs!r}")
+    if not (isinstance(n_poses, int) and n_poses >= 1):
+        raise ValueError(f"n_poses must be an integer >= 1, got {n_poses!r}")
+    dof = nt + nr
+    dropped = {r: 0 for r in DROP_REASONS}
+    dropped_names = {r: [] for r in DROP_REASONS}
+    seen, found = set(), []
+    cands = candidates(types, legs, all_axes)
+
+    def drop(reason, c):
+        dropped[reason] += 1
+        dropped_names[reason].append(c.name)
+
+    for c in cands:
+        key = _key(c.groups)
+        if key in seen:
+            drop("duplicate", c)
+            continue
+        seen.add(key)
+        template = c.template()
+        if template is None:
+            drop("no task rule", c)
+            continue
+        if c.n_actuated < dof:
+            drop("under-actuated", c)
+            continue
+        if c.n_actuated > dof:
+            drop("over-actuated", c)
+            continue
+        arrs = "-".join(dict.fromkeys(g.arrangement for g in c.groups if g.actuated))
+        short = f"{arrs}-{hashlib.sha1(repr(key).encode()).hexdigest()[:6]}"
+        desc = _description(c, template, short)
+        reason, det, cls = _check(c, motion, desc, n_poses, seed)
+        if reason is not None:
+            drop(reason, c)
+            continue
+        s = Structure(
+            name=c.name, key=desc["name"], motion=motion,
+            leg_counts=dict(Counter(g.limb for g in c.groups for _ in range(g.count))),
+            actuated_counts=dict(Counter(g.limb for g in c.groups if g.actuated for _ in range(g.count))),
+            groups=c.groups, arrangement="; ".join(g.label() for g in c.groups), template=template.name,
+            axes=dict(template.axes), description=desc, checked_poses=det["checked"],
+            controlled_poses=det["controlled"])
+        s._cls.append(cls)
+        found.append(s)
+    return StructureList(found, motion, len(cands), dropped, dropped_names)
