@@ -85,7 +85,10 @@ import numpy as np
 
 from .engine import check_engine, pose_batch
 from .qmc import sobol_engine, sobol_points
+from .units import UNIT_KINDS
 from .validation import MAX_SAMPLES, check_count, check_mechanism, check_names
+
+_LENGTH, _ANGLE = UNIT_KINDS["length"], UNIT_KINDS["angle"]  # display units of sizes and extents
 
 #: Largest ``n`` of :func:`workspace`. Samples stream chunk by chunk, so the limit is time, not
 #: memory (2**34 samples is about half an hour at 1e7 poses/s); the measures and studies keep
@@ -183,7 +186,8 @@ class Box:
     def __str__(self) -> str:
         parts = []
         for c, s, u in zip(self.coordinates, self.sizes, self.units):
-            parts.append(f"{c}: {s * 1e3:.4g} mm" if u == "m" else f"{c}: {np.rad2deg(s):.4g} deg")
+            k = _LENGTH if u == "m" else _ANGLE
+            parts.append(f"{c}: {s * k.factor:.4g} {k.display}")
         return " x ".join(parts)
 
 
@@ -434,7 +438,7 @@ class WorkspaceResult:
     def summary(self) -> str:
         name = getattr(self.mechanism, "name", type(self.mechanism).__name__)
         ext = ", ".join(
-            f"{a} [{lo * 1e3:.1f}, {hi * 1e3:.1f}] mm" if np.isfinite(lo) else f"{a} (empty)"
+            f"{a} [{lo * _LENGTH.factor:.1f}, {hi * _LENGTH.factor:.1f}] {_LENGTH.display}" if np.isfinite(lo) else f"{a} (empty)"
             for a, (lo, hi) in self.extents.items()
         )
         return (
