@@ -8,7 +8,7 @@ from parasynth import units
 
 
 def _pint_si(value: str, kind: str) -> float:
-    si, _ = units.UNIT_KINDS[kind]
+    si = units.UNIT_KINDS[kind].si
     q = units._ureg().Quantity(value)
     v = float(q.to(si).magnitude)
     return v if kind == "angle" else float(f"{v:.15g}")
