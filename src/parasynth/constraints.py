@@ -26,6 +26,7 @@ __all__ = [
     "LegInterference",
     "LegAxisAngle",
     "CoordinateRange",
+    "SingularityMarginFloor",
     "PoseContext",
 ]
 
@@ -33,7 +34,8 @@ __all__ = [
 @dataclass
 class PoseContext:
     """What constraints need at N poses: task poses, platform position and orientation,
-    per-leg states and the joint reachability of every leg."""
+    per-leg states, the joint reachability of every leg and the mechanism evaluated (for the
+    constraints on the wrench system, :class:`SingularityMarginFloor`)."""
 
     X: np.ndarray
     p: np.ndarray
@@ -42,6 +44,7 @@ class PoseContext:
     states: list[LegState]
     reachable: np.ndarray
     actuators: np.ndarray  # (N, n_act)
+    mechanism: object = None
 
     def state(self, leg_name: str) -> LegState:
         for leg, st in zip(self.legs, self.states):
@@ -177,3 +180,33 @@ class CoordinateRange(Constraint):
     def margin(self, ctx):
         x = ctx.X[:, self.index]
         return np.minimum(x - self.lo, self.hi - x)
+
+
+@dataclass(frozen=True)
+class SingularityMarginFloor(Constraint):
+    """The normalised singularity margin (:meth:`Mechanism.singularity_margin`, 0 at a
+    singularity) at or above ``floor``: margin ``singularity_margin - floor`` (dimensionless).
+
+    With it every workspace measure is taken over well-conditioned poses only. The NumPy
+    reference computes the margin from the legs' states of the pose context
+    (``PoseContext.mechanism`` is the mechanism evaluated); the compiled engine applies the
+    floor with its singularity-margin kernel to the poses its feasibility kernel accepts
+    (docs/architecture.md)."""
+
+    floor: float = 0.0
+    unit: str = "1"
+
+    def __post_init__(self):
+        f = self.floor
+        if isinstance(f, (bool, np.bool_)) or not isinstance(f, (int, float, np.integer, np.floating)) \
+                or not np.isfinite(f) or not 0.0 <= f < 1.0:
+            raise ValueError(f"constraint {self.name!r}: the singularity-margin floor must be a number in [0, 1) "
+                             f"(the margin is a normalised singular value), got {f!r}")
+        object.__setattr__(self, "floor", float(f))
+
+    def margin(self, ctx):
+        mech = ctx.mechanism
+        if mech is None:
+            raise ValueError(f"constraint {self.name!r}: the pose context carries no mechanism")
+        m = mech.singularity_margin_of_states(ctx.states, ctx.p, ctx.reachable)
+        return m - self.floor

@@ -24,6 +24,7 @@ with one :class:`EngineFallbackWarning` per class. Described mechanisms
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import warnings
 from dataclasses import dataclass, field
@@ -31,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from .constraints import PoseContext
+from .constraints import Constraint, PoseContext
 from .legs import JOINT_DOF, Leg, LegState
 from .spatial import reciprocal_basis
 from .validation import check_engine, check_names, check_pose_array, is_real_number, mask_huge_poses
@@ -316,11 +317,15 @@ class Mechanism:
         Xa, single = self._poses(X)
         _, states, p = self.leg_states(Xa)
         reachable = np.logical_and.reduce([st.reachable for st in states])
+        W = self._wrench_of_states(states, p, reachable)
+        return W[0] if single else W
+
+    def _wrench_of_states(self, states, p, reachable) -> np.ndarray:
         A, _ = self._actuation_rows(states, p)
         C = [leg.constraint_wrenches(st, p) for leg, st in zip(self.legs, states)]
         W = np.concatenate([A] + C, axis=1)
         W[~reachable] = np.nan
-        return W[0] if single else W
+        return W
 
     @property
     def constraint_rank(self) -> int:
@@ -366,12 +371,14 @@ class Mechanism:
         by their singular values relative to the largest (so that a loss of constraint rank
         shows as a small row). Shape (N, n_act + constraint_rank, 6)."""
         W = self.wrench_matrix(np.atleast_2d(np.asarray(X, dtype=float)))
+        return self._normalized(W, self.constraint_rank)
+
+    def _normalized(self, W, rc: int) -> np.ndarray:
         W = W.copy()
         W[..., 3:] /= self.length_scale
         na = self.n_actuators
         A = W[:, :na]
         A = A / np.linalg.norm(A, axis=-1, keepdims=True)
-        rc = self.constraint_rank
         C = W[:, na:]
         if rc and C.shape[1]:
             ok = np.all(np.isfinite(C), axis=(1, 2))
@@ -383,6 +390,13 @@ class Mechanism:
         else:
             Cn = np.zeros((W.shape[0], 0, 6))
         return np.concatenate([A, Cn], axis=1)
+
+    @staticmethod
+    def _margin_of(M: np.ndarray) -> np.ndarray:
+        ok = np.all(np.isfinite(M), axis=(1, 2))
+        s = np.linalg.svd(np.where(ok[:, None, None], M, 0.0), compute_uv=False)
+        k = min(M.shape[1], 6)
+        return np.where(ok, s[:, k - 1], np.nan)
 
     def singularity_margin(self, X, engine: str = "compiled") -> np.ndarray:
         """Smallest singular value of the normalised wrench system, (N,) (0 = singular).
@@ -398,12 +412,61 @@ class Mechanism:
         ``engine="numpy"``: the NumPy reference (this method)."""
         _numpy_only(self, engine)
         Xa, single = self._poses(X)
-        M = self.normalized_wrench_system(Xa)
-        ok = np.all(np.isfinite(M), axis=(1, 2))
-        s = np.linalg.svd(np.where(ok[:, None, None], M, 0.0), compute_uv=False)
-        k = min(M.shape[1], 6)
-        out = np.where(ok, s[:, k - 1], np.nan)
+        out = self._margin_of(self.normalized_wrench_system(Xa))
         return out[0] if single else out
+
+    def singularity_margin_of_states(self, states, p, reachable) -> np.ndarray:
+        """The NumPy :meth:`singularity_margin` (N,) from legs' states already solved (a
+        :class:`~parasynth.constraints.PoseContext`'s), NaN where ``reachable`` is False.
+        The structural constraint rank comes from the NumPy reference when not yet known."""
+        if self._constraint_rank is None:
+            self._constraint_rank = Mechanism.structural_constraint_rank(self, engine="numpy")
+        return self._margin_of(self._normalized(self._wrench_of_states(states, p, reachable), self._constraint_rank))
+
+    def singularity_function(self, X) -> tuple[np.ndarray, np.ndarray]:
+        """The determinant whose change of sign marks a singularity, and the constraint basis
+        it depends on: ``(det (N,), basis (N, constraint_rank, 6))``, NaN where unreachable.
+
+        The square, dimensionally homogeneous wrench system ``M = [A; V]`` (moments divided
+        by ``length_scale``): ``A`` the unit actuation wrenches, each multiplied by the sign of
+        its leg's transmission scale (so that the rows are those of the actuator Jacobian in
+        wrench form, as :meth:`jacobian` uses them), and ``V`` an orthonormal basis of the
+        legs' constraint wrenches (their ``constraint_rank`` principal directions). ``det M``
+        vanishes exactly where the margin does. The actuation rows are continuous in the
+        pose; the basis ``V`` is defined only up to its orientation (as the legs' numeric
+        constraint wrenches are: a UPU leg's sign is arbitrary), so the sign of ``det M`` is
+        meaningful only relative to an orientation of ``V`` carried continuously along a
+        path: between two neighbouring poses a and b the singularity function keeps its
+        sign when ``det M_a * det M_b * det(V_a V_b^T) > 0`` (``det(V_a V_b^T)`` is the
+        orientation of b's basis relative to a's; see :mod:`parasynth.usable`). With no
+        constraint rows (a 6-UPS) it is ``det A``, which has the sign of the actuator
+        Jacobian's determinant up to the twist map's (a coordinate factor, not the mechanism).
+
+        Only for a square system, ``n_actuators + constraint_rank == 6``; ``ValueError``
+        otherwise (an under-actuated or redundantly actuated mechanism has no determinant:
+        the rank of a k x 6 system, k != 6, drops on a set of codimension >= 2, which does
+        not split a region, so :mod:`parasynth.usable` uses the margin alone there)."""
+        rc = self.constraint_rank
+        if self.n_actuators + rc != 6:
+            raise ValueError(f"{self.name}: the singularity function needs a square wrench system; "
+                             f"{self.n_actuators} actuators + constraint rank {rc} = {self.n_actuators + rc} rows, "
+                             f"not 6")
+        Xa, single = self._poses(X)
+        _, states, p = self.leg_states(Xa)
+        reachable = np.logical_and.reduce([st.reachable for st in states])
+        W = self._wrench_of_states(states, p, reachable)
+        _, scale = self._actuation_rows(states, p)
+        na = self.n_actuators
+        with np.errstate(invalid="ignore"):
+            W[:, :na] *= np.sign(scale)[..., None]
+        M = self._normalized(W, rc)
+        V = M[:, na:].copy()
+        if rc:
+            V /= np.linalg.norm(V, axis=-1, keepdims=True)
+            M[:, na:] = V
+        ok = np.all(np.isfinite(M), axis=(1, 2))
+        det = np.where(ok, np.linalg.det(np.where(ok[:, None, None], M, 0.0)), np.nan)
+        return (det[0], V[0]) if single else (det, V)
 
     # -- forward kinematics ----------------------------------------------------------------------
     def forward_kinematics(self, actuators, guess=None, fixed: dict | None = None,
@@ -622,6 +685,26 @@ class Mechanism:
             self._constraints = {c.name: c for c in cons}
         return self._constraints
 
+    #: Pose constraints added to the model's own by :meth:`with_constraints` (in order).
+    added_constraints: tuple = ()
+
+    def with_constraints(self, *constraints) -> "Mechanism":
+        """A copy of this mechanism whose pose constraints are the model's plus ``constraints``
+        (:class:`~parasynth.constraints.Constraint` objects with new names), e.g. a floor on
+        the singularity margin that a study adds (``evaluation.constraints``). The copy is
+        a new object (the engine keeps its own record of it); the original is unchanged."""
+        for c in constraints:
+            if not isinstance(c, Constraint):
+                raise ValueError(f"{self.name}: with_constraints takes Constraint objects, got {c!r}")
+        names = list(self.constraints) + [c.name for c in constraints]
+        dup = sorted({n for n in names if names.count(n) > 1})
+        if dup:
+            raise ValueError(f"{self.name}: duplicate constraint names {dup}; give the added constraint another name")
+        new = copy.copy(self)
+        new._constraints = {**self.constraints, **{c.name: c for c in constraints}}
+        new.added_constraints = tuple(self.added_constraints) + tuple(constraints)
+        return new
+
     def pose_context(self, X):
         """Inverse kinematics of poses ``X`` packed for constraint evaluation."""
         Xa, _ = self._poses(X)
@@ -631,7 +714,7 @@ class Mechanism:
         states = [leg.solve(p, R) for leg in self.legs]
         reachable = valid & np.logical_and.reduce([st.reachable for st in states])
         act = np.stack([st.actuator for leg, st in zip(self.legs, states) if leg.is_actuated], axis=-1)
-        return PoseContext(Xa, p, R, list(self.legs), states, reachable, act)
+        return PoseContext(Xa, p, R, list(self.legs), states, reachable, act, self)
 
     def _select(self, names):
         names = check_names("names", names)
@@ -690,7 +773,8 @@ class Mechanism:
     # -- sampling helpers ---------------------------------------------------------------------------
     def with_params(self, **changes) -> "Mechanism":
         """A new mechanism of the same model with some parameters changed."""
-        return type(self)(dataclasses.replace(self.params, **changes))
+        new = type(self)(dataclasses.replace(self.params, **changes))
+        return new.with_constraints(*self.added_constraints) if self.added_constraints else new
 
 
 def check_length(field_name: str, value, allow_zero: bool = False) -> float:

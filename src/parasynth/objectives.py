@@ -58,6 +58,7 @@ from .indices import wrench_capability as _wrench_capability
 from .stiffness import STIFFNESS_SETTINGS as _STIFF_SETTINGS
 from .measure_spec import Setting, SettingError, as_setting, check_settings
 from .stiffness import part_stiffness, point_deflection, stiffness_along
+from .usable import DEFAULT_FLOOR_FRACTION, usable_of
 from .validation import MAX_SAMPLES, MAX_SEED, check_count, check_mechanism, check_names
 from .workspace import WorkspaceSample, workspace
 
@@ -68,6 +69,8 @@ __all__ = [
     "list_objectives",
     "OBJECTIVES",
     "workspace_of",
+    "usable_workspace_of",
+    "USABLE_MEASURES",
     "SAMPLE_SETTINGS",
     "SAMPLE_PARAMS",
     "COMMON_PARAMS",
@@ -264,8 +267,9 @@ def workspace_of(mech, ranges=None, n: int = 4096, method: str = "sobol", seed: 
     ranges = dict(ranges) if ranges else mech.default_ranges()
     # the engine that evaluates ("numpy" inside engine.reference() and engine.needs()): a probe
     # on the NumPy reference never answers for a compiled evaluation of the same settings
-    key = (type(mech).__name__, _freeze(dataclasses.asdict(mech.params)), _freeze(ranges), int(n), method,
-           int(seed), _freeze(fixed), _freeze(constraints), effective_engine(engine))
+    key = (type(mech), _freeze(dataclasses.asdict(mech.params)), _freeze(ranges), int(n), method,
+           int(seed), _freeze(fixed), _freeze(constraints), effective_engine(engine),
+           tuple(repr(c) for c in getattr(mech, "added_constraints", ())))
     hit = _CACHE.get(key)
     if hit is not None:
         _CACHE.move_to_end(key)
@@ -338,29 +342,107 @@ def xy_isotropy(mech, **kw) -> float:
     return 0.0 if max(ex, ey) == 0 else min(ex, ey) / max(ex, ey)
 
 
+#: Settings of the usable-workspace measures (parasynth.usable): the margin floor and the
+#: reference pose of the component.
+_USABLE_SETTINGS = {
+    "floor": Setting("float", low=0.0, high=0.999999, doc="singularity-margin floor (default floor_fraction of "
+                                                        "the margin at home)"),
+    "floor_fraction": Setting("float", default=DEFAULT_FLOOR_FRACTION, low=0.0, high=1.0,
+                              doc="default floor as a fraction of the margin at home"),
+    "home": Setting("pose", doc="reference pose of the component {coordinate: value} (default the home pose)"),
+}
+_REGION = Setting("str", default="feasible", choices=("feasible", "usable"),
+                  doc="the box inside the feasible set or inside the usable component")
+
+
+def _usable(mech, kw, resolution=None):
+    """The usable workspace (:func:`parasynth.usable.usable_of`) of a measure's settings."""
+    sample = kw.get("sample")
+    if sample is None:
+        sample = WorkspaceSample.from_settings(kw)
+    return usable_of(mech, sample, constraints=kw.get("constraints"), engine=kw.get("engine", "compiled"),
+                     resolution=resolution, floor=kw.get("floor"),
+                     floor_fraction=kw.get("floor_fraction", DEFAULT_FLOOR_FRACTION), home=kw.get("home"))
+
+
+#: The measures over the usable component (``inscribed_box_*`` too with ``region: usable``).
+USABLE_MEASURES = ("usable_workspace_volume", "usable_workspace_fraction", "singularity_free_radius")
+
+
+def usable_workspace_of(mech, resolution=None, **settings):
+    """The (cached) :class:`~parasynth.usable.UsableWorkspace` of a usable measure's settings
+    (``sample=`` a WorkspaceSample, or the sample's fields by name; ``constraints``, ``engine``,
+    ``floor``, ``floor_fraction``, ``home``); other settings of the measure are ignored."""
+    return _usable(mech, settings, resolution)
+
+
+def _box(mech, kw, resolution, coords, region):
+    if region not in ("feasible", "usable"):
+        raise ValueError(f"region must be 'feasible' or 'usable', got {region!r}")
+    if region == "usable":
+        return _usable(mech, kw, resolution).largest_box(coords=coords)
+    return _ws(mech, kw).largest_box(coords=coords, resolution=resolution)
+
+
 @register("inscribed_box_volume", unit="sampled units", sense="maximize",
-          settings={**_WS_SETTINGS, "resolution": _RESOLUTION, "coords": _COORDS})
-def inscribed_box_volume(mech, resolution: int | None = None, coords="position", **kw) -> float:
+          settings={**_WS_SETTINGS, "resolution": _RESOLUTION, "coords": _COORDS, "region": _REGION,
+                    **_USABLE_SETTINGS})
+def inscribed_box_volume(mech, resolution: int | None = None, coords="position", region: str = "feasible",
+                         **kw) -> float:
     """Volume of the largest axis-aligned box inside the feasible set, over the sampled
     position coordinates by default (``coords``; positions feasible for every sampled
     orientation), computed on a raster (``resolution`` cells per axis, default the
-    sampling raster)."""
-    box = _ws(mech, kw).largest_box(coords=coords, resolution=resolution)
+    sampling raster). ``region="usable"``: inside the usable component instead
+    (``usable_workspace_volume``; its grid and floor settings)."""
+    box = _box(mech, kw, resolution, coords, region)
     return float(np.prod(box.sizes)) if box is not None else 0.0
 
 
 @register("inscribed_box_size", unit="sampled unit", sense="maximize",
           settings={**_WS_SETTINGS, "resolution": _RESOLUTION, "axis": Setting("str", default="z", doc="a sampled coordinate"),
-                    "coords": _COORDS})
-def inscribed_box_size(mech, axis: str = "z", resolution: int | None = None, coords="position", **kw) -> float:
-    """Side along coordinate ``axis`` of the largest inscribed axis-aligned box."""
-    ws = _ws(mech, kw)
-    box = ws.largest_box(coords=coords, resolution=resolution)
+                    "coords": _COORDS, "region": _REGION, **_USABLE_SETTINGS})
+def inscribed_box_size(mech, axis: str = "z", resolution: int | None = None, coords="position",
+                       region: str = "feasible", **kw) -> float:
+    """Side along coordinate ``axis`` of the largest inscribed axis-aligned box (``region``
+    as ``inscribed_box_volume``)."""
+    box = _box(mech, kw, resolution, coords, region)
     if box is None:
         return 0.0
     if axis not in box.coordinates:
         raise ValueError(f"inscribed_box_size: axis must be one of {list(box.coordinates)}, got {axis!r}")
     return float(box.sizes[list(box.coordinates).index(axis)])
+
+
+_UNGRID = {"resolution": dataclasses.replace(_RESOLUTION, doc="grid cells per axis (default: the sample's n cells "
+                                                                "in all)"), **_USABLE_SETTINGS}
+
+
+@register("usable_workspace_volume", unit="sampled units", sense="maximize", settings={**_WS_SETTINGS, **_UNGRID})
+def usable_workspace_volume(mech, resolution: int | None = None, **kw) -> float:
+    """Volume of the usable workspace: the connected component, containing the home pose, of
+    the feasible poses whose singularity margin is at least ``floor``, on a grid over the
+    sampled box (the sample's ``n`` cells, or ``resolution`` per axis), neighbouring cells
+    connected only where the singularity function keeps its sign (parasynth.usable)."""
+    return _usable(mech, kw, resolution).volume
+
+
+@register("usable_workspace_fraction", unit="1", sense="maximize", settings={**_WS_SETTINGS, **_UNGRID})
+def usable_workspace_fraction(mech, resolution: int | None = None, **kw) -> float:
+    """Usable workspace volume over the feasible volume of the same grid (0 for an empty
+    workspace)."""
+    return _usable(mech, kw, resolution).fraction
+
+
+@register("singularity_free_radius", unit="sampled unit", sense="maximize",
+          settings={**_WS_SETTINGS, **_UNGRID,
+                    "coords": dataclasses.replace(_COORDS, doc="'position' or sampled coordinates of one unit, "
+                                                               "separated by commas ('psi, theta')")})
+def singularity_free_radius(mech, resolution: int | None = None, coords="position", **kw) -> float:
+    """Radius of the largest ball around the home pose inside the usable component: in the
+    sampled position coordinates at the home orientation (``coords="position"``, m) or in the
+    given sampled coordinates of one unit ("psi, theta", rad); at most the distance to the
+    sampled box."""
+    return _usable(mech, kw, resolution).free_radius(coords)[0]
 
 
 @register("singularity_margin_min", unit="1", sense="maximize",

@@ -505,7 +505,7 @@ class WorkspaceResult:
         point. Raster sizes other than the recorded one are rebuilt from the stored points
         and need :attr:`points_complete`; for a grid the resolution is capped at the grid.
 
-        ``coords``: the coordinates of the box: None (all sampled coordinates),
+        ``coords``: the coordinates of the box: None or ``"all"`` (all sampled coordinates),
         ``"position"`` (the sampled non-angular coordinates) or a list of sampled
         coordinates. The other sampled coordinates are reduced with ``over``: ``"all"``
         (default) keeps a cell only if it is feasible for every raster cell of the other
@@ -566,6 +566,8 @@ class WorkspaceResult:
         if coords is None:
             return list(self.coordinates)
         if isinstance(coords, str):
+            if coords == "all":
+                return list(self.coordinates)
             if coords == "position":
                 names = [c for c in self.coordinates if self.coordinate_units[c] == "m"]
                 if not names:

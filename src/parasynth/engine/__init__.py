@@ -60,6 +60,7 @@ import warnings
 
 import numpy as np
 
+from ..constraints import SingularityMarginFloor
 from ..mechanism import EngineFallbackWarning
 from ..validation import ENGINES, check_engine
 from ..validation import numpy_reference as reference
@@ -134,21 +135,45 @@ def reason(mech, names=None) -> str | None:
     return _compiled()[1].reason(mech, names)
 
 
+def _floor_margin(mech, X) -> np.ndarray:
+    """The singularity margin of poses ``X`` for a :class:`SingularityMarginFloor` constraint:
+    the compiled index kernel, or NumPy (said once) where it does not cover ``mech``."""
+    if use_compiled(mech, "compiled", "singularity_margin"):
+        return singularity_margin(mech, X)
+    return mech.singularity_margin(X, engine="numpy")
+
+
+def _floors_asked(mech, names) -> None:
+    """Inside :func:`needs`: a selection with a singularity-margin floor also asks for the
+    singularity-margin kernel (the compiled path applies the floor with it)."""
+    wanted = _WANTED.get()
+    if wanted is not None:
+        try:
+            if any(isinstance(c, SingularityMarginFloor) for c in mech._select(names)):
+                wanted.add("singularity_margin")
+        except (ValueError, TypeError, AttributeError):
+            pass  # unknown names: the reference raises
+
+
 def feasible(mech, X, names=None, engine: str = "compiled"):
     """(N,) bool: reachable and every selected constraint satisfied at poses ``X`` -- the
     answer of ``mech.is_feasible(X, names, engine="numpy")`` (see the agreement contract in
-    :mod:`parasynth.engine.core`). A single pose (n_task,) gives a scalar bool."""
+    :mod:`parasynth.engine.core`). A single pose (n_task,) gives a scalar bool. A
+    :class:`~parasynth.constraints.SingularityMarginFloor` is applied after the feasibility
+    kernel, with the compiled singularity margin of the poses it accepts."""
     if _engine_for("feasible", engine) == "numpy":
+        _floors_asked(mech, names)
         return mech._is_feasible_numpy(X, names)
-    return _compiled()[1].feasible(mech, X, names)
+    return _compiled()[1].feasible(mech, X, names, _floor_margin)
 
 
 def margins(mech, X, names=None, engine: str = "compiled") -> dict:
     """{constraint name: (N,) margin} as ``mech.constraint_margins(X, names, engine="numpy")``
     (-inf where a leg cannot reach the pose or a margin is undefined)."""
     if _engine_for("margins", engine) == "numpy":
+        _floors_asked(mech, names)
         return mech._constraint_margins_numpy(X, names)
-    return _compiled()[1].margins(mech, X, names)
+    return _compiled()[1].margins(mech, X, names, _floor_margin)
 
 
 def pose_batch(mech, X, twist: bool = False, engine: str = "compiled"):

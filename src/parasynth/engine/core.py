@@ -53,7 +53,7 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 
 from ..constraints import (ActuatorRange, CoordinateRange, JointAngleLimit, LegAxisAngle, LegInterference,
-                           LegLengthRange)
+                           LegLengthRange, SingularityMarginFloor)
 from ..mechanism import EngineFallbackWarning
 from ..legs import GEOM_TOL, PRS, PUS, RPS, RPU, SPS, UPS, UPU
 from ..spatial import unit
@@ -246,8 +246,12 @@ class KernelPlan:
     RPU platform axis, base_ref, platform_ref, link length, branch.
     """
 
-    def __init__(self, program: Program, consts, leg_kind, leg_act, leg_f, names, tables, expr):
+    def __init__(self, program: Program, consts, leg_kind, leg_act, leg_f, names, tables, expr, floors=()):
         self.program = program
+        #: ((column, floor), ...) of the SingularityMarginFloor constraints: not checked by the
+        #: kernels (their column stays +inf where reachable), applied after them by
+        #: :mod:`parasynth.engine.evaluate` with the compiled singularity margin.
+        self.floors = tuple(floors)
         self.consts = consts
         self.leg_kind = leg_kind
         self.leg_act = leg_act
@@ -441,6 +445,8 @@ def leg_tables(mech, cons):
                 raise Unsupported(f"constraint {c.name}: interference without pairs (NumPy raises)")
             for a_, b_ in c._pairs(names):
                 rows["pair"].append((index[a_], index[b_], D, ci, D * D if D > 0 else -1.0))
+        elif t is SingularityMarginFloor:
+            continue  # not a kernel check: evaluate.py applies it with the singularity-margin kernel
         elif t.__name__ == "ExpressionConstraint" and _is_described(mech):
             e = expression_of(mech, c)
             if e is None:
@@ -572,7 +578,8 @@ def build_plan(mech, cons) -> KernelPlan:
     except (KeyError, IndexError, TypeError, ValueError) as e:
         raise Unsupported(f"a parameter of the task parametrisation ({type(e).__name__}: {e})") from None
     expr = np.array([(prog.margin_regs[n], ci) for n, ci in expr_rows], dtype=np.int64).reshape(-1, 2)
-    return KernelPlan(prog, consts, kind, act, F, [c.name for c in cons], tables, expr)
+    floors = [(ci, c.floor) for ci, c in enumerate(cons) if type(c) is SingularityMarginFloor]
+    return KernelPlan(prog, consts, kind, act, F, [c.name for c in cons], tables, expr, floors)
 
 
 def _readonly(X: np.ndarray) -> np.ndarray:

@@ -84,10 +84,12 @@ def _kernel_poses(mech, X):
     return np.ascontiguousarray(Xa, dtype=np.float64), single
 
 
-def feasible(mech, X, names=None):
+def feasible(mech, X, names=None, floor_margin=None):
     """(N,) bool: reachable and every selected constraint satisfied at poses ``X`` -- the
     answer of ``mech.is_feasible(X, names, engine="numpy")`` (see the agreement contract in
-    :mod:`parasynth.engine.core`). A single pose (n_task,) gives a scalar bool."""
+    :mod:`parasynth.engine.core`). A single pose (n_task,) gives a scalar bool.
+    ``floor_margin(mech, X)``: the singularity margin (the compiled index kernel), with which
+    the plan's singularity-margin floors are applied to the poses the kernel accepts."""
     p = _compiled_plan(mech, names)
     if p is None:
         return mech._is_feasible_numpy(X, names)
@@ -95,12 +97,19 @@ def feasible(mech, X, names=None):
     out, amb = core.run_feasible(p, Xc)
     if amb:  # batch-dependent RPS/RPU reachability: NumPy decides
         return mech._is_feasible_numpy(X, names)
+    if p.floors:
+        sel = np.flatnonzero(out)
+        if sel.size:
+            floor = max(f for _, f in p.floors)
+            with np.errstate(invalid="ignore"):
+                out[sel] = np.asarray(floor_margin(mech, Xc[sel])) >= floor  # NaN: not feasible
     return out[0] if single else out
 
 
-def margins(mech, X, names=None) -> dict:
+def margins(mech, X, names=None, floor_margin=None) -> dict:
     """{constraint name: (N,) margin} as ``mech.constraint_margins(X, names, engine="numpy")``
-    (-inf where a leg cannot reach the pose or a margin is undefined)."""
+    (-inf where a leg cannot reach the pose or a margin is undefined); the singularity-margin
+    floors' columns from ``floor_margin`` (see :func:`feasible`)."""
     p = _compiled_plan(mech, names)
     if p is None:
         return mech._constraint_margins_numpy(X, names)
@@ -108,6 +117,13 @@ def margins(mech, X, names=None) -> dict:
     M, amb = core.run_margins(p, Xc)
     if amb:
         return mech._constraint_margins_numpy(X, names)
+    if p.floors:
+        # the kernel leaves a floor's column at +inf where the pose is reachable, -inf elsewhere
+        reach = np.flatnonzero(np.isposinf(M[:, p.floors[0][0]]))
+        if reach.size:
+            sm = np.asarray(floor_margin(mech, Xc[reach]), dtype=float)
+            for ci, floor in p.floors:
+                M[reach, ci] = np.where(np.isnan(sm), -np.inf, sm - floor)
     return {n: (M[0, j] if single else M[:, j]) for j, n in enumerate(p.names)}
 
 

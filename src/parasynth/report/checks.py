@@ -14,10 +14,9 @@ import numpy as np
 import pandas as pd
 
 from ..display import fmt_number, fmt_quantity, quantity_unit, reference_name
-from ..mechanisms import load_mechanism
 from ..objectives import _WS_SETTINGS, workspace_of
 from ..objectives import get as get_measure
-from ..study.rundir import design_key, design_params, measure_settings
+from ..study.rundir import design_key, design_mechanism, measure_settings
 
 __all__ = ["design_roles", "design_warnings", "bound_warnings", "face_warnings", "BOUND_TOL", "FACE_TOL", "FACE_SHARE"]
 
@@ -92,7 +91,7 @@ def face_fraction_of(study, values: dict) -> dict | None:
     if m is None:
         return None
     try:
-        mech = load_mechanism(study.mechanism, **design_params(study, dict(values)))
+        mech = design_mechanism(study, dict(values))
         kw = {k: x for k, x in measure_settings(study, m.name, m.settings).items() if k in _WS_SETTINGS}
         ws = workspace_of(mech, **kw)
     except (ValueError, ArithmeticError):

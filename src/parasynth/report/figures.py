@@ -10,10 +10,9 @@ import numpy as np
 import pandas as pd
 
 from ..display import UNITS, Unit, fmt_value, reference_name, reference_short
-from ..mechanisms import load_mechanism
-from ..objectives import workspace_of
+from ..objectives import USABLE_MEASURES, usable_workspace_of, workspace_of
 from ..pareto import default_reference_point, hypervolume, to_min
-from ..study.rundir import Run, design_params
+from ..study.rundir import Run, design_mechanism, measure_settings
 
 #: Lengths in the sketches: the display unit of lengths (the tables' unit).
 mm = UNITS["length"]
@@ -248,7 +247,7 @@ def plot_designs(figs, study, designs: dict):
     mechs = {}
     for name, values in designs.items():
         try:
-            mechs[name] = load_mechanism(study.mechanism, **design_params(study, values))
+            mechs[name] = design_mechanism(study, values)
         except ValueError:
             continue
     if not mechs:
@@ -285,7 +284,10 @@ def plot_designs(figs, study, designs: dict):
     ev = study.evaluation
     fig, axes = _subplots(1, 2, figsize=(10, 4.2))
     colors = ["#1f77b4", "#ff7f0e", "#2ca02c"]
+    usable = _usable_measure(study)
     for k, ((name, mech), c) in enumerate(zip(mechs.items(), colors)):
+        if usable is not None and _plot_usable(axes, study, usable, name, mech, c):
+            continue
         try:
             # Different sample points per design, so that the two clouds do not hide each other.
             ws = workspace_of(mech, ranges=ev.get("ranges"), n=32768, method=ev["method"], seed=ev["seed"] + 101 * (k + 1),
@@ -305,8 +307,42 @@ def plot_designs(figs, study, designs: dict):
         ax.grid(alpha=0.3)
         _tidy(ax)
         ax.legend(fontsize=8, markerscale=3)
-    figs.add(fig, "workspace", "Feasible platform positions (projections on XY and XZ) of the recommended design and "
-             f"{reference_name(study)}, from the study's evaluation samples.")
+    what = ("Feasible platform positions (projections on XY and XZ) of the recommended design and "
+            f"{reference_name(study)}, from the study's evaluation samples.")
+    if usable is not None:
+        what = ("Platform positions (projections on XY and XZ) of the recommended design and "
+                f"{reference_name(study)} at the centres of the usable-workspace grid ({usable.label}): dots, the "
+                "usable component connected to the home pose; grey crosses, the rest of the feasible set (beyond a "
+                "singularity or below the margin floor).")
+    figs.add(fig, "workspace", what)
+
+
+def _usable_measure(study):
+    """The study's first objective or constraint over the usable component, or None."""
+    for m in list(study.objectives) + list(study.constraints):
+        if m.name in USABLE_MEASURES or (m.name.startswith("inscribed_box") and m.settings.get("region") == "usable"):
+            return m
+    return None
+
+
+def _plot_usable(axes, study, item, name, mech, color) -> bool:
+    """Draw the usable component of ``mech`` apart from the rest of its feasible set (the grid
+    of the measure ``item``); False when it cannot be computed (the caller draws the samples)."""
+    kw = {k: v for k, v in measure_settings(study, item.name, item.settings).items()
+          if k not in ("coords", "region", "axis")}
+    try:
+        u = usable_workspace_of(mech, **kw)
+    except (ValueError, ArithmeticError):
+        return False
+    for mask, style in ((u.feasible & ~u.usable, dict(marker="x", ms=2.6, c="#9a9a9a", alpha=0.5,
+                                                      label=f"{name}: feasible, not usable")),
+                        (u.usable, dict(marker="o", ms=2.4, mew=0, c=color, alpha=0.35, label=f"{name}: usable"))):
+        if not mask.any():
+            continue
+        P = mm(mech.pose(u.centres(mask))[0])
+        axes[0].plot(P[:, 0], P[:, 1], ls="none", **style)
+        axes[1].plot(P[:, 0], P[:, 2], ls="none", **style)
+    return True
 
 
 def make_figures(run: Run, a: Analysis, keep: bool = False) -> Figures:

@@ -12,7 +12,9 @@
   measure's own settings. Nothing is merged by name: each setting's declaration
   (:class:`~parasynth.measure_spec.Setting`) says whether it sets a field of the sample
   (``sample_field``) or defaults to an evaluation key (``evaluation_key``);
-* :func:`measure_settings` -- the same as the older flat call form (``measure(mech, **flat)``).
+* :func:`measure_settings` -- the same as the older flat call form (``measure(mech, **flat)``);
+* :func:`design_mechanism` -- the mechanism of a design: the model with the design's
+  parameters and the pose constraints the study adds (``evaluation.constraints``).
 
 The functions take a resolved study (:class:`~parasynth.study.spec.ResolvedStudy`) by its
 attributes; of the study layer this module imports only the design space
@@ -23,13 +25,15 @@ from __future__ import annotations
 
 import dataclasses
 
+from ..constraints import SingularityMarginFloor
+from ..mechanisms import load_mechanism
 from ..objectives import get as get_measure
 from ..workspace import WorkspaceSample
 from .space import BOX_CENTRE_U, DesignSpace, centre_value
 from .space import design_key as key_of
 
 __all__ = ["design_params", "design_key", "BOX_CENTRE_U", "centre_value", "box_centre", "evaluation_sample",
-           "measure_arguments", "measure_settings"]
+           "measure_arguments", "measure_settings", "design_mechanism", "with_pose_constraints"]
 
 
 def design_params(study, values: dict) -> dict:
@@ -93,3 +97,21 @@ def measure_settings(study, measure_name: str, own: dict, n: int | None = None, 
     name_of = {p.sample_field: k for k, p in m.params.items() if p.sample_field}
     flat = {name_of[f]: v for f, v in sample.kwargs().items() if v is not None and f in name_of}
     return {**flat, **args}
+
+
+def with_pose_constraints(study, mech):
+    """``mech`` with the pose constraints the study adds in ``evaluation.constraints`` (a
+    :class:`~parasynth.constraints.SingularityMarginFloor` per ``{type: singularity_margin,
+    min: ...}``); ``mech`` itself when it adds none."""
+    added = study.evaluation.get("added_constraints") or ()
+    if not added:
+        return mech
+    return mech.with_constraints(*(SingularityMarginFloor(a["name"], floor=a["min"],
+                                                          doc=f"singularity margin >= {a['min']:g} (the study's)")
+                                   for a in added))
+
+
+def design_mechanism(study, values: dict):
+    """The mechanism of design ``values`` of ``study``: the model built with
+    :func:`design_params` and the study's added pose constraints (:func:`with_pose_constraints`)."""
+    return with_pose_constraints(study, load_mechanism(study.mechanism, **design_params(study, values)))

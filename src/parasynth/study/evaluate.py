@@ -16,9 +16,8 @@ import time
 import traceback
 from dataclasses import dataclass, field
 
-from ..mechanisms import load_mechanism
 from ..objectives import get as get_measure
-from .design import design_params, evaluation_sample, measure_arguments, measure_settings
+from .design import design_mechanism, evaluation_sample, measure_arguments, measure_settings
 from .spec import ResolvedStudy
 
 __all__ = ["Record", "Evaluator"]
@@ -79,7 +78,7 @@ class Evaluator:
         return evaluation_sample(self.study, n, seed)
 
     def build(self, values: dict):
-        return load_mechanism(self.study.mechanism, **design_params(self.study, values))
+        return design_mechanism(self.study, values)
 
     def evaluate(self, values: dict, n: int | None = None, seed: int | None = None, trial: int = -1,
                  source: str = "run") -> Record:

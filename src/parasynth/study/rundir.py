@@ -20,13 +20,13 @@ import pandas as pd
 from .columns import csv_column, from_csv_columns, to_csv_columns
 
 from .defaults import planned_designs
-from .design import design_key, design_params, measure_settings
+from .design import design_key, design_mechanism, design_params, measure_settings
 from .final import best_designs, knee_of, merge_duplicates, pareto_front, screening_dominators
 from .journal import read_journal
 from .spec import ResolvedStudy, StudyError, load_study
 from .tables import results_table
 
-__all__ = ["Run", "RunDirError", "read_run", "read_final", "to_csv_columns", "measure_settings", "design_key", "design_params", "pareto_front", "knee_of",
+__all__ = ["Run", "RunDirError", "read_run", "read_final", "to_csv_columns", "measure_settings", "design_key", "design_params", "design_mechanism", "pareto_front", "knee_of",
            "screening_dominators", "merge_duplicates", "best_designs"]
 
 

@@ -41,7 +41,7 @@ from ..measure_spec import SettingError
 from ..objectives import OBJECTIVES, get as get_measure
 from ..validation import MAX_SAMPLES, MAX_SEED, MAX_TRIALS, is_real_number, numpy_reference
 from ..yamlio import YamlError, load_yaml
-from .design import box_centre, design_params, evaluation_sample, measure_arguments
+from .design import box_centre, design_params, evaluation_sample, measure_arguments, with_pose_constraints
 from .errors import StudyError
 from .space import DesignSpace, Variable, quantity
 
@@ -137,9 +137,11 @@ class EvaluationSpec(_Model):
         "mapping is an error)."))
     fixed_pose: dict[str, Scalar] = Field(default_factory=dict, description=(
         "Task coordinates held fixed while sampling, {coordinate: value with unit}."))
-    constraints: list[str] | None = Field(default=None, description=(
-        "Pose constraints that define the workspace (default all of the model's; see "
-        "`parasynth list`)."))
+    constraints: list[str | dict[str, Any]] | None = Field(default=None, description=(
+        "Pose constraints that define the workspace: names of the model's (default all of them; see "
+        "`parasynth list`) and added constraints, {type: singularity_margin, min: 0.02, name: ...}: the "
+        "normalised singularity margin at or above min (a number in [0, 1)); a list of added constraints only "
+        "keeps all of the model's."))
     final_samples: Int | None = Field(default=None, ge=1, le=MAX_SAMPLES, description=(
         "Samples of the final re-evaluation of the best designs (1 to "
         f"{MAX_SAMPLES}); leave out to skip it."))
@@ -449,6 +451,9 @@ def resolve_study(data: dict, source: str | None = None) -> ResolvedStudy:
     # The model's task coordinates and pose constraints (from a model built with the fixed
     # parameters; a model that cannot be built is reported by check_study).
     task, pose_constraints = _model_names(mech_cls, fixed)
+    ev_names, added = _split_pose_constraints(spec.evaluation.constraints, pose_constraints)
+    if pose_constraints is not None and added:
+        pose_constraints = tuple(pose_constraints) + tuple(a["name"] for a in added)
     reserved = set(RESERVED_COLUMNS) | set(seen) | set(spec.tied)
 
     def check_label(label, path, where):
@@ -518,10 +523,15 @@ def resolve_study(data: dict, source: str | None = None) -> ResolvedStudy:
         if ranges and k in ranges:
             raise StudyError(f"evaluation.fixed_pose.{k}: {k!r} is also sampled in evaluation.ranges; give each "
                              f"coordinate in one of them")
-    ev_constraints = (_check_pose_constraints(ev.constraints, "evaluation.constraints", pose_constraints)
-                      if ev.constraints is not None else None)
+    ev_constraints = None
+    if ev_names is not None:
+        ev_constraints = _check_pose_constraints(ev_names, "evaluation.constraints", pose_constraints)
+        if added and ev_constraints:
+            ev_constraints += [a["name"] for a in added]
+        elif added:  # added constraints only: all of the model's are kept
+            ev_constraints = None
     evaluation = dict(method=ev.method, n=ev.samples, seed=ev.seed, ranges=ranges,
-                      fixed=fixed_pose or None, constraints=ev_constraints,
+                      fixed=fixed_pose or None, constraints=ev_constraints, added_constraints=tuple(added),
                       final_samples=ev.final_samples, final_repeats=ev.final_repeats, final_top=ev.final_top,
                       engine=ev.engine)
 
@@ -717,6 +727,45 @@ def _pose_value(k, v, where, task, mech_cls) -> float:
     return _q(v, "angle" if k in _angular(mech_cls) else "length", where)
 
 
+#: Types of the pose constraints a study may add in evaluation.constraints, with their keys.
+ADDED_POSE_CONSTRAINTS = {"singularity_margin": ("type", "name", "min")}
+
+
+def _split_pose_constraints(val, known) -> tuple[list | None, list[dict]]:
+    """evaluation.constraints as (the names of the model's constraints, or None when the key is
+    left out; the added constraints as {type, name, min} with min in SI)."""
+    if val is None:
+        return None, []
+    names, added = [], []
+    taken = set(known or ())
+    for j, item in enumerate(val):
+        where = f"evaluation.constraints[{j}]"
+        if isinstance(item, str):
+            names.append(item)
+            continue
+        unknown = sorted(set(item) - set(ADDED_POSE_CONSTRAINTS["singularity_margin"]))
+        if item.get("type") not in ADDED_POSE_CONSTRAINTS:
+            raise StudyError(f"{where}.type: an added pose constraint needs type: singularity_margin, got "
+                             f"{item.get('type')!r}")
+        if unknown:
+            raise StudyError(f"{where}: unknown key {unknown[0]!r}; allowed: type, name, min")
+        if "min" not in item:
+            raise StudyError(f"{where}.min: required (the floor of the singularity margin, e.g. 0.02)")
+        lo = item["min"]
+        if not is_real_number(lo) or not 0.0 <= float(lo) < 1.0:
+            raise StudyError(f"{where}.min: the singularity margin is a normalised singular value; give a plain "
+                             f"number in [0, 1), got {lo!r}")
+        name = item.get("name", "singularity_margin")
+        if not isinstance(name, str) or not name.strip():
+            raise StudyError(f"{where}.name: give a non-empty constraint name")
+        if name in taken:
+            raise StudyError(f"{where}.name: {name!r} is already a pose constraint of the model or of the study; give "
+                             f"the added constraint another name")
+        taken.add(name)
+        added.append({"type": item["type"], "name": name, "min": float(lo)})
+    return names, added
+
+
 def _check_pose_constraints(val, where, known) -> list:
     names = [val] if isinstance(val, str) else val
     if not isinstance(names, list) or not all(isinstance(x, str) for x in names):
@@ -768,7 +817,7 @@ def check_study(study: ResolvedStudy, *, measures: bool = True, max_corners: int
 
     def try_build(params):
         try:
-            return load_mechanism(mech, **params), None
+            return with_pose_constraints(study, load_mechanism(mech, **params)), None
         except Exception as e:  # every model error is a problem of the file
             return None, f"{type(e).__name__}: {e}" if not isinstance(e, ValueError) else str(e)
 

@@ -11,7 +11,7 @@ from typing import Callable
 import numpy as np
 
 from ...constraints import (ActuatorRange, Constraint, CoordinateRange, JointAngleLimit, LegAxisAngle, LegInterference,
-                            LegLengthRange)
+                            LegLengthRange, SingularityMarginFloor)
 from ...mechanism import Mechanism
 from .errors import DescriptionError
 from .expressions import Expression, POSE_NAMES, R_NAMES, _Scope
@@ -28,10 +28,11 @@ _CONSTRAINT_KEYS = {
     "leg_axis_angle": {"legs", "axis", "frame", "max"},
     "coordinate_range": {"coordinate", "min", "max"},
     "expression": {"margin", "unit"},
+    "singularity_margin": {"min"},
 }
 _CONSTRAINT_REQUIRED = {"leg_length": {"legs"}, "joint_angle": {"key"}, "interference": {"diameter"},
                         "leg_axis_angle": {"legs", "axis", "max"}, "coordinate_range": {"coordinate"},
-                        "expression": {"margin"}}
+                        "expression": {"margin"}, "singularity_margin": {"min"}}
 
 
 @dataclass(frozen=True)
@@ -140,6 +141,11 @@ class _ConstraintSpec:
             ax = self.axis(env, None, 0)
             return LegAxisAngle(self.name, legs=self.legs, axis=tuple(float(v) for v in ax / np.linalg.norm(ax)),
                                 frame=self.frame, hi=hi_, doc=self.doc)
+        if t == "singularity_margin":
+            try:
+                return SingularityMarginFloor(self.name, floor=lo, doc=self.doc or f"singularity margin >= {lo:g}")
+            except ValueError as e:
+                raise DescriptionError(f"{mech.name}: {self.path}.min: {e}") from None
         if t == "coordinate_range":
             unit = "rad" if mech.description.task.kinds[self.coordinate] == "angle" else "m"
             return CoordinateRange(self.name, unit=unit, index=mech.task_coordinates.index(self.coordinate),
