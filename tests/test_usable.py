@@ -209,3 +209,46 @@ def test_bad_input_names_the_argument(gs):
     u = usable_workspace(gs, ranges={"x": (-0.1, 0.1), "gamma": (D(-10), D(10))}, resolution=4)
     with pytest.raises(ValueError, match="a ball needs coordinates of one unit"):
         u.free_radius("x, gamma")
+
+
+def test_home_within_a_cell_of_the_boundary_starts_from_a_neighbour():
+    """b4 = 500 mm: home is feasible (stroke margin 6.5 mm) but its cell's centre is not; the
+    component grows from a surrounding cell. b4 = 525 mm: home itself is infeasible: empty."""
+    near = parasynth.load_mechanism("2rpu_2sps", b4=0.5)
+    assert near.is_feasible(near.home)
+    u = usable_workspace(near, n=24**3)
+    assert not u.above[u.reference_cell] and u.start_cell is not None
+    assert max(abs(a - b) for a, b in zip(u.start_cell, u.reference_cell)) == 1
+    assert u.fraction > 0.9
+    out = parasynth.load_mechanism("2rpu_2sps", b4=0.525)
+    assert not out.is_feasible(out.home)
+    u = usable_workspace(out, n=24**3)
+    assert u.start_cell is None and u.volume == 0.0 and u.feasible.any()
+
+
+def test_report_draws_the_usable_component_apart(tmp_path):
+    import yaml
+
+    from parasynth.report import analyse, load_run
+    from parasynth.report.figures import make_figures
+    from parasynth.study import load_study, run_study
+
+    spec = {"name": "usable_report", "mechanism": "2rpu_2sps",
+            "variables": [{"name": "b4", "values": ["350 mm", "450 mm"]}],
+            "objectives": [{"name": "workspace_volume"}, {"name": "usable_workspace_volume"}],
+            "reference": {"b4": "350 mm"},
+            "evaluation": {"method": "grid", "samples": 1728,
+                           "ranges": {"z": ["550 mm", "1000 mm"], "psi": ["-30 deg", "30 deg"],
+                                      "theta": ["-45 deg", "45 deg"]}},
+            "optimizer": {"kind": "sweep"}}
+    res = run_study(load_study(yaml.safe_dump(spec), is_text=True), out_dir=tmp_path / "run", progress=False)
+    run = load_run(res.out_dir)
+    figs = make_figures(run, analyse(run), keep=True)
+    caption = dict((n, c) for n, c, _ in figs.items)["workspace"]
+    assert "usable component connected to the home pose" in caption
+    fig = figs.figures["workspace"]
+    labels = [line.get_label() for ax in fig.axes for line in ax.lines]
+    # the paper's design (b4 = 350 mm, symmetric): half of its workspace is drawn as not usable
+    assert any(lab.endswith(": feasible, not usable") for lab in labels)
+    assert any("usable (50% of the feasible)" in lab for lab in labels)
+    assert len(fig.axes) == 4  # one row per design

@@ -111,6 +111,10 @@ def _sampled_unit(study, measure, settings: dict) -> Unit:
     if measure.name == "inscribed_box_size":
         axis = settings.get("axis", "z")
         return UNITS["angle"] if axis in angular else UNITS["length"]
+    if measure.name == "singularity_free_radius":  # a radius in coordinates of one unit
+        c = settings.get("coords", "position")
+        named = [x.strip() for x in c.split(",")] if isinstance(c, str) and c not in ("position", "all") else []
+        return UNITS["angle"] if named and named[0] in angular else UNITS["length"]
     if settings.get("coords", "position") == "position" and "coords" in measure.settings:
         coords = [c for c in coords if c not in angular]
     na = sum(1 for c in coords if c in angular)

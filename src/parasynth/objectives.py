@@ -60,7 +60,7 @@ from .measure_spec import Setting, SettingError, as_setting, check_settings
 from .stiffness import part_stiffness, point_deflection, stiffness_along
 from .usable import DEFAULT_FLOOR_FRACTION, usable_of
 from .validation import MAX_SAMPLES, MAX_SEED, check_count, check_mechanism, check_names
-from .workspace import WorkspaceSample, workspace
+from .workspace import WorkspaceSample, freeze, workspace
 
 __all__ = [
     "Measure",
@@ -241,16 +241,6 @@ _CACHE: "OrderedDict[tuple, object]" = OrderedDict()
 _CACHE_SIZE = 8
 
 
-def _freeze(v):
-    if isinstance(v, dict):
-        return tuple(sorted((k, _freeze(x)) for k, x in v.items()))
-    if isinstance(v, (list, tuple)):
-        return tuple(_freeze(x) for x in v)
-    if isinstance(v, np.ndarray):
-        return tuple(v.ravel().tolist())
-    return v
-
-
 def workspace_of(mech, ranges=None, n: int = 4096, method: str = "sobol", seed: int = 0, fixed=None,
                  constraints=None, engine: str = "compiled", sample: WorkspaceSample | None = None):
     """The (cached) workspace of ``mech`` for these settings; see :func:`parasynth.workspace`
@@ -267,8 +257,8 @@ def workspace_of(mech, ranges=None, n: int = 4096, method: str = "sobol", seed: 
     ranges = dict(ranges) if ranges else mech.default_ranges()
     # the engine that evaluates ("numpy" inside engine.reference() and engine.needs()): a probe
     # on the NumPy reference never answers for a compiled evaluation of the same settings
-    key = (type(mech), _freeze(dataclasses.asdict(mech.params)), _freeze(ranges), int(n), method,
-           int(seed), _freeze(fixed), _freeze(constraints), effective_engine(engine),
+    key = (type(mech), freeze(dataclasses.asdict(mech.params)), freeze(ranges), int(n), method,
+           int(seed), freeze(fixed), freeze(constraints), effective_engine(engine),
            tuple(repr(c) for c in getattr(mech, "added_constraints", ())))
     hit = _CACHE.get(key)
     if hit is not None:

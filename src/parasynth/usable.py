@@ -23,7 +23,7 @@ that a grid never steps over a singularity whose low-margin band is thinner than
   normalised wrench system ``M = [A; V]`` (:meth:`Mechanism.singularity_function`: the
   actuation rows as in the actuator Jacobian, ``V`` an orthonormal basis of the constraint
   wrenches). The basis has no intrinsic orientation (a UPU leg's numeric constraint wrench
-  takes either sign; on the 5-PUS/UPU the raw 6 x 6 determinant changes sign many times
+  takes either sign; on the 5-PUS/UPU the raw 6 x 6 determinant changes sign 14 times
   along x at home while the margin stays above 0.19), so it is oriented continuously along
   each edge: the edge (a, b) keeps the sign when ``det M_a * det M_b * det(V_a V_b^T) > 0``,
   where ``det(V_a V_b^T)`` is the orientation of b's basis relative to a's. An edge whose
@@ -35,8 +35,11 @@ that a grid never steps over a singularity whose low-margin band is thinner than
   (``sign_rule`` says which rule was used).
 
 The components of this graph (``scipy.sparse.csgraph.connected_components``) give the one
-containing the cell of the reference pose: the usable component. When the reference pose's
-cell is not above the floor, the usable set is empty.
+containing the cell of the reference pose: the usable component. When that cell's centre is
+not above the floor (the reference pose within a cell of the boundary), the nearest of the
+cells around the pose that is above the floor and keeps the sign of the singularity function
+from the pose is taken instead; when the reference pose itself is infeasible or below the
+floor, the usable set is empty.
 
 Resolution and error
 --------------------
@@ -66,7 +69,7 @@ import numpy as np
 from .engine import effective_engine
 from .validation import MAX_SAMPLES, check_count, check_engine, check_mechanism, check_names, check_number
 from .workspace import (Box, WorkspaceSample, _check_constraints, _check_ranges, _fixed_pose, _grid_shape,
-                        _GridBoundary, _largest_box, _raster_shape, _units_string)
+                        _GridBoundary, _raster_shape, _units_string, box_in, freeze)
 
 __all__ = ["UsableWorkspace", "usable_workspace", "usable_of", "oriented_determinant", "DEFAULT_FLOOR_FRACTION",
            "MIN_ALIGNMENT", "MAX_CELLS"]
@@ -91,7 +94,9 @@ class UsableWorkspace:
     coordinate; feasible, above, usable: bool arrays of ``shape`` (feasible cells, feasible
     cells with margin >= floor, the component of the reference pose); margin: the singularity
     margin of the feasible cells (NaN elsewhere); reference: the reference pose (all task
-    coordinates, SI); reference_cell: its cell index; floor: the margin floor used;
+    coordinates, SI); reference_cell: its cell index; start_cell: the cell the component grows
+    from (the reference cell, or a neighbour when the pose is within a cell of the boundary;
+    None: the component is empty); floor: the margin floor used;
     sign_rule: how neighbouring cells were tested ("determinant" or why not);
     cut_edges: edges between cells above the floor cut by a sign change; ambiguous_edges: edges
     whose constraint bases could not be oriented alike; coordinate_units; units.
@@ -109,6 +114,7 @@ class UsableWorkspace:
     margin: np.ndarray = field(repr=False)
     reference: np.ndarray = field(repr=False)
     reference_cell: tuple[int, ...] | None
+    start_cell: tuple[int, ...] | None
     floor: float
     sign_rule: str
     cut_edges: int
@@ -190,21 +196,7 @@ class UsableWorkspace:
         if over not in ("all", "any"):
             raise ValueError(f"over must be 'all' or 'any', got {over!r}")
         names = self._names(coords, "coords")
-        keep = [self.coordinates.index(c) for c in names]
-        other = tuple(k for k in range(len(self.shape)) if k not in keep)
-        occ = self.usable
-        if other:
-            occ = occ.all(axis=other) if over == "all" else occ.any(axis=other)
-        edges = [self.edges[k] for k in keep]
-        found = _largest_box(occ, edges)
-        if found is None:
-            return None
-        lo_i, hi_i = found
-        lows = np.array([e[i] for e, i in zip(edges, lo_i)])
-        highs = np.array([e[i] for e, i in zip(edges, hi_i)])
-        cell = np.array([e[1] - e[0] for e in edges])
-        return Box(tuple(names), lows, highs, tuple(self.coordinate_units[c] for c in names),
-                   tuple(len(e) - 1 for e in edges), cell)
+        return box_in(self.usable, self.edges, self.coordinates, names, over, self.coordinate_units)
 
     def free_radius(self, coords="position") -> tuple[float, bool]:
         """``(radius, capped)``: the largest ball around the reference pose inside the usable
@@ -383,11 +375,13 @@ def usable_workspace(mech, ranges=None, n: int = 4096, fixed=None, constraints=N
     a, b = a[both], b[both]
     keep = np.ones(len(a), bool)
     cut = ambiguous = 0
-    if rule is None and len(a):
-        cells = np.flatnonzero(above)
+    cells = np.flatnonzero(above)
+    pos = np.full(N, -1)
+    pos[cells] = np.arange(len(cells))
+    det = V = None
+    if rule is None and len(cells):
         det, V = mech.singularity_function(X[cells])
-        pos = np.full(N, -1)
-        pos[cells] = np.arange(len(cells))
+    if det is not None and len(a):
         ia, ib = pos[a], pos[b]
         orient = _orientation(V[ia], V[ib])
         ok_orient = np.abs(orient) >= MIN_ALIGNMENT
@@ -395,27 +389,64 @@ def usable_workspace(mech, ranges=None, n: int = 4096, fixed=None, constraints=N
         keep = ok_orient & same
         ambiguous = int(np.count_nonzero(~ok_orient))
         cut = int(np.count_nonzero(ok_orient & ~same))
-    ref_cell = tuple(int(min(m - 1, max(0, math.floor((ref[j] - lo) / (hi - lo) * m))))
-                     for j, lo, hi, m in zip(cols, lows, highs, shape))
+    frac = [(ref[j] - lo) / (hi - lo) * m for j, lo, hi, m in zip(cols, lows, highs, shape)]
+    ref_cell = tuple(int(min(m - 1, max(0, math.floor(f)))) for f, m in zip(frac, shape))
+    start = _start_cell(mech, ref, m_ref, floor, ref_cell, frac, shape, above, pos, det, V, edges, cols,
+                        names, engine)
     usable = np.zeros(N, bool)
-    flat_ref = int(np.ravel_multi_index(ref_cell, shape))
-    if above[flat_ref] and np.isfinite(m_ref) and m_ref >= floor:
+    if start is not None:
         # lazy: SciPy is slow to import; only the usable measures need the graph
         from scipy.sparse import coo_matrix
         from scipy.sparse.csgraph import connected_components
 
         g = coo_matrix((np.ones(int(keep.sum())), (a[keep], b[keep])), shape=(N, N))
         _, labels = connected_components(g, directed=False)
-        usable = above & (labels == labels[flat_ref])
+        usable = above & (labels == labels[start])
     ang = mech.angular_coordinates
     cunits = {c: ("rad" if c in ang else "m") for c in coords}
     return UsableWorkspace(
         mechanism=mech, coordinates=coords, box={c: (float(lo), float(hi)) for c, lo, hi in zip(coords, lows, highs)},
         fixed={c: float(base[i]) for i, c in enumerate(task) if c not in coords}, shape=shape, edges=edges,
         feasible=feas.reshape(shape), above=above.reshape(shape), usable=usable.reshape(shape),
-        margin=margin.reshape(shape), reference=ref, reference_cell=ref_cell, floor=float(floor),
+        margin=margin.reshape(shape), reference=ref, reference_cell=ref_cell,
+        start_cell=None if start is None else tuple(int(i) for i in np.unravel_index(start, shape)), floor=float(floor),
         sign_rule=rule or "determinant", cut_edges=cut, ambiguous_edges=ambiguous, coordinate_units=cunits,
         units=_units_string(tuple(cunits[c] for c in coords)))
+
+
+def _start_cell(mech, ref, m_ref, floor, ref_cell, frac, shape, above, pos, det, V, edges, cols, names, engine):
+    """The cell the usable component grows from: the cell containing the reference pose, or,
+    when its centre is not above the floor (the reference pose within a cell of the
+    boundary), the nearest of the 2^d cells whose centres surround the pose that is above the
+    floor and keeps the sign of the singularity function from the pose itself. None when the
+    reference pose is not above the floor or no such cell exists."""
+    if not (np.isfinite(m_ref) and m_ref >= floor and mech.is_feasible(ref[None, :], names=names, engine=engine)[0]):
+        return None
+    flat = int(np.ravel_multi_index(ref_cell, shape))
+    if above[flat]:
+        return flat
+    lo_idx = [int(math.floor(f - 0.5)) for f in frac]
+    cand = []
+    for corner in np.ndindex(*(2,) * len(shape)):
+        idx = tuple(min(m - 1, max(0, i + c)) for i, c, m in zip(lo_idx, corner, shape))
+        k = int(np.ravel_multi_index(idx, shape))
+        if above[k] and k not in cand:
+            cand.append(k)
+    if not cand:
+        return None
+    centre = np.array([[0.5 * (edges[d][i] + edges[d][i + 1]) for d, i in enumerate(np.unravel_index(k, shape))]
+                       for k in cand])
+    span = np.array([e[-1] - e[0] for e in edges])
+    order = np.argsort(np.linalg.norm((centre - ref[cols]) / span, axis=1))
+    cand = [cand[i] for i in order]
+    if det is None:
+        return cand[0]
+    d0, V0 = mech.singularity_function(ref[None, :])
+    for k in cand:
+        o = _orientation(V0, V[pos[k]][None])[0]
+        if abs(o) >= MIN_ALIGNMENT and d0[0] * det[pos[k]] * o > 0:
+            return k
+    return None
 
 
 def oriented_determinant(mech, X) -> np.ndarray:
@@ -447,16 +478,6 @@ _CACHE: "OrderedDict[tuple, UsableWorkspace]" = OrderedDict()
 _CACHE_SIZE = 8
 
 
-def _freeze(v):
-    if isinstance(v, Mapping):
-        return tuple(sorted((k, _freeze(x)) for k, x in v.items()))
-    if isinstance(v, (list, tuple)):
-        return tuple(_freeze(x) for x in v)
-    if isinstance(v, np.ndarray):
-        return tuple(v.ravel().tolist())
-    return v
-
-
 def usable_of(mech, sample: WorkspaceSample | None = None, constraints=None, engine: str = "compiled",
               resolution=None, floor=None, floor_fraction: float = DEFAULT_FLOOR_FRACTION,
               home=None) -> UsableWorkspace:
@@ -465,8 +486,8 @@ def usable_of(mech, sample: WorkspaceSample | None = None, constraints=None, eng
     settings, the engine that evaluates)."""
     sample = WorkspaceSample() if sample is None else sample
     key = (type(mech), repr(mech.params), tuple(repr(c) for c in getattr(mech, "added_constraints", ())),
-           sample.ranges, sample.n, sample.fixed, _freeze(constraints), effective_engine(engine), _freeze(resolution),
-           floor, floor_fraction, _freeze(home))
+           sample.ranges, sample.n, sample.fixed, freeze(constraints), effective_engine(engine), freeze(resolution),
+           floor, floor_fraction, freeze(home))
     hit = _CACHE.get(key)
     if hit is not None:
         _CACHE.move_to_end(key)

@@ -519,21 +519,7 @@ class WorkspaceResult:
         if over not in ("all", "any"):
             raise ValueError(f"over must be 'all' or 'any', got {over!r}")
         raster = self._raster_at(resolution)
-        occ = raster.occupancy()
-        keep = [self.coordinates.index(c) for c in names]
-        other = tuple(k for k in range(occ.ndim) if k not in keep)
-        if other:
-            occ = occ.all(axis=other) if over == "all" else occ.any(axis=other)
-        edges = [raster.edges[k] for k in keep]
-        found = _largest_box(occ, edges)
-        if found is None:
-            return None
-        lo_i, hi_i = found
-        lows = np.array([e[i] for e, i in zip(edges, lo_i)])
-        highs = np.array([e[i] for e, i in zip(edges, hi_i)])
-        cell = np.array([e[1] - e[0] for e in edges])
-        return Box(tuple(names), lows, highs, tuple(self.coordinate_units[c] for c in names),
-                   tuple(int(len(e) - 1) for e in edges), cell)
+        return box_in(raster.occupancy(), raster.edges, self.coordinates, names, over, self.coordinate_units)
 
     # -- export ---------------------------------------------------------------------------------
     def to_frame(self, positions: bool = False):
@@ -1022,6 +1008,37 @@ def _bin_flat(Xs, lows, highs, shape) -> np.ndarray:
     for k, r in enumerate(shape):
         flat = flat * r + _bin_axis(Xs[:, k], lows[k], highs[k], r)
     return flat
+
+
+def box_in(occ: np.ndarray, edges, coordinates, names, over: str, units: Mapping) -> Box | None:
+    """The largest :class:`Box` of True cells of ``occ`` (cells between ``edges`` per coordinate
+    of ``coordinates``) in the coordinates ``names``, the others reduced with ``over`` ("all"
+    or "any"); None when no cell is True."""
+    keep = [coordinates.index(c) for c in names]
+    other = tuple(k for k in range(occ.ndim) if k not in keep)
+    if other:
+        occ = occ.all(axis=other) if over == "all" else occ.any(axis=other)
+    edges = [edges[k] for k in keep]
+    found = _largest_box(occ, edges)
+    if found is None:
+        return None
+    lo_i, hi_i = found
+    lows = np.array([e[i] for e, i in zip(edges, lo_i)])
+    highs = np.array([e[i] for e, i in zip(edges, hi_i)])
+    cell = np.array([e[1] - e[0] for e in edges])
+    return Box(tuple(names), lows, highs, tuple(units[c] for c in names), tuple(int(len(e) - 1) for e in edges), cell)
+
+
+def freeze(v):
+    """``v`` as a hashable value for cache keys: mappings as sorted pairs, sequences and arrays
+    as tuples."""
+    if isinstance(v, Mapping):
+        return tuple(sorted((k, freeze(x)) for k, x in v.items()))
+    if isinstance(v, (list, tuple)):
+        return tuple(freeze(x) for x in v)
+    if isinstance(v, np.ndarray):
+        return tuple(v.ravel().tolist())
+    return v
 
 
 def _largest_box(occ: np.ndarray, edges) -> tuple[list[int], list[int]] | None:

@@ -282,10 +282,12 @@ def plot_designs(figs, study, designs: dict):
              "black dots: the legs' fixed base anchors, dotted: a leg's first prismatic joint from its anchor to "
              "the slider, orange outline: the platform anchors).")
     ev = study.evaluation
-    fig, axes = _subplots(1, 2, figsize=(10, 4.2))
-    colors = ["#1f77b4", "#ff7f0e", "#2ca02c"]
     usable = _usable_measure(study)
+    rows = len(mechs) if usable is not None else 1  # the usable component: one row per design
+    fig, grid = _subplots(rows, 2, figsize=(10, 4.2 if rows == 1 else 3.8 * rows), squeeze=False)
+    colors = ["#1f77b4", "#ff7f0e", "#2ca02c"]
     for k, ((name, mech), c) in enumerate(zip(mechs.items(), colors)):
+        axes = grid[k if usable is not None else 0]
         if usable is not None and _plot_usable(axes, study, usable, name, mech, c):
             continue
         try:
@@ -300,20 +302,21 @@ def plot_designs(figs, study, designs: dict):
         # markers of one line, not a scatter collection: the same dots, drawn several times faster
         axes[0].plot(P[:, 0], P[:, 1], "o", ms=2.4, mew=0, alpha=0.3, c=c, label=name)
         axes[1].plot(P[:, 0], P[:, 2], "o", ms=2.4, mew=0, alpha=0.3, c=c, label=name)
-    for ax, (a, b) in zip(axes, (("X", "Y"), ("X", "Z"))):
+    for ax, (a, b) in zip(grid.ravel(), (("X", "Y"), ("X", "Z")) * rows):
         ax.set_xlabel(mm.label(a))
         ax.set_ylabel(mm.label(b))
         ax.set_aspect("equal", adjustable="datalim")
         ax.grid(alpha=0.3)
         _tidy(ax)
-        ax.legend(fontsize=8, markerscale=3)
+        if ax.lines:
+            ax.legend(fontsize=8, markerscale=3)
     what = ("Feasible platform positions (projections on XY and XZ) of the recommended design and "
             f"{reference_name(study)}, from the study's evaluation samples.")
     if usable is not None:
-        what = ("Platform positions (projections on XY and XZ) of the recommended design and "
+        what = ("Platform positions (projections on XY and XZ; one row per design) of the recommended design and "
                 f"{reference_name(study)} at the centres of the usable-workspace grid ({usable.label}): dots, the "
                 "usable component connected to the home pose; grey crosses, the rest of the feasible set (beyond a "
-                "singularity or below the margin floor).")
+                "singularity or below the singularity-margin floor), which the platform cannot reach from home.")
     figs.add(fig, "workspace", what)
 
 
@@ -336,7 +339,8 @@ def _plot_usable(axes, study, item, name, mech, color) -> bool:
         return False
     for mask, style in ((u.feasible & ~u.usable, dict(marker="x", ms=2.6, c="#9a9a9a", alpha=0.5,
                                                       label=f"{name}: feasible, not usable")),
-                        (u.usable, dict(marker="o", ms=2.4, mew=0, c=color, alpha=0.35, label=f"{name}: usable"))):
+                        (u.usable, dict(marker="o", ms=2.4, mew=0, c=color, alpha=0.35,
+                                        label=f"{name}: usable ({u.fraction:.0%} of the feasible)"))):
         if not mask.any():
             continue
         P = mm(mech.pose(u.centres(mask))[0])
