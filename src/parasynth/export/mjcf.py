@@ -31,6 +31,7 @@ import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from .tree import STEEL_DENSITY, Tree
 
@@ -59,17 +60,9 @@ def _vec(v) -> str:
 
 
 def _quat(rot) -> str:
-    """MuJoCo quaternion (w x y z) of a row-major 3x3 rotation tuple."""
-    R = np.asarray(rot, dtype=float).reshape(3, 3)
-    w = math.sqrt(max(0.0, 1.0 + R[0, 0] + R[1, 1] + R[2, 2])) / 2
-    x = math.sqrt(max(0.0, 1.0 + R[0, 0] - R[1, 1] - R[2, 2])) / 2
-    y = math.sqrt(max(0.0, 1.0 - R[0, 0] + R[1, 1] - R[2, 2])) / 2
-    z = math.sqrt(max(0.0, 1.0 - R[0, 0] - R[1, 1] + R[2, 2])) / 2
-    x = math.copysign(x, R[2, 1] - R[1, 2])
-    y = math.copysign(y, R[0, 2] - R[2, 0])
-    z = math.copysign(z, R[1, 0] - R[0, 1])
-    q = np.array([w, x, y, z])
-    return _vec(q / np.linalg.norm(q))
+    """MuJoCo quaternion (w x y z) of a row-major 3x3 rotation tuple (scipy's method, accurate for
+    small components, where square roots of 1 + trace combinations lose half the digits)."""
+    return _vec(Rotation.from_matrix(np.asarray(rot, dtype=float).reshape(3, 3)).as_quat(scalar_first=True))
 
 
 def moving_mass(tree: Tree) -> float:
@@ -171,9 +164,9 @@ def write_mjcf(tree: Tree, path, *, timestep=None, gravity=None, servo_frequency
     for c in tree.closures:
         ET.SubElement(eq, "connect" if c.kind == "3D" else "weld", name=c.name, site1=c.site1, site2=c.site2)
     for jname in tree.hold_joints:
-        # Under-actuated: the passive prismatic joint of a constraining leg can be held. MuJoCo's joint
-        # equality holds qpos - qpos0 at polycoef[0]: 0 holds the export pose's length; inactive, it
-        # changes nothing.
+        # Under-actuated: a passive joint of a constraining leg can be held (Tree.hold_joints). MuJoCo's
+        # joint equality holds qpos - qpos0 at polycoef[0]: 0 holds the export pose's value; inactive,
+        # it changes nothing.
         # A hold as stiff as the closures made the step unstable: it acts like a stiff servo instead.
         ET.SubElement(eq, "joint", name=f"hold_{jname}", joint1=jname, polycoef="0 0 0 0 0", active="false",
                       solref=f"{_f(o['hold_timeconst_steps'] * o['timestep'])} 1")

@@ -47,7 +47,7 @@ from ..constraints import ActuatorRange, JointAngleLimit, LegInterference, LegLe
 from ..legs import Leg, LegState
 # The universal-joint angles of a direction about a fixed axis, as the legs define them.
 from ..legs import _u_angles
-from ..spatial import rot_axis, unit
+from ..spatial import reciprocal_basis, rot_axis, unit
 
 __all__ = ["JointSpec", "GeomSpec", "SiteSpec", "BodySpec", "Closure", "Tree", "build_tree", "joint_values",
            "ExportError", "SUPPORTED_LEGS"]
@@ -484,14 +484,56 @@ def build_tree(mech, pose=None) -> Tree:
         if np.linalg.norm(leg.platform) > 1e-6 * mech.length_scale:  # a spoke to the anchor
             plat_geoms.append(GeomSpec("capsule", (0.0, 0.0, 0.0), _t(leg.platform), 0.5 * d, "platform"))
         closures.append(Closure(f"close_{leg.name}", leg.name, kind, last.name, s1.name, f"platform_{leg.name}"))
-        if not leg.is_actuated:
-            holds.append(f"{leg.name}_P")
     platform = BodySpec("platform", None, _t(p), _t(R), (), tuple(plat_geoms), tuple(plat_sites), "", free=True)
     mob = mech.mobility(Xe, warn=False) if hasattr(mech, "description") else mech.mobility(Xe)
+    holds = () if mob.controlled else _hold_joints(mech, Xe, chains, len(mob.uncontrolled_twists) or 1)
     return Tree(mech.name, _t(Xe), tuple(mech.task_coordinates), (platform, *bodies), tuple(closures),
-                {a: actuators[a] for a in mech.actuators}, skipped,
-                tuple(holds) if not mob.controlled else (), float(mech.length_scale),
+                {a: actuators[a] for a in mech.actuators}, skipped, holds, float(mech.length_scale),
                 _conditioning(mech, Xe, mob))
+
+
+def _wrench_sigma(mech, states, p, held: set) -> float:
+    """Smallest of the 6 singular values of the unit actuation wrenches and of every leg's
+    reciprocal wrenches with the joint freedoms in ``held`` ({(leg index, twist index)}) locked
+    (moments over the length scale); 0 when the rows span fewer than 6 directions."""
+    L = mech.length_scale
+    rows = [leg.actuation_wrench(st, p)[0][0] for leg, st in zip(mech.legs, states) if leg.is_actuated]
+    for i, (leg, st) in enumerate(zip(mech.legs, states)):
+        T = leg.joint_twists(st, p)
+        keep = [k for k in range(T.shape[1]) if (i, k) not in held]
+        rows += list(reciprocal_basis(T[:, keep], L)[0])
+    W = np.array(rows, dtype=float)
+    W[:, 3:] /= L
+    W /= np.linalg.norm(W, axis=1, keepdims=True)
+    s = np.linalg.svd(W, compute_uv=False)
+    return float(s[5]) if s.size >= 6 else 0.0
+
+
+def _hold_joints(mech, X, chains, count: int) -> tuple:
+    """The passive joints of the constraining (unactuated) legs to hold for an under-actuated
+    mechanism: ``count`` of them, chosen one at a time as the joint whose locking leaves the
+    best-conditioned wrench system at pose X (largest 6th singular value of
+    :func:`_wrench_sigma`). For the 4-UPS/1-RPS this is the revolute joint of the RPS leg: its
+    prismatic joint, held, adds a force nearly along the leg line, which the uncontrolled rotation
+    does almost no work on."""
+    _, states, p = mech.leg_states(X[None, :])
+    candidates = []
+    for i, (leg, _, bodies, _) in enumerate(chains):
+        if leg.is_actuated:
+            continue
+        k = 0
+        for b in bodies:
+            for suffix, kind, *_ in b.joints:
+                if kind != "ball":
+                    candidates.append((f"{leg.name}_{suffix}", (i, k)))
+                k += 3 if kind == "ball" else 1
+    held, names = set(), []
+    for _ in range(min(count, len(candidates))):
+        best = max((c for c in candidates if c[1] not in held),
+                   key=lambda c: _wrench_sigma(mech, states, p, held | {c[1]}))
+        held.add(best[1])
+        names.append(best[0])
+    return tuple(names)
 
 
 def _conditioning(mech, X, mob) -> float:
