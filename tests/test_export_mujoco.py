@@ -31,12 +31,12 @@ import warnings
 import numpy as np
 import pytest
 
-mujoco = pytest.importorskip("mujoco", reason="mujoco is not installed (pip install mujoco; in the test extra)")
+from parasynth.export import build_tree, joint_positions, to_mjcf
+from parasynth.mechanism import EngineFallbackWarning
 
-from parasynth.export import build_tree, joint_positions, to_mjcf  # noqa: E402
-from parasynth.mechanism import EngineFallbackWarning  # noqa: E402
+from _export_cases import CASES, IDS, feasible_poses, import_or_skip, load, nearby_feasible
 
-from _export_cases import CASES, IDS, feasible_poses, load, nearby_feasible  # noqa: E402
+mujoco = import_or_skip("mujoco", "mujoco")
 
 pytestmark = pytest.mark.filterwarnings("ignore::parasynth.mechanism.EngineFallbackWarning")
 

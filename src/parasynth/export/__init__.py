@@ -20,7 +20,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from .mjcf import DEFAULTS as MJCF_DEFAULTS, servo_gains, write_mjcf
-from .tree import SUPPORTED_LEGS, ExportError, Tree, build_tree, joint_values
+from .tree import SUPPORTED_LEGS, ExportError, Tree, build_tree, joint_values, wxyz
 from .urdf import ball_joint_names, closure_path, write_urdf
 
 __all__ = ["to_mjcf", "to_urdf", "joint_positions", "build_tree", "joint_values", "closure_path", "ExportError",
@@ -85,14 +85,14 @@ def joint_positions(mech, X, pose=None, format: str = "mjcf") -> dict:
         if j.kind == "ball":
             rel = Rotation.from_matrix(_ball_ref(mech, tree, name).T @ v)
             if format == "mjcf":
-                out[name] = rel.as_quat(scalar_first=True)
+                out[name] = rel.as_quat()[..., [3, 0, 1, 2]]
             else:
                 for nm, a in zip(ball_joint_names(name), rel.as_euler("XYZ").T):
                     out[nm] = a
         else:
             out[name] = v if format == "mjcf" else v - j.ref
     T = vals["platform"]
-    q = Rotation.from_matrix(T[:, :3, :3]).as_quat(scalar_first=(format == "mjcf"))
+    q = wxyz(T[:, :3, :3]) if format == "mjcf" else Rotation.from_matrix(T[:, :3, :3]).as_quat()
     out["platform"] = np.concatenate([T[:, :3, 3], q], axis=1)
     if single:
         out = {k: v[0] for k, v in out.items()}

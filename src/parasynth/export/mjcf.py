@@ -31,9 +31,8 @@ import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
-from .tree import STEEL_DENSITY, Tree
+from .tree import STEEL_DENSITY, Tree, wxyz
 
 __all__ = ["write_mjcf", "servo_gains", "DEFAULTS"]
 
@@ -62,7 +61,7 @@ def _vec(v) -> str:
 def _quat(rot) -> str:
     """MuJoCo quaternion (w x y z) of a row-major 3x3 rotation tuple (scipy's method, accurate for
     small components, where square roots of 1 + trace combinations lose half the digits)."""
-    return _vec(Rotation.from_matrix(np.asarray(rot, dtype=float).reshape(3, 3)).as_quat(scalar_first=True))
+    return _vec(wxyz(np.asarray(rot, dtype=float).reshape(3, 3)))
 
 
 def moving_mass(tree: Tree) -> float:

@@ -42,6 +42,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from ..constraints import ActuatorRange, JointAngleLimit, LegInterference, LegLengthRange
 from ..legs import Leg, LegState
@@ -169,6 +170,12 @@ class Tree:
 # -- small rotation helpers ----------------------------------------------------------------------
 def _t(a) -> tuple:
     return tuple(float(x) for x in np.asarray(a, dtype=float).ravel())
+
+
+def wxyz(R) -> np.ndarray:
+    """Quaternions w x y z (..., 4) of rotation matrices R (..., 3, 3) (scipy's accurate method;
+    its x y z w order rolled, for scipy versions without ``scalar_first``)."""
+    return Rotation.from_matrix(R).as_quat()[..., [3, 0, 1, 2]]
 
 
 def _angle_about(axis, a, b) -> np.ndarray:
