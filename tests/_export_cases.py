@@ -17,7 +17,7 @@ import pytest
 import parasynth
 from parasynth.mechanism import EngineFallbackWarning
 
-from _support import sample_poses
+from _support import sample_poses, shipped_configs
 
 USER_DESCRIPTION = str(Path(__file__).parent / "data" / "export_6rus.yaml")
 
@@ -30,19 +30,7 @@ def import_or_skip(module: str, package: str):
     return pytest.importorskip(module, reason=f"{module} is not installed (pip install {package}; in the test extra)")
 
 
-def shipped_cases() -> list[tuple[str, dict]]:
-    out = []
-    for name in parasynth.list_mechanisms():
-        mech = parasynth.load_mechanism(name)
-        out.append((name, {}))
-        for var in getattr(mech.description, "variants", ()):
-            for choice in var.choices:
-                if choice != var.default:
-                    out.append((name, {var.name: choice}))
-    return out
-
-
-CASES = shipped_cases() + [(USER_DESCRIPTION, {})]
+CASES = shipped_configs() + [(USER_DESCRIPTION, {})]
 IDS = [("user_6rus" if n == USER_DESCRIPTION else n) + "".join(f"-{v}" for v in p.values()) for n, p in CASES]
 
 

@@ -732,9 +732,9 @@ def build_parser() -> argparse.ArgumentParser:
             "  parasynth export runs/quickstart --trial 12 --format urdf --out t12.urdf")
     p.add_argument("target", type=_path_arg("the mechanism"),
                    help=f"a mechanism ({', '.join(list_mechanisms())}), a description file (.yaml) or a run directory "
-                        f"(runs/<study name>/)")
+                        f"(runs/<study name>/), e.g. 5pus_upu")
     p.add_argument("--format", choices=("mjcf", "urdf"),
-                   help="mjcf or urdf (default: from the suffix of --out: .xml or .mjcf, .urdf)")
+                   help="mjcf or urdf (default: from the suffix of --out: .xml or .mjcf, .urdf), e.g. --format urdf")
     p.add_argument("--out", required=True, type=_path_arg("--out"),
                    help="output file, e.g. --out m.xml; a URDF's closure file is written next to it (m.yaml)")
     p.add_argument("--set", action="append", metavar="NAME=VALUE",

@@ -120,7 +120,12 @@ def write_mjcf(tree: Tree, path, *, timestep=None, gravity=None, servo_frequency
     root.append(ET.Comment(f" parasynth export of {tree.mechanism} at the pose {pose} (SI: m, rad). "
                            f"Joint positions are parasynth's actuator values and passive joint angles "
                            f"(docs/export.md). "))
-    ET.SubElement(root, "compiler", angle="radian", autolimits="true")
+    # Every moving body at least 1 % of the moving mass, and its inertia at least that mass at half the
+    # length scale: the tiny bodies between two hinges (a universal joint's end) would otherwise make the
+    # closures soft, their constraint's regularisation growing with the inverse of the body's inertia.
+    m_min = 0.01 * moving_mass(tree)
+    ET.SubElement(root, "compiler", angle="radian", autolimits="true", boundmass=_f(m_min),
+                  boundinertia=_f(m_min * (0.5 * tree.length_scale) ** 2))
     opt = ET.SubElement(root, "option", timestep=_f(o["timestep"]), gravity=_vec(o["gravity"]),
                         integrator="implicitfast", solver="Newton", iterations="200", tolerance="1e-12")
     ET.SubElement(opt, "flag", contact="disable")
