@@ -18,6 +18,7 @@ import numpy as np
 
 from .display import fmt_design
 from .export import ExportError, build_tree, to_mjcf, to_urdf
+from .export.mjcf import MIN_CONDITIONING
 from .mechanisms import load_mechanism
 from .study import rundir
 from .units import UNIT_KINDS, parse_quantity
@@ -131,6 +132,9 @@ def export_command(args, params: dict | None) -> int:
     if tree.hold_joints:
         print(f"  under-actuated: the passive joint(s) {', '.join(tree.hold_joints)} can be held"
               + (" (inactive equalities hold_*)" if fmt == "mjcf" else " (closure file: hold_joints)"))
+    if tree.conditioning < MIN_CONDITIONING:
+        print(f"warning: the pose is at or near a singularity (conditioning {tree.conditioning:.2g}); the servos are "
+              f"soft there, and their damping is set as for {MIN_CONDITIONING}", file=sys.stderr)
     if not feasible:
         bad = [k for k, m in mech.constraint_margins(X).items() if not m >= 0]
         print(f"warning: the pose violates the constraint(s) {', '.join(bad)}; the model starts outside the "

@@ -50,6 +50,11 @@ DEFAULTS = {
 }
 
 
+#: The conditioning below which the servo damping stops growing (an export pose at or next to a
+#: singularity would otherwise give a damping that makes the step unstable).
+MIN_CONDITIONING = 0.01
+
+
 def _f(x) -> str:
     return f"{float(x):.17g}"
 
@@ -90,13 +95,13 @@ def servo_gains(tree: Tree, frequency: float, damping_ratio: float) -> dict:
     a poorly conditioned design needs more damping for that slowest direction to settle; dividing
     by ``sqrt(c)`` rather than ``c`` is a compromise (too much joint-level damping beside the soft
     closures makes MuJoCo's step unstable) that the settling test checks on every shipped design
-    (``c`` from 0.016 to 0.69).
+    (``c`` from 0.016 to 0.69); ``c`` is taken at least :data:`MIN_CONDITIONING`.
     The armature keeps the joint-level motion of the stiff servos slow beside the closures'
     constraint dynamics (without it the light limb bodies make the simulation unstable).
     Crank (hinge) values are multiplied by the length scale squared (N m/rad, kg m^2)."""
     M = max(moving_mass(tree), 1e-6)
     w = 2 * math.pi * frequency
-    zeta = damping_ratio / math.sqrt(max(tree.conditioning, 1e-4))
+    zeta = damping_ratio / math.sqrt(max(tree.conditioning, MIN_CONDITIONING))
     out = {}
     for act, jname in tree.actuators.items():
         s = tree.length_scale**2 if tree.joints[jname].kind == "hinge" else 1.0

@@ -544,9 +544,10 @@ def _hold_joints(mech, X, chains, count: int) -> tuple:
 
 
 def _conditioning(mech, X, mob) -> float:
-    """Smallest non-zero singular value of the actuator rates per unit platform motion along
-    the freedoms ``mob.twist_basis`` at pose X (wrench moments over the length scale, twist
-    rotations times it), capped at 1."""
+    """The ``k``-th largest singular value, ``k = min(actuators, freedoms)``, of the actuator rates
+    per unit platform motion along the freedoms ``mob.twist_basis`` at pose X (wrench moments over
+    the length scale, twist rotations times it, crank rates times it), capped at 1: 0 at a
+    singularity, small near one."""
     L = mech.length_scale
     W = mech.wrench_matrix(X[None, :])[0][: mech.n_actuators].copy()
     _, states, _ = mech.leg_states(X[None, :])
@@ -557,8 +558,8 @@ def _conditioning(mech, X, mob) -> float:
     T = mob.twist_basis.copy()
     T[:, 3:] *= L
     s = np.linalg.svd((W / np.abs(scale)[:, None]) @ T.T, compute_uv=False)
-    s = s[s > 1e-9 * max(s[0], 1e-300)] if s.size else s
-    return float(min(1.0, s.min())) if s.size else 1.0
+    k = min(mech.n_actuators, T.shape[0])
+    return float(min(1.0, s[k - 1])) if k else 1.0
 
 
 def _geoms(leg, suffix, st, G, c, d, kind) -> list:
