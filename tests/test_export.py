@@ -187,7 +187,24 @@ def test_api_errors(tmp_path):
         joint_positions(parasynth.load_mechanism("5pus_upu"), [0.4, 0.0, 0.0, 0.0, 0.0])
     with pytest.raises(ExportError, match="give the output file path"):
         to_urdf(mech, "")
+    with pytest.raises(ExportError, match="gravity: give 3 finite numbers"):
+        to_mjcf(mech, tmp_path / "m.xml", gravity=(0, -9.81))
+    with pytest.raises(ExportError, match="timestep: give a positive number"):
+        to_mjcf(mech, tmp_path / "m.xml", timestep=0)
     assert isinstance(ExportError("x"), ValueError)
+
+
+def test_a_leg_type_the_exporter_does_not_know_is_refused(tmp_path):
+    from parasynth.legs import UPS
+
+    class CPS(UPS):  # a leg class from elsewhere, with a cylindrical base joint
+        joints = "CPS"
+
+    mech = parasynth.load_mechanism("gough_stewart_6ups")
+    leg = mech.legs[0]
+    mech.legs = (CPS(leg.name, leg.base, leg.platform, leg.base_ref, leg.platform_ref, leg.u_axis),) + mech.legs[1:]
+    with pytest.raises(ExportError, match="leg L1: the exporter does not know the leg type CPS"):
+        to_mjcf(mech, tmp_path / "m.xml")
 
 
 def test_joint_positions_read_as_parasynth_values():

@@ -137,7 +137,11 @@ def test_a_connect_in_place_of_the_weld_changes_the_mobility(tmp_path):
     _set_qpos(m, d, joint_positions(mech, X), 0)
     mujoco.mj_forward(m, d)
     _, J = _equality_rows(m, d)
-    assert m.nv - _rank(J) == mech.mobility(warn=False).dof + 3  # the 2 U hinges and a 6th platform freedom
+    r = _rank(J)
+    assert m.nv - r == mech.mobility(warn=False).dof + 3  # the end body's 2 hinges and a 6th platform freedom
+    free = m.jnt_dofadr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, "platform")]
+    null = np.linalg.svd(J)[2][r:].T
+    assert _rank(null[free:free + 6], 1e-7) == 6
 
 
 @pytest.mark.parametrize("name,params", CASES, ids=IDS)

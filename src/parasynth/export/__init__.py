@@ -47,6 +47,13 @@ def to_mjcf(mech, path, pose=None, **options) -> Path:
     if unknown:
         raise ExportError(f"to_mjcf: unknown option(s) {unknown}; options: timestep, gravity, servo_frequency, "
                           f"servo_damping_ratio")
+    for k, v in options.items():
+        if k == "gravity":
+            g = np.asarray(v, dtype=float) if not isinstance(v, str) else None
+            if g is None or g.shape != (3,) or not np.all(np.isfinite(g)):
+                raise ExportError(f"to_mjcf gravity: give 3 finite numbers (m/s^2, base frame), got {v!r}")
+        elif isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v) or v <= 0:
+            raise ExportError(f"to_mjcf {k}: give a positive number, got {v!r}")
     return write_mjcf(build_tree(mech, pose), path, **options)
 
 
@@ -80,10 +87,13 @@ def joint_positions(mech, X, pose=None, format: str = "mjcf") -> dict:
     tree = build_tree(mech, pose)
     vals = joint_values(mech, np.atleast_2d(np.asarray(X, dtype=float)))
     out = {}
+    at_export = None
     for name, j in tree.joints.items():
         v = vals[name]
         if j.kind == "ball":
-            rel = Rotation.from_matrix(_ball_ref(mech, tree, name).T @ v)
+            if at_export is None:  # the kept spherical joints' values at the export pose
+                at_export = joint_values(mech, np.asarray(tree.pose))
+            rel = Rotation.from_matrix(at_export[name].T @ v)
             if format == "mjcf":
                 out[name] = rel.as_quat()[..., [3, 0, 1, 2]]
             else:
@@ -97,8 +107,3 @@ def joint_positions(mech, X, pose=None, format: str = "mjcf") -> dict:
     if single:
         out = {k: v[0] for k, v in out.items()}
     return out
-
-
-def _ball_ref(mech, tree: Tree, name: str) -> np.ndarray:
-    """The value of the kept spherical joint ``name`` at the export pose of ``tree``."""
-    return joint_values(mech, np.asarray(tree.pose))[name]
