@@ -114,3 +114,19 @@ def test_offsets_and_export_pose(tmp_path):
     pin.framesForwardKinematics(model, data, _q(model, jp, 2))
     for a, b in cl["closed_loop"]:
         assert np.linalg.norm(data.oMf[_frame(model, a)].translation - data.oMf[_frame(model, b)].translation) < 1e-9
+
+
+def test_the_python_examples_of_docs_export_run(tmp_path, monkeypatch):
+    """docs/export.md's Python blocks, in order, in a scratch directory (MuJoCo and Pinocchio)."""
+    import re
+    from pathlib import Path
+
+    import_or_skip("mujoco", "mujoco")
+    text = (Path(__file__).resolve().parents[1] / "docs" / "export.md").read_text()
+    blocks = re.findall(r"```python\n(.*?)```", text, re.S)
+    assert len(blocks) == 3
+    monkeypatch.chdir(tmp_path)
+    scope: dict = {}
+    exec(compile("\n".join(blocks), "docs/export.md", "exec"), scope)
+    assert (tmp_path / "m.xml").exists() and (tmp_path / "m.yaml").exists()
+    assert scope["model"].nq == len(scope["q"])
