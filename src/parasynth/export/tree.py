@@ -69,8 +69,9 @@ class JointSpec:
     """One joint of a body: ``kind`` "slide", "hinge" or "ball"; ``axis`` (slide, hinge) in the
     body frame at the export pose; ``ref`` its value there; ``range`` (lo, hi) from the
     description's limits or None; ``actuator`` the actuator name (``q1``, ``s2``, ...) of an
-    actuated joint, else None; ``source`` where its value comes from (for the docs and the
-    written files)."""
+    actuated joint, else None; ``source`` where its value comes from (an IK angle, the
+    actuator, the leg state) and ``limit_names`` the description's constraints behind ``range``,
+    for a reader of the tree."""
 
     name: str
     kind: str
@@ -456,7 +457,7 @@ def build_tree(mech, pose=None) -> Tree:
     actuator_of = dict(zip([leg.name for leg in mech.legs if leg.is_actuated], mech.actuators))
     plat_sites = [SiteSpec("platform", (0.0, 0.0, 0.0), _t(np.eye(3)))]
     plat_geoms = [GeomSpec("sphere", (0.0, 0.0, 0.0), None, 0.75 * max(diam.values()), "platform")]
-    bodies, closures, actuators, holds = [], [], {}, []
+    bodies, closures, actuators = [], [], {}
     for leg, st, chain, kind in chains:
         d = diam[leg.name]
         Ge_parent, c_parent, parent = np.eye(3), np.zeros(3), None
@@ -477,10 +478,9 @@ def build_tree(mech, pose=None) -> Tree:
                     actuators[act] = name
                 joints.append(JointSpec(name, jk, ax, ref, None if rng is None else (float(rng[0]), float(rng[1])),
                                         act, source, tuple(rng[2]) if rng else ()))
-            geoms = _geoms(leg, b.suffix, st, G, c, d, kind)
-            sites = []
+            geoms = _geoms(leg, b.suffix, st, G, c, d)
             bodies.append(BodySpec(f"{leg.name}_{b.suffix}", parent, _t(pos), _t(rel), tuple(joints), tuple(geoms),
-                                   tuple(sites), leg.name))
+                                   (), leg.name))
             Ge_parent, c_parent, parent = G, c, f"{leg.name}_{b.suffix}"
         # The closure: a site at the platform anchor on the last body, and one on the platform.
         last = bodies[-1]
@@ -562,7 +562,7 @@ def _conditioning(mech, X, mob) -> float:
     return float(min(1.0, s[k - 1])) if k else 1.0
 
 
-def _geoms(leg, suffix, st, G, c, d, kind) -> list:
+def _geoms(leg, suffix, st, G, c, d) -> list:
     """Capsules and spheres of a leg body (body frame), radius from the leg diameter ``d``."""
     r = 0.5 * d
     Gt = G.T
