@@ -25,6 +25,20 @@ MODEL_IDS = ["4ups_1rps", "2rpu_2sps-coupled", "2rpu_2sps-uncoupled", "5pus_upu-
 _CACHE: dict = {}
 
 
+def shipped_configs() -> list[tuple[str, dict]]:
+    """(registry name, parameters) of every packaged mechanism at its defaults and with each
+    variant choice other than the default."""
+    out = []
+    for name in parasynth.list_mechanisms():
+        mech = parasynth.load_mechanism(name)
+        out.append((name, {}))
+        for var in getattr(mech.description, "variants", ()):
+            for choice in var.choices:
+                if choice != var.default:
+                    out.append((name, {var.name: choice}))
+    return out
+
+
 def load(name: str, params: dict):
     """Load (and cache) a model; the models are immutable so sharing them is safe."""
     key = (name, tuple(sorted(params.items())))

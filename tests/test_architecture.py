@@ -10,6 +10,7 @@ own modules, at module level or inside functions, plus ``importlib.import_module
 * the engine does not import the description language or anything above it;
 * the study layer never imports the report layer; the report reads a run through the study
   layer's public run-directory module only;
+* the export package imports neither the study nor the report layer;
 * at most 10 imports of parasynth's own modules sit inside functions outside ``cli.py``, each
   with a one-line reason on its line or the line above.
 
@@ -251,6 +252,13 @@ def test_study_layer_never_imports_the_report(graph):
     for m, targets in _imports_of(graph, "parasynth.study").items():
         bad = sorted(t for t in targets if t.startswith("parasynth.report"))
         assert bad == [], f"{m} (study layer) imports {bad}"
+
+
+def test_the_export_imports_neither_the_study_nor_the_report(graph):
+    for m, targets in _imports_of(graph, "parasynth.export").items():
+        bad = sorted(t for t in targets if t.startswith(("parasynth.study", "parasynth.report", "parasynth.cli")))
+        assert bad == [], f"{m} (export) imports {bad}"
+    assert "parasynth.study.rundir" in graph.edges["parasynth.cli_export"]  # the run is read there
 
 
 def test_nothing_below_the_cli_imports_it(graph):

@@ -20,6 +20,7 @@ import pytest
 import parasynth
 from parasynth import engine, kernels
 from parasynth.mechanisms.description import description_class
+from _support import shipped_configs
 from test_kernels import assert_agrees, boundary_poses, reach_margin
 
 TOL = 1e-12
@@ -85,19 +86,7 @@ def check_mechanism(mech, n=6000, seed=0, lo=None, hi=None):
     return ref[:n]
 
 
-def _shipped():
-    out = []
-    for name in parasynth.list_mechanisms():
-        mech = parasynth.load_mechanism(name)
-        out.append((name, {}))
-        for var in getattr(mech.description, "variants", ()):
-            for choice in var.choices:
-                if choice != var.default:
-                    out.append((name, {var.name: choice}))
-    return out
-
-
-SHIPPED = _shipped()
+SHIPPED = shipped_configs()
 
 
 @pytest.mark.parametrize("name,params", SHIPPED, ids=[f"{n}-{p}" if p else n for n, p in SHIPPED])

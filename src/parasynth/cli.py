@@ -11,6 +11,7 @@ list                 mechanisms with their parameters, measures with their setti
 analyze NAME         kinematic analysis of a mechanism at its home pose and a pose sample
 schema               the study file format as JSON Schema (for editors)
 structures MOTION    candidate structures (limbs, actuation, arrangement) for a motion type such as 3T2R
+export NAME|RUN_DIR  a mechanism or a run's design as MJCF (MuJoCo) or URDF with a closure file (Pinocchio)
 
 Errors are handled in one place (:func:`main`): bad input, bad files and environment faults
 (permissions, a full disk, a closed pipe, a missing plugin) give one line ``error: ...`` on
@@ -96,8 +97,8 @@ def _out_dir(path, flag: str) -> Path:
 
 
 # -- helpers -------------------------------------------------------------------------------------
-def _parse_params(name: str, items: list[str]) -> dict:
-    """--param NAME=VALUE items with units where the parameter has one ("link_length=205 mm")."""
+def _parse_params(name: str, items: list[str], flag: str = "--param") -> dict:
+    """--param (or ``flag``) NAME=VALUE items with units where the parameter has one ("link_length=205 mm")."""
     from .mechanisms import mechanism_class
     from .units import parse_quantity
 
@@ -108,11 +109,11 @@ def _parse_params(name: str, items: list[str]) -> dict:
     out = {}
     for it in items or []:
         if "=" not in it:
-            raise CliError(f"--param expects NAME=VALUE, with a unit where the parameter has one, got {it!r}")
+            raise CliError(f"{flag} expects NAME=VALUE, with a unit where the parameter has one, got {it!r}")
         k, v = (x.strip() for x in it.split("=", 1))
         kind = units.get(k)
         if kind is not None:
-            out[k] = parse_quantity(v, kind, field=f"--param {k}")
+            out[k] = parse_quantity(v, kind, field=f"{flag} {k}")
         elif v.lower() in ("true", "false"):
             out[k] = v.lower() == "true"
         else:
@@ -586,6 +587,14 @@ def _int_list(text: str) -> list[int]:
     return vals
 
 
+def cmd_export(args) -> int:
+    """``parasynth export`` (:mod:`parasynth.cli_export`)."""
+    from .cli_export import export_command
+
+    params = None if Path(args.target).is_dir() else _parse_params(args.target, args.set, flag="--set")
+    return export_command(args, params)
+
+
 def cmd_structures(args) -> int:
     from . import structures as synthesis
 
@@ -715,6 +724,27 @@ def build_parser() -> argparse.ArgumentParser:
                    help="every joint-axis choice of the vocabulary, not only the first of each, e.g. --all-axes")
     p.add_argument("--seed", type=_seed, default=0, help="seed of the checked poses (default 0), e.g. --seed 1")
     p.add_argument("--out", type=_path_arg("--out"), help="directory to write the descriptions to, e.g. --out structures/")
+    p = add("export", cmd_export, "write a mechanism or a run's design as MJCF (MuJoCo) or URDF with a closure file "
+            "(Pinocchio)", "parasynth export 5pus_upu --format mjcf --out m.xml\n"
+            "  parasynth export 5pus_upu --out m.urdf --set 'link_length=190 mm' --pose 'z=-50 mm'\n"
+            "  parasynth export my_robot.yaml --format mjcf --out robot.xml\n"
+            "  parasynth export runs/quickstart --format mjcf --out best.xml   # the recommended design\n"
+            "  parasynth export runs/quickstart --trial 12 --format urdf --out t12.urdf")
+    p.add_argument("target", type=_path_arg("the mechanism"),
+                   help=f"a mechanism ({', '.join(list_mechanisms())}), a description file (.yaml) or a run directory "
+                        f"(runs/<study name>/), e.g. 5pus_upu")
+    p.add_argument("--format", choices=("mjcf", "urdf"),
+                   help="mjcf or urdf (default: from the suffix of --out: .xml or .mjcf, .urdf), e.g. --format urdf")
+    p.add_argument("--out", required=True, type=_path_arg("--out"),
+                   help="output file, e.g. --out m.xml; a URDF's closure file is written next to it (m.yaml)")
+    p.add_argument("--set", action="append", metavar="NAME=VALUE",
+                   help="a mechanism parameter with its unit (repeatable), e.g. --set 'link_length=190 mm', "
+                        "--set platform=pentagonal")
+    p.add_argument("--pose", action="append", metavar="COORD=VALUE",
+                   help="the pose the model is written at: a task coordinate with its unit (repeatable; the others "
+                        "at home), e.g. --pose 'z=650 mm' --pose 'alpha=5 deg'")
+    p.add_argument("--trial", type=_count_type("--trial", 0, 10**9), metavar="N",
+                   help="with a run directory: the trial to export (default: the recommended design), e.g. --trial 12")
     return ap
 
 
