@@ -137,8 +137,8 @@ def test_engine_agrees_with_numpy_on_every_structure(default_results, motion):
             fc = m.is_feasible(X)
             mc = m.constraint_margins(X)
         fallbacks = [x for x in w if issubclass(x.category, EngineFallbackWarning)]
-        # RUS has no compiled form yet: it, and only it, runs on NumPy (with the warning)
-        assert bool(fallbacks) == ("RUS" in s.leg_counts), (s.name, [str(x.message) for x in fallbacks])
+        # every structure, RUS limbs included, runs on the compiled engine
+        assert not fallbacks, (s.name, [str(x.message) for x in fallbacks])
         fn = m.is_feasible(X, engine="numpy")
         mn = m.constraint_margins(X, engine="numpy")
         near = np.zeros(len(X), bool)
