@@ -23,7 +23,7 @@ import numpy as np
 from ..mechanisms import described_class
 from .vocabulary import ARRANGEMENTS, CHECKS, LIMB_TYPES, PARAMETERS, TEMPLATES, limb_type, parse_motion
 
-__all__ = ["Group", "Structure", "StructureList", "structures", "DROP_REASONS", "candidates"]
+__all__ = ["Group", "Structure", "StructureList", "structures", "DROP_REASONS", "candidates", "parse_axes"]
 
 #: Why a candidate is dropped, in the order the checks run.
 DROP_REASONS = {
@@ -31,6 +31,7 @@ DROP_REASONS = {
                  "and arrangement)",
     "no task rule": "its constraining limbs select no motion template, or several different ones (e.g. the "
                     "parasitic motion of a 3-RPS ring)",
+    "other axes": "its freedoms are not along the axes required (``axes``)",
     "under-actuated": "fewer actuators than the requested freedoms",
     "over-actuated": "more actuators than the requested freedoms (redundant actuation)",
     "not assemblable": "the description cannot be built: its home pose is out of reach of a limb",
@@ -374,14 +375,39 @@ def _check(c: _Candidate, motion: str, desc: dict, n_poses: int, seed: int):
     return None, details, cls
 
 
-def structures(motion, *, leg_types=None, legs=None, all_axes: bool = False, n_poses: int = 4,
+def parse_axes(axes) -> dict | None:
+    """``axes`` as {"translations": frozenset, "rotations": frozenset} of axis names (lower
+    case, single spaces), or None. Given as a mapping with the keys ``translations`` and/or
+    ``rotations``, each a list of axis names (``x``, ``z``, ``moving x``, ...) or a comma-separated
+    string; a key left out is not required."""
+    if axes is None:
+        return None
+    if not isinstance(axes, dict) or not axes or set(axes) - {"translations", "rotations"}:
+        raise ValueError(f"axes must be a mapping with the keys translations and/or rotations, each a list of axis "
+                         f"names (e.g. {{'translations': ['x', 'z'], 'rotations': ['y', 'moving x']}}), got {axes!r}")
+    out = {}
+    for k, v in axes.items():
+        items = v.split(",") if isinstance(v, str) else v
+        if not isinstance(items, (list, tuple)) or not all(isinstance(a, str) and a.strip() for a in items):
+            raise ValueError(f"axes.{k} must be a list of axis names such as 'x' or 'moving x', got {v!r}")
+        out[k] = frozenset(" ".join(a.lower().split()) for a in items)
+    return out
+
+
+def _axes_match(template, want) -> bool:
+    return all(frozenset(" ".join(a.lower().split()) for a in template.axes.get(k, ())) == v for k, v in want.items())
+
+
+def structures(motion, *, leg_types=None, legs=None, axes=None, all_axes: bool = False, n_poses: int = 4,
                seed: int = 0) -> StructureList:
     """The candidate structures of the vocabulary for ``motion`` (``"3T3R"``, ``"3T2R"``,
     ``"2T2R"``, ...), each verified numerically.
 
     ``leg_types``: limb types to draw from (default: the whole vocabulary,
     ``parasynth.structures.LIMB_TYPES``); ``legs``: allowed total numbers of limbs (e.g. ``[5,
-    6]``; default any); ``all_axes``: every joint-axis choice of the vocabulary instead of the
+    6]``; default any); ``axes``: the axes the freedoms must have, e.g. ``{"translations": ["x",
+    "z"], "rotations": ["y", "moving x"]}`` (the 2-RPU&2-SPS's; :func:`parse_axes`; the axes of a
+    structure are those of its motion template, ``Structure.axes``); ``all_axes``: every joint-axis choice of the vocabulary instead of the
     first of each; ``n_poses``: reachable random poses of the task box checked per candidate;
     ``seed``: their seed. Returns a :class:`StructureList` of :class:`Structure` with the counts
     of the dropped candidates by reason."""
@@ -407,6 +433,12 @@ def structures(motion, *, leg_types=None, legs=None, all_axes: bool = False, n_p
     if not (isinstance(n_poses, int) and n_poses >= 1):
         raise ValueError(f"n_poses must be an integer >= 1, got {n_poses!r}")
     dof = nt + nr
+    want_axes = parse_axes(axes)
+    if want_axes is not None:
+        for k, n in (("translations", nt), ("rotations", nr)):
+            if k in want_axes and len(want_axes[k]) != n:
+                raise ValueError(f"axes.{k}: {motion} has {n} {k}, {len(want_axes[k])} axes given "
+                                 f"({', '.join(sorted(want_axes[k]))})")
     dropped = {r: 0 for r in DROP_REASONS}
     dropped_names = {r: [] for r in DROP_REASONS}
     seen, found = set(), []
@@ -425,6 +457,9 @@ def structures(motion, *, leg_types=None, legs=None, all_axes: bool = False, n_p
         template = c.template()
         if template is None:
             drop("no task rule", c)
+            continue
+        if want_axes is not None and template.motion == motion and not _axes_match(template, want_axes):
+            drop("other axes", c)
             continue
         if c.n_actuated < dof:
             drop("under-actuated", c)
