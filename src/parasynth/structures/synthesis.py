@@ -200,6 +200,42 @@ def _anchor_sets(g: Group, twist: bool):
     return base, plat, None
 
 
+#: The cone-angle key of the base-side and the platform joint of each limb type (None: a revolute
+#: joint, whose axis the limb's constraints already fix).
+_CONES = {"SPS": ("S_base_cone", "S_platform_cone"), "UPS": ("U_base_cone", "S_platform_cone"),
+          "PUS": ("U_base_cone", "S_platform_cone"), "RUS": ("U_base_cone", "S_platform_cone"),
+          "RPS": (None, "S_platform_cone"), "PRS": (None, "S_platform_cone"), "RPU": (None, "U_platform_cone"),
+          "UPU": ("U_base_cone", "U_platform_cone")}
+
+
+def _joint_limits(c: _Candidate) -> list:
+    """The ring limbs' joint cone-angle limits (base_joint_max, platform_joint_max) and their
+    interference (link_diameter): the same physical limits for every structure. The central
+    passive limb is not limited (as the 5-PUS/UPU's constraining limb in the paper)."""
+    ring, index = {}, 1
+    for g in c.groups:
+        names = [f"L{index + j}" for j in range(g.count)]
+        index += g.count
+        if g.arrangement != "central":
+            ring[g.limb] = ring.get(g.limb, []) + names
+    out = []
+    for end, limit in ((0, "base_joint_max"), (1, "platform_joint_max")):
+        by_key = {}
+        for limb, names in ring.items():
+            key = (_CONES.get(limb) or (None, None))[end]
+            if key is not None:
+                by_key.setdefault(key, []).extend(names)
+        for key, names in by_key.items():
+            name = ("base_joints" if end == 0 else "platform_joints") + ("" if len(by_key) == 1 else f"_{key[0]}")
+            out.append({"name": name, "type": "joint_angle", "key": key, "max": limit, "legs": sorted(names, key=lambda n: int(n[1:])),
+                        "doc": f"{key} <= {limit}"})
+    legs = sorted((n for names in ring.values() for n in names), key=lambda n: int(n[1:]))
+    if len(legs) > 1:
+        out.append({"name": "interference", "type": "interference", "diameter": "link_diameter", "legs": legs,
+                    "doc": "distance between the ring limbs' centre lines >= link_diameter"})
+    return out
+
+
 def _description(c: _Candidate, template, key: str) -> dict:
     twist = not any(g.arrangement == "opposed" for g in c.groups)
     base, plat, legs = {}, {}, []
@@ -230,10 +266,12 @@ def _description(c: _Candidate, template, key: str) -> dict:
     constraints = []
     if telescopic:
         constraints.append({"name": "stroke_legs", "type": "leg_length", "legs": telescopic, "min": "q_min",
-                            "max": "q_max", "doc": "telescopic limbs within [q_min, q_max]"})
+                            "max": "q_min + stroke", "doc": "telescopic limbs within [q_min, q_min + stroke]"})
     if sliders and len(sliders) == c.n_actuated:
         constraints.append({"name": "stroke_sliders", "type": "actuator_range", "min": "slider_min",
-                            "max": "slider_max", "doc": "slider positions within [slider_min, slider_max]"})
+                            "max": "slider_min + stroke", "doc": "slider positions within [slider_min, "
+                                                                 "slider_min + stroke]"})
+    constraints += _joint_limits(c)
     slug = "".join(ch if ch.isalnum() else "_" for ch in c.name.lower()).strip("_")
     arr = "; ".join(g.label() for g in c.groups)
     return {
