@@ -3,7 +3,7 @@
 A study over structures (``structure:``, :mod:`parasynth.study.structure_space`) spreads its
 evaluations over the structures in **rungs**. Every structure gets ``structure.screening``
 designs in the first rung (the screening); after each rung the structures are ranked and the
-best ``ceil(n / eta)`` continue with ``eta`` times as many designs each, up to
+best ``ceil(n / eta)`` (or ``structure.keep``) continue with ``eta`` times as many designs each, up to
 ``optimizer.n_trials`` designs per structure in the last rung (the full budget). A structure
 with no feasible design in its rung stops whatever its rank; the reference structure
 (``structure.reference``) always continues, so that it gets the full budget and the verdict
@@ -95,10 +95,11 @@ class Plan:
 class Schedule:
     """The successive-halving schedule of a study over structures (module docstring)."""
 
-    def __init__(self, labels, reference, screening: int, eta: int, n_full: int, objectives):
+    def __init__(self, labels, reference, screening: int, eta: int, n_full: int, objectives, keep: int | None = None):
         self.labels = tuple(labels)
         self.reference = reference
         self.eta = int(eta)
+        self.keep = keep
         n_full = max(1, int(n_full))
         targets = [min(int(screening), n_full)]
         while targets[-1] < n_full:
@@ -141,7 +142,7 @@ class Schedule:
         hit = self._decided.get(key)
         if hit is None:
             sc = self.scores(alive, per, target)
-            n_keep = math.ceil(len(alive) / self.eta)
+            n_keep = self.keep if self.keep is not None else math.ceil(len(alive) / self.eta)
             ranked = sorted((s for s in alive if sc[s] is not None), key=lambda s: (-sc[s], self.labels.index(s)))
             keep = set(ranked[:n_keep])
             if self.reference in alive:
@@ -199,4 +200,4 @@ def structure_schedule(study) -> Schedule | None:
     sec = study.spec.structure
     choices = study.space.by_name[STRUCTURE].choices
     ref = setup.reference if setup.reference in choices else None
-    return Schedule(choices, ref, sec.screening, sec.eta, optuna_budget(study), study.objectives)
+    return Schedule(choices, ref, sec.screening, sec.eta, optuna_budget(study), study.objectives, sec.keep)

@@ -41,7 +41,7 @@ from ..measure_spec import SettingError
 from ..objectives import OBJECTIVES, get as get_measure
 from ..validation import MAX_SAMPLES, MAX_SEED, MAX_TRIALS, is_real_number, numpy_reference
 from ..yamlio import YamlError, load_yaml
-from .design import box_centre, design_params, evaluation_sample, measure_arguments
+from .design import design_params, evaluation_sample, measure_arguments
 from .errors import StudyError
 from .space import DesignSpace, Variable, quantity
 from .structure_space import centre_design, check_structure_optimizer, resolve_structures, structure_variables
@@ -209,6 +209,9 @@ class StructureSpec(_Model):
     eta: Int = Field(default=2, ge=2, le=100, description=(
         "Successive-halving factor (default 2): after each rung the best 1/eta of the structures continue with "
         "eta times as many designs, up to optimizer.n_trials designs each."))
+    keep: Int | None = Field(default=None, ge=1, le=1000, description=(
+        "Structures that continue after each rung (default ceil(n / eta) of the n in the rung); the reference "
+        "structure continues besides them."))
 
 
 class StudySpec(_Model):
@@ -887,7 +890,8 @@ def check_study(study: ResolvedStudy, *, measures: bool = True, max_corners: int
         _, err = try_build(design_params(study, d))
         if err:
             bad.append((d, err))
-    if bad:
+    if bad and study.structures is None:  # structures differ in where they can be built: their
+        # designs that cannot are recorded as failed, with the reason, per structure in the report
         d, err = bad[0]
         more = f" (and {len(bad) - 1} more of {len(combos)} corners)" if len(bad) > 1 else ""
         problems.append(f"variables: the corner {_design_str(d)} of the variable box cannot be built{more}: {err}; "
