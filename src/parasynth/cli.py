@@ -263,7 +263,9 @@ def cmd_validate(args) -> int:
         raise CliError(f"{args.study}: {len(problems)} problem(s):\n  " + "\n  ".join(problems))
     from .display import fmt_column_value as fq, fmt_evaluation
 
-    print(f"{args.study}: valid study {study.name} ({study.optimizer.kind}) on {study.mechanism}")
+    on = (f"the {study.structures.motion} structures {', '.join(study.structures.labels)}" if study.structures
+          else study.mechanism)
+    print(f"{args.study}: valid study {study.name} ({study.optimizer.kind}) on {on}")
     for v in study.variables:
         rng = f"[{fq(study, v.name, v.low)}, {fq(study, v.name, v.high)}]" if v.low is not None else ""
         vals = " values " + ", ".join(fq(study, v.name, x) for x in v.values) if v.values else ""
