@@ -81,6 +81,11 @@ def test_structure_is_a_categorical_variable_with_conditional_dimensions():
     np.testing.assert_allclose(m.inverse_kinematics(X).actuators, ref.inverse_kinematics(X).actuators, equal_nan=True)
     assert [leg.joints for leg in m.legs] == ["UPS"] * 5 + ["UPU"]
     assert check_study(s, measures=False) == []
+    # key paths name the study file's entries, not the resolved list (which starts with structure)
+    assert s.variable_path("link_length") == "variables[2]" and s.variable_path("structure") == "structure"
+    bad = resolved(variables=[{"name": "platform_radius", "low": "40 mm", "high": "80 mm"},
+                              {"name": "base_radius", "low": "-100 mm", "high": "150 mm"}])
+    assert any(p.startswith("variables[1].low") for p in check_study(bad, measures=False))
     # the study as run names the section, not the generated mechanism
     assert "structure:" in s.to_yaml() and "mechanism" not in yaml.safe_load(s.to_yaml())
 

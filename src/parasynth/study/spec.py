@@ -318,6 +318,12 @@ class ResolvedStudy:
     def to_yaml(self) -> str:
         return yaml.safe_dump(self.spec.model_dump(exclude_none=True), sort_keys=False)
 
+    def variable_path(self, name: str) -> str:
+        """The key path of design variable ``name`` in the study file: ``variables[j]``, or
+        ``structure`` for the structure variable a study over structures adds."""
+        j = next((j for j, v in enumerate(self.spec.variables) if v.name == name), None)
+        return "structure" if j is None else f"variables[{j}]"
+
 
 def _fmt_loc(loc) -> str:
     out = ""
@@ -839,14 +845,15 @@ def check_study(study: ResolvedStudy, *, measures: bool = True, max_corners: int
             problems.append(f"reference.{k}: {err}")
     if problems:
         return problems
-    for i, var in enumerate(study.variables):
-        path = f"variables[{i}]"
+    given = {v.name: v for v in study.spec.variables}
+    for var in study.variables:
+        path = study.variable_path(var.name)
         probes = []
         if var.low is not None:
             probes += [(f"{path}.low", var.low), (f"{path}.high", var.high)]
         for key, seq in (("values", var.values), ("choices", var.choices)):
             if seq and not (key == "values" and var.low is not None and var.values is not None
-                            and study.spec.variables[i].values is None):
+                            and given[var.name].values is None):
                 probes += [(f"{path}.{key}[{j}]", x) for j, x in enumerate(seq)]
         for where, x in probes:
             _, err = try_build(design_params(study, {var.name: x}))
