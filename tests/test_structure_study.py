@@ -81,6 +81,9 @@ def test_structure_is_a_categorical_variable_with_conditional_dimensions():
     np.testing.assert_allclose(m.inverse_kinematics(X).actuators, ref.inverse_kinematics(X).actuators, equal_nan=True)
     assert [leg.joints for leg in m.legs] == ["UPS"] * 5 + ["UPU"]
     assert check_study(s, measures=False) == []
+    from parasynth.mechanisms import list_mechanisms
+
+    assert s.mechanism not in list_mechanisms()  # registered for the study, not listed as a model
     # key paths name the study file's entries, not the resolved list (which starts with structure)
     assert s.variable_path("link_length") == "variables[2]" and s.variable_path("structure") == "structure"
     bad = resolved(variables=[{"name": "platform_radius", "low": "40 mm", "high": "80 mm"},

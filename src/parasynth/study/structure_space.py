@@ -176,7 +176,7 @@ def resolve_structures(sec) -> StructureSetup:
         cls = described_class(desc, source=f"structure ({found.motion})")
     except ValueError as e:
         raise StudyError(f"structure: the combined description of the structures is not valid: {e}") from None
-    register(name, lambda: cls, desc["summary"])
+    register(name, lambda: cls, desc["summary"], listed=False)
     setup = StructureSetup(found.motion, tuple(labels), dict(zip(labels, kept)), ref,
                            {lab: _uses(s.description) for lab, s in zip(labels, kept)}, found.enumerated, dropped, name)
     _CACHE[key] = setup
