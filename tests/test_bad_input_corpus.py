@@ -27,6 +27,7 @@ import yaml
 
 import parasynth
 from parasynth.cli import main
+from parasynth.study import load_study
 from parasynth.study.spec import RESERVED_COLUMNS
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -85,7 +86,7 @@ def _study_mutations(path, si=0):
         return [seq[(si * k + j) % len(seq)] for j in range(k)]
 
     text0 = path.read_text()
-    kinds = _param_kinds(base["mechanism"])
+    kinds = _param_kinds(base["mechanism"] if "mechanism" in base else load_study(path).mechanism)  # or structure:
     out = []
 
     def add(cid, fn, needle):
@@ -254,7 +255,8 @@ def _study_mutations(path, si=0):
     if base.get("optimizer", {}).get("kind") == "optuna":
         add("optuna-n-trials-zero", lambda d: d["optimizer"].update(n_trials=0), "optimizer.n_trials")
         add("optuna-n-trials-neg", lambda d: d["optimizer"].update(n_trials=-3), "optimizer.n_trials")
-        add("optuna-no-variables", lambda d: (d.update(variables=[]), d.pop("reference", None)), "variables")
+        if "structure" not in base:  # a study over structures always has its structure variable
+            add("optuna-no-variables", lambda d: (d.update(variables=[]), d.pop("reference", None)), "variables")
         add("optuna-population-one", lambda d: d["optimizer"].update(population_size=1), "optimizer.population_size")
     if base.get("optimizer", {}).get("kind") == "nlopt":
         add("nlopt-maxeval-zero", lambda d: d["optimizer"].update(maxeval=0), "optimizer.maxeval")

@@ -329,7 +329,7 @@ def test_jacobi_small_singular_value_relative_accuracy():
 # ---------------------------------------------------------------------------------------------
 # Random mechanisms from every leg type (generic over legs, nothing per model)
 # ---------------------------------------------------------------------------------------------
-from parasynth.legs import PRS, PUS, RPS, RPU, SPS, UPU  # noqa: E402
+from parasynth.legs import PRS, PUS, RPS, RPU, RUS, SPS, UPU  # noqa: E402
 from parasynth.mechanism import Mechanism  # noqa: E402
 from parasynth.spatial import euler_rate_map, euler_to_matrix  # noqa: E402
 
@@ -376,6 +376,13 @@ def _random_leg(rng, k, kind, p0, R0):
         r = _unit(np.cross(d, rng.standard_normal(3)))
         u = _unit(np.cross(r, rng.standard_normal(3)))
         return RPU(name, base, plat, r_axis=r, u_platform_axis=R0.T @ u)
+    if kind is RUS:  # a crank through the pose's sphere at a random angle t0
+        r = _unit(rng.standard_normal(3))
+        c0 = _unit(np.cross(r, rng.standard_normal(3)))
+        h, t0 = rng.uniform(0.05, 0.2), rng.uniform(-np.pi, np.pi)
+        C = base + h * (np.cos(t0) * c0 + np.sin(t0) * np.cross(r, c0))
+        return RUS(name, base, plat, r_axis=r, crank_direction=c0, crank_length=h,
+                   link_length=float(np.linalg.norm(A - C)), branch=int(rng.choice([-1, 1])))
     e = _unit(rng.standard_normal(3) + np.array([0, 0, 2.0]))
     perp = np.linalg.norm(d - (d @ e) * e)
     L = perp / rng.uniform(0.3, 0.95)
@@ -391,7 +398,7 @@ def _random_mechanism(seed):
     rng = np.random.default_rng(seed)
     X0 = np.r_[rng.uniform(-0.1, 0.1, 3), rng.uniform(-0.4, 0.4, 3)]
     p0, R0 = X0[:3], euler_to_matrix("zyx", X0[3:])
-    kinds = [SPS, UPS, PUS, RPS, RPU, UPU, PRS]
+    kinds = [SPS, UPS, PUS, RPS, RPU, UPU, PRS, RUS]
     n = int(rng.integers(3, 8))
     legs = [_random_leg(rng, k, kinds[int(rng.integers(len(kinds)))], p0, R0) for k in range(n)]
     if not any(leg.is_actuated for leg in legs):
@@ -423,7 +430,7 @@ def test_random_mechanisms_of_every_leg_type():
         kb = local_condition_number(mech, X)
         np.testing.assert_array_equal(np.isinf(ka), np.isinf(kb))
         np.testing.assert_allclose(kb, ka, rtol=RTOL_KAPPA, equal_nan=True, err_msg=f"seed {seed}")
-    assert seen == {"SPS", "UPS", "PUS", "RPS", "RPU", "UPU", "PRS"}
+    assert seen == {"SPS", "UPS", "PUS", "RPS", "RPU", "UPU", "PRS", "RUS"}
 
 
 @pytest.mark.parametrize("big", [1e308, 1e200])

@@ -29,7 +29,7 @@ import pytest
 import parasynth
 from parasynth import kernels
 from parasynth.constraints import JointAngleLimit
-from parasynth.legs import GEOM_TOL, PRS, PUS
+from parasynth.legs import GEOM_TOL, PRS, PUS, RUS
 
 TOL = 1e-12
 D = np.deg2rad
@@ -104,7 +104,12 @@ def reach_margin(mech, X) -> np.ndarray:
     states = [leg.solve(p, R) for leg in mech.legs]
     scale = max(1.0, max(float(np.max(st.length, initial=1.0)) for st in states))
     for leg, st in zip(mech.legs, states):
-        if isinstance(leg, (PUS, PRS)):
+        if isinstance(leg, RUS):  # |K| <= hypot(P, Q) of RUS.solve, in m
+            d = st.platform_point - leg.base
+            h, L = leg.crank_length, leg.link_length
+            K = (np.einsum("ij,ij->i", d, d) + h * h - L * L) / (2 * h)
+            reach.append(np.hypot(d @ leg.crank_direction, d @ np.cross(leg.r_axis, leg.crank_direction)) - np.abs(K))
+        elif isinstance(leg, (PUS, PRS)):
             d = st.platform_point - leg.base
             de = d @ leg.slider_axis
             reach.append(leg.link_length**2 - (np.einsum("ij,ij->i", d, d) - de**2))

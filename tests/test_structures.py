@@ -137,8 +137,8 @@ def test_engine_agrees_with_numpy_on_every_structure(default_results, motion):
             fc = m.is_feasible(X)
             mc = m.constraint_margins(X)
         fallbacks = [x for x in w if issubclass(x.category, EngineFallbackWarning)]
-        # RUS has no compiled form yet: it, and only it, runs on NumPy (with the warning)
-        assert bool(fallbacks) == ("RUS" in s.leg_counts), (s.name, [str(x.message) for x in fallbacks])
+        # every structure, RUS limbs included, runs on the compiled engine
+        assert not fallbacks, (s.name, [str(x.message) for x in fallbacks])
         fn = m.is_feasible(X, engine="numpy")
         mn = m.constraint_margins(X, engine="numpy")
         near = np.zeros(len(X), bool)
@@ -150,6 +150,12 @@ def test_engine_agrees_with_numpy_on_every_structure(default_results, motion):
         assert np.array_equal(fc[~near], fn[~near]), s.name
         assert fn.sum() > 0, s.name
         counts.append(fn.sum())
+        # the compiled pose-wise indices too (singularity margin, to 1e-9 as tests/test_engine_indices.py)
+        Xr = X[m.inverse_kinematics(X).reachable][:200]
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", EngineFallbackWarning)
+            sm = m.singularity_margin(Xr)
+        np.testing.assert_allclose(sm, m.singularity_margin(Xr, engine="numpy"), rtol=0, atol=1e-9, err_msg=s.name)
     assert min(counts) < 2000  # the comparison saw infeasible poses too
 
 
@@ -391,3 +397,30 @@ def test_cli_bad_arguments(args, needle):
         except SystemExit as e:
             code = e.code
     assert code == 2 and needle in err.getvalue(), err.getvalue()
+
+
+# -- required axes --------------------------------------------------------------------------------
+def test_required_axes_select_the_2rpu_2sps_freedoms():
+    want = {"translations": ["x", "z"], "rotations": ["y", "moving x"]}
+    found = structures("2T2R", leg_types=["RPU", "SPS", "UPS"], axes=want)
+    assert "2-RPU&2-SPS" in _names(found) and found.dropped["other axes"] == 0
+    for s in found:
+        assert set(s.axes["translations"]) == {"x", "z"} and set(s.axes["rotations"]) == {"y", "moving x"}
+    # the same freedoms read off the mechanism: the twists span x and z translations and the two
+    # rotations at home (no y translation, no z rotation)
+    m = found[0].mechanism()
+    T = m.mobility(warn=False).twist_basis  # rows (v, omega) about the platform reference point
+    assert np.allclose(T[:, [1, 5]], 0, atol=1e-9) and np.linalg.matrix_rank(T[:, [0, 2, 3, 4]]) == 4
+    other = structures("2T2R", leg_types=["RPU", "SPS"], axes={"translations": "x,y"})
+    assert len(other) == 0 and other.dropped["other axes"] >= 1
+    with pytest.raises(ValueError, match="axes.translations: 2T2R has 2 translations, 1 axes given"):
+        structures("2T2R", axes={"translations": ["x"]})
+    with pytest.raises(ValueError, match="axes must be a mapping with the keys translations and/or rotations"):
+        structures("2T2R", axes={"moves": ["x"]})
+
+
+def test_cli_required_axes():
+    out, err = io.StringIO(), io.StringIO()
+    with redirect_stdout(out), redirect_stderr(err):
+        code = cli.main(["structures", "2T2R", "--types", "RPU,SPS", "--translations", "x,y"])
+    assert code == 0 and "0 kept" in out.getvalue() and "other axes 2" in out.getvalue(), out.getvalue()

@@ -264,7 +264,9 @@ def cmd_validate(args) -> int:
         raise CliError(f"{args.study}: {len(problems)} problem(s):\n  " + "\n  ".join(problems))
     from .display import fmt_column_value as fq, fmt_evaluation
 
-    print(f"{args.study}: valid study {study.name} ({study.optimizer.kind}) on {study.mechanism}")
+    on = (f"the {study.structures.motion} structures {', '.join(study.structures.labels)}" if study.structures
+          else study.mechanism)
+    print(f"{args.study}: valid study {study.name} ({study.optimizer.kind}) on {on}")
     for v in study.variables:
         rng = f"[{fq(study, v.name, v.low)}, {fq(study, v.name, v.high)}]" if v.low is not None else ""
         vals = " values " + ", ".join(fq(study, v.name, x) for x in v.values) if v.values else ""
@@ -599,9 +601,10 @@ def cmd_structures(args) -> int:
     from . import structures as synthesis
 
     types = [t for t in args.types.replace(",", " ").split()] if args.types else None
+    axes = {k: getattr(args, k) for k in ("translations", "rotations") if getattr(args, k)} or None
     try:
-        found = synthesis.structures(args.motion, leg_types=types, legs=args.legs, all_axes=args.all_axes,
-                                     seed=args.seed)
+        found = synthesis.structures(args.motion, leg_types=types, legs=args.legs, axes=axes,
+                                     all_axes=args.all_axes, seed=args.seed)
     except ValueError as e:
         raise CliError(str(e)) from None
     kept = len(found)
@@ -720,6 +723,10 @@ def build_parser() -> argparse.ArgumentParser:
                                                    "e.g. --types PUS,UPS,UPU")
     p.add_argument("--legs", type=_int_list, metavar="LIST",
                    help="allowed total numbers of limbs (default: any), e.g. --legs 5,6")
+    p.add_argument("--translations", metavar="LIST", help="required translation axes of the freedoms, e.g. "
+                                                          "--translations x,z")
+    p.add_argument("--rotations", metavar="LIST", help="required rotation axes of the freedoms, e.g. "
+                                                       "--rotations 'y,moving x'")
     p.add_argument("--all-axes", action="store_true",
                    help="every joint-axis choice of the vocabulary, not only the first of each, e.g. --all-axes")
     p.add_argument("--seed", type=_seed, default=0, help="seed of the checked poses (default 0), e.g. --seed 1")

@@ -19,7 +19,7 @@ from .study.signals import Interrupt
 from .study.spec import StudyError, load_study
 from .study.storage import (ATTR_BUDGET, ATTR_STUDY, counts, describe_url, load_parasynth_study, materialize_run,
                             open_storage)
-from .study.workers import StorageLost, make_sampler, optimize_loop, optuna_objective, owner_id
+from .study.workers import StorageLost, make_sampler, optimize_budget, optuna_objective, owner_id
 
 __all__ = ["cmd_worker", "cmd_report_storage", "resume_command", "interrupted_run"]
 
@@ -63,7 +63,7 @@ def cmd_worker(args) -> int:
     with Interrupt(quiet=args.quiet) as guard:
         objective = optuna_objective(study, evaluator, on_record=mine.append, guard=guard, mark_owner=True)
         try:
-            optimize_loop(ostudy, objective, int(total), guard, shared=True, on_count=bar.set_count)
+            optimize_budget(ostudy, objective, study, int(total), guard, shared=True, on_count=bar.set_count)
         except KeyboardInterrupt:
             guard.requested = True
         except StorageLost as e:

@@ -55,7 +55,7 @@ import numpy as np
 from ..constraints import (ActuatorRange, CoordinateRange, JointAngleLimit, LegAxisAngle, LegInterference,
                            LegLengthRange, SingularityMarginFloor)
 from ..mechanism import EngineFallbackWarning
-from ..legs import GEOM_TOL, PRS, PUS, RPS, RPU, SPS, UPS, UPU
+from ..legs import GEOM_TOL, PRS, PUS, RPS, RPU, RUS, SPS, UPS, UPU
 from ..spatial import unit
 from ..validation import MAX_POSE_MAGNITUDE
 from .program import OPS, Program, Untranslatable, build_program
@@ -70,12 +70,14 @@ try:  # pragma: no cover - depends on the environment
 except Exception:  # ImportError, or a broken numba/llvmlite install
     HAVE_NUMBA = False
 
-# Leg kinds in the kernel.
-_FREE, _PUS, _RPS, _RPU, _PRS = 0, 1, 2, 3, 4
+# Leg kinds in the kernel; the legs with a link of fixed length (PUS, PRS, RUS) are the kinds
+# 1 and >= 4.
+_FREE, _PUS, _RPS, _RPU, _PRS, _RUS = 0, 1, 2, 3, 4, 5
 
-# Leg float-array layout (leg_f columns).
-_B, _A, _AX, _AX2, _BREF, _PREF, _LEN, _BRANCH, _PTOL = 0, 3, 6, 9, 12, 15, 18, 19, 20
-_NLF = 21
+# Leg float-array layout (leg_f columns); RUS: crank zero direction c0 in _AX, r_axis x c0 in
+# _AX2, crank length in _CRANK.
+_B, _A, _AX, _AX2, _BREF, _PREF, _LEN, _BRANCH, _PTOL, _CRANK = 0, 3, 6, 9, 12, 15, 18, 19, 20, 21
+_NLF = 22
 
 #: Cone-angle keys of each leg class: (base end, platform end).
 _CONE_KEYS = {
@@ -86,6 +88,7 @@ _CONE_KEYS = {
     RPU: ("R_base_cone", "U_platform_cone"),
     PRS: ("R_base_cone", "S_platform_cone"),
     UPU: ("U_base_cone", "U_platform_cone"),
+    RUS: ("U_base_cone", "S_platform_cone"),
 }
 
 #: Poses per parallel work item (one scratch allocation per work item).
@@ -242,8 +245,9 @@ class KernelPlan:
 
     ``ci`` is the column of the constraint in ``names``. The per-leg tables (lenr, cone, rang,
     axang) are sorted by leg; ``offs`` (4, n_legs + 1) holds each leg's row range in them.
-    Leg geometry ``leg_f`` (n_legs, 20): base anchor, platform anchor, slider/revolute axis,
-    RPU platform axis, base_ref, platform_ref, link length, branch.
+    Leg geometry ``leg_f`` (n_legs, 22): base anchor, platform anchor, slider/revolute axis
+    (RUS: the crank's zero direction), RPU platform axis (RUS: ``r_axis x`` that direction),
+    base_ref, platform_ref, link length, branch, PRS off-plane tolerance, RUS crank length.
     """
 
     def __init__(self, program: Program, consts, leg_kind, leg_act, leg_f, names, tables, expr, floors=()):
@@ -388,6 +392,13 @@ def leg_tables(mech, cons):
             kind[i] = _RPU
             F[i, _AX:_AX + 3] = leg.r_axis
             F[i, _AX2:_AX2 + 3] = leg.u_platform_axis
+        elif t is RUS:  # a crank about r_axis through the base anchor, then a link of fixed length
+            kind[i] = _RUS
+            F[i, _AX:_AX + 3] = leg.crank_direction
+            F[i, _AX2:_AX2 + 3] = np.cross(leg.r_axis, leg.crank_direction)  # as RUS._crank
+            F[i, _LEN] = float(leg.link_length)
+            F[i, _BRANCH] = float(leg.branch)
+            F[i, _CRANK] = float(leg.crank_length)
         else:
             raise Unsupported(f"the leg type {t.__name__} (leg {leg.name})")
         act[i] = 1 if leg.is_actuated else 0
@@ -704,6 +715,22 @@ if HAVE_NUMBA:
                 T[9] * x + T[10] * y + T[11] * z)
 
     @njit(**_jit_inline)
+    def crank_tip(dx, dy, dz, c0x, c0y, c0z, c1x, c1y, c1z, h, L, branch):
+        """(t, cos t, sin t, reachable): the crank angle t of a RUS leg whose sphere is at
+        base + d, in the operations of legs.RUS.solve (``P cos t + Q sin t = K``,
+        ``t = atan2(Q, P) + branch arccos(K / hypot(P, Q))`` wrapped by ``atan2(sin t, cos t)``,
+        so that the wrap at +-pi falls as in NumPy); NaN when the sphere is out of the link's
+        reach."""
+        P = dx * c0x + dy * c0y + dz * c0z
+        Q = dx * c1x + dy * c1y + dz * c1z
+        K = ((dx * dx + dy * dy + dz * dz) + h * h - L * L) / (2.0 * h)
+        r = K / math.hypot(P, Q)
+        ok = abs(r) <= 1.0
+        t = math.atan2(Q, P) + branch * (math.acos(r) if ok else np.nan)
+        t = math.atan2(math.sin(t), math.cos(t))
+        return t, math.cos(t), math.sin(t), ok
+
+    @njit(**_jit_inline)
     def _leg(k, kind, leg_f, T, tol):
         """Inverse kinematics of leg k: (status, actuator, length, base joint centre (3),
         platform joint centre (3)); status 0 reachable, 1 unreachable, 2 undecidable here
@@ -731,6 +758,12 @@ if HAVE_NUMBA:
                 return 1, 0.0, L, bx, by, bz, Ax, Ay, Az
             s = de + leg_f[k, 19] * math.sqrt(disc)
             return 0, s, L, bx + s * ex, by + s * ey, bz + s * ez, Ax, Ay, Az
+        if kind == 5:  # RUS: the crank tip C, a link of length L to the sphere
+            t, ct, st, ok = crank_tip(dx, dy, dz, leg_f[k, 6], leg_f[k, 7], leg_f[k, 8], leg_f[k, 9], leg_f[k, 10],
+                                      leg_f[k, 11], leg_f[k, 21], leg_f[k, 18], leg_f[k, 19])
+            h = leg_f[k, 21]
+            return (0 if ok else 1), t, leg_f[k, 18], bx + h * (ct * leg_f[k, 6] + st * leg_f[k, 9]), \
+                by + h * (ct * leg_f[k, 7] + st * leg_f[k, 10]), bz + h * (ct * leg_f[k, 8] + st * leg_f[k, 11]), Ax, Ay, Az
         length = math.sqrt(dx * dx + dy * dy + dz * dz)
         if not length > 0.0:
             return 1, length, length, bx, by, bz, Ax, Ay, Az
@@ -1210,6 +1243,26 @@ if HAVE_NUMBA:
                             Sg[k, 3, ii] = Sx
                             Sg[k, 4, ii] = Sy
                             Sg[k, 5, ii] = Sz
+                    elif kind == 5:  # RUS: crank tip C = base + h (cos t c0 + sin t c1), link L to S
+                        h = leg_f[k, 21]
+                        L = leg_f[k, 18]
+                        br = leg_f[k, 19]
+                        f0 = leg_f[k, 9]
+                        f1 = leg_f[k, 10]
+                        f2 = leg_f[k, 11]
+                        for ii in range(nb):
+                            Sx = Tm[0, ii] + (Tm[3, ii] * a0 + Tm[4, ii] * a1 + Tm[5, ii] * a2)
+                            Sy = Tm[1, ii] + (Tm[6, ii] * a0 + Tm[7, ii] * a1 + Tm[8, ii] * a2)
+                            Sz = Tm[2, ii] + (Tm[9, ii] * a0 + Tm[10, ii] * a1 + Tm[11, ii] * a2)
+                            t, ct, st, ok = crank_tip(Sx - bx, Sy - by, Sz - bz, ex, ey, ez, f0, f1, f2, h, L, br)
+                            okm[ii] = okm[ii] & ok
+                            Q[k, ii] = t
+                            Sg[k, 0, ii] = bx + h * (ct * ex + st * f0)
+                            Sg[k, 1, ii] = by + h * (ct * ey + st * f1)
+                            Sg[k, 2, ii] = bz + h * (ct * ez + st * f2)
+                            Sg[k, 3, ii] = Sx
+                            Sg[k, 4, ii] = Sy
+                            Sg[k, 5, ii] = Sz
                     else:  # fixed base joint: SPS, UPS, UPU, RPS, RPU
                         for ii in range(nb):
                             Ax = Tm[0, ii] + (Tm[3, ii] * a0 + Tm[4, ii] * a1 + Tm[5, ii] * a2)
@@ -1252,7 +1305,7 @@ if HAVE_NUMBA:
                     for q in range(offs[0, k], offs[0, k + 1]):
                         lo = lenr[q, 1]
                         hi = lenr[q, 2]
-                        if kind == 1 or kind == 4:
+                        if kind == 1 or kind >= 4:  # a link of fixed length
                             L = leg_f[k, 18]
                             ok_l = L - lo >= 0.0 and hi - L >= 0.0
                             if not ok_l:
@@ -1354,7 +1407,7 @@ if HAVE_NUMBA:
                             wx = Sg[k, 3, ii] - Sg[k, 0, ii]
                             wy = Sg[k, 4, ii] - Sg[k, 1, ii]
                             wz = Sg[k, 5, ii] - Sg[k, 2, ii]
-                            ln = leg_f[k, 18] if (kind == 1 or kind == 4) else Q[k, ii]
+                            ln = leg_f[k, 18] if (kind == 1 or kind >= 4) else Q[k, ii]
                             okm[ii] = okm[ii] & (wx * vx + wy * vy + wz * vz >= ch * ln)
                     # signed revolute angle (atan2: not vectorised)
                     for q in range(offs[2, k], offs[2, k + 1]):
@@ -1539,7 +1592,7 @@ if HAVE_NUMBA:
                         wx = ax_ - ux
                         wy = ay_ - uy
                         wz = az_ - uz
-                        if leg_kind[k] != 1 and leg_kind[k] != 4:
+                        if leg_kind[k] != 1 and leg_kind[k] < 4:  # not a link of fixed length
                             length = math.sqrt(wx * wx + wy * wy + wz * wz)
                         nvec[k, 0] = wx / length
                         nvec[k, 1] = wy / length

@@ -7,9 +7,10 @@ same wrench rows from the legs' geometry and runs small decompositions on them i
 arrays that stay in the L1 cache:
 
 * the legs' **actuation wrenches** (a unit force along the leg's transmission line through its
-  platform anchor, ``rate_scale`` = ``n . e`` for slider legs and 1 otherwise) and
-  **constraint wrenches**, analytic wherever :mod:`parasynth.legs` is analytic (RPS and PRS: a
-  force along the revolute axis through the sphere centre; RPU: that force and a couple about
+  platform anchor, ``rate_scale`` = ``n . e`` for slider legs, ``n . (r_axis x (C - base))``
+  for a RUS crank whose link leaves its tip ``C`` (:func:`parasynth.engine.core.crank_tip`),
+  and 1 otherwise) and **constraint wrenches**, analytic wherever :mod:`parasynth.legs` is
+  analytic (RPS and PRS: a force along the revolute axis through the sphere centre; RPU: that force and a couple about
   ``r_axis x R u_platform_axis``), and for UPU legs the numeric reciprocal of the five joint
   twists, as :meth:`parasynth.legs.UPU.constraint_wrenches` computes it (moments of the twists
   scaled by the batch-mean leg length, null direction, unit force or unit couple); the null
@@ -31,7 +32,7 @@ Batches of at least :data:`PARALLEL_MIN` poses are spread over threads (ranges o
 thread pool, :func:`parasynth.engine.core.over_blocks`); smaller ones
 (one design's feasible poses) serially, where starting threads would cost more than it saves.
 
-Every function is generic over the leg types ``SPS, UPS, PUS, RPS, RPU, UPU, PRS``; nothing is
+Every function is generic over the leg types ``SPS, UPS, PUS, RPS, RPU, UPU, PRS, RUS``; nothing is
 written per model class. The platform pose and the twist map come from the model's own
 ``pose``/``twist_map`` (vectorised NumPy), or, for a described mechanism, from its compiled
 program (:func:`parasynth.engine.evaluate.compiled_pose_batch`).
@@ -62,7 +63,7 @@ import math
 
 import numpy as np
 
-from ..legs import GEOM_TOL, PRS, PUS, RPS, RPU, SPS, UPS, UPU, Leg
+from ..legs import GEOM_TOL, PRS, PUS, RPS, RPU, RUS, SPS, UPS, UPU, Leg
 from ..mechanism import Mechanism
 from .evaluate import compiled_pose_batch
 
@@ -85,14 +86,17 @@ __all__ = [
 from .core import _WARNED, HAVE_NUMBA, _array, over_blocks, record_of, warn_fallback  # noqa: F401
 
 if HAVE_NUMBA:
+    from .core import crank_tip
+
+if HAVE_NUMBA:
     from numba import njit
     from numba import types as _nbt
 
 # Leg type codes in the kernels.
-_SPS, _UPS, _PUS, _RPS, _RPU, _UPU, _PRS = 0, 1, 2, 3, 4, 5, 6
-_CODES = {SPS: _SPS, UPS: _UPS, PUS: _PUS, RPS: _RPS, RPU: _RPU, UPU: _UPU, PRS: _PRS}
+_SPS, _UPS, _PUS, _RPS, _RPU, _UPU, _PRS, _RUS = 0, 1, 2, 3, 4, 5, 6, 7
+_CODES = {SPS: _SPS, UPS: _UPS, PUS: _PUS, RPS: _RPS, RPU: _RPU, UPU: _UPU, PRS: _PRS, RUS: _RUS}
 #: Constraint rows of each leg type.
-_NC = {_SPS: 0, _UPS: 0, _PUS: 0, _RPS: 1, _RPU: 2, _UPU: 1, _PRS: 1}
+_NC = {_SPS: 0, _UPS: 0, _PUS: 0, _RPS: 1, _RPU: 2, _UPU: 1, _PRS: 1, _RUS: 0}
 # Methods whose NumPy definitions the kernels reproduce: a subclass overriding one of them is
 # not covered.
 _LEG_METHODS = ("solve", "actuation_wrench", "constraint_wrenches", "joint_twists", "platform_points")
@@ -170,8 +174,8 @@ def _plan(mech):
     nl = len(mech.legs)
     code = np.zeros(nl, np.int64)
     act = np.zeros(nl, np.int64)
-    geo = np.zeros((nl, 4, 3))  # base, platform, axis 1, axis 2
-    sc = np.zeros((nl, 2))  # link length, branch
+    geo = np.zeros((nl, 5, 3))  # base, platform, axis 1, axis 2, axis 3
+    sc = np.zeros((nl, 3))  # link length, branch, crank length
     for j, leg in enumerate(mech.legs):
         c = _leg_code(leg)
         code[j] = c
@@ -194,8 +198,12 @@ def _plan(mech):
         elif c == _PRS:
             geo[j, 2] = leg.slider_axis
             geo[j, 3] = leg.r_axis
-        if c in (_PUS, _PRS):
-            sc[j] = (float(leg.link_length), float(leg.branch))
+        elif c == _RUS:  # crank axis, the crank's zero direction c0 and r_axis x c0 (as RUS._crank)
+            geo[j, 2] = leg.r_axis
+            geo[j, 3] = leg.crank_direction
+            geo[j, 4] = np.cross(leg.r_axis, leg.crank_direction)
+        if c in (_PUS, _PRS, _RUS):
+            sc[j] = (float(leg.link_length), float(leg.branch), float(getattr(leg, "crank_length", 0.0)))
     nc = int(sum(_NC[c] for c in code))
     plan = (code, act, geo, sc, nc)
     rec["indices"] = (mech.legs, plan)
@@ -490,6 +498,16 @@ if HAVE_NUMBA:
         for i in range(6):
             w[i] /= sc
 
+    @njit(**_jit_inline)
+    def _rus_tip(dx, dy, dz, geo, sc, j):
+        """The crank tip of RUS leg ``j`` relative to its base anchor, for the sphere at base + d,
+        and whether the link reaches the sphere."""
+        _, ct, st, ok = crank_tip(dx, dy, dz, geo[j, 3, 0], geo[j, 3, 1], geo[j, 3, 2], geo[j, 4, 0], geo[j, 4, 1],
+                                  geo[j, 4, 2], sc[j, 2], sc[j, 0], sc[j, 1])
+        h = sc[j, 2]
+        return (h * (ct * geo[j, 3, 0] + st * geo[j, 4, 0]), h * (ct * geo[j, 3, 1] + st * geo[j, 4, 1]),
+                h * (ct * geo[j, 3, 2] + st * geo[j, 4, 2]), ok)
+
     @njit(**_jit)
     def _legs(p, R, i, code, act, geo, sc, upuL, A, scale, anchor, C, Tw, w):
         """The wrench system of pose ``i``: actuation rows ``A`` (n_act, 6), ``scale``
@@ -526,6 +544,13 @@ if HAVE_NUMBA:
                 bx, by, bz = bx + s * e0, by + s * e1, bz + s * e2
                 nx, ny, nz = (ax - bx) / Ll, (ay - by) / Ll, (az - bz) / Ll
                 rs = nx * e0 + ny * e1 + nz * e2
+            elif t == _RUS:
+                Ll = sc[j, 0]
+                cx, cy, cz, ok = _rus_tip(dx, dy, dz, geo, sc, j)
+                reach = reach and ok
+                nx, ny, nz = (ax - bx - cx) / Ll, (ay - by - cy) / Ll, (az - bz - cz) / Ll
+                tx, ty, tz = _cross(e0, e1, e2, cx, cy, cz)
+                rs = nx * tx + ny * ty + nz * tz
             else:
                 length = math.sqrt(dx * dx + dy * dy + dz * dz)
                 if not (length > 0.0 and length < np.inf):  # a pose at infinity: NaN, as NumPy ends
@@ -647,6 +672,12 @@ if HAVE_NUMBA:
             s = de + sc[j, 1] * math.sqrt(disc)
             bx, by, bz = bx + s * e0, by + s * e1, bz + s * e2
             nx, ny, nz = (ax - bx) / Ll, (ay - by) / Ll, (az - bz) / Ll
+        elif t == _RUS:
+            cx, cy, cz, ok = _rus_tip(ax - bx, ay - by, az - bz, geo, sc, j)
+            if not ok:
+                return 0
+            cx, cy, cz = bx + cx, by + cy, bz + cz
+            nx, ny, nz = (ax - cx) / sc[j, 0], (ay - cy) / sc[j, 0], (az - cz) / sc[j, 0]
         else:
             nx, ny, nz = _unit3(ax - bx, ay - by, az - bz)
         k = 0
@@ -676,6 +707,13 @@ if HAVE_NUMBA:
         elif t == _RPS or t == _RPU:
             _put_rev(Tw, k, e0, e1, e2, bx, by, bz, px, py, pz, L)
             k += 1
+        elif t == _RUS:  # the crank at the base anchor, the universal joint at its tip
+            _put_rev(Tw, k, e0, e1, e2, bx, by, bz, px, py, pz, L)
+            _put_rev(Tw, k + 1, e0, e1, e2, cx, cy, cz, px, py, pz, L)
+            c0, c1, c2 = _cross(e0, e1, e2, nx, ny, nz)
+            c0, c1, c2 = _unit3(c0, c1, c2)
+            _put_rev(Tw, k + 2, c0, c1, c2, cx, cy, cz, px, py, pz, L)
+            k += 3
         if t == _SPS or t == _UPS or t == _RPS or t == _RPU or t == _UPU:
             _put_pri(Tw, k, nx, ny, nz)
             k += 1
@@ -1072,6 +1110,11 @@ if HAVE_NUMBA:
                         dirs[i, j, 0] = (ax - bx) / Ll
                         dirs[i, j, 1] = (ay - by) / Ll
                         dirs[i, j, 2] = (az - bz) / Ll
+                    elif t == _RUS:
+                        cx, cy, cz, ok = _rus_tip(ax - bx, ay - by, az - bz, geo, sc, j)
+                        dirs[i, j, 0] = (ax - bx - cx) / sc[j, 0]
+                        dirs[i, j, 1] = (ay - by - cy) / sc[j, 0]
+                        dirs[i, j, 2] = (az - bz - cz) / sc[j, 0]
                     else:
                         ux, uy, uz = _unit3(ax - bx, ay - by, az - bz)
                         dirs[i, j, 0], dirs[i, j, 1], dirs[i, j, 2] = ux, uy, uz

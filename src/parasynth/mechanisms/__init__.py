@@ -28,9 +28,16 @@ _DESCRIBED: dict = {}
 _REGISTRY: dict[str, tuple[Callable[[], type], str]] = {}
 
 
-def register(name: str, loader: Callable[[], type], summary: str) -> None:
-    """Register a model class (loaded lazily by ``loader``) under ``name``."""
+_UNLISTED: set = set()
+
+
+def register(name: str, loader: Callable[[], type], summary: str, listed: bool = True) -> None:
+    """Register a model class (loaded lazily by ``loader``) under ``name``; ``listed=False``
+    keeps it out of :func:`list_mechanisms` (a study's generated mechanism, e.g. the structures
+    of a study over structures)."""
     _REGISTRY[name] = (loader, summary)
+    if not listed:
+        _UNLISTED.add(name)
 
 
 def _description_language():
@@ -75,7 +82,7 @@ register("3prs", _packaged("3prs.yaml"), "3-PRS 1T2R platform on vertical slider
 
 def list_mechanisms() -> list[str]:
     """Names accepted by :func:`load_mechanism`."""
-    return sorted(_REGISTRY)
+    return sorted(k for k in _REGISTRY if k not in _UNLISTED)
 
 
 def mechanism_summaries() -> dict[str, str]:

@@ -54,7 +54,7 @@ def bound_warnings(study, knee_row, front: pd.DataFrame | None = None, tol: floa
     out = []
     for name, row in _named_designs(study, knee_row, front):
         hits = []
-        for k, v in enumerate(study.variables):
+        for v in study.variables:
             if v.type == "categorical" or v.low is None or v.high is None or v.name not in row:
                 continue
             x = float(row[v.name])
@@ -65,10 +65,10 @@ def bound_warnings(study, knee_row, front: pd.DataFrame | None = None, tol: floa
                 s = (x - v.low) / (v.high - v.low)
             if s <= tol:
                 hits.append(f"{v.name} = {fmt_quantity(x, u)} at its lower bound {fmt_quantity(v.low, u)} "
-                            f"(variables[{k}].low)")
+                            f"({study.variable_path(v.name)}.low)")
             elif s >= 1 - tol:
                 hits.append(f"{v.name} = {fmt_quantity(x, u)} at its upper bound {fmt_quantity(v.high, u)} "
-                            f"(variables[{k}].high)")
+                            f"({study.variable_path(v.name)}.high)")
         if hits:
             out.append(f"{name} lies on a bound of the design variables: " + "; ".join(hits)
                        + ". The best design may lie beyond it: widen the bound if the design allows it.")

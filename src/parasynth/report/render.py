@@ -23,7 +23,8 @@ from markupsafe import Markup, escape
 from ..study.rundir import Run, RunDirError, read_run, to_csv_columns
 from .analysis import NOISE_Z, Analysis, analyse
 from .figures import Figures, make_figures
-from .sections import Section, sections
+from .sections import Section, Table, sections
+from .structures import plot_structures, structure_sections
 from .tables import display_table, final_display_table
 
 __all__ = ["write_report", "ReportError", "load_run", "render_html", "render_markdown", "analyse", "make_figures",
@@ -95,7 +96,10 @@ def write_report(run_dir, out=None, noise_z: float = NOISE_Z) -> Path:
     a = analyse(run, noise_z=noise_z)
     to_csv_columns(study, a.front).to_csv(out / "pareto.csv", index=False)  # unit suffixes, SI values
     figs = make_figures(run, a)
+    plot_structures(figs, run, a)  # a study over structures (report/structures.py)
     secs = sections(run, a)
+    secs[-1:-1] = [Section(t, x, Table.of(d) if d is not None and len(d) else None)
+                   for t, x, d in structure_sections(run, a)]
     (out / "img").mkdir(exist_ok=True)
     for name, _, png in figs.items:
         if png:

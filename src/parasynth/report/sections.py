@@ -83,7 +83,8 @@ def _sections(run: Run, a: Analysis) -> list[tuple[str, str, pd.DataFrame | None
     ev = study.evaluation
     opt = study.optimizer
     elapsed = float(runs["time_s"].sum()) if len(runs) else 0.0
-    text = (f"Mechanism **{study.mechanism}**; optimiser **{opt.kind}** "
+    mech = f"the {study.structures.motion} structures" if study.structures is not None else study.mechanism
+    text = (f"Mechanism **{mech}**; optimiser **{opt.kind}** "
             f"({opt.algorithm or 'default'}); budget {run.expected or opt.maxeval or opt.n_trials or '-'}; "
             f"evaluation: {ev['method']} sampling, {ev['n']} samples, seed {ev['seed']}. "
             f"{len(runs)} designs evaluated ({n_ok} completed, {n_feas} feasible, "

@@ -11,11 +11,11 @@ study layer.
 import sys
 import types
 
-from .synthesis import DROP_REASONS, Group, Structure, StructureList, candidates, structures
+from .synthesis import DROP_REASONS, Group, Structure, StructureList, candidates, parse_axes, structures
 from .vocabulary import (ARRANGEMENTS, LIMB_TYPES, PARAMETERS, TEMPLATES, Arrangement, LimbType, Template,
                          limb_type, parse_motion, register_limb)
 
-__all__ = ["structures", "Structure", "StructureList", "Group", "candidates", "DROP_REASONS", "LIMB_TYPES",
+__all__ = ["structures", "Structure", "StructureList", "Group", "candidates", "parse_axes", "DROP_REASONS", "LIMB_TYPES",
            "ARRANGEMENTS", "PARAMETERS", "TEMPLATES", "Arrangement", "LimbType", "Template", "limb_type",
            "parse_motion", "register_limb"]
 

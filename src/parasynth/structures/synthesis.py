@@ -23,7 +23,7 @@ import numpy as np
 from ..mechanisms import described_class
 from .vocabulary import ARRANGEMENTS, CHECKS, LIMB_TYPES, PARAMETERS, TEMPLATES, limb_type, parse_motion
 
-__all__ = ["Group", "Structure", "StructureList", "structures", "DROP_REASONS", "candidates"]
+__all__ = ["Group", "Structure", "StructureList", "structures", "DROP_REASONS", "candidates", "parse_axes"]
 
 #: Why a candidate is dropped, in the order the checks run.
 DROP_REASONS = {
@@ -31,6 +31,7 @@ DROP_REASONS = {
                  "and arrangement)",
     "no task rule": "its constraining limbs select no motion template, or several different ones (e.g. the "
                     "parasitic motion of a 3-RPS ring)",
+    "other axes": "its freedoms are not along the axes required (``axes``)",
     "under-actuated": "fewer actuators than the requested freedoms",
     "over-actuated": "more actuators than the requested freedoms (redundant actuation)",
     "not assemblable": "the description cannot be built: its home pose is out of reach of a limb",
@@ -199,6 +200,42 @@ def _anchor_sets(g: Group, twist: bool):
     return base, plat, None
 
 
+#: The cone-angle key of the base-side and the platform joint of each limb type (None: a revolute
+#: joint, whose axis the limb's constraints already fix).
+_CONES = {"SPS": ("S_base_cone", "S_platform_cone"), "UPS": ("U_base_cone", "S_platform_cone"),
+          "PUS": ("U_base_cone", "S_platform_cone"), "RUS": ("U_base_cone", "S_platform_cone"),
+          "RPS": (None, "S_platform_cone"), "PRS": (None, "S_platform_cone"), "RPU": (None, "U_platform_cone"),
+          "UPU": ("U_base_cone", "U_platform_cone")}
+
+
+def _joint_limits(c: _Candidate) -> list:
+    """The ring limbs' joint cone-angle limits (base_joint_max, platform_joint_max) and their
+    interference (link_diameter): the same physical limits for every structure. The central
+    passive limb is not limited (as the 5-PUS/UPU's constraining limb in the paper)."""
+    ring, index = {}, 1
+    for g in c.groups:
+        names = [f"L{index + j}" for j in range(g.count)]
+        index += g.count
+        if g.arrangement != "central":
+            ring[g.limb] = ring.get(g.limb, []) + names
+    out = []
+    for end, limit in ((0, "base_joint_max"), (1, "platform_joint_max")):
+        by_key = {}
+        for limb, names in ring.items():
+            key = (_CONES.get(limb) or (None, None))[end]
+            if key is not None:
+                by_key.setdefault(key, []).extend(names)
+        for key, names in by_key.items():
+            name = ("base_joints" if end == 0 else "platform_joints") + ("" if len(by_key) == 1 else f"_{key[0]}")
+            out.append({"name": name, "type": "joint_angle", "key": key, "max": limit, "legs": sorted(names, key=lambda n: int(n[1:])),
+                        "doc": f"{key} <= {limit}"})
+    legs = sorted((n for names in ring.values() for n in names), key=lambda n: int(n[1:]))
+    if len(legs) > 1:
+        out.append({"name": "interference", "type": "interference", "diameter": "link_diameter", "legs": legs,
+                    "doc": "distance between the ring limbs' centre lines >= link_diameter"})
+    return out
+
+
 def _description(c: _Candidate, template, key: str) -> dict:
     twist = not any(g.arrangement == "opposed" for g in c.groups)
     base, plat, legs = {}, {}, []
@@ -229,10 +266,12 @@ def _description(c: _Candidate, template, key: str) -> dict:
     constraints = []
     if telescopic:
         constraints.append({"name": "stroke_legs", "type": "leg_length", "legs": telescopic, "min": "q_min",
-                            "max": "q_max", "doc": "telescopic limbs within [q_min, q_max]"})
+                            "max": "q_min + stroke", "doc": "telescopic limbs within [q_min, q_min + stroke]"})
     if sliders and len(sliders) == c.n_actuated:
         constraints.append({"name": "stroke_sliders", "type": "actuator_range", "min": "slider_min",
-                            "max": "slider_max", "doc": "slider positions within [slider_min, slider_max]"})
+                            "max": "slider_min + stroke", "doc": "slider positions within [slider_min, "
+                                                                 "slider_min + stroke]"})
+    constraints += _joint_limits(c)
     slug = "".join(ch if ch.isalnum() else "_" for ch in c.name.lower()).strip("_")
     arr = "; ".join(g.label() for g in c.groups)
     return {
@@ -374,14 +413,39 @@ def _check(c: _Candidate, motion: str, desc: dict, n_poses: int, seed: int):
     return None, details, cls
 
 
-def structures(motion, *, leg_types=None, legs=None, all_axes: bool = False, n_poses: int = 4,
+def parse_axes(axes) -> dict | None:
+    """``axes`` as {"translations": frozenset, "rotations": frozenset} of axis names (lower
+    case, single spaces), or None. Given as a mapping with the keys ``translations`` and/or
+    ``rotations``, each a list of axis names (``x``, ``z``, ``moving x``, ...) or a comma-separated
+    string; a key left out is not required."""
+    if axes is None:
+        return None
+    if not isinstance(axes, dict) or not axes or set(axes) - {"translations", "rotations"}:
+        raise ValueError(f"axes must be a mapping with the keys translations and/or rotations, each a list of axis "
+                         f"names (e.g. {{'translations': ['x', 'z'], 'rotations': ['y', 'moving x']}}), got {axes!r}")
+    out = {}
+    for k, v in axes.items():
+        items = v.split(",") if isinstance(v, str) else v
+        if not isinstance(items, (list, tuple)) or not all(isinstance(a, str) and a.strip() for a in items):
+            raise ValueError(f"axes.{k} must be a list of axis names such as 'x' or 'moving x', got {v!r}")
+        out[k] = frozenset(" ".join(a.lower().split()) for a in items)
+    return out
+
+
+def _axes_match(template, want) -> bool:
+    return all(frozenset(" ".join(a.lower().split()) for a in template.axes.get(k, ())) == v for k, v in want.items())
+
+
+def structures(motion, *, leg_types=None, legs=None, axes=None, all_axes: bool = False, n_poses: int = 4,
                seed: int = 0) -> StructureList:
     """The candidate structures of the vocabulary for ``motion`` (``"3T3R"``, ``"3T2R"``,
     ``"2T2R"``, ...), each verified numerically.
 
     ``leg_types``: limb types to draw from (default: the whole vocabulary,
     ``parasynth.structures.LIMB_TYPES``); ``legs``: allowed total numbers of limbs (e.g. ``[5,
-    6]``; default any); ``all_axes``: every joint-axis choice of the vocabulary instead of the
+    6]``; default any); ``axes``: the axes the freedoms must have, e.g. ``{"translations": ["x",
+    "z"], "rotations": ["y", "moving x"]}`` (the 2-RPU&2-SPS's; :func:`parse_axes`; the axes of a
+    structure are those of its motion template, ``Structure.axes``); ``all_axes``: every joint-axis choice of the vocabulary instead of the
     first of each; ``n_poses``: reachable random poses of the task box checked per candidate;
     ``seed``: their seed. Returns a :class:`StructureList` of :class:`Structure` with the counts
     of the dropped candidates by reason."""
@@ -407,6 +471,12 @@ def structures(motion, *, leg_types=None, legs=None, all_axes: bool = False, n_p
     if not (isinstance(n_poses, int) and n_poses >= 1):
         raise ValueError(f"n_poses must be an integer >= 1, got {n_poses!r}")
     dof = nt + nr
+    want_axes = parse_axes(axes)
+    if want_axes is not None:
+        for k, n in (("translations", nt), ("rotations", nr)):
+            if k in want_axes and len(want_axes[k]) != n:
+                raise ValueError(f"axes.{k}: {motion} has {n} {k}, {len(want_axes[k])} axes given "
+                                 f"({', '.join(sorted(want_axes[k]))})")
     dropped = {r: 0 for r in DROP_REASONS}
     dropped_names = {r: [] for r in DROP_REASONS}
     seen, found = set(), []
@@ -425,6 +495,9 @@ def structures(motion, *, leg_types=None, legs=None, all_axes: bool = False, n_p
         template = c.template()
         if template is None:
             drop("no task rule", c)
+            continue
+        if want_axes is not None and template.motion == motion and not _axes_match(template, want_axes):
+            drop("other axes", c)
             continue
         if c.n_actuated < dof:
             drop("under-actuated", c)

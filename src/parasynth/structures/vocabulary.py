@@ -160,13 +160,18 @@ PARAMETERS = {
     "link_length": ("350 mm", "fixed link length of PUS, PRS and RUS limbs"),
     "crank_length": ("120 mm", "crank length of RUS limbs"),
     "q_min": ("250 mm", "shortest telescopic limb (SPS, UPS, RPU, RPS, UPU)"),
-    "q_max": ("650 mm", "longest telescopic limb"),
     "slider_min": ("-100 mm", "lower end of the slider stroke (PUS, PRS)"),
-    "slider_max": ("300 mm", "upper end of the slider stroke"),
+    "stroke": ("400 mm", "actuator stroke, the same for every telescopic limb (q_min to q_min + stroke) and "
+                         "slider (slider_min to slider_min + stroke)"),
+    "base_joint_max": ("40 deg", "cone-angle limit of the base-side spherical or universal joint of the ring limbs "
+                                 "(from the limb's direction at home)"),
+    "platform_joint_max": ("25 deg", "cone-angle limit of the platform joint (spherical or universal) of the ring "
+                                     "limbs"),
+    "link_diameter": ("8 mm", "diameter of the ring limbs for interference (distance between their centre lines)"),
     "reach": ("100 mm", "half-width of the task box in translation"),
     "tilt": ("20 deg", "half-width of the task box in rotation"),
 }
-CHECKS = ("q_min < q_max", "slider_min < slider_max")
+CHECKS = ("stroke > 0",)
 
 LIMB_TYPES: dict[str, LimbType] = {}
 

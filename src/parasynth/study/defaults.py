@@ -17,7 +17,10 @@ NLOPT_ALGORITHM = "LN_COBYLA"
 
 
 def optuna_algorithm(study) -> str:
-    """``optimizer.algorithm``, else NSGA-II for several objectives and TPE for one."""
+    """``optimizer.algorithm``, else NSGA-II for several objectives and TPE for one; TPE for a
+    study over structures (each structure's sampler sees only its trials)."""
+    if getattr(study, "structures", None) is not None:
+        return study.optimizer.algorithm or "tpe"
     return study.optimizer.algorithm or ("nsga2" if len(study.objectives) > 1 else "tpe")
 
 

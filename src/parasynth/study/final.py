@@ -32,7 +32,7 @@ from .design import design_key
 from .evaluate import Evaluator
 from .spec import ResolvedStudy
 
-__all__ = ["best_designs", "reevaluate_best", "screening_dominators", "final_candidates", "n_screen_dominators", "merge_duplicates", "pareto_front", "knee_of", "crowding_distance",
+__all__ = ["best_designs", "reevaluate_best", "structure_candidates", "screening_dominators", "final_candidates", "n_screen_dominators", "merge_duplicates", "pareto_front", "knee_of", "crowding_distance",
            "spread_by_crowding", "design_key"]  # crowding_distance, spread_by_crowding (parasynth.pareto) and
 # design_key (study.design) are re-exported here for existing imports.
 
@@ -158,7 +158,9 @@ def final_candidates(study: ResolvedStudy, table: pd.DataFrame) -> pd.DataFrame:
 
     Columns: ``knee`` marks the knee; ``role`` says why a design is re-evaluated (``best``: the
     best / crowding spread of the front, or a sweep point; ``knee``: added as the knee;
-    ``screen``: added as a screening dominator of the reference); ``dominates_reference_screen``
+    ``screen``: added as a screening dominator of the reference; ``structure``: added as the
+    best design of a structure, or on the reference structure's front, in a study over structures,
+    :func:`structure_candidates`); ``dominates_reference_screen``
     marks every candidate that dominates the reference on the single-sample values, whatever
     its role."""
     ev = study.evaluation
@@ -194,10 +196,36 @@ def final_candidates(study: ResolvedStudy, table: pd.DataFrame) -> pd.DataFrame:
             row["knee"], row["role"] = False, "screen"
             best = pd.concat([best, row])
             keys.append(k)
+    for row in structure_candidates(study, runs):
+        k = design_key(study, row)
+        if k not in keys:
+            row = row.to_frame().T
+            row["knee"], row["role"] = False, "structure"
+            best = pd.concat([best, row])
+            keys.append(k)
     sk = set(screen_keys)
     best["dominates_reference_screen"] = [k in sk for k in keys]
     best["knee"] = best["knee"].astype(bool)
     return best
+
+
+def structure_candidates(study: ResolvedStudy, runs: pd.DataFrame) -> list:
+    """For a study over structures, the designs re-evaluated besides the combined front's: the
+    knee of every structure's own front (its best design) and, for the reference structure,
+    ``final_top`` designs spread along its own front, so that the verdict on the reference
+    structure compares re-evaluated designs of every structure. Rows of ``runs``."""
+    setup = getattr(study, "structures", None)
+    if setup is None or not len(runs) or "structure" not in runs:
+        return []
+    out = []
+    for label in setup.labels:
+        mine = runs[runs["structure"] == label]
+        if label == setup.reference:
+            out += [r for _, r in best_designs(study, mine, k=study.evaluation.get("final_top", 5)).iterrows()]
+        knee = knee_of(study, pareto_front(study, mine))
+        if knee is not None:
+            out.append(knee)
+    return out
 
 
 def reevaluate_best(study: ResolvedStudy, evaluator: Evaluator, table: pd.DataFrame, out_dir: Path) -> pd.DataFrame:
@@ -206,7 +234,7 @@ def reevaluate_best(study: ResolvedStudy, evaluator: Evaluator, table: pd.DataFr
     (``seed + 1000 + j``): mean and standard error of each objective, written to
     ``final.csv`` (columns ``source`` (best | reference), ``trial``, the design variables,
     ``<objective>`` and ``<objective>_stderr``, ``feasible``, ``samples``, ``repeats``,
-    ``knee``, ``role`` (best | knee | screen | reference), ``dominates_reference_screen``,
+    ``knee``, ``role`` (best | knee | screen | structure | reference), ``dominates_reference_screen``,
     ``count``)."""
     ev = study.evaluation
     best = final_candidates(study, table)

@@ -12,6 +12,10 @@ reaches into is kept here, so that an Optuna release that changes it breaks one 
   ``_trial_id`` (to fail a trial left running by a dead process);
 * :func:`copy_study_system_attrs` -- ``_study_id`` (to rebuild a journal storage with the
   study's system attributes);
+* :class:`StructureView` -- a study seen through one structure of a study over structures:
+  its ``get_trials`` and the private ``_get_trials`` the samplers call filtered by a trial
+  system attribute (as Optuna's ``_BracketStudy`` of the Hyperband pruner);
+  :func:`set_trial_system_attr` -- the study's ``_storage`` and a trial's ``_trial_id``;
 * :func:`study_system_attrs_before` -- the operation log of ``JournalStorage`` (its
   ``op_code`` values, ``JournalOperation``): the study's system attributes as they were
   before a given trial was created, for a resume that asks that trial again as the
@@ -29,7 +33,8 @@ import os
 import warnings
 
 __all__ = ["flock_journal_backend", "journal_storage", "heartbeat", "trial_storage", "fail_trial",
-           "copy_study_system_attrs", "study_system_attrs_before", "fail_stale"]
+           "copy_study_system_attrs", "study_system_attrs_before", "fail_stale", "StructureView",
+           "set_trial_system_attr"]
 
 
 def flock_journal_backend(path):
@@ -224,3 +229,36 @@ def fail_stale(ostudy):
         warnings.simplefilter("ignore")
         with contextlib.suppress(Exception):
             optuna.storages.fail_stale_trials(ostudy)
+
+
+def set_trial_system_attr(study, trial, key: str, value) -> None:
+    """Set a system attribute of the (frozen) ``trial`` of ``study`` in the storage."""
+    study._storage.set_trial_system_attr(trial._trial_id, key, value)
+
+
+class StructureView:
+    """An Optuna study seen through one structure: ``get_trials`` and ``_get_trials`` return
+    only the trials whose system attribute ``attr`` is ``structure``;
+    everything else is the study's. Each structure's sampler proposes from its own history, as
+    Optuna's Hyperband pruner gives each bracket's sampler its own trials."""
+
+    def __init__(self, study, attr: str, structure: str):
+        self._study = study
+        self._attr = attr
+        self._structure = structure
+
+    def __getattr__(self, name):
+        return getattr(self._study, name)
+
+    def _mine(self, trials):
+        return [t for t in trials if t.system_attrs.get(self._attr) == self._structure]
+
+    def get_trials(self, deepcopy: bool = True, states=None):
+        return self._mine(self._study.get_trials(deepcopy=deepcopy, states=states))
+
+    def _get_trials(self, deepcopy: bool = True, states=None, use_cache: bool = False):
+        return self._mine(self._study._get_trials(deepcopy=deepcopy, states=states, use_cache=use_cache))
+
+    @property
+    def trials(self):
+        return self.get_trials()

@@ -12,7 +12,7 @@ from .defaults import optuna_algorithm
 from .journal import rewrite_journal
 from .problem import Problem, RunContext
 from .progress import Progress
-from .workers import optimize_loop, optuna_objective, run_local_workers
+from .workers import optimize_budget, optuna_objective, run_local_workers
 
 __all__ = ["run_optuna"]
 
@@ -45,7 +45,7 @@ def run_optuna(problem: Problem, ctx: RunContext) -> None:
                 bar.update(rec, problem.best_str(records))
 
             objective = optuna_objective(study, problem.evaluator, on_record, guard=guard, mark_owner=backend["shared"])
-            optimize_loop(ostudy, objective, total, guard, shared=backend["shared"], counted=counted,
+            optimize_budget(ostudy, objective, study, total, guard, shared=backend["shared"], counted=counted,
                           on_count=bar.set_count)
     finally:
         bar.close()

@@ -23,6 +23,7 @@ from .defaults import planned_designs
 from .design import design_key, design_mechanism, design_params, measure_settings
 from .final import best_designs, knee_of, merge_duplicates, pareto_front, screening_dominators
 from .journal import read_journal
+from .schedule import structure_schedule
 from .spec import ResolvedStudy, StudyError, load_study
 from .tables import results_table
 
@@ -39,13 +40,15 @@ class Run:
     """A run directory as read by :func:`read_run`: the study as run, ``table`` (results.csv's
     rows: the reference first, then the run designs by trial), ``final`` (final.csv, or None)
     and ``budget`` (the designs the run plans: :func:`~parasynth.study.defaults.planned_designs`;
-    None for NLopt, which may stop early)."""
+    None for NLopt, which may stop early; for a study over structures the schedule's total given
+    the stored designs, and ``plan``, the schedule's :class:`~parasynth.study.schedule.Plan`)."""
 
     study: ResolvedStudy
     table: pd.DataFrame
     final: pd.DataFrame | None
     run_dir: Path
     budget: int | None
+    plan: object = None  # a study over structures: its schedule's Plan (study.schedule)
 
     @property
     def n_run(self) -> int:
@@ -86,6 +89,9 @@ def read_run(run_dir) -> Run:
     final = None
     if (run_dir / "final.csv").exists():
         final = read_final(study, run_dir / "final.csv")
+    schedule = structure_schedule(study)
+    if schedule is not None:  # the designs its schedule plans, given the stored ones
+        return Run(study, table, final, run_dir, schedule.plan(records).total, schedule.plan(records))
     return Run(study, table, final, run_dir, planned_designs(study))
 
 

@@ -63,6 +63,7 @@ from .problem import Problem, RunContext
 from .run_nlopt import run_nlopt
 from .run_optuna import run_optuna
 from .run_sweep import run_sweep
+from .schedule import structure_schedule
 from .signals import Interrupt
 from .spec import ResolvedStudy, StudyError
 from .tables import results_table, write_tables
@@ -285,6 +286,9 @@ def _optuna_setup(study, out_dir, resume, n_trials, storage_override, journal_re
     shared = st.is_shared_server(url)
     seed = optimizer_seed(study)
     total = optuna_budget(study, n_trials)
+    schedule = structure_schedule(study)
+    if schedule is not None:  # a study over structures: n_trials designs per structure at most
+        total = schedule.max_total
     if resume and not shared and st._is_journal(url):
         dropped = st.rebuild_journal_storage(url, study.name)
         if dropped:

@@ -263,14 +263,18 @@ class DesignSpace:
         return count(0, {})
 
     # -- Optuna ---------------------------------------------------------------------------------------------
-    def suggest(self, trial) -> dict:
+    def suggest(self, trial, fixed: dict | None = None) -> dict:
         """Ask an Optuna trial for a design: each active variable suggested once (parents
-        before the variables they condition), keys in the study's order."""
+        before the variables they condition), keys in the study's order. Variables in ``fixed``
+        (e.g. the structure a schedule chose) take that value and are not suggested."""
         values = {}
+        fixed = fixed or {}
         for v in self.order:
             if not self.is_active(v, values):
                 continue
-            if v.type == "categorical":
+            if v.name in fixed:
+                values[v.name] = fixed[v.name]
+            elif v.type == "categorical":
                 values[v.name] = trial.suggest_categorical(v.name, list(v.choices))
             elif v.type == "integer":
                 values[v.name] = trial.suggest_int(v.name, int(v.low), int(v.high), log=v.log)

@@ -41,9 +41,10 @@ from ..measure_spec import SettingError
 from ..objectives import OBJECTIVES, get as get_measure
 from ..validation import MAX_SAMPLES, MAX_SEED, MAX_TRIALS, is_real_number, numpy_reference
 from ..yamlio import YamlError, load_yaml
-from .design import box_centre, design_params, evaluation_sample, measure_arguments, with_pose_constraints
+from .design import design_params, evaluation_sample, measure_arguments, with_pose_constraints
 from .errors import StudyError
 from .space import DesignSpace, Variable, quantity
+from .structure_space import centre_design, check_structure_optimizer, resolve_structures, structure_variables
 
 __all__ = ["StudyError", "StudySpec", "ResolvedStudy", "load_study", "resolve_study", "check_study", "OPTIMIZERS",
            "RESERVED_COLUMNS"]
@@ -185,6 +186,36 @@ class OptimizerSpec(_Model):
         "Population of the evolutionary Optuna samplers (2 to 100000)."))
 
 
+class StructureSpec(_Model):
+    motion: str = Field(description=(
+        "Motion type of the structures searched, translations T and rotations R, e.g. 3T2R (see "
+        "docs/structures.md)."))
+    leg_types: list[str] | None = Field(default=None, description=(
+        "Limb types to draw from, e.g. [PUS, UPS, UPU] (default the whole vocabulary: SPS, UPS, PUS, RUS, RPS, "
+        "PRS, RPU, UPU)."))
+    legs: list[Int] | None = Field(default=None, description="Allowed total numbers of limbs, e.g. [6] (default any).")
+    arrangements: list[str] | None = Field(default=None, description=(
+        "Ring arrangements kept, e.g. [regular] (regular, paired, opposed; default all)."))
+    axes: dict[str, list[str]] | None = Field(default=None, description=(
+        "Required axes of the freedoms, {translations: [...], rotations: [...]}, e.g. {translations: [x, z], "
+        "rotations: [y, moving x]} (default any)."))
+    all_axes: bool = Field(default=False, description=(
+        "Every joint-axis choice of the vocabulary, not only the first of each (default false)."))
+    include: list[str] | None = Field(default=None, description=(
+        "Only these structures (names or labels, e.g. [5-PUS/UPU, 5-UPS/UPU]; default every structure found)."))
+    reference: str | None = Field(default=None, description=(
+        "The reference structure (e.g. the paper's, 5-PUS/UPU): always given the full budget; its best design "
+        "is marked in the report and the verdict says whether it is on the combined front."))
+    screening: Int = Field(default=16, ge=1, le=MAX_TRIALS, description=(
+        "Designs of every structure in the first rung, the screening (default 16)."))
+    eta: Int = Field(default=2, ge=2, le=100, description=(
+        "Successive-halving factor (default 2): after each rung the best 1/eta of the structures continue with "
+        "eta times as many designs, up to optimizer.n_trials designs each."))
+    keep: Int | None = Field(default=None, ge=1, le=1000, description=(
+        "Structures that continue after each rung (default ceil(n / eta) of the n in the rung); the reference "
+        "structure continues besides them."))
+
+
 class StudySpec(_Model):
     """A parasynth design study (docs/study-format.md). Quantities are strings with units, e.g. '205 mm', '15 deg'."""
 
@@ -193,9 +224,13 @@ class StudySpec(_Model):
     name: str = Field(pattern=r"^[A-Za-z0-9_.\-]+$", description=(
         "Study name: letters, digits, '_', '.', '-'; names the run directory runs/<name>/ and the report."))
     description: str = Field(default="", description="Free text shown at the top of the report.")
-    mechanism: str = Field(description=(
+    mechanism: str | None = Field(default=None, description=(
         "A registry name (see `parasynth list`) or a mechanism description file (.yaml; a relative "
-        "path is taken from the study file's folder)."))
+        "path is taken from the study file's folder); or give structure: instead."))
+    structure: StructureSpec | None = Field(default=None, description=(
+        "Search the structure too, instead of mechanism: the candidate structures of a motion type "
+        "(docs/structures.md); the structure becomes a categorical design variable and the budget is spread "
+        "over the structures by successive halving."))
     fixed: dict[str, Any] = Field(default_factory=dict, description=(
         "Mechanism parameters held fixed, {parameter: value with unit}, e.g. {slider_radius: 135 mm}."))
     variables: list[VariableSpec] = Field(default_factory=list, description=(
@@ -271,6 +306,7 @@ class ResolvedStudy:
     tied: dict = dataclasses.field(default_factory=dict)  # parameter -> design variable it equals
     reference_label: str | None = None  # what the reference design is ("the paper's design")
     reference_source: str | None = None  # where it comes from (a paper, a drawing)
+    structures: object = None  # StructureSetup of a study over structures (study.structure_space)
 
     @property
     def name(self) -> str:
@@ -283,6 +319,12 @@ class ResolvedStudy:
 
     def to_yaml(self) -> str:
         return yaml.safe_dump(self.spec.model_dump(exclude_none=True), sort_keys=False)
+
+    def variable_path(self, name: str) -> str:
+        """The key path of design variable ``name`` in the study file: ``variables[j]``, or
+        ``structure`` for the structure variable a study over structures adds."""
+        j = next((j for j, v in enumerate(self.spec.variables) if v.name == name), None)
+        return "structure" if j is None else f"variables[{j}]"
 
 
 def _fmt_loc(loc) -> str:
@@ -332,7 +374,7 @@ def parse_spec(data: dict) -> StudySpec:
 def _allowed_keys(parent_loc) -> list[str]:
     model = StudySpec
     sub = {"variables": VariableSpec, "objectives": MeasureRef, "constraints": ConstraintRef,
-           "evaluation": EvaluationSpec, "optimizer": OptimizerSpec}
+           "evaluation": EvaluationSpec, "optimizer": OptimizerSpec, "structure": StructureSpec}
     for part in parent_loc:
         if isinstance(part, str) and part in sub:
             model = sub[part]
@@ -370,21 +412,33 @@ def _check_variant_choices(mech_cls, name, choices, path, single=None):
 def resolve_study(data: dict, source: str | None = None) -> ResolvedStudy:
     """Validate names and units of a parsed study mapping and convert to SI."""
     spec = parse_spec(data)
-    # A registry name, or a mechanism description file: a relative path is taken from the study
-    # file's directory and recorded as an absolute path (so that run copies still find it).
-    try:
-        mech_name = resolve_mechanism_name(spec.mechanism, Path(source).parent if source else None)
+    setup = None
+    if spec.structure is not None:  # the structures' combined description (study.structure_space)
+        if spec.mechanism is not None:
+            raise StudyError("mechanism: give either mechanism: or structure:, not both")
+        setup = resolve_structures(spec.structure)
+        mech_name = setup.mechanism
         mech_cls = mechanism_class(mech_name)
-    except ValueError as e:
-        raise StudyError(f"mechanism: {e}") from None
-    if mech_name != spec.mechanism:
-        spec = spec.model_copy(update={"mechanism": mech_name})
+    elif spec.mechanism is None:
+        raise StudyError("mechanism: required key is missing (a registry name or a description file; or give "
+                         "structure: to search the structure too)")
+    else:
+        # A registry name, or a mechanism description file: a relative path is taken from the study
+        # file's directory and recorded as an absolute path (so that run copies still find it).
+        try:
+            mech_name = resolve_mechanism_name(spec.mechanism, Path(source).parent if source else None)
+            mech_cls = mechanism_class(mech_name)
+        except ValueError as e:
+            raise StudyError(f"mechanism: {e}") from None
+        if mech_name != spec.mechanism:
+            spec = spec.model_copy(update={"mechanism": mech_name})
     kinds = _param_kinds(mech_cls)
     params = [f.name for f in dataclasses.fields(mech_cls.Params)]
 
     def check_param(name, path):
         if name not in params:
-            raise StudyError(f"{path}: {name!r} is not a parameter of {spec.mechanism}; valid: {', '.join(params)}")
+            raise StudyError(f"{path}: {name!r} is not a parameter of {spec.mechanism or 'the structures'}; valid: "
+                             f"{', '.join(params)}")
 
     fixed = {}
     for k, v in spec.fixed.items():
@@ -428,6 +482,9 @@ def resolve_study(data: dict, source: str | None = None) -> ResolvedStudy:
             values = tuple(low + (high - low) * j / (n - 1) for j in range(n)) if n > 1 else (low,)
         variables.append(Variable(v.name, v.type, kind, low, high, values, choices, v.log))
     variables = _resolve_when(spec.variables, variables)
+    if setup is not None:
+        variables = structure_variables(setup, variables)
+        seen = {v.name for v in variables}
     space = DesignSpace(variables)  # checks the conditions for cycles
 
     def resolve_settings(measure, settings, path):
@@ -480,7 +537,7 @@ def resolve_study(data: dict, source: str | None = None) -> ResolvedStudy:
         if o.name not in OBJECTIVES:
             raise StudyError(f"{path}.name: unknown objective {o.name!r}; valid: {', '.join(OBJECTIVES)}")
         m = get_measure(o.name)
-        if m.models is not None and spec.mechanism not in m.models:
+        if m.models is not None and mech_name not in m.models:
             raise StudyError(f"{path}.name: objective {o.name!r} applies to {list(m.models)}, not {spec.mechanism!r}")
         label = o.label if o.label is not None else o.name
         check_label(label, path, f"{path}.label" if o.label is not None else f"{path}.name")
@@ -509,7 +566,7 @@ def resolve_study(data: dict, source: str | None = None) -> ResolvedStudy:
             hi = float(hi) if hi is not None else None
         if lo is not None and hi is not None and lo > hi:
             raise StudyError(f"{path}: min ({c.min}) is above max ({c.max}); no design can be feasible")
-        if m.models is not None and spec.mechanism not in m.models:
+        if m.models is not None and mech_name not in m.models:
             raise StudyError(f"{path}.name: measure {c.name!r} applies to {list(m.models)}, not {spec.mechanism!r}")
         label = c.label if c.label is not None else c.name
         check_label(label, path, f"{path}.label" if c.label is not None else f"{path}.name")
@@ -610,8 +667,10 @@ def resolve_study(data: dict, source: str | None = None) -> ResolvedStudy:
             raise StudyError(f"tied.{k}: {k!r} ({kinds.get(k)}) and {src!r} ({kinds.get(src)}) have different units")
         tied[k] = src
 
-    return ResolvedStudy(spec, spec.mechanism, fixed, tuple(variables), tuple(objectives), tuple(constraints),
-                         evaluation, opt, reference, source, tied, ref_label, ref_source)
+    if setup is not None:
+        check_structure_optimizer(opt)
+    return ResolvedStudy(spec, mech_name, fixed, tuple(variables), tuple(objectives), tuple(constraints),
+                         evaluation, opt, reference, source, tied, ref_label, ref_source, setup)
 
 
 #: Text keys of ``reference`` beside the parameter values, with an example each.
@@ -835,14 +894,15 @@ def check_study(study: ResolvedStudy, *, measures: bool = True, max_corners: int
             problems.append(f"reference.{k}: {err}")
     if problems:
         return problems
-    for i, var in enumerate(study.variables):
-        path = f"variables[{i}]"
+    given = {v.name: v for v in study.spec.variables}
+    for var in study.variables:
+        path = study.variable_path(var.name)
         probes = []
         if var.low is not None:
             probes += [(f"{path}.low", var.low), (f"{path}.high", var.high)]
         for key, seq in (("values", var.values), ("choices", var.choices)):
             if seq and not (key == "values" and var.low is not None and var.values is not None
-                            and study.spec.variables[i].values is None):
+                            and given[var.name].values is None):
                 probes += [(f"{path}.{key}[{j}]", x) for j, x in enumerate(seq)]
         for where, x in probes:
             _, err = try_build(design_params(study, {var.name: x}))
@@ -857,7 +917,7 @@ def check_study(study: ResolvedStudy, *, measures: bool = True, max_corners: int
         base = dict(study.reference)
         base_where = "reference"
     else:
-        base = box_centre(study)
+        base = centre_design(study)
         base_where = "variables (the centre of the box)"
     base_mech, err = try_build(design_params(study, base))
     if err:
@@ -886,7 +946,8 @@ def check_study(study: ResolvedStudy, *, measures: bool = True, max_corners: int
         _, err = try_build(design_params(study, d))
         if err:
             bad.append((d, err))
-    if bad:
+    if bad and study.structures is None:  # structures differ in where they can be built: their
+        # designs that cannot are recorded as failed, with the reason, per structure in the report
         d, err = bad[0]
         more = f" (and {len(bad) - 1} more of {len(combos)} corners)" if len(bad) > 1 else ""
         problems.append(f"variables: the corner {_design_str(d)} of the variable box cannot be built{more}: {err}; "
@@ -933,7 +994,7 @@ def _design_str(d: dict) -> str:
 def _model_keys(model, prefix="") -> list[str]:
     out = []
     subs = {"variables": VariableSpec, "objectives": MeasureRef, "constraints": ConstraintRef,
-            "evaluation": EvaluationSpec, "optimizer": OptimizerSpec}
+            "evaluation": EvaluationSpec, "optimizer": OptimizerSpec, "structure": StructureSpec}
     for name in model.model_fields:
         key = f"{prefix}{name}"
         out.append(key)
@@ -952,7 +1013,8 @@ def key_docs() -> dict[str, str]:
     """{key path: description} of every key of the study format (``[]`` marks the entries of a
     list): the fields' descriptions, and the keys of ``reference`` (:data:`REFERENCE_KEYS`)."""
     models = {"": StudySpec, "variables[].": VariableSpec, "objectives[].": MeasureRef,
-              "constraints[].": ConstraintRef, "evaluation.": EvaluationSpec, "optimizer.": OptimizerSpec}
+              "constraints[].": ConstraintRef, "evaluation.": EvaluationSpec, "optimizer.": OptimizerSpec,
+              "structure.": StructureSpec}
     docs = {}
     for key in study_keys():
         prefix, _, leaf = key.rpartition(".")

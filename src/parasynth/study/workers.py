@@ -56,13 +56,17 @@ import numpy as np
 from .defaults import optuna_algorithm
 from .evaluate import Evaluator
 from .journal import jsonable
-from .optuna_adapter import fail_stale, fail_trial, heartbeat_enabled, heartbeat_thread
+from .optuna_adapter import (StructureView, fail_stale, fail_trial, heartbeat_enabled, heartbeat_thread,
+                             set_trial_system_attr)
+from .schedule import ATTR_STRUCTURE, structure_schedule
 from .signals import Interrupt
 from .spec import StudyError
 from .storage import ATTR_RECORD, counts, is_shared_server, load_parasynth_study, open_storage, trial_record
+from .structure_space import STRUCTURE
 
 __all__ = ["Interrupt", "PerTrialSeeded", "make_sampler", "optuna_objective", "optimize_loop", "run_local_workers",
-           "StorageLost", "owner_id", "budget_state", "can_fork_workers", "forked_worker_main"]
+           "StorageLost", "owner_id", "budget_state", "can_fork_workers", "forked_worker_main", "optimize_budget",
+           "assign_structure"]
 
 
 class StorageLost(StudyError):
@@ -113,12 +117,14 @@ def _per_trial_class():
         ``per_trial=False`` (QMC: the scrambling must be the same for every point, the sequence
         index is stored in the study) keeps one sampler seeded with ``seed``."""
 
-        def __init__(self, factory, seed: int, per_trial: bool = True):
+        def __init__(self, factory, seed: int, per_trial: bool = True, assign=None):
             self._factory = factory
             self._seed = int(seed)
             self._per_trial = per_trial
             self._fixed = factory(self._seed)
             self._cur = (None, None)
+            self._assign = assign  # (study, trial) -> structure, asked before the trial's proposal
+            self._assigned = {}
 
         @property
         def inner(self):
@@ -132,20 +138,34 @@ def _per_trial_class():
                 self._cur = (n, self._factory(derive_seed(self._seed, n)))
             return self._cur[1]
 
+        def fixed(self, number: int) -> dict:
+            """Design values fixed for trial ``number`` by the schedule (the structure), else {}."""
+            s = self._assigned.get(number)
+            return {} if s is None else {STRUCTURE: s}
+
+        def _view(self, study, trial):
+            """The study as the trial's sampler sees it: only its structure's trials."""
+            s = self._assigned.get(trial.number)
+            return study if s is None else StructureView(study, ATTR_STRUCTURE, s)
+
         def infer_relative_search_space(self, study, trial):
-            return self._for(trial).infer_relative_search_space(study, trial)
+            return self._for(trial).infer_relative_search_space(self._view(study, trial), trial)
 
         def sample_relative(self, study, trial, search_space):
-            return self._for(trial).sample_relative(study, trial, search_space)
+            return self._for(trial).sample_relative(self._view(study, trial), trial, search_space)
 
         def sample_independent(self, study, trial, param_name, param_distribution):
-            return self._for(trial).sample_independent(study, trial, param_name, param_distribution)
+            return self._for(trial).sample_independent(self._view(study, trial), trial, param_name, param_distribution)
 
         def before_trial(self, study, trial):
-            self._for(trial).before_trial(study, trial)
+            if self._assign is not None:
+                s = self._assign(study, trial)
+                set_trial_system_attr(study, trial, ATTR_STRUCTURE, s)
+                self._assigned = {trial.number: s}
+            self._for(trial).before_trial(self._view(study, trial), trial)
 
         def after_trial(self, study, trial, state, values):
-            self._for(trial).after_trial(study, trial, state, values)
+            self._for(trial).after_trial(self._view(study, trial), trial, state, values)
 
         def reseed_rng(self):
             pass  # proposals are seeded per trial
@@ -154,10 +174,11 @@ def _per_trial_class():
     return PerTrialSeeded
 
 
-def PerTrialSeeded(factory, seed: int, per_trial: bool = True):  # noqa: N802 (a class, built lazily)
+def PerTrialSeeded(factory, seed: int, per_trial: bool = True, assign=None):  # noqa: N802 (a class, built lazily)
     """A sampler proposing trial ``k`` with ``factory(derive_seed(seed, k))`` (see the module
-    docstring)."""
-    return _per_trial_class()(factory, seed, per_trial)
+    docstring); with ``assign(study, trial) -> structure`` (a study over structures) each trial is
+    first given its structure and proposed from that structure's trials only."""
+    return _per_trial_class()(factory, seed, per_trial, assign)
 
 
 def _uses_set_constraint() -> bool:
@@ -174,7 +195,26 @@ def make_sampler(study, seed):
     """The study's sampler, seeded per trial (see :class:`PerTrialSeeded`)."""
     cf = _constraints_func if study.constraints and not _uses_set_constraint() else None
     alg = optuna_algorithm(study)
-    return PerTrialSeeded(lambda s: _base_sampler(study, s, cf), seed, per_trial=(alg != "qmc"))
+    schedule = structure_schedule(study)
+    assign = (lambda ostudy, trial: assign_structure(schedule, ostudy)) if schedule is not None else None
+    return PerTrialSeeded(lambda s: _base_sampler(study, s, cf), seed, per_trial=(alg != "qmc"), assign=assign)
+
+
+def _stored_records(ostudy) -> list:
+    return [r for r in (trial_record(t) for t in ostudy.get_trials(deepcopy=False) if counts(t)) if r is not None]
+
+
+def assign_structure(schedule, ostudy) -> str:
+    """The structure of the trial being asked (:meth:`~parasynth.study.schedule.Schedule.next_structure`
+    given the stored designs and the trials other processes are evaluating)."""
+    from optuna.trial import TrialState  # lazy: optuna takes about a second to import
+
+    running = {}
+    for t in ostudy.get_trials(deepcopy=False, states=(TrialState.RUNNING, TrialState.WAITING)):
+        s = t.system_attrs.get(ATTR_STRUCTURE)
+        if s is not None:
+            running[s] = running.get(s, 0) + 1
+    return schedule.next_structure(schedule.plan(_stored_records(ostudy)), running)
 
 
 def _set_optuna_constraints(trial, study, rec):
@@ -209,7 +249,8 @@ def optuna_objective(study, evaluator: Evaluator, on_record=None, guard: Interru
     def objective(trial):
         if mark_owner:
             trial.set_user_attr(OWNER_ATTR, owner_id())
-        values = study.space.suggest(trial)  # conditional variables only when active
+        fixed = trial.study.sampler.fixed(trial.number) if hasattr(trial.study.sampler, "fixed") else {}
+        values = study.space.suggest(trial, fixed=fixed)  # conditional variables only when active
         with guard.evaluating():
             rec = evaluator.evaluate(values, trial=trial.number)
         _set_optuna_constraints(trial, study, rec)
@@ -364,6 +405,24 @@ def optimize_loop(ostudy, objective, total: int, guard: Interrupt, shared: bool,
         threading.excepthook = old_hook
 
 
+def optimize_budget(ostudy, objective, study, total: int, guard: Interrupt, shared: bool, counted: int = 0,
+                    **kw) -> int:
+    """:func:`optimize_loop` to ``total`` counted trials; for a study over structures rung by
+    rung (:mod:`parasynth.study.schedule`): the loop runs to the current rung's total, then the
+    next rung is decided from the stored designs, until the schedule is done (``total`` is then
+    only an upper bound). Returns the number of trials run here."""
+    schedule = structure_schedule(study)
+    if schedule is None:
+        return optimize_loop(ostudy, objective, total, guard, shared, counted=counted, **kw)
+    ran = 0
+    while not guard.requested:
+        plan = schedule.plan(_stored_records(ostudy))
+        if plan.done:
+            break
+        ran += optimize_loop(ostudy, objective, plan.total, guard, shared, counted=plan.counted, **kw)
+    return ran
+
+
 def _loop(ostudy, objective, total, guard, shared, counted, on_count, poll_s, retries, log, errors):
     import optuna  # lazy: optuna takes about a second to import
 
@@ -494,7 +553,7 @@ def forked_worker_main(study, evaluator, url: str, name: str, total: int, seed: 
             objective = optuna_objective(study, evaluator, guard=guard, mark_owner=True)
             # A file storage is cheap to poll: a worker waiting for the others' last trials
             # sees the budget reached within milliseconds.
-            optimize_loop(ostudy, objective, int(total), guard, shared=True, poll_s=0.05)
+            optimize_budget(ostudy, objective, study, int(total), guard, shared=True, poll_s=0.05)
         except KeyboardInterrupt:
             guard.requested = True
         except StorageLost as e:

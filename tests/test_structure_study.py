@@ -1,0 +1,270 @@
+"""Studies over structures (``structure:``): resolution to one mechanism and a categorical
+design variable, the successive-halving schedule, runs (one process, workers, killed and
+resumed), the final re-evaluation of every structure's best design and the report.
+
+What is exact: the schedule's survivors against an independent ranking (the two-objective
+hypervolume computed here as a staircase sum), the counts of designs per structure and rung,
+the conditional dimensions, and a killed-and-resumed run equal to the uninterrupted one.
+What is a trend only: nothing here depends on which structure is better.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+import yaml
+
+from parasynth import structures
+from parasynth.mechanisms import load_mechanism
+from parasynth.study import StudyError, load_study, run_study
+from parasynth.study.evaluate import Record
+from parasynth.study.schedule import Schedule, structure_schedule
+from parasynth.study.spec import check_study
+from parasynth.study.structure_space import labels_of
+
+KILLER = str(Path(__file__).parent / "data" / "kill_at_trial.py")
+
+
+def study_dict(**over):
+    d = {
+        "name": "structures_test",
+        "structure": {"motion": "3T2R", "leg_types": ["SPS", "UPS", "PUS", "UPU"], "reference": "5-PUS/UPU",
+                      "screening": 4, "eta": 2},
+        "variables": [{"name": "base_radius", "low": "100 mm", "high": "150 mm"},
+                      {"name": "platform_radius", "low": "40 mm", "high": "80 mm"},
+                      {"name": "link_length", "low": "150 mm", "high": "205 mm"},
+                      {"name": "height", "low": "200 mm", "high": "350 mm"}],
+        "fixed": {"stroke": "205 mm", "slider_min": "0 mm", "q_min": "150 mm"},
+        "objectives": [{"name": "workspace_volume", "label": "volume", "goal": "maximize"},
+                       {"name": "singularity_margin_min", "label": "margin", "goal": "maximize",
+                        "settings": {"quantile": 0.05}}],
+        "constraints": [{"name": "footprint_radius", "label": "footprint", "max": "140 mm"}],
+        "evaluation": {"samples": 256, "ranges": {"x": ["-200 mm", "200 mm"], "y": ["-200 mm", "200 mm"],
+                                                  "z": ["0 mm", "600 mm"]},
+                       "final_samples": 512, "final_repeats": 2, "final_top": 2},
+        "optimizer": {"kind": "optuna", "n_trials": 8, "seed": 3},
+    }
+    for k, v in over.items():
+        if isinstance(v, dict) and isinstance(d.get(k), dict):
+            d[k] = {**d[k], **v}
+        else:
+            d[k] = v
+    return d
+
+
+def resolved(**over):
+    return load_study(yaml.safe_dump(study_dict(**over)), is_text=True)
+
+
+# -- resolution ------------------------------------------------------------------------------------
+def test_structure_is_a_categorical_variable_with_conditional_dimensions():
+    s = resolved()
+    found = structures("3T2R", leg_types=["SPS", "UPS", "PUS", "UPU"])
+    assert s.structures.labels == tuple(labels_of(found)) == ("5-SPS/UPU", "5-UPS/UPU", "5-PUS/UPU")
+    v = s.space.by_name["structure"]
+    assert s.variables[0] is v and v.type == "categorical" and v.choices == s.structures.labels
+    # link_length is a dimension of the slider limbs only (the others have no link of fixed length)
+    assert s.space.by_name["link_length"].when == (("structure", ("5-PUS/UPU",)),)
+    assert s.space.by_name["base_radius"].when == ()
+    # every part of a study builds the structure's mechanism by name: the same as the structure
+    m = load_mechanism(s.mechanism, structure="5-UPS/UPU", base_radius=0.12)
+    ref = found[1].mechanism(base_radius=0.12)
+    X = ref.home + np.random.default_rng(0).normal(0, 0.01, (20, 5))
+    np.testing.assert_allclose(m.inverse_kinematics(X).actuators, ref.inverse_kinematics(X).actuators, equal_nan=True)
+    assert [leg.joints for leg in m.legs] == ["UPS"] * 5 + ["UPU"]
+    assert check_study(s, measures=False) == []
+    from parasynth.mechanisms import list_mechanisms
+
+    assert s.mechanism not in list_mechanisms()  # registered for the study, not listed as a model
+    # key paths name the study file's entries, not the resolved list (which starts with structure)
+    assert s.variable_path("link_length") == "variables[2]" and s.variable_path("structure") == "structure"
+    bad = resolved(variables=[{"name": "platform_radius", "low": "40 mm", "high": "80 mm"},
+                              {"name": "base_radius", "low": "-100 mm", "high": "150 mm"}])
+    assert any(p.startswith("variables[1].low") for p in check_study(bad, measures=False))
+    # the study as run names the section, not the generated mechanism
+    assert "structure:" in s.to_yaml() and "mechanism" not in yaml.safe_load(s.to_yaml())
+
+
+@pytest.mark.parametrize("over,needle", [
+    ({"mechanism": "5pus_upu"}, "mechanism: give either mechanism: or structure:, not both"),
+    ({"structure": {"motion": "3X2R"}}, "structure.motion: motion must be written like"),
+    ({"structure": {"leg_types": ["PUS", "XYZ"]}}, "structure.leg_types: unknown limb type 'XYZ'"),
+    ({"structure": {"reference": "6-UPS"}}, "structure.reference: '6-UPS' is not any of the structures found"),
+    ({"structure": {"include": ["5-RUS/UPU"]}}, "structure.include[0]: '5-RUS/UPU' is not among the structures"),
+    ({"structure": {"arrangements": ["round"]}}, "structure.arrangements[0]: unknown arrangement 'round'"),
+    ({"structure": {"leg_types": ["PUS", "UPU"]}}, "a study over structures needs at least two"),
+    ({"structure": {"screening": 0}}, "structure.screening"),
+    ({"optimizer": {"algorithm": "nsga2"}}, "a study over structures uses one of tpe, random"),
+    ({"optimizer": {"kind": "nlopt", "n_trials": None}}, "use optimizer.kind: optuna"),
+    ({"variables": [{"name": "crank_length", "low": "50 mm", "high": "90 mm"}]},
+     "'crank_length' is used by none of the structures"),
+])
+def test_bad_structure_sections_name_the_key(over, needle):
+    with pytest.raises(StudyError) as e:
+        resolved(**over)
+    assert needle in str(e.value), str(e.value)
+
+
+# -- the schedule against an independent ranking ---------------------------------------------------------
+class _Obj:
+    def __init__(self, label, goal):
+        self.label, self.goal = label, goal
+
+
+def _staircase_hv(points, ref):
+    """Hypervolume of 2-D minimisation points below ``ref``: the sum of the staircase's
+    rectangles (independent of moocore)."""
+    pts = [p for p in points if p[0] < ref[0] and p[1] < ref[1]]
+    if not pts:
+        return 0.0
+    # sweep in x: the area is the integral over x of (ref_y - the least y of the points left of x)
+    xs = sorted({p[0] for p in pts}) + [ref[0]]
+    hv = 0.0
+    for a, b in zip(xs[:-1], xs[1:]):
+        hv += (b - a) * (ref[1] - min(p[1] for p in pts if p[0] <= a))
+    return hv
+
+
+def test_schedule_rungs_and_survivors_match_an_independent_ranking():
+    rng = np.random.default_rng(4)
+    labels = ["A", "B", "C", "D", "E"]
+    objs = [_Obj("f", "maximize"), _Obj("g", "minimize")]
+    sch = Schedule(labels, "E", screening=3, eta=2, n_full=10, objectives=objs)
+    assert sch.targets == (3, 6, 10) and sch.max_total == 50
+    quality = {"A": 0.2, "B": 1.0, "C": 0.6, "D": None, "E": 0.1}  # D: never feasible; E the reference
+    recs, trial = [], 0
+
+    def add(label, n):
+        nonlocal trial
+        for _ in range(n):
+            q = quality[label]
+            f, g = (rng.uniform(0, 1) * (q or 1), rng.uniform(0, 1) / (q or 1))
+            recs.append(Record(values={"structure": label}, objectives={"f": f, "g": g},
+                               margins={"c": -1.0 if q is None else 1.0}, trial=trial))
+            trial += 1
+
+    for lab in labels:
+        add(lab, 2)
+    p = sch.plan(recs)
+    assert not p.done and p.current.index == 0 and p.total == 15 and p.counted == 10
+    # a new design goes to the structure with the fewest, ties to the first; running ones count
+    assert sch.next_structure(p, {}) == "A" and sch.next_structure(p, {"A": 1, "B": 1}) == "C"
+    for lab in labels:
+        add(lab, 1)
+    p = sch.plan(recs)
+    assert p.current.index == 1 and not p.done
+    r0 = p.rungs[0]
+    # independent ranking: normalise over the feasible designs of the rung, reference point 1.1
+    feas = [r for r in recs if r.margins["c"] >= 0]
+    F = np.array([[-r.objectives["f"], r.objectives["g"]] for r in feas])
+    lo, hi = F.min(axis=0), F.max(axis=0)
+    hv = {}
+    for lab in labels:
+        pts = [((-r.objectives["f"] - lo[0]) / (hi[0] - lo[0]), (r.objectives["g"] - lo[1]) / (hi[1] - lo[1]))
+               for r in feas if r.values["structure"] == lab]
+        hv[lab] = _staircase_hv(pts, (1.1, 1.1)) if pts else None
+    assert r0.scores["D"] is None
+    for lab in "ABCE":
+        assert math.isclose(r0.scores[lab], hv[lab], rel_tol=1e-12, abs_tol=1e-15), lab
+    best = sorted((lab for lab in "ABCE"), key=lambda s: -hv[s])[:3]  # ceil(5 / 2)
+    assert set(p.current.alive) == set(best) | {"E"}
+    assert "no feasible design" in r0.stopped["D"]
+    for lab in set(labels) - set(best) - {"E", "D"}:
+        assert "not among the best 3 of 5" in r0.stopped[lab]
+    # the same records in another order give the same plan (decided by trial order, not arrival)
+    assert sch.plan(list(reversed(recs))).current.alive == p.current.alive
+    # structure.keep: that many continue (and the reference)
+    one = Schedule(labels, "E", screening=3, eta=2, n_full=10, objectives=objs, keep=1).plan(recs)
+    assert set(one.current.alive) == {best[0], "E"}
+    for lab in set(labels) - {best[0], "E", "D"}:
+        assert "not among the best 1 of 5" in one.rungs[0].stopped[lab]
+
+
+# -- runs -------------------------------------------------------------------------------------------------
+def _counts(table):
+    run = table[table["source"] == "run"]
+    return run.groupby("structure").size().to_dict()
+
+
+def _compare(a: Path, b: Path):
+    ta = pd.read_csv(a / "results.csv").drop(columns=["time_s"])
+    tb = pd.read_csv(b / "results.csv").drop(columns=["time_s"])
+    pd.testing.assert_frame_equal(ta, tb)
+
+
+@pytest.fixture(scope="module")
+def whole(tmp_path_factory):
+    out = tmp_path_factory.mktemp("whole") / "run"
+    s = resolved()
+    res = run_study(s, out_dir=out, progress=False)
+    return s, out, res
+
+
+def test_a_run_follows_the_schedule(whole):
+    s, out, res = whole
+    t = res.table
+    run = t[t["source"] == "run"].sort_values("trial")
+    plan = structure_schedule(s).plan(res.new_records)
+    assert plan.done and plan.counted == len(run)
+    # screening: 4 designs of each structure, interleaved in enumeration order
+    assert list(run["structure"][:12]) == list(s.structures.labels) * 4
+    counts = _counts(t)
+    full = plan.full()
+    assert "5-PUS/UPU" in full  # the reference structure always continues
+    for lab in s.structures.labels:
+        assert counts[lab] == (8 if lab in full else plan.stopped_at()[lab][1])
+    # inactive dimensions are absent: link_length only for the slider limbs
+    assert run.loc[run["structure"] != "5-PUS/UPU", "link_length_m" if "link_length_m" in run else "link_length"].isna().all()
+    # the final re-evaluation covers every structure's best design
+    fin = pd.read_csv(out / "final.csv")
+    assert set(s.structures.labels) <= set(fin.loc[fin["source"] == "best", "structure"])
+
+
+def test_report_has_the_structure_table_front_and_verdict(whole, tmp_path):
+    from parasynth.report import write_report
+
+    s, out, _ = whole
+    rep = write_report(out, out=tmp_path / "rep")
+    md = (rep / "report.md").read_text()
+    assert "## Structures" in md and "**3 screened**" in md and "got the full budget" in md
+    assert "| 5-PUS/UPU (reference) |" in md and "why designs failed" in md
+    assert "## Reference structure 5-PUS/UPU" in md
+    assert ("is on the combined front** (re-evaluated" in md) or ("is not on the combined front** (re-evaluated" in md)
+    assert (rep / "img" / "structures.png").stat().st_size > 5000
+
+
+def test_killed_runs_resume_the_same_schedule(whole, tmp_path):
+    """SIGKILL at the first design of the second rung (while it is evaluated) and mid-rung,
+    resumed each time: results.csv equals the uninterrupted run's (all but time_s)."""
+    s, ref_out, _ = whole
+    path = tmp_path / "study.yaml"
+    path.write_text(yaml.safe_dump(study_dict()))
+    out = tmp_path / "killed"
+    for i, trial in enumerate((12, 15)):
+        args = ["run", path, "--out", out, "--quiet", "--no-report"] + (["--resume"] if i else [])
+        r = subprocess.run([sys.executable, KILLER, *map(str, args)], env={**os.environ,
+                           "PARASYNTH_TEST_KILL": f"{trial}:evaluate"}, capture_output=True, text=True, timeout=300)
+        assert r.returncode == -signal.SIGKILL, r.stderr
+    res = run_study(load_study(path), out_dir=out, resume=True, progress=False)
+    assert not res.interrupted
+    _compare(out, ref_out)
+
+
+def test_workers_complete_the_schedule(tmp_path):
+    s = resolved(name="structures_workers")
+    res = run_study(s, out_dir=tmp_path / "w", progress=False, workers=2)
+    t = res.table[res.table["source"] == "run"]
+    assert sorted(t["trial"]) == list(range(len(t)))  # each trial once
+    plan = structure_schedule(s).plan(res.new_records)
+    assert plan.done
+    for lab, n in _counts(res.table).items():
+        target = 8 if lab in plan.full() else plan.stopped_at()[lab][1]
+        assert target <= n <= target + 1, (lab, n)  # two workers may both take a rung's last slot
