@@ -98,6 +98,43 @@ def test_local_workers_record_every_trial_once_identical_designs_included(tmp_pa
     assert sorted(on_disk[on_disk.source == "run"]["trial"]) == list(range(24))
 
 
+def test_two_workers_asking_for_the_last_place_one_is_given_it():
+    """Two workers both saw one place left in the budget and asked for a trial at once: the
+    lower-numbered trial is evaluated, the other is failed unevaluated and does not count."""
+    import optuna
+    from optuna.trial import TrialState
+
+    from parasynth.study import workers
+    from parasynth.study.storage import ATTR_OVER_BUDGET, counts
+
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    st = optuna.create_study(sampler=optuna.samplers.RandomSampler(seed=0))
+    for _ in range(2):
+        t = st.ask()
+        t.suggest_float("x", 0, 1)
+        st.tell(t, 1.0)
+    first, second = st.ask(), st.ask()  # both running: the budget of 3 has one place left
+    assert workers.within_budget(st, first.number, 3)
+    assert not workers.within_budget(st, second.number, 3)
+    assert workers.within_budget(st, second.number, 4)  # a larger budget has room for both
+    evaluated = []
+
+    def objective(trial):
+        evaluated.append(trial.number)
+        return 0.5
+
+    ran = workers.run_one_trial(st, objective, admit=lambda tr: workers.within_budget(st, tr.number, 3))
+    assert ran is None and evaluated == []  # the third running trial asks: refused unevaluated
+    refused = st.trials[-1]
+    assert refused.state == TrialState.FAIL and refused.user_attrs.get(ATTR_OVER_BUDGET) is True
+    assert not counts(refused)
+    st.tell(second, state=TrialState.FAIL)  # the refused worker's own trial, failed
+    st.tell(first, state=TrialState.FAIL)  # the admitted trial's worker died: the place is free again
+    number = workers.run_one_trial(st, objective, admit=lambda tr: workers.within_budget(st, tr.number, 3))
+    assert number is not None and evaluated == [number]
+    assert sum(counts(t) for t in st.trials) == 3
+
+
 def test_sweeps_and_nlopt_say_they_run_in_one_process(tmp_path, capsys):
     d = study_dict("one_process", 3)
     d["variables"] = [{"name": "link_length", "values": ["180 mm", "200 mm"]}]

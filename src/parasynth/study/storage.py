@@ -43,7 +43,7 @@ from .tables import write_tables
 
 __all__ = ["StorageError", "resolve_storage_url", "open_storage", "describe_url", "counts", "records_from_trials",
            "load_parasynth_study", "rebuild_journal_storage", "materialize_run", "is_shared_server",
-           "ATTR_STUDY", "ATTR_REFERENCE", "ATTR_FINAL", "ATTR_BUDGET", "ATTR_RECORD"]
+           "ATTR_STUDY", "ATTR_REFERENCE", "ATTR_FINAL", "ATTR_BUDGET", "ATTR_RECORD", "ATTR_OVER_BUDGET"]
 
 DEFAULT_JOURNAL = "optuna.journal"
 ATTR_STUDY = "parasynth:study_yaml"
@@ -51,6 +51,7 @@ ATTR_REFERENCE = "parasynth:reference_record"
 ATTR_FINAL = "parasynth:final_csv"
 ATTR_BUDGET = "parasynth:n_trials"
 ATTR_RECORD = "record"
+ATTR_OVER_BUDGET = "parasynth:over_budget"  # asked for after the budget was taken: not evaluated
 
 # SQLAlchemy driver module -> the pip command that installs it.
 _DRIVER_PIP = {

@@ -61,12 +61,12 @@ from .optuna_adapter import (StructureView, fail_stale, fail_trial, heartbeat_en
 from .schedule import ATTR_STRUCTURE, structure_schedule
 from .signals import Interrupt
 from .spec import StudyError
-from .storage import ATTR_RECORD, counts, is_shared_server, load_parasynth_study, open_storage, trial_record
+from .storage import ATTR_OVER_BUDGET, ATTR_RECORD, counts, is_shared_server, load_parasynth_study, open_storage, trial_record
 from .structure_space import STRUCTURE
 
 __all__ = ["Interrupt", "PerTrialSeeded", "make_sampler", "optuna_objective", "optimize_loop", "run_local_workers",
-           "StorageLost", "owner_id", "budget_state", "can_fork_workers", "forked_worker_main", "optimize_budget",
-           "assign_structure"]
+           "StorageLost", "owner_id", "budget_state", "within_budget", "can_fork_workers", "forked_worker_main",
+           "optimize_budget", "assign_structure"]
 
 
 class StorageLost(StudyError):
@@ -349,10 +349,28 @@ def _root_cause(e: BaseException) -> str:
     return f"{type(e).__name__}: {text[0]}" if text else type(e).__name__
 
 
-def run_one_trial(ostudy, objective, storage_errors=()):
+def within_budget(ostudy, number: int, total: int) -> bool:
+    """May trial ``number`` (just asked for, running) be evaluated within a budget of
+    ``total`` counted trials? Yes when fewer than ``total`` trials of lower number count or
+    are still running: of two workers that both saw one place left and asked at once, the one
+    with the lower trial number is given it."""
+    from optuna.trial import TrialState  # lazy: optuna takes about a second to import
+
+    ahead = 0
+    for t in ostudy.get_trials(deepcopy=False):
+        if t.number < number and (counts(t) or t.state == TrialState.RUNNING):
+            ahead += 1
+    return ahead < total
+
+
+def run_one_trial(ostudy, objective, storage_errors=(), admit=None):
     """Ask for a trial, evaluate it, tell the result: Optuna's ask-and-tell with its heartbeat
     (server storages), so that a storage error reaches the caller as itself (Optuna's own
-    loop turns a storage error while telling into an ``UnboundLocalError``)."""
+    loop turns a storage error while telling into an ``UnboundLocalError``).
+
+    ``admit(trial)``: checked once the trial is asked for; a trial it refuses is failed
+    unevaluated, without a record (it does not count) and marked ``parasynth:over_budget``.
+    Returns the trial's number, or None when it was refused."""
     from optuna.trial import TrialState  # lazy: optuna takes about a second to import
 
     if heartbeat_enabled(ostudy):
@@ -360,6 +378,10 @@ def run_one_trial(ostudy, objective, storage_errors=()):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # "heartbeat is supposed to be used with Study.optimize": it is, below
         trial = ostudy.ask()
+    if admit is not None and not admit(trial):
+        trial.set_user_attr(ATTR_OVER_BUDGET, True)
+        ostudy.tell(trial, state=TrialState.FAIL, skip_if_finished=True)
+        return None
     with heartbeat_thread(ostudy, trial):
         try:
             value = objective(trial)
@@ -445,7 +467,9 @@ def _loop(ostudy, objective, total, guard, shared, counted, on_count, poll_s, re
             elif counted >= total:
                 break
             n0 = objective.stats["records"]
-            run_one_trial(ostudy, objective, errors)
+            admit = (lambda trial: within_budget(ostudy, trial.number, total)) if shared else None
+            if run_one_trial(ostudy, objective, errors, admit=admit) is None:
+                continue  # another worker took the last place first: wait for it above
             ran += 1
             if not shared:
                 counted += objective.stats["records"] - n0
