@@ -226,6 +226,13 @@ def test_a_run_follows_the_schedule(whole):
     # the final re-evaluation covers every structure's best design
     fin = pd.read_csv(out / "final.csv")
     assert set(s.structures.labels) <= set(fin.loc[fin["source"] == "best", "structure"])
+    # the Optuna study names its objectives (optuna-dashboard shows them)
+    import optuna
+
+    from parasynth.study.storage import open_storage
+
+    ostudy = optuna.load_study(study_name=s.name, storage=open_storage(f"journal:{out / 'optuna.journal'}"))
+    assert ostudy.metric_names == ["volume", "margin"]
 
 
 def test_report_has_the_structure_table_front_and_verdict(whole, tmp_path):
