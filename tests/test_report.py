@@ -311,6 +311,23 @@ def test_interactive_view_in_headless_chromium(page):
     assert not errors, errors
 
 
+def test_ci_installs_and_requires_the_browser_and_the_dashboard():
+    """.ci/run installs Chromium and its driver when missing and fails, not skips, the tests of
+    optional tools; the test extra holds their Python packages; plotly is a dependency."""
+    import tomllib
+
+    root = Path(__file__).resolve().parents[1]
+    ci = (root / ".ci" / "run").read_text()
+    for var in ("PARASYNTH_REQUIRE_SIMULATORS", "PARASYNTH_REQUIRE_BROWSER", "PARASYNTH_REQUIRE_DASHBOARD"):
+        assert f"export {var}=1" in ci
+    assert "apt-get install -y -qq chromium chromium-driver" in ci
+    project = tomllib.loads((root / "pyproject.toml").read_text())["project"]
+    test = " ".join(project["optional-dependencies"]["test"])
+    assert "selenium" in test and "optuna-dashboard" in test
+    assert any(d.startswith("optuna-dashboard") for d in project["optional-dependencies"]["dashboard"])
+    assert any(d.startswith("plotly") for d in project["dependencies"])
+
+
 def test_reports_in_a_reports_folder_share_one_plotly_script(mo_run, tmp_path):
     """Reports inside a folder named reports reference ../assets/plotly-<version>.min.js, one copy."""
     _, res, _ = mo_run
