@@ -65,6 +65,7 @@
       margin: { l: 0, r: 0, t: 10, b: 0 }, uirevision: "viewer", showlegend: true,
       legend: { orientation: "h", x: 0, y: 0, bgcolor: "rgba(255,255,255,0.7)", font: { size: 11 } },
       scene: { xaxis: ax("X", b[0]), yaxis: ax("Y", b[1]), zaxis: ax("Z", b[2]), aspectmode: "manual",
+               camera: { eye: { x: 1.1, y: 1.1, z: 0.8 } },
                aspectratio: { x: span[0] / m, y: span[1] / m, z: span[2] / m } }
     };
   }
