@@ -157,7 +157,7 @@ def _design_view(study, mech, k: int, path) -> dict | None:
         "pose_text": [texts[i] + ("" if feasible[i] else " (outside the limits)") for i in keep],
         "cloud": _r(mm(cloud_p).T) if len(cloud_p) else [[], [], []],
         "n_feasible_samples": int(len(pts)), "n_samples": N_WORKSPACE,
-        "pose_source": source,
+        "pose_source": source, "trajectory": path is not None,
     }
 
 
