@@ -300,9 +300,11 @@ def test_interactive_view_in_headless_chromium(page):
                                   return [t.name, t.x, t.y];""")
     coords = data["pareto"]["front"]["coords"]
     assert ring == ["in the viewer", [coords[0][j]], [coords[1][j]]]
-    # hovering a front point shows its design values
-    hover = data["pareto"]["front"]["hover"][j]
-    assert "link_length = " in hover and "slider_radius = " in hover
+    # the pointer is on the point: its hover label shows the design values
+    _wait(page, "return !!document.querySelector('#viewer-pareto .hoverlayer .hovertext')")
+    hover = page.execute_script("return document.querySelector('#viewer-pareto .hoverlayer .hovertext').textContent")
+    trial = int(data["designs"][target]["trial"])
+    assert f"trial {trial}" in hover and "link_length = " in hover and "slider_radius = " in hover, hover
 
     # no error, and no warning of the page's own scripts (the browser's notes on its software
     # WebGL are of source "rendering")
