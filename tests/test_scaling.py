@@ -474,4 +474,4 @@ def test_optuna_dashboard_reads_a_runs_journal_with_the_objective_names(tmp_path
         status, detail = _dashboard_get(app, f"/api/studies/{summary['study_id']}")
         assert status.startswith("200"), status
         assert detail["objective_names"] == ["quadratic", "test_two"]
-        assert len(detail["trials"]) == 6
+        assert 6 <= len(detail["trials"]) <= 6 + workers - 1  # workers finishing together may add one each
