@@ -55,11 +55,11 @@ deg = UNITS["angle"]
 
 
 def _r(a, digits: int = 1):
-    """Rounded display values as nested lists (NaN as None)."""
+    """Display values rounded to ``digits`` decimals as nested lists, NaN and infinities as None."""
     a = np.round(np.asarray(a, dtype=float), digits)
-    return [[None if not np.isfinite(x) else float(x) for x in row] for row in a] if a.ndim == 2 else \
-        [None if not np.isfinite(x) else float(x) for x in a] if a.ndim == 1 else \
-        [_r(x, digits) for x in a]
+    if a.ndim == 0:
+        return float(a) if np.isfinite(a) else None
+    return [_r(x, digits) for x in a]
 
 
 def _fmt(study, name: str, x) -> str:
@@ -75,7 +75,7 @@ def _values(study, row) -> dict:
     out = {}
     for v in study.variables:
         x = row[v.name] if v.name in row else None
-        if x is None or (isinstance(x, float) and np.isnan(x)) or (not isinstance(x, str) and pd.isna(x)):
+        if x is None or (not isinstance(x, str) and pd.isna(x)):
             continue
         out[v.name] = x.item() if hasattr(x, "item") else x
     return out
