@@ -313,6 +313,31 @@ def test_interactive_view_in_headless_chromium(page):
     assert not errors, errors
 
 
+def test_viewer_draws_the_mechanisms_own_joints(mo_run):
+    """The viewer's legs are the inverse kinematics' joints: every 5-PUS/UPU rod (slider joint to
+    platform anchor) keeps the design's link length at every pose, the platform is rigid, the
+    first pose is home, and the switchable designs are bounded."""
+    from parasynth.report.interactive import MAX_FRONT_DESIGNS, N_POSES, viewer_data
+    from parasynth.study.rundir import design_mechanism
+
+    study, res, out = mo_run
+    run = load_run(res.out_dir)
+    data = viewer_data(run, analyse(run))
+    designs = data["designs"]
+    assert [d["role"] for d in designs[:2]] == ["recommended", "reference"]
+    assert 2 < len(designs) <= 2 + MAX_FRONT_DESIGNS
+    for d in designs:
+        values = {k: float(v.split()[0]) for k, v in d["values"]}  # mm
+        A, B = np.array(d["A"]), np.array(d["B"])
+        assert 1 < len(d["C"]) <= N_POSES and A.shape == B.shape == (len(d["C"]), 6, 3)
+        rods = np.linalg.norm(A - B, axis=2)[:, np.array(d["actuated"])]
+        assert rods.shape[1] == 5 and np.abs(rods - values["link_length"]).max() < 0.25
+        gaps = np.linalg.norm(A[:, :, None] - A[:, None, :], axis=3)
+        assert (gaps.max(axis=0) - gaps.min(axis=0)).max() < 0.3
+    mech = design_mechanism(study, dict(study.reference))
+    assert designs[1]["C"][0] == pytest.approx(list(mech.pose(mech.home)[0] * 1e3), abs=0.06)
+
+
 def test_ci_installs_and_requires_the_browser_and_the_dashboard():
     """.ci/run installs Chromium and its driver when missing and fails, not skips, the tests of
     optional tools; the test extra holds their Python packages; plotly is a dependency."""
