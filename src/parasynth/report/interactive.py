@@ -63,8 +63,9 @@ def _r(a, digits: int = 1):
 
 
 def _fmt(study, name: str, x) -> str:
-    if x is None or (isinstance(x, float) and np.isnan(x)):
-        return "inactive"
+    """A value of a variable or objective in its display unit ("n/a" when missing)."""
+    if x is None or (not isinstance(x, str) and pd.isna(x)):
+        return "n/a"
     if is_number_col(study, name):
         return fmt_quantity(float(x), unit(study, name))
     return str(x)
