@@ -6,8 +6,6 @@ export writes."""
 
 from __future__ import annotations
 
-import importlib
-import os
 import warnings
 from pathlib import Path
 
@@ -20,14 +18,6 @@ from parasynth.mechanism import EngineFallbackWarning
 from _support import sample_poses, shipped_configs
 
 USER_DESCRIPTION = str(Path(__file__).parent / "data" / "export_6rus.yaml")
-
-
-def import_or_skip(module: str, package: str):
-    """``module``, or a skip naming the package to install; with ``PARASYNTH_REQUIRE_SIMULATORS``
-    set (``.ci/run`` sets it) a missing package fails the run instead of skipping."""
-    if os.environ.get("PARASYNTH_REQUIRE_SIMULATORS", "") not in ("", "0"):
-        return importlib.import_module(module)
-    return pytest.importorskip(module, reason=f"{module} is not installed (pip install {package}; in the test extra)")
 
 
 CASES = shipped_configs() + [(USER_DESCRIPTION, {})]

@@ -34,9 +34,10 @@ import pytest
 from parasynth.export import build_tree, joint_positions, to_mjcf
 from parasynth.mechanism import EngineFallbackWarning
 
-from _export_cases import CASES, IDS, feasible_poses, import_or_skip, load, nearby_feasible
+from _export_cases import CASES, IDS, feasible_poses, load, nearby_feasible
+from _optional import SIMULATORS, import_or_skip
 
-mujoco = import_or_skip("mujoco", "mujoco")
+mujoco = import_or_skip("mujoco", SIMULATORS, "mujoco")
 
 pytestmark = pytest.mark.filterwarnings("ignore::parasynth.mechanism.EngineFallbackWarning")
 

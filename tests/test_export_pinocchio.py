@@ -22,9 +22,10 @@ import yaml
 
 from parasynth.export import joint_positions, to_urdf
 
-from _export_cases import CASES, IDS, feasible_poses, import_or_skip, load
+from _export_cases import CASES, IDS, feasible_poses, load
+from _optional import SIMULATORS, import_or_skip
 
-pin = import_or_skip("pinocchio", "pin")
+pin = import_or_skip("pinocchio", SIMULATORS, "pin")
 
 pytestmark = pytest.mark.filterwarnings("ignore::parasynth.mechanism.EngineFallbackWarning")
 
@@ -121,7 +122,7 @@ def test_the_python_examples_of_docs_export_run(tmp_path, monkeypatch):
     import re
     from pathlib import Path
 
-    import_or_skip("mujoco", "mujoco")
+    import_or_skip("mujoco", SIMULATORS, "mujoco")
     text = (Path(__file__).resolve().parents[1] / "docs" / "export.md").read_text()
     blocks = re.findall(r"```python\n(.*?)```", text, re.S)
     assert len(blocks) == 3

@@ -12,6 +12,7 @@ import pandas as pd
 import pytest
 import yaml
 
+from _optional import BROWSER, find_browser, import_or_skip
 from _support import brute_force_front, brute_spread
 from parasynth.cli import load_plugins
 from parasynth.report import ReportError, write_report
@@ -95,13 +96,17 @@ def test_report_files_and_pareto_csv(mo_run):
 
 
 def test_html_self_contained_and_tables_list_front(mo_run):
+    """Images inline; the one file referenced is the shared plotly.js, by a relative path, present
+    next to the report (the report directory is not in a folder named reports: its own assets/)."""
     study, res, out = mo_run
     text = (out / "index.html").read_text()
     p = _Collector()
     p.feed(text)
     assert len(p.imgs) >= 4
     assert all(src.startswith("data:image/png;base64,") for src in p.imgs), "an image is not embedded"
-    assert not p.links, "external resources referenced"
+    assert len(p.links) == 1 and re.fullmatch(r"assets/plotly-\d+\.\d+\.\d+\.min\.js", p.links[0]), p.links
+    script = out / p.links[0]
+    assert script.stat().st_size > 1_000_000 and script.read_bytes()[:4000].count(b"plotly") > 0
     assert not re.search(r"https?://", text)
     pareto = pd.read_csv(out / "pareto.csv")
     # The non-dominated table: rows whose first cell is a trial number of the front.
@@ -156,14 +161,18 @@ def test_cli_report_error_is_a_message_not_a_traceback(tmp_path):
     assert r.returncode == 2 and "does not exist" in r.stderr and "Traceback" not in r.stderr
 
 
-CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser") or shutil.which("google-chrome")
+@pytest.fixture(scope="module")
+def browser_paths():
+    """Chromium and chromedriver (Debian's chromium, chromium-driver); a skip when missing, a
+    failure with PARASYNTH_REQUIRE_BROWSER set."""
+    return find_browser(BROWSER)
 
 
-@pytest.mark.skipif(CHROMIUM is None, reason="headless Chromium is not installed (apt-get install chromium)")
-def test_page_renders_in_headless_chromium(mo_run, tmp_path):
+def test_page_renders_in_headless_chromium(mo_run, tmp_path, browser_paths):
     _, _, out = mo_run
+    chromium = browser_paths[0]
     shot = tmp_path / "shot.png"
-    cmd = [CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
+    cmd = [chromium, "--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
            "--disable-component-update", "--disable-sync", "--no-first-run", f"--user-data-dir={tmp_path / 'u'}",
            "--window-size=1200,3000", f"--screenshot={shot}", (out / "index.html").resolve().as_uri()]
     subprocess.run(cmd, capture_output=True, timeout=120)
@@ -178,6 +187,185 @@ def test_page_renders_in_headless_chromium(mo_run, tmp_path):
     dom = subprocess.run(cmd[:-2] + ["--dump-dom", (out / "index.html").resolve().as_uri()], capture_output=True,
                          text=True, timeout=120).stdout
     assert dom.count("<img") >= 4 and "Non-dominated designs" in dom
+
+
+@pytest.fixture(scope="module")
+def page(mo_run, browser_paths, tmp_path_factory):
+    """The mo_run report open in headless Chromium driven by selenium through Debian's
+    chromedriver (a Service with its path: nothing is downloaded); the browser's console log is
+    kept."""
+    webdriver = import_or_skip("selenium.webdriver", BROWSER, "selenium")
+    from selenium.webdriver.chrome.service import Service
+
+    chromium, driver_path = browser_paths
+    opts = webdriver.ChromeOptions()
+    opts.binary_location = chromium
+    # WebGL (the 3D view) on the software renderer: no GPU in a headless test
+    for arg in ("--headless=new", "--no-sandbox", "--disable-dev-shm-usage", "--window-size=1400,1400",
+                "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
+                "--disable-background-networking", "--disable-component-update", "--disable-sync", "--no-first-run",
+                f"--user-data-dir={tmp_path_factory.mktemp('chromium')}"):
+        opts.add_argument(arg)
+    opts.set_capability("goog:loggingPrefs", {"browser": "ALL"})
+    driver = webdriver.Chrome(service=Service(executable_path=driver_path), options=opts)
+    try:
+        driver.set_page_load_timeout(60)
+        driver.get((mo_run[2] / "index.html").resolve().as_uri())
+        driver.set_script_timeout(30)
+        _wait(driver, "return document.getElementById('viewer-3d').getAttribute('data-ready') === '1'")
+        yield driver
+    finally:
+        driver.quit()
+
+
+def _wait(driver, script, timeout=30.0):
+    import time
+
+    t0 = time.time()
+    while time.time() - t0 < timeout:
+        if driver.execute_script(script):
+            return
+        time.sleep(0.05)
+    raise AssertionError(f"timed out waiting for: {script}")
+
+
+_VIEW = "var g = document.getElementById('viewer-3d');"
+
+
+def _state(driver) -> dict:
+    """What the 3D view shows, read from the plotly graph div's data."""
+    return driver.execute_script(_VIEW + """
+        var byName = {}; g.data.forEach(function (t) { byName[t.name] = t; });
+        return {names: g.data.map(function (t) { return t.name; }),
+                legs: byName['actuated legs'].x.concat(byName['actuated legs'].z),
+                centre: [byName['platform centre'].x[0], byName['platform centre'].y[0], byName['platform centre'].z[0]],
+                anchors: byName['base anchors'].x.concat(byName['base anchors'].y),
+                design: document.getElementById('viewer-design').value,
+                pose: document.getElementById('viewer-pose').value,
+                label: document.getElementById('viewer-pose-label').textContent,
+                scene: !!(g._fullLayout && g._fullLayout.scene && g._fullLayout.scene._scene)};""")
+
+
+def test_interactive_view_in_headless_chromium(page):
+    """The 3D view is drawn, the pose slider moves the platform, a click on a front point of the
+    objective plot switches the view to that design, and the console stays free of errors."""
+    import io
+
+    import matplotlib.image as mpimg
+    from selenium.webdriver.common.action_chains import ActionChains
+    from selenium.webdriver.common.by import By
+    from selenium.webdriver.common.keys import Keys
+
+    data = page.execute_script("return JSON.parse(document.getElementById('viewer-data').textContent)")
+    s0 = _state(page)
+    assert s0["scene"], "no 3D scene"
+    assert {"actuated legs", "passive legs", "platform", "base anchors",
+            "feasible workspace samples (platform centre)"} <= set(s0["names"])
+    d0 = data["designs"][0]
+    assert s0["design"] == "0" and d0["role"] == "recommended" and s0["centre"] == d0["C"][0]
+    # drawn: the WebGL canvas of the view holds the actuated legs' blue (#1f77b4)
+    view = page.find_element(By.ID, "viewer-3d")
+    page.execute_script("arguments[0].scrollIntoView()", view)
+    img = mpimg.imread(io.BytesIO(view.screenshot_as_png))[..., :3]
+    blue = (np.abs(img - np.array([0x1F, 0x77, 0xB4]) / 255).max(axis=-1) < 0.08)
+    assert blue.mean() > 0.001, f"the legs are not drawn ({blue.mean():.5f} of the pixels)"
+
+    # the slider (keyboard on the range input): the platform moves to the next poses
+    slider = page.find_element(By.ID, "viewer-pose")
+    slider.click()
+    slider.send_keys(Keys.HOME)
+    slider.send_keys(Keys.RIGHT, Keys.RIGHT, Keys.RIGHT)
+    s1 = _state(page)
+    assert s1["pose"] == "3" and s1["centre"] == d0["C"][3] and s1["legs"] != s0["legs"]
+    assert s1["label"].startswith("pose 4 of ") and d0["pose_text"][3] in s1["label"]
+
+    # a click on a front point of another design: the viewer switches to it
+    front = data["pareto"]["front"]["design"]
+    j = next(j for j, d in enumerate(front) if d > 0 and data["designs"][d]["role"] == "front")
+    target = front[j]
+    point = page.execute_script("""
+        var p = document.getElementById('viewer-pareto');
+        var k = p.data.findIndex(function (t) { return t.name === 'non-dominated (click: view)'; });
+        return p.querySelectorAll('.scatterlayer .trace')[k].querySelectorAll('path.point')[arguments[0]];""", j)
+    page.execute_script("arguments[0].scrollIntoView({block: 'center'})", point)
+    ActionChains(page).move_to_element(point).pause(0.2).click().perform()
+    _wait(page, "return document.getElementById('viewer-design').value === arguments[0]".replace("arguments[0]", repr(str(target))))
+    s2 = _state(page)
+    dt = data["designs"][target]
+    assert s2["anchors"] == [p[0] for p in dt["anchors"]] + [p[1] for p in dt["anchors"]]
+    assert s2["centre"] == dt["C"][min(3, len(dt["C"]) - 1)]
+    assert dt["name"] in page.find_element(By.ID, "viewer-design-info").text
+    # the objective plot rings the design now in the viewer
+    ring = page.execute_script("""var p = document.getElementById('viewer-pareto'); var t = p.data[p.data.length - 1];
+                                  return [t.name, t.x, t.y];""")
+    coords = data["pareto"]["front"]["coords"]
+    assert ring == ["in the viewer", [coords[0][j]], [coords[1][j]]]
+    # the pointer is on the point: its hover label shows the design values
+    _wait(page, "return !!document.querySelector('#viewer-pareto .hoverlayer .hovertext')")
+    hover = page.execute_script("return document.querySelector('#viewer-pareto .hoverlayer .hovertext').textContent")
+    trial = int(data["designs"][target]["trial"])
+    assert f"trial {trial}" in hover and "link_length = " in hover and "slider_radius = " in hover, hover
+
+    # no error, and no warning of the page's own scripts (the browser's notes on its software
+    # WebGL are of source "rendering")
+    log = page.get_log("browser")
+    errors = [e for e in log if e["level"] == "SEVERE" or e.get("source") in ("console-api", "javascript")]
+    assert not errors, errors
+
+
+def test_viewer_draws_the_mechanisms_own_joints(mo_run):
+    """The viewer's legs are the inverse kinematics' joints: every 5-PUS/UPU rod (slider joint to
+    platform anchor) keeps the design's link length at every pose, the platform is rigid, the
+    first pose is home, and the switchable designs are bounded."""
+    from parasynth.report.interactive import MAX_FRONT_DESIGNS, N_POSES, viewer_data
+    from parasynth.study.rundir import design_mechanism
+
+    study, res, out = mo_run
+    run = load_run(res.out_dir)
+    data = viewer_data(run, analyse(run))
+    designs = data["designs"]
+    assert [d["role"] for d in designs[:2]] == ["recommended", "reference"]
+    assert 2 < len(designs) <= 2 + MAX_FRONT_DESIGNS
+    for d in designs:
+        values = {k: float(v.split()[0]) for k, v in d["values"]}  # mm
+        A, B = np.array(d["A"]), np.array(d["B"])
+        assert 1 < len(d["C"]) <= N_POSES and A.shape == B.shape == (len(d["C"]), 6, 3)
+        rods = np.linalg.norm(A - B, axis=2)[:, np.array(d["actuated"])]
+        assert rods.shape[1] == 5 and np.abs(rods - values["link_length"]).max() < 0.25
+        gaps = np.linalg.norm(A[:, :, None] - A[:, None, :], axis=3)
+        assert (gaps.max(axis=0) - gaps.min(axis=0)).max() < 0.3
+    mech = design_mechanism(study, dict(study.reference))
+    assert designs[1]["C"][0] == pytest.approx(list(mech.pose(mech.home)[0] * 1e3), abs=0.06)
+
+
+def test_ci_installs_and_requires_the_browser_and_the_dashboard():
+    """.ci/run installs Chromium and its driver when missing and fails, not skips, the tests of
+    optional tools; the test extra holds their Python packages; plotly is a dependency."""
+    import tomllib
+
+    root = Path(__file__).resolve().parents[1]
+    ci = (root / ".ci" / "run").read_text()
+    for var in ("PARASYNTH_REQUIRE_SIMULATORS", "PARASYNTH_REQUIRE_BROWSER", "PARASYNTH_REQUIRE_DASHBOARD"):
+        assert f"export {var}=1" in ci
+    assert "apt-get install -y -qq chromium chromium-driver" in ci
+    project = tomllib.loads((root / "pyproject.toml").read_text())["project"]
+    test = " ".join(project["optional-dependencies"]["test"])
+    assert "selenium" in test and "optuna-dashboard" in test
+    assert any(d.startswith("optuna-dashboard") for d in project["optional-dependencies"]["dashboard"])
+    assert any(d.startswith("plotly") for d in project["dependencies"])
+
+
+def test_reports_in_a_reports_folder_share_one_plotly_script(mo_run, tmp_path):
+    """Reports inside a folder named reports reference ../assets/plotly-<version>.min.js, one copy."""
+    _, res, _ = mo_run
+    for name in ("a", "b"):
+        write_report(res.out_dir, out=tmp_path / "reports" / name)
+    scripts = list((tmp_path / "reports" / "assets").glob("plotly-*.min.js"))
+    assert len(scripts) == 1 and not list((tmp_path / "reports").glob("*/assets"))
+    for name in ("a", "b"):
+        p = _Collector()
+        p.feed((tmp_path / "reports" / name / "index.html").read_text())
+        assert p.links == [f"../assets/{scripts[0].name}"]
 
 
 # -- best designs, duplicates, verdicts within noise, display units, legibility ---------------------
@@ -652,10 +840,14 @@ def test_html_and_markdown_state_the_same_sections_and_the_run_values(mo_run):
 def test_html_report_escapes_the_study_text(tmp_path):
     spec = yaml.safe_load(_mo_study().to_yaml())
     spec["description"] = "Tags <script>alert(1)</script> & <b>bold</b> are text; **this** is bold."
+    spec["reference"]["label"] = "the </script><script>alert(2)</script> design"  # also in the viewer's data
     study = load_study(yaml.safe_dump(spec), is_text=True)
     recs = [_rec(0, 0.200, 0.132, -0.001, 0.50), _rec(1, 0.190, 0.120, -0.01, 0.43)]
     out = write_report(_write_run(tmp_path / "run", study, recs), out=tmp_path / "rep")
     text = (out / "index.html").read_text()
-    assert "<script" not in text and "&lt;script&gt;alert(1)&lt;/script&gt; &amp; &lt;b&gt;bold&lt;/b&gt;" in text
+    # the page's own scripts (plotly.js, the viewer's data and code) and no other
+    assert text.count("<script") == 3 and "<script>alert" not in text
+    assert "alert(2)" in text and "</script><script>alert(2)" not in text
+    assert "&lt;script&gt;alert(1)&lt;/script&gt; &amp; &lt;b&gt;bold&lt;/b&gt;" in text
     assert "<b>this</b> is bold" in text
     assert "Tags <script>alert(1)</script> & <b>bold</b> are text; **this** is bold." in (out / "report.md").read_text()

@@ -475,3 +475,41 @@ def test_trial_abandoned_before_its_owner_was_recorded_is_failed(monkeypatch):
     assert workers.budget_state(ostudy) == (0, 1, 0)
     states = {t.number: t.state for t in ostudy.get_trials(deepcopy=False)}
     assert states == {orphan.number: TrialState.FAIL, owned.number: TrialState.RUNNING}
+
+
+# -- optuna-dashboard ------------------------------------------------------------------------------------
+def _dashboard_get(app, path: str):
+    """GET ``path`` from a WSGI app (the dashboard's own routes): (status, parsed JSON)."""
+    import io
+    import json
+    from wsgiref.util import setup_testing_defaults
+
+    env = {"PATH_INFO": path, "REQUEST_METHOD": "GET", "wsgi.input": io.BytesIO()}
+    setup_testing_defaults(env)
+    seen = {}
+    body = b"".join(app(env, lambda status, headers, exc_info=None: seen.setdefault("status", status)))
+    return seen["status"], json.loads(body)
+
+
+def test_optuna_dashboard_reads_a_runs_journal_with_the_objective_names(tmp_path):
+    """optuna-dashboard opens a run's journal file with its own storage loader (the path given as
+    on its command line, ``optuna-dashboard runs/NAME/optuna.journal``) and names the objectives
+    by the study's labels, for a run of one process and one of local workers."""
+    from _optional import DASHBOARD, import_or_skip
+
+    dashboard = import_or_skip("optuna_dashboard", DASHBOARD, "optuna-dashboard")
+    for workers in (1, 2):
+        spec = study_dict(f"dash_{workers}", 6, algorithm="random")
+        spec["objectives"][0]["label"] = "quadratic"
+        run_study(load_study(yaml.safe_dump(spec), is_text=True), out_dir=tmp_path / str(workers), progress=False,
+                  workers=workers)
+        app = dashboard.wsgi(str(tmp_path / str(workers) / "optuna.journal"))
+        status, listing = _dashboard_get(app, "/api/studies")
+        assert status.startswith("200"), status
+        (summary,) = listing["study_summaries"]
+        assert summary["study_name"] == f"dash_{workers}"
+        status, detail = _dashboard_get(app, f"/api/studies/{summary['study_id']}")
+        assert status.startswith("200"), status
+        assert detail["objective_names"] == ["quadratic", "test_two"]
+        done = [t for t in detail["trials"] if t["state"] == "Complete"]
+        assert len(done) == 6, [t["state"] for t in detail["trials"]]  # the budget, exactly: workers never exceed it

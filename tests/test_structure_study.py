@@ -226,6 +226,13 @@ def test_a_run_follows_the_schedule(whole):
     # the final re-evaluation covers every structure's best design
     fin = pd.read_csv(out / "final.csv")
     assert set(s.structures.labels) <= set(fin.loc[fin["source"] == "best", "structure"])
+    # the Optuna study names its objectives (optuna-dashboard shows them)
+    import optuna
+
+    from parasynth.study.storage import open_storage
+
+    ostudy = optuna.load_study(study_name=s.name, storage=open_storage(f"journal:{out / 'optuna.journal'}"))
+    assert ostudy.metric_names == ["volume", "margin"]
 
 
 def test_report_has_the_structure_table_front_and_verdict(whole, tmp_path):
@@ -239,6 +246,15 @@ def test_report_has_the_structure_table_front_and_verdict(whole, tmp_path):
     assert "## Reference structure 5-PUS/UPU" in md
     assert ("is on the combined front** (re-evaluated" in md) or ("is not on the combined front** (re-evaluated" in md)
     assert (rep / "img" / "structures.png").stat().st_size > 5000
+    # the interactive view holds designs of several structures (each drawn with its own legs)
+    import json
+    import re
+
+    page = (rep / "index.html").read_text()
+    data = json.loads(re.search(r"<script type='application/json' id='viewer-data'>(.*?)</script>", page, re.S).group(1))
+    assert "interactive view unavailable" not in md
+    structures = {dict(d["values"]).get("structure") for d in data["designs"]}
+    assert len(structures) >= 2 and all(len(d["C"]) > 1 for d in data["designs"])
 
 
 def test_killed_runs_resume_the_same_schedule(whole, tmp_path):

@@ -360,7 +360,7 @@ def cmd_run_all(args) -> int:
             print("interrupted; run the same command again to continue", file=sys.stderr)
             return EXIT_INTERRUPTED
         try:
-            rdir = write_report(out, out=reports / study.name)
+            rdir = write_report(out, out=reports / study.name, assets=reports / "assets")  # one plotly.js
         except ReportError as e:
             print(f"no report for {study.name}: {e}", file=sys.stderr)
             continue

@@ -18,7 +18,7 @@ from .study.progress import Progress
 from .study.signals import Interrupt
 from .study.spec import StudyError, load_study
 from .study.storage import (ATTR_BUDGET, ATTR_STUDY, counts, describe_url, load_parasynth_study, materialize_run,
-                            open_storage)
+                            name_objectives, open_storage)
 from .study.workers import StorageLost, make_sampler, optimize_budget, optuna_objective, owner_id
 
 __all__ = ["cmd_worker", "cmd_report_storage", "resume_command", "interrupted_run"]
@@ -49,6 +49,7 @@ def cmd_worker(args) -> int:
         if stored is not None and not same_study(stored, study.to_yaml()):
             return _err(f"{args.study}: differs from the study {name!r} stored in {describe_url(url)!r}; "
                         f"use the same study file as the run that started it")
+        name_objectives(ostudy, study)
         ostudy.sampler = make_sampler(study, seed)
         total = optuna_budget(study, args.n_trials, stored=ostudy.user_attrs.get(ATTR_BUDGET))
         if total < 1:

@@ -50,7 +50,7 @@ import numpy as np
 
 from .accuracy import TOLERANCE_SETTINGS as _TOL_SETTINGS
 from .accuracy import pose_error_bound, pose_error_monte_carlo
-from .dynamics import force_decoupling
+from .dynamics import force_decoupling, grinding_trajectory
 from .engine import effective_engine
 from .indices import (global_conditioning_index, gravity_wrench, local_transmission_index, point_force_wrench,
                       static_forces)
@@ -71,6 +71,7 @@ __all__ = [
     "workspace_of",
     "usable_workspace_of",
     "USABLE_MEASURES",
+    "TRAJECTORIES",
     "SAMPLE_SETTINGS",
     "SAMPLE_PARAMS",
     "COMMON_PARAMS",
@@ -620,6 +621,18 @@ def force_decoupling_ratio(mech, dt: float = 0.25, grinding_force: float = 50.0,
     r = _decoupling(mech, dt, grinding_force, load_point)
     d = np.nanmax(np.abs(r.loaded[float(grinding_force)].actuator - r.gravity_only.actuator))
     return float(d / grinding_force)
+
+
+def _grinding_path(n: int):
+    """The eqs. (66)-(68) path the trajectory measures follow, at ``n`` instants: times (s) and
+    task poses (n, 5)."""
+    t = np.linspace(0.0, 50.0, int(n))
+    return t, grinding_trajectory(t)[0]
+
+
+#: Measures that follow a trajectory of the platform: name -> ``f(n)`` giving the times (s) and
+#: task poses of ``n`` instants of it (the interactive report moves the platform along it).
+TRAJECTORIES: dict[str, Callable] = {"max_force_trajectory": _grinding_path, "force_decoupling_ratio": _grinding_path}
 
 
 def _decoupling(mech, dt, grinding_force, load_point):

@@ -1,5 +1,7 @@
-"""Study reports: ``index.html`` (self-contained, images inline), ``report.md`` (images in
-``img/``) and ``pareto.csv`` (the non-dominated feasible designs, columns as results.csv).
+"""Study reports: ``index.html`` (images inline, and the interactive view of
+:mod:`.interactive`, which loads plotly.js from a shared ``assets/`` folder), ``report.md``
+(images in ``img/``) and ``pareto.csv`` (the non-dominated feasible designs, columns as
+results.csv).
 
 ``write_report(run_dir, out=None)`` reads a run directory through
 :mod:`parasynth.study.rundir` (``study.yaml``, ``results.csv`` or the journal,
@@ -23,6 +25,7 @@ from markupsafe import Markup, escape
 from ..study.rundir import Run, RunDirError, read_run, to_csv_columns
 from .analysis import NOISE_Z, Analysis, analyse
 from .figures import Figures, make_figures
+from .interactive import plotly_script, viewer_data, viewer_json, viewer_script
 from .sections import Section, Table, sections
 from .structures import plot_structures, structure_sections
 from .tables import display_table, final_display_table
@@ -69,26 +72,39 @@ def _figures(figs: Figures, html: bool) -> list[dict]:
     return out
 
 
-def render_html(run: Run, secs: list[Section], figs: Figures) -> str:
-    """index.html: the sections, the figures inline (before the last section)."""
+def render_html(run: Run, secs: list[Section], figs: Figures, viewer: dict | None = None,
+                script: str | None = None) -> str:
+    """index.html: the sections, the figures inline (before the last section), preceded by the
+    interactive view when ``viewer`` (:func:`.interactive.viewer_data`) and ``script`` (the
+    path of plotly.js relative to the page) are given."""
+    view = None
+    if viewer is not None and script is not None:
+        sources = {d["pose_source"] for d in viewer["designs"]}
+        view = {"script": script, "data": viewer_json(viewer), "code": viewer_script(),
+                "n_designs": len(viewer["designs"]),
+                "pose_source": sources.pop() if len(sources) == 1 else "poses of each design"}
     return _env().get_template("report.html").render(
         name=run.study.name, partial=run.partial_reason if run.partial else None, sections=secs,
-        figures=_figures(figs, html=True))
+        figures=_figures(figs, html=True), viewer=view)
 
 
-def render_markdown(run: Run, secs: list[Section], figs: Figures) -> str:
-    """report.md: the sections, the figures as links to img/<name>.png."""
+def render_markdown(run: Run, secs: list[Section], figs: Figures, interactive: bool = False) -> str:
+    """report.md: the sections, the figures as links to img/<name>.png (and, with
+    ``interactive``, a line saying that index.html has the interactive view)."""
     text = _env().get_template("report.md").render(name=run.study.name, sections=secs,
-                                                   figures=_figures(figs, html=False))
+                                                   figures=_figures(figs, html=False), interactive=interactive)
     return text.rstrip("\n") + "\n"
 
 
-def write_report(run_dir, out=None, noise_z: float = NOISE_Z) -> Path:
+def write_report(run_dir, out=None, noise_z: float = NOISE_Z, assets=None) -> Path:
     """Write index.html, report.md and pareto.csv for a run directory; returns the report dir.
 
     ``pareto.csv``: the distinct non-dominated feasible designs, columns as results.csv plus
     ``count`` (how many times the design was evaluated). ``noise_z``: a difference between
-    re-evaluated designs counts when it exceeds this many combined standard errors."""
+    re-evaluated designs counts when it exceeds this many combined standard errors.
+    ``assets``: the folder of the scripts reports share (plotly.js); by default
+    ``<reports>/assets`` for a report in a folder named ``reports``, else ``<out>/assets``
+    (:func:`.interactive.default_assets_dir`)."""
     run = load_run(run_dir)
     study = run.study
     out = Path(out) if out else Path("reports") / study.name
@@ -97,6 +113,11 @@ def write_report(run_dir, out=None, noise_z: float = NOISE_Z) -> Path:
     to_csv_columns(study, a.front).to_csv(out / "pareto.csv", index=False)  # unit suffixes, SI values
     figs = make_figures(run, a)
     plot_structures(figs, run, a)  # a study over structures (report/structures.py)
+    try:
+        viewer = viewer_data(run, a)
+    except Exception as e:  # the interactive view must not cost the report
+        viewer = None
+        figs.items.append(("viewer_error", f"interactive view unavailable: {e}", b""))
     secs = sections(run, a)
     secs[-1:-1] = [Section(t, x, Table.of(d) if d is not None and len(d) else None)
                    for t, x, d in structure_sections(run, a)]
@@ -104,6 +125,7 @@ def write_report(run_dir, out=None, noise_z: float = NOISE_Z) -> Path:
     for name, _, png in figs.items:
         if png:
             (out / "img" / f"{name}.png").write_bytes(png)
-    (out / "report.md").write_text(render_markdown(run, secs, figs))
-    (out / "index.html").write_text(render_html(run, secs, figs))
+    (out / "report.md").write_text(render_markdown(run, secs, figs, interactive=viewer is not None))
+    script = plotly_script(out, assets) if viewer is not None else None
+    (out / "index.html").write_text(render_html(run, secs, figs, viewer, script))
     return out

@@ -65,7 +65,7 @@ def sections(run: Run, a: Analysis) -> list[Section]:
 
 def _versions() -> dict:
     out = {"python": platform.python_version()}
-    for pkg in ("parasynth", "numpy", "scipy", "pandas", "optuna", "nlopt", "cvxpy", "matplotlib"):
+    for pkg in ("parasynth", "numpy", "scipy", "pandas", "optuna", "nlopt", "cvxpy", "matplotlib", "plotly"):
         try:
             out[pkg] = md.version(pkg)
         except md.PackageNotFoundError:

@@ -313,6 +313,7 @@ def _optuna_setup(study, out_dir, resume, n_trials, storage_override, journal_re
                               f"from this study file; give the study another name or use the same file")
     if stored is None:
         ostudy.set_user_attr(st.ATTR_STUDY, text)
+    st.name_objectives(ostudy, study)
     ostudy.set_user_attr(st.ATTR_BUDGET, total)
     from optuna.trial import TrialState  # lazy: optuna
 

@@ -259,6 +259,20 @@ def load_parasynth_study(storage, url: str, name: str):
                            f"start it with: parasynth run STUDY.yaml --storage URL") from None
 
 
+def name_objectives(ostudy, study) -> None:
+    """Give the Optuna study ``ostudy`` the objective labels of ``study`` as its metric names
+    (``study.set_metric_names``), in the order of its directions, so that optuna-dashboard and
+    ``trials_dataframe`` show ``volume`` rather than ``values_0``. Written once: names already
+    stored are not written again (a worker joining, a resumed run)."""
+    import optuna  # lazy: optuna takes about a second to import
+
+    names = [o.label for o in study.objectives]
+    with warnings.catch_warnings():  # the metric names are experimental in Optuna (3.2 onwards)
+        warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
+        if ostudy.metric_names != names:
+            ostudy.set_metric_names(names)
+
+
 # -- records ---------------------------------------------------------------------------------------------
 def trial_record(t) -> Record | None:
     d = t.user_attrs.get(ATTR_RECORD)

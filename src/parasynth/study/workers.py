@@ -61,7 +61,8 @@ from .optuna_adapter import (StructureView, fail_stale, fail_trial, heartbeat_en
 from .schedule import ATTR_STRUCTURE, structure_schedule
 from .signals import Interrupt
 from .spec import StudyError
-from .storage import ATTR_OVER_BUDGET, ATTR_RECORD, counts, is_shared_server, load_parasynth_study, open_storage, trial_record
+from .storage import (ATTR_OVER_BUDGET, ATTR_RECORD, counts, is_shared_server, load_parasynth_study, name_objectives,
+                      open_storage, trial_record)
 from .structure_space import STRUCTURE
 
 __all__ = ["Interrupt", "PerTrialSeeded", "make_sampler", "optuna_objective", "optimize_loop", "run_local_workers",
@@ -573,6 +574,7 @@ def forked_worker_main(study, evaluator, url: str, name: str, total: int, seed: 
     with Interrupt(quiet=True) as guard:
         try:
             ostudy = load_parasynth_study(open_storage(url), url, name)
+            name_objectives(ostudy, study)
             ostudy.sampler = make_sampler(study, seed)
             objective = optuna_objective(study, evaluator, guard=guard, mark_owner=True)
             # A file storage is cheap to poll: a worker waiting for the others' last trials
