@@ -473,6 +473,19 @@ class RobustMeasure(Measure):
             _DRAW_CACHE.popitem(last=False)
         return out
 
+    def check(self, mech) -> None:
+        """``ValueError`` when the scatter cannot be applied to ``mech``: a tolerance on a
+        parameter without a length or angle unit, a drawn design that cannot be built, per-leg
+        scatter on a mechanism whose closure equations do not fix the pose (under-actuated), or
+        a home pose the mechanism cannot reach as built."""
+        params, legs = self._resolved(mech)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", EngineFallbackWarning)
+            for m in _draw_mechanisms(mech, params, legs, 2, self.seed):
+                if isinstance(m, AsBuilt) and not m._context(m.home[None, :]).reachable[0]:
+                    raise ValueError(f"{mech.name}: the home pose is not reachable as built with these tolerances "
+                                     f"(the perturbed closure has no solution near it)")
+
     def evaluate(self, mech, bound=None, **settings) -> RobustValue:
         """The :class:`RobustValue` of ``mech`` (settings as the base measure's; ``bound``
         ``("min"|"max", value)``: the side ``worst`` and ``first_order`` take)."""

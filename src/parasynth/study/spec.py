@@ -1045,6 +1045,15 @@ def check_study(study: ResolvedStudy, *, measures: bool = True, max_corners: int
                 where = f"{where}.settings.{named[0]}"
             problems.append(f"{where} ({item.label}): measure {item.name!r} fails on the {base_where.split(' ')[0]} "
                             f"design with these settings: {msg}")
+        if getattr(item, "robust", None) is not None:
+            try:
+                item.robust.check(base_mech)
+            except KeyboardInterrupt:
+                raise
+            except Exception as e:
+                msg = str(e) if isinstance(e, ValueError) else f"{type(e).__name__}: {e}"
+                problems.append(f"{where}.robust.tolerances ({item.label}): the scatter cannot be applied to the "
+                                f"{base_where.split(' ')[0]} design: {msg}")
     return problems
 
 
