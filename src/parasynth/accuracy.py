@@ -62,7 +62,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .spatial import rot_axis, unit
+from .spatial import dot_rows, rot_axis, rotate_rows, unit
 from .units import parse_quantity
 
 __all__ = [
@@ -124,14 +124,14 @@ def _leg_residual(leg, p, R) -> np.ndarray:
     if leg.is_actuated:
         out.append(_actuator_value(leg, A, p, R))
     if j in ("RPS", "PRS"):
-        out.append((A - leg.base) @ leg.r_axis)
+        out.append(dot_rows(A - leg.base, leg.r_axis))
     elif j == "RPU":
-        out.append((A - leg.base) @ leg.r_axis)
-        out.append((R @ leg.u_platform_axis) @ leg.r_axis)
+        out.append(dot_rows(A - leg.base, leg.r_axis))
+        out.append(dot_rows(rotate_rows(R, leg.u_platform_axis), leg.r_axis))
     elif j == "UPU":
         n = unit(A - leg.base)
         cb = unit(np.cross(leg.u_axis, n))
-        cp = unit(np.cross(R @ leg.u_platform_axis, n))
+        cp = unit(np.cross(rotate_rows(R, leg.u_platform_axis), n))
         out.append(np.arctan2(np.sum(np.cross(cb, cp) * n, -1), np.sum(cb * cp, -1)))
     elif j not in ("SPS", "UPS", "PUS"):
         raise ValueError(f"accuracy: leg type {j!r} (leg {leg.name}) has no closure residual; supported: "
@@ -146,7 +146,7 @@ def _actuator_value(leg, A, p, R):
         return np.linalg.norm(A - leg.base, axis=-1)
     if leg.joints in ("PUS", "PRS"):
         d = A - leg.base
-        de = d @ leg.slider_axis
+        de = dot_rows(d, leg.slider_axis)
         disc = leg.link_length ** 2 - (np.einsum("ij,ij->i", d, d) - de ** 2)
         return de + leg.branch * np.sqrt(np.where(disc >= 0, disc, np.nan))
     return leg.solve(p, R).actuator

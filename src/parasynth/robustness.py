@@ -62,7 +62,7 @@ constraint's bound (``bound``: ``("min", value)`` or ``("max", value)``), standa
 
 from __future__ import annotations
 
-import dataclasses
+import copy
 import math
 import warnings
 import weakref
@@ -188,44 +188,213 @@ def check_robust_spec(statistic: str, level, samples, seed, probability=None, wh
 
 
 # -- the mechanism as built ------------------------------------------------------------------------
-class _Shared:
-    """What the draws of one built (nominal-leg) mechanism share per batch of poses: the nominal
-    pose, the closure target, the chord Newton matrix, the nominal margins."""
+def _key(X):
+    return (X.shape, hash(X.tobytes()))
+
+
+class _Nominal:
+    """What every draw of one built (nominal-leg) mechanism shares per batch of poses: the
+    nominal margins (compiled engine) and, on a subset of the poses, the nominal pose, the
+    closure target and the chord Newton matrix."""
 
     def __init__(self, built):
         self.built = built
-        self._poses: "OrderedDict[tuple, dict]" = OrderedDict()
         self.rows_len = _length_rows(built)
         self.act_rows = np.flatnonzero(_actuated_row_mask(built))
+        self._margins: "OrderedDict[tuple, tuple]" = OrderedDict()
+        self._prep: "OrderedDict[tuple, tuple]" = OrderedDict()
 
-    def of(self, X) -> dict:
-        key = (X.shape, hash(X.tobytes()))
-        hit = self._poses.get(key)
-        if hit is not None and np.array_equal(hit["X"], X):
-            return hit
+    def margins(self, X, names):
+        """Nominal margins {name: (N,)} of the poses X (compiled engine), cached."""
+        key = (_key(X), None if names is None else tuple(names))
+        hit = self._margins.get(key)
+        if hit is not None and np.array_equal(hit[0], X):
+            return hit[1]
+        M = self.built.constraint_margins(X, names=None if names is None else list(names))
+        self._margins[key] = (X.copy(), M)
+        if len(self._margins) > 6:
+            self._margins.popitem(last=False)
+        return M
+
+    def prep(self, X, sel) -> dict:
+        """Nominal ``p``, ``R``, closure target ``h0``, ``Gi`` and ``ok`` at the poses X[sel]."""
+        key = (_key(X), hash(sel.tobytes()), sel.size)
+        hit = self._prep.get(key)
+        if hit is not None and np.array_equal(hit[0], X[sel]):
+            return hit[1]
         b = self.built
-        valid = b.pose_valid(X)
-        Xs = np.where(valid[:, None], X, b.home)
-        p, R = b._pose(Xs)
-        states = [leg.solve(p, R) for leg in b.legs]
-        reach = valid & np.logical_and.reduce([st.reachable for st in states])
+        Xs = X[sel]
+        valid = b.pose_valid(Xs)
+        Xs = np.where(valid[:, None], Xs, b.home)
         with np.errstate(all="ignore"):
+            p, R = b._pose(Xs)
+            states = [leg.solve(p, R) for leg in b.legs]
+            reach = valid & np.logical_and.reduce([st.reachable for st in states])
             h0 = closure_residuals(b, p, R)
             Gi = _pinv_rank6(_pose_jacobian(b, p, R), b)
         ok = reach & np.all(np.isfinite(Gi), axis=(1, 2)) & np.all(np.isfinite(h0), axis=1)
-        hit = {"X": X.copy(), "p": p, "R": R, "h0": h0, "Gi": Gi, "ok": ok, "margins": {}}
-        self._poses[key] = hit
-        if len(self._poses) > 6:
-            self._poses.popitem(last=False)
-        return hit
+        out = {"p": p, "R": R, "h0": h0, "Gi": np.where(ok[:, None, None], Gi, 0.0), "ok": ok}
+        self._prep[key] = (X[sel].copy(), out)
+        if len(self._prep) > 8:
+            self._prep.popitem(last=False)
+        return out
 
-    def margins(self, X, names):
-        """Nominal margins (compiled engine) of the poses X, cached with the batch."""
-        d = self.of(X)
-        k = None if names is None else tuple(names)
-        if k not in d["margins"]:
-            d["margins"][k] = self.built.constraint_margins(X, names=None if k is None else list(k))
-        return d["margins"][k]
+
+def _newton(mech, legs, p0, R0, Gi, target, ok, scale, max_iter=20):
+    """Chord Newton on the perturbed closure from the nominal poses: (converged, p, R)."""
+    t = np.zeros((p0.shape[0], 6))
+    conv = np.zeros(p0.shape[0], bool)
+    with np.errstate(all="ignore"):
+        for _ in range(max_iter):
+            r = closure_residuals(mech, *_compose(p0, R0, t), legs=legs) - target
+            conv = np.all(np.abs(r) <= 1e-12 * scale, axis=1)
+            if np.all(conv | ~ok):
+                break
+            t = t - np.einsum("nim,nm->ni", Gi, np.where(np.isfinite(r), r, 0.0))
+        p, R = _compose(p0, R0, t)
+    return ok & conv, p, R
+
+
+#: Leg types whose geometry may be one value per pose (draws stacked into one batch).
+_STACKABLE = ("SPS", "UPS", "PUS", "RPS", "RPU", "UPU")
+_GEOMETRY = ("base", "platform", "slider_axis", "u_axis", "r_axis", "u_platform_axis", "link_length")
+
+
+def _stacked_legs(views, counts):
+    """Legs whose geometry fields hold, row by row, the legs of draw ``s`` repeated
+    ``counts[s]`` times (the draws of a group evaluated in one batch)."""
+    out = []
+    for i, leg in enumerate(views[0].legs):
+        new = copy.copy(leg)
+        for f in _GEOMETRY:
+            if hasattr(leg, f):
+                vals = np.stack([np.asarray(getattr(v.legs[i], f), dtype=float) for v in views])
+                object.__setattr__(new, f, np.repeat(vals, counts, axis=0))
+        out.append(new)
+    return out
+
+
+class _Group:
+    """The draws of one robust measure on one design, evaluated together: their feasibility
+    over a batch of poses is solved in one stacked batch (every draw's candidate poses, each
+    row with its draw's leg geometry), and the singularity margins of the candidate poses are
+    kept for :meth:`AsBuilt.singularity_margin`."""
+
+    def __init__(self, band):
+        self.views: list = []
+        self.band = dict(band)
+        self._records: "OrderedDict[tuple, dict]" = OrderedDict()
+        self._stackable = None
+
+    def stackable(self) -> bool:
+        if self._stackable is None:
+            v0 = self.views[0]
+            cons0 = tuple(repr(c) for c in v0.constraints.values())
+            self._stackable = len(self.views) > 1 and all(
+                leg.joints in _STACKABLE for leg in v0.legs) and all(
+                tuple(repr(c) for c in v.constraints.values()) == cons0 and len(v.legs) == len(v0.legs)
+                for v in self.views)
+        return self._stackable
+
+    def feasible(self, X, names, cons) -> dict:
+        key = (_key(X), None if names is None else tuple(names))
+        hit = self._records.get(key)
+        if hit is not None and np.array_equal(hit["X"], X):
+            return hit
+        views = self.views
+        k = len(views)
+        M = [v._nominal.margins(X, names) for v in views]
+        units = {c.name: c.unit for c in cons}
+        band = self.band
+        for _ in range(8):
+            sels = []
+            for Mv in M:
+                cand = np.ones(X.shape[0], bool)
+                for n, m in Mv.items():
+                    cand &= np.isfinite(m) & (m >= -band.get(units[n], np.inf))
+                sels.append(np.flatnonzero(cand))
+            counts = np.array([s_.size for s_ in sels])
+            ok = np.zeros(int(counts.sum()), bool)
+            rec = {"X": X.copy(), "sels": sels, "counts": counts, "offsets": np.r_[0, np.cumsum(counts)], "ok": ok,
+                   "ctx": None, "sm": None, "tables": None}
+            if not counts.sum():
+                break
+            preps = [v._nominal.prep(X, sel) for v, sel in zip(views, sels)]
+            p0 = np.concatenate([q["p"] for q in preps])
+            R0 = np.concatenate([q["R"] for q in preps])
+            Gi = np.concatenate([q["Gi"] for q in preps])
+            okn = np.concatenate([q["ok"] for q in preps])
+            target = np.concatenate([q["h0"] for q in preps])
+            act_rows = views[0]._nominal.act_rows
+            if views[0].dq.size:
+                target[:, act_rows] += np.repeat(np.stack([v.dq for v in views]), counts, axis=0)
+            legs = _stacked_legs(views, counts)
+            v0 = views[0]
+            scale = np.where(v0._nominal.rows_len, v0.length_scale, 1.0)
+            conv, p, R = _newton(v0.built, legs, p0, R0, Gi, target, okn, scale)
+            with np.errstate(all="ignore"):
+                states = [leg.solve(p, R) for leg in legs]
+            reach = conv & np.logical_and.reduce([st.reachable for st in states])
+            for st in states:
+                st.reachable = st.reachable & reach
+            act = np.stack([st.actuator for leg, st in zip(legs, states) if leg.is_actuated], axis=-1)
+            Xs = np.concatenate([X[sel] for sel in sels])
+            stack = AsBuilt(v0.built, legs, np.zeros(0), band, key=("stack", id(self)))
+            ctx = PoseContext(Xs, p, R, list(legs), states, reach, act, stack)
+            ok[:] = reach
+            grow = False
+            with np.errstate(invalid="ignore"):
+                for c in cons:
+                    m = np.asarray(c.margin(ctx), dtype=float)
+                    m = np.where(reach & ~np.isnan(m), m, -np.inf)
+                    ok &= m >= 0
+                    b = band.get(c.unit, np.inf)
+                    if np.isfinite(b):
+                        mn = np.concatenate([Mv[c.name][sel] for Mv, sel in zip(M, sels)])
+                        d = np.abs(m - mn)
+                        d = d[np.isfinite(d)]
+                        if d.size and d.max() > 0.5 * b:
+                            band[c.unit] = 2.0 * max(b, d.max())
+                            grow = True
+            rec.update(ctx=ctx, stack=stack)
+            if not grow:
+                break
+        self._records[key] = rec
+        if len(self._records) > 4:
+            self._records.popitem(last=False)
+        return rec
+
+    def singularity_margin(self, view_index: int, X):
+        """The singularity margins (n,) of draw ``view_index`` at poses X when every row of X is a
+        candidate pose of a stacked record (else None)."""
+        for rec in reversed(self._records.values()):
+            if rec.get("ctx") is None:
+                continue
+            if rec["tables"] is None:
+                tabs = []
+                for sel in rec["sels"]:
+                    keys = _row_keys(rec["X"][sel])
+                    order = np.argsort(keys)
+                    tabs.append((keys[order], order))
+                rec["tables"] = tabs
+            keys, order = rec["tables"][view_index]
+            if not keys.size:
+                continue
+            q = _row_keys(X)
+            pos = np.clip(np.searchsorted(keys, q), 0, keys.size - 1)
+            if not np.all(keys[pos] == q):
+                continue
+            if rec["sm"] is None:
+                ctx = rec["ctx"]
+                rec["sm"] = rec["stack"].singularity_margin_of_states(ctx.states, ctx.p, ctx.reachable)
+            return rec["sm"][rec["offsets"][view_index] + order[pos]]
+        return None
+
+
+def _row_keys(X):
+    """One comparable key per row of X (its bytes)."""
+    Xc = np.ascontiguousarray(X, dtype=float)
+    return Xc.view(np.dtype((np.void, Xc.dtype.itemsize * Xc.shape[1]))).ravel()
 
 
 class AsBuilt(Mechanism):
@@ -238,9 +407,9 @@ class AsBuilt(Mechanism):
 
     Its pose-wise methods run on NumPy (the compiled engine evaluates the nominal geometry
     only); :meth:`is_feasible` screens the poses by the nominal compiled margins (module
-    documentation)."""
+    documentation). Draws of one group (``group``) are solved together."""
 
-    def __init__(self, built, legs, dq, band, shared: _Shared | None = None, key=None):
+    def __init__(self, built, legs, dq, band, nominal: _Nominal | None = None, key=None, group: _Group | None = None):
         self.built = built
         self.name = built.name
         self.params = built.params
@@ -256,12 +425,15 @@ class AsBuilt(Mechanism):
         self._constraints = built.constraints
         self.added_constraints = built.added_constraints
         self.band = dict(band)
-        self._shared = shared if shared is not None else _Shared(built)
+        self._nominal = nominal if nominal is not None else _Nominal(built)
+        self._group = group
+        self._index = len(group.views) if group is not None else -1
+        if group is not None:
+            group.views.append(self)
         #: identifies this draw in the caches of workspaces and usable workspaces
         self.scatter_key = key if key is not None else id(self)
         self._workspace_memo: "OrderedDict[tuple, object]" = OrderedDict()
         self._solved: "OrderedDict[tuple, tuple]" = OrderedDict()
-        self.iterations = 0
 
     def __repr__(self) -> str:
         return f"<AsBuilt {self.name!r} draw={self.scatter_key!r}>"
@@ -286,37 +458,22 @@ class AsBuilt(Mechanism):
         raise ValueError("an as-built mechanism has no parameters of its own: change the nominal mechanism")
 
     # -- the as-built solve -----------------------------------------------------------------------
-    def _actual(self, X, sel=None, max_iter: int = 20):
+    def _actual(self, X, sel):
         """(ok (n,), p (n, 3), R (n, 3, 3)) of the actual poses at nominal poses ``X[sel]``."""
-        sh = self._shared.of(X)
-        idx = np.arange(X.shape[0]) if sel is None else sel
-        ok = sh["ok"][idx].copy()
-        p0, R0, Gi = sh["p"][idx], sh["R"][idx], sh["Gi"][idx]
-        target = sh["h0"][idx].copy()
+        q = self._nominal.prep(X, sel)
+        target = q["h0"].copy()
         if self.dq.size:
-            target[:, self._shared.act_rows] += self.dq
-        scale = np.where(self._shared.rows_len, self.length_scale, 1.0)
-        t = np.zeros((idx.size, 6))
-        conv = np.zeros(idx.size, bool)
-        Gi = np.where(ok[:, None, None], Gi, 0.0)
-        with np.errstate(all="ignore"):
-            for it in range(max_iter):
-                r = closure_residuals(self, *_compose(p0, R0, t), legs=self.legs) - target
-                conv = np.all(np.abs(r) <= 1e-12 * scale, axis=1)
-                if np.all(conv | ~ok):
-                    break
-                t = t - np.einsum("nim,nm->ni", Gi, np.where(np.isfinite(r), r, 0.0))
-            self.iterations = max(self.iterations, it)
-            p, R = _compose(p0, R0, t)
-        return ok & conv, p, R
+            target[:, self._nominal.act_rows] += self.dq
+        scale = np.where(self._nominal.rows_len, self.length_scale, 1.0)
+        return _newton(self, self.legs, q["p"], q["R"], q["Gi"], target, q["ok"], scale)
 
     def _context(self, X) -> PoseContext:
         Xa, _ = self._poses(X)
-        key = (Xa.shape, hash(Xa.tobytes()))
+        key = _key(Xa)
         hit = self._solved.get(key)
         if hit is not None and np.array_equal(hit[0], Xa):
             return hit[1]
-        ok, p, R = self._actual(Xa)
+        ok, p, R = self._actual(Xa, np.arange(Xa.shape[0]))
         with np.errstate(all="ignore"):
             states = [leg.solve(p, R) for leg in self.legs]
         reach = ok & np.logical_and.reduce([st.reachable for st in states])
@@ -336,15 +493,15 @@ class AsBuilt(Mechanism):
     def pose_context(self, X):
         return self._context(X)
 
-    def inverse_kinematics(self, X):
-        """The as-built joint values at nominal poses ``X``: actuators (the held values, as the
-        perturbed legs see them at the actual pose), reachability, passive angles."""
-        return super().inverse_kinematics(X)
-
     def constraint_margins(self, X, names=None, engine: str = "compiled") -> dict:
         return self._constraint_margins_numpy(X, names)
 
     def singularity_margin(self, X, engine: str = "compiled"):
+        Xa, single = self._poses(X)
+        if self._group is not None and self._group.stackable():
+            out = self._group.singularity_margin(self._index, Xa)
+            if out is not None:
+                return out[0] if single else out
         return Mechanism.singularity_margin(self, X, engine="numpy")
 
     def is_feasible(self, X, names=None, engine: str = "compiled"):
@@ -352,13 +509,19 @@ class AsBuilt(Mechanism):
         pose; poses screened by the nominal margins (module documentation)."""
         Xa, single = self._poses(X)
         cons = self._select(names)
-        M = self._shared.margins(Xa, names)
-        units = {c.name: c.unit for c in cons}
-        out = np.zeros(Xa.shape[0], bool)
         if not cons:  # reachability only
             out = self._context(Xa).reachable.copy()
             return out[0] if single else out
-        band = dict(self.band)
+        if self._group is not None and self._group.stackable():
+            rec = self._group.feasible(Xa, names, cons)
+            out = np.zeros(Xa.shape[0], bool)
+            o = rec["offsets"]
+            out[rec["sels"][self._index]] = rec["ok"][o[self._index]:o[self._index + 1]]
+            return out[0] if single else out
+        M = self._nominal.margins(Xa, names)
+        units = {c.name: c.unit for c in cons}
+        out = np.zeros(Xa.shape[0], bool)
+        band = self._group.band if self._group is not None else self.band
         for _ in range(8):
             cand = np.ones(Xa.shape[0], bool)
             for n, m in M.items():
@@ -385,7 +548,6 @@ class AsBuilt(Mechanism):
             out[sel] = ok
             if not grow:
                 break
-        self.band = band
         return out[0] if single else out
 
 
@@ -557,7 +719,8 @@ def _draw_mechanisms(mech, params: dict, legs: dict, k: int, seed: int) -> list:
         act_cols = [j for j, kd in enumerate(src.kind) if kd == "actuator"]
         band = _initial_band(mech, params, tol)
     out = []
-    shared = None
+    nominal = None
+    group = _Group(band) if E is not None else None
     for s in range(k):
         built = mech
         if n_el:
@@ -569,11 +732,11 @@ def _draw_mechanisms(mech, params: dict, legs: dict, k: int, seed: int) -> list:
             built = mech.with_params(**changes)
             built._workspace_memo = OrderedDict()
         if E is not None:
-            sh = shared if built is mech and shared is not None else _Shared(built)
+            nom = nominal if built is mech and nominal is not None else _Nominal(built)
             if built is mech:
-                shared = sh
-            built = AsBuilt(built, _perturbed_legs(built, src, E[s]), E[s, act_cols], band, sh,
-                            key=(id(mech), seed, s))
+                nominal = nom
+            built = AsBuilt(built, _perturbed_legs(built, src, E[s]), E[s, act_cols], band, nom,
+                            key=(id(mech), seed, s), group=group)
         out.append(built)
     return out
 
@@ -616,7 +779,7 @@ def _first_order(rm: RobustMeasure, base: Measure, mech, nominal, worse, setting
                          "universal_clearance": "universal_clearance"}
             act_cols = [j for j, kd in enumerate(src.kind) if kd == "actuator"]
             band = _initial_band(mech, params, tol)
-            shared = _Shared(mech)
+            nom = _Nominal(mech)
             groups = {}
             for j, (kd, g) in enumerate(zip(src.kind, src.group)):
                 t = tol[from_kind[kd]]
@@ -631,7 +794,7 @@ def _first_order(rm: RobustMeasure, base: Measure, mech, nominal, worse, setting
                     for sgn in (1.0, -1.0):
                         e = np.zeros(len(src))
                         e[j] = sgn * h
-                        ab = AsBuilt(mech, _perturbed_legs(mech, src, e), e[act_cols], band, shared)
+                        ab = AsBuilt(mech, _perturbed_legs(mech, src, e), e[act_cols], band, nom)
                         vs.append(float(base(ab, **settings)))
                     grad.append((vs[0] - vs[1]) / (2 * h))
                 # a clearance ball: the gradient's norm times the radius; a box source: |g| tol
