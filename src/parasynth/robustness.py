@@ -63,6 +63,7 @@ constraint's bound (``bound``: ``("min", value)`` or ``("max", value)``), standa
 from __future__ import annotations
 
 import copy
+import dataclasses
 import math
 import warnings
 import weakref
@@ -72,7 +73,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .accuracy import (TOLERANCE_SETTINGS, _actuated_row_mask, _compose, _length_rows, _perturbed_legs,
+from .accuracy import (TOLERANCE_SETTINGS, _actuated_row_mask, _compose, _leg_changes, _length_rows, _perturbed_legs,
                        _pinv_rank6, _pose_jacobian, _sample_errors, closure_residuals, error_sources)
 from .constraints import PoseContext
 from .mechanism import EngineFallbackWarning, Mechanism
@@ -356,7 +357,7 @@ class _Group:
                         if d.size and d.max() > 0.5 * b:
                             band[c.unit] = 2.0 * max(b, d.max())
                             grow = True
-            rec.update(ctx=ctx, stack=stack)
+            rec.update(ctx=ctx, stack=stack, legs=legs)
             if not grow:
                 break
         self._records[key] = rec
@@ -384,11 +385,40 @@ class _Group:
             pos = np.clip(np.searchsorted(keys, q), 0, keys.size - 1)
             if not np.all(keys[pos] == q):
                 continue
+            rows = rec["offsets"][view_index] + order[pos]
+            if not np.all(rec["ok"][rows]):
+                return None  # margins are kept for the feasible poses (the measures' points) only
             if rec["sm"] is None:
-                ctx = rec["ctx"]
-                rec["sm"] = rec["stack"].singularity_margin_of_states(ctx.states, ctx.p, ctx.reachable)
-            return rec["sm"][rec["offsets"][view_index] + order[pos]]
+                ctx, ok = rec["ctx"], rec["ok"]
+                sub = [_take_state(st, ok) for st in ctx.states]
+                sm = np.full(ok.size, np.nan)
+                if ok.any():
+                    feasible = AsBuilt(self.views[0].built, [_take_leg(leg, ok) for leg in rec["legs"]], np.zeros(0),
+                                       self.band, key=("stack", id(self)))
+                    sm[ok] = feasible.singularity_margin_of_states(sub, ctx.p[ok], ctx.reachable[ok])
+                rec["sm"] = sm
+            return rec["sm"][rows]
         return None
+
+
+def _take_leg(leg, rows):
+    """A stacked leg restricted to the rows ``rows`` (bool)."""
+    new = copy.copy(leg)
+    for f in _GEOMETRY:
+        v = getattr(leg, f, None)
+        if isinstance(v, np.ndarray) and v.ndim >= 1 and v.shape[0] == rows.size and (v.ndim == 2 or f == "link_length"):
+            object.__setattr__(new, f, v[rows])
+    return new
+
+
+def _take_state(st, rows):
+    """A LegState restricted to the rows ``rows`` (bool)."""
+    pick = lambda v: v[rows] if isinstance(v, np.ndarray) and v.ndim >= 1 and v.shape[0] == rows.size else v  # noqa: E731
+    return dataclasses.replace(st, actuator=pick(st.actuator), reachable=pick(st.reachable),
+                               base_point=pick(st.base_point), platform_point=pick(st.platform_point),
+                               direction=pick(st.direction), length=pick(st.length),
+                               angles={k: pick(v) for k, v in st.angles.items()},
+                               extra={k: pick(v) for k, v in st.extra.items()})
 
 
 def _row_keys(X):
@@ -411,6 +441,8 @@ class AsBuilt(Mechanism):
 
     def __init__(self, built, legs, dq, band, nominal: _Nominal | None = None, key=None, group: _Group | None = None):
         self.built = built
+        #: the commanded poses are the built mechanism's (engine.pose_batch answers with its program)
+        self.pose_mechanism = built
         self.name = built.name
         self.params = built.params
         self.home = built.home
@@ -735,10 +767,27 @@ def _draw_mechanisms(mech, params: dict, legs: dict, k: int, seed: int) -> list:
             nom = nominal if built is mech and nominal is not None else _Nominal(built)
             if built is mech:
                 nominal = nom
-            built = AsBuilt(built, _perturbed_legs(built, src, E[s]), E[s, act_cols], band, nom,
+            built = AsBuilt(built, _drawn_legs(built, src, E[s]), E[s, act_cols], band, nom,
                             key=(id(mech), seed, s), group=group)
         out.append(built)
     return out
+
+
+def _drawn_legs(mech, src, e):
+    """The legs of ``mech`` with the errors ``e`` applied, as :func:`parasynth.accuracy` applies
+    them (``_leg_changes``), set on copies without the constructors' checks (the changed fields
+    are arrays of the checked shapes; a few hundred legs are drawn per design)."""
+    items = {}
+    for j, (kd, li, idx) in enumerate(zip(src.kind, src.leg, src.index)):
+        if kd != "actuator" and e[j] != 0.0:
+            items.setdefault(li, []).append((idx, e[j]))
+    legs = list(mech.legs)
+    for li, it in items.items():
+        new = copy.copy(legs[li])
+        for f, v in _leg_changes(legs[li], it).items():
+            object.__setattr__(new, f, float(v) if f == "link_length" else np.asarray(v, dtype=float))
+        legs[li] = new
+    return legs
 
 
 def _initial_band(mech, params, tol) -> dict:
