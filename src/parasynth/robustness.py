@@ -76,6 +76,7 @@ import numpy as np
 from .accuracy import (TOLERANCE_SETTINGS, _actuated_row_mask, _compose, _leg_changes, _length_rows, _perturbed_legs,
                        _pinv_rank6, _pose_jacobian, _sample_errors, closure_residuals, error_sources)
 from .constraints import PoseContext
+from .legs import solve_geometry
 from .mechanism import EngineFallbackWarning, Mechanism
 from .objectives import Measure
 from .objectives import get as get_measure
@@ -229,7 +230,7 @@ class _Nominal:
         Xs = np.where(valid[:, None], Xs, b.home)
         with np.errstate(all="ignore"):
             p, R = b._pose(Xs)
-            states = [leg.solve(p, R) for leg in b.legs]
+            states = [solve_geometry(leg, p, R) for leg in b.legs]
             reach = valid & np.logical_and.reduce([st.reachable for st in states])
             h0 = closure_residuals(b, p, R)
             Gi = _pinv_rank6(_pose_jacobian(b, p, R), b)
@@ -259,6 +260,35 @@ def _newton(mech, legs, p0, R0, Gi, target, ok, scale, max_iter=20):
 #: Leg types whose geometry may be one value per pose (draws stacked into one batch).
 _STACKABLE = ("SPS", "UPS", "PUS", "RPS", "RPU", "UPU")
 _GEOMETRY = ("base", "platform", "slider_axis", "u_axis", "r_axis", "u_platform_axis", "link_length")
+
+
+def _stacked_prep(views, X, sels, counts):
+    """The nominal pose, ``Gi``, ``ok`` and closure target of every draw's candidate poses, each
+    draw with its own built mechanism (rebuilt from drawn parameters), in one stacked batch."""
+    v0 = views[0]
+    Xs = np.concatenate([X[sel] for sel in sels])
+    valid = np.concatenate([v.built.pose_valid(X[sel]) for v, sel in zip(views, sels)])
+    Xs = np.where(valid[:, None], Xs, v0.home)
+    off = np.r_[0, np.cumsum(counts)]
+    with np.errstate(all="ignore"):
+        poses = [v.built._pose(Xs[off[j]:off[j + 1]]) for j, v in enumerate(views)]
+        p = np.concatenate([q[0] for q in poses])
+        R = np.concatenate([q[1] for q in poses])
+        legs = _stacked_legs([v.built for v in views], counts)
+        states = [solve_geometry(leg, p, R) for leg in legs]
+        reach = valid & np.logical_and.reduce([st.reachable for st in states])
+        h0 = closure_residuals(v0.built, p, R, legs=legs)
+        hl, ha = 1e-6 * v0.length_scale, 1e-6
+        cols = []
+        for c in range(6):
+            t = np.zeros((p.shape[0], 6))
+            t[:, c] = hl if c < 3 else ha
+            hp = closure_residuals(v0.built, *_compose(p, R, t), legs=legs)
+            hm = closure_residuals(v0.built, *_compose(p, R, -t), legs=legs)
+            cols.append((hp - hm) / (2 * t[0, c]))
+        Gi = _pinv_rank6(np.stack(cols, axis=-1), v0.built)
+    ok = reach & np.all(np.isfinite(Gi), axis=(1, 2)) & np.all(np.isfinite(h0), axis=1)
+    return p, R, np.where(ok[:, None, None], Gi, 0.0), ok, h0
 
 
 def _stacked_legs(views, counts):
@@ -320,12 +350,12 @@ class _Group:
                    "ctx": None, "sm": None, "tables": None}
             if not counts.sum():
                 break
-            preps = [v._nominal.prep(X, sel) for v, sel in zip(views, sels)]
-            p0 = np.concatenate([q["p"] for q in preps])
-            R0 = np.concatenate([q["R"] for q in preps])
-            Gi = np.concatenate([q["Gi"] for q in preps])
-            okn = np.concatenate([q["ok"] for q in preps])
-            target = np.concatenate([q["h0"] for q in preps])
+            if len({id(v._nominal) for v in views}) == 1:  # one nominal mechanism: its cached preparation
+                q = views[0]._nominal.prep(X, sels[0])
+                p0, R0, Gi, okn, target = (np.tile(q[f], (k,) + (1,) * (q[f].ndim - 1))
+                                           for f in ("p", "R", "Gi", "ok", "h0"))
+            else:  # every draw rebuilt from drawn parameters: their nominal legs stacked too
+                p0, R0, Gi, okn, target = _stacked_prep(views, X, sels, counts)
             act_rows = views[0]._nominal.act_rows
             if views[0].dq.size:
                 target[:, act_rows] += np.repeat(np.stack([v.dq for v in views]), counts, axis=0)
