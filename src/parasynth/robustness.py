@@ -233,13 +233,37 @@ class _Nominal:
             states = [solve_geometry(leg, p, R) for leg in b.legs]
             reach = valid & np.logical_and.reduce([st.reachable for st in states])
             h0 = closure_residuals(b, p, R)
-            Gi = _pinv_rank6(_pose_jacobian(b, p, R), b)
+            Gi = _chord_matrix(_pose_jacobian(b, p, R), b)
         ok = reach & np.all(np.isfinite(Gi), axis=(1, 2)) & np.all(np.isfinite(h0), axis=1)
         out = {"p": p, "R": R, "h0": h0, "Gi": np.where(ok[:, None, None], Gi, 0.0), "ok": ok}
         self._prep[key] = (X[sel].copy(), out)
         if len(self._prep) > 8:
             self._prep.popitem(last=False)
         return out
+
+
+def _chord_matrix(Gt, mech, rtol=1e-8):
+    """The chord Newton matrix: ``accuracy._pinv_rank6`` (the least-squares inverse of the
+    closure Jacobian, inf at singular poses), for a square Jacobian by one LU inverse per pose
+    (the same matrix; a pose counts as singular when its 1-norm condition exceeds 1 / rtol)."""
+    N, m = Gt.shape[:2]
+    if m != 6:
+        return _pinv_rank6(Gt, mech, rtol)
+    L = mech.length_scale
+    dc = np.array([1.0, 1.0, 1.0, 1.0 / L, 1.0 / L, 1.0 / L])
+    dr = np.where(_length_rows(mech), 1.0 / L, 1.0)
+    ok = np.all(np.isfinite(Gt), axis=(1, 2))
+    Gs = np.where(ok[:, None, None], Gt, 0.0) * dr[None, :, None] * dc[None, None, :]
+    Gs[~ok] = np.eye(6)
+    try:
+        Inv = np.linalg.inv(Gs)
+    except np.linalg.LinAlgError:
+        return _pinv_rank6(Gt, mech, rtol)
+    cond = np.abs(Gs).sum(axis=1).max(axis=1) * np.abs(Inv).sum(axis=1).max(axis=1)
+    Gi = dc[None, :, None] * Inv * dr[None, None, :]
+    Gi[~ok] = np.nan
+    Gi[ok & ~(cond < 1.0 / rtol)] = np.inf
+    return Gi
 
 
 def _newton(mech, legs, p0, R0, Gi, target, ok, scale, max_iter=20):
@@ -286,7 +310,7 @@ def _stacked_prep(views, X, sels, counts):
             hp = closure_residuals(v0.built, *_compose(p, R, t), legs=legs)
             hm = closure_residuals(v0.built, *_compose(p, R, -t), legs=legs)
             cols.append((hp - hm) / (2 * t[0, c]))
-        Gi = _pinv_rank6(np.stack(cols, axis=-1), v0.built)
+        Gi = _chord_matrix(np.stack(cols, axis=-1), v0.built)
     ok = reach & np.all(np.isfinite(Gi), axis=(1, 2)) & np.all(np.isfinite(h0), axis=1)
     return p, R, np.where(ok[:, None, None], Gi, 0.0), ok, h0
 
