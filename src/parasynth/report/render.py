@@ -23,6 +23,7 @@ from markupsafe import Markup, escape
 from ..study.rundir import Run, RunDirError, read_run, to_csv_columns
 from .analysis import NOISE_Z, Analysis, analyse
 from .figures import Figures, make_figures
+from .robust import robust_sections
 from .sections import Section, Table, sections
 from .structures import plot_structures, structure_sections
 from .tables import display_table, final_display_table
@@ -99,7 +100,7 @@ def write_report(run_dir, out=None, noise_z: float = NOISE_Z) -> Path:
     plot_structures(figs, run, a)  # a study over structures (report/structures.py)
     secs = sections(run, a)
     secs[-1:-1] = [Section(t, x, Table.of(d) if d is not None and len(d) else None)
-                   for t, x, d in structure_sections(run, a)]
+                   for t, x, d in [*structure_sections(run, a), *robust_sections(run, a)]]
     (out / "img").mkdir(exist_ok=True)
     for name, _, png in figs.items:
         if png:
