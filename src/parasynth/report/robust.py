@@ -44,7 +44,7 @@ def _ok(run: Run) -> pd.DataFrame:
 def _nominally_feasible(study, df) -> np.ndarray:
     """(n,) bool: every design constraint met by its nominal value (a robust constraint's
     ``<label>_nominal``, the others' own value)."""
-    ok = (df["status"] == "ok").to_numpy()
+    ok = (df["status"] == "ok").to_numpy().copy()
     for c in study.constraints:
         col = f"{c.label}_nominal" if getattr(c, "robust", None) is not None else c.label
         v = df[col].to_numpy(float)
@@ -185,13 +185,20 @@ def robust_verdict(run: Run) -> list[str]:
             se = math.hypot(float(np.nan_to_num(rb.get(f"{o.label}_robust_se", 0.0))),
                             float(np.nan_to_num(nb.get(f"{o.label}_robust_se", 0.0))))
             beyond = se > 0 and abs(diff) > 2.0 * se
-            text += (f"The robust optimum ({rv}) has {rn} nominally and {rr} under scatter: it loses "
-                     f"{fmt_quantity(sgn * rd, u)} ({fmt_number(sgn * rpct, 3)} %), "
-                     f"{'less' if sgn * rd < sgn * nd else 'more'} than the nominal optimum, and ends "
-                     f"{fmt_quantity(abs(diff), u)} {'better' if sgn * diff > 0 else 'worse'} under scatter"
-                     + (" (beyond twice the combined standard error)." if beyond else
-                        " (within twice the combined standard error: not a difference the draws resolve)."
-                        if se > 0 else "."))
+            noise = (" (beyond twice the combined standard error)." if beyond else
+                     " (within twice the combined standard error: not a difference the draws resolve)."
+                     if se > 0 else ".")
+            if fails:
+                text += (f"The robust optimum ({rv}) is feasible as built: it has {rn} nominally and {rr} under "
+                         f"scatter (it loses {fmt_quantity(sgn * rd, u)}, {fmt_number(sgn * rpct, 3)} %); keeping the "
+                         f"constraints as built costs {fmt_quantity(abs(diff), u)} of {o.label} under scatter against "
+                         f"the nominal optimum" + noise)
+            else:
+                text += (f"The robust optimum ({rv}) has {rn} nominally and {rr} under scatter: it loses "
+                         f"{fmt_quantity(sgn * rd, u)} ({fmt_number(sgn * rpct, 3)} %), "
+                         f"{'less' if sgn * rd < sgn * nd else 'more'} than the nominal optimum, and ends "
+                         f"{fmt_quantity(abs(diff), u)} {'better' if sgn * diff > 0 else 'worse'} under scatter"
+                         + noise)
         out.append(text)
     return out
 
