@@ -75,12 +75,12 @@ import numpy as np
 
 from .accuracy import (TOLERANCE_SETTINGS, _actuated_row_mask, _compose, _leg_changes, _length_rows, _perturbed_legs,
                        _pinv_rank6, _pose_jacobian, _sample_errors, closure_residuals, error_sources)
-from .constraints import PoseContext
+from .constraints import PoseContext, SingularityMarginFloor
 from .legs import solve_geometry
 from .mechanism import EngineFallbackWarning, Mechanism
 from .objectives import Measure
 from .objectives import get as get_measure
-from .units import QuantityError, parse_quantity
+from .units import UNIT_KINDS, QuantityError, parse_quantity
 from .validation import MAX_SEED, check_count
 
 __all__ = ["robust", "RobustMeasure", "RobustValue", "AsBuilt", "STATISTICS", "LEG_TOLERANCES",
@@ -853,7 +853,8 @@ def _initial_band(mech, params, tol) -> dict:
     ang = tol["axis_tolerance"] + sum(v for n, v in params.items() if units.get(n) == "angle")
     d_len = 10.0 * (lin + ang * L)
     d_ang = 10.0 * (lin / L + ang)
-    return {"m": d_len, "rad": d_ang, "1": 10.0 * (lin / L + ang)}
+    # keyed by the margins' units: lengths and angles in SI, and the singularity-margin floor's
+    return {UNIT_KINDS["length"].si: d_len, UNIT_KINDS["angle"].si: d_ang, SingularityMarginFloor.unit: d_ang}
 
 
 def _first_order(rm: RobustMeasure, base: Measure, mech, nominal, worse, settings):
