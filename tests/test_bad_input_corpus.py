@@ -229,6 +229,34 @@ def _study_mutations(path, si=0):
                     {k: 2}), f"{p}.{k}")
                 add(f"{p}-{k}-nan", lambda d, j=j, k=k: d["objectives"][j].setdefault("settings", {}).update(
                     {k: "nan kg"}), f"{p}.{k}")
+    # robust blocks (the scatter of a robust objective or constraint)
+    rob = {"tolerances": {"anchor_tolerance": "0.02 mm"}, "samples": 4}
+
+    def add_rob(cid, change, needle):
+        def fn(d):
+            r = dict(copy.deepcopy(d["objectives"][0].get("robust") or rob))
+            change(r)
+            d["objectives"][0]["robust"] = r
+        add(cid, fn, needle)
+
+    rp = "objectives[0].robust"
+    add_rob("rob-statistic", lambda r: r.update(statistic="median"), f"{rp}.statistic: must be one of mean, quantile, "
+                                                                      f"worst, first_order")
+    add_rob("rob-quantile-no-level", lambda r: (r.update(statistic="quantile"), r.pop("level", None)), f"{rp}.level")
+    add_rob("rob-level-out", lambda r: r.update(statistic="quantile", level=1.5), f"{rp}.level")
+    add_rob("rob-level-mean", lambda r: r.update(statistic="mean", level=0.5), f"{rp}.level")
+    add_rob("rob-samples-one", lambda r: r.update(samples=1), f"{rp}.samples")
+    add_rob("rob-samples-str", lambda r: r.update(samples="many"), f"{rp}.samples")
+    add_rob("rob-seed-neg", lambda r: r.update(seed=-1), f"{rp}.seed")
+    add_rob("rob-tol-unknown", lambda r: r.update(tolerances={"nope_param": "1 mm"}), f"{rp}.tolerances.nope_param")
+    add_rob("rob-tol-bare", lambda r: r.update(tolerances={"anchor_tolerance": 0.01}), f"{rp}.tolerances.anchor_tolerance")
+    add_rob("rob-tol-dim", lambda r: r.update(tolerances={"axis_tolerance": "1 mm"}), f"{rp}.tolerances.axis_tolerance")
+    add_rob("rob-tol-neg", lambda r: r.update(tolerances={"anchor_tolerance": "-1 mm"}),
+            f"{rp}.tolerances.anchor_tolerance")
+    add_rob("rob-tol-empty", lambda r: r.update(tolerances={}), f"{rp}.tolerances")
+    add_rob("rob-tol-zero", lambda r: r.update(tolerances={"anchor_tolerance": "0 mm"}), f"{rp}.tolerances")
+    add_rob("rob-probability-objective", lambda r: r.update(probability=0.9), f"{rp}.probability")
+    add_rob("rob-unknown-key", lambda r: r.update(draws=3), f"{rp}.draws")
     # design constraints (added where the study has none)
     k = len(base.get("constraints", []))
     cp = f"constraints[{k}]"
@@ -247,6 +275,12 @@ def _study_mutations(path, si=0):
                                  "max": "1 m"}, f"{cp}.label")
     add_con("con-dimless-bool", {"name": "home_singularity_margin", "label": "hm", "min": True}, f"{cp}.min")
     add_con("con-dimless-nan", {"name": "home_singularity_margin", "label": "hm", "min": float("nan")}, f"{cp}.min")
+    add_con("con-robust-probability", {"name": "home_singularity_margin", "label": "hm", "min": 0.01,
+                                       "robust": {"tolerances": {"anchor_tolerance": "0.02 mm"}, "probability": 1.5}},
+            f"{cp}.robust.probability")
+    add_con("con-robust-two-bounds", {"name": "home_singularity_margin", "label": "hm", "min": 0.01, "max": 0.9,
+                                      "robust": {"tolerances": {"anchor_tolerance": "0.02 mm"}, "probability": 0.9}},
+            f"{cp}.robust.probability")
     # optimizer
     add("opt-kind", lambda d: d.setdefault("optimizer", {}).update(kind="annealing"), "optimizer.kind")
     add("opt-algorithm", lambda d: d.setdefault("optimizer", {}).update(algorithm="bogus"), "optimizer.algorithm")

@@ -16,6 +16,7 @@ from .indices import (StaticForces, global_conditioning_index, local_condition_n
                       transmission_indices, wrench_capability)
 from .stiffness import stiffness_matrix
 from .dynamics import GRINDING_INERTIA, InertiaModel, force_decoupling, inverse_dynamics
+from .robustness import robust
 from . import structures  # the package, callable as parasynth.structures(motion, ...)
 from .structures import Structure
 
@@ -57,4 +58,5 @@ __all__ = [
     "inverse_dynamics",
     "force_decoupling",
     "stiffness_matrix",
+    "robust",
 ]

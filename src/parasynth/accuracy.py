@@ -62,7 +62,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .spatial import rot_axis, unit
+from .spatial import dot_rows, rot_axis, rotate_rows, unit
 from .units import parse_quantity
 
 __all__ = [
@@ -124,14 +124,14 @@ def _leg_residual(leg, p, R) -> np.ndarray:
     if leg.is_actuated:
         out.append(_actuator_value(leg, A, p, R))
     if j in ("RPS", "PRS"):
-        out.append((A - leg.base) @ leg.r_axis)
+        out.append(dot_rows(A - leg.base, leg.r_axis))
     elif j == "RPU":
-        out.append((A - leg.base) @ leg.r_axis)
-        out.append((R @ leg.u_platform_axis) @ leg.r_axis)
+        out.append(dot_rows(A - leg.base, leg.r_axis))
+        out.append(dot_rows(rotate_rows(R, leg.u_platform_axis), leg.r_axis))
     elif j == "UPU":
         n = unit(A - leg.base)
         cb = unit(np.cross(leg.u_axis, n))
-        cp = unit(np.cross(R @ leg.u_platform_axis, n))
+        cp = unit(np.cross(rotate_rows(R, leg.u_platform_axis), n))
         out.append(np.arctan2(np.sum(np.cross(cb, cp) * n, -1), np.sum(cb * cp, -1)))
     elif j not in ("SPS", "UPS", "PUS"):
         raise ValueError(f"accuracy: leg type {j!r} (leg {leg.name}) has no closure residual; supported: "
@@ -146,7 +146,7 @@ def _actuator_value(leg, A, p, R):
         return np.linalg.norm(A - leg.base, axis=-1)
     if leg.joints in ("PUS", "PRS"):
         d = A - leg.base
-        de = d @ leg.slider_axis
+        de = dot_rows(d, leg.slider_axis)
         disc = leg.link_length ** 2 - (np.einsum("ij,ij->i", d, d) - de ** 2)
         return de + leg.branch * np.sqrt(np.where(disc >= 0, disc, np.nan))
     return leg.solve(p, R).actuator
@@ -239,11 +239,30 @@ def error_sources(mech) -> ErrorSources:
     return ErrorSources(tuple(names), tuple(kind), tuple(legi), tuple(idx), tuple(group))
 
 
+def _cross3(a, b):
+    # one pair of 3-vectors: np.cross costs ten times more at this size (draws of robust measures)
+    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+
+
+def _unit3(a):
+    return a / math.sqrt(float(a @ a))
+
+
+def _rot3(k, ang):
+    """Rodrigues rotation matrix about the unit 3-vector ``k`` by ``ang`` (as ``rot_axis``)."""
+    x, y, z = float(k[0]), float(k[1]), float(k[2])
+    c, s = math.cos(ang), math.sin(ang)
+    C = 1.0 - c
+    return np.array([[c + x * x * C, x * y * C - z * s, x * z * C + y * s],
+                     [y * x * C + z * s, c + y * y * C, y * z * C - x * s],
+                     [z * x * C - y * s, z * y * C + x * s, c + z * z * C]])
+
+
 def _tilt_basis(a):
-    a = unit(np.asarray(a, dtype=float))
+    a = _unit3(np.asarray(a, dtype=float))
     helper = np.array([1.0, 0, 0]) if abs(a[0]) < 0.9 else np.array([0, 1.0, 0])
-    b1 = unit(np.cross(a, helper))
-    return b1, np.cross(a, b1)
+    b1 = _unit3(_cross3(a, helper))
+    return b1, _cross3(a, b1)
 
 
 def _coupled_axes(leg) -> bool:
@@ -254,7 +273,7 @@ def _coupled_axes(leg) -> bool:
 def _tilt(a, c, delta):
     """Rotation matrix tilting the unit axis ``a`` by ``delta`` towards ``_tilt_basis(a)[c]``."""
     b = _tilt_basis(a)[c]
-    return rot_axis(np.cross(a, b), delta)
+    return _rot3(_unit3(_cross3(np.asarray(a, dtype=float), b)), float(delta))
 
 
 def _leg_changes(leg, items) -> dict:
@@ -269,14 +288,14 @@ def _leg_changes(leg, items) -> dict:
         elif what == "link_length":
             kw[what] = kw.get(what, float(leg.link_length)) + delta
         else:
-            a0 = unit(np.array(getattr(leg, what), dtype=float))
+            a0 = _unit3(np.array(getattr(leg, what), dtype=float))
             if what == "r_axis" and _coupled_axes(leg):
-                Q = rot_axis(unit(np.array(kw.get("slider_axis", leg.slider_axis), dtype=float)), delta)
+                Q = _rot3(_unit3(np.array(kw.get("slider_axis", leg.slider_axis), dtype=float)), float(delta))
             else:
                 Q = _tilt(a0, c, delta)
             kw[what] = Q @ kw.get(what, a0)
             if what == "slider_axis" and _coupled_axes(leg):
-                kw["r_axis"] = Q @ kw.get("r_axis", unit(np.array(leg.r_axis, dtype=float)))
+                kw["r_axis"] = Q @ kw.get("r_axis", _unit3(np.array(leg.r_axis, dtype=float)))
     return kw
 
 

@@ -147,6 +147,18 @@ def _fmt_value(v, kind) -> str:
     return repr(v)
 
 
+def _fmt_robust(item) -> str:
+    """'; robust: quantile 0.05 of 32 scatter draws (seed 0), tolerances ...' for a robust item."""
+    rm = getattr(item, "robust", None)
+    if rm is None:
+        return ""
+    tols = ", ".join(f"{k} {v:g}" for k, v in (*rm.param_tolerances, *rm.leg_tolerances) if v)
+    p = getattr(item, "probability", None)
+    what = (f"probability >= {p:g} over" if p is not None else
+            f"{rm.statistic}{'' if rm.level is None else f' {rm.level:g}'} of")
+    return f"; robust: {what} {rm.samples} scatter draws (seed {rm.seed}), tolerances (SI) {tols}"
+
+
 def _fmt_settings(measure: str, settings: dict | None) -> str:
     """A measure's settings (SI inside) in display units: 'mass=20 kg, point=[0 mm, 75 mm, 0 mm]'."""
     from .objectives import get
@@ -274,11 +286,13 @@ def cmd_validate(args) -> int:
         print(f"  variable {v.name} ({v.type}) {rng}{vals}{ch}".replace(")  ", ") "))
     for o in study.objectives:
         sets = _fmt_settings(o.name, o.settings)
-        print(f"  objective {o.label}: {o.goal} {o.name}" + (f" ({sets})" if sets else ""))
+        print(f"  objective {o.label}: {o.goal} {o.name}" + (f" ({sets})" if sets else "") + _fmt_robust(o))
     for c in study.constraints:
-        bounds = [f"{b} {fq(study, c.label, x)}" for b, x in (("min", c.min), ("max", c.max)) if x is not None]
+        col = f"{c.label}_nominal" if c.probability is not None else c.label  # a chance constraint's bound
+        bounds = [f"{b} {fq(study, col, x)}" for b, x in (("min", c.min), ("max", c.max)) if x is not None]
         sets = _fmt_settings(c.name, c.settings)
-        print(f"  constraint {c.label}: {c.name} " + " ".join(bounds) + (f" ({sets})" if sets else ""))
+        print(f"  constraint {c.label}: {c.name} " + " ".join(bounds) + (f" ({sets})" if sets else "")
+              + _fmt_robust(c))
     print(f"  evaluation: {fmt_evaluation(study)}")
     probe = (f"; {stats['measures']} measure(s) evaluated once on the first of them"
              if stats.get("measures") else "")

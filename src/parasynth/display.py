@@ -125,21 +125,30 @@ def quantity_unit(study, name: str) -> Unit:
     """Display unit of a result column of ``study``: a design variable (by name), an objective or
     design constraint (by label, also ``<label>_stderr``), or a constraint margin
     (``<label>_margin``, in the constraint's unit). Other columns: no unit."""
-    for suffix in ("_stderr", "_margin"):
+    for suffix in ("_stderr", "_margin", "_robust_se"):
         if name.endswith(suffix) and quantity_known(study, name[: -len(suffix)]):
             return quantity_unit(study, name[: -len(suffix)])
+    for o in study.constraints:  # a chance constraint's nominal value is the measure's, its value a fraction
+        if name == f"{o.label}_nominal" and getattr(o, "robust", None) is not None:
+            return measure_unit(study, o.name, getattr(o, "settings", {}) or {})
+    for o in study.objectives:
+        if name == f"{o.label}_nominal" and getattr(o, "robust", None) is not None:
+            return quantity_unit(study, o.label)
     for v in study.variables:
         if v.name == name:
             return unit_for_kind(v.kind) if v.type != "categorical" or v.kind else NONE
     for o in list(study.objectives) + list(study.constraints):
         if o.label == name:
+            if getattr(o, "probability", None) is not None:
+                return NONE  # a chance constraint: a fraction of scatter draws
             return measure_unit(study, o.name, getattr(o, "settings", {}) or {})
     return NONE
 
 
 def quantity_known(study, name: str) -> bool:
     return any(v.name == name for v in study.variables) or any(
-        o.label == name for o in list(study.objectives) + list(study.constraints))
+        o.label == name or (getattr(o, "robust", None) is not None and name == f"{o.label}_nominal")
+        for o in list(study.objectives) + list(study.constraints))
 
 
 def measure_unit(study, measure_name: str, settings: dict | None = None) -> Unit:

@@ -20,12 +20,13 @@ ordering.
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass, field
 from typing import ClassVar
 
 import numpy as np
 
-from .spatial import couple_wrench, force_wrench, null_space, prismatic_twist, revolute_twist, unit
+from .spatial import couple_wrench, dot_rows, force_wrench, null_space, prismatic_twist, revolute_twist, rotate_rows, unit
 
 __all__ = [
     "Leg",
@@ -146,13 +147,24 @@ class Leg:
 
     # -- kinematics ------------------------------------------------------------------------
     def platform_points(self, p: np.ndarray, R: np.ndarray) -> np.ndarray:
-        return p + R @ self.platform
+        return p + rotate_rows(R, self.platform)
 
-    def solve(self, p: np.ndarray, R: np.ndarray) -> LegState:  # pragma: no cover - abstract
+    def solve(self, p: np.ndarray, R: np.ndarray, joint_angles: bool = True) -> LegState:  # pragma: no cover
+        """The leg's state at platform poses ``(p, R)``; ``joint_angles=False`` leaves the passive
+        joint angles out (``angles`` empty) where only the geometry is wanted."""
         raise NotImplementedError
 
     def joint_twists(self, st: LegState, P: np.ndarray) -> np.ndarray:  # pragma: no cover
         raise NotImplementedError
+
+    def with_neutral(self, base_ref, platform_ref) -> "Leg":
+        """A copy with the neutral joint directions ``base_ref`` (base frame) and
+        ``platform_ref`` (platform frame) -- ``dataclasses.replace`` without re-checking the
+        other fields, which are unchanged."""
+        new = copy.copy(self)
+        object.__setattr__(new, "base_ref", _axis(f"leg {self.name}: base_ref", base_ref))
+        object.__setattr__(new, "platform_ref", _axis(f"leg {self.name}: platform_ref", platform_ref))
+        return new
 
     def actuation_wrench(self, st: LegState, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Unit force along the leg line through the platform anchor, and ``rate_scale``."""
@@ -172,10 +184,19 @@ class Leg:
 
     def _cone_angles(self, n: np.ndarray, R: np.ndarray, prefix_base: str, prefix_plat: str):
         base_cone = _angle_between(n, np.broadcast_to(self.base_ref, n.shape))
-        plat_ref = R @ self.platform_ref
+        plat_ref = rotate_rows(R, self.platform_ref)
         # The platform joint sees the leg arriving, i.e. the direction platform -> base.
         plat_cone = _angle_between(-n, plat_ref)
         return {f"{prefix_base}_cone": base_cone, f"{prefix_plat}_cone": plat_cone}
+
+
+def solve_geometry(leg, p, R) -> LegState:
+    """``leg.solve(p, R, joint_angles=False)``: the state without the passive joint angles (for a
+    leg class of its own whose ``solve`` takes no ``joint_angles``, its full state)."""
+    try:
+        return leg.solve(p, R, joint_angles=False)
+    except TypeError:
+        return leg.solve(p, R)
 
 
 def _spherical_twists(point: np.ndarray, P: np.ndarray) -> list[np.ndarray]:
@@ -193,7 +214,7 @@ class SPS(Leg):
     joints: ClassVar[str] = "SPS"
     local_dof: ClassVar[int] = 1
 
-    def solve(self, p, R):
+    def solve(self, p, R, joint_angles: bool = True):
         A = self.platform_points(p, R)
         B = np.broadcast_to(self.base, A.shape)
         n, length = self._line(B, A)
@@ -204,7 +225,7 @@ class SPS(Leg):
             platform_point=A,
             direction=n,
             length=length,
-            angles=self._cone_angles(n, R, "S_base", "S_platform"),
+            angles=self._cone_angles(n, R, "S_base", "S_platform") if joint_angles else {},
         )
 
     def joint_twists(self, st, P):
@@ -231,12 +252,14 @@ class UPS(Leg):
         super().__post_init__()
         object.__setattr__(self, "u_axis", _axis(f"leg {self.name}: u_axis", self.u_axis))
 
-    def solve(self, p, R):
+    def solve(self, p, R, joint_angles: bool = True):
         A = self.platform_points(p, R)
         B = np.broadcast_to(self.base, A.shape)
         n, length = self._line(B, A)
-        angles = self._cone_angles(n, R, "U_base", "S_platform")
-        angles.update(_u_angles(self.u_axis, self.base_ref, n, "U_base"))
+        angles = {}
+        if joint_angles:
+            angles = self._cone_angles(n, R, "U_base", "S_platform")
+            angles.update(_u_angles(self.u_axis, self.base_ref, n, "U_base"))
         return LegState(length, length > 0, B, A, n, length, angles)
 
     def joint_twists(self, st, P):
@@ -256,6 +279,13 @@ def _u_angles(a1: np.ndarray, ref: np.ndarray, n: np.ndarray, prefix: str) -> di
     about ``a1`` (of the projection of ``n``) from that projection, angle 2 the tilt of ``n``
     out of the plane normal to ``a1`` relative to the tilt of ``ref``. Both are zero when
     ``n == ref``."""
+    if np.ndim(a1) == 2:  # one axis per pose (scatter draws stacked, parasynth.robustness)
+        r0 = unit(ref - dot_rows(a1, ref)[:, None] * a1)
+        b = np.cross(a1, r0)
+        ang1 = np.arctan2(dot_rows(n, b), dot_rows(n, r0))
+        ang2 = (np.arcsin(np.clip(dot_rows(n, a1), -1.0, 1.0))
+                - np.arcsin(np.clip(dot_rows(a1, unit(ref)), -1.0, 1.0)))
+        return {f"{prefix}_1": ang1, f"{prefix}_2": ang2}
     r0 = unit(ref - np.dot(ref, a1) * a1)
     if not np.any(r0):
         r0 = unit(np.cross(a1, [1.0, 0, 0]) if abs(a1[0]) < 0.9 else np.cross(a1, [0, 1.0, 0]))
@@ -297,22 +327,24 @@ class PUS(Leg):
         if self.branch not in (1, -1):
             raise ValueError(f"leg {self.name}: branch must be +1 or -1, got {self.branch}")
 
-    def solve(self, p, R):
+    def solve(self, p, R, joint_angles: bool = True):
         S = self.platform_points(p, R)
         e = self.slider_axis
         d = S - self.base
-        de = d @ e
+        de = dot_rows(d, e)
         perp2 = np.einsum("ij,ij->i", d, d) - de**2
         disc = self.link_length**2 - perp2
         reachable = disc >= 0
         s = de + self.branch * np.sqrt(np.where(reachable, disc, np.nan))
         U = self.base + s[:, None] * e
-        n = (S - U) / self.link_length
-        angles = self._cone_angles(n, R, "U_base", "S_platform")
-        angles.update(_u_angles(self.u_axis, self.base_ref, n, "U_base"))
-        # Angle between link and slider axis: transmission degrades as it nears 90 deg.
-        angles["link_slider"] = _angle_between(-n, np.broadcast_to(e, n.shape))
-        length = np.full(s.shape, self.link_length)
+        n = (S - U) / np.reshape(self.link_length, (-1, 1) if np.ndim(self.link_length) else ())
+        angles = {}
+        if joint_angles:
+            angles = self._cone_angles(n, R, "U_base", "S_platform")
+            angles.update(_u_angles(self.u_axis, self.base_ref, n, "U_base"))
+            # Angle between link and slider axis: transmission degrades as it nears 90 deg.
+            angles["link_slider"] = _angle_between(-n, np.broadcast_to(e, n.shape))
+        length = np.broadcast_to(np.asarray(self.link_length, dtype=float), s.shape).copy()
         return LegState(s, reachable, U, S, n, length, angles)
 
     def joint_twists(self, st, P):
@@ -329,7 +361,7 @@ class PUS(Leg):
         # The link is a two-force member: it pushes along its own line through S. A slider
         # rate s' moves U along e, so n.(S' - s' e) = 0 gives s' = (n . v_S) / (n . e).
         w = force_wrench(st.direction, st.platform_point, P)
-        return w, st.direction @ self.slider_axis
+        return w, dot_rows(st.direction, self.slider_axis)
 
 
 def _in_plane_residual(n_vec: np.ndarray, axis: np.ndarray) -> np.ndarray:
@@ -358,17 +390,19 @@ class RPS(Leg):
     def is_actuated(self) -> bool:
         return not self.passive
 
-    def solve(self, p, R):
+    def solve(self, p, R, joint_angles: bool = True):
         A = self.platform_points(p, R)
         B = np.broadcast_to(self.base, A.shape)
         n, length = self._line(B, A)
-        off_plane = np.abs((A - B) @ self.r_axis)
+        off_plane = np.abs(dot_rows(A - B, self.r_axis))
         # Tolerance per pose (never relative to the batch: a pose's answer must not depend on
         # the other poses evaluated with it).
         reachable = (off_plane <= GEOM_TOL * np.maximum(1.0, length)) & (length > 0)
-        angles = self._cone_angles(n, R, "R_base", "S_platform")
-        # Revolute angle: rotation of the leg about r_axis from base_ref (projected).
-        angles.update({"R_base": _u_angles(self.r_axis, self.base_ref, n, "R")["R_1"]})
+        angles = {}
+        if joint_angles:
+            angles = self._cone_angles(n, R, "R_base", "S_platform")
+            # Revolute angle: rotation of the leg about r_axis from base_ref (projected).
+            angles.update({"R_base": _u_angles(self.r_axis, self.base_ref, n, "R")["R_1"]})
         return LegState(length, reachable, B, A, n, length, angles, {"off_plane": off_plane})
 
     def joint_twists(self, st, P):
@@ -407,19 +441,21 @@ class RPU(Leg):
             self, "u_platform_axis", _axis(f"leg {self.name}: u_platform_axis", self.u_platform_axis)
         )
 
-    def solve(self, p, R):
+    def solve(self, p, R, joint_angles: bool = True):
         A = self.platform_points(p, R)
         B = np.broadcast_to(self.base, A.shape)
         n, length = self._line(B, A)
-        a4 = R @ self.u_platform_axis
-        off_plane = np.abs((A - B) @ self.r_axis)
-        skew_u = np.abs(a4 @ self.r_axis)
+        a4 = rotate_rows(R, self.u_platform_axis)
+        off_plane = np.abs(dot_rows(A - B, self.r_axis))
+        skew_u = np.abs(dot_rows(a4, self.r_axis))
         reachable = (off_plane <= GEOM_TOL * np.maximum(1.0, length)) & (skew_u <= GEOM_TOL) & (length > 0)
-        angles = self._cone_angles(n, R, "R_base", "U_platform")
-        angles["R_base"] = _u_angles(self.r_axis, self.base_ref, n, "R")["R_1"]
-        # Platform universal joint: rotation about the leg-side axis (parallel to r_axis)
-        # between the leg and the platform axis, minus 90 deg at the perpendicular neutral.
-        angles["U_platform_1"] = np.arctan2(np.cross(n, a4) @ self.r_axis, np.sum(n * a4, -1)) - np.pi / 2
+        angles = {}
+        if joint_angles:
+            angles = self._cone_angles(n, R, "R_base", "U_platform")
+            angles["R_base"] = _u_angles(self.r_axis, self.base_ref, n, "R")["R_1"]
+            # Platform universal joint: rotation about the leg-side axis (parallel to r_axis)
+            # between the leg and the platform axis, minus 90 deg at the perpendicular neutral.
+            angles["U_platform_1"] = np.arctan2(dot_rows(np.cross(n, a4), self.r_axis), np.sum(n * a4, -1)) - np.pi / 2
         return LegState(length, reachable, B, A, n, length, angles, {"off_plane": off_plane, "a4": a4})
 
     def joint_twists(self, st, P):
@@ -465,14 +501,16 @@ class UPU(Leg):
     def is_actuated(self) -> bool:
         return not self.passive
 
-    def solve(self, p, R):
+    def solve(self, p, R, joint_angles: bool = True):
         A = self.platform_points(p, R)
         B = np.broadcast_to(self.base, A.shape)
         n, length = self._line(B, A)
-        angles = self._cone_angles(n, R, "U_base", "U_platform")
-        angles.update(_u_angles(self.u_axis, self.base_ref, n, "U_base"))
+        angles = {}
+        if joint_angles:
+            angles = self._cone_angles(n, R, "U_base", "U_platform")
+            angles.update(_u_angles(self.u_axis, self.base_ref, n, "U_base"))
         st = LegState(length, length > 0, B, A, n, length, angles)
-        st.extra["a4"] = R @ self.u_platform_axis
+        st.extra["a4"] = rotate_rows(R, self.u_platform_axis)
         return st
 
     def joint_twists(self, st, P):
@@ -550,7 +588,7 @@ class PRS(Leg):
         if self.branch not in (1, -1):
             raise ValueError(f"leg {self.name}: branch must be +1 or -1, got {self.branch}")
 
-    def solve(self, p, R):
+    def solve(self, p, R, joint_angles: bool = True):
         S = self.platform_points(p, R)
         e, a = self.slider_axis, self.r_axis
         L = float(self.link_length)
@@ -563,9 +601,11 @@ class PRS(Leg):
         s = de + self.branch * np.sqrt(np.where(disc >= 0, disc, np.nan))
         J = self.base + s[:, None] * e
         n = (S - J) / L
-        angles = self._cone_angles(n, R, "R_base", "S_platform")
-        angles["R_base"] = _u_angles(a, self.base_ref, n, "R")["R_1"]
-        angles["link_slider"] = _angle_between(-n, np.broadcast_to(e, n.shape))
+        angles = {}
+        if joint_angles:
+            angles = self._cone_angles(n, R, "R_base", "S_platform")
+            angles["R_base"] = _u_angles(a, self.base_ref, n, "R")["R_1"]
+            angles["link_slider"] = _angle_between(-n, np.broadcast_to(e, n.shape))
         return LegState(s, reachable, J, S, n, np.full(s.shape, L), angles, {"off_plane": off_plane})
 
     def joint_twists(self, st, P):
@@ -580,7 +620,7 @@ class PRS(Leg):
         # The link carries a force along its line through S (reciprocal to the revolute and the
         # spherical joint); a slider rate s' moves J along e, so s' = (n . v_S) / (n . e).
         w = force_wrench(st.direction, st.platform_point, P)
-        return w, st.direction @ self.slider_axis
+        return w, dot_rows(st.direction, self.slider_axis)
 
     def constraint_wrenches(self, st, P):
         N = st.length.shape[0]
@@ -648,7 +688,7 @@ class RUS(Leg):
         c1 = np.cross(self.r_axis, c0)
         return np.cos(t)[:, None] * c0 + np.sin(t)[:, None] * c1
 
-    def solve(self, p, R):
+    def solve(self, p, R, joint_angles: bool = True):
         S = self.platform_points(p, R)
         h, L = float(self.crank_length), float(self.link_length)
         c0 = self.crank_direction
@@ -665,9 +705,11 @@ class RUS(Leg):
         t = np.arctan2(np.sin(t), np.cos(t))
         C = self.base + h * self._crank(t)
         n = (S - C) / L
-        angles = self._cone_angles(n, R, "U_base", "S_platform")
-        tangent = np.cross(np.broadcast_to(self.r_axis, C.shape), C - self.base)
-        angles["link_crank"] = _angle_between(n, unit(tangent))
+        angles = {}
+        if joint_angles:
+            angles = self._cone_angles(n, R, "U_base", "S_platform")
+            tangent = np.cross(np.broadcast_to(self.r_axis, C.shape), C - self.base)
+            angles["link_crank"] = _angle_between(n, unit(tangent))
         return LegState(t, reachable, C, S, n, np.full(t.shape, L), angles)
 
     def joint_twists(self, st, P):

@@ -33,7 +33,7 @@ from typing import Any
 import numpy as np
 
 from .constraints import Constraint, PoseContext
-from .legs import JOINT_DOF, Leg, LegState
+from .legs import JOINT_DOF, Leg, LegState, solve_geometry
 from .spatial import reciprocal_basis
 from .validation import check_engine, check_names, check_pose_array, is_real_number, mask_huge_poses
 
@@ -241,11 +241,11 @@ class Mechanism:
         p, R = self._pose(self.home[None, :])
         out = []
         for leg in legs:
-            st = leg.solve(p, R)
+            st = solve_geometry(leg, p, R)
             n = st.direction[0]
             if not np.all(np.isfinite(n)) or not np.any(n):
                 raise ValueError(f"{self.name}: home pose {self.home.tolist()} is not reachable by leg {leg.name}")
-            out.append(dataclasses.replace(leg, base_ref=n, platform_ref=R[0].T @ (-n)))
+            out.append(leg.with_neutral(n, R[0].T @ (-n)))
         return out
 
     def leg_states(self, X) -> tuple[np.ndarray, list[LegState], np.ndarray]:

@@ -260,16 +260,20 @@ def workspace_of(mech, ranges=None, n: int = 4096, method: str = "sobol", seed: 
     # on the NumPy reference never answers for a compiled evaluation of the same settings
     key = (type(mech), freeze(dataclasses.asdict(mech.params)), freeze(ranges), int(n), method,
            int(seed), freeze(fixed), freeze(constraints), effective_engine(engine),
-           tuple(repr(c) for c in getattr(mech, "added_constraints", ())))
-    hit = _CACHE.get(key)
+           tuple(repr(c) for c in getattr(mech, "added_constraints", ())), getattr(mech, "scatter_key", None))
+    # a scatter draw of a robust measure keeps its own workspaces (parasynth.robustness): the
+    # measures of one design share them without pushing the nominal ones out of this cache
+    cache = getattr(mech, "_workspace_memo", None)
+    cache = _CACHE if cache is None else cache
+    hit = cache.get(key)
     if hit is not None:
-        _CACHE.move_to_end(key)
+        cache.move_to_end(key)
         return hit
     ws = workspace(mech, ranges, n=int(n), method=method, seed=int(seed), fixed=fixed, constraints=constraints,
                    engine=engine)
-    _CACHE[key] = ws
-    if len(_CACHE) > _CACHE_SIZE:
-        _CACHE.popitem(last=False)
+    cache[key] = ws
+    if len(cache) > _CACHE_SIZE:
+        cache.popitem(last=False)
     return ws
 
 

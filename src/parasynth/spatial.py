@@ -312,3 +312,16 @@ def _point_segment(x, p, d, dd) -> np.ndarray:
     with np.errstate(divide="ignore", invalid="ignore"):
         u = np.where(dd > 1e-300, np.clip(np.sum((x - p) * d, -1) / dd, 0, 1), 0.0)
     return np.linalg.norm(x - p - u[..., None] * d, axis=-1)
+
+
+def dot_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise dot products (N,) of ``a`` (N, 3) with ``b`` (3,) or (N, 3)."""
+    b = np.asarray(b)
+    return a @ b if b.ndim == 1 else np.einsum("ij,ij->i", a, b)
+
+
+def rotate_rows(R: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """``R @ v`` per row: R (N, 3, 3) applied to ``v`` (3,) or to the rows of ``v`` (N, 3)."""
+    v = np.asarray(v)
+    return R @ v if v.ndim == 1 else np.einsum("nij,nj->ni", R, v)
+

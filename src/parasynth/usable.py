@@ -487,7 +487,7 @@ def usable_of(mech, sample: WorkspaceSample | None = None, constraints=None, eng
     sample = WorkspaceSample() if sample is None else sample
     key = (type(mech), repr(mech.params), tuple(repr(c) for c in getattr(mech, "added_constraints", ())),
            sample.ranges, sample.n, sample.fixed, freeze(constraints), effective_engine(engine), freeze(resolution),
-           floor, floor_fraction, freeze(home))
+           floor, floor_fraction, freeze(home), getattr(mech, "scatter_key", None))
     hit = _CACHE.get(key)
     if hit is not None:
         _CACHE.move_to_end(key)

@@ -180,7 +180,11 @@ def pose_batch(mech, X, twist: bool = False, engine: str = "compiled"):
     """``(valid, p, R, T)`` of poses X (N, n_task): validity of the parametrisation (as
     ``mech.pose_valid``), platform positions (N, 3), rotations (N, 3, 3) and, with ``twist``,
     the twist map (N, 6, n_task) (as ``mech.twist_map``; else None). Entries of invalid
-    poses are unspecified."""
+    poses are unspecified. A mechanism with a ``pose_mechanism`` (a view of another one's
+    parametrisation) is answered by that one."""
+    src = getattr(mech, "pose_mechanism", None)
+    if src is not None:  # a view whose parametrisation is another mechanism's (parasynth.robustness.AsBuilt)
+        return pose_batch(src, X, twist, engine)
     Xa, _ = mech._poses(X)
     if _engine_for("twist" if twist else "pose", engine) == "compiled":
         out = _compiled()[1].compiled_pose_batch(mech, Xa, twist)

@@ -128,8 +128,10 @@ def _final_analysis(run: Run, knee_row, noise_z: float) -> FinalAnalysis | None:
     dominated_by = {}
     for i, ri in best.iterrows():
         mi, si = mse(ri)
+        # an infeasible design (re-evaluated) dominates none
         dominated_by[i] = [int(rj["trial"]) for j, rj in best.iterrows()
-                           if j != i and compare_with_noise(*mse(rj), mi, si, senses, noise_z).verdict == "dominates"]
+                           if j != i and bool(rj.get("feasible", True))
+                           and compare_with_noise(*mse(rj), mi, si, senses, noise_z).verdict == "dominates"]
     # Which re-evaluated designs dominate the reference on the single-sample values: decided
     # from the run's table (the screening the report states), by design values.
     screen_keys = {design_key(study, r) for _, r in screening_dominators(study, run.table).iterrows()}

@@ -26,6 +26,7 @@ from ..study.rundir import Run, RunDirError, read_run, to_csv_columns
 from .analysis import NOISE_Z, Analysis, analyse
 from .figures import Figures, make_figures
 from .interactive import plotly_script, viewer_data, viewer_json, viewer_script
+from .robust import robust_sections
 from .sections import Section, Table, sections
 from .structures import plot_structures, structure_sections
 from .tables import display_table, final_display_table
@@ -120,7 +121,7 @@ def write_report(run_dir, out=None, noise_z: float = NOISE_Z, assets=None) -> Pa
         figs.items.append(("viewer_error", f"interactive view unavailable: {e}", b""))
     secs = sections(run, a)
     secs[-1:-1] = [Section(t, x, Table.of(d) if d is not None and len(d) else None)
-                   for t, x, d in structure_sections(run, a)]
+                   for t, x, d in [*structure_sections(run, a), *robust_sections(run, a)]]
     (out / "img").mkdir(exist_ok=True)
     for name, _, png in figs.items:
         if png:

@@ -23,7 +23,7 @@ def si_suffix(study, name: str) -> str:
     """The SI unit of result column ``name`` as a column-name suffix ('' for none):
     'm', 'rad', 'm3', 'm3_rad2', 'N', 'N_per_m', 'Pa'."""
     base = name
-    for sfx in ("_stderr", "_margin"):
+    for sfx in ("_stderr", "_margin", "_nominal", "_robust_se"):
         if name.endswith(sfx) and quantity_known(study, name[: -len(sfx)]):
             base = name[: -len(sfx)]
     if not quantity_known(study, base):
@@ -69,9 +69,11 @@ def from_csv_columns(study, df: pd.DataFrame) -> pd.DataFrame:
     for c in study.constraints:
         names += [c.label, f"{c.label}_margin"]
     names += [f"{o.label}_stderr" for o in study.objectives]
+    names += sum(([f"{x.label}_nominal", f"{x.label}_robust_se"] for x in (*study.objectives, *study.constraints)
+                  if getattr(x, "robust", None) is not None), [])
     back = {}
     for n in names:
-        if n in df.columns or not (quantity_known(study, n) or n.endswith(("_stderr", "_margin"))):
+        if n in df.columns or not (quantity_known(study, n) or n.endswith(("_stderr", "_margin", "_nominal", "_robust_se"))):
             continue
         c = csv_column(study, n)
         if c in df.columns:

@@ -38,6 +38,9 @@ class Record:
     time_s: float = 0.0
     trial: int = -1
     source: str = "run"
+    #: {label: {"nominal", "stderr", "statistic", "level", "samples", "probability"}} of each robust
+    #: objective or constraint (parasynth.robustness): the nominal value beside the robust one
+    robust: dict = field(default_factory=dict)
 
     @property
     def feasible(self) -> bool:
@@ -48,7 +51,7 @@ class Record:
             "trial": self.trial, "source": self.source, "values": self.values, "objectives": self.objectives,
             "constraint_values": self.constraint_values, "margins": self.margins, "status": self.status,
             "feasible": self.feasible, "error": self.error, "seed": self.seed, "samples": self.samples,
-            "time_s": self.time_s,
+            "time_s": self.time_s, **({"robust": self.robust} if self.robust else {}),
         }
 
     @classmethod
@@ -56,7 +59,7 @@ class Record:
         return cls(values=d["values"], objectives=d.get("objectives", {}), constraint_values=d.get("constraint_values", {}),
                    margins=d.get("margins", {}), status=d.get("status", "ok"), error=d.get("error", ""),
                    seed=d.get("seed", 0), samples=d.get("samples", 0), time_s=d.get("time_s", 0.0),
-                   trial=d.get("trial", -1), source=d.get("source", "run"))
+                   trial=d.get("trial", -1), source=d.get("source", "run"), robust=d.get("robust", {}))
 
 
 class Evaluator:
@@ -93,11 +96,13 @@ class Evaluator:
             mech = self.build(values)
             cons = sorted(self.study.constraints, key=lambda c: get_measure(c.name).cost != "cheap")
             for c in cons:
-                v = get_measure(c.name)(mech, **measure_arguments(self.study, c.name, c.settings, sample, pinned))
+                args = measure_arguments(self.study, c.name, c.settings, sample, pinned)
+                v = self._value(c, mech, args, rec, bound=c.bound, probability=c.probability)
                 rec.constraint_values[c.label] = v
                 rec.margins[c.label] = c.margin(v) if math.isfinite(v) else -math.inf
             for o in self.study.objectives:
-                v = get_measure(o.name)(mech, **measure_arguments(self.study, o.name, o.settings, sample, pinned))
+                args = measure_arguments(self.study, o.name, o.settings, sample, pinned)
+                v = self._value(o, mech, args, rec)
                 if not math.isfinite(v):
                     raise FloatingPointError(f"objective {o.label!r} is not finite ({v})")
                 rec.objectives[o.label] = v
@@ -109,3 +114,21 @@ class Evaluator:
             rec.error_trace = traceback.format_exc(limit=3)
         rec.time_s = time.perf_counter() - t0
         return rec
+
+    @staticmethod
+    def _value(item, mech, args, rec, bound=None, probability=None) -> float:
+        """The value of an objective or constraint ``item``: its measure, or under a ``robust``
+        block its robust statistic (or a chance constraint's fraction of draws within the
+        bound), the nominal value and standard error recorded in ``rec.robust``."""
+        rm = getattr(item, "robust", None)
+        if rm is None:
+            return get_measure(item.name)(mech, **args)
+        if probability is not None:
+            P, se, nominal = rm.probability_of(mech, bound, **args)
+            rec.robust[item.label] = {"nominal": nominal, "stderr": se, "statistic": "probability", "level": None,
+                                      "samples": rm.samples, "probability": probability}
+            return P
+        rv = rm.evaluate(mech, bound=bound, **args)
+        rec.robust[item.label] = {"nominal": rv.nominal, "stderr": rv.standard_error, "statistic": rv.statistic,
+                                  "level": rv.level, "samples": rv.samples, "probability": None}
+        return rv.value

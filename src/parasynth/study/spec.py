@@ -39,6 +39,7 @@ from ..geometry_checks import degenerate_geometry
 from ..mechanisms import load_mechanism, mechanism_class, resolve_mechanism_name
 from ..measure_spec import SettingError
 from ..objectives import OBJECTIVES, get as get_measure
+from ..robustness import RobustError, check_robust_spec, resolve_tolerances, robust
 from ..validation import MAX_SAMPLES, MAX_SEED, MAX_TRIALS, is_real_number, numpy_reference
 from ..yamlio import YamlError, load_yaml
 from .design import design_params, evaluation_sample, measure_arguments, with_pose_constraints
@@ -62,8 +63,9 @@ NLOPT_WITH_CONSTRAINTS = ("LN_COBYLA", "GN_ISRES")
 #: constraints: a label may not take one of these names.
 RESERVED_COLUMNS = ("trial", "source", "feasible", "status", "error", "seed", "samples", "time_s", "repeats",
                     "knee", "count", "role", "dominates_reference_screen")
-#: Suffixes of derived columns: ``<constraint>_margin`` (results.csv), ``<objective>_stderr`` (final.csv).
-DERIVED_SUFFIXES = ("_margin", "_stderr")
+#: Suffixes of derived columns: ``<constraint>_margin`` (results.csv), ``<objective>_stderr`` (final.csv),
+#: ``<label>_nominal`` and ``<label>_robust_se`` of a robust measure (results.csv).
+DERIVED_SUFFIXES = ("_margin", "_stderr", "_nominal", "_robust_se")
 
 # The settings of each measure (kinds, ranges, choices) are declared with the measure
 # (parasynth.objectives, parasynth.measure_spec) and checked by its own validator.
@@ -100,6 +102,26 @@ class VariableSpec(_Model):
         "empty in results.csv otherwise)."))
 
 
+class RobustSpec(_Model):
+    tolerances: dict[str, Any] = Field(description=(
+        "Scatter of the design, {name: tolerance with its unit}: a description parameter with a length or "
+        "angle unit (slider_radius: 0.05 mm; the mechanism is rebuilt with the drawn value) or a per-leg "
+        "tolerance of the accuracy module (actuator_tolerance, anchor_tolerance, link_tolerance, "
+        "axis_tolerance, spherical_clearance, universal_clearance), each drawn uniformly within "
+        "+-tolerance (clearances in a ball); per-leg scatter is evaluated on the mechanism as built."))
+    statistic: Any = Field(default="mean", description=(
+        "What the scatter draws give: mean (default), quantile (with level), worst (the least favourable "
+        "draw) or first_order (nominal worsened by sum |sensitivity| x tolerance; not for measures counted "
+        "on samples such as volumes)."))
+    level: Any = Field(default=None, description="Level of the quantile statistic in (0, 1), e.g. 0.05.")
+    samples: Any = Field(default=32, description=(
+        "Scatter draws per design (2 to 4096, default 32), the same for every design (common random numbers)."))
+    seed: Any = Field(default=0, description="Seed of the scatter draws (default 0).")
+    probability: Any = Field(default=None, description=(
+        "Constraints only: a chance constraint, the least fraction in (0, 1] of the scatter draws that "
+        "must satisfy the bound (its value is that fraction, with its standard error in the report)."))
+
+
 class MeasureRef(_Model):
     name: str = Field(description="A registered measure, e.g. workspace_volume.")
     label: str | None = Field(default=None, description=(
@@ -112,6 +134,9 @@ class MeasureRef(_Model):
         "measure declares (e.g. quantile in [0, 1]; see `parasynth list`). Workspace measures may override "
         "a field of their workspace sample here (samples as n, seed, ranges, fixed, method; the accuracy "
         "measures' sampling method is `sampling`, their `method` is the error model)."))
+    robust: RobustSpec | None = Field(default=None, description=(
+        "Evaluate the measure under manufacturing scatter (a robust objective): tolerances, statistic, "
+        "level, samples, seed (docs/objectives.md, robust measures)."))
 
 
 class ConstraintRef(_Model):
@@ -123,6 +148,9 @@ class ConstraintRef(_Model):
     max: Scalar | None = Field(default=None, description=(
         "Upper bound with the measure's unit; min must not be above max."))
     settings: dict[str, Any] = Field(default_factory=dict, description="Settings of the measure, as for objectives.")
+    robust: RobustSpec | None = Field(default=None, description=(
+        "Evaluate the constraint under manufacturing scatter: as for objectives, plus probability for a "
+        "chance constraint (the fraction of draws within the bound)."))
 
 
 class EvaluationSpec(_Model):
@@ -270,6 +298,7 @@ class Objective:
     label: str  # column name
     goal: str
     settings: dict
+    robust: object = None  # a parasynth.robustness.RobustMeasure (the robust block), or None
 
 
 @dataclass(frozen=True)
@@ -279,8 +308,19 @@ class DesignConstraint:
     min: float | None
     max: float | None
     settings: dict
+    robust: object = None  # a parasynth.robustness.RobustMeasure (the robust block), or None
+    probability: float | None = None  # a chance constraint: the least fraction of draws within the bound
+
+    @property
+    def bound(self):
+        """("min" | "max", value) of the bound the robust statistics take as unfavourable side."""
+        return ("min", self.min) if self.min is not None else ("max", self.max)
 
     def margin(self, value: float) -> float:
+        """``value - min`` / ``max - value``; for a chance constraint, ``value`` is the fraction
+        of scatter draws within the bound and the margin ``value - probability``."""
+        if self.probability is not None:
+            return value - self.probability
         m = math.inf
         if self.min is not None:
             m = min(m, value - self.min)
@@ -325,6 +365,24 @@ class ResolvedStudy:
         ``structure`` for the structure variable a study over structures adds."""
         j = next((j for j, v in enumerate(self.spec.variables) if v.name == name), None)
         return "structure" if j is None else f"variables[{j}]"
+
+
+def _resolve_robust(spec, measure: str, mech_cls, path: str, constraint: bool):
+    """The :class:`~parasynth.robustness.RobustMeasure` of a ``robust:`` block (None without
+    one); :class:`StudyError` naming ``<path>.<field>``."""
+    if spec is None:
+        return None
+    if not constraint and spec.probability is not None:
+        raise StudyError(f"{path}.probability: only a constraint takes a probability (a chance constraint)")
+    try:
+        check_robust_spec(spec.statistic, spec.level, spec.samples, spec.seed, spec.probability, path, measure)
+        params, legs = resolve_tolerances(spec.tolerances, _param_kinds(mech_cls), f"{path}.tolerances", study=True)
+        if not any(params.values()) and not any(legs.values()):
+            raise RobustError(f"{path}.tolerances: give at least one positive tolerance")
+        return robust(measure, tolerances={**params, **legs}, statistic=spec.statistic, samples=spec.samples,
+                      seed=spec.seed, level=spec.level)
+    except RobustError as e:
+        raise StudyError(str(e)) from None
 
 
 def _fmt_loc(loc) -> str:
@@ -374,7 +432,8 @@ def parse_spec(data: dict) -> StudySpec:
 def _allowed_keys(parent_loc) -> list[str]:
     model = StudySpec
     sub = {"variables": VariableSpec, "objectives": MeasureRef, "constraints": ConstraintRef,
-           "evaluation": EvaluationSpec, "optimizer": OptimizerSpec, "structure": StructureSpec}
+           "evaluation": EvaluationSpec, "optimizer": OptimizerSpec, "structure": StructureSpec,
+           "robust": RobustSpec}
     for part in parent_loc:
         if isinstance(part, str) and part in sub:
             model = sub[part]
@@ -541,7 +600,9 @@ def resolve_study(data: dict, source: str | None = None) -> ResolvedStudy:
             raise StudyError(f"{path}.name: objective {o.name!r} applies to {list(m.models)}, not {spec.mechanism!r}")
         label = o.label if o.label is not None else o.name
         check_label(label, path, f"{path}.label" if o.label is not None else f"{path}.name")
-        objectives.append(Objective(o.name, label, o.goal or m.sense, resolve_settings(m, o.settings, f"{path}.settings")))
+        rb = _resolve_robust(o.robust, o.name, mech_cls, f"{path}.robust", constraint=False)
+        objectives.append(Objective(o.name, label, o.goal or m.sense, resolve_settings(m, o.settings, f"{path}.settings"),
+                                    rb))
 
     constraints = []
     for i, c in enumerate(spec.constraints):
@@ -570,7 +631,12 @@ def resolve_study(data: dict, source: str | None = None) -> ResolvedStudy:
             raise StudyError(f"{path}.name: measure {c.name!r} applies to {list(m.models)}, not {spec.mechanism!r}")
         label = c.label if c.label is not None else c.name
         check_label(label, path, f"{path}.label" if c.label is not None else f"{path}.name")
-        constraints.append(DesignConstraint(c.name, label, lo, hi, resolve_settings(m, c.settings, f"{path}.settings")))
+        rb = _resolve_robust(c.robust, c.name, mech_cls, f"{path}.robust", constraint=True)
+        prob = c.robust.probability if c.robust is not None else None
+        if prob is not None and lo is not None and hi is not None:
+            raise StudyError(f"{path}.robust.probability: a chance constraint takes one bound, min or max")
+        constraints.append(DesignConstraint(c.name, label, lo, hi, resolve_settings(m, c.settings, f"{path}.settings"),
+                                            rb, None if prob is None else float(prob)))
 
     ev = spec.evaluation
     ranges = _resolve_ranges(ev.ranges, mech_cls, "evaluation.ranges", task) if ev.ranges is not None else None
@@ -979,6 +1045,15 @@ def check_study(study: ResolvedStudy, *, measures: bool = True, max_corners: int
                 where = f"{where}.settings.{named[0]}"
             problems.append(f"{where} ({item.label}): measure {item.name!r} fails on the {base_where.split(' ')[0]} "
                             f"design with these settings: {msg}")
+        if getattr(item, "robust", None) is not None:
+            try:
+                item.robust.check(base_mech)
+            except KeyboardInterrupt:
+                raise
+            except Exception as e:
+                msg = str(e) if isinstance(e, ValueError) else f"{type(e).__name__}: {e}"
+                problems.append(f"{where}.robust.tolerances ({item.label}): the scatter cannot be applied to the "
+                                f"{base_where.split(' ')[0]} design: {msg}")
     return problems
 
 
@@ -1001,6 +1076,8 @@ def _model_keys(model, prefix="") -> list[str]:
         if model is StudySpec and name in subs:
             sep = "[]." if name in ("variables", "objectives", "constraints") else "."
             out += _model_keys(subs[name], f"{key}{sep}")
+        elif model in (MeasureRef, ConstraintRef) and name == "robust":
+            out += _model_keys(RobustSpec, f"{key}.")
     return out
 
 
@@ -1014,7 +1091,7 @@ def key_docs() -> dict[str, str]:
     list): the fields' descriptions, and the keys of ``reference`` (:data:`REFERENCE_KEYS`)."""
     models = {"": StudySpec, "variables[].": VariableSpec, "objectives[].": MeasureRef,
               "constraints[].": ConstraintRef, "evaluation.": EvaluationSpec, "optimizer.": OptimizerSpec,
-              "structure.": StructureSpec}
+              "structure.": StructureSpec, "objectives[].robust.": RobustSpec, "constraints[].robust.": RobustSpec}
     docs = {}
     for key in study_keys():
         prefix, _, leaf = key.rpartition(".")

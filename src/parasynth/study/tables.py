@@ -18,9 +18,12 @@ __all__ = ["results_table", "write_tables"]
 
 def results_table(study: ResolvedStudy, records: list[Record]) -> pd.DataFrame:
     """One row per record: ``trial``, ``source``, the design variables, the objectives, each
-    design constraint and its ``<label>_margin``, ``feasible``, ``status``, ``error``, ``seed``,
+    design constraint and its ``<label>_margin``, for each robust one ``<label>_nominal`` and
+    ``<label>_robust_se``, ``feasible``, ``status``, ``error``, ``seed``,
     ``samples``, ``time_s``; the reference first, then the run designs by trial."""
     rows = []
+    # a robust objective or constraint: its nominal value and the standard error of the robust one
+    robust = [x.label for x in (*study.objectives, *study.constraints) if getattr(x, "robust", None) is not None]
     for r in records:
         row = {"trial": r.trial, "source": r.source}
         for v in study.variables:
@@ -30,11 +33,17 @@ def results_table(study: ResolvedStudy, records: list[Record]) -> pd.DataFrame:
         for c in study.constraints:
             row[c.label] = r.constraint_values.get(c.label, np.nan)
             row[f"{c.label}_margin"] = r.margins.get(c.label, np.nan)
+        for label in robust:
+            info = r.robust.get(label) or {}
+            row[f"{label}_nominal"] = info.get("nominal", np.nan)
+            se = info.get("stderr")
+            row[f"{label}_robust_se"] = np.nan if se is None else se
         row.update(feasible=r.feasible, status=r.status, error=r.error, seed=r.seed, samples=r.samples,
                    time_s=r.time_s)
         rows.append(row)
     cols = (["trial", "source"] + [v.name for v in study.variables] + [o.label for o in study.objectives]
             + sum(([c.label, f"{c.label}_margin"] for c in study.constraints), [])
+            + sum(([f"{lb}_nominal", f"{lb}_robust_se"] for lb in robust), [])
             + ["feasible", "status", "error", "seed", "samples", "time_s"])
     df = pd.DataFrame(rows, columns=cols)
     if len(df):

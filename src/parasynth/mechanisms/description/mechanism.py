@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ... import engine as _engine
+from ...legs import solve_geometry
 from ...mechanism import Mechanism, Mobility
 from ...spatial import euler_rate_map, euler_to_matrix, reciprocal_basis, rot_axis, skew
 from ...units import UNIT_KINDS
@@ -229,7 +230,7 @@ class DescribedMechanism(Mechanism):
         out = []
         for leg in legs:
             with np.errstate(all="ignore"):
-                st = leg.solve(p, R)
+                st = solve_geometry(leg, p, R)
             n = st.direction[0]
             if not (st.reachable[0] and np.all(np.isfinite(n))) or not np.any(n):
                 why = ""
@@ -243,7 +244,7 @@ class DescribedMechanism(Mechanism):
                            f"revolute joint allows: the position or orientation misses a dependent coordinate?)")
                 raise DescriptionError(f"{self.name}: task.home: the home pose {self.home.tolist()} is not reachable "
                                        f"by leg {leg.name} ({leg.joints}){why}")
-            out.append(dataclasses.replace(leg, base_ref=n, platform_ref=R[0].T @ (-n)))
+            out.append(leg.with_neutral(n, R[0].T @ (-n)))
         return out
 
     def _check_constraints(self, margins: bool = True):

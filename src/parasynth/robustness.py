@@ -1,0 +1,948 @@
+"""Robust design measures: any registered measure evaluated under manufacturing scatter.
+
+``robust(name, tolerances=..., statistic=..., samples=..., seed=...)`` returns a
+:class:`RobustMeasure`, a :class:`~parasynth.objectives.Measure` like the others (same
+settings, same call), whose value is a statistic of the measure over ``samples`` scatter
+draws of the mechanism::
+
+    from parasynth import load_mechanism, robust
+    m = robust("workspace_volume", tolerances={"slider_radius": "0.05 mm", "anchor_tolerance": "0.02 mm"},
+               statistic="quantile", level=0.05, samples=32, seed=0)
+    v = m(load_mechanism("5pus_upu"), n=4096)          # the 5 % quantile of the volume
+    r = m.evaluate(load_mechanism("5pus_upu"), n=4096)  # RobustValue: value, standard error, draws
+
+Scatter model
+-------------
+``tolerances`` names two kinds of scatter, each drawn uniformly within +-tolerance:
+
+* **description parameters** (``slider_radius: "0.05 mm"``, ``hinge_rotation: "0.01 deg"``):
+  every scalar element of the parameter is drawn independently and the mechanism is rebuilt
+  from its description with the drawn value (so every leg built from it moves consistently);
+  only parameters with a length or angle unit (``Params.UNITS``) can scatter;
+* **per leg**, in the vocabulary of :mod:`parasynth.accuracy` (``actuator_tolerance``,
+  ``anchor_tolerance``, ``link_tolerance``, ``axis_tolerance``, ``spherical_clearance``,
+  ``universal_clearance``): each leg's anchors, link length and joint axes independently, the
+  clearances as balls, the actuators' errors, drawn as :func:`parasynth.accuracy` draws them.
+
+Per-leg scatter is evaluated on the mechanism **as built** (:class:`AsBuilt`): at a nominal
+pose ``X`` the actuators hold their nominal inverse-kinematics values (plus their own error),
+the actual platform pose solves the perturbed closure equations (a chord Newton iteration from
+the nominal pose on :func:`parasynth.accuracy.closure_residuals`, batched over the poses), and
+reachability, pose constraints, wrench system and indices are those of the perturbed legs at
+that actual pose. (Re-solving the inverse kinematics at the nominal pose would be wrong for
+legs of lower mobility: an RPS leg whose anchor moves along its revolute axis cannot reach the
+nominal pose at all.) Task-coordinate ranges and expression constraints on the task
+coordinates are judged on the commanded coordinates ``X``.
+
+Feasibility of an as-built mechanism over a batch of poses is screened by the nominal
+mechanism's compiled constraint margins: only poses whose nominal margins are all above
+``-band`` (per margin unit) are solved as built, the others count as infeasible; the band
+starts at ten times the largest scatter the tolerances allow and doubles, and the as-built
+solve is repeated, whenever a solved pose's margins moved by more than half of it. Poses the
+nominal legs cannot reach count as unreachable as built.
+
+Statistics
+----------
+``mean`` (standard error ``std / sqrt(k)``), ``quantile`` with its ``level`` (standard error
+from the binomial spread of the order statistics: half the distance between the order
+statistics ``k level -+ sqrt(k level (1 - level))``), ``worst`` (the least favourable draw for
+the measure's sense, or for a constraint's bound; no standard error), ``first_order``
+(``nominal -+ sum_j |dv/dx_j| tol_j`` towards the unfavourable side, sensitivities by central
+differences with a step of a tenth of each tolerance; refused for measures counted on samples,
+whose value jumps with every sample crossing the boundary: volumes, fractions, extents).
+
+Common random numbers: the draws come from ``seed`` alone (parameter draws and leg draws from
+separate streams), so every design sees the same scatter and the robust objective is as
+smooth in the design as the nominal one.
+
+A **chance constraint** (``probability``) is the fraction of draws whose value satisfies the
+constraint's bound (``bound``: ``("min", value)`` or ``("max", value)``), standard error
+``sqrt(P (1 - P) / k)``; see :meth:`RobustMeasure.probability_of`.
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import math
+import warnings
+import weakref
+from collections import OrderedDict
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from .accuracy import (TOLERANCE_SETTINGS, _actuated_row_mask, _compose, _leg_changes, _length_rows, _perturbed_legs,
+                       _pinv_rank6, _pose_jacobian, _sample_errors, closure_residuals, error_sources)
+from .constraints import PoseContext, SingularityMarginFloor
+from .legs import solve_geometry
+from .mechanism import EngineFallbackWarning, Mechanism
+from .objectives import Measure
+from .objectives import get as get_measure
+from .units import UNIT_KINDS, QuantityError, parse_quantity
+from .validation import MAX_SEED, check_count
+
+__all__ = ["robust", "RobustMeasure", "RobustValue", "AsBuilt", "STATISTICS", "LEG_TOLERANCES",
+           "resolve_tolerances", "SAMPLE_COUNTED", "check_robust_spec"]
+
+STATISTICS = ("mean", "quantile", "worst", "first_order")
+#: Per-leg tolerances, as :mod:`parasynth.accuracy` names them, and their quantity kinds.
+LEG_TOLERANCES = dict(TOLERANCE_SETTINGS)
+#: Measures counted on workspace samples: ``first_order`` is refused for them (the value jumps
+#: with each sample crossing the workspace boundary; no derivative to take).
+SAMPLE_COUNTED = ("workspace_volume", "workspace_fraction", "workspace_face_fraction", "extent", "xy_isotropy",
+                  "inscribed_box_volume", "inscribed_box_size", "usable_workspace_volume",
+                  "usable_workspace_fraction", "singularity_free_radius", "good_transmission_volume")
+#: Largest number of scatter draws.
+MAX_DRAWS = 4096
+
+
+class RobustError(ValueError):
+    """A robust block that is not allowed; the message starts with the field path."""
+
+
+# -- tolerances ------------------------------------------------------------------------------------
+def resolve_tolerances(tolerances, units: Mapping | None = None, where: str = "tolerances",
+                       study: bool = False) -> tuple[dict, dict]:
+    """``tolerances`` split into (description parameters {name: SI}, leg tolerances {key: SI}).
+
+    ``units``: the mechanism's ``Params.UNITS`` ({parameter: kind}); without it parameter names
+    are not checked. ``study``: values come from a study file, so a bare number for a length or
+    an angle is an error (give its unit). Raises :class:`RobustError` naming ``where.<key>``."""
+    if not isinstance(tolerances, Mapping) or not tolerances:
+        raise RobustError(f"{where}: give a mapping {{parameter or tolerance: value with unit}}, e.g. "
+                          f"{{anchor_tolerance: 0.02 mm}}, got {tolerances!r}")
+    params, legs = {}, {}
+    for k, v in tolerances.items():
+        if not isinstance(k, str):
+            raise RobustError(f"{where}: keys are parameter or tolerance names, got {k!r}")
+        if k in LEG_TOLERANCES:
+            kind = LEG_TOLERANCES[k]
+        else:
+            if units is not None and k not in units:
+                raise RobustError(f"{where}.{k}: not a parameter of the mechanism nor a per-leg tolerance; allowed: "
+                                  f"{', '.join(LEG_TOLERANCES)}, or a length or angle parameter: "
+                                  f"{', '.join(p for p, kd in units.items() if kd in ('length', 'angle'))}")
+            kind = None if units is None else units.get(k)
+            if units is not None and kind not in ("length", "angle"):
+                raise RobustError(f"{where}.{k}: only parameters with a length or angle unit scatter "
+                                  f"({k!r} is {kind or 'without a unit'})")
+        x = _tolerance_value(v, kind, f"{where}.{k}", study)
+        (legs if k in LEG_TOLERANCES else params)[k] = x
+    return params, legs
+
+
+def _tolerance_value(v, kind, where, study):
+    if isinstance(v, str):
+        if kind is None:  # a parameter of a mechanism not known yet: a length, else an angle
+            try:
+                x = parse_quantity(v, "length", field=where)
+            except QuantityError:
+                try:
+                    x = parse_quantity(v, "angle", field=where)
+                except QuantityError as e:
+                    raise RobustError(str(e)) from None
+        else:
+            try:
+                x = parse_quantity(v, kind, field=where)
+            except QuantityError as e:
+                raise RobustError(str(e)) from None
+    elif study:
+        raise RobustError(f"{where}: give the tolerance with its unit (e.g. '0.02 mm' or '0.01 deg'), got {v!r}")
+    elif isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)):
+        raise RobustError(f"{where}: a tolerance is a number (SI) or a string with its unit, got {v!r}")
+    else:
+        x = float(v)
+    if not math.isfinite(x) or x < 0:
+        raise RobustError(f"{where}: a tolerance must be finite and >= 0, got {v!r}")
+    return x
+
+
+def check_robust_spec(statistic: str, level, samples, seed, probability=None, where: str = "robust",
+                      measure: str | None = None) -> tuple:
+    """The checked (statistic, level, samples, seed, probability); :class:`RobustError` naming
+    ``where.<field>`` and what is allowed."""
+    if not isinstance(statistic, str) or statistic not in STATISTICS:
+        raise RobustError(f"{where}.statistic: must be one of {', '.join(STATISTICS)}, got {statistic!r}")
+    if statistic == "quantile":
+        if level is None:
+            raise RobustError(f"{where}.level: the quantile statistic needs its level in (0, 1), e.g. 0.05")
+        if isinstance(level, bool) or not isinstance(level, (int, float)) or not 0.0 < float(level) < 1.0:
+            raise RobustError(f"{where}.level: must be a number in (0, 1), got {level!r}")
+        level = float(level)
+    elif level is not None:
+        raise RobustError(f"{where}.level: only the quantile statistic takes a level (statistic is {statistic!r})")
+    if statistic == "first_order" and measure in SAMPLE_COUNTED:
+        raise RobustError(f"{where}.statistic: first_order needs a measure smooth in the scattered quantities; "
+                          f"{measure!r} is counted on workspace samples (use mean, quantile or worst)")
+    try:
+        samples = check_count(f"{where}.samples", samples, 2, MAX_DRAWS, what="a number of scatter draws")
+        seed = check_count(f"{where}.seed", seed, 0, MAX_SEED, what="an integer seed")
+    except ValueError as e:
+        raise RobustError(str(e)) from None
+    if probability is not None:
+        if isinstance(probability, bool) or not isinstance(probability, (int, float)) \
+                or not 0.0 < float(probability) <= 1.0:
+            raise RobustError(f"{where}.probability: must be a number in (0, 1], got {probability!r}")
+        probability = float(probability)
+    return statistic, level, samples, seed, probability
+
+
+# -- the mechanism as built ------------------------------------------------------------------------
+def _key(X):
+    return (X.shape, hash(X.tobytes()))
+
+
+class _Nominal:
+    """What every draw of one built (nominal-leg) mechanism shares per batch of poses: the
+    nominal margins (compiled engine) and, on a subset of the poses, the nominal pose, the
+    closure target and the chord Newton matrix."""
+
+    def __init__(self, built):
+        self.built = built
+        self.rows_len = _length_rows(built)
+        self.act_rows = np.flatnonzero(_actuated_row_mask(built))
+        self._margins: "OrderedDict[tuple, tuple]" = OrderedDict()
+        self._prep: "OrderedDict[tuple, tuple]" = OrderedDict()
+
+    def margins(self, X, names):
+        """Nominal margins {name: (N,)} of the poses X (compiled engine), cached."""
+        key = (_key(X), None if names is None else tuple(names))
+        hit = self._margins.get(key)
+        if hit is not None and np.array_equal(hit[0], X):
+            return hit[1]
+        M = self.built.constraint_margins(X, names=None if names is None else list(names))
+        self._margins[key] = (X.copy(), M)
+        if len(self._margins) > 6:
+            self._margins.popitem(last=False)
+        return M
+
+    def prep(self, X, sel) -> dict:
+        """Nominal ``p``, ``R``, closure target ``h0``, ``Gi`` and ``ok`` at the poses X[sel]."""
+        key = (_key(X), hash(sel.tobytes()), sel.size)
+        hit = self._prep.get(key)
+        if hit is not None and np.array_equal(hit[0], X[sel]):
+            return hit[1]
+        b = self.built
+        Xs = X[sel]
+        valid = b.pose_valid(Xs)
+        Xs = np.where(valid[:, None], Xs, b.home)
+        with np.errstate(all="ignore"):
+            p, R = b._pose(Xs)
+            states = [solve_geometry(leg, p, R) for leg in b.legs]
+            reach = valid & np.logical_and.reduce([st.reachable for st in states])
+            h0 = closure_residuals(b, p, R)
+            Gi = _chord_matrix(_pose_jacobian(b, p, R), b)
+        ok = reach & np.all(np.isfinite(Gi), axis=(1, 2)) & np.all(np.isfinite(h0), axis=1)
+        out = {"p": p, "R": R, "h0": h0, "Gi": np.where(ok[:, None, None], Gi, 0.0), "ok": ok}
+        self._prep[key] = (X[sel].copy(), out)
+        if len(self._prep) > 8:
+            self._prep.popitem(last=False)
+        return out
+
+
+def _chord_matrix(Gt, mech, rtol=1e-8):
+    """The chord Newton matrix: ``accuracy._pinv_rank6`` (the least-squares inverse of the
+    closure Jacobian, inf at singular poses), for a square Jacobian by one LU inverse per pose
+    (the same matrix; a pose counts as singular when its 1-norm condition exceeds 1 / rtol)."""
+    N, m = Gt.shape[:2]
+    if m != 6:
+        return _pinv_rank6(Gt, mech, rtol)
+    L = mech.length_scale
+    dc = np.array([1.0, 1.0, 1.0, 1.0 / L, 1.0 / L, 1.0 / L])
+    dr = np.where(_length_rows(mech), 1.0 / L, 1.0)
+    ok = np.all(np.isfinite(Gt), axis=(1, 2))
+    Gs = np.where(ok[:, None, None], Gt, 0.0) * dr[None, :, None] * dc[None, None, :]
+    Gs[~ok] = np.eye(6)
+    try:
+        Inv = np.linalg.inv(Gs)
+    except np.linalg.LinAlgError:
+        return _pinv_rank6(Gt, mech, rtol)
+    cond = np.abs(Gs).sum(axis=1).max(axis=1) * np.abs(Inv).sum(axis=1).max(axis=1)
+    Gi = dc[None, :, None] * Inv * dr[None, None, :]
+    Gi[~ok] = np.nan
+    Gi[ok & ~(cond < 1.0 / rtol)] = np.inf
+    return Gi
+
+
+def _newton(mech, legs, p0, R0, Gi, target, ok, scale, max_iter=20):
+    """Chord Newton on the perturbed closure from the nominal poses: (converged, p, R)."""
+    t = np.zeros((p0.shape[0], 6))
+    conv = np.zeros(p0.shape[0], bool)
+    with np.errstate(all="ignore"):
+        for _ in range(max_iter):
+            r = closure_residuals(mech, *_compose(p0, R0, t), legs=legs) - target
+            conv = np.all(np.abs(r) <= 1e-12 * scale, axis=1)
+            if np.all(conv | ~ok):
+                break
+            t = t - np.einsum("nim,nm->ni", Gi, np.where(np.isfinite(r), r, 0.0))
+        p, R = _compose(p0, R0, t)
+    return ok & conv, p, R
+
+
+#: Leg types whose geometry may be one value per pose (draws stacked into one batch).
+_STACKABLE = ("SPS", "UPS", "PUS", "RPS", "RPU", "UPU")
+_GEOMETRY = ("base", "platform", "slider_axis", "u_axis", "r_axis", "u_platform_axis", "link_length")
+
+
+def _stacked_prep(views, X, sels, counts):
+    """The nominal pose, ``Gi``, ``ok`` and closure target of every draw's candidate poses, each
+    draw with its own built mechanism (rebuilt from drawn parameters), in one stacked batch."""
+    v0 = views[0]
+    Xs = np.concatenate([X[sel] for sel in sels])
+    valid = np.concatenate([v.built.pose_valid(X[sel]) for v, sel in zip(views, sels)])
+    Xs = np.where(valid[:, None], Xs, v0.home)
+    off = np.r_[0, np.cumsum(counts)]
+    with np.errstate(all="ignore"):
+        poses = [v.built._pose(Xs[off[j]:off[j + 1]]) for j, v in enumerate(views)]
+        p = np.concatenate([q[0] for q in poses])
+        R = np.concatenate([q[1] for q in poses])
+        legs = _stacked_legs([v.built for v in views], counts)
+        states = [solve_geometry(leg, p, R) for leg in legs]
+        reach = valid & np.logical_and.reduce([st.reachable for st in states])
+        h0 = closure_residuals(v0.built, p, R, legs=legs)
+        hl, ha = 1e-6 * v0.length_scale, 1e-6
+        cols = []
+        for c in range(6):
+            t = np.zeros((p.shape[0], 6))
+            t[:, c] = hl if c < 3 else ha
+            hp = closure_residuals(v0.built, *_compose(p, R, t), legs=legs)
+            hm = closure_residuals(v0.built, *_compose(p, R, -t), legs=legs)
+            cols.append((hp - hm) / (2 * t[0, c]))
+        Gi = _chord_matrix(np.stack(cols, axis=-1), v0.built)
+    ok = reach & np.all(np.isfinite(Gi), axis=(1, 2)) & np.all(np.isfinite(h0), axis=1)
+    return p, R, np.where(ok[:, None, None], Gi, 0.0), ok, h0
+
+
+def _stacked_legs(views, counts):
+    """Legs whose geometry fields hold, row by row, the legs of draw ``s`` repeated
+    ``counts[s]`` times (the draws of a group evaluated in one batch)."""
+    out = []
+    for i, leg in enumerate(views[0].legs):
+        new = copy.copy(leg)
+        for f in _GEOMETRY:
+            if hasattr(leg, f):
+                vals = np.stack([np.asarray(getattr(v.legs[i], f), dtype=float) for v in views])
+                object.__setattr__(new, f, np.repeat(vals, counts, axis=0))
+        out.append(new)
+    return out
+
+
+class _Group:
+    """The draws of one robust measure on one design, evaluated together: their feasibility
+    over a batch of poses is solved in one stacked batch (every draw's candidate poses, each
+    row with its draw's leg geometry), and the singularity margins of the candidate poses are
+    kept for :meth:`AsBuilt.singularity_margin`."""
+
+    def __init__(self, band):
+        self.views: list = []
+        self.band = dict(band)
+        self._records: "OrderedDict[tuple, dict]" = OrderedDict()
+        self._stackable = None
+
+    def stackable(self) -> bool:
+        if self._stackable is None:
+            v0 = self.views[0]
+            cons0 = tuple(repr(c) for c in v0.constraints.values())
+            self._stackable = len(self.views) > 1 and all(
+                leg.joints in _STACKABLE for leg in v0.legs) and all(
+                tuple(repr(c) for c in v.constraints.values()) == cons0 and len(v.legs) == len(v0.legs)
+                for v in self.views)
+        return self._stackable
+
+    def feasible(self, X, names, cons) -> dict:
+        key = (_key(X), None if names is None else tuple(names))
+        hit = self._records.get(key)
+        if hit is not None and np.array_equal(hit["X"], X):
+            return hit
+        views = self.views
+        k = len(views)
+        M = [v._nominal.margins(X, names) for v in views]
+        units = {c.name: c.unit for c in cons}
+        band = self.band
+        for _ in range(8):
+            sels = []
+            for Mv in M:
+                cand = np.ones(X.shape[0], bool)
+                for n, m in Mv.items():
+                    cand &= np.isfinite(m) & (m >= -band.get(units[n], np.inf))
+                sels.append(np.flatnonzero(cand))
+            counts = np.array([s_.size for s_ in sels])
+            ok = np.zeros(int(counts.sum()), bool)
+            rec = {"X": X.copy(), "sels": sels, "counts": counts, "offsets": np.r_[0, np.cumsum(counts)], "ok": ok,
+                   "ctx": None, "sm": None, "tables": None}
+            if not counts.sum():
+                break
+            if len({id(v._nominal) for v in views}) == 1:  # one nominal mechanism: its cached preparation
+                q = views[0]._nominal.prep(X, sels[0])
+                p0, R0, Gi, okn, target = (np.tile(q[f], (k,) + (1,) * (q[f].ndim - 1))
+                                           for f in ("p", "R", "Gi", "ok", "h0"))
+            else:  # every draw rebuilt from drawn parameters: their nominal legs stacked too
+                p0, R0, Gi, okn, target = _stacked_prep(views, X, sels, counts)
+            act_rows = views[0]._nominal.act_rows
+            if views[0].dq.size:
+                target[:, act_rows] += np.repeat(np.stack([v.dq for v in views]), counts, axis=0)
+            legs = _stacked_legs(views, counts)
+            v0 = views[0]
+            scale = np.where(v0._nominal.rows_len, v0.length_scale, 1.0)
+            conv, p, R = _newton(v0.built, legs, p0, R0, Gi, target, okn, scale)
+            with np.errstate(all="ignore"):
+                states = [leg.solve(p, R) for leg in legs]
+            reach = conv & np.logical_and.reduce([st.reachable for st in states])
+            for st in states:
+                st.reachable = st.reachable & reach
+            act = np.stack([st.actuator for leg, st in zip(legs, states) if leg.is_actuated], axis=-1)
+            Xs = np.concatenate([X[sel] for sel in sels])
+            stack = AsBuilt(v0.built, legs, np.zeros(0), band, key=("stack", id(self)))
+            ctx = PoseContext(Xs, p, R, list(legs), states, reach, act, stack)
+            ok[:] = reach
+            grow = False
+            with np.errstate(invalid="ignore"):
+                for c in cons:
+                    m = np.asarray(c.margin(ctx), dtype=float)
+                    m = np.where(reach & ~np.isnan(m), m, -np.inf)
+                    ok &= m >= 0
+                    b = band.get(c.unit, np.inf)
+                    if np.isfinite(b):
+                        mn = np.concatenate([Mv[c.name][sel] for Mv, sel in zip(M, sels)])
+                        d = np.abs(m - mn)
+                        d = d[np.isfinite(d)]
+                        if d.size and d.max() > 0.5 * b:
+                            band[c.unit] = 2.0 * max(b, d.max())
+                            grow = True
+            rec.update(ctx=ctx, stack=stack, legs=legs)
+            if not grow:
+                break
+        self._records[key] = rec
+        if len(self._records) > 4:
+            self._records.popitem(last=False)
+        return rec
+
+    def singularity_margin(self, view_index: int, X):
+        """The singularity margins (n,) of draw ``view_index`` at poses X when every row of X is a
+        candidate pose of a stacked record (else None)."""
+        for rec in reversed(self._records.values()):
+            if rec.get("ctx") is None:
+                continue
+            if rec["tables"] is None:
+                tabs = []
+                for sel in rec["sels"]:
+                    keys = _row_keys(rec["X"][sel])
+                    order = np.argsort(keys)
+                    tabs.append((keys[order], order))
+                rec["tables"] = tabs
+            keys, order = rec["tables"][view_index]
+            if not keys.size:
+                continue
+            q = _row_keys(X)
+            pos = np.clip(np.searchsorted(keys, q), 0, keys.size - 1)
+            if not np.all(keys[pos] == q):
+                continue
+            rows = rec["offsets"][view_index] + order[pos]
+            if not np.all(rec["ok"][rows]):
+                return None  # margins are kept for the feasible poses (the measures' points) only
+            if rec["sm"] is None:
+                ctx, ok = rec["ctx"], rec["ok"]
+                sub = [_take_state(st, ok) for st in ctx.states]
+                sm = np.full(ok.size, np.nan)
+                if ok.any():
+                    feasible = AsBuilt(self.views[0].built, [_take_leg(leg, ok) for leg in rec["legs"]], np.zeros(0),
+                                       self.band, key=("stack", id(self)))
+                    sm[ok] = feasible.singularity_margin_of_states(sub, ctx.p[ok], ctx.reachable[ok])
+                rec["sm"] = sm
+            return rec["sm"][rows]
+        return None
+
+
+def _take_leg(leg, rows):
+    """A stacked leg restricted to the rows ``rows`` (bool)."""
+    new = copy.copy(leg)
+    for f in _GEOMETRY:
+        v = getattr(leg, f, None)
+        if isinstance(v, np.ndarray) and v.ndim >= 1 and v.shape[0] == rows.size and (v.ndim == 2 or f == "link_length"):
+            object.__setattr__(new, f, v[rows])
+    return new
+
+
+def _take_state(st, rows):
+    """A LegState restricted to the rows ``rows`` (bool)."""
+    pick = lambda v: v[rows] if isinstance(v, np.ndarray) and v.ndim >= 1 and v.shape[0] == rows.size else v  # noqa: E731
+    return dataclasses.replace(st, actuator=pick(st.actuator), reachable=pick(st.reachable),
+                               base_point=pick(st.base_point), platform_point=pick(st.platform_point),
+                               direction=pick(st.direction), length=pick(st.length),
+                               angles={k: pick(v) for k, v in st.angles.items()},
+                               extra={k: pick(v) for k, v in st.extra.items()})
+
+
+def _row_keys(X):
+    """One comparable key per row of X (its bytes)."""
+    Xc = np.ascontiguousarray(X, dtype=float)
+    return Xc.view(np.dtype((np.void, Xc.dtype.itemsize * Xc.shape[1]))).ravel()
+
+
+class AsBuilt(Mechanism):
+    """The mechanism ``built`` with perturbed legs ``legs`` and actuator errors ``dq`` (m),
+    evaluated as built: at a nominal pose the actuators hold their nominal inverse-kinematics
+    values plus ``dq``, the actual pose solves the perturbed closure (chord Newton from the
+    nominal pose), and everything pose-wise (reachability, constraint margins, wrench system,
+    singularity margin, indices) is that of the perturbed legs at the actual pose. Poses where
+    the iteration does not converge, or that the nominal legs cannot reach, are unreachable.
+
+    Its pose-wise methods run on NumPy (the compiled engine evaluates the nominal geometry
+    only); :meth:`is_feasible` screens the poses by the nominal compiled margins (module
+    documentation). Draws of one group (``group``) are solved together."""
+
+    def __init__(self, built, legs, dq, band, nominal: _Nominal | None = None, key=None, group: _Group | None = None):
+        self.built = built
+        #: the commanded poses are the built mechanism's (engine.pose_batch answers with its program)
+        self.pose_mechanism = built
+        self.name = built.name
+        self.params = built.params
+        self.home = built.home
+        self.length_scale = built.length_scale
+        self.task_coordinates = built.task_coordinates
+        self.angular_coordinates = built.angular_coordinates
+        self.actuators = built.actuators
+        self.actuator_kinds = built.actuator_kinds
+        self.legs = tuple(legs)
+        self.dq = np.asarray(dq, dtype=float)
+        self._constraint_rank = built.constraint_rank
+        self._constraints = built.constraints
+        self.added_constraints = built.added_constraints
+        self.band = dict(band)
+        self._nominal = nominal if nominal is not None else _Nominal(built)
+        self._group = group
+        self._index = len(group.views) if group is not None else -1
+        if group is not None:
+            group.views.append(self)
+        #: identifies this draw in the caches of workspaces and usable workspaces
+        self.scatter_key = key if key is not None else id(self)
+        self._workspace_memo: "OrderedDict[tuple, object]" = OrderedDict()
+        self._solved: "OrderedDict[tuple, tuple]" = OrderedDict()
+
+    def __repr__(self) -> str:
+        return f"<AsBuilt {self.name!r} draw={self.scatter_key!r}>"
+
+    # the parametrisation is the nominal one
+    def default_ranges(self) -> dict:
+        return self.built.default_ranges()
+
+    def _pose(self, X):
+        return self.built._pose(X)
+
+    def _twist_map(self, X):
+        return self.built._twist_map(X)
+
+    def pose_valid(self, X):
+        return self.built.pose_valid(X)
+
+    def structural_constraint_rank(self, X=None, engine: str = "compiled") -> int:
+        return self._constraint_rank
+
+    def with_params(self, **changes):
+        raise ValueError("an as-built mechanism has no parameters of its own: change the nominal mechanism")
+
+    # -- the as-built solve -----------------------------------------------------------------------
+    def _actual(self, X, sel):
+        """(ok (n,), p (n, 3), R (n, 3, 3)) of the actual poses at nominal poses ``X[sel]``."""
+        q = self._nominal.prep(X, sel)
+        target = q["h0"].copy()
+        if self.dq.size:
+            target[:, self._nominal.act_rows] += self.dq
+        scale = np.where(self._nominal.rows_len, self.length_scale, 1.0)
+        return _newton(self, self.legs, q["p"], q["R"], q["Gi"], target, q["ok"], scale)
+
+    def _context(self, X) -> PoseContext:
+        Xa, _ = self._poses(X)
+        key = _key(Xa)
+        hit = self._solved.get(key)
+        if hit is not None and np.array_equal(hit[0], Xa):
+            return hit[1]
+        ok, p, R = self._actual(Xa, np.arange(Xa.shape[0]))
+        with np.errstate(all="ignore"):
+            states = [leg.solve(p, R) for leg in self.legs]
+        reach = ok & np.logical_and.reduce([st.reachable for st in states])
+        for st in states:
+            st.reachable = st.reachable & reach
+        act = np.stack([st.actuator for leg, st in zip(self.legs, states) if leg.is_actuated], axis=-1)
+        ctx = PoseContext(Xa, p, R, list(self.legs), states, reach, act, self)
+        self._solved[key] = (Xa.copy(), ctx)
+        if len(self._solved) > 4:
+            self._solved.popitem(last=False)
+        return ctx
+
+    def leg_states(self, X):
+        ctx = self._context(X)
+        return ctx.X, ctx.states, ctx.p
+
+    def pose_context(self, X):
+        return self._context(X)
+
+    def constraint_margins(self, X, names=None, engine: str = "compiled") -> dict:
+        return self._constraint_margins_numpy(X, names)
+
+    def singularity_margin(self, X, engine: str = "compiled"):
+        Xa, single = self._poses(X)
+        if self._group is not None and self._group.stackable():
+            out = self._group.singularity_margin(self._index, Xa)
+            if out is not None:
+                return out[0] if single else out
+        return Mechanism.singularity_margin(self, X, engine="numpy")
+
+    def is_feasible(self, X, names=None, engine: str = "compiled"):
+        """(N,) bool: reachable as built and every selected constraint satisfied at the actual
+        pose; poses screened by the nominal margins (module documentation)."""
+        Xa, single = self._poses(X)
+        cons = self._select(names)
+        if not cons:  # reachability only
+            out = self._context(Xa).reachable.copy()
+            return out[0] if single else out
+        if self._group is not None and self._group.stackable():
+            rec = self._group.feasible(Xa, names, cons)
+            out = np.zeros(Xa.shape[0], bool)
+            o = rec["offsets"]
+            out[rec["sels"][self._index]] = rec["ok"][o[self._index]:o[self._index + 1]]
+            return out[0] if single else out
+        M = self._nominal.margins(Xa, names)
+        units = {c.name: c.unit for c in cons}
+        out = np.zeros(Xa.shape[0], bool)
+        band = self._group.band if self._group is not None else self.band
+        for _ in range(8):
+            cand = np.ones(Xa.shape[0], bool)
+            for n, m in M.items():
+                cand &= np.isfinite(m) & (m >= -band.get(units[n], np.inf))
+            sel = np.flatnonzero(cand)
+            out[:] = False
+            if not sel.size:
+                break
+            ctx = self._context(Xa[sel])
+            ok = ctx.reachable.copy()
+            grow = False
+            with np.errstate(invalid="ignore"):
+                for c in cons:
+                    m = np.asarray(c.margin(ctx), dtype=float)
+                    m = np.where(ctx.reachable & ~np.isnan(m), m, -np.inf)
+                    ok &= m >= 0
+                    b = band.get(c.unit, np.inf)
+                    if np.isfinite(b):
+                        d = np.abs(m - M[c.name][sel])
+                        d = d[np.isfinite(d)]
+                        if d.size and d.max() > 0.5 * b:
+                            band[c.unit] = 2.0 * max(b, d.max())
+                            grow = True
+            out[sel] = ok
+            if not grow:
+                break
+        return out[0] if single else out
+
+
+# -- draws -----------------------------------------------------------------------------------------
+def _elements(params, names):
+    """[(name, shape, flat nominal array)] of the scattered parameters."""
+    out = []
+    for n in names:
+        v = getattr(params, n)
+        a = np.asarray(v, dtype=float)
+        out.append((n, a.shape, a.ravel().copy()))
+    return out
+
+
+def _as_value(a, shape):
+    a = np.asarray(a, dtype=float).reshape(shape)
+    if a.ndim == 0:
+        return float(a)
+    if a.ndim == 1:
+        return tuple(float(x) for x in a)
+    return tuple(_as_value(r, r.shape) for r in a)
+
+
+@dataclass(frozen=True)
+class RobustValue:
+    """The outcome of a robust measure for one mechanism: ``value`` (the statistic, in the
+    measure's unit), ``standard_error`` (None for ``worst`` and ``first_order``), ``nominal``
+    (the measure on the nominal mechanism), ``values`` (per draw; for ``first_order`` the
+    sensitivities times the tolerances), ``statistic``, ``level``, ``samples``, ``seed``."""
+
+    value: float
+    standard_error: float | None
+    nominal: float
+    values: tuple
+    statistic: str
+    level: float | None
+    samples: int
+    seed: int
+
+    @property
+    def loss(self) -> float:
+        """``nominal - value`` (positive: the scatter costs that much)."""
+        return self.nominal - self.value
+
+
+_DRAW_CACHE: "OrderedDict[tuple, tuple]" = OrderedDict()
+_DRAW_CACHE_SIZE = 4
+
+
+@dataclass(frozen=True)
+class RobustMeasure(Measure):
+    """A registered measure under scatter (:func:`robust`); calling it gives the statistic,
+    :meth:`evaluate` the :class:`RobustValue`."""
+
+    base: str = ""
+    param_tolerances: tuple = ()
+    leg_tolerances: tuple = ()
+    statistic: str = "mean"
+    level: float | None = None
+    samples: int = 32
+    seed: int = 0
+
+    # -- the draws of one mechanism ----------------------------------------------------------------
+    def _resolved(self, mech):
+        units = dict(getattr(type(mech.params), "UNITS", {}) or {})
+        params, legs = dict(self.param_tolerances), dict(self.leg_tolerances)
+        for n in params:
+            if n not in units or units[n] not in ("length", "angle"):
+                raise RobustError(f"robust({self.base!r}).tolerances.{n}: not a length or angle parameter of "
+                                  f"{mech.name!r}")
+        return params, legs
+
+    def draws(self, mech) -> list:
+        """The ``samples`` scatter draws of ``mech``: mechanisms (rebuilt with the drawn
+        parameters, as built with the drawn leg errors), the same draws for every design."""
+        params, legs = self._resolved(mech)
+        key = (id(mech), tuple(sorted(params.items())), tuple(sorted(legs.items())), self.samples, self.seed)
+        hit = _DRAW_CACHE.get(key)
+        if hit is not None and hit[0]() is mech:
+            _DRAW_CACHE.move_to_end(key)
+            return hit[1]
+        out = _draw_mechanisms(mech, params, legs, self.samples, self.seed)
+        _DRAW_CACHE[key] = (weakref.ref(mech), out)
+        if len(_DRAW_CACHE) > _DRAW_CACHE_SIZE:
+            _DRAW_CACHE.popitem(last=False)
+        return out
+
+    def check(self, mech) -> None:
+        """``ValueError`` when the scatter cannot be applied to ``mech``: a tolerance on a
+        parameter without a length or angle unit, a drawn design that cannot be built, per-leg
+        scatter on a mechanism whose closure equations do not fix the pose (under-actuated), or
+        a home pose the mechanism cannot reach as built."""
+        params, legs = self._resolved(mech)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", EngineFallbackWarning)
+            for m in _draw_mechanisms(mech, params, legs, 2, self.seed):
+                if isinstance(m, AsBuilt) and not m._context(m.home[None, :]).reachable[0]:
+                    raise ValueError(f"{mech.name}: the home pose is not reachable as built with these tolerances "
+                                     f"(the perturbed closure has no solution near it)")
+
+    def evaluate(self, mech, bound=None, **settings) -> RobustValue:
+        """The :class:`RobustValue` of ``mech`` (settings as the base measure's; ``bound``
+        ``("min"|"max", value)``: the side ``worst`` and ``first_order`` take)."""
+        base = get_measure(self.base)
+        nominal = float(base(mech, **settings))
+        worse = _worse_side(base.sense, bound)
+        if self.statistic == "first_order":
+            value, contrib = _first_order(self, base, mech, nominal, worse, settings)
+            return RobustValue(value, None, nominal, tuple(contrib), "first_order", None, self.samples, self.seed)
+        vals = self.values(mech, **settings)
+        return _statistic(vals, self.statistic, self.level, worse, nominal, self.samples, self.seed)
+
+    def values(self, mech, **settings) -> np.ndarray:
+        """The base measure on every draw (samples,)."""
+        base = get_measure(self.base)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", EngineFallbackWarning)
+            return np.array([float(base(m, **settings)) for m in self.draws(mech)])
+
+    def probability_of(self, mech, bound, **settings) -> tuple[float, float, float]:
+        """Chance constraint: (fraction of the draws whose value satisfies ``bound``
+        ``("min"|"max", value)``, its standard error ``sqrt(P (1 - P) / k)``, the nominal value)."""
+        side, b = bound
+        base = get_measure(self.base)
+        nominal = float(base(mech, **settings))
+        v = self.values(mech, **settings)
+        ok = (v >= b) if side == "min" else (v <= b)
+        P = float(np.mean(ok))
+        return P, math.sqrt(P * (1.0 - P) / len(v)), nominal
+
+
+def _worse_side(sense, bound):
+    """+1 when larger values are worse, -1 when smaller ones are."""
+    if bound is not None:
+        return -1 if bound[0] == "min" else 1
+    return -1 if sense == "maximize" else 1
+
+
+def _statistic(vals, statistic, level, worse, nominal, samples, seed) -> RobustValue:
+    v = np.asarray(vals, dtype=float)
+    k = v.size
+    if statistic == "mean":
+        value = float(np.mean(v))
+        se = float(np.std(v, ddof=1) / math.sqrt(k)) if k > 1 else math.nan
+    elif statistic == "quantile":
+        value = float(np.quantile(v, level))
+        s = np.sort(v)
+        half = math.sqrt(k * level * (1.0 - level))
+        lo = int(np.clip(math.floor(k * level - half), 0, k - 1))
+        hi = int(np.clip(math.ceil(k * level + half), 0, k - 1))
+        se = float(0.5 * (s[hi] - s[lo]))
+    else:  # worst
+        value = float(np.max(v) if worse > 0 else np.min(v))
+        se = None
+    return RobustValue(value, se, nominal, tuple(float(x) for x in v), statistic, level, samples, seed)
+
+
+def _draw_mechanisms(mech, params: dict, legs: dict, k: int, seed: int) -> list:
+    ss = np.random.SeedSequence([int(seed), 0x5CA7])
+    s_par, s_leg = ss.spawn(2)
+    elems = _elements(mech.params, list(params))
+    n_el = sum(e[2].size for e in elems)
+    U = np.random.default_rng(s_par).uniform(-1.0, 1.0, size=(k, n_el)) if n_el else np.zeros((k, 0))
+    E = None
+    if legs and any(legs.values()):
+        src = error_sources(mech)
+        tol = {key: float(legs.get(key, 0.0)) for key in TOLERANCE_SETTINGS}
+        E = _sample_errors(src, tol, k, np.random.default_rng(s_leg))
+        act_cols = [j for j, kd in enumerate(src.kind) if kd == "actuator"]
+        band = _initial_band(mech, params, tol)
+    out = []
+    nominal = None
+    group = _Group(band) if E is not None else None
+    for s in range(k):
+        built = mech
+        if n_el:
+            changes, j = {}, 0
+            for (name, shape, a) in elems:
+                d = U[s, j:j + a.size] * params[name]
+                changes[name] = _as_value(a + d, shape)
+                j += a.size
+            built = mech.with_params(**changes)
+            built._workspace_memo = OrderedDict()
+        if E is not None:
+            nom = nominal if built is mech and nominal is not None else _Nominal(built)
+            if built is mech:
+                nominal = nom
+            built = AsBuilt(built, _drawn_legs(built, src, E[s]), E[s, act_cols], band, nom,
+                            key=(id(mech), seed, s), group=group)
+        out.append(built)
+    return out
+
+
+def _drawn_legs(mech, src, e):
+    """The legs of ``mech`` with the errors ``e`` applied, as :func:`parasynth.accuracy` applies
+    them (``_leg_changes``), set on copies without the constructors' checks (the changed fields
+    are arrays of the checked shapes; a few hundred legs are drawn per design)."""
+    items = {}
+    for j, (kd, li, idx) in enumerate(zip(src.kind, src.leg, src.index)):
+        if kd != "actuator" and e[j] != 0.0:
+            items.setdefault(li, []).append((idx, e[j]))
+    legs = list(mech.legs)
+    for li, it in items.items():
+        new = copy.copy(legs[li])
+        for f, v in _leg_changes(legs[li], it).items():
+            object.__setattr__(new, f, float(v) if f == "link_length" else np.asarray(v, dtype=float))
+        legs[li] = new
+    return legs
+
+
+def _initial_band(mech, params, tol) -> dict:
+    L = mech.length_scale
+    lin = (2 * math.sqrt(3) * tol["anchor_tolerance"] + tol["link_tolerance"] + tol["actuator_tolerance"]
+           + 2 * tol["spherical_clearance"] + 2 * tol["universal_clearance"])
+    units = getattr(type(mech.params), "UNITS", {}) or {}
+    lin += sum(v for n, v in params.items() if units.get(n) == "length")
+    ang = tol["axis_tolerance"] + sum(v for n, v in params.items() if units.get(n) == "angle")
+    d_len = 10.0 * (lin + ang * L)
+    d_ang = 10.0 * (lin / L + ang)
+    # keyed by the margins' units: lengths and angles in SI, and the singularity-margin floor's
+    return {UNIT_KINDS["length"].si: d_len, UNIT_KINDS["angle"].si: d_ang, SingularityMarginFloor.unit: d_ang}
+
+
+def _first_order(rm: RobustMeasure, base: Measure, mech, nominal, worse, settings):
+    """``nominal + worse * sum_j |dv/dx_j| tol_j`` by central differences (step tol_j / 10)."""
+    params, legs = rm._resolved(mech)
+    contrib = []
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", EngineFallbackWarning)
+        for (name, shape, a) in _elements(mech.params, list(params)):
+            tol = params[name]
+            if tol == 0:
+                continue
+            h = 0.1 * tol
+            for i in range(a.size):
+                vs = []
+                for sgn in (1.0, -1.0):
+                    b = a.copy()
+                    b[i] += sgn * h
+                    vs.append(float(base(mech.with_params(**{name: _as_value(b, shape)}), **settings)))
+                contrib.append(abs(vs[0] - vs[1]) / (2 * h) * tol)
+        if legs and any(legs.values()):
+            src = error_sources(mech)
+            tol = {key: float(legs.get(key, 0.0)) for key in TOLERANCE_SETTINGS}
+            from_kind = {"actuator": "actuator_tolerance", "anchor": "anchor_tolerance", "link": "link_tolerance",
+                         "axis": "axis_tolerance", "spherical_clearance": "spherical_clearance",
+                         "universal_clearance": "universal_clearance"}
+            act_cols = [j for j, kd in enumerate(src.kind) if kd == "actuator"]
+            band = _initial_band(mech, params, tol)
+            nom = _Nominal(mech)
+            groups = {}
+            for j, (kd, g) in enumerate(zip(src.kind, src.group)):
+                t = tol[from_kind[kd]]
+                if t > 0:
+                    groups.setdefault(("g", g) if g >= 0 else ("j", j), []).append(j)
+            for gkey, cols in groups.items():
+                t = tol[from_kind[src.kind[cols[0]]]]
+                h = 0.1 * t
+                grad = []
+                for j in cols:
+                    vs = []
+                    for sgn in (1.0, -1.0):
+                        e = np.zeros(len(src))
+                        e[j] = sgn * h
+                        ab = AsBuilt(mech, _perturbed_legs(mech, src, e), e[act_cols], band, nom)
+                        vs.append(float(base(ab, **settings)))
+                    grad.append((vs[0] - vs[1]) / (2 * h))
+                # a clearance ball: the gradient's norm times the radius; a box source: |g| tol
+                contrib.append(float(np.linalg.norm(grad)) * t if gkey[0] == "g" else abs(grad[0]) * t)
+    return nominal + worse * float(sum(contrib)), contrib
+
+
+# -- the public constructor ------------------------------------------------------------------------
+def robust(name: str, tolerances=None, statistic: str = "mean", samples: int = 32, seed: int = 0,
+           level: float | None = None) -> RobustMeasure:
+    """The registered measure ``name`` under manufacturing scatter, as a measure like the others
+    (module documentation): ``tolerances`` {description parameter or per-leg tolerance: value}
+    (SI numbers or strings with units), ``statistic`` one of :data:`STATISTICS` (``level`` for
+    ``quantile``, e.g. 0.05), ``samples`` scatter draws, ``seed`` of the draws (the same draws for
+    every design)."""
+    base = get_measure(name)
+    if isinstance(base, RobustMeasure):
+        raise RobustError(f"robust: {name!r} is already robust")
+    statistic, level, samples, seed, _ = check_robust_spec(statistic, level, samples, seed,
+                                                           where=f"robust({name!r})", measure=name)
+    params, legs = resolve_tolerances(tolerances, None, f"robust({name!r}).tolerances")
+    if not any(params.values()) and not any(legs.values()):
+        raise RobustError(f"robust({name!r}).tolerances: give at least one positive tolerance")
+    doc = (f"{statistic}{'' if level is None else f' ({level:g})'} of {name!r} over {samples} scatter draws "
+           f"(seed {seed}).\n\n{base.doc}")
+    rm = RobustMeasure(name=f"robust:{name}", func=_call_of(name), unit=base.unit, sense=base.sense, doc=doc,
+                         kind=base.kind, settings=base.settings, models=base.models, cost="expensive",
+                         sample=base.sample, own_settings=base.own_settings, params=base.params, base=name,
+                         param_tolerances=tuple(params.items()), leg_tolerances=tuple(legs.items()),
+                         statistic=statistic, level=level, samples=samples, seed=seed)
+    rm.func.measure = rm
+    return rm
+
+
+class _call_of:
+    """The function of a robust measure: ``f(mech, **settings) -> statistic`` (bound to its
+    :class:`RobustMeasure` when that is made)."""
+
+    def __init__(self, name):
+        self.name = name
+        self.measure = None
+
+    def __call__(self, mech, **settings):
+        return self.measure.evaluate(mech, **settings).value
+
+    def __repr__(self):
+        return f"<robust function of {self.name!r}>"
