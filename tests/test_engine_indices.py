@@ -25,6 +25,8 @@ from parasynth.indices import (global_conditioning_index, local_condition_number
                                output_transmission_index, pressure_angle_indices, singularity_margin_stats,
                                transmission_indices)
 from parasynth.legs import UPS
+from parasynth.mechanism import Mechanism
+from parasynth.robustness import AsBuilt
 
 pytestmark = pytest.mark.skipif(not ei.HAVE_NUMBA, reason="numba is not importable: no compiled indices")
 
@@ -106,6 +108,57 @@ def test_singularity_margin_agrees(mech_poses):
     np.testing.assert_allclose(got[ok], ref[ok], rtol=0, atol=ATOL)
     # NaN for the unreachable poses and the invalid one (listed last)
     assert np.all(np.isnan(got[-n_bad:]))
+
+
+def test_singularity_margin_at_explicit_poses_of_perturbed_legs_agrees(mech_poses):
+    """The compiled margin at explicit poses (the actual poses of a mechanism as built) of
+    legs with moved anchors and tilted axes equals the NumPy margin of a mechanism with those
+    legs at those poses, including poses off the parametrisation (a small twist applied)."""
+    import copy
+
+    from parasynth import engine
+    from parasynth.accuracy import _check_tolerances, _compose, _perturbed_legs, _sample_errors, error_sources
+
+    mech, X, n_bad = mech_poses
+    Xg = X[:-n_bad]
+    src = error_sources(mech)
+    tol = _check_tolerances({"anchor_tolerance": 2e-4, "axis_tolerance": 2e-3, "link_tolerance": 1e-4})
+    e = _sample_errors(src, tol, 1, np.random.default_rng(3))[0]
+    mob = mech.mobility()
+    under = not mob.controlled or mob.redundant_constraints > 0
+    if under:  # no pose as built (an uncontrolled freedom, or redundant constraints that a perturbed
+        # rigid closure cannot meet): the lower-mobility legs keep their geometry
+        full = [j for j, leg in enumerate(mech.legs) if leg.joints in ("SPS", "UPS")]
+        e = np.where(np.isin(src.leg, full), e, 0.0)
+    legs = _perturbed_legs(mech, src, e)
+    p0, R0 = mech._pose(Xg)
+    t = np.random.default_rng(4).uniform(-1, 1, (len(Xg), 6)) * np.r_[1e-3, 1e-3, 1e-3, 1e-2, 1e-2, 1e-2]
+    p, R = _compose(p0, R0, t)  # off the parametrisation: unreachable by lower-mobility legs
+    if under:
+        p2, R2 = p0, R0  # the nominal poses: the unperturbed lower-mobility legs reach them
+    else:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            ctx = AsBuilt(mech, legs, np.zeros(0), {}).pose_context(Xg)  # the actual poses as built: reachable
+        p2, R2 = ctx.p, ctx.R
+    p = np.concatenate([p, p2])
+    R = np.concatenate([R, R2])
+    ref_mech = copy.copy(mech)
+    ref_mech.legs = tuple(legs)
+    with np.errstate(all="ignore"):
+        states = [leg.solve(p, R) for leg in legs]
+    reach = np.logical_and.reduce([st.reachable for st in states])
+    rank = mech.structural_constraint_rank(engine="numpy")
+    ref_mech._constraint_rank = rank
+    ref = Mechanism.singularity_margin_of_states(ref_mech, states, p, reach)
+    got = engine.singularity_margin_at(legs, p, R, mech.n_actuators, rank, mech.length_scale)
+    assert got is not None
+    _same_nan(ref, got)
+    ok = np.isfinite(ref)
+    assert ok.sum() >= 40
+    np.testing.assert_allclose(got[ok], ref[ok], rtol=0, atol=ATOL)
+    base = np.tile(mech.singularity_margin(Xg, engine="numpy"), 2)
+    assert np.nanmax(np.abs(got - base)) > 1e-6  # the perturbation changed the margins: not the nominal ones
 
 
 def test_transmission_indices_agree(mech_poses):

@@ -260,6 +260,26 @@ def test_under_actuated_per_leg_scatter_is_refused():
         rm.check(m)
 
 
+def test_over_constrained_per_leg_scatter_is_refused_and_parameter_scatter_is_not():
+    """The 2-RPU&2-SPS has two redundant constraints (its RPU legs' parallel revolute axes): a
+    perturbed rigid closure of it has no solution, so per-leg scatter is refused by name, while
+    parameter scatter (which keeps the axes parallel) is checked and evaluates."""
+    m = load_mechanism("2rpu_2sps")
+    X = m.home[None, :]
+    # the reason, independently: with a 0.02 mm anchor error the least-squares closure leaves a residual
+    from parasynth.accuracy import _check_tolerances, _perturbed_legs, _sample_errors, error_sources
+    src = error_sources(m)
+    e = _sample_errors(src, _check_tolerances({"anchor_tolerance": 2e-5}), 1, np.random.default_rng(0))[0]
+    assert not AsBuilt(m, _perturbed_legs(m, src, e), np.zeros(0), {}).pose_context(X).reachable[0]
+    rm = robust("home_singularity_margin", tolerances={"anchor_tolerance": "0.02 mm"}, samples=2)
+    with pytest.raises(ValueError, match="redundant constraints"):
+        rm.check(m)
+    ok = robust("home_singularity_margin", tolerances={"b1": "0.05 mm"}, samples=4)
+    ok.check(m)
+    v = ok.evaluate(m)
+    assert np.isfinite(v.value) and abs(v.value - v.nominal) < 0.05 * abs(v.nominal)
+
+
 # -- the Python interface --------------------------------------------------------------------------
 def test_robust_is_a_measure_with_the_base_settings():
     rm = parasynth.robust("singularity_margin_min", tolerances={"anchor_tolerance": "0.02 mm"}, statistic="quantile",

@@ -73,6 +73,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import engine
 from .accuracy import (TOLERANCE_SETTINGS, _actuated_row_mask, _compose, _leg_changes, _length_rows, _perturbed_legs,
                        _pinv_rank6, _pose_jacobian, _sample_errors, closure_residuals, error_sources)
 from .constraints import PoseContext, SingularityMarginFloor
@@ -419,6 +420,32 @@ class _Group:
             self._records.popitem(last=False)
         return rec
 
+    def _margins_of(self, rec) -> np.ndarray:
+        """The singularity margins of a stacked record's feasible rows (NaN elsewhere): draw by
+        draw on the compiled kernel at the actual poses (each draw's legs, UPU moments scaled
+        over that draw's poses, as a measure evaluating that draw alone), else on NumPy."""
+        ctx, ok, o = rec["ctx"], rec["ok"], rec["offsets"]
+        sm = np.full(ok.size, np.nan)
+        if not ok.any():
+            return sm
+        b = self.views[0].built
+        rank = self.views[0]._constraint_rank
+        if rank is None:
+            rank = Mechanism.structural_constraint_rank(b, engine="numpy")
+        for j, v in enumerate(self.views):
+            rows = o[j] + np.flatnonzero(ok[o[j]:o[j + 1]])
+            if not rows.size:
+                continue
+            out = engine.singularity_margin_at(v.legs, ctx.p[rows], ctx.R[rows], b.n_actuators, rank, b.length_scale)
+            if out is None:  # no compiled form: the NumPy margin of the stacked rows
+                sub = [_take_state(st, ok) for st in ctx.states]
+                feasible = AsBuilt(b, [_take_leg(leg, ok) for leg in rec["legs"]], np.zeros(0), self.band,
+                                   key=("stack", id(self)))
+                sm[ok] = feasible.singularity_margin_of_states(sub, ctx.p[ok], ctx.reachable[ok])
+                return sm
+            sm[rows] = out
+        return sm
+
     def singularity_margin(self, view_index: int, X):
         """The singularity margins (n,) of draw ``view_index`` at poses X when every row of X is a
         candidate pose of a stacked record (else None)."""
@@ -443,14 +470,7 @@ class _Group:
             if not np.all(rec["ok"][rows]):
                 return None  # margins are kept for the feasible poses (the measures' points) only
             if rec["sm"] is None:
-                ctx, ok = rec["ctx"], rec["ok"]
-                sub = [_take_state(st, ok) for st in ctx.states]
-                sm = np.full(ok.size, np.nan)
-                if ok.any():
-                    feasible = AsBuilt(self.views[0].built, [_take_leg(leg, ok) for leg in rec["legs"]], np.zeros(0),
-                                       self.band, key=("stack", id(self)))
-                    sm[ok] = feasible.singularity_margin_of_states(sub, ctx.p[ok], ctx.reachable[ok])
-                rec["sm"] = sm
+                rec["sm"] = self._margins_of(rec)
             return rec["sm"][rows]
         return None
 
@@ -724,9 +744,19 @@ class RobustMeasure(Measure):
     def check(self, mech) -> None:
         """``ValueError`` when the scatter cannot be applied to ``mech``: a tolerance on a
         parameter without a length or angle unit, a drawn design that cannot be built, per-leg
-        scatter on a mechanism whose closure equations do not fix the pose (under-actuated), or
-        a home pose the mechanism cannot reach as built."""
+        scatter on a mechanism whose closure equations do not fix the pose (under-actuated) or
+        that has redundant constraints (over-constrained: a perturbed rigid closure has no
+        solution), or a home pose the mechanism cannot reach as built."""
         params, legs = self._resolved(mech)
+        if any(legs.values()):
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                redundant = int(getattr(mech.mobility(), "redundant_constraints", 0) or 0)
+            if redundant:
+                raise ValueError(f"{mech.name}: per-leg scatter needs a mechanism without redundant constraints "
+                                 f"({redundant} here): the rigid closure of a perturbed over-constrained mechanism "
+                                 f"has no solution (as built it assembles only by deforming); scatter its "
+                                 f"description parameters instead, which keep its constraints consistent")
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", EngineFallbackWarning)
             for m in _draw_mechanisms(mech, params, legs, 2, self.seed):

@@ -229,6 +229,19 @@ def singularity_margin(mech, X) -> np.ndarray:
     return _compiled()[2].singularity_margin(mech, X)
 
 
+def singularity_margin_at(legs, p, R, n_actuators: int, constraint_rank: int, length_scale: float):
+    """Compiled singularity margin (N,) of ``legs`` at explicit platform poses (p, R), or None
+    when a leg has no compiled form (the caller evaluates it on NumPy); see
+    :func:`parasynth.engine.indices.singularity_margin_at`."""
+    if _engine_for("singularity_margin", "compiled") != "compiled":
+        return None
+    ei = _compiled()[2]
+    try:
+        return ei.singularity_margin_at(legs, p, R, n_actuators, constraint_rank, length_scale)
+    except ei._Unsupported:
+        return None
+
+
 def constraint_rank(mech, X=None) -> int:
     """Compiled :meth:`Mechanism.structural_constraint_rank` at pose ``X`` (default ``home``)."""
     return _compiled()[2].constraint_rank(mech, X)

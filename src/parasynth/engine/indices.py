@@ -171,12 +171,32 @@ def _plan(mech):
     ok, why = coverage(mech)
     if not ok:
         raise _Unsupported(why)
-    nl = len(mech.legs)
+    plan = _legs_plan(mech.legs)
+    rec["indices"] = (mech.legs, plan)
+    return plan
+
+
+def _check_legs(legs) -> None:
+    """``_Unsupported`` unless every leg has a compiled form (as :func:`_check_covered`)."""
+    if not HAVE_NUMBA:
+        raise _Unsupported("numba is not available")
+    for leg in legs:
+        cls = type(leg)
+        base = next((b for b in cls.__mro__ if b in _CODES), None)
+        if base is None:
+            raise _Unsupported(f"leg {leg.name}: leg type {cls.__name__} has no compiled form")
+        if base is not cls and any(getattr(cls, m) is not getattr(base, m) for m in _LEG_METHODS):
+            raise _Unsupported(f"leg {leg.name}: {cls.__name__} overrides {base.__name__}'s methods")
+
+
+def _legs_plan(legs):
+    """(code, act, geo, sc, nc): the legs packed into arrays (one geometry per leg)."""
+    nl = len(legs)
     code = np.zeros(nl, np.int64)
     act = np.zeros(nl, np.int64)
     geo = np.zeros((nl, 5, 3))  # base, platform, axis 1, axis 2, axis 3
     sc = np.zeros((nl, 3))  # link length, branch, crank length
-    for j, leg in enumerate(mech.legs):
+    for j, leg in enumerate(legs):
         c = _leg_code(leg)
         code[j] = c
         act[j] = 1 if leg.is_actuated else 0
@@ -205,9 +225,7 @@ def _plan(mech):
         if c in (_PUS, _PRS, _RUS):
             sc[j] = (float(leg.link_length), float(leg.branch), float(getattr(leg, "crank_length", 0.0)))
     nc = int(sum(_NC[c] for c in code))
-    plan = (code, act, geo, sc, nc)
-    rec["indices"] = (mech.legs, plan)
-    return plan
+    return code, act, geo, sc, nc
 
 
 def _poses(mech, X, need_twist: bool):
@@ -1162,6 +1180,30 @@ def singularity_margin(mech, X) -> np.ndarray:
     kernel(p, R, valid, code, act, geo, sc, upuL, int(mech.n_actuators), nc, int(mech.constraint_rank),
            float(mech.length_scale), out)
     return _out(out, single)
+
+
+def singularity_margin_at(legs, p, R, n_actuators: int, constraint_rank: int, length_scale: float) -> np.ndarray:
+    """Compiled singularity margin (N,) of the legs ``legs`` at explicit platform poses ``p``
+    (N, 3), ``R`` (N, 3, 3), NaN where a leg cannot reach: the margin of
+    :meth:`Mechanism.singularity_margin_of_states` for a mechanism with these legs, its
+    structural ``constraint_rank`` and ``length_scale`` (UPU moments scaled by the mean leg
+    length over these poses). For poses that are not a parametrisation's, e.g. the actual
+    poses of a mechanism as built (:mod:`parasynth.robustness`). Raises ``_Unsupported`` (an
+    ``Exception``) when a leg has no compiled form."""
+    _check_legs(legs)
+    plan = _legs_plan(legs)
+    code, act, geo, sc, nc = plan
+    p = np.ascontiguousarray(p, dtype=float)
+    R = np.ascontiguousarray(R, dtype=float)
+    n = p.shape[0]
+    out = np.empty(n)
+    if not n:
+        return out
+    upuL = _upu_lengths(plan, p, R)
+    kernel = _kernel("_margin_kernel", n)
+    kernel(p, R, np.ones(n, np.bool_), code, act, geo, sc, upuL, int(n_actuators), nc, int(constraint_rank),
+           float(length_scale), out)
+    return out
 
 
 def transmission(mech, X, rtol: float = 1e-9):
