@@ -280,6 +280,28 @@ def test_over_constrained_per_leg_scatter_is_refused_and_parameter_scatter_is_no
     assert np.isfinite(v.value) and abs(v.value - v.nominal) < 0.05 * abs(v.nominal)
 
 
+def test_stacked_draws_equal_draws_evaluated_one_by_one(monkeypatch):
+    """Parameters and legs scattered together: the draws solved as one stacked batch (each row
+    with its draw's rebuilt legs, neutral joint directions included, screened by the design's
+    margins) give, draw by draw, the values of each draw evaluated alone on its own legs."""
+    from parasynth import robustness as rb
+
+    m = load_mechanism("5pus_upu")
+    tol = {"slider_radius": "0.05 mm", "link_length": "0.05 mm", "anchor_tolerance": "0.02 mm",
+           "axis_tolerance": "0.01 deg", "actuator_tolerance": "0.01 mm"}
+    out = {}
+    for stacked in (True, False):
+        if not stacked:
+            monkeypatch.setattr(rb._Group, "stackable", lambda self: False)
+        for name in ("workspace_volume", "singularity_margin_min"):
+            rb._DRAW_CACHE.clear()
+            out[stacked, name] = robust(name, tolerances=tol, samples=8, seed=0).values(m, n=4096)
+    np.testing.assert_array_equal(out[True, "workspace_volume"], out[False, "workspace_volume"])
+    np.testing.assert_allclose(out[True, "singularity_margin_min"], out[False, "singularity_margin_min"],
+                               rtol=1e-6)
+    assert np.ptp(out[True, "workspace_volume"]) > 0  # the draws differ: the comparison is not of copies
+
+
 # -- the Python interface --------------------------------------------------------------------------
 def test_robust_is_a_measure_with_the_base_settings():
     rm = parasynth.robust("singularity_margin_min", tolerances={"anchor_tolerance": "0.02 mm"}, statistic="quantile",

@@ -284,35 +284,32 @@ def _newton(mech, legs, p0, R0, Gi, target, ok, scale, max_iter=20):
 
 #: Leg types whose geometry may be one value per pose (draws stacked into one batch).
 _STACKABLE = ("SPS", "UPS", "PUS", "RPS", "RPU", "UPU")
-_GEOMETRY = ("base", "platform", "slider_axis", "u_axis", "r_axis", "u_platform_axis", "link_length")
+_GEOMETRY = ("base", "platform", "slider_axis", "u_axis", "r_axis", "u_platform_axis", "link_length", "base_ref",
+             "platform_ref")
 
 
-def _stacked_prep(views, X, sels, counts):
+def _stacked_prep(views, X, sels, counts, base: "_Nominal"):
     """The nominal pose, ``Gi``, ``ok`` and closure target of every draw's candidate poses, each
-    draw with its own built mechanism (rebuilt from drawn parameters), in one stacked batch."""
+    draw with its own built mechanism (rebuilt from drawn parameters), in one stacked batch.
+    The chord Newton matrix is the design's (``base``, unperturbed) at the same commanded
+    poses, shared by the draws: a chord iteration needs only an approximation of the closure
+    Jacobian, and the drawn parameters move it by their relative size (the iteration still
+    converges to the closure of each draw's own legs)."""
     v0 = views[0]
     Xs = np.concatenate([X[sel] for sel in sels])
-    valid = np.concatenate([v.built.pose_valid(X[sel]) for v, sel in zip(views, sels)])
-    Xs = np.where(valid[:, None], Xs, v0.home)
     off = np.r_[0, np.cumsum(counts)]
     with np.errstate(all="ignore"):
-        poses = [v.built._pose(Xs[off[j]:off[j + 1]]) for j, v in enumerate(views)]
-        p = np.concatenate([q[0] for q in poses])
-        R = np.concatenate([q[1] for q in poses])
+        parts = [engine.pose_batch(v.built, Xs[off[j]:off[j + 1]]) for j, v in enumerate(views)]
+        valid = np.concatenate([np.asarray(q[0], dtype=bool) for q in parts])
+        p = np.concatenate([np.asarray(q[1], dtype=float) for q in parts])
+        R = np.concatenate([np.asarray(q[2], dtype=float) for q in parts])
         legs = _stacked_legs([v.built for v in views], counts)
         states = [solve_geometry(leg, p, R) for leg in legs]
         reach = valid & np.logical_and.reduce([st.reachable for st in states])
         h0 = closure_residuals(v0.built, p, R, legs=legs)
-        hl, ha = 1e-6 * v0.length_scale, 1e-6
-        cols = []
-        for c in range(6):
-            t = np.zeros((p.shape[0], 6))
-            t[:, c] = hl if c < 3 else ha
-            hp = closure_residuals(v0.built, *_compose(p, R, t), legs=legs)
-            hm = closure_residuals(v0.built, *_compose(p, R, -t), legs=legs)
-            cols.append((hp - hm) / (2 * t[0, c]))
-        Gi = _chord_matrix(np.stack(cols, axis=-1), v0.built)
-    ok = reach & np.all(np.isfinite(Gi), axis=(1, 2)) & np.all(np.isfinite(h0), axis=1)
+        Gi = np.concatenate([base.prep(X, sel)["Gi"] for sel in sels])
+        okb = np.concatenate([base.prep(X, sel)["ok"] for sel in sels])
+    ok = reach & okb & np.all(np.isfinite(Gi), axis=(1, 2)) & np.all(np.isfinite(h0), axis=1)
     return p, R, np.where(ok[:, None, None], Gi, 0.0), ok, h0
 
 
@@ -336,8 +333,10 @@ class _Group:
     row with its draw's leg geometry), and the singularity margins of the candidate poses are
     kept for :meth:`AsBuilt.singularity_margin`."""
 
-    def __init__(self, band):
+    def __init__(self, band, base: "_Nominal | None" = None):
         self.views: list = []
+        #: the design's own (unperturbed) nominal: screens the draws rebuilt from drawn parameters
+        self.base = base
         self.band = dict(band)
         self._records: "OrderedDict[tuple, dict]" = OrderedDict()
         self._stackable = None
@@ -359,7 +358,11 @@ class _Group:
             return hit
         views = self.views
         k = len(views)
-        M = [v._nominal.margins(X, names) for v in views]
+        shared = len({id(v._nominal) for v in views}) == 1
+        if shared or self.base is None:
+            M = [v._nominal.margins(X, names) for v in views]
+        else:  # draws rebuilt from drawn parameters: screened by the design's margins (the band grows
+            M = [self.base.margins(X, names)] * k  # with what the drawn parameters move)
         units = {c.name: c.unit for c in cons}
         band = self.band
         for _ in range(8):
@@ -375,12 +378,12 @@ class _Group:
                    "ctx": None, "sm": None, "tables": None}
             if not counts.sum():
                 break
-            if len({id(v._nominal) for v in views}) == 1:  # one nominal mechanism: its cached preparation
+            if shared:  # one nominal mechanism: its cached preparation
                 q = views[0]._nominal.prep(X, sels[0])
                 p0, R0, Gi, okn, target = (np.tile(q[f], (k,) + (1,) * (q[f].ndim - 1))
                                            for f in ("p", "R", "Gi", "ok", "h0"))
             else:  # every draw rebuilt from drawn parameters: their nominal legs stacked too
-                p0, R0, Gi, okn, target = _stacked_prep(views, X, sels, counts)
+                p0, R0, Gi, okn, target = _stacked_prep(views, X, sels, counts, self.base)
             act_rows = views[0]._nominal.act_rows
             if views[0].dq.size:
                 target[:, act_rows] += np.repeat(np.stack([v.dq for v in views]), counts, axis=0)
@@ -436,13 +439,14 @@ class _Group:
             rows = o[j] + np.flatnonzero(ok[o[j]:o[j + 1]])
             if not rows.size:
                 continue
-            out = engine.singularity_margin_at(v.legs, ctx.p[rows], ctx.R[rows], b.n_actuators, rank, b.length_scale)
-            if out is None:  # no compiled form: the NumPy margin of the stacked rows
-                sub = [_take_state(st, ok) for st in ctx.states]
-                feasible = AsBuilt(b, [_take_leg(leg, ok) for leg in rec["legs"]], np.zeros(0), self.band,
-                                   key=("stack", id(self)))
-                sm[ok] = feasible.singularity_margin_of_states(sub, ctx.p[ok], ctx.reachable[ok])
-                return sm
+            out = engine.singularity_margin_at(v.legs, ctx.p[rows], ctx.R[rows], v.built.n_actuators, rank,
+                                               v.built.length_scale)  # a rebuilt draw's own length scale
+            if out is None:  # no compiled form: the NumPy margin of this draw's rows
+                pick = np.zeros(ok.size, bool)
+                pick[rows] = True
+                sub = [_take_state(st, pick) for st in ctx.states]
+                one = AsBuilt(v.built, v.legs, np.zeros(0), self.band, key=("stack", id(self), j))
+                out = one.singularity_margin_of_states(sub, ctx.p[rows], ctx.reachable[rows])
             sm[rows] = out
         return sm
 
@@ -836,7 +840,10 @@ def _draw_mechanisms(mech, params: dict, legs: dict, k: int, seed: int) -> list:
         band = _initial_band(mech, params, tol)
     out = []
     nominal = None
-    group = _Group(band) if E is not None else None
+    group = None
+    if E is not None:
+        nominal = _Nominal(mech)
+        group = _Group(band, nominal)
     for s in range(k):
         built = mech
         if n_el:
