@@ -135,6 +135,33 @@ def test_two_workers_asking_for_the_last_place_one_is_given_it():
     assert sum(counts(t) for t in st.trials) == 3
 
 
+def test_a_rungs_last_place_per_structure_goes_to_one_trial():
+    """A study over structures: a structure whose rung target is taken (by counted and running
+    lower-numbered trials) refuses a further trial of it, while the study's total still has
+    room; a trial of another structure is admitted."""
+    import optuna
+
+    from parasynth.study import workers
+    from parasynth.study.schedule import ATTR_STRUCTURE
+
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    st = optuna.create_study()
+
+    def ask(structure):
+        t = st.ask()
+        st._storage.set_trial_system_attr(t._trial_id, ATTR_STRUCTURE, structure)
+        return t
+
+    done = ask("A")
+    st.tell(done, 1.0)
+    ask("A")  # running
+    third, other = ask("A"), ask("B")
+    targets = {"A": 2, "B": 2}
+    assert not workers.within_budget(st, third.number, 4, targets)  # A has its 2
+    assert workers.within_budget(st, third.number, 4)  # the total alone would have let it in
+    assert workers.within_budget(st, other.number, 4, targets)
+
+
 def test_sweeps_and_nlopt_say_they_run_in_one_process(tmp_path, capsys):
     d = study_dict("one_process", 3)
     d["variables"] = [{"name": "link_length", "values": ["180 mm", "200 mm"]}]

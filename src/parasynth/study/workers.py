@@ -350,18 +350,34 @@ def _root_cause(e: BaseException) -> str:
     return f"{type(e).__name__}: {text[0]}" if text else type(e).__name__
 
 
-def within_budget(ostudy, number: int, total: int) -> bool:
+def within_budget(ostudy, number: int, total: int, targets: dict | None = None) -> bool:
     """May trial ``number`` (just asked for, running) be evaluated within a budget of
     ``total`` counted trials? Yes when fewer than ``total`` trials of lower number count or
     are still running: of two workers that both saw one place left and asked at once, the one
-    with the lower trial number is given it."""
+    with the lower trial number is given it. ``targets`` ({structure: designs}, a study over
+    structures): the same rule per structure, for the trial's structure and its rung's target."""
     from optuna.trial import TrialState  # lazy: optuna takes about a second to import
 
-    ahead = 0
-    for t in ostudy.get_trials(deepcopy=False):
+    trials = ostudy.get_trials(deepcopy=False)
+    mine = None
+    if targets is not None:
+        me = next((t for t in trials if t.number == number), None)
+        mine = me.system_attrs.get(ATTR_STRUCTURE) if me is not None else None
+        for _ in range(20):  # a trial asked for just before this one may not have its structure yet
+            if not any(t.number < number and t.state == TrialState.RUNNING and ATTR_STRUCTURE not in t.system_attrs
+                       for t in trials):
+                break
+            time.sleep(0.01)
+            trials = ostudy.get_trials(deepcopy=False)
+    ahead = same = 0
+    for t in trials:
         if t.number < number and (counts(t) or t.state == TrialState.RUNNING):
             ahead += 1
-    return ahead < total
+            if mine is not None and t.system_attrs.get(ATTR_STRUCTURE) == mine:
+                same += 1
+    if ahead >= total:
+        return False
+    return mine is None or mine not in targets or same < targets[mine]
 
 
 def run_one_trial(ostudy, objective, storage_errors=(), admit=None):
@@ -404,13 +420,13 @@ def run_one_trial(ostudy, objective, storage_errors=(), admit=None):
 
 
 def optimize_loop(ostudy, objective, total: int, guard: Interrupt, shared: bool, counted: int = 0,
-                  on_count=None, poll_s: float = 0.5, retries: int | None = None, log=None):
+                  on_count=None, poll_s: float = 0.5, retries: int | None = None, log=None, targets=None):
     """Run trials until the study holds ``total`` counted trials or an interrupt is asked for.
 
     ``shared``: other processes may work on the study (count in the storage before every
     trial, wait for their running trials); otherwise ``counted`` is the number of counted
-    trials at the start and this process is the only one. Returns the number of trials run
-    here."""
+    trials at the start and this process is the only one. ``targets``: designs per structure
+    of a rung (:func:`within_budget`). Returns the number of trials run here."""
     log = log or (lambda msg: print(msg, file=sys.stderr, flush=True))
     retries = int(os.environ.get("PARASYNTH_STORAGE_RETRIES", "3")) if retries is None else retries
     errors = _storage_errors()
@@ -423,7 +439,8 @@ def optimize_loop(ostudy, objective, total: int, guard: Interrupt, shared: bool,
 
     threading.excepthook = quiet_hook
     try:
-        return _loop(ostudy, objective, total, guard, shared, counted, on_count, poll_s, retries, log, errors)
+        return _loop(ostudy, objective, total, guard, shared, counted, on_count, poll_s, retries, log, errors,
+                     targets)
     finally:
         threading.excepthook = old_hook
 
@@ -442,11 +459,12 @@ def optimize_budget(ostudy, objective, study, total: int, guard: Interrupt, shar
         plan = schedule.plan(_stored_records(ostudy))
         if plan.done:
             break
-        ran += optimize_loop(ostudy, objective, plan.total, guard, shared, counted=plan.counted, **kw)
+        targets = {st: plan.current.target for st in plan.current.alive}
+        ran += optimize_loop(ostudy, objective, plan.total, guard, shared, counted=plan.counted, targets=targets, **kw)
     return ran
 
 
-def _loop(ostudy, objective, total, guard, shared, counted, on_count, poll_s, retries, log, errors):
+def _loop(ostudy, objective, total, guard, shared, counted, on_count, poll_s, retries, log, errors, targets=None):
     import optuna  # lazy: optuna takes about a second to import
 
     failures = 0
@@ -468,7 +486,7 @@ def _loop(ostudy, objective, total, guard, shared, counted, on_count, poll_s, re
             elif counted >= total:
                 break
             n0 = objective.stats["records"]
-            admit = (lambda trial: within_budget(ostudy, trial.number, total)) if shared else None
+            admit = (lambda trial: within_budget(ostudy, trial.number, total, targets)) if shared else None
             if run_one_trial(ostudy, objective, errors, admit=admit) is None:
                 continue  # another worker took the last place first: wait for it above
             ran += 1
