@@ -299,6 +299,52 @@ def _leg_changes(leg, items) -> dict:
     return kw
 
 
+def _leg_changes_batch(legs, items) -> dict:
+    """:func:`_leg_changes` for ``k`` draws at once: ``legs`` the draws' nominal copies of one
+    leg (k legs of one type, e.g. ``[leg] * k``), ``items`` [(index, deltas (k,)), ...]; the new
+    field values stacked over the draws ((k, 3) vectors, (k,) link lengths), each draw's row
+    the value :func:`_leg_changes` gives for that draw's leg and deltas (a zero delta changes
+    nothing there either: a zero tilt is the identity)."""
+    kw = {}
+    leg = legs[0]
+    same = all(g is leg for g in legs)
+
+    def nominal(f, unit=False):
+        if same:
+            v = np.array(getattr(leg, f), dtype=float)
+            v = np.tile(v, (len(legs), 1)) if v.ndim else np.full(len(legs), float(v))
+        else:
+            v = np.array([np.asarray(getattr(g, f), dtype=float) for g in legs])
+        return v / np.linalg.norm(v, axis=-1, keepdims=True) if unit else v
+
+    def current(f, unit=False):
+        v = kw.get(f)
+        return nominal(f, unit) if v is None else v
+
+    for (what, c), deltas in items:
+        deltas = np.asarray(deltas, dtype=float)
+        if what in ("base", "platform"):
+            v = kw.setdefault(what, current(what))
+            v[:, c] += deltas
+        elif what == "link_length":
+            kw[what] = current(what) + deltas
+        else:
+            if what == "r_axis" and _coupled_axes(leg):
+                Q = rot_axis(current("slider_axis", unit=True), deltas)
+            else:  # about a0 x b_c, (b_1, b_2) the tilt basis of the nominal axis a0
+                a0 = nominal(what, unit=True)
+                helper = np.where((np.abs(a0[:, 0]) < 0.9)[:, None], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0])
+                b = np.cross(a0, helper)
+                b /= np.linalg.norm(b, axis=-1, keepdims=True)
+                if c == 1:
+                    b = np.cross(a0, b)
+                Q = rot_axis(np.cross(a0, b), deltas)
+            kw[what] = np.einsum("kij,kj->ki", Q, current(what, unit=True))
+            if what == "slider_axis" and _coupled_axes(leg):
+                kw["r_axis"] = np.einsum("kij,kj->ki", Q, current("r_axis", unit=True))
+    return kw
+
+
 def _perturb_leg(leg, idx, delta):
     return dataclasses.replace(leg, **_leg_changes(leg, [(idx, delta)]))
 

@@ -70,18 +70,23 @@ from .warmup import COMPILING, WarmUp
 __all__ = ["HAVE_NUMBA", "ENGINES", "EngineFallbackWarning", "feasible", "margins", "pose_batch", "available",
            "reason", "check_engine", "plan", "use_compiled", "warn_fallback", "coverage", "singularity_margin",
            "transmission", "local_transmission_index", "condition_number", "leg_directions", "constraint_rank",
-           "warm_up", "exercise", "needs", "effective_engine", "WarmUp", "COMPILING", "reference"]
+           "closure_plan", "closure_prep", "closure_solve", "warm_up", "exercise", "needs", "effective_engine", "WarmUp", "COMPILING", "reference"]
 
 #: Names looked up in :mod:`parasynth.engine.core` when first asked for.
 _CORE_NAMES = ("HAVE_NUMBA", "BLOCK", "SUB", "KernelPlan", "Unsupported")
 
 
 def _compiled():
-    """The modules of the compiled path, ``(core, evaluate, indices, precompile)``."""
+    """The modules of the compiled path, ``(core, evaluate, indices, precompile, closure)``."""
     # lazy: they import numba (about a second) and define its kernels: loaded at the first compiled evaluation
-    from . import core, evaluate, indices, precompile
+    from . import closure, core, evaluate, indices, precompile
 
-    return core, evaluate, indices, precompile
+    return core, evaluate, indices, precompile, closure
+
+
+def _closure():
+    """:mod:`parasynth.engine.closure`."""
+    return _compiled()[4]
 
 
 #: While :func:`needs` runs: the set receiving the compiled entry points asked for.
@@ -242,6 +247,32 @@ def singularity_margin_at(legs, p, R, n_actuators: int, constraint_rank: int, le
         return None
 
 
+def closure_plan(leg_sets, fields=None):
+    """The compiled closure plan (:class:`parasynth.engine.closure.ClosurePlan`) of ``leg_sets``
+    (draws of legs of the same types), or None when the compiled closure does not cover them
+    (a leg type without one, numba missing, inside :func:`reference`; ``fields``: the draws'
+    geometry stacked per leg, {field: (draws, ...)}, when the caller has it): the caller then solves
+    the closure on NumPy (:func:`parasynth.accuracy.closure_residuals`)."""
+    if _engine_for("closure", "compiled") != "compiled":
+        return None
+    try:
+        return _closure().plan(leg_sets, fields)
+    except _compiled()[2]._Unsupported:
+        return None
+
+
+def closure_prep(cp, p, R, length_scale: float, draw=None, jacobian: bool = True):
+    """Closure residuals, their pose Jacobian (with ``jacobian``) and reachability at explicit
+    poses (:func:`parasynth.engine.closure.prep`) of a plan from :func:`closure_plan`."""
+    return _closure().prep(cp, p, R, length_scale, draw, jacobian)
+
+
+def closure_solve(cp, p0, R0, Gi, h0, ok, dq, scale, src, draw, max_iter: int = 20):
+    """The actual poses of perturbed legs by chord Newton (:func:`parasynth.engine.closure.solve`)
+    of a plan from :func:`closure_plan`."""
+    return _closure().solve(cp, p0, R0, Gi, h0, ok, dq, scale, src, draw, max_iter)
+
+
 def constraint_rank(mech, X=None) -> int:
     """Compiled :meth:`Mechanism.structural_constraint_rank` at pose ``X`` (default ``home``)."""
     return _compiled()[2].constraint_rank(mech, X)
@@ -272,7 +303,7 @@ def leg_directions(mech, X) -> tuple[np.ndarray, np.ndarray]:
 # ---------------------------------------------------------------------------------------------
 #: What :func:`exercise` may compile.
 EXERCISES = ("feasible", "margins", "pose", "twist", "singularity_margin", "transmission", "condition_number",
-             "leg_directions", "constraint_rank")
+             "leg_directions", "constraint_rank", "closure")
 
 
 def exercise(mech, what=EXERCISES) -> None:
@@ -302,6 +333,13 @@ def exercise(mech, what=EXERCISES) -> None:
             for name in sorted(idx):
                 with contextlib.suppress(ValueError):  # constraint_rank: home unreachable
                     calls[name](mech, X)
+        if "closure" in what:
+            cp = closure_plan([mech.legs])
+            if cp is not None:
+                p, R = mech._pose(X)
+                h0, _, ok = closure_prep(cp, p, R, mech.length_scale)
+                closure_solve(cp, p, R, np.zeros((1, 6, cp.m)), h0, ok, np.zeros(cp.m), np.ones(cp.m),
+                              np.zeros(1, np.int64), np.zeros(1, np.int64))
 
 
 def needs(work) -> set:
@@ -352,7 +390,7 @@ def warm_up(work, processes: int | None = None, **options) -> WarmUp:
 
     def compile_then_work():
         # on the compiling thread: importing numba (about a second) included
-        core, _, _, pre = _compiled()
+        core, _, _, pre, _ = _compiled()
         loaded.append(pre)
         ahead = _ahead(work) if core.HAVE_NUMBA else []
         if ahead:

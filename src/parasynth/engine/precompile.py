@@ -26,7 +26,7 @@ import sys
 import time
 from pathlib import Path
 
-from . import core, indices
+from . import closure, core, indices
 
 __all__ = ["KERNELS_OF", "LOCAL", "signatures", "in_cache", "missing", "compile_ahead", "stop_helpers", "main"]
 
@@ -41,6 +41,7 @@ KERNELS_OF = {
     "condition_number": ("_pose_kernel", "_upu_mean_lengths", "_kappa_kernel"),
     "leg_directions": ("_pose_kernel", "_dir_kernel"),
     "constraint_rank": ("_pose_kernel", "_constraint_rank_kernel"),
+    "closure": ("_pose_kernel", "_prep_kernel", "_solve_kernel"),
 }
 
 #: Kernels compiled in the calling process: they run the expression interpreter, which each
@@ -50,7 +51,7 @@ LOCAL = ("_pose_kernel", "_feasible_kernel", "_margins_kernel")
 # Rough cold-compile CPU seconds (5pus_upu, 2-core development machine), to share the work.
 _COST = {"_pose_kernel": 6.5, "_feasible_kernel": 10.0, "_margins_kernel": 10.0, "_upu_mean_lengths": 0.5,
          "_margin_kernel": 5.0, "_constraint_rank_kernel": 4.5, "_lti_kernel": 6.0, "_kappa_kernel": 5.0,
-         "_dir_kernel": 2.0}
+         "_dir_kernel": 2.0, "_prep_kernel": 2.0, "_solve_kernel": 2.0}
 #: Helper processes running (see :func:`stop_helpers`).
 _RUNNING: list = []
 
@@ -60,7 +61,7 @@ _START = 1.5
 
 def signatures() -> dict:
     """{kernel name: (dispatcher, argument types)} of every kernel of the engine."""
-    return {**core.signatures(), **indices.signatures()}
+    return {**core.signatures(), **indices.signatures(), **closure.signatures()}
 
 
 def in_cache(name: str) -> bool:
