@@ -302,6 +302,29 @@ def test_stacked_draws_equal_draws_evaluated_one_by_one(monkeypatch):
     assert np.ptp(out[True, "workspace_volume"]) > 0  # the draws differ: the comparison is not of copies
 
 
+@pytest.mark.parametrize("name,tol", [
+    ("5pus_upu", {"anchor_tolerance": "0.02 mm", "axis_tolerance": "0.01 deg", "actuator_tolerance": "0.01 mm"}),
+    ("5pus_upu", {"slider_radius": "0.05 mm", "anchor_tolerance": "0.05 mm", "link_tolerance": "0.05 mm"}),
+    ("3rps", {"anchor_tolerance": "0.05 mm", "axis_tolerance": "0.02 deg", "actuator_tolerance": "0.02 mm"}),
+])
+def test_margins_on_the_shell_only_equal_margins_at_every_candidate_pose(monkeypatch, name, tol):
+    """The stacked draws evaluate the constraint margins at the actual pose only on the shell
+    (a nominal margin within the band); evaluating them at every candidate pose gives the same
+    feasibility, draw by draw, so the same volumes and margins."""
+    from parasynth import robustness as rb
+
+    m = load_mechanism(name)
+    out = {}
+    for shell in (True, False):
+        monkeypatch.setattr(rb, "SHELL_ONLY", shell)
+        for measure in ("workspace_volume", "singularity_margin_min"):
+            rb._DRAW_CACHE.clear()
+            out[shell, measure] = robust(measure, tolerances=tol, samples=8, seed=2).values(m, n=4096)
+    np.testing.assert_array_equal(out[True, "workspace_volume"], out[False, "workspace_volume"])
+    np.testing.assert_allclose(out[True, "singularity_margin_min"], out[False, "singularity_margin_min"], rtol=1e-12)
+    assert np.ptp(out[True, "workspace_volume"]) > 0
+
+
 # -- the Python interface --------------------------------------------------------------------------
 def test_robust_is_a_measure_with_the_base_settings():
     rm = parasynth.robust("singularity_margin_min", tolerances={"anchor_tolerance": "0.02 mm"}, statistic="quantile",

@@ -27,7 +27,9 @@ Scatter model
 Per-leg scatter is evaluated on the mechanism **as built** (:class:`AsBuilt`): at a nominal
 pose ``X`` the actuators hold their nominal inverse-kinematics values (plus their own error),
 the actual platform pose solves the perturbed closure equations (a chord Newton iteration from
-the nominal pose on :func:`parasynth.accuracy.closure_residuals`, batched over the poses), and
+the nominal pose on the residuals of :func:`parasynth.accuracy.closure_residuals`, compiled in
+:mod:`parasynth.engine.closure` for every draw's poses in one batch, NumPy where a leg type has
+no compiled closure), and
 reachability, pose constraints, wrench system and indices are those of the perturbed legs at
 that actual pose. (Re-solving the inverse kinematics at the nominal pose would be wrong for
 legs of lower mobility: an RPS leg whose anchor moves along its revolute axis cannot reach the
@@ -38,7 +40,11 @@ Feasibility of an as-built mechanism over a batch of poses is screened by the no
 mechanism's compiled constraint margins: only poses whose nominal margins are all above
 ``-band`` (per margin unit) are solved as built, the others count as infeasible; the band
 starts at ten times the largest scatter the tolerances allow and doubles, and the as-built
-solve is repeated, whenever a solved pose's margins moved by more than half of it. Poses the
+solve is repeated, whenever a solved pose's margins moved by more than half of it. The margins
+at the actual pose are evaluated on the shell only, the poses with a nominal margin below
+``+band``: a pose whose nominal margins all exceed the band is feasible as built once its
+closure converges (no margin moves by half the band, as the shell's poses show;
+``SHELL_ONLY = False`` evaluates every candidate pose, which the tests compare with). Poses the
 nominal legs cannot reach count as unreachable as built.
 
 Statistics
@@ -74,7 +80,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import engine
-from .accuracy import (TOLERANCE_SETTINGS, _actuated_row_mask, _compose, _leg_changes, _length_rows, _perturbed_legs,
+from .accuracy import (TOLERANCE_SETTINGS, _actuated_row_mask, _compose, _leg_changes_batch, _length_rows, _perturbed_legs,
                        _pinv_rank6, _pose_jacobian, _sample_errors, closure_residuals, error_sources)
 from .constraints import PoseContext, SingularityMarginFloor
 from .legs import solve_geometry
@@ -192,7 +198,9 @@ def check_robust_spec(statistic: str, level, samples, seed, probability=None, wh
 
 # -- the mechanism as built ------------------------------------------------------------------------
 def _key(X):
-    return (X.shape, hash(X.tobytes()))
+    """A cache key of the poses X: its shape and a hash of every 61st row (each cache checks a
+    hit with ``np.array_equal`` against the poses it holds)."""
+    return (X.shape, hash(np.ascontiguousarray(X[::61]).tobytes()))
 
 
 class _Nominal:
@@ -206,6 +214,14 @@ class _Nominal:
         self.act_rows = np.flatnonzero(_actuated_row_mask(built))
         self._margins: "OrderedDict[tuple, tuple]" = OrderedDict()
         self._prep: "OrderedDict[tuple, tuple]" = OrderedDict()
+        self._cp = False
+
+    @property
+    def closure(self):
+        """The compiled closure plan of the nominal legs (None: the closure runs on NumPy)."""
+        if self._cp is False:
+            self._cp = engine.closure_plan([self.built.legs])
+        return self._cp
 
     def margins(self, X, names):
         """Nominal margins {name: (N,)} of the poses X (compiled engine), cached."""
@@ -231,10 +247,16 @@ class _Nominal:
         Xs = np.where(valid[:, None], Xs, b.home)
         with np.errstate(all="ignore"):
             p, R = b._pose(Xs)
-            states = [solve_geometry(leg, p, R) for leg in b.legs]
-            reach = valid & np.logical_and.reduce([st.reachable for st in states])
-            h0 = closure_residuals(b, p, R)
-            Gi = _chord_matrix(_pose_jacobian(b, p, R), b)
+            cp = self.closure
+            if cp is not None:
+                h0, Gt, reach = engine.closure_prep(cp, p, R, b.length_scale)
+                reach &= valid
+            else:
+                states = [solve_geometry(leg, p, R) for leg in b.legs]
+                reach = valid & np.logical_and.reduce([st.reachable for st in states])
+                h0 = closure_residuals(b, p, R)
+                Gt = _pose_jacobian(b, p, R)
+            Gi = _chord_matrix(Gt, b)
         ok = reach & np.all(np.isfinite(Gi), axis=(1, 2)) & np.all(np.isfinite(h0), axis=1)
         out = {"p": p, "R": R, "h0": h0, "Gi": np.where(ok[:, None, None], Gi, 0.0), "ok": ok}
         self._prep[key] = (X[sel].copy(), out)
@@ -288,43 +310,66 @@ _GEOMETRY = ("base", "platform", "slider_axis", "u_axis", "r_axis", "u_platform_
              "platform_ref")
 
 
-def _stacked_prep(views, X, sels, counts, base: "_Nominal"):
+def _stacked_prep(group: "_Group", X, sels, counts, base: "_Nominal"):
     """The nominal pose, ``Gi``, ``ok`` and closure target of every draw's candidate poses, each
     draw with its own built mechanism (rebuilt from drawn parameters), in one stacked batch.
     The chord Newton matrix is the design's (``base``, unperturbed) at the same commanded
     poses, shared by the draws: a chord iteration needs only an approximation of the closure
     Jacobian, and the drawn parameters move it by their relative size (the iteration still
     converges to the closure of each draw's own legs)."""
+    views = group.views
     v0 = views[0]
     Xs = np.concatenate([X[sel] for sel in sels])
     off = np.r_[0, np.cumsum(counts)]
+    draw = np.repeat(np.arange(len(views)), counts)
     with np.errstate(all="ignore"):
         parts = [engine.pose_batch(v.built, Xs[off[j]:off[j + 1]]) for j, v in enumerate(views)]
         valid = np.concatenate([np.asarray(q[0], dtype=bool) for q in parts])
         p = np.concatenate([np.asarray(q[1], dtype=float) for q in parts])
         R = np.concatenate([np.asarray(q[2], dtype=float) for q in parts])
-        legs = _stacked_legs([v.built for v in views], counts)
-        states = [solve_geometry(leg, p, R) for leg in legs]
-        reach = valid & np.logical_and.reduce([st.reachable for st in states])
-        h0 = closure_residuals(v0.built, p, R, legs=legs)
-        Gi = np.concatenate([base.prep(X, sel)["Gi"] for sel in sels])
-        okb = np.concatenate([base.prep(X, sel)["ok"] for sel in sels])
+        cp = group.nominal_closure()
+        if cp is not None:
+            h0, _, reach = engine.closure_prep(cp, p, R, v0.length_scale, draw, jacobian=False)
+            reach &= valid
+        else:
+            legs = _rows_legs([v.built for v in views], draw)
+            states = [solve_geometry(leg, p, R) for leg in legs]
+            reach = valid & np.logical_and.reduce([st.reachable for st in states])
+            h0 = closure_residuals(v0.built, p, R, legs=legs)
+        if all(sel is sels[0] or np.array_equal(sel, sels[0]) for sel in sels):  # screened alike
+            q = base.prep(X, sels[0])
+            rows = np.tile(np.arange(sels[0].size), len(sels))
+            Gi, okb = q["Gi"][rows], q["ok"][rows]
+        else:
+            Gi = np.concatenate([base.prep(X, sel)["Gi"] for sel in sels])
+            okb = np.concatenate([base.prep(X, sel)["ok"] for sel in sels])
     ok = reach & okb & np.all(np.isfinite(Gi), axis=(1, 2)) & np.all(np.isfinite(h0), axis=1)
     return p, R, np.where(ok[:, None, None], Gi, 0.0), ok, h0
 
 
-def _stacked_legs(views, counts):
-    """Legs whose geometry fields hold, row by row, the legs of draw ``s`` repeated
-    ``counts[s]`` times (the draws of a group evaluated in one batch)."""
+def _rows_legs(views, draw, fields=None):
+    """Legs whose geometry fields hold, row by row, the legs of draw ``draw[i]`` (the draws of
+    a group evaluated in one batch; ``views``: objects with ``legs``; ``fields``: their
+    :func:`_leg_fields`, when already stacked)."""
+    fields = _leg_fields(views) if fields is None else fields
     out = []
-    for i, leg in enumerate(views[0].legs):
+    for leg, fl in zip(views[0].legs, fields):
         new = copy.copy(leg)
-        for f in _GEOMETRY:
-            if hasattr(leg, f):
-                vals = np.stack([np.asarray(getattr(v.legs[i], f), dtype=float) for v in views])
-                object.__setattr__(new, f, np.repeat(vals, counts, axis=0))
+        for f, vals in fl.items():
+            object.__setattr__(new, f, vals[draw])
         out.append(new)
     return out
+
+
+def _leg_fields(views) -> list:
+    """Per leg {geometry field: (draws, ...) the draws' values stacked}."""
+    return [{f: np.stack([np.asarray(getattr(v.legs[i], f), dtype=float) for v in views])
+             for f in _GEOMETRY if hasattr(leg, f)} for i, leg in enumerate(views[0].legs)]
+
+
+#: Constraint margins at the actual pose only where a nominal margin is within the band
+#: (``_Group.feasible``); False: at every candidate pose (the reference the tests compare with).
+SHELL_ONLY = True
 
 
 class _Group:
@@ -340,6 +385,8 @@ class _Group:
         self.band = dict(band)
         self._records: "OrderedDict[tuple, dict]" = OrderedDict()
         self._stackable = None
+        self._cp = self._cp_nominal = False
+        self._dq = self._fields = None
 
     def stackable(self) -> bool:
         if self._stackable is None:
@@ -351,7 +398,46 @@ class _Group:
                 for v in self.views)
         return self._stackable
 
+    def closure(self):
+        """The compiled closure plan of the draws' legs (None: NumPy)."""
+        if self._cp is False:
+            self._cp = engine.closure_plan([v.legs for v in self.views], self.fields())
+        return self._cp
+
+    def fields(self) -> list:
+        """:func:`_leg_fields` of the draws' legs (stacked once)."""
+        if self._fields is None:
+            self._fields = _leg_fields(self.views)
+        return self._fields
+
+    def nominal_closure(self):
+        """The compiled closure plan of the draws' built (unperturbed) legs (None: NumPy)."""
+        if self._cp_nominal is False:
+            built = [v.built for v in self.views]
+            self._cp_nominal = engine.closure_plan([b.legs for b in built], _leg_fields(built))
+        return self._cp_nominal
+
+    def dq(self) -> np.ndarray:
+        """(draws, closure rows): the draws' actuator errors on their closure rows."""
+        if self._dq is None:
+            v0 = self.views[0]
+            m = v0._nominal.rows_len.size
+            self._dq = np.zeros((len(self.views), m))
+            if v0.dq.size:
+                self._dq[:, v0._nominal.act_rows] = np.stack([v.dq for v in self.views])
+        return self._dq
+
     def feasible(self, X, names, cons) -> dict:
+        """The draws' feasibility at the poses X (one record: per draw its candidate poses
+        ``sels``, their actual poses ``p``, ``R`` and feasibility ``ok``, stacked draw after draw).
+
+        Candidate poses (nominal margins all above ``-band``) are solved as built (chord Newton,
+        compiled); of those, the constraint margins are evaluated at the actual pose only where
+        a nominal margin is below ``+band`` (the shell around the boundary): a pose whose every
+        nominal margin exceeds the band is feasible as built once its closure converges, since
+        no margin moves by as much as half the band (checked on the shell's poses, the band
+        doubling and the shell solved again when one does). ``SHELL_ONLY = False`` evaluates the
+        margins at every candidate pose."""
         key = (_key(X), None if names is None else tuple(names))
         hit = self._records.get(key)
         if hit is not None and np.array_equal(hit["X"], X):
@@ -365,57 +451,73 @@ class _Group:
             M = [self.base.margins(X, names)] * k  # with what the drawn parameters move)
         units = {c.name: c.unit for c in cons}
         band = self.band
+        v0 = views[0]
+        scale = np.where(v0._nominal.rows_len, v0.length_scale, 1.0)
+        rec = None
         for _ in range(8):
-            sels = []
+            sels, lows = [], []
             for Mv in M:
                 cand = np.ones(X.shape[0], bool)
+                low = np.zeros(X.shape[0], bool)
                 for n, m in Mv.items():
-                    cand &= np.isfinite(m) & (m >= -band.get(units[n], np.inf))
-                sels.append(np.flatnonzero(cand))
+                    b = band.get(units[n], np.inf)
+                    cand &= np.isfinite(m) & (m >= -b)
+                    low |= ~(m >= b)
+                sel = np.flatnonzero(cand)
+                sels.append(sel)
+                lows.append(low[sel])
             counts = np.array([s_.size for s_ in sels])
-            ok = np.zeros(int(counts.sum()), bool)
-            rec = {"X": X.copy(), "sels": sels, "counts": counts, "offsets": np.r_[0, np.cumsum(counts)], "ok": ok,
-                   "ctx": None, "sm": None, "tables": None}
-            if not counts.sum():
+            N = int(counts.sum())
+            rec = {"X": X.copy(), "sels": sels, "counts": counts, "offsets": np.r_[0, np.cumsum(counts)],
+                   "ok": np.zeros(N, bool), "p": None, "R": None, "sm": None, "tables": None}
+            if not N:
                 break
-            if shared:  # one nominal mechanism: its cached preparation
-                q = views[0]._nominal.prep(X, sels[0])
-                p0, R0, Gi, okn, target = (np.tile(q[f], (k,) + (1,) * (q[f].ndim - 1))
-                                           for f in ("p", "R", "Gi", "ok", "h0"))
+            draw = np.repeat(np.arange(k), counts)
+            if shared:  # one nominal mechanism: its cached preparation, every draw from its rows
+                q = v0._nominal.prep(X, sels[0])
+                p0, R0, Gi, okn, h0 = (q[f] for f in ("p", "R", "Gi", "ok", "h0"))
+                src = np.tile(np.arange(sels[0].size), k)
             else:  # every draw rebuilt from drawn parameters: their nominal legs stacked too
-                p0, R0, Gi, okn, target = _stacked_prep(views, X, sels, counts, self.base)
-            act_rows = views[0]._nominal.act_rows
-            if views[0].dq.size:
-                target[:, act_rows] += np.repeat(np.stack([v.dq for v in views]), counts, axis=0)
-            legs = _stacked_legs(views, counts)
-            v0 = views[0]
-            scale = np.where(v0._nominal.rows_len, v0.length_scale, 1.0)
-            conv, p, R = _newton(v0.built, legs, p0, R0, Gi, target, okn, scale)
+                p0, R0, Gi, okn, h0 = _stacked_prep(self, X, sels, counts, self.base)
+                src = np.arange(N)
+            cp = self.closure()
+            if cp is not None:
+                conv, p, R = engine.closure_solve(cp, p0, R0, Gi, h0, okn, self.dq(), scale, src, draw)
+            else:
+                conv, p, R = _newton(v0.built, _rows_legs(views, draw, self.fields()), p0[src], R0[src], Gi[src],
+                                     h0[src] + self.dq()[draw], okn[src], scale)
+            ok = conv.copy()
+            shell = np.flatnonzero(conv & (np.concatenate(lows) if SHELL_ONLY else True))
+            rec.update(p=p, R=R, ok=ok, draw=draw)
+            if not shell.size:
+                break
+            legs = _rows_legs(views, draw[shell], self.fields())
+            ps, Rs = p[shell], R[shell]
             with np.errstate(all="ignore"):
-                states = [leg.solve(p, R) for leg in legs]
-            reach = conv & np.logical_and.reduce([st.reachable for st in states])
+                states = [leg.solve(ps, Rs) for leg in legs]
+            reach = np.logical_and.reduce([st.reachable for st in states])
             for st in states:
                 st.reachable = st.reachable & reach
             act = np.stack([st.actuator for leg, st in zip(legs, states) if leg.is_actuated], axis=-1)
-            Xs = np.concatenate([X[sel] for sel in sels])
+            Xs = np.concatenate([X[sel] for sel in sels])[shell]
             stack = AsBuilt(v0.built, legs, np.zeros(0), band, key=("stack", id(self)))
-            ctx = PoseContext(Xs, p, R, list(legs), states, reach, act, stack)
-            ok[:] = reach
+            ctx = PoseContext(Xs, ps, Rs, list(legs), states, reach, act, stack)
+            oks = reach.copy()
             grow = False
             with np.errstate(invalid="ignore"):
                 for c in cons:
                     m = np.asarray(c.margin(ctx), dtype=float)
                     m = np.where(reach & ~np.isnan(m), m, -np.inf)
-                    ok &= m >= 0
+                    oks &= m >= 0
                     b = band.get(c.unit, np.inf)
                     if np.isfinite(b):
-                        mn = np.concatenate([Mv[c.name][sel] for Mv, sel in zip(M, sels)])
+                        mn = np.concatenate([Mv[c.name][sel] for Mv, sel in zip(M, sels)])[shell]
                         d = np.abs(m - mn)
                         d = d[np.isfinite(d)]
                         if d.size and d.max() > 0.5 * b:
                             band[c.unit] = 2.0 * max(b, d.max())
                             grow = True
-            rec.update(ctx=ctx, stack=stack, legs=legs)
+            ok[shell] = oks
             if not grow:
                 break
         self._records[key] = rec
@@ -427,7 +529,7 @@ class _Group:
         """The singularity margins of a stacked record's feasible rows (NaN elsewhere): draw by
         draw on the compiled kernel at the actual poses (each draw's legs, UPU moments scaled
         over that draw's poses, as a measure evaluating that draw alone), else on NumPy."""
-        ctx, ok, o = rec["ctx"], rec["ok"], rec["offsets"]
+        ok, o = rec["ok"], rec["offsets"]
         sm = np.full(ok.size, np.nan)
         if not ok.any():
             return sm
@@ -439,14 +541,14 @@ class _Group:
             rows = o[j] + np.flatnonzero(ok[o[j]:o[j + 1]])
             if not rows.size:
                 continue
-            out = engine.singularity_margin_at(v.legs, ctx.p[rows], ctx.R[rows], v.built.n_actuators, rank,
+            p, R = rec["p"][rows], rec["R"][rows]
+            out = engine.singularity_margin_at(v.legs, p, R, v.built.n_actuators, rank,
                                                v.built.length_scale)  # a rebuilt draw's own length scale
             if out is None:  # no compiled form: the NumPy margin of this draw's rows
-                pick = np.zeros(ok.size, bool)
-                pick[rows] = True
-                sub = [_take_state(st, pick) for st in ctx.states]
+                with np.errstate(all="ignore"):
+                    states = [leg.solve(p, R) for leg in v.legs]
                 one = AsBuilt(v.built, v.legs, np.zeros(0), self.band, key=("stack", id(self), j))
-                out = one.singularity_margin_of_states(sub, ctx.p[rows], ctx.reachable[rows])
+                out = one.singularity_margin_of_states(states, p, np.ones(rows.size, bool))
             sm[rows] = out
         return sm
 
@@ -454,7 +556,7 @@ class _Group:
         """The singularity margins (n,) of draw ``view_index`` at poses X when every row of X is a
         candidate pose of a stacked record (else None)."""
         for rec in reversed(self._records.values()):
-            if rec.get("ctx") is None:
+            if rec.get("p") is None:
                 continue
             if rec["tables"] is None:
                 tabs = []
@@ -479,26 +581,6 @@ class _Group:
         return None
 
 
-def _take_leg(leg, rows):
-    """A stacked leg restricted to the rows ``rows`` (bool)."""
-    new = copy.copy(leg)
-    for f in _GEOMETRY:
-        v = getattr(leg, f, None)
-        if isinstance(v, np.ndarray) and v.ndim >= 1 and v.shape[0] == rows.size and (v.ndim == 2 or f == "link_length"):
-            object.__setattr__(new, f, v[rows])
-    return new
-
-
-def _take_state(st, rows):
-    """A LegState restricted to the rows ``rows`` (bool)."""
-    pick = lambda v: v[rows] if isinstance(v, np.ndarray) and v.ndim >= 1 and v.shape[0] == rows.size else v  # noqa: E731
-    return dataclasses.replace(st, actuator=pick(st.actuator), reachable=pick(st.reachable),
-                               base_point=pick(st.base_point), platform_point=pick(st.platform_point),
-                               direction=pick(st.direction), length=pick(st.length),
-                               angles={k: pick(v) for k, v in st.angles.items()},
-                               extra={k: pick(v) for k, v in st.extra.items()})
-
-
 def _row_keys(X):
     """One comparable key per row of X (its bytes)."""
     Xc = np.ascontiguousarray(X, dtype=float)
@@ -513,9 +595,12 @@ class AsBuilt(Mechanism):
     singularity margin, indices) is that of the perturbed legs at the actual pose. Poses where
     the iteration does not converge, or that the nominal legs cannot reach, are unreachable.
 
-    Its pose-wise methods run on NumPy (the compiled engine evaluates the nominal geometry
-    only); :meth:`is_feasible` screens the poses by the nominal compiled margins (module
-    documentation). Draws of one group (``group``) are solved together."""
+    The closure is solved on the compiled closure kernel (:mod:`parasynth.engine.closure`);
+    the constraint margins at the actual pose and the wrench-based indices run on NumPy, the
+    singularity margins of a group's draws on the compiled margin kernel at explicit poses.
+    :meth:`is_feasible` screens the poses by the nominal compiled margins (module
+    documentation). Draws of one group (``group``) are solved together, their margins at the
+    actual pose evaluated on the shell only."""
 
     def __init__(self, built, legs, dq, band, nominal: _Nominal | None = None, key=None, group: _Group | None = None):
         self.built = built
@@ -544,6 +629,7 @@ class AsBuilt(Mechanism):
         self.scatter_key = key if key is not None else id(self)
         self._workspace_memo: "OrderedDict[tuple, object]" = OrderedDict()
         self._solved: "OrderedDict[tuple, tuple]" = OrderedDict()
+        self._cp = False
 
     def __repr__(self) -> str:
         return f"<AsBuilt {self.name!r} draw={self.scatter_key!r}>"
@@ -571,11 +657,17 @@ class AsBuilt(Mechanism):
     def _actual(self, X, sel):
         """(ok (n,), p (n, 3), R (n, 3, 3)) of the actual poses at nominal poses ``X[sel]``."""
         q = self._nominal.prep(X, sel)
-        target = q["h0"].copy()
+        dq = np.zeros(self._nominal.rows_len.size)
         if self.dq.size:
-            target[:, self._nominal.act_rows] += self.dq
+            dq[self._nominal.act_rows] = self.dq
         scale = np.where(self._nominal.rows_len, self.length_scale, 1.0)
-        return _newton(self, self.legs, q["p"], q["R"], q["Gi"], target, q["ok"], scale)
+        if self._cp is False:
+            self._cp = engine.closure_plan([self.legs])
+        if self._cp is not None:
+            n = q["p"].shape[0]
+            return engine.closure_solve(self._cp, q["p"], q["R"], q["Gi"], q["h0"], q["ok"], dq, scale,
+                                        np.arange(n), np.zeros(n, np.int64))
+        return _newton(self, self.legs, q["p"], q["R"], q["Gi"], q["h0"] + dq, q["ok"], scale)
 
     def _context(self, X) -> PoseContext:
         Xa, _ = self._poses(X)
@@ -838,12 +930,7 @@ def _draw_mechanisms(mech, params: dict, legs: dict, k: int, seed: int) -> list:
         E = _sample_errors(src, tol, k, np.random.default_rng(s_leg))
         act_cols = [j for j, kd in enumerate(src.kind) if kd == "actuator"]
         band = _initial_band(mech, params, tol)
-    out = []
-    nominal = None
-    group = None
-    if E is not None:
-        nominal = _Nominal(mech)
-        group = _Group(band, nominal)
+    builts = []
     for s in range(k):
         built = mech
         if n_el:
@@ -854,31 +941,36 @@ def _draw_mechanisms(mech, params: dict, legs: dict, k: int, seed: int) -> list:
                 j += a.size
             built = mech.with_params(**changes)
             built._workspace_memo = OrderedDict()
-        if E is not None:
-            nom = nominal if built is mech and nominal is not None else _Nominal(built)
-            if built is mech:
-                nominal = nom
-            built = AsBuilt(built, _drawn_legs(built, src, E[s]), E[s, act_cols], band, nom,
-                            key=(id(mech), seed, s), group=group)
-        out.append(built)
+        builts.append(built)
+    if E is None:
+        return builts
+    nominal = _Nominal(mech)
+    group = _Group(band, nominal)
+    out = []
+    for s, (built, legs_s) in enumerate(zip(builts, _drawn_legs(builts, src, E))):
+        nom = nominal if built is mech else _Nominal(built)
+        out.append(AsBuilt(built, legs_s, E[s, act_cols], band, nom, key=(id(mech), seed, s), group=group))
     return out
 
 
-def _drawn_legs(mech, src, e):
-    """The legs of ``mech`` with the errors ``e`` applied, as :func:`parasynth.accuracy` applies
-    them (``_leg_changes``), set on copies without the constructors' checks (the changed fields
-    are arrays of the checked shapes; a few hundred legs are drawn per design)."""
+def _drawn_legs(builts, src, E) -> list:
+    """Per draw ``s`` the legs of ``builts[s]`` with the errors ``E[s]`` applied, as
+    :func:`parasynth.accuracy` applies them (``_leg_changes``, here for all draws at once),
+    set on copies without the constructors' checks (the changed fields are arrays of the
+    checked shapes; a few hundred legs are drawn per design)."""
     items = {}
     for j, (kd, li, idx) in enumerate(zip(src.kind, src.leg, src.index)):
-        if kd != "actuator" and e[j] != 0.0:
-            items.setdefault(li, []).append((idx, e[j]))
-    legs = list(mech.legs)
+        if kd != "actuator" and np.any(E[:, j] != 0.0):
+            items.setdefault(li, []).append((idx, E[:, j]))
+    out = [list(b.legs) for b in builts]
     for li, it in items.items():
-        new = copy.copy(legs[li])
-        for f, v in _leg_changes(legs[li], it).items():
-            object.__setattr__(new, f, float(v) if f == "link_length" else np.asarray(v, dtype=float))
-        legs[li] = new
-    return legs
+        changes = _leg_changes_batch([b.legs[li] for b in builts], it)
+        for s, legs in enumerate(out):
+            new = copy.copy(legs[li])
+            for f, v in changes.items():
+                object.__setattr__(new, f, float(v[s]) if f == "link_length" else v[s])
+            legs[li] = new
+    return out
 
 
 def _initial_band(mech, params, tol) -> dict:
