@@ -64,12 +64,21 @@ def _draws(mech, k, seed=3):
 @pytest.fixture(params=CONFIGS, ids=IDS)
 def case(request):
     mech = _mech(*request.param)
-    if not all(leg.joints in CLOSED for leg in mech.legs):
-        assert engine.closure_plan([mech.legs]) is None  # no compiled closure: the NumPy one answers
-        pytest.skip(f"{mech.name}: a leg type without a compiled closure (RUS); NumPy closure, tested in test_robust")
+    assert all(leg.joints in CLOSED for leg in mech.legs), f"{mech.name}: a leg type without a compiled closure"
     X = _reachable_poses(mech)
     assert len(X) >= 50
     return mech, X
+
+
+def test_a_leg_type_without_a_compiled_closure_gives_no_plan():
+    """RUS legs have no closure residual (``accuracy._leg_residual`` refuses them): no plan, so
+    that the caller's NumPy closure answers (and says why)."""
+    from parasynth.legs import RUS
+
+    rus = RUS(name="a", base=np.zeros(3), platform=np.full(3, 0.1))
+    assert engine.closure_plan([[rus]]) is None
+    ups = _mech("gough_stewart_6ups", {}).legs
+    assert engine.closure_plan([ups]) is not None
 
 
 def test_residuals_jacobian_and_reachability_agree(case):
