@@ -186,7 +186,13 @@ class _Param:
         if self.shape == ():
             if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
                 raise ValueError(f"{where} must be a number ({self.kind}, SI: {unit}), got {value!r}")
-            a = np.asarray(float(value))
+            x = float(value)
+            if math.isfinite(x) and abs(x) <= MAX_PARAM_MAGNITUDE.get(self.kind, MAX_PARAM_MAGNITUDE[None]) \
+                    and (self.lo is None or x >= self.lo) and (self.hi is None or x <= self.hi) \
+                    and (self.above is None or x > self.above) and (self.below is None or x < self.below) \
+                    and (self.kind not in _POSITIVE_KINDS or x > 0):
+                return x  # within every bound (the checks below say which one a value breaks)
+            a = np.asarray(x)
         else:
             if isinstance(value, (str, bytes, bool)) or value is None:
                 raise ValueError(f"{where} must be a list of shape {self.shape} ({self.kind}, SI: {unit}), got {value!r}")
