@@ -69,7 +69,6 @@ constraint's bound (``bound``: ``("min", value)`` or ``("max", value)``), standa
 from __future__ import annotations
 
 import copy
-import dataclasses
 import math
 import warnings
 import weakref
