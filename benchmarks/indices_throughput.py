@@ -5,8 +5,8 @@ poses, poses per second of
 
 * ``margin`` -- ``mech.singularity_margin`` (the normalised wrench system's smallest singular
   value),
-* ``lti``    -- ``parasynth.indices.local_transmission_index``,
-* ``kappa``  -- ``parasynth.indices.local_condition_number`` (task space),
+* ``lti``    -- ``parasynth.measures.indices.local_transmission_index``,
+* ``kappa``  -- ``parasynth.measures.indices.local_condition_number`` (task space),
 
 each with ``engine="compiled"`` (timed after a warm-up call, so JIT compilation is excluded)
 and ``engine="numpy"``, and the largest difference between the two (the contract is 1e-9,
@@ -96,7 +96,7 @@ def per_design_ms(load, X, engine: str, k: int = 10) -> float:
 
 def main(argv=None) -> int:
     import parasynth
-    from parasynth.indices import local_condition_number, local_transmission_index
+    from parasynth.measures.indices import local_condition_number, local_transmission_index
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--n", type=float, default=4096, help="poses per mechanism (default 4096)")

@@ -68,7 +68,7 @@ def _case(data: dict, case: str, k: int) -> dict:
 
 
 def _time(study, designs, repeat: int = 1) -> float:
-    from parasynth import objectives
+    from parasynth.measures import objectives
     from parasynth.study.evaluate import Evaluator
 
     ev = Evaluator(study)

@@ -41,9 +41,9 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "src"))
 
 import parasynth  # noqa: E402
-from parasynth import objectives  # noqa: E402
-from parasynth.mechanism import EngineFallbackWarning  # noqa: E402
-from parasynth.workspace import WorkspaceSample  # noqa: E402
+from parasynth.measures import objectives  # noqa: E402
+from parasynth.model.mechanism import EngineFallbackWarning  # noqa: E402
+from parasynth.measures.workspace import WorkspaceSample  # noqa: E402
 
 LIMIT_S = 15 * 60
 

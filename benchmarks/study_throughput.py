@@ -62,7 +62,7 @@ def _designs(study, k: int, seed: int) -> list[dict]:
 
 
 def _run(ev, designs, engine: str, split: bool):
-    from parasynth import objectives
+    from parasynth.measures import objectives
 
     ev.study.evaluation["engine"] = engine
     parts: dict = {}

@@ -294,7 +294,8 @@ def _timed_chunks(fn, sampler, chunk, total, seconds):
 def run_model(name: str, opts: dict) -> dict:
     import numba
 
-    from parasynth import kernels, load_mechanism
+    from parasynth.engine import kernels
+    from parasynth import load_mechanism
 
     mech = load_mechanism(name)
     lo, hi = (np.asarray(b, dtype=float) for b in BOXES[name])

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 import parasynth
-from parasynth.mechanism import EngineFallbackWarning
+from parasynth.model.mechanism import EngineFallbackWarning
 
 from _support import sample_poses, shipped_configs
 

@@ -18,9 +18,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from parasynth.legs import SPS, UPU
-from parasynth.mechanism import Mechanism
-from parasynth.spatial import euler_rate_map, euler_to_matrix
+from parasynth.model.legs import SPS, UPU
+from parasynth.model.mechanism import Mechanism
+from parasynth.model.spatial import euler_rate_map, euler_to_matrix
 
 
 class Iso6(Mechanism):

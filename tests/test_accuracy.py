@@ -9,8 +9,8 @@ import pytest
 import yaml
 
 import parasynth
-from parasynth import accuracy as acc
-from parasynth import objectives
+from parasynth.measures import accuracy as acc
+from parasynth.measures import objectives
 from parasynth.study.spec import StudyError, load_study
 
 TOL = dict(actuator_tolerance=1e-5, anchor_tolerance=2e-5, link_tolerance=2e-5,

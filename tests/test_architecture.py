@@ -5,13 +5,14 @@ own modules, at module level or inside functions, plus ``importlib.import_module
 ``__import__("...")`` calls with a literal name), then checked:
 
 * no import cycle between modules;
-* the NumPy model layer (``spatial``, ``legs``, ``constraints``, ``mechanism``) imports nothing
-  above it (in particular not the engine);
-* the engine does not import the description language or anything above it;
+* every module lies in one of the layered packages (``common``, ``model``, ``engine``,
+  ``mechanisms``, ``measures`` and ``export``, ``structures``, ``study``, ``report``, ``cli``), and
+  every import stays in its package or goes down: the NumPy model imports only the
+  foundations, the engine never the description language;
 * the study layer never imports the report layer; the report reads a run through the study
   layer's public run-directory module only;
 * the export package imports neither the study nor the report layer;
-* at most 10 imports of parasynth's own modules sit inside functions outside ``cli.py``, each
+* at most 10 imports of parasynth's own modules sit inside functions outside ``cli/__init__.py``, each
   with a one-line reason on its line or the line above.
 
 The tests of the checker itself build small synthetic packages, so a checker that found
@@ -28,8 +29,11 @@ import pytest
 SRC = Path(__file__).resolve().parents[1] / "src"
 MAX_INNER = 10
 
-MODEL = ("parasynth.spatial", "parasynth.legs", "parasynth.constraints", "parasynth.mechanism")
-BASE = ("parasynth.spatial", "parasynth.units", "parasynth.validation", "parasynth.yamlio")
+#: the packages from the bottom up; a module imports only its own package and those below it
+#: (``measures`` and ``export`` share a height and never import each other)
+LAYERS = (("parasynth.common",), ("parasynth.model",), ("parasynth.engine",), ("parasynth.mechanisms",),
+          ("parasynth.measures", "parasynth.export"), ("parasynth.structures",), ("parasynth.study",),
+          ("parasynth.report",), ("parasynth.cli",))
 
 
 @dataclass
@@ -235,17 +239,96 @@ def test_no_import_cycles(graph):
     assert cycles(graph) == []
 
 
-def test_model_layer_imports_only_the_base(graph):
-    for m in MODEL:
-        above = sorted(t for t in graph.edges[m] if t not in MODEL + BASE)
-        assert above == [], f"{m} (NumPy model layer) imports {above}"
+def _package_of(module: str) -> str:
+    for height in LAYERS:
+        for pkg in height:
+            if module == pkg or module.startswith(pkg + "."):
+                return pkg
+    return None
 
 
-def test_engine_does_not_import_descriptions_or_above(graph):
-    allowed = MODEL + BASE
-    for m, targets in _imports_of(graph, "parasynth.engine").items():
-        above = sorted(t for t in targets if t not in allowed and not t.startswith("parasynth.engine"))
-        assert above == [], f"{m} (engine) imports {above}"
+TOP = ("parasynth", "parasynth._compat")  # the public surface and the flat paths of earlier releases
+
+
+def _height(pkg: str) -> int:
+    return next(i for i, h in enumerate(LAYERS) if pkg in h)
+
+
+def test_every_module_lies_in_a_package_of_the_layers(graph):
+    loose = sorted(m for m in graph.modules if _package_of(m) is None and m not in TOP)
+    assert loose == [], f"modules outside the layered packages: {loose}"
+
+
+def upward_imports(graph) -> list[str]:
+    up = []
+    for m, targets in graph.edges.items():
+        here = _package_of(m)
+        if here is None:  # the top imports anything
+            continue
+        for t in targets:
+            there = _package_of(t)
+            if there != here and _height(there) >= _height(here):
+                up.append(f"{m} -> {t}")
+    return sorted(up)
+
+
+def test_checker_finds_upward_and_sideways_imports(tmp_path):
+    root = _package(tmp_path, {"__init__.py": "", "model/__init__.py": "", "measures/__init__.py": "",
+                               "export/__init__.py": "", "study/__init__.py": "",
+                               "model/legs.py": "from ..study import run\n",
+                               "measures/w.py": "from ..export import x\nfrom ..model import legs\n"})
+    (root / "parasynth").mkdir()
+    for p in (root / "pkg").rglob("*.py"):  # the checker knows the package by the name parasynth
+        q = root / "parasynth" / p.relative_to(root / "pkg")
+        q.parent.mkdir(parents=True, exist_ok=True)
+        q.write_text(p.read_text())
+    g = build_graph(root, "parasynth")
+    assert upward_imports(g) == ["parasynth.measures.w -> parasynth.export", "parasynth.model.legs -> parasynth.study"]
+
+
+def test_imports_go_down_the_packages(graph):
+    """No upward arrow: every import stays in its package or goes to a lower one (the model
+    imports only the foundations, the engine never the descriptions, ...)."""
+    up = upward_imports(graph)
+    assert up == [], "imports that do not go down the layers:\n" + "\n".join(sorted(up))
+
+
+def test_imports_name_modules_that_exist():
+    """Inside the package, every import of ``parasynth...`` names a module where it lies now
+    (the flat paths of earlier releases resolve only for users' code, through parasynth._compat)."""
+    mods = _module_names(SRC, "parasynth")
+    bad = []
+    for m, p in mods.items():
+        for node in ast.walk(ast.parse(p.read_text())):
+            if isinstance(node, ast.ImportFrom) and (node.level or (node.module or "").startswith("parasynth")):
+                base = node.module or ""
+                if node.level:
+                    pkg = m if p.name == "__init__.py" else m.rsplit(".", 1)[0]
+                    parts = pkg.split(".")
+                    base = ".".join(parts[: len(parts) - node.level + 1] + ([base] if base else []))
+                if base not in mods:
+                    bad.append(f"{m}:{node.lineno} from {base}")
+            elif isinstance(node, ast.Import):
+                bad += [f"{m}:{node.lineno} import {a.name}" for a in node.names
+                        if a.name.startswith("parasynth.") and a.name not in mods]
+    assert bad == [], bad
+
+
+def test_the_flat_paths_of_earlier_releases_are_the_same_modules():
+    import importlib
+
+    import parasynth
+    from parasynth import _compat
+
+    for old, new in _compat.MOVED.items():
+        assert importlib.import_module(old) is importlib.import_module(new), old
+        assert importlib.import_module(old).__spec__.name == new, old
+    assert callable(parasynth.workspace) and parasynth.workspace is parasynth.measures.workspace.workspace
+    from parasynth.objectives import register  # documented for plugins
+    from parasynth.workspace import WorkspaceSample
+
+    assert register is parasynth.measures.objectives.register
+    assert WorkspaceSample is parasynth.measures.workspace.WorkspaceSample
 
 
 def test_study_layer_never_imports_the_report(graph):
@@ -258,12 +341,12 @@ def test_the_export_imports_neither_the_study_nor_the_report(graph):
     for m, targets in _imports_of(graph, "parasynth.export").items():
         bad = sorted(t for t in targets if t.startswith(("parasynth.study", "parasynth.report", "parasynth.cli")))
         assert bad == [], f"{m} (export) imports {bad}"
-    assert "parasynth.study.rundir" in graph.edges["parasynth.cli_export"]  # the run is read there
+    assert "parasynth.study.rundir" in graph.edges["parasynth.cli.export_cmd"]  # the run is read there
 
 
 def test_nothing_below_the_cli_imports_it(graph):
     for m, targets in graph.edges.items():
-        assert "parasynth.cli" not in targets or m == "parasynth.__main__", f"{m} imports the CLI"
+        assert "parasynth.cli" not in targets or m.startswith("parasynth.cli."), f"{m} imports the CLI"
 
 
 def test_few_function_level_imports_each_with_a_reason(graph):
@@ -280,7 +363,7 @@ def test_the_report_reads_runs_through_one_study_module(graph):
 
 
 def test_rotation_entry_names_are_defined_once():
-    """``R_NAMES`` is defined in the model layer (``parasynth.spatial``) and only imported by
+    """``R_NAMES`` is defined in the model layer (``parasynth.model.spatial``) and only imported by
     the engine and the descriptions."""
     defs = []
     for path in (SRC / "parasynth").rglob("*.py"):
@@ -289,10 +372,28 @@ def test_rotation_entry_names_are_defined_once():
                 targets = node.targets if isinstance(node, ast.Assign) else [node.target]
                 if any(isinstance(t, ast.Name) and t.id == "R_NAMES" for t in targets):
                     defs.append(path.relative_to(SRC).as_posix())
-    assert defs == ["parasynth/spatial.py"]
-    from parasynth import spatial
+    assert defs == ["parasynth/model/spatial.py"]
+    from parasynth.model import spatial
     from parasynth.engine import program
     from parasynth.mechanisms.description import expressions
 
     assert program.R_NAMES is spatial.R_NAMES is expressions.R_NAMES
     assert spatial.R_NAMES == ("R11", "R12", "R13", "R21", "R22", "R23", "R31", "R32", "R33")
+
+
+def test_no_package_attribute_hides_a_submodule():
+    """A function named like a submodule of its package (``cli.cmd_export`` beside a module
+    ``cli/cmd_export.py``) is replaced by the module the first time the module is imported."""
+    import importlib
+    import types
+
+    clashes = []
+    for m, p in _module_names(SRC, "parasynth").items():
+        if p.name != "__init__.py":
+            continue
+        pkg = importlib.import_module(m)
+        for sub in p.parent.iterdir():
+            name = sub.stem if sub.suffix == ".py" else sub.name if (sub / "__init__.py").exists() else None
+            if name and name != "__init__" and not isinstance(getattr(pkg, name, types), types.ModuleType):
+                clashes.append(f"{m}.{name}")
+    assert clashes == [], clashes

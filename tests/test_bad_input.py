@@ -164,9 +164,9 @@ def test_non_finite_actuators_rejected_by_fk(config):
         m.forward_kinematics(q, fixed={"gamma": 0.0} if m.name == "4ups_1rps" else None)
 
 
-# -- parasynth.validation: number, count and pose checks ----------------------------------------
-from parasynth.validation import (MAX_SAMPLES, InputError, check_count, check_number,  # noqa: E402
-                                  check_pose_array, is_real_number)
+# -- parasynth.common.validation: number, count and pose checks ----------------------------------------
+from parasynth.common.validation import (MAX_SAMPLES, InputError, check_count, check_number,  # noqa: E402
+                                         check_pose_array, is_real_number)
 
 
 @pytest.mark.parametrize("value", [True, False, np.bool_(True), "0.2", b"0.2", 0.2 + 0j, np.complex128(1), None,
@@ -233,8 +233,8 @@ def test_check_pose_array_keeps_non_finite_values_for_masking():
     assert np.isnan(X[0, 1]) and np.isinf(X[1, 0]) and X[2, 1] == 2.0
 
 
-# -- parasynth.yamlio: the one safe YAML reader ------------------------------------------------
-from parasynth.yamlio import MAX_ALIASES, MAX_DEPTH, MAX_NODES, YamlError, load_yaml  # noqa: E402
+# -- parasynth.common.yamlio: the one safe YAML reader ------------------------------------------------
+from parasynth.common.yamlio import MAX_ALIASES, MAX_DEPTH, MAX_NODES, YamlError, load_yaml  # noqa: E402
 
 
 def test_yaml_plain_document_round_trips():
@@ -298,6 +298,6 @@ def test_yaml_files(tmp_path):
 
 def test_leg_limit_matches_the_description_reader():
     from parasynth.mechanisms.description.anchors import MAX_PATTERN_POINTS
-    from parasynth.validation import MAX_LEGS
+    from parasynth.common.validation import MAX_LEGS
 
     assert MAX_LEGS == MAX_PATTERN_POINTS

@@ -198,7 +198,7 @@ def _study_mutations(path, si=0):
     if len(objs) >= 2:
         lab = objs[0].get("label", objs[0]["name"])
         add("obj-label-twice", lambda d: d["objectives"][1].update(label=lab), "objectives[1].label")
-    from parasynth.objectives import OBJECTIVES
+    from parasynth.measures.objectives import OBJECTIVES
 
     for j, o in enumerate(objs):
         st = OBJECTIVES[o["name"]].settings
@@ -634,7 +634,7 @@ API_COUNT_CASES = [1e20, 10**13, 2**22 + 1, 0, -1, 2.5, True, "100", None, float
 def test_api_sample_count_is_refused_up_front(n):
     import time
 
-    from parasynth.objectives import get, workspace_of
+    from parasynth.measures.objectives import get, workspace_of
 
     mech = parasynth.load_mechanism("5pus_upu")
     t0 = time.perf_counter()
@@ -794,7 +794,7 @@ API_TYPE_CASES = [
 
 @pytest.mark.parametrize("cid,call,arg", API_TYPE_CASES, ids=[c for c, _, _ in API_TYPE_CASES])
 def test_api_argument_of_wrong_type_is_a_type_error(cid, call, arg):
-    import parasynth.objectives  # noqa: F401
+    import parasynth.measures.objectives  # noqa: F401
 
     mech = parasynth.load_mechanism("5pus_upu")
     with pytest.raises(TypeError) as e:

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import parasynth
-from parasynth.legs import PRS
+from parasynth.model.legs import PRS
 from parasynth.mechanisms.description import DescriptionWarning
 
 DEG = np.pi / 180

@@ -269,7 +269,7 @@ def test_list_shows_parameters_with_units_and_measure_settings():
     import dataclasses
 
     from parasynth.mechanisms import list_mechanisms, mechanism_class
-    from parasynth.objectives import OBJECTIVES
+    from parasynth.measures.objectives import OBJECTIVES
 
     code, out, _ = run_cli(["list"])
     assert code == 0

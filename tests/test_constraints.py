@@ -6,7 +6,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import parasynth
-from parasynth.spatial import segment_distance
+from parasynth.model.spatial import segment_distance
 
 
 def brute_distance(p1, q1, p2, q2, n=401):

@@ -393,7 +393,7 @@ def test_params_dataclass_is_frozen_with_units():
 
 
 def test_objective_on_a_described_mechanism():
-    from parasynth import objectives
+    from parasynth.measures import objectives
 
     m = parasynth.load_mechanism("3rps")
     v = objectives.get("workspace_volume")(m, n=1024, seed=0)

@@ -11,7 +11,7 @@ import pytest
 import yaml
 
 import parasynth
-import parasynth.objectives
+import parasynth.measures.objectives
 from parasynth.mechanisms import _PACKAGE_DIR
 from parasynth.mechanisms.description import (DescriptionError, DescriptionWarning, description_class,
                                               from_description, load_description)

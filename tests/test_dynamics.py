@@ -1,4 +1,4 @@
-"""Tests of parasynth.dynamics.
+"""Tests of parasynth.measures.dynamics.
 
 The central check is the power balance along smooth trajectories,
 
@@ -18,9 +18,9 @@ from _support import load, vee
 from _toy_mechanisms import Iso6
 
 import parasynth
-from parasynth import dynamics as D
-from parasynth import indices as I
-from parasynth.legs import PUS, RPS, RPU, SPS, UPS, UPU
+from parasynth.measures import dynamics as D
+from parasynth.measures import indices as I
+from parasynth.model.legs import PUS, RPS, RPU, SPS, UPS, UPU
 
 
 # --------------------------------------------------------------------------- independent energy

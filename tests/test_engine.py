@@ -18,7 +18,8 @@ import numpy as np
 import pytest
 
 import parasynth
-from parasynth import engine, kernels
+from parasynth import engine
+from parasynth.engine import kernels
 from parasynth.mechanisms.description import description_class
 from _support import shipped_configs
 from test_kernels import assert_agrees, boundary_poses, reach_margin
@@ -371,7 +372,7 @@ def test_huge_coordinates_follow_the_numpy_path():
     """Where the NumPy path treats a coordinate beyond MAX_POSE_MAGNITUDE as unreachable (here a
     subclass masking it in pose_valid), the compiled path does too; where it does not, a
     whole number of turns past it is the home pose again for both."""
-    from parasynth.validation import MAX_POSE_MAGNITUDE
+    from parasynth.common.validation import MAX_POSE_MAGNITUDE
 
     base = parasynth.load_mechanism("gough_stewart_6ups")
 

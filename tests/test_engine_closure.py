@@ -1,8 +1,8 @@
 """The compiled closure of legs as built (:mod:`parasynth.engine.closure`) against NumPy.
 
-The reference is :func:`parasynth.accuracy.closure_residuals` (the closure residuals of
+The reference is :func:`parasynth.measures.accuracy.closure_residuals` (the closure residuals of
 perturbed legs), ``accuracy._pose_jacobian`` (central differences on it), the legs' own
-``solve`` (reachability) and the NumPy chord Newton of :mod:`parasynth.robustness`, on random
+``solve`` (reachability) and the NumPy chord Newton of :mod:`parasynth.measures.robustness`, on random
 poses of every shipped mechanism, with several draws of leg scatter evaluated in one batch
 (each row with its own draw's legs).
 """
@@ -16,11 +16,11 @@ import pytest
 
 import parasynth
 from parasynth import engine
-from parasynth.accuracy import (_check_tolerances, _compose, _leg_changes, _leg_changes_batch, _perturbed_legs,
-                                _pose_jacobian, _sample_errors, closure_residuals, error_sources)
+from parasynth.measures.accuracy import (_check_tolerances, _compose, _leg_changes, _leg_changes_batch, _perturbed_legs,
+                                         _pose_jacobian, _sample_errors, closure_residuals, error_sources)
 from parasynth.engine import indices as ei
-from parasynth.legs import solve_geometry
-from parasynth.robustness import _chord_matrix, _Nominal, _newton
+from parasynth.model.legs import solve_geometry
+from parasynth.measures.robustness import _chord_matrix, _Nominal, _newton
 
 pytestmark = pytest.mark.skipif(not ei.HAVE_NUMBA, reason="numba is not importable: no compiled closure")
 
@@ -73,7 +73,7 @@ def case(request):
 def test_a_leg_type_without_a_compiled_closure_gives_no_plan():
     """RUS legs have no closure residual (``accuracy._leg_residual`` refuses them): no plan, so
     that the caller's NumPy closure answers (and says why)."""
-    from parasynth.legs import RUS
+    from parasynth.model.legs import RUS
 
     rus = RUS(name="a", base=np.zeros(3), platform=np.full(3, 0.1))
     assert engine.closure_plan([[rus]]) is None

@@ -1,7 +1,7 @@
 """Compiled pose-wise indices against the NumPy reference.
 
 The reference is the NumPy path of the same definitions (``engine="numpy"``: LAPACK SVDs of
-the legs' wrench systems built by :mod:`parasynth.legs`), on random poses of every shipped
+the legs' wrench systems built by :mod:`parasynth.model.legs`), on random poses of every shipped
 mechanism and variant; the contract is agreement to 1e-9 (absolute for the margin and the
 transmission indices, which lie in [0, 1]; relative for condition numbers). The one-sided
 Jacobi SVD is checked against matrices of known singular values, and the constraint rank
@@ -19,14 +19,14 @@ import numpy as np
 import pytest
 
 import parasynth
-from parasynth import objectives
+from parasynth.measures import objectives
 from parasynth.engine import indices as ei
-from parasynth.indices import (global_conditioning_index, local_condition_number, local_transmission_index,
-                               output_transmission_index, pressure_angle_indices, singularity_margin_stats,
-                               transmission_indices)
-from parasynth.legs import UPS
-from parasynth.mechanism import Mechanism
-from parasynth.robustness import AsBuilt
+from parasynth.measures.indices import (global_conditioning_index, local_condition_number, local_transmission_index,
+                                        output_transmission_index, pressure_angle_indices, singularity_margin_stats,
+                                        transmission_indices)
+from parasynth.model.legs import UPS
+from parasynth.model.mechanism import Mechanism
+from parasynth.measures.robustness import AsBuilt
 
 pytestmark = pytest.mark.skipif(not ei.HAVE_NUMBA, reason="numba is not importable: no compiled indices")
 
@@ -117,7 +117,7 @@ def test_singularity_margin_at_explicit_poses_of_perturbed_legs_agrees(mech_pose
     import copy
 
     from parasynth import engine
-    from parasynth.accuracy import _check_tolerances, _compose, _perturbed_legs, _sample_errors, error_sources
+    from parasynth.measures.accuracy import _check_tolerances, _compose, _perturbed_legs, _sample_errors, error_sources
 
     mech, X, n_bad = mech_poses
     Xg = X[:-n_bad]
@@ -382,9 +382,9 @@ def test_jacobi_small_singular_value_relative_accuracy():
 # ---------------------------------------------------------------------------------------------
 # Random mechanisms from every leg type (generic over legs, nothing per model)
 # ---------------------------------------------------------------------------------------------
-from parasynth.legs import PRS, PUS, RPS, RPU, RUS, SPS, UPU  # noqa: E402
-from parasynth.mechanism import Mechanism  # noqa: E402
-from parasynth.spatial import euler_rate_map, euler_to_matrix  # noqa: E402
+from parasynth.model.legs import PRS, PUS, RPS, RPU, RUS, SPS, UPU  # noqa: E402
+from parasynth.model.mechanism import Mechanism  # noqa: E402
+from parasynth.model.spatial import euler_rate_map, euler_to_matrix  # noqa: E402
 
 
 class _Free6(Mechanism):

@@ -4,7 +4,7 @@ RUS limbs (a crank about ``r_axis``, a universal joint at its tip, a link of fix
 sphere on the platform) are compiled like the other leg types: feasibility, constraint
 margins (crank-angle range, joint cone limits, link length, interference), the pose-wise
 indices (singularity margin, transmission, condition number, leg directions) and the
-constraint rank. The reference is the NumPy path of ``parasynth.legs.RUS`` (which
+constraint rank. The reference is the NumPy path of ``parasynth.model.legs.RUS`` (which
 ``tests/test_structures.py`` checks against finite differences and reciprocity); the
 contract is the engine's (``tests/test_engine.py``): booleans equal away from the feasibility
 boundary, margins to rounding, indices to 1e-9.
@@ -18,10 +18,10 @@ import numpy as np
 import pytest
 
 from parasynth import engine
-from parasynth.constraints import ActuatorRange
+from parasynth.model.constraints import ActuatorRange
 from parasynth.engine import indices as ei
-from parasynth.indices import local_condition_number, transmission_indices
-from parasynth.mechanism import EngineFallbackWarning
+from parasynth.measures.indices import local_condition_number, transmission_indices
+from parasynth.model.mechanism import EngineFallbackWarning
 from parasynth.mechanisms.description import description_class
 from test_engine import check_mechanism
 

@@ -104,7 +104,7 @@ def test_validate_checks_never_use_the_compiled_kernels(monkeypatch):
 def test_reference_results_are_not_cached_for_compiled_evaluations():
     """A workspace evaluated inside ``engine.reference()`` (a probe, ``validate``) is not the
     cached answer of a compiled evaluation with the same settings."""
-    from parasynth.objectives import workspace_of
+    from parasynth.measures.objectives import workspace_of
 
     mech = load_mechanism("5pus_upu")
     with engine.reference():

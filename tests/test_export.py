@@ -19,7 +19,7 @@ from parasynth.study import load_study, run_study
 
 from _export_cases import CASES, IDS, USER_DESCRIPTION, load
 
-pytestmark = pytest.mark.filterwarnings("ignore::parasynth.mechanism.EngineFallbackWarning")
+pytestmark = pytest.mark.filterwarnings("ignore::parasynth.model.mechanism.EngineFallbackWarning")
 
 PLUGIN = str(Path(__file__).parent / "data" / "analytic_plugin.py")
 cli.load_plugins(PLUGIN)
@@ -195,7 +195,7 @@ def test_api_errors(tmp_path):
 
 
 def test_a_leg_type_the_exporter_does_not_know_is_refused(tmp_path):
-    from parasynth.legs import UPS
+    from parasynth.model.legs import UPS
 
     class CPS(UPS):  # a leg class from elsewhere, with a cylindrical base joint
         joints = "CPS"

@@ -32,14 +32,14 @@ import numpy as np
 import pytest
 
 from parasynth.export import build_tree, joint_positions, to_mjcf
-from parasynth.mechanism import EngineFallbackWarning
+from parasynth.model.mechanism import EngineFallbackWarning
 
 from _export_cases import CASES, IDS, feasible_poses, load, nearby_feasible
 from _optional import SIMULATORS, import_or_skip
 
 mujoco = import_or_skip("mujoco", SIMULATORS, "mujoco")
 
-pytestmark = pytest.mark.filterwarnings("ignore::parasynth.mechanism.EngineFallbackWarning")
+pytestmark = pytest.mark.filterwarnings("ignore::parasynth.model.mechanism.EngineFallbackWarning")
 
 
 def _model(mech, tmp_path, pose=None):

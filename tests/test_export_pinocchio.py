@@ -27,7 +27,7 @@ from _optional import SIMULATORS, import_or_skip
 
 pin = import_or_skip("pinocchio", SIMULATORS, "pin")
 
-pytestmark = pytest.mark.filterwarnings("ignore::parasynth.mechanism.EngineFallbackWarning")
+pytestmark = pytest.mark.filterwarnings("ignore::parasynth.model.mechanism.EngineFallbackWarning")
 
 
 def _load(mech, tmp_path, pose=None):

@@ -1,4 +1,4 @@
-"""Tests of parasynth.indices: transmission, conditioning, singularity statistics, statics.
+"""Tests of parasynth.measures.indices: transmission, conditioning, singularity statistics, statics.
 
 Expected values come from hand analysis of small mechanisms (tests/_toy_mechanisms.py), the
 2018 paper's closed-form limb vectors, finite differences of the inverse kinematics, and
@@ -13,7 +13,7 @@ from _support import central_difference, load, sample_poses
 from _toy_mechanisms import Iso6, Tsai3
 
 import parasynth
-from parasynth import indices as I
+from parasynth.measures import indices as I
 
 d2r = np.deg2rad
 

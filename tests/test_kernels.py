@@ -1,4 +1,4 @@
-"""The compiled feasibility engine (parasynth.engine, through parasynth.kernels) against the
+"""The compiled feasibility engine (parasynth.engine, through parasynth.engine.kernels) against the
 NumPy reference.
 
 ``feasible_fast(mech, X)`` (and ``mech.is_feasible(X)``, which uses the engine by default) must
@@ -27,9 +27,9 @@ import numpy as np
 import pytest
 
 import parasynth
-from parasynth import kernels
-from parasynth.constraints import JointAngleLimit
-from parasynth.legs import GEOM_TOL, PRS, PUS, RUS
+from parasynth.engine import kernels
+from parasynth.model.constraints import JointAngleLimit
+from parasynth.model.legs import GEOM_TOL, PRS, PUS, RUS
 
 TOL = 1e-12
 D = np.deg2rad

@@ -12,10 +12,11 @@ import numpy as np
 import pytest
 
 import parasynth
-from parasynth import engine, objectives
-from parasynth.mechanism import EngineFallbackWarning, Mechanism
+from parasynth import engine
+from parasynth.measures import objectives
+from parasynth.model.mechanism import EngineFallbackWarning, Mechanism
 from parasynth.mechanisms.description import DescribedMechanism
-from parasynth.workspace import WorkspaceSample
+from parasynth.measures.workspace import WorkspaceSample
 
 from _toy_mechanisms import Iso6
 
@@ -28,7 +29,7 @@ def _run(code: str) -> str:
 
 
 def test_import_parasynth_loads_neither_numba_nor_the_descriptions():
-    out = _run("import sys, parasynth, parasynth.objectives, parasynth.display\n"
+    out = _run("import sys, parasynth, parasynth.objectives, parasynth.measures.display\n"
                "print(sorted(m for m in ('numba', 'yaml', 'scipy', 'pandas', 'cvxpy', 'pint', "
                "'parasynth.engine.core', 'parasynth.engine.indices', 'parasynth.mechanisms.description') "
                "if m in sys.modules))")

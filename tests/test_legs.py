@@ -1,4 +1,4 @@
-"""Leg types (parasynth.legs): reciprocity of the analytic actuation and constraint wrenches
+"""Leg types (parasynth.model.legs): reciprocity of the analytic actuation and constraint wrenches
 to the legs' joint twists, and the PUS slider inverse kinematics.
 
 Legs are built with random anchors and axes, at random poses that satisfy each leg's
@@ -15,9 +15,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from _support import random_rotation
-from parasynth.legs import PUS, RPS, RPU, SPS, UPS, UPU
+from parasynth.model.legs import PUS, RPS, RPU, SPS, UPS, UPU
 
-#: Freedoms per joint letter (independent of parasynth.legs.JOINT_DOF).
+#: Freedoms per joint letter (independent of parasynth.model.legs.JOINT_DOF).
 DOF = {"R": 1, "P": 1, "U": 2, "S": 3}
 #: Joint sequence, index of the actuated (or, for passive legs, the prismatic) joint, and the
 #: number of constraint wrenches each leg type imposes (6 minus the rank of its twists).

@@ -8,12 +8,12 @@ import pytest
 import yaml
 
 import parasynth
-from parasynth import objectives
-from parasynth.measure_spec import Setting, SettingError, check_settings
+from parasynth.measures import objectives
+from parasynth.measures.measure_spec import Setting, SettingError, check_settings
 from parasynth.study.design import evaluation_sample, measure_arguments, measure_settings
 from parasynth.study.evaluate import Evaluator
 from parasynth.study.spec import StudyError, load_study
-from parasynth.workspace import WorkspaceSample
+from parasynth.measures.workspace import WorkspaceSample
 
 TOL = {"link_tolerance": "0.02 mm", "spherical_clearance": "0.01 mm"}
 

@@ -1,4 +1,4 @@
-"""Generic mechanism behaviour on every built-in model (parasynth.mechanism).
+"""Generic mechanism behaviour on every built-in model (parasynth.model.mechanism).
 
 * the actuator Jacobian against central differences of the inverse kinematics;
 * ``twist_map`` against finite differences of ``pose`` (v from dp, omega from dR R^T);
@@ -21,18 +21,18 @@ from hypothesis import strategies as st
 
 import parasynth
 from _support import (
-    MODEL_CONFIGS,
-    MODEL_IDS,
-    central_difference,
-    centre,
-    fd_steps,
-    load,
-    random_rotation,
-    sample_poses,
-    spread,
-    vee,
-)
-from parasynth.mechanism import Mechanism
+                      MODEL_CONFIGS,
+                      MODEL_IDS,
+                      central_difference,
+                      centre,
+                      fd_steps,
+                      load,
+                      random_rotation,
+                      sample_poses,
+                      spread,
+                      vee,
+                      )
+from parasynth.model.mechanism import Mechanism
 
 configs = pytest.mark.parametrize("config", MODEL_CONFIGS, ids=MODEL_IDS)
 

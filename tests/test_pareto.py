@@ -1,4 +1,4 @@
-"""Pareto maths (parasynth.pareto) against brute force, known values and Monte Carlo."""
+"""Pareto maths (parasynth.common.pareto) against brute force, known values and Monte Carlo."""
 
 import itertools
 
@@ -9,8 +9,8 @@ import parasynth.report as report_pkg
 import parasynth.report.pareto as report_pareto
 import parasynth.study.final as final_mod
 from _support import brute_crowding, brute_force_front, brute_spread
-from parasynth.pareto import (crowding_distance, dominates, dominators_of, hypervolume, knee_index,
-                              non_dominated_ranks, pareto_mask, reference_standing, spread_by_crowding)
+from parasynth.common.pareto import (crowding_distance, dominates, dominators_of, hypervolume, knee_index,
+                                     non_dominated_ranks, pareto_mask, reference_standing, spread_by_crowding)
 
 
 @pytest.mark.parametrize("seed", range(8))

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from scipy.stats import qmc
 
-from parasynth import qmc as pqmc
+from parasynth.common import qmc as pqmc
 
 
 def _scipy_points(d, seed, n):

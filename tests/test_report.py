@@ -369,8 +369,8 @@ def test_reports_in_a_reports_folder_share_one_plotly_script(mo_run, tmp_path):
 
 
 # -- best designs, duplicates, verdicts within noise, display units, legibility ---------------------
-from parasynth.display import fmt_mean_se, fmt_number, fmt_quantity, quantity_unit  # noqa: E402
-from parasynth.objectives import OBJECTIVES, register  # noqa: E402
+from parasynth.measures.display import fmt_mean_se, fmt_number, fmt_quantity, quantity_unit  # noqa: E402
+from parasynth.measures.objectives import OBJECTIVES, register  # noqa: E402
 from parasynth.report.render import analyse, load_run, make_figures  # noqa: E402
 from parasynth.study.evaluate import Record  # noqa: E402
 from parasynth.study.final import best_designs  # noqa: E402

@@ -157,7 +157,7 @@ def test_resume_of_a_missing_directory_is_refused(tmp_path):
 
 def test_one_count_of_saved_designs(tmp_path, capsys):
     from parasynth.study.runner import RunResult, results_table
-    from parasynth.cli_study import interrupted_run
+    from parasynth.cli.study_cmd import interrupted_run
 
     study = _study()
     table = results_table(study, RECS)
@@ -219,7 +219,7 @@ def test_face_fraction_of_a_box_inside_the_workspace():
     ff = ws.face_fractions()
     assert set(ff) == {"x low", "x high", "y low", "y high", "z low", "z high"}
     assert all(x == pytest.approx(0.01, abs=0.003) for x in ff.values())
-    from parasynth.objectives import get
+    from parasynth.measures.objectives import get
 
     assert get("workspace_face_fraction")(mech, ranges=ranges, n=8192, seed=1) == ws.face_fraction()
     # the quickstart box holds the paper's design's workspace: nothing on its faces

@@ -1,4 +1,4 @@
-"""Robust measures (parasynth.robustness): values under scatter checked against Monte Carlo
+"""Robust measures (parasynth.measures.robustness): values under scatter checked against Monte Carlo
 computations written here (parameters and anchors perturbed directly, the actual pose found by
 the model's own forward kinematics), first-order values against finite differences, a chance
 constraint against its closed form, the mechanism as built on legs of lower mobility (3-RPS,
@@ -15,13 +15,13 @@ import pytest
 
 import parasynth
 from parasynth import load_mechanism
-from parasynth.accuracy import closure_residuals
-from parasynth.objectives import get as get_measure
-from parasynth.robustness import AsBuilt, RobustError, RobustMeasure, robust
+from parasynth.measures.accuracy import closure_residuals
+from parasynth.measures.objectives import get as get_measure
+from parasynth.measures.robustness import AsBuilt, RobustError, RobustMeasure, robust
 from parasynth.study.errors import StudyError
 from parasynth.study.evaluate import Evaluator
 from parasynth.study.spec import load_study
-from parasynth.workspace import WorkspaceSample
+from parasynth.measures.workspace import WorkspaceSample
 
 GS = "gough_stewart_6ups"
 # positions around home at the home orientation; the stroke and joint limits cut the box
@@ -267,7 +267,7 @@ def test_over_constrained_per_leg_scatter_is_refused_and_parameter_scatter_is_no
     m = load_mechanism("2rpu_2sps")
     X = m.home[None, :]
     # the reason, independently: with a 0.02 mm anchor error the least-squares closure leaves a residual
-    from parasynth.accuracy import _check_tolerances, _perturbed_legs, _sample_errors, error_sources
+    from parasynth.measures.accuracy import _check_tolerances, _perturbed_legs, _sample_errors, error_sources
     src = error_sources(m)
     e = _sample_errors(src, _check_tolerances({"anchor_tolerance": 2e-5}), 1, np.random.default_rng(0))[0]
     assert not AsBuilt(m, _perturbed_legs(m, src, e), np.zeros(0), {}).pose_context(X).reachable[0]
@@ -284,7 +284,7 @@ def test_stacked_draws_equal_draws_evaluated_one_by_one(monkeypatch):
     """Parameters and legs scattered together: the draws solved as one stacked batch (each row
     with its draw's rebuilt legs, neutral joint directions included, screened by the design's
     margins) give, draw by draw, the values of each draw evaluated alone on its own legs."""
-    from parasynth import robustness as rb
+    from parasynth.measures import robustness as rb
 
     m = load_mechanism("5pus_upu")
     tol = {"slider_radius": "0.05 mm", "link_length": "0.05 mm", "anchor_tolerance": "0.02 mm",
@@ -311,7 +311,7 @@ def test_margins_on_the_shell_only_equal_margins_at_every_candidate_pose(monkeyp
     """The stacked draws evaluate the constraint margins at the actual pose only on the shell
     (a nominal margin within the band); evaluating them at every candidate pose gives the same
     feasibility, draw by draw, so the same volumes and margins."""
-    from parasynth import robustness as rb
+    from parasynth.measures import robustness as rb
 
     m = load_mechanism(name)
     out = {}

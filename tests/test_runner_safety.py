@@ -14,7 +14,7 @@ import pandas as pd
 import pytest
 import yaml
 
-from parasynth.plugins import load_plugins
+from parasynth.cli.plugins import load_plugins
 from parasynth.study import StudyError, load_study, read_journal, run_study
 from parasynth.study.journal import JournalError, RunLock, RunLockedError
 

@@ -20,7 +20,7 @@ import pandas as pd
 import pytest
 import yaml
 
-from parasynth.plugins import load_plugins
+from parasynth.cli.plugins import load_plugins
 from parasynth.study import StudyError, load_study, run_study
 
 PLUGIN = str(Path(__file__).parent / "data" / "analytic_plugin.py")

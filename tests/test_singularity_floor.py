@@ -18,14 +18,15 @@ import numpy as np
 import pytest
 
 import parasynth
-from parasynth import engine, objectives
-from parasynth.constraints import SingularityMarginFloor
+from parasynth import engine
+from parasynth.measures import objectives
+from parasynth.model.constraints import SingularityMarginFloor
 from parasynth.mechanisms.description import DescriptionError, description_class
 from parasynth.study.design import design_mechanism
 from parasynth.study.evaluate import Evaluator
 from parasynth.study.spec import StudyError, check_study, resolve_study
-from parasynth.workspace import WorkspaceSample
-from parasynth.yamlio import load_yaml
+from parasynth.measures.workspace import WorkspaceSample
+from parasynth.common.yamlio import load_yaml
 from test_kernels import numpy_margin
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -1,4 +1,4 @@
-"""Rotations, Euler conventions, twists and wrenches (parasynth.spatial).
+"""Rotations, Euler conventions, twists and wrenches (parasynth.model.spatial).
 
 Reference values are the rotation matrices printed in the three papers, written out entry by
 entry, finite differences, and elementary screw-theory facts (a force whose line meets a
@@ -13,21 +13,21 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from _support import random_rotation, vee
-from parasynth.spatial import (
-    EULER_CONVENTIONS,
-    couple_wrench,
-    euler_rate_map,
-    euler_to_matrix,
-    force_wrench,
-    prismatic_twist,
-    reciprocal_basis,
-    revolute_twist,
-    rot_axis,
-    rot_x,
-    rot_y,
-    rot_z,
-    skew,
-)
+from parasynth.model.spatial import (
+                                     EULER_CONVENTIONS,
+                                     couple_wrench,
+                                     euler_rate_map,
+                                     euler_to_matrix,
+                                     force_wrench,
+                                     prismatic_twist,
+                                     reciprocal_basis,
+                                     revolute_twist,
+                                     rot_axis,
+                                     rot_x,
+                                     rot_y,
+                                     rot_z,
+                                     skew,
+                                     )
 
 angle = st.floats(-np.pi, np.pi, allow_nan=False, allow_infinity=False)
 SETTINGS = settings(max_examples=40, deadline=None)

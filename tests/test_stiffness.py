@@ -9,9 +9,9 @@ from scipy.optimize import root
 from scipy.spatial.transform import Rotation
 
 import parasynth
-from parasynth import objectives
-from parasynth.stiffness import (STEEL_E, compliance, deflection, part_stiffness, point_deflection,
-                                 stiffness_along, stiffness_matrix)
+from parasynth.measures import objectives
+from parasynth.measures.stiffness import (STEEL_E, compliance, deflection, part_stiffness, point_deflection,
+                                          stiffness_along, stiffness_matrix)
 from parasynth.study.spec import StudyError, load_study
 
 
@@ -379,7 +379,7 @@ def test_study_with_stiffness_variable(tmp_path):
     v = s.variables[0]
     assert v.kind == "stiffness" and v.low == pytest.approx(1e7) and v.high == pytest.approx(5e7)
     assert v.values == pytest.approx((1e7, 3e7, 5e7))
-    from parasynth.display import quantity_unit
+    from parasynth.measures.display import quantity_unit
 
     assert quantity_unit(s, "leg_stiffness").symbol == "N/m"  # reports show the variable's unit
     from parasynth.study.spec import check_study

@@ -25,11 +25,11 @@ import yaml
 
 import parasynth
 from parasynth import cli
-from parasynth.legs import RUS
-from parasynth.mechanism import EngineFallbackWarning
+from parasynth.model.legs import RUS
+from parasynth.model.mechanism import EngineFallbackWarning
 from parasynth.mechanisms import load_mechanism
 from parasynth.mechanisms.description import DescriptionError, description_class
-from parasynth.spatial import reciprocal_basis
+from parasynth.model.spatial import reciprocal_basis
 from parasynth.structures import LIMB_TYPES, candidates, structures
 from parasynth.structures.synthesis import _description, _key
 

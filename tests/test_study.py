@@ -349,7 +349,7 @@ def test_check_study_finds_a_corner_that_no_single_bound_shows():
 
 
 def test_check_study_probes_every_measure_with_its_settings():
-    from parasynth import objectives
+    from parasynth.measures import objectives
 
     @objectives.register("test_refuses_flag", unit="1", sense="maximize", settings={"flag": "bool"}, cost="cheap")
     def _refuses(mech, flag=False):

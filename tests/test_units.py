@@ -4,7 +4,7 @@ import random
 
 import pytest
 
-from parasynth import units
+from parasynth.common import units
 
 
 def _pint_si(value: str, kind: str) -> float:

@@ -1,4 +1,4 @@
-"""The usable workspace (parasynth.usable): the connected component of well-conditioned feasible
+"""The usable workspace (parasynth.measures.usable): the connected component of well-conditioned feasible
 poses containing the home pose, its largest ball and box, and the measures over it.
 
 What is exact and what is a trend:
@@ -19,9 +19,9 @@ import pytest
 from scipy import ndimage
 
 import parasynth
-from parasynth import objectives
-from parasynth.usable import oriented_determinant, sign_rule, usable_workspace
-from parasynth.workspace import WorkspaceSample
+from parasynth.measures import objectives
+from parasynth.measures.usable import oriented_determinant, sign_rule, usable_workspace
+from parasynth.measures.workspace import WorkspaceSample
 
 D = np.deg2rad
 

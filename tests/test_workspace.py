@@ -15,11 +15,11 @@ import numpy as np
 import pytest
 
 import parasynth
-from parasynth.constraints import ActuatorRange, CoordinateRange
-from parasynth.legs import SPS
-from parasynth.mechanism import Mechanism
-from parasynth.spatial import rot_z
-from parasynth.workspace import Box, Section, WorkspaceResult, workspace
+from parasynth.model.constraints import ActuatorRange, CoordinateRange
+from parasynth.model.legs import SPS
+from parasynth.model.mechanism import Mechanism
+from parasynth.model.spatial import rot_z
+from parasynth.measures.workspace import Box, Section, WorkspaceResult, workspace
 
 METHODS = ["grid", "sobol", "random"]
 
@@ -348,7 +348,7 @@ def test_box_search_matches_brute_force_enumeration():
     uneven cell sizes)."""
     import itertools
 
-    from parasynth.workspace import _largest_box
+    from parasynth.measures.workspace import _largest_box
 
     rng = np.random.default_rng(0)
     for _ in range(120):

@@ -7,18 +7,22 @@ Quick use::
     ik = mech.inverse_kinematics(mech.home)
 """
 
-from .legs import LEG_TYPES, PRS, PUS, RPS, RPU, RUS, SPS, UPS, UPU, Leg
-from .mechanism import ForwardKinematicsError, IKResult, Mechanism, Mobility
+from .model.legs import LEG_TYPES, PRS, PUS, RPS, RPU, RUS, SPS, UPS, UPU, Leg
+from .model.mechanism import ForwardKinematicsError, IKResult, Mechanism, Mobility
 from .mechanisms import list_mechanisms, load_mechanism
-from .workspace import WorkspaceResult, workspace
-from .indices import (StaticForces, global_conditioning_index, local_condition_number, local_transmission_index,
-                      min_max_forces, pressure_angle_indices, singularity_margin_stats, static_forces,
-                      transmission_indices, wrench_capability)
-from .stiffness import stiffness_matrix
-from .dynamics import GRINDING_INERTIA, InertiaModel, force_decoupling, inverse_dynamics
-from .robustness import robust
+from .measures.workspace import WorkspaceResult, workspace
+from .measures.indices import (StaticForces, global_conditioning_index, local_condition_number,
+                               local_transmission_index, min_max_forces, pressure_angle_indices,
+                               singularity_margin_stats, static_forces, transmission_indices, wrench_capability)
+from .measures.stiffness import stiffness_matrix
+from .measures.dynamics import GRINDING_INERTIA, InertiaModel, force_decoupling, inverse_dynamics
+from .measures.robustness import robust
 from . import structures  # the package, callable as parasynth.structures(motion, ...)
 from .structures import Structure
+from .measures import objectives
+from . import _compat
+
+_compat.install()  # the flat module paths of earlier releases import the same modules
 
 __version__ = "0.1.0"
 
@@ -59,4 +63,5 @@ __all__ = [
     "force_decoupling",
     "stiffness_matrix",
     "robust",
+    "objectives",
 ]

@@ -3,7 +3,7 @@
 import os
 import time
 
-from parasynth.objectives import OBJECTIVES, register
+from parasynth.measures.objectives import OBJECTIVES, register
 
 if "test_quadratic" not in OBJECTIVES:
 

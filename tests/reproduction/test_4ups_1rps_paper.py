@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 import parasynth
-from parasynth.spatial import reciprocal_basis
+from parasynth.model.spatial import reciprocal_basis
 
 DEG = np.pi / 180
 

@@ -64,7 +64,7 @@ def test_upu_constraint_is_a_couple_about_z_eq6(improved, first):
         assert C.shape == (1, 6)
         np.testing.assert_allclose(np.abs(C[0]), [0, 0, 0, 0, 0, 1], atol=1e-12)
     # the same from the U-P-U limb's own twists (eq. (6)), independently of the analytic row
-    from parasynth.spatial import reciprocal_basis
+    from parasynth.model.spatial import reciprocal_basis
 
     ik = improved.inverse_kinematics(improved.home)
     leg, st_ = improved.legs[5], ik.legs[5]

@@ -21,8 +21,8 @@ import numpy as np
 import pytest
 
 import parasynth
-from parasynth import dynamics as D
-from parasynth import indices as I
+from parasynth.measures import dynamics as D
+from parasynth.measures import indices as I
 
 DEG = np.pi / 180
 G = 9.80665

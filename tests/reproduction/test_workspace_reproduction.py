@@ -29,7 +29,7 @@ from scipy.spatial.transform import Rotation
 from scipy.stats import qmc
 
 import parasynth
-from parasynth.constraints import Constraint
+from parasynth.model.constraints import Constraint
 from parasynth.mechanisms import mechanism_class
 from parasynth.mechanisms.extras import grinding_u_angles
 

@@ -1,6 +1,6 @@
 """The evaluation engine: feasibility, constraint margins and poses of batches of poses,
 compiled from what a mechanism description declares, with the NumPy methods of
-:class:`~parasynth.mechanism.Mechanism` as the reference.
+:class:`~parasynth.model.mechanism.Mechanism` as the reference.
 
 Entry points (``engine="compiled"`` is the default everywhere; ``"numpy"`` the reference):
 
@@ -23,7 +23,7 @@ Entry points (``engine="compiled"`` is the default everywhere; ``"numpy"`` the r
   :func:`exercise` of a mechanism) on a compiling thread, saying "compiling the evaluation
   engine (once per installation) ..." only when numba actually compiles, and staying
   interruptible (see :mod:`parasynth.engine.warmup`);
-* :func:`reference` (a context manager, :func:`parasynth.validation.numpy_reference`): inside
+* :func:`reference` (a context manager, :func:`parasynth.common.validation.numpy_reference`): inside
   it every entry point evaluates with the NumPy reference, ``engine="compiled"`` requests
   included -- for work too small to repay compiling (``parasynth validate``).
 
@@ -34,7 +34,7 @@ geometry and limits as arrays, read for every mechanism) and the numba kernels t
 the program per sub-block of poses and run the legs' inverse kinematics and checks;
 :mod:`parasynth.engine.evaluate` runs them on pose batches.
 
-Layering: the engine imports the NumPy model (:mod:`parasynth.mechanism`, legs, constraints)
+Layering: the engine imports the NumPy model (:mod:`parasynth.model.mechanism`, legs, constraints)
 and never the mechanism descriptions; described mechanisms
 (:class:`~parasynth.mechanisms.description.DescribedMechanism`) call these entry points from
 their ``is_feasible``, ``constraint_margins``, ``singularity_margin`` and
@@ -60,10 +60,10 @@ import warnings
 
 import numpy as np
 
-from ..constraints import SingularityMarginFloor
-from ..mechanism import EngineFallbackWarning
-from ..validation import ENGINES, check_engine
-from ..validation import numpy_reference as reference
+from ..model.constraints import SingularityMarginFloor
+from ..model.mechanism import EngineFallbackWarning
+from ..common.validation import ENGINES, check_engine
+from ..common.validation import numpy_reference as reference
 from . import warmup as _warmup
 from .warmup import COMPILING, WarmUp
 
@@ -164,7 +164,7 @@ def feasible(mech, X, names=None, engine: str = "compiled"):
     """(N,) bool: reachable and every selected constraint satisfied at poses ``X`` -- the
     answer of ``mech.is_feasible(X, names, engine="numpy")`` (see the agreement contract in
     :mod:`parasynth.engine.core`). A single pose (n_task,) gives a scalar bool. A
-    :class:`~parasynth.constraints.SingularityMarginFloor` is applied after the feasibility
+    :class:`~parasynth.model.constraints.SingularityMarginFloor` is applied after the feasibility
     kernel, with the compiled singularity margin of the poses it accepts."""
     if _engine_for("feasible", engine) == "numpy":
         _floors_asked(mech, names)
@@ -188,7 +188,7 @@ def pose_batch(mech, X, twist: bool = False, engine: str = "compiled"):
     poses are unspecified. A mechanism with a ``pose_mechanism`` (a view of another one's
     parametrisation) is answered by that one."""
     src = getattr(mech, "pose_mechanism", None)
-    if src is not None:  # a view whose parametrisation is another mechanism's (parasynth.robustness.AsBuilt)
+    if src is not None:  # a view whose parametrisation is another mechanism's (parasynth.measures.robustness.AsBuilt)
         return pose_batch(src, X, twist, engine)
     Xa, _ = mech._poses(X)
     if _engine_for("twist" if twist else "pose", engine) == "compiled":
@@ -252,7 +252,7 @@ def closure_plan(leg_sets, fields=None):
     (draws of legs of the same types), or None when the compiled closure does not cover them
     (a leg type without one, numba missing, inside :func:`reference`; ``fields``: the draws'
     geometry stacked per leg, {field: (draws, ...)}, when the caller has it): the caller then solves
-    the closure on NumPy (:func:`parasynth.accuracy.closure_residuals`)."""
+    the closure on NumPy (:func:`parasynth.measures.accuracy.closure_residuals`)."""
     if _engine_for("closure", "compiled") != "compiled":
         return None
     try:
@@ -289,7 +289,7 @@ def local_transmission_index(mech, X, rtol: float = 1e-9) -> np.ndarray:
 
 
 def condition_number(mech, X, length: float | None = None) -> np.ndarray:
-    """Compiled task-space condition number (N,) of :func:`parasynth.indices.local_condition_number`."""
+    """Compiled task-space condition number (N,) of :func:`parasynth.measures.indices.local_condition_number`."""
     return _compiled()[2].condition_number(mech, X, length)
 
 

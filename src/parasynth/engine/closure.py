@@ -1,12 +1,12 @@
 """Compiled closure equations of legs at explicit poses: the mechanism as built.
 
-:func:`parasynth.accuracy.closure_residuals` (NumPy) gives the closure residuals ``h(p, R)`` of
+:func:`parasynth.measures.accuracy.closure_residuals` (NumPy) gives the closure residuals ``h(p, R)`` of
 a set of legs: per leg its actuator value (when actuated: the leg length, or the slider position
 of a fixed-length link) and its constraint residuals (the sphere's offset from an RPS or PRS
 leg's revolute plane; for an RPU leg that offset and the platform axis' component along the
 revolute axis; for a UPU leg the twist angle between its two cross axes). Here the same
 residuals run in one compiled pass over a batch of rows, each row a pose and one draw of leg
-geometry (the draws of a robust measure, :mod:`parasynth.robustness`):
+geometry (the draws of a robust measure, :mod:`parasynth.measures.robustness`):
 
 * :func:`prep` ``(plan, p, R, draw)``: the residuals ``h0`` at poses ``(p, R)``, their pose
   Jacobian by central differences (steps ``1e-6 L`` and ``1e-6`` rad, as
@@ -32,7 +32,7 @@ import math
 
 import numpy as np
 
-from ..legs import GEOM_TOL
+from ..model.legs import GEOM_TOL
 from .core import HAVE_NUMBA, _array
 from .indices import _NC, _PRS, _PUS, _RPS, _RPU, _UPU, _check_legs, _legs_plan, _Unsupported
 

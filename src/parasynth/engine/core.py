@@ -52,12 +52,12 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
-from ..constraints import (ActuatorRange, CoordinateRange, JointAngleLimit, LegAxisAngle, LegInterference,
-                           LegLengthRange, SingularityMarginFloor)
-from ..mechanism import EngineFallbackWarning
-from ..legs import GEOM_TOL, PRS, PUS, RPS, RPU, RUS, SPS, UPS, UPU
-from ..spatial import unit
-from ..validation import MAX_POSE_MAGNITUDE
+from ..model.constraints import (ActuatorRange, CoordinateRange, JointAngleLimit, LegAxisAngle, LegInterference,
+                                 LegLengthRange, SingularityMarginFloor)
+from ..model.mechanism import EngineFallbackWarning
+from ..model.legs import GEOM_TOL, PRS, PUS, RPS, RPU, RUS, SPS, UPS, UPU
+from ..model.spatial import unit
+from ..common.validation import MAX_POSE_MAGNITUDE
 from .program import OPS, Program, Untranslatable, build_program
 
 try:  # pragma: no cover - depends on the environment
@@ -521,7 +521,7 @@ def program_for(mech, exprs: dict, twist: bool = False) -> Program:
 
 def _pose_limit(mech) -> np.ndarray:
     """Per task coordinate, the magnitude beyond which the NumPy path treats a pose as
-    unreachable: ``parasynth.validation.MAX_POSE_MAGNITUDE`` for lengths (``Mechanism._poses``
+    unreachable: ``parasynth.common.validation.MAX_POSE_MAGNITUDE`` for lengths (``Mechanism._poses``
     masks them; a length beyond it is unreachable either way) and, for angles, that value if
     the NumPy path masks huge angles too, else inf -- probed with the home pose turned by a
     whole number of turns past that magnitude in an angular coordinate, which is the home pose

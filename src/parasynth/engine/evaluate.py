@@ -5,7 +5,7 @@ evaluation: it imports :mod:`parasynth.engine.core` and with it numba).
 Plans live in the engine's one record of each mechanism object (:func:`core.record_of`), one per
 constraint selection. Where the kernels do not cover a mechanism (see :mod:`parasynth.engine`),
 the mechanism's NumPy reference answers and :func:`core.warn_fallback` -- the engine's one
-fallback policy -- says why with an :class:`~parasynth.mechanism.EngineFallbackWarning`, once
+fallback policy -- says why with an :class:`~parasynth.model.mechanism.EngineFallbackWarning`, once
 per entry point, model class and reason.
 """
 

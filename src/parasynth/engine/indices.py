@@ -9,10 +9,10 @@ arrays that stay in the L1 cache:
 * the legs' **actuation wrenches** (a unit force along the leg's transmission line through its
   platform anchor, ``rate_scale`` = ``n . e`` for slider legs, ``n . (r_axis x (C - base))``
   for a RUS crank whose link leaves its tip ``C`` (:func:`parasynth.engine.core.crank_tip`),
-  and 1 otherwise) and **constraint wrenches**, analytic wherever :mod:`parasynth.legs` is
+  and 1 otherwise) and **constraint wrenches**, analytic wherever :mod:`parasynth.model.legs` is
   analytic (RPS and PRS: a force along the revolute axis through the sphere centre; RPU: that force and a couple about
   ``r_axis x R u_platform_axis``), and for UPU legs the numeric reciprocal of the five joint
-  twists, as :meth:`parasynth.legs.UPU.constraint_wrenches` computes it (moments of the twists
+  twists, as :meth:`parasynth.model.legs.UPU.constraint_wrenches` computes it (moments of the twists
   scaled by the batch-mean leg length, null direction, unit force or unit couple); the null
   direction comes from a Householder QR of the 6 x 5 twist matrix instead of an SVD (the
   direction is the same up to sign and rounding, and every index below is invariant to the
@@ -41,9 +41,9 @@ Entry points (each ``(mech, X)`` with poses ``X`` (N, n_task), results as the Nu
 
 * :func:`singularity_margin` -- :meth:`Mechanism.singularity_margin`;
 * :func:`transmission` -- input/output indices and LTI of
-  :func:`parasynth.indices.transmission_indices`;
+  :func:`parasynth.measures.indices.transmission_indices`;
 * :func:`local_transmission_index` -- its LTI;
-* :func:`condition_number` -- :func:`parasynth.indices.local_condition_number` in the task
+* :func:`condition_number` -- :func:`parasynth.measures.indices.local_condition_number` in the task
   space;
 * :func:`leg_directions` -- unit leg directions (the inputs of the pressure-angle indices);
 * :func:`coverage` -- ``(True, "")`` or ``(False, reason)``: whether the kernels cover a
@@ -63,8 +63,8 @@ import math
 
 import numpy as np
 
-from ..legs import GEOM_TOL, PRS, PUS, RPS, RPU, RUS, SPS, UPS, UPU, Leg
-from ..mechanism import Mechanism
+from ..model.legs import GEOM_TOL, PRS, PUS, RPS, RPU, RUS, SPS, UPS, UPU, Leg
+from ..model.mechanism import Mechanism
 from .evaluate import compiled_pose_batch
 
 __all__ = [
@@ -1188,7 +1188,7 @@ def singularity_margin_at(legs, p, R, n_actuators: int, constraint_rank: int, le
     :meth:`Mechanism.singularity_margin_of_states` for a mechanism with these legs, its
     structural ``constraint_rank`` and ``length_scale`` (UPU moments scaled by the mean leg
     length over these poses). For poses that are not a parametrisation's, e.g. the actual
-    poses of a mechanism as built (:mod:`parasynth.robustness`). Raises ``_Unsupported`` (an
+    poses of a mechanism as built (:mod:`parasynth.measures.robustness`). Raises ``_Unsupported`` (an
     ``Exception``) when a leg has no compiled form."""
     _check_legs(legs)
     plan = _legs_plan(legs)
@@ -1208,7 +1208,7 @@ def singularity_margin_at(legs, p, R, n_actuators: int, constraint_rank: int, le
 
 def transmission(mech, X, rtol: float = 1e-9):
     """Compiled input (N, n_act), output (N, n_act) and local (N,) transmission indices of
-    :func:`parasynth.indices.transmission_indices`."""
+    :func:`parasynth.measures.indices.transmission_indices`."""
     plan = _plan(mech)
     code, act, geo, sc, nc = plan
     Xa, single, valid, p, R, _ = _poses(mech, X, False)
@@ -1221,12 +1221,12 @@ def transmission(mech, X, rtol: float = 1e-9):
 
 
 def local_transmission_index(mech, X, rtol: float = 1e-9) -> np.ndarray:
-    """Compiled LTI (N,) of :func:`parasynth.indices.local_transmission_index`."""
+    """Compiled LTI (N,) of :func:`parasynth.measures.indices.local_transmission_index`."""
     return transmission(mech, X, rtol)[2]
 
 
 def condition_number(mech, X, length: float | None = None) -> np.ndarray:
-    """Compiled :func:`parasynth.indices.local_condition_number` in the task space (N,):
+    """Compiled :func:`parasynth.measures.indices.local_condition_number` in the task space (N,):
     the Jacobian ``mech.jacobian(X)`` with angular-coordinate columns divided by ``length``
     (default ``mech.length_scale``); ``inf`` when singular, NaN where unreachable."""
     plan = _plan(mech)

@@ -20,7 +20,7 @@ Stages
    ones of the elementary matrices folded away.
 3. **Twist map** (optional). Forward-mode derivatives of the position and of the angles with
    respect to each task coordinate, symbolically on the graph; the angular velocity is
-   ``omega = sum_k (R_1..R_{k-1} e_k) da_k/dX`` as in :func:`parasynth.spatial.euler_rate_map`.
+   ``omega = sum_k (R_1..R_{k-1} e_k) da_k/dX`` as in :func:`parasynth.model.spatial.euler_rate_map`.
 4. **Emission.** The graph is emitted on demand, outputs first; ``sin``/``cos`` of one
    argument become one vectorisable sincos; the sine and cosine of an ``atan2`` are taken
    algebraically (``y/r``, ``x/r``) and of a sum or difference involving one by the addition
@@ -42,7 +42,7 @@ import operator
 
 import numpy as np
 
-from ..spatial import EULER_CONVENTIONS, R_NAMES
+from ..model.spatial import EULER_CONVENTIONS, R_NAMES
 
 __all__ = ["Untranslatable", "Program", "build_program", "OPS"]
 

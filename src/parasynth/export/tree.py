@@ -44,11 +44,11 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..constraints import ActuatorRange, JointAngleLimit, LegInterference, LegLengthRange
-from ..legs import Leg, LegState
+from ..model.constraints import ActuatorRange, JointAngleLimit, LegInterference, LegLengthRange
+from ..model.legs import Leg, LegState
 # The universal-joint angles of a direction about a fixed axis, as the legs define them.
-from ..legs import _u_angles
-from ..spatial import reciprocal_basis, rot_axis, unit
+from ..model.legs import _u_angles
+from ..model.spatial import reciprocal_basis, rot_axis, unit
 
 __all__ = ["JointSpec", "GeomSpec", "SiteSpec", "BodySpec", "Closure", "Tree", "build_tree", "joint_values",
            "ExportError", "SUPPORTED_LEGS"]

@@ -17,7 +17,7 @@ import os
 from pathlib import Path
 from typing import Callable
 
-from ..mechanism import Mechanism
+from ..model.mechanism import Mechanism
 
 __all__ = ["list_mechanisms", "load_mechanism", "register", "mechanism_class", "resolve_mechanism_name",
            "packaged_descriptions", "described_class"]

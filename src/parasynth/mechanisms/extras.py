@@ -9,7 +9,7 @@ as small named functions:
   Table 2 parameters (``4ups_1rps``).
 
 The grinding robot's inertias (Table 3) and its grinding trajectories are in
-:mod:`parasynth.dynamics` (``grinding_inertia``, ``GRINDING_INERTIA``,
+:mod:`parasynth.measures.dynamics` (``grinding_inertia``, ``GRINDING_INERTIA``,
 ``grinding_trajectory``, ``grinding_lift_trajectory``), next to the dynamics that use them.
 """
 

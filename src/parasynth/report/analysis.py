@@ -10,8 +10,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from ..pareto import (NoisyComparison, ReferenceStanding, compare_with_noise, default_reference_point, hypervolume,
-                      reference_standing, to_min)
+from ..common.pareto import (NoisyComparison, ReferenceStanding, compare_with_noise, default_reference_point, hypervolume,
+                             reference_standing, to_min)
 from ..study.rundir import Run, design_key, knee_of, pareto_front, screening_dominators
 from .checks import design_warnings
 

@@ -13,9 +13,9 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from ..display import fmt_number, fmt_quantity, quantity_unit, reference_name
-from ..objectives import _WS_SETTINGS, workspace_of
-from ..objectives import get as get_measure
+from ..measures.display import fmt_number, fmt_quantity, quantity_unit, reference_name
+from ..measures.objectives import _WS_SETTINGS, workspace_of
+from ..measures.objectives import get as get_measure
 from ..study.rundir import design_key, design_mechanism, measure_settings
 
 __all__ = ["design_roles", "design_warnings", "bound_warnings", "face_warnings", "BOUND_TOL", "FACE_TOL", "FACE_SHARE"]

@@ -9,9 +9,9 @@ import io
 import numpy as np
 import pandas as pd
 
-from ..display import UNITS, Unit, fmt_value, reference_name, reference_short
-from ..objectives import USABLE_MEASURES, usable_workspace_of, workspace_of
-from ..pareto import default_reference_point, hypervolume, to_min
+from ..measures.display import UNITS, Unit, fmt_value, reference_name, reference_short
+from ..measures.objectives import USABLE_MEASURES, usable_workspace_of, workspace_of
+from ..common.pareto import default_reference_point, hypervolume, to_min
 from ..study.rundir import Run, design_mechanism, measure_settings
 
 #: Lengths in the sketches: the display unit of lengths (the tables' unit).

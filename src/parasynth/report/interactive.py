@@ -30,8 +30,8 @@ import pandas as pd
 from markupsafe import Markup
 from plotly.offline import get_plotlyjs_version
 
-from ..display import UNITS, fmt_number, fmt_quantity, reference_name, reference_short
-from ..objectives import TRAJECTORIES, workspace_of
+from ..measures.display import UNITS, fmt_number, fmt_quantity, reference_name, reference_short
+from ..measures.objectives import TRAJECTORIES, workspace_of
 from ..study.rundir import Run, design_key, design_mechanism
 from .analysis import Analysis
 from .tables import is_number_col, unit

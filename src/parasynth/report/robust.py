@@ -1,4 +1,4 @@
-"""The report of a study with robust measures (``robust:`` blocks, parasynth.robustness): nominal
+"""The report of a study with robust measures (``robust:`` blocks, parasynth.measures.robustness): nominal
 and robust values side by side for the chosen designs, the loss from nominal to robust, the
 standard error of every robust value that has one, and for each robust objective the nominal
 optimum against the robust optimum.
@@ -23,7 +23,7 @@ import math
 import numpy as np
 import pandas as pd
 
-from ..display import fmt_mean_se, fmt_number, fmt_quantity
+from ..measures.display import fmt_mean_se, fmt_number, fmt_quantity
 from ..study.rundir import Run, design_key
 from .analysis import Analysis
 from .tables import unit

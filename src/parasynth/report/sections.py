@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from ..display import fmt_mean_se, fmt_number, fmt_quantity, reference_name
+from ..measures.display import fmt_mean_se, fmt_number, fmt_quantity, reference_name
 from ..study.rundir import Run, design_key
 from .analysis import Analysis, FinalAnalysis
 from .tables import display_table, final_display_table

@@ -9,7 +9,7 @@ structure.
 * :func:`structure_verdict` -- whether the reference structure is on the combined front, on
   the re-evaluated designs of ``final.csv`` (each structure's best design, the reference
   structure's front, the combined front's spread) beyond noise
-  (:func:`parasynth.pareto.compare_with_noise`), else on single samples (said so);
+  (:func:`parasynth.common.pareto.compare_with_noise`), else on single samples (said so);
 * :func:`structure_sections` -- the sections for :mod:`parasynth.report.render`;
 * :func:`plot_structures` -- the combined front, every point labelled (coloured) by its
   structure, the reference structure's best design (the knee of its own front) marked.
@@ -23,8 +23,8 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from ..display import fmt_mean_se, fmt_number, fmt_quantity, fmt_value
-from ..pareto import compare_with_noise
+from ..measures.display import fmt_mean_se, fmt_number, fmt_quantity, fmt_value
+from ..common.pareto import compare_with_noise
 from ..study.rundir import Run, knee_of, pareto_front
 from .analysis import Analysis
 from .figures import _grid, _label, _tidy

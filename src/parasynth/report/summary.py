@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from ..display import fmt_mean_se, fmt_quantity, quantity_unit, reference_name, text_table
+from ..measures.display import fmt_mean_se, fmt_quantity, quantity_unit, reference_name, text_table
 from ..study.rundir import Run, best_designs, design_key, read_final
 from .checks import design_roles
 from .analysis import analyse

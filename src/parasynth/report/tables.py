@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pandas as pd
 
-from ..display import Unit, fmt_mean_se, fmt_number, fmt_value, quantity_unit, reference_short
+from ..measures.display import Unit, fmt_mean_se, fmt_number, fmt_value, quantity_unit, reference_short
 from .analysis import FinalAnalysis
 from .checks import design_roles
 

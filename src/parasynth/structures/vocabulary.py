@@ -1,21 +1,21 @@
 """The vocabulary of structural synthesis: limb types, their arrangements, the shared
 parametrisation and the motion templates that give a structure its task coordinates.
 
-A :class:`LimbType` says which leg model of :mod:`parasynth.legs` a limb is, which joint is
+A :class:`LimbType` says which leg model of :mod:`parasynth.model.legs` a limb is, which joint is
 actuated, whether it may be a passive constraining limb, how many constraint wrenches it
 imposes, where it may be placed (its *arrangements*: anchor patterns and joint axes) and, for a
 constraining limb, which motion template a placement yields. :data:`LIMB_TYPES` is the registry:
 :func:`register_limb` adds a type, and every enumeration after that uses it
 (docs/structures.md).
 
-This module is data: it imports nothing of parasynth but :mod:`parasynth.legs`.
+This module is data: it imports nothing of parasynth but :mod:`parasynth.model.legs`.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from ..legs import LEG_TYPES
+from ..model.legs import LEG_TYPES
 
 __all__ = ["Arrangement", "LimbType", "Template", "LIMB_TYPES", "ARRANGEMENTS", "TEMPLATES", "PARAMETERS",
            "CHECKS", "register_limb", "limb_type", "parse_motion"]
@@ -122,7 +122,7 @@ TEMPLATES = {
 class LimbType:
     """A limb of the vocabulary.
 
-    ``name``: the leg type of :mod:`parasynth.legs` (its joints, base to platform);
+    ``name``: the leg type of :mod:`parasynth.model.legs` (its joints, base to platform);
     ``actuated_joint``: the joint letter an actuated limb drives (None: never actuated);
     ``passive``: may be a passive constraining limb; ``constraints``: constraint wrenches it
     imposes at a generic pose (0: a six-freedom chain); ``arrangements``: the ring arrangements
@@ -178,9 +178,9 @@ LIMB_TYPES: dict[str, LimbType] = {}
 
 def register_limb(limb: LimbType) -> LimbType:
     """Add (or replace) a limb type of the vocabulary. Its name must be a leg type of
-    :data:`parasynth.legs.LEG_TYPES`, its arrangements and templates known."""
+    :data:`parasynth.model.legs.LEG_TYPES`, its arrangements and templates known."""
     if limb.name not in LEG_TYPES:
-        raise ValueError(f"limb type {limb.name!r}: not a leg type of parasynth.legs; leg types: "
+        raise ValueError(f"limb type {limb.name!r}: not a leg type of parasynth.model.legs; leg types: "
                          f"{', '.join(sorted(LEG_TYPES))}")
     if limb.actuated_joint is not None and limb.actuated_joint not in limb.name:
         raise ValueError(f"limb type {limb.name!r}: actuated_joint {limb.actuated_joint!r} is not one of its "

@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import pandas as pd
 
-from ..display import quantity_known, quantity_unit
-from ..units import DISPLAY_TO_SI
+from ..measures.display import quantity_known, quantity_unit
+from ..common.units import DISPLAY_TO_SI
 
 __all__ = ["si_suffix", "csv_column", "csv_columns", "to_csv_columns", "from_csv_columns", "read_run_csv"]
 

@@ -6,11 +6,11 @@
   the same design);
 * :func:`box_centre` -- the centre of the variable box (log scale and integers respected);
 * :func:`evaluation_sample` -- the workspace sample of a design, one
-  :class:`~parasynth.workspace.WorkspaceSample` built from the study's evaluation section;
+  :class:`~parasynth.measures.workspace.WorkspaceSample` built from the study's evaluation section;
 * :func:`measure_arguments` -- the keyword arguments of a measure for a design: that sample
   (with the fields the measure's settings override) where the measure takes one, and the
   measure's own settings. Nothing is merged by name: each setting's declaration
-  (:class:`~parasynth.measure_spec.Setting`) says whether it sets a field of the sample
+  (:class:`~parasynth.measures.measure_spec.Setting`) says whether it sets a field of the sample
   (``sample_field``) or defaults to an evaluation key (``evaluation_key``);
 * :func:`measure_settings` -- the same as the older flat call form (``measure(mech, **flat)``);
 * :func:`design_mechanism` -- the mechanism of a design: the model with the design's
@@ -25,10 +25,10 @@ from __future__ import annotations
 
 import dataclasses
 
-from ..constraints import SingularityMarginFloor
+from ..model.constraints import SingularityMarginFloor
 from ..mechanisms import load_mechanism
-from ..objectives import get as get_measure
-from ..workspace import WorkspaceSample
+from ..measures.objectives import get as get_measure
+from ..measures.workspace import WorkspaceSample
 from .space import BOX_CENTRE_U, DesignSpace, centre_value
 from .space import design_key as key_of
 
@@ -101,7 +101,7 @@ def measure_settings(study, measure_name: str, own: dict, n: int | None = None, 
 
 def with_pose_constraints(study, mech):
     """``mech`` with the pose constraints the study adds in ``evaluation.constraints`` (a
-    :class:`~parasynth.constraints.SingularityMarginFloor` per ``{type: singularity_margin,
+    :class:`~parasynth.model.constraints.SingularityMarginFloor` per ``{type: singularity_margin,
     min: ...}``); ``mech`` itself when it adds none."""
     added = study.evaluation.get("added_constraints") or ()
     if not added:

@@ -16,7 +16,7 @@ import time
 import traceback
 from dataclasses import dataclass, field
 
-from ..objectives import get as get_measure
+from ..measures.objectives import get as get_measure
 from .design import design_mechanism, evaluation_sample, measure_arguments, measure_settings
 from .spec import ResolvedStudy
 
@@ -39,7 +39,7 @@ class Record:
     trial: int = -1
     source: str = "run"
     #: {label: {"nominal", "stderr", "statistic", "level", "samples", "probability"}} of each robust
-    #: objective or constraint (parasynth.robustness): the nominal value beside the robust one
+    #: objective or constraint (parasynth.measures.robustness): the nominal value beside the robust one
     robust: dict = field(default_factory=dict)
 
     @property

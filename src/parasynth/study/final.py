@@ -5,10 +5,10 @@
 * :func:`pareto_front` -- the non-dominated feasible designs, duplicates merged; the report
   and the re-evaluation use this one definition;
 * :func:`knee_of` -- the recommended design: the knee of that front
-  (:func:`parasynth.pareto.knee_index`);
+  (:func:`parasynth.common.pareto.knee_index`);
 * :func:`best_designs` -- the feasible designs a run recommends: for one objective the best
   ``k``; for several, ``k`` designs spread along the front by crowding distance
-  (:func:`parasynth.pareto.spread_by_crowding`);
+  (:func:`parasynth.common.pareto.spread_by_crowding`);
 * :func:`screening_dominators` -- the feasible designs that dominate the paper's reference
   design on the single-sample values, the ones by the largest normalised margin first;
 * :func:`reevaluate_best` -- those designs, the knee (always), up to
@@ -26,14 +26,14 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..pareto import crowding_distance, dominators_of, knee_index, pareto_mask, spread_by_crowding, to_min
+from ..common.pareto import crowding_distance, dominators_of, knee_index, pareto_mask, spread_by_crowding, to_min
 from .columns import to_csv_columns
 from .design import design_key
 from .evaluate import Evaluator
 from .spec import ResolvedStudy
 
 __all__ = ["best_designs", "reevaluate_best", "structure_candidates", "screening_dominators", "final_candidates", "n_screen_dominators", "merge_duplicates", "pareto_front", "knee_of", "crowding_distance",
-           "spread_by_crowding", "design_key"]  # crowding_distance, spread_by_crowding (parasynth.pareto) and
+           "spread_by_crowding", "design_key"]  # crowding_distance, spread_by_crowding (parasynth.common.pareto) and
 # design_key (study.design) are re-exported here for existing imports.
 
 

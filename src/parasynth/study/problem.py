@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
-from ..display import fmt_column_value
+from ..measures.display import fmt_column_value
 from .defaults import nlopt_budget, optimizer_seed, optuna_budget, planned_designs
 from .evaluate import Evaluator, Record
 from .signals import Interrupt

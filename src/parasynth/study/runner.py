@@ -50,7 +50,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from ..display import reference_name
+from ..measures.display import reference_name
 from ..engine import warm_up
 from . import storage as st
 from .budget import budget_for_run, same_study

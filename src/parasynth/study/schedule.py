@@ -35,7 +35,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..pareto import hypervolume, to_min
+from ..common.pareto import hypervolume, to_min
 from .defaults import optuna_budget
 from .structure_space import STRUCTURE
 

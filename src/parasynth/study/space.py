@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..units import QuantityError, parse_quantity
+from ..common.units import QuantityError, parse_quantity
 from .errors import StudyError
 
 __all__ = ["Variable", "DesignSpace", "BOX_CENTRE_U", "centre_value", "design_key", "quantity"]

@@ -35,13 +35,13 @@ from typing import Annotated, Any, Literal
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, Strict, ValidationError
 
-from ..geometry_checks import degenerate_geometry
+from ..model.geometry_checks import degenerate_geometry
 from ..mechanisms import load_mechanism, mechanism_class, resolve_mechanism_name
-from ..measure_spec import SettingError
-from ..objectives import OBJECTIVES, get as get_measure
-from ..robustness import RobustError, check_robust_spec, resolve_tolerances, robust
-from ..validation import MAX_SAMPLES, MAX_SEED, MAX_TRIALS, is_real_number, numpy_reference
-from ..yamlio import YamlError, load_yaml
+from ..measures.measure_spec import SettingError
+from ..measures.objectives import OBJECTIVES, get as get_measure
+from ..measures.robustness import RobustError, check_robust_spec, resolve_tolerances, robust
+from ..common.validation import MAX_SAMPLES, MAX_SEED, MAX_TRIALS, is_real_number, numpy_reference
+from ..common.yamlio import YamlError, load_yaml
 from .design import design_params, evaluation_sample, measure_arguments, with_pose_constraints
 from .errors import StudyError
 from .space import DesignSpace, Variable, quantity
@@ -68,7 +68,7 @@ RESERVED_COLUMNS = ("trial", "source", "feasible", "status", "error", "seed", "s
 DERIVED_SUFFIXES = ("_margin", "_stderr", "_nominal", "_robust_se")
 
 # The settings of each measure (kinds, ranges, choices) are declared with the measure
-# (parasynth.objectives, parasynth.measure_spec) and checked by its own validator.
+# (parasynth.objectives, parasynth.measures.measure_spec) and checked by its own validator.
 #: Most designs a sweep may list (the product of the variables' value counts).
 MAX_DESIGNS = MAX_TRIALS
 
@@ -298,7 +298,7 @@ class Objective:
     label: str  # column name
     goal: str
     settings: dict
-    robust: object = None  # a parasynth.robustness.RobustMeasure (the robust block), or None
+    robust: object = None  # a parasynth.measures.robustness.RobustMeasure (the robust block), or None
 
 
 @dataclass(frozen=True)
@@ -308,7 +308,7 @@ class DesignConstraint:
     min: float | None
     max: float | None
     settings: dict
-    robust: object = None  # a parasynth.robustness.RobustMeasure (the robust block), or None
+    robust: object = None  # a parasynth.measures.robustness.RobustMeasure (the robust block), or None
     probability: float | None = None  # a chance constraint: the least fraction of draws within the bound
 
     @property
@@ -368,7 +368,7 @@ class ResolvedStudy:
 
 
 def _resolve_robust(spec, measure: str, mech_cls, path: str, constraint: bool):
-    """The :class:`~parasynth.robustness.RobustMeasure` of a ``robust:`` block (None without
+    """The :class:`~parasynth.measures.robustness.RobustMeasure` of a ``robust:`` block (None without
     one); :class:`StudyError` naming ``<path>.<field>``."""
     if spec is None:
         return None

@@ -2,7 +2,7 @@
 
 Interrupts are handled by :class:`~parasynth.study.signals.Interrupt` (also importable from
 here). The command ``parasynth worker`` that runs this loop in a process of its own is
-:func:`parasynth.cli_study.cmd_worker`.
+:func:`parasynth.cli.study_cmd.cmd_worker`.
 
 Reproducible proposals
 ----------------------

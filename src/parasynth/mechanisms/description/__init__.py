@@ -1,9 +1,9 @@
 """Mechanisms described in YAML, or in the equivalent Python dict.
 
 A description gives a mechanism's design parameters (with units), its base and platform
-anchor points (explicit or by patterns), its legs (types from :mod:`parasynth.legs`, joint
+anchor points (explicit or by patterns), its legs (types from :mod:`parasynth.model.legs`, joint
 axes, actuated joint), its task coordinates and how they map to the platform pose, and its
-pose constraints. :func:`description_class` turns it into a :class:`~parasynth.mechanism.Mechanism`
+pose constraints. :func:`description_class` turns it into a :class:`~parasynth.model.mechanism.Mechanism`
 subclass whose ``Params`` is a frozen dataclass with ``UNITS``, so that
 ``load_mechanism("my_mech.yaml", radius=0.2)`` and YAML studies treat it like a built-in
 model. The format is documented in ``docs/mechanisms.md``; a short example::

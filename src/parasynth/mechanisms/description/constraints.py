@@ -1,5 +1,5 @@
 """The ``constraints:`` section: each entry becomes a constraint of
-:mod:`parasynth.constraints`, or an :class:`ExpressionConstraint` for ``type: expression``.
+:mod:`parasynth.model.constraints`, or an :class:`ExpressionConstraint` for ``type: expression``.
 """
 
 from __future__ import annotations
@@ -10,9 +10,9 @@ from typing import Callable
 
 import numpy as np
 
-from ...constraints import (ActuatorRange, Constraint, CoordinateRange, JointAngleLimit, LegAxisAngle, LegInterference,
-                            LegLengthRange, SingularityMarginFloor)
-from ...mechanism import Mechanism
+from ...model.constraints import (ActuatorRange, Constraint, CoordinateRange, JointAngleLimit, LegAxisAngle,
+                                  LegInterference, LegLengthRange, SingularityMarginFloor)
+from ...model.mechanism import Mechanism
 from .errors import DescriptionError
 from .expressions import Expression, POSE_NAMES, R_NAMES, _Scope
 from .parameters import _Scalar, _check_keys

@@ -17,11 +17,11 @@ from typing import Callable
 
 import numpy as np
 
-from ...spatial import R_NAMES
-from ...units import LITERAL_UNITS
+from ...model.spatial import R_NAMES
+from ...common.units import LITERAL_UNITS
 from .errors import DescriptionError
 
-#: Units recognised inside expressions (:data:`parasynth.units.LITERAL_UNITS`) and their factor to
+#: Units recognised inside expressions (:data:`parasynth.common.units.LITERAL_UNITS`) and their factor to
 #: SI; each ``<number> <unit>`` is replaced by its SI value.
 UNIT_FACTORS = {unit: factor for unit, (_kind, factor) in LITERAL_UNITS.items()}
 _NUMBER = r"(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"

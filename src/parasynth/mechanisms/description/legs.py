@@ -1,4 +1,4 @@
-"""The ``legs:`` section: leg types of :mod:`parasynth.legs`, their options (joint axes,
+"""The ``legs:`` section: leg types of :mod:`parasynth.model.legs`, their options (joint axes,
 link lengths, branches), anchor references and the actuated joint.
 """
 
@@ -8,7 +8,7 @@ import re
 
 import numpy as np
 
-from ...legs import LEG_TYPES
+from ...model.legs import LEG_TYPES
 from .errors import DescriptionError
 from .parameters import _Scalar, _check_keys
 from .anchors import _Anchors, _PLANES, _directions

@@ -6,7 +6,7 @@ import dataclasses
 import re
 from pathlib import Path
 
-from ...yamlio import YamlError, load_yaml
+from ...common.yamlio import YamlError, load_yaml
 from .errors import DescriptionError
 from .schema import Description, _make_params_class
 from .mechanism import DescribedMechanism
@@ -108,7 +108,7 @@ def description_class(data: dict, source: str | None = None) -> type:
 def load_description(path) -> type:
     """Read a YAML description file and return its mechanism class (see :func:`description_class`).
 
-    The file is read with the project's safe YAML reader (:mod:`parasynth.yamlio`): duplicate
+    The file is read with the project's safe YAML reader (:mod:`parasynth.common.yamlio`): duplicate
     keys, alias bombs, excessive nesting, binary and non-UTF-8 files are refused with a
     one-line :class:`DescriptionError` naming the file."""
     p = Path(path)

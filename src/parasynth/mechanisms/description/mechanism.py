@@ -1,4 +1,4 @@
-""":class:`DescribedMechanism`: the :class:`~parasynth.mechanism.Mechanism` of a description
+""":class:`DescribedMechanism`: the :class:`~parasynth.model.mechanism.Mechanism` of a description
 (pose and twist map from the task expressions, construction checks, mobility with
 consistency checks). Its feasibility, constraint margins, singularity margin and constraint
 rank run on the compiled engine (:mod:`parasynth.engine`) by default: the NumPy model
@@ -14,10 +14,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from ... import engine as _engine
-from ...legs import solve_geometry
-from ...mechanism import Mechanism, Mobility
-from ...spatial import euler_rate_map, euler_to_matrix, reciprocal_basis, rot_axis, skew
-from ...units import UNIT_KINDS
+from ...model.legs import solve_geometry
+from ...model.mechanism import Mechanism, Mobility
+from ...model.spatial import euler_rate_map, euler_to_matrix, reciprocal_basis, rot_axis, skew
+from ...common.units import UNIT_KINDS
 from .errors import DescriptionError, DescriptionWarning
 from .expressions import R_NAMES, _Dual, _grad, _val
 from .parameters import _param_env
@@ -25,7 +25,7 @@ from .schema import Description
 
 @dataclass(frozen=True)
 class DescribedMobility(Mobility):
-    """:class:`~parasynth.mechanism.Mobility` of a described mechanism with the findings of
+    """:class:`~parasynth.model.mechanism.Mobility` of a described mechanism with the findings of
     its consistency checks: ``issues`` (messages, each also issued as a
     :class:`DescriptionWarning`), ``under_actuated`` (the actuators do not control every
     freedom) and ``consistent`` (the task parametrisation agrees with what the legs allow)."""

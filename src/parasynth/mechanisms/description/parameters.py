@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from ...units import DISPLAY_UNITS, UNIT_KINDS, QuantityError, parse_quantity
+from ...common.units import DISPLAY_UNITS, UNIT_KINDS, QuantityError, parse_quantity
 from .errors import DescriptionError
 from .expressions import Expression, RESERVED, _PURE_QUANTITY, _Scope
 

@@ -21,7 +21,7 @@ entries but each key only once per leg.
 
 Precedence, per value: an explicit setting of the measure / keyword of ``stiffness_matrix`` >
 the value declared here > the geometric estimate (steel rod of the leg diameter, see
-:mod:`parasynth.stiffness`). Values are evaluated for each parameter set when the mechanism is
+:mod:`parasynth.measures.stiffness`). Values are evaluated for each parameter set when the mechanism is
 built; zero, negative or non-finite values are refused naming the key path.
 """
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...spatial import EULER_CONVENTIONS
+from ...model.spatial import EULER_CONVENTIONS
 from .errors import DescriptionError
 from .expressions import Expression, R_NAMES, _Scope
 from .parameters import _Scalar, _UNITFUL, _bare_number_error, _check_identifier, _check_keys

@@ -2,7 +2,7 @@
 
 Every function takes the mechanism first and poses ``X`` of shape (N, n_task) (or one pose of
 shape (n_task,)), SI units. Twists are ``(v_P, omega)`` and wrenches ``(f, m_P)`` about the
-platform reference point ``P`` in the base frame (see :mod:`parasynth.spatial`); the power
+platform reference point ``P`` in the base frame (see :mod:`parasynth.model.spatial`); the power
 of a wrench on a twist is ``w @ t``. Poses the legs cannot reach give NaN in per-pose
 results and are counted (never averaged) in summaries.
 
@@ -40,7 +40,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import engine as _engine
+from .. import engine as _engine
 
 
 __all__ = [

@@ -7,7 +7,7 @@ number is an error, not a guess. Parsing and dimension checks are delegated to p
 :data:`UNIT_KINDS` is the only table of units: for each kind of quantity its SI unit (pint
 spelling), pint dimensionality, display unit and display factor (display value = SI value *
 factor). Everything else is derived from it here or in the modules that use it: the display
-units of reports and summaries (:mod:`parasynth.display`), the SI unit strings measures
+units of reports and summaries (:mod:`parasynth.measures.display`), the SI unit strings measures
 declare (:data:`SI_UNIT_KINDS`), the unit literals of description expressions
 (:data:`LITERAL_UNITS`) and the SI suffixes of CSV column names (:data:`DISPLAY_TO_SI`).
 """

@@ -61,7 +61,7 @@ import math
 
 import numpy as np
 
-from .units import parse_quantity
+from ..common.units import parse_quantity
 
 __all__ = [
     "STEEL_E",

@@ -10,7 +10,7 @@ the allowed range or choices, the default, and where the setting goes::
     Setting("int", low=1, high=MAX_SAMPLES, sample_field="n")  # overrides the workspace sample's n
 
 A setting with ``sample_field`` is not passed to the measure's function: in a study it replaces
-that field of the measure's :class:`~parasynth.workspace.WorkspaceSample` (``samples: 1024``
+that field of the measure's :class:`~parasynth.measures.workspace.WorkspaceSample` (``samples: 1024``
 for one measure, or an accuracy measure's ``sampling``, its sampling method, beside its own
 ``method``, the error model). A setting with ``evaluation_key`` takes the study's
 ``evaluation.<key>`` when the measure's settings leave it out (the pose ``constraints`` and the
@@ -30,15 +30,15 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, Callable, Mapping
 
-from .units import UNIT_KINDS, QuantityError, parse_quantity
-from .validation import check_count, check_number
+from ..common.units import UNIT_KINDS, QuantityError, parse_quantity
+from ..common.validation import check_count, check_number
 
 __all__ = ["Setting", "SettingError", "check_settings", "KINDS", "as_setting"]
 
 #: Kinds of settings that are not quantities: Python types, and the model-dependent kinds a
 #: study resolves against the mechanism (a task box, pose coordinates, pose constraint names).
 TYPE_KINDS = ("int", "float", "str", "bool", "list", "dict", "ranges", "pose", "pose_constraints")
-#: Every kind a setting may have: the type kinds and the quantity kinds of :mod:`parasynth.units`.
+#: Every kind a setting may have: the type kinds and the quantity kinds of :mod:`parasynth.common.units`.
 KINDS = TYPE_KINDS + tuple(k for k in UNIT_KINDS if k != "dimensionless")
 #: Kinds of the older ``{name: kind}`` declarations and the kind they stand for.
 _LEGACY_KINDS = {"choice": "str", "dimensionless": "float"}
@@ -55,7 +55,7 @@ class Setting:
     ``kind``: one of :data:`KINDS`; ``default``: the value the measure uses when the setting is
     left out (documentation: the function's own default applies); ``low``/``high``: allowed
     closed range of a number (each element of a quantity list); ``choices``: allowed values of a
-    string; ``sample_field``: the :class:`~parasynth.workspace.WorkspaceSample` field the setting
+    string; ``sample_field``: the :class:`~parasynth.measures.workspace.WorkspaceSample` field the setting
     overrides (then not passed to the function); ``evaluation_key``: the study's evaluation key
     that gives the value when the setting is left out; ``doc``: one line."""
 

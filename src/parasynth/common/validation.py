@@ -144,7 +144,7 @@ def check_number(field: str, value, kind: str | None = None, lo: float | None = 
         >>> check_number("link_length", True, "length", 0, lo_open=True)
         Traceback (most recent call last):
         ...
-        parasynth.validation.InputError: link_length must be a length in m > 0, got a boolean (True)
+        parasynth.common.validation.InputError: link_length must be a length in m > 0, got a boolean (True)
     """
     if unit is None:
         unit = si_unit(kind)

@@ -12,9 +12,9 @@ that need to know ask :func:`kernel_available`.
 
 from __future__ import annotations
 
-from . import engine as _engine
-from .engine import HAVE_NUMBA
-from .engine.core import BLOCK, SUB, KernelPlan, build_plan
+from .. import engine as _engine
+from . import HAVE_NUMBA
+from .core import BLOCK, SUB, KernelPlan, build_plan
 
 __all__ = ["HAVE_NUMBA", "feasible_fast", "margins_fast", "kernel_available", "KernelPlan", "build_plan", "BLOCK",
            "SUB"]

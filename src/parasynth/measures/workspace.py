@@ -34,7 +34,7 @@ Sampling methods
 ``n`` points. The balance properties of the sequence hold exactly when ``n`` is a power of
 two (``random_base2`` is used then, or successive blocks of the same points when ``n``
 exceeds ``chunk_size``); other ``n`` take the first ``n`` points of the sequence. Point sets
-of up to 16 MiB are kept on disk once drawn (:mod:`parasynth.qmc`), so later processes read
+of up to 16 MiB are kept on disk once drawn (:mod:`parasynth.common.qmc`), so later processes read
 the same numbers back without importing ``scipy.stats``.
 
 ``"random"``: ``numpy.random.default_rng(seed).random((n, d))`` mapped affinely to the box
@@ -83,16 +83,16 @@ from typing import Any, Callable, ClassVar
 
 import numpy as np
 
-from .engine import check_engine, pose_batch
-from .qmc import sobol_engine, sobol_points
-from .units import UNIT_KINDS
-from .validation import MAX_SAMPLES, check_count, check_mechanism, check_names
+from ..engine import check_engine, pose_batch
+from ..common.qmc import sobol_engine, sobol_points
+from ..common.units import UNIT_KINDS
+from ..common.validation import MAX_SAMPLES, check_count, check_mechanism, check_names
 
 _LENGTH, _ANGLE = UNIT_KINDS["length"], UNIT_KINDS["angle"]  # display units of sizes and extents
 
 #: Largest ``n`` of :func:`workspace`. Samples stream chunk by chunk, so the limit is time, not
 #: memory (2**34 samples is about half an hour at 1e7 poses/s); the measures and studies keep
-#: the smaller per-evaluation limit ``parasynth.validation.MAX_SAMPLES``.
+#: the smaller per-evaluation limit ``parasynth.common.validation.MAX_SAMPLES``.
 MAX_WORKSPACE_SAMPLES = 2**34
 
 __all__ = ["workspace", "WorkspaceResult", "WorkspaceSample", "Section", "Box", "METHODS"]
@@ -334,7 +334,7 @@ class WorkspaceResult:
 
     Attributes
     ----------
-    mechanism: the :class:`~parasynth.mechanism.Mechanism` sampled.
+    mechanism: the :class:`~parasynth.model.mechanism.Mechanism` sampled.
     method, seed: sampling method and the seed used (fresh entropy when ``seed=None`` was
         given, so the run can be repeated with it).
     coordinates: the sampled task coordinates, in task-coordinate order.
@@ -643,7 +643,7 @@ def _pairs(name: str, value, width: int | None):
 class WorkspaceSample:
     """How a workspace is sampled, as one value: the task box ``ranges`` ({coordinate: (lo,
     hi)}, SI; None: the model's ``default_ranges()``), ``n`` samples (at most
-    :data:`parasynth.validation.MAX_SAMPLES`), the sampling ``method`` (:data:`METHODS`), the
+    :data:`parasynth.common.validation.MAX_SAMPLES`), the sampling ``method`` (:data:`METHODS`), the
     ``seed`` and the ``fixed`` coordinates ({coordinate: value}, SI; None: the home pose's).
 
     The workspace-based measures of :mod:`parasynth.objectives` take it whole,
@@ -695,7 +695,7 @@ def workspace(mech, ranges=None, n: int = 2**16, method: str = "sobol", seed: in
 
     Parameters
     ----------
-    mech: a :class:`~parasynth.mechanism.Mechanism`.
+    mech: a :class:`~parasynth.model.mechanism.Mechanism`.
     ranges: {task coordinate: (lo, hi)} (SI: m, rad), lo < hi, the sampled box; default
         ``mech.default_ranges()``. Coordinates are sampled in ``mech.task_coordinates``
         order whatever the dict order.
@@ -878,7 +878,7 @@ def _check_count(v, arg, hi=None) -> int:
         raise ValueError(f"{arg} must be a positive integer, got {v!r}")
     if hi is not None and v > hi:  # refused up front: a larger sample would not finish
         raise ValueError(f"{arg} must be at most {hi} (the documented maximum, "
-                         f"parasynth.workspace.MAX_WORKSPACE_SAMPLES), got {v!r}")
+                         f"parasynth.measures.workspace.MAX_WORKSPACE_SAMPLES), got {v!r}")
     return int(v)
 
 

@@ -66,8 +66,8 @@ from typing import Any
 
 import numpy as np
 
-from .engine import effective_engine
-from .validation import MAX_SAMPLES, check_count, check_engine, check_mechanism, check_names, check_number
+from ..engine import effective_engine
+from ..common.validation import MAX_SAMPLES, check_count, check_engine, check_mechanism, check_names, check_number
 from .workspace import (Box, WorkspaceSample, _check_constraints, _check_ranges, _fixed_pose, _grid_shape,
                         _GridBoundary, _raster_shape, _units_string, box_in, freeze)
 

@@ -2,7 +2,7 @@
 
 Inside the library every value is SI (m, rad, N, m^3, ...). Tables, figure axes and console
 summaries show each quantity in the unit a designer reads: the display unit of its kind in the
-units table :data:`parasynth.units.UNIT_KINDS` (length in mm, angle in deg, area in cm^2, volume
+units table :data:`parasynth.common.units.UNIT_KINDS` (length in mm, angle in deg, area in cm^2, volume
 in cm^3, pressure in GPa, force, stiffness, torque, mass and time in SI).
 
 A quantity's kind comes from the measure registry (``Measure.kind`` or ``Measure.unit``) for
@@ -22,9 +22,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .mechanisms import load_mechanism
+from ..mechanisms import load_mechanism
 from .objectives import OBJECTIVES
-from .units import SI_UNIT_KINDS, UNIT_KINDS
+from ..common.units import SI_UNIT_KINDS, UNIT_KINDS
 
 __all__ = ["Unit", "UNITS", "unit_for_kind", "unit_for_si", "quantity_unit", "fmt_number", "fmt_quantity",
            "fmt_mean_se", "fmt_value", "column_header", "text_table", "fmt_column_value", "fmt_design",
@@ -48,7 +48,7 @@ class Unit:
 
 NONE = Unit("", 1.0)
 
-#: Display unit of each quantity kind (from the one units table, :data:`parasynth.units.UNIT_KINDS`).
+#: Display unit of each quantity kind (from the one units table, :data:`parasynth.common.units.UNIT_KINDS`).
 UNITS = {k: Unit(u.display, u.factor) if u.display else NONE for k, u in UNIT_KINDS.items()}
 
 _POWER = {1: "", 2: "^2", 3: "^3"}

@@ -31,11 +31,11 @@ from pathlib import Path
 
 import numpy as np
 
-from . import __version__
-from .mechanisms import list_mechanisms, load_mechanism, mechanism_summaries
+from .. import __version__
+from ..mechanisms import list_mechanisms, load_mechanism, mechanism_summaries
 from .plugins import load_plugins  # noqa: F401  (also parasynth.cli.load_plugins)
-from .units import SI_UNIT_KINDS, UNIT_KINDS
-from .validation import MAX_SAMPLES, MAX_SEED, MAX_TRIALS
+from ..common.units import SI_UNIT_KINDS, UNIT_KINDS
+from ..common.validation import MAX_SAMPLES, MAX_SEED, MAX_TRIALS
 
 EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_INTERRUPTED, EXIT_PIPE = 0, 1, 2, 130, 141
 
@@ -99,8 +99,8 @@ def _out_dir(path, flag: str) -> Path:
 # -- helpers -------------------------------------------------------------------------------------
 def _parse_params(name: str, items: list[str], flag: str = "--param") -> dict:
     """--param (or ``flag``) NAME=VALUE items with units where the parameter has one ("link_length=205 mm")."""
-    from .mechanisms import mechanism_class
-    from .units import parse_quantity
+    from ..mechanisms import mechanism_class
+    from ..common.units import parse_quantity
 
     try:
         units = getattr(mechanism_class(name).Params, "UNITS", {})
@@ -136,7 +136,7 @@ def _fmt_pose(mech, X) -> str:
 
 def _fmt_value(v, kind) -> str:
     """A parameter or variable value (SI) in display units: '205 mm', '25 deg', '0.8'."""
-    from .units import format_quantity
+    from ..common.units import format_quantity
 
     if isinstance(v, bool) or isinstance(v, str):
         return str(v).lower() if isinstance(v, bool) else v
@@ -161,7 +161,7 @@ def _fmt_robust(item) -> str:
 
 def _fmt_settings(measure: str, settings: dict | None) -> str:
     """A measure's settings (SI inside) in display units: 'mass=20 kg, point=[0 mm, 75 mm, 0 mm]'."""
-    from .objectives import get
+    from ..measures.objectives import get
 
     kinds = get(measure).settings
     parts = []
@@ -203,16 +203,16 @@ def _param_range(spec, kind) -> str:
 
 
 def _load_study(path):
-    from .study import load_study
+    from ..study import load_study
 
     return load_study(path)
 
 
 def _checked_study(path):
     """The study of ``path``, refusing it when :func:`check_study` finds a problem."""
-    from .study.spec import check_study
+    from ..study.spec import check_study
 
-    from .study import StudyError
+    from ..study import StudyError
 
     try:
         study = _load_study(path)
@@ -227,9 +227,9 @@ def _checked_study(path):
 
 # -- commands ------------------------------------------------------------------------------------
 def cmd_list(args) -> int:
-    from .mechanisms import mechanism_class
-    from .objectives import OBJECTIVES
-    from .study import OPTIMIZERS
+    from ..mechanisms import mechanism_class
+    from ..measures.objectives import OBJECTIVES
+    from ..study import OPTIMIZERS
 
     print("mechanisms (parameters with their defaults; give values with units):")
     for name, summary in mechanism_summaries().items():
@@ -267,14 +267,14 @@ def cmd_list(args) -> int:
 
 
 def cmd_validate(args) -> int:
-    from .study.spec import check_study
+    from ..study.spec import check_study
 
     study = _load_study(args.study)
     stats: dict = {}
     problems = check_study(study, measures=not args.quick, stats=stats)
     if problems:
         raise CliError(f"{args.study}: {len(problems)} problem(s):\n  " + "\n  ".join(problems))
-    from .display import fmt_column_value as fq, fmt_evaluation
+    from ..measures.display import fmt_column_value as fq, fmt_evaluation
 
     on = (f"the {study.structures.motion} structures {', '.join(study.structures.labels)}" if study.structures
           else study.mechanism)
@@ -307,7 +307,7 @@ def _run_hint(args) -> str:
 
 
 def cmd_run(args) -> int:
-    from .study import run_study
+    from ..study import run_study
 
     study = _checked_study(args.study)
     if args.resume:
@@ -324,15 +324,15 @@ def cmd_run(args) -> int:
         _out_dir(args.report_dir, "--report-dir")
     res = run_study(study, out_dir=args.out, resume=args.resume, n_trials=args.n_trials, progress=not args.quiet,
                     storage=args.storage, workers=args.workers)
-    from .report.summary import run_summary
+    from ..report.summary import run_summary
 
     print(run_summary(study, res))
     if res.interrupted:
-        from .cli_study import interrupted_run
+        from .study_cmd import interrupted_run
 
         return interrupted_run(args, res)
     if not args.no_report:
-        from .report import ReportError, write_report
+        from ..report import ReportError, write_report
 
         try:
             rdir = write_report(res.out_dir, out=args.report_dir)
@@ -347,9 +347,9 @@ def cmd_run_all(args) -> int:
     write each report, plus an index reports/README.md."""
     import shutil
 
-    from .report import ReportError, write_report
-    from .report.summary import run_summary
-    from .study import StudyError, load_study, run_study
+    from ..report import ReportError, write_report
+    from ..report.summary import run_summary
+    from ..study import StudyError, load_study, run_study
 
     folder = Path(args.folder)
     if folder.exists() and not folder.is_dir():
@@ -402,10 +402,10 @@ def cmd_run_all(args) -> int:
 
 
 def cmd_report(args) -> int:
-    from .report import ReportError, write_report
+    from ..report import ReportError, write_report
 
     if args.storage or args.study:
-        from .cli_study import cmd_report_storage
+        from .study_cmd import cmd_report_storage
 
         if not args.storage or args.run_dir:
             raise CliError("report --storage URL --study NAME rebuilds a run from a storage (no RUN_DIR); "
@@ -436,15 +436,15 @@ def cmd_report(args) -> int:
 
 
 def cmd_worker(args) -> int:
-    """``parasynth worker`` (:func:`parasynth.cli_study.cmd_worker`)."""
-    from .cli_study import cmd_worker as worker
+    """``parasynth worker`` (:func:`parasynth.cli.study_cmd.cmd_worker`)."""
+    from .study_cmd import cmd_worker as worker
 
     return worker(args)
 
 
 def cmd_evaluate(args) -> int:
-    from .study import Evaluator
-    from .study.design import box_centre
+    from ..study import Evaluator
+    from ..study.design import box_centre
 
     study = _checked_study(args.study)
     byname = {v.name: v for v in study.variables}
@@ -474,7 +474,7 @@ def cmd_evaluate(args) -> int:
     if study.space.conditional:  # a conditional variable exists only for some choices
         values = study.space.restrict({**centre, **values})
     rec = Evaluator(study).evaluate(values, n=args.samples)
-    from .display import fmt_column_value as fq, fmt_design
+    from ..measures.display import fmt_column_value as fq, fmt_design
 
     print(f"design: {fmt_design(study, values)}")
     print(f"status: {rec.status} {rec.error}".rstrip())
@@ -512,7 +512,7 @@ def cmd_analyze(args) -> int:
         print(f"singularity margin over reachable poses (dimensionless): min {np.nanmin(m):.4g}, median "
               f"{np.nanmedian(m):.4g}, max {np.nanmax(m):.4g}")
         if mech.n_actuators >= mech.n_task:
-            from .mechanism import ForwardKinematicsError
+            from ..model.mechanism import ForwardKinematicsError
 
             q = ik.actuators[reach][:5]
             try:
@@ -525,7 +525,7 @@ def cmd_analyze(args) -> int:
                       + " (a large value means another assembly mode)")
             except ForwardKinematicsError as e:
                 findings.append(f"forward kinematics fails on the sampled poses: {e}")
-    from .geometry_checks import degenerate_geometry
+    from ..model.geometry_checks import degenerate_geometry
 
     findings += degenerate_geometry(mech)
     if findings:
@@ -538,7 +538,7 @@ def cmd_analyze(args) -> int:
 def _analyze_home(mech) -> list[str]:
     """Print the home pose's actuators, pose limits, Jacobian and singularity margin; return
     the findings (an unreachable or singular home, a pose limit violated at home)."""
-    from .geometry_checks import SINGULAR_MARGIN
+    from ..model.geometry_checks import SINGULAR_MARGIN
 
     findings = []
     print(f"\nhome pose: {_fmt_pose(mech, mech.home)}")
@@ -578,7 +578,7 @@ def _analyze_home(mech) -> list[str]:
 def cmd_schema(args) -> int:
     import json
 
-    from .study.spec import study_json_schema
+    from ..study.spec import study_json_schema
 
     text = json.dumps(study_json_schema(), indent=2) + "\n"
     if args.out is None or args.out == "-":
@@ -604,15 +604,15 @@ def _int_list(text: str) -> list[int]:
 
 
 def cmd_export(args) -> int:
-    """``parasynth export`` (:mod:`parasynth.cli_export`)."""
-    from .cli_export import export_command
+    """``parasynth export`` (:mod:`parasynth.cli.export_cmd`)."""
+    from .export_cmd import export_command
 
     params = None if Path(args.target).is_dir() else _parse_params(args.target, args.set, flag="--set")
     return export_command(args, params)
 
 
 def cmd_structures(args) -> int:
-    from . import structures as synthesis
+    from .. import structures as synthesis
 
     types = [t for t in args.types.replace(",", " ").split()] if args.types else None
     axes = {k: getattr(args, k) for k in ("translations", "rotations") if getattr(args, k)} or None
@@ -777,10 +777,10 @@ def _one_line(e: BaseException) -> str:
 
 def _describe_error(e: BaseException) -> tuple[str, int]:
     """(message, exit status) for an exception that reached :func:`main`."""
-    from .study import StudyError
-    from .units import QuantityError
-    from .validation import InputError
-    from .yamlio import YamlError
+    from ..study import StudyError
+    from ..common.units import QuantityError
+    from ..common.validation import InputError
+    from ..common.yamlio import YamlError
 
     if isinstance(e, CliError):
         return str(e), e.code
@@ -877,6 +877,3 @@ def main(argv: list[str] | None = None) -> int:
         _print_error(msg)
         return code
 
-
-if __name__ == "__main__":
-    raise SystemExit(main())

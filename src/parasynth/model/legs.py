@@ -14,7 +14,7 @@ knows
   that ``actuator_rate = (wrench @ twist) / rate_scale``;
 * ``constraint_wrenches(state, P)``: the wrenches reciprocal to all its joint twists.
 
-Angles are radians and lengths metres; see :mod:`parasynth.spatial` for the twist/wrench
+Angles are radians and lengths metres; see :mod:`parasynth.model.spatial` for the twist/wrench
 ordering.
 """
 
@@ -282,7 +282,7 @@ def _u_angles(a1: np.ndarray, ref: np.ndarray, n: np.ndarray, prefix: str) -> di
     about ``a1`` (of the projection of ``n``) from that projection, angle 2 the tilt of ``n``
     out of the plane normal to ``a1`` relative to the tilt of ``ref``. Both are zero when
     ``n == ref``."""
-    if np.ndim(a1) == 2:  # one axis per pose (scatter draws stacked, parasynth.robustness)
+    if np.ndim(a1) == 2:  # one axis per pose (scatter draws stacked, parasynth.measures.robustness)
         r0 = unit(ref - dot_rows(a1, ref)[:, None] * a1)
         b = np.cross(a1, r0)
         ang1 = np.arctan2(dot_rows(n, b), dot_rows(n, r0))

@@ -33,7 +33,7 @@ inertial load of every body -- ``(m (g - a_c), -(I eps + omega x I omega))`` at 
 mass -- has an equivalent wrench on the platform with the same virtual power for every twist
 (its Jacobian transpose). Summed with the platform's own load and the external wrench this is
 the **equivalent load** ``w_eq``; actuator forces ``F`` and constraint reactions ``lambda`` then
-solve exactly the static problem of :func:`parasynth.indices.static_forces`::
+solve exactly the static problem of :func:`parasynth.measures.indices.static_forces`::
 
     sum_i F_i a_i / s_i + sum_j lambda_j c_j + w_eq = 0
 
@@ -47,7 +47,7 @@ indeterminate between its two ends); ``lambda`` is what the platform receives.
 Platform accelerations ``(a_P, alpha) = d/dt (T(X) X')`` use the model's ``twist_map`` and a
 fourth-order central difference of it along ``X'`` for ``T'``.
 
-Units SI throughout; frames as in :mod:`parasynth.spatial`.
+Units SI throughout; frames as in :mod:`parasynth.model.spatial`.
 """
 
 from __future__ import annotations
@@ -58,8 +58,8 @@ import numpy as np
 
 from .indices import (StaticForces, _as_poses, _lstsq_balance, _pack, default_gravity, point_force_wrench,
                       wrench_system)
-from .legs import PUS, RPS, RPU, SPS, UPS, UPU
-from .mechanisms import load_mechanism
+from ..model.legs import PUS, RPS, RPU, SPS, UPS, UPU
+from ..mechanisms import load_mechanism
 
 __all__ = [
     "RigidBody",
@@ -404,7 +404,7 @@ def equivalent_load(mech, X, Xd, Xdd, inertia: InertiaModel, gravity=None, exter
     plus the applied-minus-inertial loads (weight minus mass times acceleration, and minus the
     rate of angular momentum) of the platform and of every leg body, carried to the platform
     by virtual work. Balancing it is the inverse-dynamics problem (see the module docstring).
-    ``gravity``: vector (m/s^2), default :func:`parasynth.indices.default_gravity`;
+    ``gravity``: vector (m/s^2), default :func:`parasynth.measures.indices.default_gravity`;
     ``external``: wrench (6,) or (N, 6) on the platform about ``P``."""
     Xa, single, ok, ws, p, R, t, acc, legs = _motion(mech, X, Xd, Xdd, inertia)
     weq = _equivalent(mech, Xa, ok, p, R, t, acc, legs, inertia, gravity, external)
@@ -451,15 +451,15 @@ def inverse_dynamics(mech, X, Xd, Xdd, inertia: InertiaModel, gravity=None, exte
     ``X``, ``Xd``, ``Xdd``: task coordinates and their first and second time derivatives
     (N, n_task), SI. ``inertia``: :class:`InertiaModel` (e.g. :data:`GRINDING_INERTIA`).
     ``gravity``: vector (m/s^2, base frame), default
-    :func:`parasynth.indices.default_gravity` (``-Y`` for the grinding robot, ``-Z``
+    :func:`parasynth.measures.indices.default_gravity` (``-Y`` for the grinding robot, ``-Z``
     otherwise). ``external``: wrench on the platform about ``P`` (6,) or (N, 6), e.g. a
-    grinding force from :func:`parasynth.indices.point_force_wrench`.
+    grinding force from :func:`parasynth.measures.indices.point_force_wrench`.
 
-    Returns :class:`parasynth.indices.StaticForces` (``actuator``: generalised actuator forces,
+    Returns :class:`parasynth.measures.indices.StaticForces` (``actuator``: generalised actuator forces,
     N, positive pushing; ``constraint``: reactions of the unit constraint wrenches;
     ``residual``: the part of the equivalent load the wrench system cannot balance, zero for
     a controlled mechanism off singularities; ``balanced``), solved as in
-    :func:`parasynth.indices.static_forces` with the equivalent load of
+    :func:`parasynth.measures.indices.static_forces` with the equivalent load of
     :func:`equivalent_load`.
     """
     Xa, single, ok, ws, p, R, t, acc, legs = _motion(mech, X, Xd, Xdd, inertia)

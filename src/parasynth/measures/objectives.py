@@ -12,7 +12,7 @@ with a bound (``min`` or ``max``): its margin is ``value - min`` or ``max - valu
 feasible), in the measure's unit.
 
 Workspace-based measures take a workspace sample: a
-:class:`~parasynth.workspace.WorkspaceSample` (``ranges`` {coordinate: (lo, hi)} SI, default
+:class:`~parasynth.measures.workspace.WorkspaceSample` (``ranges`` {coordinate: (lo, hi)} SI, default
 the model's ``default_ranges()``; ``n`` samples; ``method`` "sobol", "grid" or "random";
 ``seed``; ``fixed`` coordinates), passed whole::
 
@@ -26,7 +26,7 @@ fields among the settings (``measure(mech, n=4096, seed=0)``) still works; there
 its name with a measure's own setting of that name (the accuracy measures' ``method``, their
 error model).
 
-Each :class:`Measure` declares its settings as typed :class:`~parasynth.measure_spec.Setting`
+Each :class:`Measure` declares its settings as typed :class:`~parasynth.measures.measure_spec.Setting`
 values (``measure.params``: kind, range or choices, default, and for a setting that overrides a
 field of the workspace sample in a study, that field); one validator
 (:meth:`Measure.check_settings`) checks a study's settings against them and names the field
@@ -51,7 +51,7 @@ import numpy as np
 from .accuracy import TOLERANCE_SETTINGS as _TOL_SETTINGS
 from .accuracy import pose_error_bound, pose_error_monte_carlo
 from .dynamics import force_decoupling, grinding_trajectory
-from .engine import effective_engine
+from ..engine import effective_engine
 from .indices import (global_conditioning_index, gravity_wrench, local_transmission_index, point_force_wrench,
                       static_forces)
 from .indices import wrench_capability as _wrench_capability
@@ -59,7 +59,7 @@ from .stiffness import STIFFNESS_SETTINGS as _STIFF_SETTINGS
 from .measure_spec import Setting, SettingError, as_setting, check_settings
 from .stiffness import part_stiffness, point_deflection, stiffness_along
 from .usable import DEFAULT_FLOOR_FRACTION, usable_of
-from .validation import MAX_SAMPLES, MAX_SEED, check_count, check_mechanism, check_names
+from ..common.validation import MAX_SAMPLES, MAX_SEED, check_count, check_mechanism, check_names
 from .workspace import WorkspaceSample, freeze, workspace
 
 __all__ = [
@@ -86,13 +86,13 @@ class Measure:
     ``unit``: unit of the value (SI, e.g. "m^3", "N", "1"); ``kind``: quantity kind for
     display ("length", "force", ... or None); ``sense``: the natural direction
     ("maximize" or "minimize"); ``settings``: {setting name: kind} accepted by the function
-    (kinds: :data:`parasynth.measure_spec.KINDS`, e.g. "length", "int", "str", "ranges",
+    (kinds: :data:`parasynth.measures.measure_spec.KINDS`, e.g. "length", "int", "str", "ranges",
     "pose"); ``models``: model names it applies to (None = all); ``cost``: "cheap"
     or "workspace" (needs a workspace sample) or "expensive"; ``sample``: whether it takes a
-    :class:`~parasynth.workspace.WorkspaceSample` (``measure(mech, sample=..., **own)``);
+    :class:`~parasynth.measures.workspace.WorkspaceSample` (``measure(mech, sample=..., **own)``);
     ``own_settings``: its settings apart from the sample's fields (``settings`` also lists
     those, accepted by name in the older call form); ``params``: {setting name:
-    :class:`~parasynth.measure_spec.Setting`}, the typed declaration of every setting (kinds,
+    :class:`~parasynth.measures.measure_spec.Setting`}, the typed declaration of every setting (kinds,
     ranges, choices, defaults; which settings override a field of the workspace sample).
     """
 
@@ -111,7 +111,7 @@ class Measure:
 
     def check_settings(self, settings: Mapping, path: str = "settings", resolve=None) -> dict:
         """``settings`` checked against the declared :attr:`params` (with ``resolve``, the
-        study loader's, converted to SI); :class:`~parasynth.measure_spec.SettingError` (a
+        study loader's, converted to SI); :class:`~parasynth.measures.measure_spec.SettingError` (a
         ValueError) naming ``<path>.<setting>`` and what is allowed."""
         return check_settings(self.name, self.params, settings, path, resolve)
 
@@ -166,7 +166,7 @@ OBJECTIVES: "OrderedDict[str, Measure]" = OrderedDict()
 #: Workspace sampling methods, as a study names them.
 SAMPLING_METHODS = ("sobol", "grid", "random")
 
-#: The fields of a :class:`~parasynth.workspace.WorkspaceSample` as settings of a measure: in a
+#: The fields of a :class:`~parasynth.measures.workspace.WorkspaceSample` as settings of a measure: in a
 #: study, each overrides that field of the measure's sample; in the older call form they name
 #: the sample's fields among the settings.
 SAMPLE_PARAMS = {
@@ -177,7 +177,7 @@ SAMPLE_PARAMS = {
     "seed": Setting("int", default=0, low=0, high=MAX_SEED, sample_field="seed", doc="seed of the sample"),
     "fixed": Setting("pose", sample_field="fixed", doc="task coordinates held fixed {coordinate: value}"),
 }
-#: The fields of a :class:`~parasynth.workspace.WorkspaceSample` as settings, {name: kind}.
+#: The fields of a :class:`~parasynth.measures.workspace.WorkspaceSample` as settings, {name: kind}.
 SAMPLE_SETTINGS = {k: s.kind for k, s in SAMPLE_PARAMS.items()}
 #: Settings common to the workspace measures, given by the study's evaluation section unless the
 #: measure's settings give them.
@@ -194,14 +194,14 @@ def register(name: str, unit: str, sense: str, settings: dict | None = None, kin
              models: tuple | None = None, cost: str = "workspace", sample: bool | None = None, own: tuple = ()):
     """Decorator registering ``f(mech, **settings) -> float`` as measure ``name``.
 
-    ``settings``: {name: :class:`~parasynth.measure_spec.Setting` or kind name} of every
+    ``settings``: {name: :class:`~parasynth.measures.measure_spec.Setting` or kind name} of every
     setting the measure accepts by name (a kind name, e.g. ``"bool"`` or ``"length"``, declares
     a setting of that kind without range or default; a kind name for a field of
     :data:`SAMPLE_SETTINGS` declares that field). ``sample``: whether it takes a workspace
     sample (default: when a setting overrides a field of the sample, e.g. every field of
     :data:`SAMPLE_SETTINGS` is declared); such a measure's function receives either the
     sample's fields by name (older call form) or ``sample=`` a
-    :class:`~parasynth.workspace.WorkspaceSample`. ``own``: settings named like a sample field
+    :class:`~parasynth.measures.workspace.WorkspaceSample`. ``own``: settings named like a sample field
     that are the measure's own (e.g. an error model's ``method``): with a sample they are
     passed to the function, not taken from it."""
     if sense not in ("maximize", "minimize"):
@@ -246,7 +246,7 @@ def workspace_of(mech, ranges=None, n: int = 4096, method: str = "sobol", seed: 
                  constraints=None, engine: str = "compiled", sample: WorkspaceSample | None = None):
     """The (cached) workspace of ``mech`` for these settings; see :func:`parasynth.workspace`
     (``engine``: "compiled" or "numpy", the evaluation engine). ``sample``: a
-    :class:`~parasynth.workspace.WorkspaceSample`, which then gives ``ranges``, ``n``,
+    :class:`~parasynth.measures.workspace.WorkspaceSample`, which then gives ``ranges``, ``n``,
     ``method``, ``seed`` and ``fixed`` (the same workspace, and cache entry, as those
     arguments)."""
     if sample is not None:
@@ -261,7 +261,7 @@ def workspace_of(mech, ranges=None, n: int = 4096, method: str = "sobol", seed: 
     key = (type(mech), freeze(dataclasses.asdict(mech.params)), freeze(ranges), int(n), method,
            int(seed), freeze(fixed), freeze(constraints), effective_engine(engine),
            tuple(repr(c) for c in getattr(mech, "added_constraints", ())), getattr(mech, "scatter_key", None))
-    # a scatter draw of a robust measure keeps its own workspaces (parasynth.robustness): the
+    # a scatter draw of a robust measure keeps its own workspaces (parasynth.measures.robustness): the
     # measures of one design share them without pushing the nominal ones out of this cache
     cache = getattr(mech, "_workspace_memo", None)
     cache = _CACHE if cache is None else cache
@@ -337,7 +337,7 @@ def xy_isotropy(mech, **kw) -> float:
     return 0.0 if max(ex, ey) == 0 else min(ex, ey) / max(ex, ey)
 
 
-#: Settings of the usable-workspace measures (parasynth.usable): the margin floor and the
+#: Settings of the usable-workspace measures (parasynth.measures.usable): the margin floor and the
 #: reference pose of the component.
 _USABLE_SETTINGS = {
     "floor": Setting("float", low=0.0, high=0.999999, doc="singularity-margin floor (default floor_fraction of "
@@ -351,7 +351,7 @@ _REGION = Setting("str", default="feasible", choices=("feasible", "usable"),
 
 
 def _usable(mech, kw, resolution=None):
-    """The usable workspace (:func:`parasynth.usable.usable_of`) of a measure's settings."""
+    """The usable workspace (:func:`parasynth.measures.usable.usable_of`) of a measure's settings."""
     sample = kw.get("sample")
     if sample is None:
         sample = WorkspaceSample.from_settings(kw)
@@ -365,7 +365,7 @@ USABLE_MEASURES = ("usable_workspace_volume", "usable_workspace_fraction", "sing
 
 
 def usable_workspace_of(mech, resolution=None, **settings):
-    """The (cached) :class:`~parasynth.usable.UsableWorkspace` of a usable measure's settings
+    """The (cached) :class:`~parasynth.measures.usable.UsableWorkspace` of a usable measure's settings
     (``sample=`` a WorkspaceSample, or the sample's fields by name; ``constraints``, ``engine``,
     ``floor``, ``floor_fraction``, ``home``); other settings of the measure are ignored."""
     return _usable(mech, settings, resolution)
@@ -417,7 +417,7 @@ def usable_workspace_volume(mech, resolution: int | None = None, **kw) -> float:
     """Volume of the usable workspace: the connected component, containing the home pose, of
     the feasible poses whose singularity margin is at least ``floor``, on a grid over the
     sampled box (the sample's ``n`` cells, or ``resolution`` per axis), neighbouring cells
-    connected only where the singularity function keeps its sign (parasynth.usable)."""
+    connected only where the singularity function keeps its sign (parasynth.measures.usable)."""
     return _usable(mech, kw, resolution).volume
 
 
@@ -646,7 +646,7 @@ def _decoupling(mech, dt, grinding_force, load_point):
     return force_decoupling(mech, dt=dt, grinding_forces=(float(grinding_force),), load_point=lp)
 
 
-# -- stiffness and accuracy (parasynth.stiffness, parasynth.accuracy) ---------------------------------
+# -- stiffness and accuracy (parasynth.measures.stiffness, parasynth.measures.accuracy) ---------------------------------
 _STIFF_MEASURE = {**_SUB_SETTINGS, **{k: Setting(kind) for k, kind in _STIFF_SETTINGS.items()}, "quantile": _QUANTILE}
 
 
@@ -670,7 +670,7 @@ def _split(kw, keys):
                                                       choices=("translational", "rotational"))})
 def stiffness_min(mech, quantile: float = 0.0, part: str = "translational", **kw) -> float:
     """Smallest (or the ``quantile`` of the) translational (N/m) or rotational (N m/rad)
-    stiffness over the feasible workspace samples (``parasynth.stiffness.part_stiffness``):
+    stiffness over the feasible workspace samples (``parasynth.measures.stiffness.part_stiffness``):
     1 / largest eigenvalue of the force-to-translation (couple-to-rotation) compliance block.
     Stiffness settings as ``parasynth.stiffness_matrix``. 0 for an empty workspace or where a
     force (couple) is not carried (a singular stiffness matrix)."""
@@ -766,7 +766,7 @@ def _pose_errors(mech, part, method="first_order", quantile=1.0, samples=200, sa
 def position_error_max(mech, **kw) -> float:
     """Largest (or the ``quantile`` of the) position error (m) of the platform point over the
     feasible workspace samples, from actuator errors, manufacturing errors of the legs'
-    geometry and S/U joint clearances (tolerance settings, see ``parasynth.accuracy``).
+    geometry and S/U joint clearances (tolerance settings, see ``parasynth.measures.accuracy``).
     ``method="first_order"``: the worst-case first-order bound ``||b[:3]||`` per pose;
     ``"monte_carlo"``: the largest sampled error (``samples`` error draws per pose, at most 32
     poses by default). Poses near a singularity give large values, ``inf`` at it."""

@@ -35,7 +35,7 @@ import numpy as np
 from .constraints import Constraint, PoseContext
 from .legs import JOINT_DOF, Leg, LegState, solve_geometry
 from .spatial import reciprocal_basis
-from .validation import check_engine, check_names, check_pose_array, is_real_number, mask_huge_poses
+from ..common.validation import check_engine, check_names, check_pose_array, is_real_number, mask_huge_poses
 
 __all__ = ["Mechanism", "IKResult", "Mobility", "ForwardKinematicsError", "EngineFallbackWarning"]
 
@@ -339,7 +339,7 @@ class Mechanism:
         """``mobility(X).constraint_rank`` (default pose ``home``) without the rest of the
         mobility analysis: every leg's reciprocal wrench space is the null space of its joint
         twists (moments scaled by ``length_scale``, rank tolerance 1e-9 as in
-        :func:`parasynth.spatial.reciprocal_basis`), and the rank of their union is taken with
+        :func:`parasynth.model.spatial.reciprocal_basis`), and the rank of their union is taken with
         the tolerance of :meth:`mobility` (1e-8). One batched SVD over the legs instead of
         per-leg canonical bases, so that the per-design cost of the singularity margin stays
         small; the same span, so the same rank. ``engine`` as in :meth:`singularity_margin`."""
@@ -417,7 +417,7 @@ class Mechanism:
 
     def singularity_margin_of_states(self, states, p, reachable) -> np.ndarray:
         """The NumPy :meth:`singularity_margin` (N,) from legs' states already solved (a
-        :class:`~parasynth.constraints.PoseContext`'s), NaN where ``reachable`` is False.
+        :class:`~parasynth.model.constraints.PoseContext`'s), NaN where ``reachable`` is False.
         The structural constraint rank comes from the NumPy reference when not yet known."""
         if self._constraint_rank is None:
             self._constraint_rank = Mechanism.structural_constraint_rank(self, engine="numpy")
@@ -438,14 +438,14 @@ class Mechanism:
         meaningful only relative to an orientation of ``V`` carried continuously along a
         path: between two neighbouring poses a and b the singularity function keeps its
         sign when ``det M_a * det M_b * det(V_a V_b^T) > 0`` (``det(V_a V_b^T)`` is the
-        orientation of b's basis relative to a's; see :mod:`parasynth.usable`). With no
+        orientation of b's basis relative to a's; see :mod:`parasynth.measures.usable`). With no
         constraint rows (a 6-UPS) it is ``det A``, which has the sign of the actuator
         Jacobian's determinant up to the twist map's (a coordinate factor, not the mechanism).
 
         Only for a square system, ``n_actuators + constraint_rank == 6``; ``ValueError``
         otherwise (an under-actuated or redundantly actuated mechanism has no determinant:
         the rank of a k x 6 system, k != 6, drops on a set of codimension >= 2, which does
-        not split a region, so :mod:`parasynth.usable` uses the margin alone there)."""
+        not split a region, so :mod:`parasynth.measures.usable` uses the margin alone there)."""
         rc = self.constraint_rank
         if self.n_actuators + rc != 6:
             raise ValueError(f"{self.name}: the singularity function needs a square wrench system; "
@@ -690,7 +690,7 @@ class Mechanism:
 
     def with_constraints(self, *constraints) -> "Mechanism":
         """A copy of this mechanism whose pose constraints are the model's plus ``constraints``
-        (:class:`~parasynth.constraints.Constraint` objects with new names), e.g. a floor on
+        (:class:`~parasynth.model.constraints.Constraint` objects with new names), e.g. a floor on
         the singularity margin that a study adds (``evaluation.constraints``). The copy is
         a new object (the engine keeps its own record of it); the original is unchanged."""
         for c in constraints:

@@ -16,12 +16,12 @@ from pathlib import Path
 
 import numpy as np
 
-from .display import fmt_design
-from .export import ExportError, build_tree, to_mjcf, to_urdf
-from .export.mjcf import MIN_CONDITIONING
-from .mechanisms import load_mechanism
-from .study import rundir
-from .units import UNIT_KINDS, parse_quantity
+from ..measures.display import fmt_design
+from ..export import ExportError, build_tree, to_mjcf, to_urdf
+from ..export.mjcf import MIN_CONDITIONING
+from ..mechanisms import load_mechanism
+from ..study import rundir
+from ..common.units import UNIT_KINDS, parse_quantity
 
 __all__ = ["export_command", "design_of_run", "parse_pose", "format_of"]
 

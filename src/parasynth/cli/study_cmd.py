@@ -10,16 +10,16 @@ import shlex
 import sys
 from pathlib import Path
 
-from .report import ReportError, write_report
-from .study.budget import same_study
-from .study.defaults import optimizer_seed, optuna_budget
-from .study.evaluate import Evaluator
-from .study.progress import Progress
-from .study.signals import Interrupt
-from .study.spec import StudyError, load_study
-from .study.storage import (ATTR_BUDGET, ATTR_STUDY, counts, describe_url, load_parasynth_study, materialize_run,
-                            name_objectives, open_storage)
-from .study.workers import StorageLost, make_sampler, optimize_budget, optuna_objective, owner_id
+from ..report import ReportError, write_report
+from ..study.budget import same_study
+from ..study.defaults import optimizer_seed, optuna_budget
+from ..study.evaluate import Evaluator
+from ..study.progress import Progress
+from ..study.signals import Interrupt
+from ..study.spec import StudyError, load_study
+from ..study.storage import (ATTR_BUDGET, ATTR_STUDY, counts, describe_url, load_parasynth_study, materialize_run,
+                             name_objectives, open_storage)
+from ..study.workers import StorageLost, make_sampler, optimize_budget, optuna_objective, owner_id
 
 __all__ = ["cmd_worker", "cmd_report_storage", "resume_command", "interrupted_run"]
 

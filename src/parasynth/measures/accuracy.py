@@ -62,8 +62,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .spatial import dot_rows, rot_axis, rotate_rows, unit
-from .units import parse_quantity
+from ..model.spatial import dot_rows, rot_axis, rotate_rows, unit
+from ..common.units import parse_quantity
 
 __all__ = [
     "TOLERANCE_SETTINGS",

@@ -19,15 +19,15 @@ Scatter model
   every scalar element of the parameter is drawn independently and the mechanism is rebuilt
   from its description with the drawn value (so every leg built from it moves consistently);
   only parameters with a length or angle unit (``Params.UNITS``) can scatter;
-* **per leg**, in the vocabulary of :mod:`parasynth.accuracy` (``actuator_tolerance``,
+* **per leg**, in the vocabulary of :mod:`parasynth.measures.accuracy` (``actuator_tolerance``,
   ``anchor_tolerance``, ``link_tolerance``, ``axis_tolerance``, ``spherical_clearance``,
   ``universal_clearance``): each leg's anchors, link length and joint axes independently, the
-  clearances as balls, the actuators' errors, drawn as :func:`parasynth.accuracy` draws them.
+  clearances as balls, the actuators' errors, drawn as :func:`parasynth.measures.accuracy` draws them.
 
 Per-leg scatter is evaluated on the mechanism **as built** (:class:`AsBuilt`): at a nominal
 pose ``X`` the actuators hold their nominal inverse-kinematics values (plus their own error),
 the actual platform pose solves the perturbed closure equations (a chord Newton iteration from
-the nominal pose on the residuals of :func:`parasynth.accuracy.closure_residuals`, compiled in
+the nominal pose on the residuals of :func:`parasynth.measures.accuracy.closure_residuals`, compiled in
 :mod:`parasynth.engine.closure` for every draw's poses in one batch, NumPy where a leg type has
 no compiled closure), and
 reachability, pose constraints, wrench system and indices are those of the perturbed legs at
@@ -78,22 +78,22 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import engine
+from .. import engine
 from .accuracy import (TOLERANCE_SETTINGS, _actuated_row_mask, _compose, _leg_changes_batch, _length_rows, _perturbed_legs,
                        _pinv_rank6, _pose_jacobian, _sample_errors, closure_residuals, error_sources)
-from .constraints import PoseContext, SingularityMarginFloor
-from .legs import solve_geometry
-from .mechanism import EngineFallbackWarning, Mechanism
+from ..model.constraints import PoseContext, SingularityMarginFloor
+from ..model.legs import solve_geometry
+from ..model.mechanism import EngineFallbackWarning, Mechanism
 from .objectives import Measure
 from .objectives import get as get_measure
-from .units import UNIT_KINDS, QuantityError, parse_quantity
-from .validation import MAX_SEED, check_count
+from ..common.units import UNIT_KINDS, QuantityError, parse_quantity
+from ..common.validation import MAX_SEED, check_count
 
 __all__ = ["robust", "RobustMeasure", "RobustValue", "AsBuilt", "STATISTICS", "LEG_TOLERANCES",
            "resolve_tolerances", "SAMPLE_COUNTED", "check_robust_spec"]
 
 STATISTICS = ("mean", "quantile", "worst", "first_order")
-#: Per-leg tolerances, as :mod:`parasynth.accuracy` names them, and their quantity kinds.
+#: Per-leg tolerances, as :mod:`parasynth.measures.accuracy` names them, and their quantity kinds.
 LEG_TOLERANCES = dict(TOLERANCE_SETTINGS)
 #: Measures counted on workspace samples: ``first_order`` is refused for them (the value jumps
 #: with each sample crossing the workspace boundary; no derivative to take).
@@ -954,7 +954,7 @@ def _draw_mechanisms(mech, params: dict, legs: dict, k: int, seed: int) -> list:
 
 def _drawn_legs(builts, src, E) -> list:
     """Per draw ``s`` the legs of ``builts[s]`` with the errors ``E[s]`` applied, as
-    :func:`parasynth.accuracy` applies them (``_leg_changes``, here for all draws at once),
+    :func:`parasynth.measures.accuracy` applies them (``_leg_changes``, here for all draws at once),
     set on copies without the constructors' checks (the changed fields are arrays of the
     checked shapes; a few hundred legs are drawn per design)."""
     items = {}

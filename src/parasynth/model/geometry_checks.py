@@ -6,8 +6,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .validation import numpy_reference
-from .units import UNIT_KINDS
+from ..common.validation import numpy_reference
+from ..common.units import UNIT_KINDS
 
 _LENGTH = UNIT_KINDS["length"]
 

@@ -1,0 +1,10 @@
+"""The NumPy model of a parallel mechanism, the reference for every compiled evaluation:
+rotations and screws (:mod:`.spatial`), leg types (:mod:`.legs`), the mechanism (:mod:`.mechanism`),
+pose constraints as margins (:mod:`.constraints`) and the geometry checks of a mechanism's
+parameters (:mod:`.geometry_checks`). It imports only :mod:`parasynth.common`."""
+
+from .legs import LEG_TYPES, PRS, PUS, RPS, RPU, RUS, SPS, UPS, UPU, Leg
+from .mechanism import EngineFallbackWarning, ForwardKinematicsError, IKResult, Mechanism, Mobility
+
+__all__ = ["LEG_TYPES", "PRS", "PUS", "RPS", "RPU", "RUS", "SPS", "UPS", "UPU", "Leg", "EngineFallbackWarning",
+           "ForwardKinematicsError", "IKResult", "Mechanism", "Mobility"]
