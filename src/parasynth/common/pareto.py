@@ -27,7 +27,7 @@ import moocore
 import numpy as np
 
 __all__ = ["to_min", "dominates", "dominators_of", "non_dominated_ranks", "pareto_mask", "hypervolume",
-           "default_reference_point", "knee_index", "crowding_distance", "spread_by_crowding", "ReferenceStanding",
+           "default_reference_point", "knee_index", "knee_order", "crowding_distance", "spread_by_crowding", "ReferenceStanding",
            "reference_standing", "NoisyComparison", "compare_with_noise"]
 
 
@@ -136,11 +136,23 @@ def knee_index(Fmin) -> int:
     """Index of the knee of a front (minimisation): in objectives normalised to [0, 1] over
     the front, the point farthest below the hyperplane through the extreme points (for two
     objectives, the chord between them); with a degenerate front, the point closest to the
-    ideal point."""
+    ideal point. The first of :func:`knee_order`."""
+    return int(knee_order(Fmin)[0])
+
+
+def knee_order(Fmin) -> np.ndarray:
+    """The points of a front (minimisation) ranked by the knee criterion of :func:`knee_index`:
+    farthest below the hyperplane through the extreme points first (ties by row order); with
+    a degenerate front or at most two points, closest to the ideal point first. The ranking a
+    recommendation walks when its first choice fails verification."""
     F = np.asarray(Fmin, dtype=float)
-    if len(F) <= 2:
-        return int(np.argmin(np.linalg.norm(_normalise(F), axis=1)))
+    n = len(F)
+    if n == 0:
+        return np.zeros(0, int)
     Z = _normalise(F)
+    by_ideal = np.lexsort((np.arange(n), np.linalg.norm(Z, axis=1)))
+    if n <= 2:
+        return by_ideal
     m = Z.shape[1]
     ext = np.array([np.argmin(Z[:, j]) for j in range(m)])
     E = Z[ext]
@@ -149,10 +161,10 @@ def knee_index(Fmin) -> int:
         nvec = np.linalg.solve(E, np.ones(m))
         d = (1.0 - Z @ nvec) / np.linalg.norm(nvec)
         if len(np.unique(ext)) == m and np.all(np.isfinite(d)):
-            return int(np.argmax(d))
+            return np.lexsort((np.arange(n), -d))
     except np.linalg.LinAlgError:
         pass
-    return int(np.argmin(np.linalg.norm(Z, axis=1)))
+    return by_ideal
 
 
 def crowding_distance(F) -> np.ndarray:

@@ -108,6 +108,34 @@ class Measure:
     sample: bool = False
     own_settings: dict = field(default_factory=dict)
     params: dict = field(default_factory=dict)
+    #: how the value depends on the points it is computed on (:data:`ESTIMATES`); None: derived
+    #: by :meth:`estimate_of` from ``sample`` and a ``quantile`` setting
+    estimate: str | None = None
+
+    def estimate_of(self, settings: Mapping | None = None) -> str:
+        """How the value with ``settings`` depends on the points it is computed on, the kind the
+        verification of a recommended design (:mod:`parasynth.study.verify`) gives a tolerance:
+
+        * ``"statistic"`` -- an estimate from random samples (a volume, a mean, an inner
+          quantile): another seed moves it by its standard error;
+        * ``"extreme"`` -- the least or largest value over the points (quantile 0 or 1): more
+          points only make it worse, so a relative tolerance applies;
+        * ``"grid"`` -- computed on a deterministic grid: exact on that grid, not resampled;
+        * ``"exact"`` -- no sample at all (a pose, a path, the home pose)."""
+        if "region" in self.params and self.estimate == "grid":
+            # an inscribed box: on the usable grid, or on the raster of the seeded feasible sample
+            region = (settings or {}).get("region", self.params["region"].default)
+            return "grid" if region == "usable" else "statistic"
+        if self.estimate is not None and self.estimate != "statistic":
+            return self.estimate
+        if "quantile" in self.params:
+            q = (settings or {}).get("quantile", self.params["quantile"].default)
+            if q is not None and float(q) in (0.0, 1.0):
+                return "extreme"
+            return "statistic"
+        if self.estimate is not None:
+            return self.estimate
+        return "statistic" if self.sample else "exact"
 
     def check_settings(self, settings: Mapping, path: str = "settings", resolve=None) -> dict:
         """``settings`` checked against the declared :attr:`params` (with ``resolve``, the
@@ -163,6 +191,9 @@ class Measure:
 
 OBJECTIVES: "OrderedDict[str, Measure]" = OrderedDict()
 
+#: The kinds of :meth:`Measure.estimate_of`.
+ESTIMATES = ("statistic", "extreme", "grid", "exact")
+
 #: Workspace sampling methods, as a study names them.
 SAMPLING_METHODS = ("sobol", "grid", "random")
 
@@ -191,7 +222,8 @@ _WS_SETTINGS = {**SAMPLE_PARAMS, **COMMON_PARAMS}
 
 
 def register(name: str, unit: str, sense: str, settings: dict | None = None, kind: str | None = None,
-             models: tuple | None = None, cost: str = "workspace", sample: bool | None = None, own: tuple = ()):
+             models: tuple | None = None, cost: str = "workspace", sample: bool | None = None, own: tuple = (),
+             estimate: str | None = None):
     """Decorator registering ``f(mech, **settings) -> float`` as measure ``name``.
 
     ``settings``: {name: :class:`~parasynth.measures.measure_spec.Setting` or kind name} of every
@@ -203,7 +235,11 @@ def register(name: str, unit: str, sense: str, settings: dict | None = None, kin
     sample's fields by name (older call form) or ``sample=`` a
     :class:`~parasynth.measures.workspace.WorkspaceSample`. ``own``: settings named like a sample field
     that are the measure's own (e.g. an error model's ``method``): with a sample they are
-    passed to the function, not taken from it."""
+    passed to the function, not taken from it. ``estimate``: how the value depends on the
+    points it is computed on (:data:`ESTIMATES`, see :meth:`Measure.estimate_of`; default
+    derived from ``sample`` and a ``quantile`` setting)."""
+    if estimate is not None and estimate not in ESTIMATES:
+        raise ValueError(f"estimate must be one of {ESTIMATES}, got {estimate!r}")
     if sense not in ("maximize", "minimize"):
         raise ValueError(f"sense must be 'maximize' or 'minimize', got {sense!r}")
     params = {}
@@ -220,7 +256,7 @@ def register(name: str, unit: str, sense: str, settings: dict | None = None, kin
 
     def deco(func):
         OBJECTIVES[name] = Measure(name, func, unit, sense, (func.__doc__ or "").strip(), kind,
-                                   kinds, models, cost, bool(sample), own_settings, params)
+                                   kinds, models, cost, bool(sample), own_settings, params, estimate)
         return func
 
     return deco
@@ -379,7 +415,7 @@ def _box(mech, kw, resolution, coords, region):
     return _ws(mech, kw).largest_box(coords=coords, resolution=resolution)
 
 
-@register("inscribed_box_volume", unit="sampled units", sense="maximize",
+@register("inscribed_box_volume", unit="sampled units", sense="maximize", estimate="grid",
           settings={**_WS_SETTINGS, "resolution": _RESOLUTION, "coords": _COORDS, "region": _REGION,
                     **_USABLE_SETTINGS})
 def inscribed_box_volume(mech, resolution: int | None = None, coords="position", region: str = "feasible",
@@ -393,7 +429,7 @@ def inscribed_box_volume(mech, resolution: int | None = None, coords="position",
     return float(np.prod(box.sizes)) if box is not None else 0.0
 
 
-@register("inscribed_box_size", unit="sampled unit", sense="maximize",
+@register("inscribed_box_size", unit="sampled unit", sense="maximize", estimate="grid",
           settings={**_WS_SETTINGS, "resolution": _RESOLUTION, "axis": Setting("str", default="z", doc="a sampled coordinate"),
                     "coords": _COORDS, "region": _REGION, **_USABLE_SETTINGS})
 def inscribed_box_size(mech, axis: str = "z", resolution: int | None = None, coords="position",
@@ -412,7 +448,8 @@ _UNGRID = {"resolution": dataclasses.replace(_RESOLUTION, doc="grid cells per ax
                                                                 "in all)"), **_USABLE_SETTINGS}
 
 
-@register("usable_workspace_volume", unit="sampled units", sense="maximize", settings={**_WS_SETTINGS, **_UNGRID})
+@register("usable_workspace_volume", unit="sampled units", sense="maximize", settings={**_WS_SETTINGS, **_UNGRID},
+          estimate="grid")
 def usable_workspace_volume(mech, resolution: int | None = None, **kw) -> float:
     """Volume of the usable workspace: the connected component, containing the home pose, of
     the feasible poses whose singularity margin is at least ``floor``, on a grid over the
@@ -421,14 +458,15 @@ def usable_workspace_volume(mech, resolution: int | None = None, **kw) -> float:
     return _usable(mech, kw, resolution).volume
 
 
-@register("usable_workspace_fraction", unit="1", sense="maximize", settings={**_WS_SETTINGS, **_UNGRID})
+@register("usable_workspace_fraction", unit="1", sense="maximize", settings={**_WS_SETTINGS, **_UNGRID},
+          estimate="grid")
 def usable_workspace_fraction(mech, resolution: int | None = None, **kw) -> float:
     """Usable workspace volume over the feasible volume of the same grid (0 for an empty
     workspace)."""
     return _usable(mech, kw, resolution).fraction
 
 
-@register("singularity_free_radius", unit="sampled unit", sense="maximize",
+@register("singularity_free_radius", unit="sampled unit", sense="maximize", estimate="grid",
           settings={**_WS_SETTINGS, **_UNGRID,
                     "coords": dataclasses.replace(_COORDS, doc="'position' or sampled coordinates of one unit, "
                                                                "separated by commas ('psi, theta')")})
@@ -564,7 +602,7 @@ def _load(mech, X, mass, force, com):
     return w
 
 
-@register("max_actuator_force", unit="N", kind="force", sense="minimize",
+@register("max_actuator_force", unit="N", kind="force", sense="minimize", estimate="extreme",
           settings={**_LOAD_SETTINGS})
 def max_actuator_force(mech, mass: float = 5.0, force=None, com=None, **kw) -> float:
     """Largest static actuator force (N) over the feasible workspace samples for a payload of
@@ -578,7 +616,7 @@ def max_actuator_force(mech, mass: float = 5.0, force=None, com=None, **kw) -> f
     return float(np.nanmax(np.abs(sf.actuator)))
 
 
-@register("wrench_capability", unit="N", kind="force", sense="maximize",
+@register("wrench_capability", unit="N", kind="force", sense="maximize", estimate="extreme",
           settings={**_SUB_SETTINGS, "force_limit": Setting("force", default=100.0, doc="actuator force limit"),
                     "directions": Setting("list", doc="force directions (default +-X, +-Y, +-Z)"),
                     "mass": Setting("mass", default=0.0, doc="payload (kg)")})
