@@ -52,10 +52,16 @@ def _write_run(d: Path, study, records, final_rows=None) -> Path:
     return d
 
 
-def _final_row(source, trial, L, R, q, q_se, two, two_se, knee=False):
-    return {"source": source, "trial": trial, "link_length": L, "slider_radius": R, "test_quadratic": q,
-            "test_quadratic_stderr": q_se, "test_two": two, "test_two_stderr": two_se, "feasible": True,
-            "samples": 4096, "repeats": 4, "knee": knee, "count": 1}
+def _final_row(source, trial, L, R, q, q_se, two, two_se, knee=False, verified=None):
+    """A final.csv row; ``verified`` (True/False) adds the columns of verification, with the
+    knee recommended when it passed."""
+    row = {"source": source, "trial": trial, "link_length": L, "slider_radius": R, "test_quadratic": q,
+           "test_quadratic_stderr": q_se, "test_two": two, "test_two_stderr": two_se, "feasible": True,
+           "samples": 4096, "repeats": 4, "knee": knee, "count": 1}
+    if verified is not None:
+        row.update(verified=verified, verification="verified" if verified else "failed: drop = -1",
+                   recommended=bool(knee and verified))
+    return row
 
 
 RECS = [_rec(-1, 0.205, 0.135, -0.0030, 0.4750, source="reference"),
@@ -245,10 +251,10 @@ def test_summary_names_the_knee_and_leaves_out_designs_dominated_beyond_noise(tm
     study = _study()
     # Trial 1 looks best on test_quadratic on its single sample; re-evaluated it is worse than
     # trial 0 beyond noise on test_quadratic and equal on test_two: dominated by trial 0.
-    fin = [_final_row("best", 0, 0.200, 0.132, -0.00100, 0.00001, 0.5000, 0.0001),
-           _final_row("best", 1, 0.201, 0.133, -0.00130, 0.00001, 0.5000, 0.0001),
-           _final_row("best", 2, 0.190, 0.120, -0.01000, 0.00001, 0.4300, 0.0001),
-           _final_row("reference", -1, 0.205, 0.135, -0.0030, 0.00001, 0.4750, 0.0001)]
+    fin = [_final_row("best", 0, 0.200, 0.132, -0.00100, 0.00001, 0.5000, 0.0001, knee=True, verified=True),
+           _final_row("best", 1, 0.201, 0.133, -0.00130, 0.00001, 0.5000, 0.0001, verified=True),
+           _final_row("best", 2, 0.190, 0.120, -0.01000, 0.00001, 0.4300, 0.0001, verified=True),
+           _final_row("reference", -1, 0.205, 0.135, -0.0030, 0.00001, 0.4750, 0.0001, verified=True)]
     run = _write_run(tmp_path / "run", study, RECS, fin)
     from parasynth.report.render import analyse, load_run
 
@@ -257,12 +263,13 @@ def test_summary_names_the_knee_and_leaves_out_designs_dominated_beyond_noise(tm
     knee = int(a.knee_row["trial"])
     lines = terminal_summary(study, r.table, None, run)
     text = "\n".join(lines)
-    assert lines[0].startswith(f"recommended (knee of the non-dominated front): trial {knee}:")
+    assert knee == 0
+    assert lines[0].startswith(f"recommended (knee of the non-dominated front), verified: trial {knee}:")
     assert "left out, dominated beyond noise once re-evaluated: trial 1 (by trial 0)" in text
     table = text.split("non-dominated feasible designs")[1].split("left out")[0]
     assert "200" in table and "190" in table  # trials 0 and 2 (link_length 200 and 190 mm)
     assert "201" not in table  # trial 1 (link_length 201 mm) is not recommended
-    assert any(ln.startswith("knee") for ln in table.splitlines())
+    assert any(ln.startswith("recommended") for ln in table.splitlines())
     # the report says the same of trial 1
     md = (write_report(run, out=tmp_path / "rep") / "report.md").read_text()
     assert "trial 1 (by trial 0)" in md
@@ -274,7 +281,7 @@ def test_design_roles_name_the_objective():
     from parasynth.study.final import design_key
 
     roles = design_roles(study, fr, design_key(study, fr.iloc[0]))
-    assert roles == ["knee", "best test_two", "best test_quadratic"]
+    assert roles == ["recommended", "best test_two", "best test_quadratic"]
     one = _study(objectives=[{"name": "test_two"}])
     assert design_roles(one, fr) == ["rank 1", "best test_two", "rank 3"]
 

@@ -12,10 +12,23 @@ import pandas as pd
 
 from ..common.pareto import (NoisyComparison, ReferenceStanding, compare_with_noise, default_reference_point, hypervolume,
                              reference_standing, to_min)
-from ..study.rundir import Run, design_key, knee_of, pareto_front, screening_dominators
+from ..study.rundir import Run, design_key, knee_of, pareto_front, recommendation_order, screening_dominators
 from .checks import design_warnings
 
-__all__ = ["Analysis", "FinalAnalysis", "analyse", "NOISE_Z"]
+__all__ = ["Analysis", "FinalAnalysis", "Recommendation", "analyse", "passed_mask", "NOISE_Z"]
+
+
+def _passed(row) -> bool:
+    """Whether a re-evaluated design counts: it passed verification (final.csv's ``verified``),
+    or, in a final.csv written before verification, it stayed feasible."""
+    if "verified" in row.index and pd.notna(row["verified"]):
+        return bool(row["verified"])
+    return bool(row.get("feasible", True))
+
+
+def passed_mask(fin: pd.DataFrame) -> pd.Series:
+    """Rows of a final.csv that count in a verdict (:func:`_passed` of each)."""
+    return pd.Series([_passed(r) for _, r in fin.iterrows()], index=fin.index, dtype=bool)
 
 #: A difference between re-evaluated designs counts when it exceeds this many combined standard
 #: errors (``write_report(..., noise_z=...)``).
@@ -43,6 +56,34 @@ class FinalAnalysis:
     knee: pd.Series | None = None
     #: True when the run has a knee that final.csv does not hold (final.csv is older).
     knee_missing: bool = False
+    #: re-evaluated designs that failed verification (they count in no verdict)
+    unverified: pd.DataFrame | None = None
+
+
+@dataclass
+class Recommendation:
+    """What the run recommends once verified (:mod:`parasynth.study.verify`).
+
+    ``status``: ``verified`` (``row`` passed), ``none passed`` (no design of those re-checked
+    passed: ``row`` is the first of the ranking, not to be built as it is), ``not verified``
+    (final.csv is missing or older than verification: ``row`` is the knee or best design on
+    single samples)."""
+
+    status: str
+    row: pd.Series | None = None
+    #: the re-evaluated row of ``row`` in final.csv, if any
+    final_row: pd.Series | None = None
+    #: (trial, reason) of the designs ranked before ``row`` (or all re-checked, when none passed)
+    #: that failed verification
+    failed: list = field(default_factory=list)
+    #: how many designs were verified
+    checked: int = 0
+    #: the first design of the ranking (the knee, or the best design), whether it passed or not
+    first: pd.Series | None = None
+
+    @property
+    def verified(self) -> bool:
+        return self.status == "verified"
 
 
 @dataclass
@@ -70,6 +111,8 @@ class Analysis:
     standing: ReferenceStanding | None = None
     final: FinalAnalysis | None = None
     warnings: list[str] = field(default_factory=list)
+    #: the recommendation once verified (``knee_row`` is its row)
+    recommendation: Recommendation | None = None
 
 
 def analyse(run: Run, noise_z: float = NOISE_Z) -> Analysis:
@@ -90,6 +133,9 @@ def analyse(run: Run, noise_z: float = NOISE_Z) -> Analysis:
     ref = t[t["source"] == "reference"]
     a.ref_row = ref.iloc[0] if len(ref) and ref.iloc[0]["status"] == "ok" else None
     a.knee_row = knee_of(study, front)
+    a.recommendation = _recommendation(run, a.knee_row)
+    if a.recommendation.row is not None:
+        a.knee_row = a.recommendation.row
     if len(front) and len(objs) > 1:
         Fm = to_min(front[labels].to_numpy(float), senses)
         Ffeas = to_min(F[feas], senses)
@@ -104,6 +150,37 @@ def analyse(run: Run, noise_z: float = NOISE_Z) -> Analysis:
     a.final = _final_analysis(run, a.knee_row, noise_z)
     a.warnings = design_warnings(study, a.knee_row, front)
     return a
+
+
+def _recommendation(run: Run, first) -> Recommendation:
+    """The recommendation final.csv records (column ``recommended``), the designs ranked before it
+    that failed verification, or the knee / best design unverified when final.csv predates
+    verification."""
+    study, fin = run.study, run.final
+    if first is None:
+        return Recommendation("none passed" if fin is not None and "verified" in fin else "not verified", None)
+    if fin is None or not len(fin) or "verified" not in fin or "recommended" not in fin:
+        return Recommendation("not verified", first, first=first)
+    best = fin[fin["source"] == "best"]
+    runs = run.table[run.table["source"] == "run"]
+    order = recommendation_order(study, runs)
+    rank = {design_key(study, r): i for i, (_, r) in enumerate(order.iterrows())}
+    checked = best.assign(_rank=[rank.get(design_key(study, r), len(rank)) for _, r in best.iterrows()])
+    checked = checked.sort_values("_rank", kind="stable")
+    picked = checked[checked["recommended"].astype(bool)]
+    if len(picked):
+        fr = picked.iloc[0]
+        key = design_key(study, fr)
+        row = next((r for _, r in order.iterrows() if design_key(study, r) == key), None)
+        if row is None:  # the run table no longer holds it as a feasible design (an older final.csv)
+            return Recommendation("not verified", first, first=first)
+        failed = [(int(r["trial"]), str(r.get("verification", ""))) for _, r in checked.iterrows()
+                  if not bool(r["verified"]) and r["_rank"] < fr["_rank"]]
+        return Recommendation("verified", row, fr, failed, int(len(best)), first=first)
+    failed = [(int(r["trial"]), str(r.get("verification", ""))) for _, r in checked.iterrows() if not bool(r["verified"])]
+    kk = design_key(study, first)
+    fr = next((r for _, r in best.iterrows() if design_key(study, r) == kk), None)
+    return Recommendation("none passed", first, fr, failed, int(len(best)), first=first)
 
 
 def _final_analysis(run: Run, knee_row, noise_z: float) -> FinalAnalysis | None:
@@ -128,9 +205,10 @@ def _final_analysis(run: Run, knee_row, noise_z: float) -> FinalAnalysis | None:
     dominated_by = {}
     for i, ri in best.iterrows():
         mi, si = mse(ri)
-        # an infeasible design (re-evaluated) dominates none
+        # a design that failed verification (or, in a final.csv without it, is infeasible once
+        # re-evaluated) dominates none
         dominated_by[i] = [int(rj["trial"]) for j, rj in best.iterrows()
-                           if j != i and bool(rj.get("feasible", True))
+                           if j != i and _passed(rj)
                            and compare_with_noise(*mse(rj), mi, si, senses, noise_z).verdict == "dominates"]
     # Which re-evaluated designs dominate the reference on the single-sample values: decided
     # from the run's table (the screening the report states), by design values.
@@ -138,7 +216,8 @@ def _final_analysis(run: Run, knee_row, noise_z: float) -> FinalAnalysis | None:
     fin["dominates_reference_screen"] = [r["source"] == "best" and design_key(study, r) in screen_keys
                                          for _, r in fin.iterrows()]
     best = fin[fin["source"] == "best"]
-    out = FinalAnalysis(table=fin, best=best, dominated_by=dominated_by, n_screen=len(screen_keys))
+    out = FinalAnalysis(table=fin, best=best, dominated_by=dominated_by, n_screen=len(screen_keys),
+                        unverified=best[[not _passed(r) for _, r in best.iterrows()]])
     if len(ref):
         r = ref.iloc[0]
         out.ref = r
@@ -147,6 +226,8 @@ def _final_analysis(run: Run, knee_row, noise_z: float) -> FinalAnalysis | None:
         for i, row in best.iterrows():
             if rk is not None and design_key(study, row) == rk:
                 continue  # the reference design itself among the re-evaluated ones
+            if not _passed(row):
+                continue  # a design that failed verification counts in no verdict
             out.vs_ref.append((row, compare_with_noise(*mse(row), mr, sr, senses, noise_z)))
     # The knee as the report computes it must be the one re-evaluated (final.csv may be older
     # than a resumed run's table).

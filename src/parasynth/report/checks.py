@@ -140,25 +140,38 @@ def design_warnings(study, knee_row, front: pd.DataFrame | None) -> list[str]:
     return out
 
 
-def design_roles(study, rows: pd.DataFrame, knee_key=None) -> list[str]:
-    """Why each row of a set of front designs is listed: ``knee`` (the recommended design of
-    several objectives), ``best <label>`` (the best value of that objective among ``rows``;
-    several objectives joined by ``and``), else ``on the front``. One objective: ``best
-    <label>`` for the best row, ``rank k`` for the others."""
+def design_roles(study, rows: pd.DataFrame, knee_key=None, front: pd.DataFrame | None = None) -> list[str]:
+    """Why each row of a set of front designs is listed: ``recommended`` (the recommended design
+    of several objectives), ``best <label>`` (the best value of that objective over ``front``, the
+    whole run's non-dominated designs; without ``front``, over ``rows``), ``best <label> of those
+    listed`` (best among ``rows`` but not over ``front``), else ``on the front``. One objective:
+    ``best <label>`` for the run's best row, ``rank k`` for the others."""
     objs = study.objectives
     out = []
-    best_of = {}
+    best_of, best_listed = {}, {}
     for o in objs:
         col = rows[o.label].astype(float)
         if len(col) and col.notna().any():
-            best_of[o.label] = col.idxmax() if o.goal == "maximize" else col.idxmin()
+            best_listed[o.label] = col.idxmax() if o.goal == "maximize" else col.idxmin()
+        if front is not None and len(front) and front[o.label].notna().any():
+            fc = front[o.label].astype(float)
+            best_of[o.label] = float(fc.max() if o.goal == "maximize" else fc.min())
     for rank, (i, r) in enumerate(rows.iterrows(), start=1):
         tags = []
         if len(objs) > 1 and knee_key is not None and design_key(study, r) == knee_key:
-            tags.append("knee")
-        best = [o.label for o in objs if best_of.get(o.label) == i]
-        if best:
-            tags.append("best " + " and ".join(best))
+            tags.append("recommended")
+        run_best, listed_best = [], []
+        for o in objs:
+            if best_listed.get(o.label) != i:
+                continue
+            if front is None or (o.label in best_of and float(r[o.label]) == best_of[o.label]):
+                run_best.append(o.label)
+            else:
+                listed_best.append(o.label)
+        if run_best:
+            tags.append("best " + " and ".join(run_best))
+        if listed_best:
+            tags.append("best " + " and ".join(listed_best) + " of those listed")
         if not tags:
             tags.append("on the front" if len(objs) > 1 else f"rank {rank}")
         out.append(", ".join(tags))

@@ -117,7 +117,7 @@ def plot_pareto(figs, study, run_df, front, ref_row, knee_row):
                    label="non-dominated" if len(objs) == 2 else "non-dominated (in all objectives)")
         if knee_row is not None:
             ax.scatter([fa(knee_row[a])], [fb(knee_row[b])], s=140, marker="D", facecolors="none",
-                       edgecolors="#2ca02c", linewidths=2, label="recommended (knee)", zorder=5)
+                       edgecolors="#2ca02c", linewidths=2, label="recommended", zorder=5)
         if ref_row is not None:
             ax.scatter([fa(ref_row[a])], [fb(ref_row[b])], s=220, marker="*", c="#ff7f0e", edgecolors="k",
                        label=reference_short(study), zorder=6)

@@ -183,7 +183,10 @@ def viewer_data(run: Run, a: Analysis) -> dict | None:
     entries = []  # (name, role, row or None, values)
     knee_key = design_key(study, a.knee_row) if a.knee_row is not None else None
     if a.knee_row is not None:
-        entries.append((f"recommended (knee, trial {int(a.knee_row['trial'])})", "recommended", a.knee_row,
+        rec = a.recommendation
+        state = "verified" if rec is not None and rec.verified else (
+            "none passed verification" if rec is not None and rec.status == "none passed" else "not verified")
+        entries.append((f"recommended ({state}, trial {int(a.knee_row['trial'])})", "recommended", a.knee_row,
                         _values(study, a.knee_row)))
     if study.reference:
         entries.append((reference_short(study), "reference", a.ref_row, dict(study.reference)))

@@ -15,7 +15,9 @@ import pandas as pd
 from ..measures.display import fmt_mean_se, fmt_number, fmt_quantity, reference_name
 from ..study.rundir import Run, design_key
 from .analysis import Analysis, FinalAnalysis
+from .summary import reevaluated_text
 from .tables import display_table, final_display_table
+from .verdict import recommendation_section
 from .tables import is_number_col as _is_number_col
 from .tables import unit as _unit
 
@@ -93,6 +95,7 @@ def _sections(run: Run, a: Analysis) -> list[tuple[str, str, pd.DataFrame | None
         text = f"**PARTIAL REPORT: {run.partial_reason}.** " + text
     if study.spec.description:
         text = study.spec.description.strip() + "\n\n" + text
+    sec.append(recommendation_section(run, a))
     sec.append(("Summary", text, None))
     if a.warnings:
         sec.append(("Warnings", "\n\n".join("**Warning:** " + w[:1].upper() + w[1:] for w in a.warnings), None))
@@ -115,15 +118,13 @@ def _sections(run: Run, a: Analysis) -> list[tuple[str, str, pd.DataFrame | None
         n_dup = int((front["count"] > 1).sum()) if "count" in front else 0
         txt = (f"{len(front)} distinct non-dominated feasible designs"
                + (f" ({n_dup} of them evaluated more than once: column evaluations)" if n_dup else "")
-               + (". Recommended (knee of the front)" if len(study.objectives) > 1 else ". Recommended (the best)")
+               + (". " + _recommended_words(a))
                + f": trial {int(k['trial'])}: " + ", ".join(_fmt_design(study, k))
                + " (single sample)")
         fa = a.final
         if fa is not None and fa.knee is not None:
             kr = fa.knee
-            txt += ("; re-evaluated: " + ", ".join(
-                f"{o.label} = {fmt_mean_se(kr[o.label], kr[o.label + '_stderr'], _unit(study, o.label), True)}"
-                for o in study.objectives))
+            txt += ("; re-evaluated: " + ", ".join(f"{o.label} = {reevaluated_text(study, o, kr)}" for o in study.objectives))
         txt += "."
         if fa is not None:
             keys = {design_key(study, r): i for i, r in fa.best.iterrows()}
@@ -176,6 +177,19 @@ def _sections(run: Run, a: Analysis) -> list[tuple[str, str, pd.DataFrame | None
     sec.append(("Study and software", "Software: " + ", ".join(f"{k} {x}" for k, x in v.items())
                 + f". Report written {time.strftime('%Y-%m-%d %H:%M:%S')}. Study file as run:", None))
     return sec
+
+
+def _recommended_words(a: Analysis) -> str:
+    several = len(a.labels) > 1
+    rec = a.recommendation
+    what = "knee of the front" if several else "the best"
+    if rec is None or rec.status == "not verified":
+        return f"Recommended ({what}, not verified)"
+    if rec.status == "none passed":
+        return f"No design passed verification; the {'knee' if several else 'best design'} on single samples"
+    if rec.first is not None and int(rec.first["trial"]) != int(rec.row["trial"]):
+        return "Recommended (the first design of the ranking that passed verification)"
+    return f"Recommended ({what}, verified)"
 
 
 def _fmt_design(study, row) -> list[str]:
@@ -250,12 +264,16 @@ def _paper_text(run: Run, a: Analysis) -> str:
     worse = [(row, c) for row, c in vs if c.verdict == "dominated"]
     same = [(row, c) for row, c in vs if c.verdict == "within noise"]
     ref = fa.ref
+    if fa.unverified is not None and len(fa.unverified):
+        txt += (f" ({len(fa.unverified)} re-evaluated design{'s' if len(fa.unverified) != 1 else ''} failed "
+                "verification and count in no verdict: " + ", ".join(f"trial {int(t)}" for t in fa.unverified["trial"])
+                + ".)")
     if dom:
-        txt += (f" {len(dom)} of the {len(vs)} re-evaluated designs {'dominates' if len(dom) == 1 else 'dominate'} it (better beyond noise on at least "
+        txt += (f" {len(dom)} of the {len(vs)} {_counted(fa)} designs {'dominates' if len(dom) == 1 else 'dominate'} it (better beyond noise on at least "
                 "one objective, worse beyond noise on none): " + " | ".join(_comparison_text(study, row, c, ref)
                                                                           for row, c in dom) + ".")
     else:
-        txt += f" none of the {len(vs)} re-evaluated designs dominates it beyond noise."
+        txt += f" none of the {len(vs)} {_counted(fa)} designs dominates it beyond noise."
     if same:
         txt += " Equal to it within noise on every objective: " + ", ".join(f"trial {int(row['trial'])}" for row, _ in same) + "."
     if worse:
@@ -264,6 +282,12 @@ def _paper_text(run: Run, a: Analysis) -> str:
         txt += f"\n\n(Single-sample screening: {screened}; the re-evaluation above decides.)"
         txt += _screen_text(fa, fa.n_screen)
     return txt
+
+
+def _counted(fa: FinalAnalysis) -> str:
+    """What the verdicts count: verified designs (a final.csv written before verification: the
+    re-evaluated ones)."""
+    return "verified re-evaluated" if "verified" in fa.table else "re-evaluated"
 
 
 def _screen_text(fa: FinalAnalysis, n_screen: int) -> str:

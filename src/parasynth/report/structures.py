@@ -26,7 +26,7 @@ import pandas as pd
 from ..measures.display import fmt_mean_se, fmt_number, fmt_quantity, fmt_value
 from ..common.pareto import compare_with_noise
 from ..study.rundir import Run, knee_of, pareto_front
-from .analysis import Analysis
+from .analysis import Analysis, passed_mask
 from .figures import _grid, _label, _tidy
 from .tables import unit
 
@@ -110,7 +110,7 @@ def structure_verdict(run: Run, a: Analysis) -> Verdict:
     senses = [o.goal for o in study.objectives]
     fin = a.final.table if a.final is not None else None
     if fin is not None and STRUCTURE in fin:
-        best = fin[(fin["source"] == "best") & fin["feasible"].astype(bool)]
+        best = fin[(fin["source"] == "best") & passed_mask(fin)]  # only designs that passed verification count
         mine = best[best[STRUCTURE] == ref]
         others = best[best[STRUCTURE] != ref]
         if len(mine):

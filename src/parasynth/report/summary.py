@@ -14,12 +14,12 @@ from pathlib import Path
 
 import pandas as pd
 
-from ..measures.display import fmt_mean_se, fmt_quantity, quantity_unit, reference_name, text_table
-from ..study.rundir import Run, best_designs, design_key, read_final
+from ..measures.display import fmt_mean_se, fmt_number, fmt_quantity, quantity_unit, reference_name, text_table
+from ..study.rundir import SINGULARITY_FLOOR, Run, best_designs, design_key, estimate_of, read_final
 from .checks import design_roles
 from .analysis import analyse
 
-__all__ = ["terminal_summary", "run_summary"]
+__all__ = ["terminal_summary", "run_summary", "recommendation_lines", "verification_text", "reevaluated_text"]
 
 
 def terminal_summary(study, table: pd.DataFrame, final: pd.DataFrame | None, out_dir, k: int = 3) -> list[str]:
@@ -38,19 +38,10 @@ def terminal_summary(study, table: pd.DataFrame, final: pd.DataFrame | None, out
     knee = a.knee_row
     fa = a.final
     several = len(study.objectives) > 1
-    if knee is not None:
-        what = "knee of the non-dominated front" if several else "best feasible design"
-        vals = ", ".join(f"{x} = {fmt_quantity(knee[x], quantity_unit(study, x))}"
-                         for x in [v.name for v in study.variables] + [o.label for o in study.objectives])
-        lines.append(f"recommended ({what}): trial {int(knee['trial'])}: {vals} (single sample)")
-        if fa is not None and fa.knee is not None:
-            kr = fa.knee
-            lines.append("  re-evaluated: " + ", ".join(
-                f"{o.label} = {fmt_mean_se(kr[o.label], kr[o.label + '_stderr'], quantity_unit(study, o.label), True)}"
-                for o in study.objectives))
-    else:
+    if knee is None:
         lines.append("no feasible design found")
         return lines
+    lines += recommendation_lines(study, a)
     # Designs along the front, without those dominated beyond noise once re-evaluated.
     dominated = {}
     if fa is not None:
@@ -58,18 +49,22 @@ def terminal_summary(study, table: pd.DataFrame, final: pd.DataFrame | None, out
             if fa.dominated_by.get(i):
                 dominated[design_key(study, r)] = fa.dominated_by[i]
     pool = best_designs(study, runs, k=0)
+    kk = design_key(study, knee)
+    dominated.pop(kk, None)  # the recommendation is listed, never left out
     kept = pool[[design_key(study, r) not in dominated for _, r in pool.iterrows()]]
     dropped = [(int(r["trial"]), dominated[design_key(study, r)]) for _, r in pool.iterrows()
                if design_key(study, r) in dominated]
     show = best_designs(study, kept, k=k) if len(kept) else kept
-    kk = design_key(study, knee)
     if several and len(show) and not any(design_key(study, r) == kk for _, r in show.iterrows()):
         o = study.objectives[0]  # the recommended design is always listed
-        show = pd.concat([show, pool[[design_key(study, r) == kk for _, r in pool.iterrows()]]])
+        mine = pool[[design_key(study, r) == kk for _, r in pool.iterrows()]]
+        if not len(mine):  # recommended from beyond the front (every front design failed verification)
+            mine = knee.to_frame().T
+        show = pd.concat([show, mine])
         show = show.sort_values(o.label, ascending=(o.goal == "minimize"), kind="stable")
     if len(show):
         show = show.copy()
-        show.insert(0, "listed as", design_roles(study, show, kk))
+        show.insert(0, "listed as", design_roles(study, show, kk, front=pool))
         n_front = len(pool)
         head = (f"non-dominated feasible designs: {n_front} distinct" + (f", {len(show)} listed (spread along the "
                 f"front)" if n_front > len(show) else "") if several else f"best feasible designs ({len(show)})")
@@ -93,6 +88,68 @@ def terminal_summary(study, table: pd.DataFrame, final: pd.DataFrame | None, out
         lines.append(text_table(study, ref, [o.label for o in study.objectives] + ["feasible"]))
     lines += [f"warning: {w}" for w in a.warnings]
     return lines
+
+
+def recommendation_lines(study, a) -> list[str]:
+    """The first lines of a summary: the recommended design and whether it passed verification
+    (:mod:`parasynth.study.verify`), or that none did, with what failed."""
+    rec = a.recommendation
+    knee = a.knee_row
+    several = len(study.objectives) > 1
+    what = "knee of the non-dominated front" if several else "best feasible design"
+    vals = ", ".join(f"{x} = {fmt_quantity(knee[x], quantity_unit(study, x))}"
+                     for x in [v.name for v in study.variables] + [o.label for o in study.objectives])
+    lines = []
+    fa = a.final
+    if rec is None or rec.status == "not verified":
+        lines.append(f"recommended ({what}), NOT VERIFIED: trial {int(knee['trial'])}: {vals} (single sample)")
+        lines.append("  the run has not re-checked it (interrupted before its final stage, or written by an older "
+                     "version): run it again with --resume to verify it")
+    elif rec.status == "verified":
+        first = rec.first is not None and design_key(study, rec.first) == design_key(study, knee)
+        why = what if first else "the first design of the ranking that passed verification"
+        lines.append(f"recommended ({why}), verified: trial {int(knee['trial'])}: {vals} (single sample)")
+        lines.append("  " + verification_text(study, rec.final_row))
+    else:
+        lines.append(f"NO DESIGN PASSED VERIFICATION: none of the {rec.checked} re-checked designs holds every "
+                     "requirement; none is recommended (docs/verification.md)")
+        lines.append(f"  best design on single samples ({what}), not to be built as it is: trial {int(knee['trial'])}: {vals}")
+    if fa is not None and fa.knee is not None:
+        kr = fa.knee
+        lines.append("  re-evaluated: " + ", ".join(
+            f"{o.label} = {reevaluated_text(study, o, kr)}" for o in study.objectives))
+    for trial, reason in rec.failed if rec is not None else []:
+        lines.append(f"  trial {trial} {'(ranked before it) ' if rec.status == 'verified' else ''}{reason}")
+    return lines
+
+
+def reevaluated_text(study, o, row) -> str:
+    """A re-evaluated objective: mean ± standard error, or the value alone for a measure exact on
+    its grid (or without a sample), which is not resampled."""
+    u = quantity_unit(study, o.label)
+    kind = estimate_of(o)
+    if kind in ("grid", "exact"):
+        return fmt_quantity(row[o.label], u) + (" (exact on its grid)" if kind == "grid" else " (exact)")
+    return fmt_mean_se(row[o.label], row[o.label + "_stderr"], u, True)
+
+
+def verification_text(study, fr) -> str:
+    """One line on how a verified design was checked (its final.csv row ``fr``)."""
+    if fr is None:
+        return "verified"
+    ev = study.evaluation
+    parts = []
+    n_rep = int(fr.get("repeats", 0) or 0)
+    if n_rep:
+        parts.append(f"{n_rep} new seed{'s' if n_rep != 1 else ''} x {int(fr['samples'])} samples")
+    if study.constraints:
+        parts.append(f"{len(study.constraints)} constraint{'s' if len(study.constraints) != 1 else ''} "
+                     "within tolerance")
+    hm = fr.get("home_margin")
+    if hm is not None and pd.notna(hm):
+        parts.append(f"singularity margin at home {fmt_number(float(hm), 3)} >= "
+                     f"{fmt_number(ev.get('singularity_floor', SINGULARITY_FLOOR))}")
+    return "verified: " + ", ".join(parts)
 
 
 def run_summary(study, res) -> str:

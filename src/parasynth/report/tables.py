@@ -6,6 +6,7 @@ from __future__ import annotations
 import pandas as pd
 
 from ..measures.display import Unit, fmt_mean_se, fmt_number, fmt_value, quantity_unit, reference_short
+from ..study.rundir import estimate_of
 from .analysis import FinalAnalysis
 from .checks import design_roles
 
@@ -58,11 +59,17 @@ def final_display_table(study, fa: FinalAnalysis) -> pd.DataFrame:
     why = dict(zip(best_rows.index, design_roles(study, best_rows))) if len(best_rows) else {}
     for i, r in fin.iterrows():
         other = "sweep point" if study.optimizer.kind == "sweep" else why.get(i, "best")
-        rec = "recommended (knee)" if len(study.objectives) > 1 else "recommended (best)"
+        if "recommended" in fin:  # verified (docs/verification.md)
+            recommended, rec = bool(r["recommended"]), "recommended (verified)"
+            if bool(r["knee"]) and not recommended:
+                other = "knee (not recommended)"
+        else:  # a final.csv written before verification: the knee, unverified
+            recommended = bool(r["knee"])
+            rec = "recommended (knee)" if len(study.objectives) > 1 else "recommended (best)"
         role = other
         if r["source"] == "best" and bool(r.get("dominates_reference_screen", False)):
             role = f"dominates {reference_short(study)} (screening)"
-        row = {"design": (reference_short(study) if r["source"] == "reference" else (rec if r["knee"] else role)),
+        row = {"design": (reference_short(study) if r["source"] == "reference" else (rec if recommended else role)),
                "trial": fmt_number(int(r["trial"]))}
         if "count" in fin:
             row["evaluations"] = fmt_number(int(r["count"])) if r["source"] == "best" else ""
@@ -71,8 +78,13 @@ def final_display_table(study, fa: FinalAnalysis) -> pd.DataFrame:
             row[u.label(v.name)] = fmt_value(r[v.name], u) if is_number_col(study, v.name) else str(r[v.name])
         for o in study.objectives:
             u = unit(study, o.label)
-            row[u.label(o.label)] = fmt_mean_se(r[o.label], r[f"{o.label}_stderr"], u)
+            if estimate_of(o) in ("grid", "exact"):  # not resampled: the run's own value
+                row[u.label(o.label)] = fmt_value(r[o.label], u)
+            else:
+                row[u.label(o.label)] = fmt_mean_se(r[o.label], r[f"{o.label}_stderr"], u)
         row["feasible"] = "yes" if bool(r.get("feasible", True)) else "no"
+        if "verified" in fin:
+            row["verification"] = str(r.get("verification", "")) or ("verified" if bool(r["verified"]) else "failed")
         if r["source"] == "best":
             d = fa.dominated_by.get(i, [])
             row["dominated by (beyond noise)"] = ", ".join(f"trial {t}" for t in d) if d else "none"

@@ -68,7 +68,7 @@ def from_csv_columns(study, df: pd.DataFrame) -> pd.DataFrame:
     names = [v.name for v in study.variables] + [o.label for o in study.objectives]
     for c in study.constraints:
         names += [c.label, f"{c.label}_margin"]
-    names += [f"{o.label}_stderr" for o in study.objectives]
+    names += [f"{o.label}_stderr" for o in study.objectives] + [f"{c.label}_stderr" for c in study.constraints]
     names += sum(([f"{x.label}_nominal", f"{x.label}_robust_se"] for x in (*study.objectives, *study.constraints)
                   if getattr(x, "robust", None) is not None), [])
     back = {}

@@ -26,13 +26,15 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..common.pareto import crowding_distance, dominators_of, knee_index, pareto_mask, spread_by_crowding, to_min
+from ..common.pareto import (compare_with_noise, crowding_distance, dominators_of, knee_index, knee_order,
+                             non_dominated_ranks, pareto_mask, spread_by_crowding, to_min)
 from .columns import to_csv_columns
 from .design import design_key
 from .evaluate import Evaluator
 from .spec import ResolvedStudy
+from .verify import NOISE_Z, SINGULARITY_FLOOR, VERIFY_LIMIT, Verification, estimate_of, verify
 
-__all__ = ["best_designs", "reevaluate_best", "structure_candidates", "screening_dominators", "final_candidates", "n_screen_dominators", "merge_duplicates", "pareto_front", "knee_of", "crowding_distance",
+__all__ = ["best_designs", "reevaluate_best", "recommendation_order", "structure_candidates", "screening_dominators", "final_candidates", "n_screen_dominators", "merge_duplicates", "pareto_front", "knee_of", "crowding_distance",
            "spread_by_crowding", "design_key"]  # crowding_distance, spread_by_crowding (parasynth.common.pareto) and
 # design_key (study.design) are re-exported here for existing imports.
 
@@ -228,40 +230,161 @@ def structure_candidates(study: ResolvedStudy, runs: pd.DataFrame) -> list:
     return out
 
 
-def reevaluate_best(study: ResolvedStudy, evaluator: Evaluator, table: pd.DataFrame, out_dir: Path) -> pd.DataFrame:
-    """Re-evaluate the final candidates (:func:`final_candidates`: the best feasible designs, the
-    knee and the screening dominators of the reference) and the reference with ``final_samples`` samples and ``final_repeats`` seeds
-    (``seed + 1000 + j``): mean and standard error of each objective, written to
-    ``final.csv`` (columns ``source`` (best | reference), ``trial``, the design variables,
-    ``<objective>`` and ``<objective>_stderr``, ``feasible``, ``samples``, ``repeats``,
-    ``knee``, ``role`` (best | knee | screen | structure | reference), ``dominates_reference_screen``,
-    ``count``)."""
+def recommendation_order(study: ResolvedStudy, runs: pd.DataFrame) -> pd.DataFrame:
+    """The distinct feasible designs of ``runs`` in the order a recommendation walks them until
+    one passes verification (:mod:`parasynth.study.verify`): one objective, best first; several,
+    the non-dominated front in knee order (:func:`parasynth.common.pareto.knee_order`: the knee
+    first), then the next front in its knee order, and so on. Its first row is
+    :func:`knee_of` of :func:`pareto_front` (the best design for one objective)."""
+    ok = merge_duplicates(study, _feasible(runs))
+    objs = study.objectives
+    if not len(ok):
+        return ok
+    if len(objs) == 1:
+        o = objs[0]
+        return ok.sort_values(o.label, ascending=(o.goal == "minimize"), kind="stable")
+    Fm = to_min(ok[[o.label for o in objs]].to_numpy(float), [o.goal for o in objs])
+    ranks = non_dominated_ranks(Fm)
+    order = []
+    for r in np.unique(ranks):
+        idx = np.flatnonzero(ranks == r)
+        order += list(idx[knee_order(Fm[idx])])
+    return ok.iloc[order]
+
+
+def _screened_constraints(study: ResolvedStudy, row) -> dict:
+    return {c.label: float(row[c.label]) for c in study.constraints
+            if c.label in row and pd.notna(row[c.label])}
+
+
+def _needs_seeds(study: ResolvedStudy) -> bool:
+    """Whether any objective or constraint depends on the sample's seed (else a re-evaluation over
+    seeds repeats the run's own values)."""
+    return any(estimate_of(x) in ("statistic", "extreme") for x in (*study.objectives, *study.constraints))
+
+
+def _reevaluate_one(study: ResolvedStudy, evaluator: Evaluator, values: dict, row, src: str) -> tuple[dict, Verification]:
+    """The final.csv row of one design and its verification."""
     ev = study.evaluation
-    best = final_candidates(study, table)
+    n = ev.get("final_samples") or ev["n"]
+    recs = ([evaluator.evaluate(values, n=n, seed=ev["seed"] + 1000 + j) for j in range(ev["final_repeats"])]
+            if _needs_seeds(study) else [])
+    screened = _screened_constraints(study, row)
+    ver = verify(study, values, recs, screened=screened, floor=ev.get("singularity_floor", SINGULARITY_FLOOR))
+    out = {"source": src, "trial": int(row["trial"])}
+    out.update({v.name: values.get(v.name) for v in study.variables})
+    for o in study.objectives:
+        if estimate_of(o) in ("grid", "exact") or not recs:
+            # exact on its grid or without a sample: the run's own value, no spread to state
+            out[o.label] = float(row[o.label]) if pd.notna(row.get(o.label)) else np.nan
+            out[f"{o.label}_stderr"] = 0.0
+            continue
+        vals = np.array([r.objectives.get(o.label, np.nan) for r in recs], float)
+        fin = vals[np.isfinite(vals)]
+        out[o.label] = float(fin.mean()) if len(fin) else np.nan
+        out[f"{o.label}_stderr"] = float(fin.std(ddof=1) / np.sqrt(len(fin))) if len(fin) > 1 else np.nan
+    by_label = {c.label: c for c in ver.checks if c.label}
+    for c in study.constraints:
+        chk = by_label.get(c.label)
+        out[c.label] = chk.value if chk is not None else np.nan
+        out[f"{c.label}_stderr"] = chk.stderr if chk is not None and chk.kind == "statistic" else np.nan
+    home = [c for c in ver.checks if not c.label]
+    out["home_margin"] = home[0].value if home else np.nan
+    out["feasible"] = all(r.feasible for r in recs) if recs else bool(row.get("feasible", True))
+    out["samples"] = n if recs else int(row.get("samples", ev["n"]))
+    out["repeats"] = len(recs) if recs else 0
+    out["verified"] = ver.passed
+    out["verification"] = ver.reason(study)
+    return out, ver
+
+
+def reevaluate_best(study: ResolvedStudy, evaluator: Evaluator, table: pd.DataFrame, out_dir: Path) -> pd.DataFrame:
+    """Re-evaluate and verify the final candidates (:func:`final_candidates`: the best feasible
+    designs, the knee and the screening dominators of the reference) and the reference with
+    ``final_samples`` samples (the study's own count without it) and ``final_repeats`` seeds
+    (``seed + 1000 + j``), then walk :func:`recommendation_order` until a design passes
+    :func:`parasynth.study.verify.verify`, re-evaluating at most ``verify_designs`` designs
+    beyond the candidates (role ``verify``); that design is the run's recommendation, unless a
+    verified design dominates it beyond noise (then the dominating one, :data:`NOISE_Z`).
+
+    Written to ``final.csv``: ``source`` (best | reference), ``trial``, the design variables,
+    ``<objective>`` and ``<objective>_stderr`` (mean and standard error over the seeds; a grid
+    or exact objective keeps the run's own value with standard error 0), ``<constraint>`` and
+    ``<constraint>_stderr`` (the value verified: the mean of a statistic, the worst seed of an
+    extreme), ``home_margin``, ``feasible``, ``samples``, ``repeats``, ``verified``,
+    ``verification`` (``verified`` or what failed where), ``recommended``, ``knee``, ``role``
+    (best | knee | screen | structure | verify | reference), ``dominates_reference_screen``,
+    ``count``."""
+    ev = study.evaluation
+    best = final_candidates(study, table) if ev.get("final_top", 0) > 0 else table.iloc[:0].assign(
+        knee=pd.Series(dtype=bool), role=pd.Series(dtype=str), dominates_reference_screen=pd.Series(dtype=bool))
     ref = table[table["source"] == "reference"] if len(table) else table
-    rows = []
-    for src, df in (("best", best), ("reference", ref.head(1))):
-        for _, row in df.iterrows():
-            values = {v.name: row[v.name] for v in study.variables} if src == "best" else dict(study.reference)
-            if src == "best" and study.space.conditional:  # inactive variables are empty cells
-                values = study.space.restrict(values)
-            recs = [evaluator.evaluate(values, n=ev["final_samples"], seed=ev["seed"] + 1000 + j)
-                    for j in range(ev["final_repeats"])]
-            out = {"source": src, "trial": int(row["trial"])}
-            out.update({v.name: values.get(v.name) for v in study.variables})
-            for o in study.objectives:
-                vals = np.array([r.objectives.get(o.label, np.nan) for r in recs], float)
-                fin = vals[np.isfinite(vals)]
-                out[o.label] = float(fin.mean()) if len(fin) else np.nan
-                out[f"{o.label}_stderr"] = float(fin.std(ddof=1) / np.sqrt(len(fin))) if len(fin) > 1 else np.nan
-            out["feasible"] = all(r.feasible for r in recs)
-            out["samples"] = ev["final_samples"]
-            out["repeats"] = ev["final_repeats"]
-            out["knee"] = bool(row.get("knee", False)) if src == "best" else False
-            out["role"] = str(row.get("role", "best")) if src == "best" else "reference"
-            out["dominates_reference_screen"] = bool(row.get("dominates_reference_screen", False)) if src == "best" else False
-            out["count"] = int(row.get("count", 1)) if src == "best" else 1
-            rows.append(out)
+    rows, verdicts, keys = [], {}, []
+
+    def add(row, src):
+        values = {v.name: row[v.name] for v in study.variables} if src == "best" else dict(study.reference)
+        if src == "best" and study.space.conditional:  # inactive variables are empty cells
+            values = study.space.restrict(values)
+        out, ver = _reevaluate_one(study, evaluator, values, row, src)
+        out["recommended"] = False
+        out["knee"] = bool(row.get("knee", False)) if src == "best" else False
+        out["role"] = str(row.get("role", "best")) if src == "best" else "reference"
+        out["dominates_reference_screen"] = bool(row.get("dominates_reference_screen", False)) if src == "best" else False
+        out["count"] = int(row.get("count", 1)) if src == "best" else 1
+        rows.append(out)
+        if src == "best":
+            k = design_key(study, row)
+            keys.append(k)
+            verdicts[k] = len(rows) - 1
+        return out
+
+    for _, row in best.iterrows():
+        add(row, "best")
+    runs = table[table["source"] == "run"] if len(table) else table
+    pick = None
+    extra = 0
+    for _, row in recommendation_order(study, runs).iterrows():
+        k = design_key(study, row)
+        if k not in verdicts:
+            if extra >= ev.get("verify_designs", VERIFY_LIMIT):
+                break
+            row = row.copy()
+            row["knee"], row["role"], row["dominates_reference_screen"] = False, "verify", False
+            add(row, "best")
+            extra += 1
+        if rows[verdicts[k]]["verified"]:
+            pick = verdicts[k]
+            break
+    if pick is not None:
+        pick = _undominated(study, rows, pick)
+        rows[pick]["recommended"] = True
+    for _, row in ref.head(1).iterrows():
+        add(row, "reference")
     df = pd.DataFrame(rows)
     to_csv_columns(study, df).to_csv(out_dir / "final.csv", index=False)  # unit suffixes in the names
     return df
+
+
+def _undominated(study: ResolvedStudy, rows: list[dict], pick: int) -> int:
+    """``pick``, or the verified re-evaluated design that dominates it beyond noise (followed until
+    none does): a recommendation is never shown dominated by another design that passed."""
+    labels = [o.label for o in study.objectives]
+    senses = [o.goal for o in study.objectives]
+
+    def mse(r):
+        return (np.array([r[lab] for lab in labels], float),
+                np.nan_to_num(np.array([r[f"{lab}_stderr"] for lab in labels], float), nan=0.0))
+
+    seen = {pick}
+    while True:
+        mi, si = mse(rows[pick])
+        better = [j for j, r in enumerate(rows) if j != pick and r["source"] == "best" and r["verified"]
+                  and compare_with_noise(*mse(r), mi, si, senses, NOISE_Z).verdict == "dominates"]
+        if not better:
+            return pick
+        # the dominator that ranks first (its own row order: candidates, then the walk)
+        nxt = better[0]
+        if nxt in seen:
+            return pick
+        seen.add(nxt)
+        pick = nxt

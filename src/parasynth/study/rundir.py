@@ -21,14 +21,16 @@ from .columns import csv_column, from_csv_columns, to_csv_columns
 
 from .defaults import planned_designs
 from .design import design_key, design_mechanism, design_params, measure_settings
-from .final import best_designs, knee_of, merge_duplicates, pareto_front, screening_dominators
+from .verify import SINGULARITY_FLOOR, estimate_of
+from .final import best_designs, knee_of, merge_duplicates, pareto_front, recommendation_order, screening_dominators
 from .journal import read_journal
 from .schedule import structure_schedule
 from .spec import ResolvedStudy, StudyError, load_study
 from .tables import results_table
 
 __all__ = ["Run", "RunDirError", "read_run", "read_final", "to_csv_columns", "measure_settings", "design_key", "design_params", "design_mechanism", "pareto_front", "knee_of",
-           "screening_dominators", "merge_duplicates", "best_designs"]
+           "screening_dominators", "merge_duplicates", "best_designs", "recommendation_order", "estimate_of",
+           "SINGULARITY_FLOOR"]
 
 
 class RunDirError(StudyError):
@@ -121,7 +123,10 @@ def read_final(study, path) -> pd.DataFrame:
     if bad.any():
         i = int(np.flatnonzero(bad.to_numpy())[0])
         raise RunDirError(f"{path}: line {i + 2}: source is {df['source'].iloc[i]!r}, not 'best' or 'reference'")
-    numeric = labels + [f"{lab}_stderr" for lab in labels] + [c for c in ("trial", "samples", "repeats") if c in df]
+    cons = [c.label for c in study.constraints]
+    numeric = (labels + [f"{lab}_stderr" for lab in labels] + [c for c in cons + [f"{x}_stderr" for x in cons]
+                                                              if c in df]
+               + [c for c in ("trial", "samples", "repeats", "home_margin") if c in df])
     for c in numeric:
         vals = pd.to_numeric(df[c], errors="coerce")
         wrong = vals.isna() & df[c].notna()
@@ -132,4 +137,9 @@ def read_final(study, path) -> pd.DataFrame:
             raise RunDirError(f"{path}: line {i + 2}: column {csv_column(study, c)} holds {df[c].iloc[i]!r}, "
                               f"not a number")
         df[c] = vals
+    for c in ("verified", "recommended"):
+        if c in df:
+            df[c] = df[c].map(lambda x: str(x).strip().lower() in ("true", "1", "yes"))
+    if "verification" in df:
+        df["verification"] = df["verification"].fillna("").astype(str)
     return df

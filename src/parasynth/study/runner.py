@@ -243,7 +243,8 @@ def _run_locked(study, out_dir, previous, resume, n_trials, progress, storage, n
                 table = results_table(study, records)
         interrupted = guard.requested
     final = None
-    if not interrupted and study.evaluation.get("final_samples") and study.evaluation.get("final_top", 0) > 0:
+    runs_done = len(table) and (table["source"] == "run").any()
+    if not interrupted and runs_done:  # re-evaluation and verification of the recommendation
         with Interrupt(quiet=not progress) as guard2:
             try:
                 final = reevaluate_best(study, problem.evaluator, table, out_dir)

@@ -62,7 +62,8 @@ NLOPT_WITH_CONSTRAINTS = ("LN_COBYLA", "GN_ISRES")
 #: Columns of results.csv and final.csv besides the design variables, objectives and
 #: constraints: a label may not take one of these names.
 RESERVED_COLUMNS = ("trial", "source", "feasible", "status", "error", "seed", "samples", "time_s", "repeats",
-                    "knee", "count", "role", "dominates_reference_screen")
+                    "knee", "count", "role", "dominates_reference_screen", "verified", "verification",
+                    "recommended", "home_margin")
 #: Suffixes of derived columns: ``<constraint>_margin`` (results.csv), ``<objective>_stderr`` (final.csv),
 #: ``<label>_nominal`` and ``<label>_robust_se`` of a robust measure (results.csv).
 DERIVED_SUFFIXES = ("_margin", "_stderr", "_nominal", "_robust_se")
@@ -172,15 +173,22 @@ class EvaluationSpec(_Model):
         "normalised singularity margin at or above min (a number in [0, 1)); a list of added constraints only "
         "keeps all of the model's."))
     final_samples: Int | None = Field(default=None, ge=1, le=MAX_SAMPLES, description=(
-        "Samples of the final re-evaluation of the best designs (1 to "
-        f"{MAX_SAMPLES}); leave out to skip it."))
+        "Samples per seed of the final re-evaluation and verification of the best designs (1 to "
+        f"{MAX_SAMPLES}); leave out to use the study's own samples."))
     final_repeats: Int = Field(default=4, ge=1, le=1000, description=(
         "Seeds of the final re-evaluation (1 to 1000, default 4): mean and standard "
         "error over them."))
     final_top: Int = Field(default=5, ge=0, le=1000, description=(
         "Front designs re-evaluated at the end (0 to 1000, default 5): the k best (one "
         "objective) or k spread along the front by crowding distance, plus the knee and up to "
-        "max(3, final_top) designs that dominate the reference on single samples; 0 skips it."))
+        "max(3, final_top) designs that dominate the reference on single samples; 0 re-evaluates only the designs "
+        "the verification walks (docs/verification.md)."))
+    singularity_floor: Annotated[float, Strict(False)] = Field(default=1e-3, ge=0.0, lt=1.0, description=(
+        "The least singularity margin at the home pose of a design the study may recommend (a number in "
+        "[0, 1), default 0.001; docs/verification.md)."))
+    verify_designs: Int = Field(default=10, ge=0, le=1000, description=(
+        "Designs beyond the final candidates re-evaluated at most while looking for a recommendation that "
+        "passes verification (0 to 1000, default 10; docs/verification.md)."))
     engine: Literal["compiled", "numpy"] = Field(default="compiled", description=(
         "Evaluation engine: compiled (default; NumPy, with a warning, for a mechanism it does "
         "not cover) or numpy (the NumPy reference)."))
@@ -656,7 +664,8 @@ def resolve_study(data: dict, source: str | None = None) -> ResolvedStudy:
     evaluation = dict(method=ev.method, n=ev.samples, seed=ev.seed, ranges=ranges,
                       fixed=fixed_pose or None, constraints=ev_constraints, added_constraints=tuple(added),
                       final_samples=ev.final_samples, final_repeats=ev.final_repeats, final_top=ev.final_top,
-                      engine=ev.engine)
+                      engine=ev.engine, singularity_floor=float(ev.singularity_floor),
+                      verify_designs=ev.verify_designs)
 
     opt = spec.optimizer
     allowed = OPTIMIZERS[opt.kind]
