@@ -22,7 +22,7 @@ from .tables import unit as _unit
 __all__ = ["Section", "Table", "sections", "INDEX_MEANINGS", "SHARE_MEASURES", "reading_text", "share_text"]
 
 _MARGIN = ("the smallest singular value of the mechanism's wrench system with every actuation row of unit length "
-           "and the constraint rows orthonormal (moments divided by the model's length scale): 0 at a singularity, "
+           "and the constraint rows normalised (moments divided by the model's length scale): 0 at a singularity, "
            "where some platform motion is no longer held by the actuators and joints, at most 1 (wrenches mutually "
            "orthogonal); like the inverse of a condition number, 0.05 means the weakest direction is held about 20 "
            "times more weakly than by orthogonal wrenches")
