@@ -5,11 +5,9 @@ a share stated in the verdict text."""
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
-import pytest
 import yaml
 
 from parasynth.measures.objectives import OBJECTIVES
