@@ -174,6 +174,37 @@ def test_servos_settle_at_a_nearby_pose_in_2_s(name, params, tmp_path):
         assert dp < 1e-4 and np.degrees(ang) < 0.05, (k, dp * 1e3, np.degrees(ang))
 
 
+@pytest.mark.parametrize("name,params", CASES, ids=IDS)
+def test_the_keyframe_holds_the_export_pose_for_1_s(name, params, tmp_path):
+    """The written keyframe is the export pose (its qpos the joint positions parasynth's inverse
+    kinematics gives there, its ctrl the actuator values); loaded and stepped for 1 s the platform
+    stays there: without gravity within 1 um and 1e-4 deg, under gravity within the servos'
+    static deflection (docs/export.md: at most 1.3 mm and 0.33 deg among these designs at home).
+    Reset without the keyframe (ctrl 0) the platform moves away by more than 5 cm."""
+    mech = load(name, params)
+    m, d = _model(mech, tmp_path)
+    assert m.nkey == 1 and mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_KEY, 0) == "export_pose"
+    key = np.zeros(m.nq)
+    for jname, v in joint_positions(mech, mech.home).items():
+        a = m.jnt_qposadr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, jname)]
+        key[a:a + np.size(v)] = v
+    np.testing.assert_allclose(m.key_qpos[0], key, atol=1e-12)
+    np.testing.assert_allclose(m.key_ctrl[0], mech.inverse_kinematics(mech.home).actuators, rtol=1e-15, atol=1e-15)
+    steps = int(round(1.0 / m.opt.timestep))
+    for gravity, tol_mm, tol_deg in ((True, 1.5, 0.4), (False, 1e-3, 1e-4)):
+        if not gravity:
+            m.opt.gravity[:] = 0.0
+        mujoco.mj_resetDataKeyframe(m, d, 0)
+        for _ in range(steps):
+            mujoco.mj_step(m, d)
+        dp, ang, _ = _site_error(m, d, mech, mech.home)
+        assert dp * 1e3 < tol_mm and np.degrees(ang) < tol_deg, (gravity, dp * 1e3, np.degrees(ang))
+    mujoco.mj_resetData(m, d)  # qpos0 is the export pose too, but ctrl is 0
+    for _ in range(steps):
+        mujoco.mj_step(m, d)
+    assert _site_error(m, d, mech, mech.home)[0] > 0.05
+
+
 def test_without_the_hold_the_under_actuated_platform_drifts(tmp_path):
     mech = load("4ups_1rps", {})
     m, d = _model(mech, tmp_path)
@@ -190,7 +221,7 @@ def test_without_the_hold_the_under_actuated_platform_drifts(tmp_path):
 
 def test_exported_at_another_pose_the_closures_still_hold(tmp_path):
     """The model written at a pose other than home (its qpos0 there) closes at other poses, and
-    its qpos0 is that pose's joint positions."""
+    its qpos0 and its keyframe are that pose's joint positions."""
     for name, params in [("2rpu_2sps", {}), ("4ups_1rps", {}), ("5pus_upu", {})]:
         mech = load(name, params)
         X = feasible_poses(mech, 6, seed=3)
@@ -199,6 +230,8 @@ def test_exported_at_another_pose_the_closures_still_hold(tmp_path):
         for jname, v in jp0.items():
             a = m.jnt_qposadr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, jname)]
             np.testing.assert_allclose(m.qpos0[a:a + np.size(v)], np.atleast_1d(v), atol=1e-12, err_msg=jname)
+        np.testing.assert_array_equal(m.key_qpos[0], m.qpos0)  # the keyframe is the export pose
+        np.testing.assert_allclose(m.key_ctrl[0], mech.inverse_kinematics(X[0]).actuators, rtol=1e-15, atol=1e-15)
         jp = joint_positions(mech, X[1:], pose=X[0])
         for k in range(len(X) - 1):
             _set_qpos(m, d, jp, k)

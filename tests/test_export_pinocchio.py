@@ -87,6 +87,32 @@ def test_closure_frames_coincide_and_mobility_at_20_poses(name, params, tmp_path
     assert worst < 1e-9, worst
 
 
+@pytest.mark.parametrize("name,params", CASES, ids=IDS)
+def test_the_platform_frame_is_one_frame_at_the_platform_pose(name, params, tmp_path):
+    """``model.getFrameId("platform")`` without a frame type finds one frame (Pinocchio refuses a
+    name that several frames carry), the platform link's; at q = 0 (the export pose) and at
+    another pose its placement is the platform pose of parasynth's kinematics."""
+    mech = load(name, params)
+    X = feasible_poses(mech, 2, seed=4)
+    model, data, _ = _load(mech, tmp_path, pose=X[0])
+    assert [f.name for f in model.frames].count("platform") == 1
+    fid = model.getFrameId("platform")
+    assert model.frames[fid].type == pin.BODY
+    jp = joint_positions(mech, X, pose=X[0], format="urdf")
+    root = model.joints[model.getJointId("root_joint")]
+    for k in range(2):
+        if k == 0:  # the export pose: every leg joint at q = 0, the free flyer at the platform pose
+            q = pin.neutral(model)
+            p, R = mech.pose(X[0])
+            q[root.idx_q:root.idx_q + 7] = np.concatenate([p, pin.Quaternion(R).coeffs()])
+        else:
+            q = _q(model, jp, k)
+        pin.framesForwardKinematics(model, data, q)
+        p, R = mech.pose(X[k])
+        M = data.oMf[fid]
+        assert np.linalg.norm(M.translation - p) < 1e-12 and np.abs(M.rotation - R).max() < 1e-12, (k, M)
+
+
 def test_a_wrong_joint_position_opens_a_loop(tmp_path):
     """The check can fail: one passive angle off by 1 mrad separates that leg's frames."""
     mech = load("gough_stewart_6ups", {})
@@ -111,7 +137,7 @@ def test_offsets_and_export_pose(tmp_path):
         assert off[f"{leg.name}_P"] == pytest.approx(ik.actuators[i], abs=1e-15)
         assert off[f"{leg.name}_R"] == pytest.approx(ik.passive_angles[f"{leg.name}.R_base"], abs=1e-15)
     jp = joint_positions(mech, X, pose=X[0], format="urdf")
-    assert all(np.all(np.abs(v[0][()] if k != "platform" else 0) < 1e-15) for k, v in jp.items())
+    assert all(np.all(np.abs(v[0][()] if k != "root_joint" else 0) < 1e-15) for k, v in jp.items())
     pin.framesForwardKinematics(model, data, _q(model, jp, 2))
     for a, b in cl["closed_loop"]:
         assert np.linalg.norm(data.oMf[_frame(model, a)].translation - data.oMf[_frame(model, b)].translation) < 1e-9

@@ -41,20 +41,27 @@ def _seed(seed, kw) -> int:
     return kw["sample"].seed if kw.get("sample") is not None else seed
 
 
-if "verify_test_drop" not in OBJECTIVES:
+def verify_test_drop(mech, n: int = 4096, seed: int = 0, **kw):
+    """+1 on the study's own seed; on other seeds -1 for a link length in (185 mm, 200 mm), else
+    +1 (a constraint that holds on the screening sample and fails once re-evaluated)."""
+    if _seed(seed, kw) < 1000:
+        return 1.0
+    return -1.0 if _drops(mech.params.link_length) else 1.0
 
-    @register("verify_test_drop", unit="1", sense="maximize", settings=dict(SAMPLE_SETTINGS))
-    def verify_test_drop(mech, n: int = 4096, seed: int = 0, **kw):
-        """+1 on the study's own seed; on other seeds -1 for a link length in (185 mm, 200 mm), else
-        +1 (a constraint that holds on the screening sample and fails once re-evaluated)."""
-        if _seed(seed, kw) < 1000:
-            return 1.0
-        return -1.0 if _drops(mech.params.link_length) else 1.0
 
-    @register("verify_test_noisy", unit="1", sense="maximize", settings=dict(SAMPLE_SETTINGS))
-    def verify_test_noisy(mech, n: int = 4096, seed: int = 0, **kw):
-        """The seed's last digit / 10 (a statistic whose spread over seeds is known)."""
-        return (_seed(seed, kw) % 10) / 10.0
+def verify_test_noisy(mech, n: int = 4096, seed: int = 0, **kw):
+    """The seed's last digit / 10 (a statistic whose spread over seeds is known)."""
+    return (_seed(seed, kw) % 10) / 10.0
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _test_measures():
+    """The two test measures, registered for this module only (the registry is global)."""
+    for f in (verify_test_drop, verify_test_noisy):
+        register(f.__name__, unit="1", sense="maximize", settings=dict(SAMPLE_SETTINGS))(f)
+    yield
+    for f in (verify_test_drop, verify_test_noisy):
+        OBJECTIVES.pop(f.__name__, None)
 
 
 def _study(**changes):

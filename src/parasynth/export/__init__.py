@@ -21,7 +21,7 @@ from scipy.spatial.transform import Rotation
 
 from .mjcf import DEFAULTS as MJCF_DEFAULTS, servo_gains, write_mjcf
 from .tree import SUPPORTED_LEGS, ExportError, Tree, build_tree, joint_values, wxyz
-from .urdf import ball_joint_names, closure_path, write_urdf
+from .urdf import ROOT_JOINT, ball_joint_names, closure_path, write_urdf
 
 __all__ = ["to_mjcf", "to_urdf", "joint_positions", "build_tree", "joint_values", "closure_path", "ExportError",
            "Tree", "MJCF_DEFAULTS", "SUPPORTED_LEGS", "servo_gains", "FORMATS"]
@@ -76,8 +76,9 @@ def joint_positions(mech, X, pose=None, format: str = "mjcf") -> dict:
       ``qpos`` at ``model.jnt_qposadr`` of each joint.
     * ``urdf``: prismatic and revolute joints (N,) are zero at the export pose (parasynth's value
       less the closure file's ``joint_offsets``); a kept spherical joint is its three revolute
-      joints ``<name>_x/_y/_z`` (intrinsic x-y-z angles); ``platform`` (N, 7): position and
-      quaternion x y z w (Pinocchio's free-flyer order).
+      joints ``<name>_x/_y/_z`` (intrinsic x-y-z angles); ``root_joint`` (the platform's
+      floating joint, :data:`~parasynth.export.urdf.ROOT_JOINT`) (N, 7): position and quaternion
+      x y z w (Pinocchio's free-flyer order).
 
     A single pose gives arrays without the leading axis. ``ExportError`` for an unreachable
     pose."""
@@ -103,7 +104,7 @@ def joint_positions(mech, X, pose=None, format: str = "mjcf") -> dict:
             out[name] = v if format == "mjcf" else v - j.ref
     T = vals["platform"]
     q = wxyz(T[:, :3, :3]) if format == "mjcf" else Rotation.from_matrix(T[:, :3, :3]).as_quat()
-    out["platform"] = np.concatenate([T[:, :3, 3], q], axis=1)
+    out["platform" if format == "mjcf" else ROOT_JOINT] = np.concatenate([T[:, :3, 3], q], axis=1)
     if single:
         out = {k: v[0] for k, v in out.items()}
     return out

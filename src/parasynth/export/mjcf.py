@@ -34,7 +34,7 @@ import numpy as np
 
 from .tree import STEEL_DENSITY, Tree, wxyz
 
-__all__ = ["write_mjcf", "servo_gains", "DEFAULTS"]
+__all__ = ["write_mjcf", "servo_gains", "keyframe_values", "DEFAULTS", "KEYFRAME"]
 
 #: Defaults of the written model: time step (s), gravity (m/s^2, base frame), servo natural
 #: frequency (Hz) and damping ratio, joint damping (N s/m or N m s/rad per kg of moving mass),
@@ -187,6 +187,7 @@ def write_mjcf(tree: Tree, path, *, timestep=None, gravity=None, servo_frequency
         if j.range is not None and all(np.isfinite(j.range)):
             attrs["ctrlrange"] = _vec(j.range)
         ET.SubElement(act, "position", **attrs)
+    _keyframe(root, tree)
     if tree.not_exported:
         root.append(ET.Comment(" description constraints not written as joint ranges: "
                                + "; ".join(s.replace("--", "- -") for s in tree.not_exported) + " "))
@@ -194,6 +195,36 @@ def write_mjcf(tree: Tree, path, *, timestep=None, gravity=None, servo_frequency
     path = Path(path)
     ET.ElementTree(root).write(path, encoding="utf-8", xml_declaration=True)
     return path
+
+
+#: Name of the keyframe at the export pose (:func:`write_mjcf`).
+KEYFRAME = "export_pose"
+
+
+def keyframe_values(tree: Tree) -> tuple[np.ndarray, np.ndarray]:
+    """``qpos`` and ``ctrl`` of the model written from ``tree`` at its export pose, in MuJoCo's
+    order: joints in the order of the bodies in the file (the platform's free joint first: its
+    position and quaternion w x y z; a kept ball joint the identity quaternion; a slide or hinge
+    its ``ref``, parasynth's value at the export pose), and one control per actuator, the
+    actuator's value at the export pose (what the position servos must be told to hold it)."""
+    qpos = []
+    for b in tree.bodies:
+        if b.free:
+            qpos += [*b.pos, *wxyz(np.asarray(b.rot, dtype=float).reshape(3, 3))]
+        for j in b.joints:
+            qpos += [1.0, 0.0, 0.0, 0.0] if j.kind == "ball" else [j.ref]
+    ctrl = [tree.joints[jname].ref for jname in tree.actuators.values()]
+    return np.array(qpos, dtype=float), np.array(ctrl, dtype=float)
+
+
+def _keyframe(root, tree: Tree) -> None:
+    qpos, ctrl = keyframe_values(tree)
+    root.append(ET.Comment(f" keyframe {KEYFRAME}: the export pose, its servo targets the actuator values there "
+                           f"(mj_resetDataKeyframe(model, data, 0) loads it; without it ctrl is 0 and the servos "
+                           f"drive the actuators to 0) "))
+    key = ET.SubElement(ET.SubElement(root, "keyframe"), "key", name=KEYFRAME, qpos=_vec(qpos))
+    if len(ctrl):
+        key.set("ctrl", _vec(ctrl))
 
 
 def _finite_range(j, length_scale: float) -> tuple:

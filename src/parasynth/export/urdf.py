@@ -1,8 +1,10 @@
 """URDF writer of the kinematic tree (:mod:`parasynth.export.tree`) and its closure file.
 
-URDF describes trees only. The file holds the spanning tree: the base link, the platform on a
-``floating`` joint (Pinocchio: a free flyer) and every leg as a serial chain; a universal joint
-is two ``revolute`` joints through a massless cross link, a spherical joint the tree keeps (the
+URDF describes trees only. The file holds the spanning tree: the base link, the platform link on
+a ``floating`` joint named :data:`ROOT_JOINT` (Pinocchio: a free flyer; the only frame named
+``platform`` is then the platform link's, at the platform reference point) and every leg as a
+serial chain; a universal joint is two ``revolute`` joints through a massless cross link, a
+spherical joint the tree keeps (the
 base joint of an SPS leg) three ``revolute`` joints about the body's x, y and z axes (URDF has no
 spherical joint; intersecting revolute axes are one for any URDF reader, singular only 90 deg from
 the export pose). Each loop is closed by two frames, massless links on ``fixed`` joints: the
@@ -28,7 +30,13 @@ import yaml
 
 from .tree import STEEL_DENSITY, ExportError, Tree
 
-__all__ = ["write_urdf", "closure_path", "ball_joint_names"]
+__all__ = ["write_urdf", "closure_path", "ball_joint_names", "ROOT_JOINT"]
+
+#: Name of the platform's ``floating`` joint. It is not ``platform``: Pinocchio makes a frame of
+#: every joint and every link, and a joint named like the platform link would give two frames
+#: ``platform`` (``model.getFrameId("platform")`` refuses an ambiguous name). ``root_joint`` is
+#: the name Pinocchio gives a free-flyer root joint itself.
+ROOT_JOINT = "root_joint"
 
 #: The three revolute joints of a spherical joint ``name`` (about x, y, z of its body).
 BALL_AXES = ("x", "y", "z")
@@ -154,7 +162,7 @@ def write_urdf(tree: Tree, path) -> tuple[Path, Path]:
         parent = "base" if b.parent is None else b.parent
         links = []
         if b.free:
-            links.append((b.name, ET.Element("joint", name=b.name, type="floating")))
+            links.append((b.name, ET.Element("joint", name=ROOT_JOINT, type="floating")))
         for j in b.joints:
             if j.kind == "ball":
                 names = ball_joint_names(j.name)
@@ -213,7 +221,7 @@ def _closure_text(tree: Tree, path: Path, offsets: dict, balls: dict) -> str:
             "urdf": path.name,
             "pose": pose,
             "units": "SI (m, rad)",
-            "root_joint": {"name": "platform", "type": "floating",
+            "root_joint": {"name": ROOT_JOINT, "type": "floating",
                            "q": "platform position (m) and orientation quaternion x y z w in the base frame"},
             "loops": {c.leg: {"frames": [c.site1, c.site2], "type": c.kind} for c in tree.closures},
             "actuators": dict(tree.actuators),

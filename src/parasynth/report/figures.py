@@ -9,7 +9,7 @@ import io
 import numpy as np
 import pandas as pd
 
-from ..measures.display import UNITS, Unit, fmt_value, reference_name, reference_short
+from ..measures.display import UNITS, Unit, fmt_number, fmt_value, reference_name, reference_short
 from ..measures.objectives import USABLE_MEASURES, usable_workspace_of, workspace_of
 from ..common.pareto import default_reference_point, hypervolume, to_min
 from ..study.rundir import Run, design_mechanism, measure_settings
@@ -20,7 +20,8 @@ from .analysis import Analysis
 from .tables import is_number_col as _is_number_col
 from .tables import unit as _unit
 
-__all__ = ["Figures", "make_figures", "plot_pareto", "plot_parallel", "plot_convergence", "plot_sweep", "plot_designs"]
+__all__ = ["Figures", "make_figures", "plot_pareto", "plot_parallel", "plot_convergence", "plot_sweep", "plot_designs",
+           "sketch_boxes"]
 
 
 def _figure(**kw):
@@ -254,12 +255,22 @@ def plot_designs(figs, study, designs: dict):
         return
     from matplotlib.ticker import MaxNLocator  # lazy: matplotlib, as in _figure
 
+    homes = {name: mech.leg_states(mech.home[None, :])[1] for name, mech in mechs.items()}
+    boxes = sketch_boxes({name: _sketch_points(mech, homes[name]) for name, mech in mechs.items()})
     # 3D panels: fixed margins (a layout engine would draw the figure twice when saving)
     fig = _figure(figsize=(5.2 * len(mechs), 4.6))
     fig.subplots_adjust(left=0.0, right=0.96, bottom=0.03, top=0.95, wspace=0.08)
     for k, (name, mech) in enumerate(mechs.items()):
         ax = fig.add_subplot(1, len(mechs), k + 1, projection="3d")
-        _, states, p = mech.leg_states(mech.home[None, :])
+        # One scale for every sketch: the same cube's side, drawn the same size in an orthographic
+        # view, so that a length covers the same pixels in each (the designs compare by eye).
+        ax.set_proj_type("ortho")
+        ax.set_box_aspect((1.0, 1.0, 1.0))
+        lo, hi = boxes[name]
+        ax.set_xlim(lo[0], hi[0])
+        ax.set_ylim(lo[1], hi[1])
+        ax.set_zlim(lo[2], hi[2])
+        states = homes[name]
         for leg, st in zip(mech.legs, states):
             b, a = mm(st.base_point[0]), mm(st.platform_point[0])
             ax.plot([b[0], a[0]], [b[1], a[1]], [b[2], a[2]], "-", lw=2.5,
@@ -278,7 +289,10 @@ def plot_designs(figs, study, designs: dict):
         for axis in (ax.xaxis, ax.yaxis, ax.zaxis):  # few ticks: legible, and fewer labels to lay out
             axis.set_major_locator(MaxNLocator(nbins=4))
         ax.tick_params(labelsize=8)
-    figs.add(fig, "designs", "Mechanism sketches at the home pose (blue: actuated legs, green: passive legs, "
+    side = next(iter(boxes.values()))
+    figs.add(fig, "designs", "Mechanism sketches at the home pose, all at one scale (orthographic views of cubes "
+             f"of the same side, {fmt_number(float(side[1][0] - side[0][0]), 3)} {mm.symbol}, each centred on its "
+             "design: a length covers the same pixels in every sketch) (blue: actuated legs, green: passive legs, "
              "black dots: the legs' fixed base anchors, dotted: a leg's first prismatic joint from its anchor to "
              "the slider, orange outline: the platform anchors).")
     ev = study.evaluation
@@ -318,6 +332,24 @@ def plot_designs(figs, study, designs: dict):
                 "usable component connected to the home pose; grey crosses, the rest of the feasible set (beyond a "
                 "singularity or below the singularity-margin floor), which the platform cannot reach from home.")
     figs.add(fig, "workspace", what)
+
+
+def _sketch_points(mech, states) -> np.ndarray:
+    """Every point a sketch draws (display units): base anchors, leg ends, platform anchors."""
+    pts = [np.asarray(leg.base, float) for leg in mech.legs]
+    for st in states:
+        pts += [st.base_point[0], st.platform_point[0]]
+    return mm(np.array(pts))
+
+
+def sketch_boxes(points: dict, pad: float = 0.05) -> dict:
+    """{name: (lo, hi)} axis limits of the design sketches: cubes of one side for all designs
+    (the largest extent of any design along any axis, plus ``pad`` of it), each centred on its
+    design's points, so that every sketch has the same scale."""
+    centre = {n: (P.min(axis=0) + P.max(axis=0)) / 2 for n, P in points.items()}
+    half = max(float(np.max(P.max(axis=0) - P.min(axis=0))) for P in points.values()) / 2 * (1 + pad)
+    half = half if half > 0 else 1.0
+    return {n: (c - half, c + half) for n, c in centre.items()}
 
 
 def _usable_measure(study):

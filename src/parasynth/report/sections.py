@@ -21,7 +21,44 @@ from .verdict import recommendation_section
 from .tables import is_number_col as _is_number_col
 from .tables import unit as _unit
 
-__all__ = ["Section", "Table", "sections"]
+__all__ = ["Section", "Table", "sections", "INDEX_MEANINGS", "SHARE_MEASURES", "reading_text", "share_text"]
+
+_MARGIN = ("the smallest singular value of the mechanism's wrench system with every actuation row of unit length "
+           "and the constraint rows normalised (moments divided by the model's length scale): 0 at a singularity, "
+           "where some platform motion is no longer held by the actuators and joints, at most 1 (wrenches mutually "
+           "orthogonal); like the inverse of a condition number, 0.05 means the weakest direction is held about 20 "
+           "times more weakly than by orthogonal wrenches")
+_LTI = ("the local transmission index is the smaller of the input and output transmission indices, the cosines of "
+        "the pressure angles between the force a leg transmits and the motion it drives: 1 is transmission without "
+        "loss, 0 a singularity, and 0.7 (pressure angles within about 45.6 deg) the usual threshold of good "
+        "transmission")
+
+#: One sentence on the meaning and the scale of each unitless measure, shown where the report
+#: first names the study's measures (the summary). Every registered measure of unit "1" has one
+#: (a test checks it).
+INDEX_MEANINGS = {
+    "singularity_margin_min": f"the smallest (or the set quantile of the) singularity margin over the workspace "
+                              f"samples; the singularity margin is {_MARGIN}.",
+    "home_singularity_margin": f"the singularity margin at the home pose, {_MARGIN}.",
+    "singularity_margin": f"a floor on the singularity margin of every pose counted, {_MARGIN}.",
+    "min_lti": f"the smallest (or the set quantile of the) local transmission index over the workspace samples; {_LTI}.",
+    "mean_lti": f"the mean local transmission index over the workspace samples; {_LTI}.",
+    "gci": "the global conditioning index, the mean over the workspace of the inverse condition number of the "
+           "dimensionally homogeneous actuator Jacobian: 1 would be isotropic everywhere (every platform direction "
+           "as easy to drive), near 0 the workspace lies close to singularities.",
+    "workspace_fraction": "the share of the sampled task box that is feasible, from 0 (none) to 1 (all of it).",
+    "workspace_face_fraction": "the share of the feasible samples within 1 % of a face of the sampled box, from 0 "
+                               "to 1: above a few per cent the box cuts the workspace.",
+    "xy_isotropy": "the smaller of the workspace's X and Y extents over the larger, from 0 to 1 (as wide as long).",
+    "usable_workspace_fraction": "the usable volume over the feasible volume of the same grid, from 0 to 1: 0.5 "
+                                 "means that half of the workspace lies beyond a singularity the platform cannot "
+                                 "cross from home.",
+    "force_decoupling_ratio": "the largest change of a driving-leg force per newton of grinding force: 0 is fully "
+                              "decoupled, 1 a change as large as the grinding force itself.",
+}
+
+#: Measures whose value is a share of a whole: the verdict states how the designs divide.
+SHARE_MEASURES = ("usable_workspace_fraction", "workspace_fraction")
 
 
 @dataclass
@@ -95,6 +132,9 @@ def _sections(run: Run, a: Analysis) -> list[tuple[str, str, pd.DataFrame | None
         text = f"**PARTIAL REPORT: {run.partial_reason}.** " + text
     if study.spec.description:
         text = study.spec.description.strip() + "\n\n" + text
+    reading = reading_text(study)
+    if reading:
+        text += "\n\n" + reading
     sec.append(recommendation_section(run, a))
     sec.append(("Summary", text, None))
     if a.warnings:
@@ -142,9 +182,13 @@ def _sections(run: Run, a: Analysis) -> list[tuple[str, str, pd.DataFrame | None
         sec.append(("Non-dominated designs", txt, display_table(study, front)))
     else:
         sec.append(("Non-dominated designs", "No feasible design was found.", None))
+    shares = share_text(run, a)
     if a.ref_row is not None:
-        sec.append((reference_name(study, capital=True), _paper_text(run, a),
+        sec.append((reference_name(study, capital=True), _paper_text(run, a) + ("\n\n" + shares if shares else ""),
                     display_table(study, t[t["source"] == "reference"])))
+    elif shares and len(front):
+        title, txt, table = sec[-1]
+        sec[-1] = (title, txt + "\n\n" + shares, table)
     fa = a.final
     if fa is not None:
         fin = fa.table
@@ -190,6 +234,105 @@ def _recommended_words(a: Analysis) -> str:
     if rec.first is not None and int(rec.first["trial"]) != int(rec.row["trial"]):
         return "Recommended (the first design of the ranking that passed verification)"
     return f"Recommended ({what}, verified)"
+
+
+def reading_text(study) -> str:
+    """One sentence per unitless measure of the study (objectives, design constraints, an added
+    singularity-margin floor) on its meaning and scale; empty when there is none."""
+    items = [(o.label, o.name) for o in study.objectives] + [(c.label, c.name) for c in study.constraints]
+    settings = {x.label: dict(x.settings or {}) for x in list(study.objectives) + list(study.constraints)}
+    items += [(c.get("name", "singularity_margin"), c.get("type", "")) for c in
+              (study.evaluation.get("added_constraints") or ())]
+    out, seen = [], set()
+    for label, name in items:
+        meaning = INDEX_MEANINGS.get(name)
+        if meaning is None or (label, name) in seen:
+            continue
+        q = settings.get(label, {}).get("quantile")
+        if meaning.startswith("the smallest (or the set quantile of the)"):
+            which = f"the {fmt_number(100 * float(q), 3)} % quantile of the" if q else "the smallest"
+            meaning = meaning.replace("the smallest (or the set quantile of the)", which, 1)
+        seen.add((label, name))
+        what = f"**{label}**" + (f" ({name})" if label != name else "")
+        out.append(f"{what}: {meaning}")
+    if not out:
+        return ""
+    return "Reading the unitless measures: " + " ".join(out)
+
+
+def _pct_of(v) -> str:
+    return f"{fmt_number(100 * float(v), 3)} %"
+
+
+def share_text(run: Run, a: Analysis) -> str:
+    """The verdict on each share objective (:data:`SHARE_MEASURES`): which designs keep the same
+    share (and the variables that are equal in exactly those designs, e.g. every design with
+    b2 = b4), the range of the others, the reference's and the recommended design's. On the
+    re-evaluated values where the run has them, else on the single samples."""
+    study = run.study
+    shares = [o for o in study.objectives if o.name in SHARE_MEASURES]
+    if not shares:
+        return ""
+    fa = a.final
+    if fa is not None and len(fa.table):
+        table, basis = fa.table, "re-evaluated"
+    else:
+        table, basis = a.runs[(a.runs["status"] == "ok")], "evaluated (single samples)"
+    rows, keys = [], set()
+    for _, r in table.sort_values("trial", key=lambda t: t.where(t >= 0, np.inf)).iterrows():
+        k = design_key(study, r)
+        if k in keys:
+            continue
+        keys.add(k)
+        rows.append(r)
+    if len(rows) < 2:
+        return ""
+    numeric = [v.name for v in study.variables if _is_number_col(study, v.name)]
+    texts = []
+    for o in shares:
+        vals = np.array([float(r[o.label]) for r in rows])
+        ok = np.isfinite(vals)
+        groups = []
+        for v in sorted(set(np.round(vals[ok], 9))):
+            idx = [i for i in range(len(rows)) if ok[i] and abs(vals[i] - v) <= 1e-9]
+            if len(idx) >= 2:
+                groups.append((v, idx))
+        parts = []
+        for v, idx in groups:
+            members = set(idx)
+            pairs = [(x, y) for i, x in enumerate(numeric) for y in numeric[i + 1:]
+                     if _unit(study, x) == _unit(study, y)
+                     and {j for j in range(len(rows)) if abs(float(rows[j][x]) - float(rows[j][y])) <= 1e-12} == members]
+            if pairs:
+                x, y = pairs[0]
+                parts.append(f"every design with {x} = {y} ({len(idx)} of the {len(rows)} {basis} designs) keeps "
+                             f"exactly {_pct_of(v)}")
+            else:
+                names = [f"trial {int(rows[j]['trial'])}" if int(rows[j]["trial"]) >= 0 else reference_name(study)
+                         for j in idx]
+                trials = ", ".join(names[:-1]) + " and " + names[-1]
+                parts.append(f"{len(idx)} of the {len(rows)} {basis} designs keep exactly {_pct_of(v)} ({trials})")
+        grouped = {j for _, idx in groups for j in idx}
+        rest = [vals[j] for j in range(len(rows)) if ok[j] and j not in grouped]
+        if rest:
+            lo, hi = min(rest), max(rest)
+            span = _pct_of(lo) if lo == hi else f"{fmt_number(100 * lo, 3)}-{_pct_of(hi)}"
+            parts.append(f"{'the other designs' if groups else f'the {len(rows)} {basis} designs'} keep {span}")
+        named = []
+        if fa is not None and fa.ref is not None and np.isfinite(float(fa.ref[o.label])):
+            named.append(f"{reference_name(study)} {_pct_of(fa.ref[o.label])}")
+        elif a.ref_row is not None:
+            named.append(f"{reference_name(study)} {_pct_of(a.ref_row[o.label])} (single sample)")
+        if fa is not None and fa.knee is not None:
+            named.append(f"the recommended design (trial {int(fa.knee['trial'])}) {_pct_of(fa.knee[o.label])}")
+        elif a.knee_row is not None:
+            named.append(f"the recommended design (trial {int(a.knee_row['trial'])}) "
+                         f"{_pct_of(a.knee_row[o.label])} (single sample)")
+        text = f"**{o.label}**: " + "; ".join(parts)
+        if named:
+            text += "; " + ", ".join(named)
+        texts.append(text + ".")
+    return "**Shares** (" + basis + " values): " + " ".join(texts)
 
 
 def _fmt_design(study, row) -> list[str]:

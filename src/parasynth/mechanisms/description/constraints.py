@@ -48,8 +48,21 @@ class ExpressionConstraint(Constraint):
         return np.asarray(self.evaluate(ctx), dtype=float) * np.ones(ctx.X.shape[0])
 
 
+def _check_kind_of_parameters(raw, kind: str, path: str, scope: _Scope) -> None:
+    """Refuse a bound written as one parameter (or a sign and one parameter) of another kind than
+    ``kind``: a crank range given a length, a stroke given an angle."""
+    if not isinstance(raw, str):
+        return
+    name = raw.strip().lstrip("+-").strip()
+    have = scope.kinds.get(name) if scope is not None else None
+    if have in ("length", "angle") and have != kind:
+        what = "crank angles (RUS legs)" if kind == "angle" else "lengths (leg lengths or slider positions)"
+        raise DescriptionError(f"{path}: parameters.{name} is {'an' if have == 'angle' else 'a'} {have}, and this "
+                               f"mechanism's actuators are {what}; give {'an' if kind == 'angle' else 'a'} {kind}")
+
+
 class _ConstraintSpec:
-    def __init__(self, i, raw, leg_names, task: _Task, pscope: _Scope):
+    def __init__(self, i, raw, leg_names, task: _Task, pscope: _Scope, actuator_kind: str | None = "length"):
         path = f"constraints[{i}]"
         if not isinstance(raw, dict):
             raise DescriptionError(f"{path}: a constraint is a mapping with name and type, got {raw!r}")
@@ -80,6 +93,18 @@ class _ConstraintSpec:
         self.legs = legs_list("legs") if "legs" in _CONSTRAINT_KEYS[t] else ()
         kind = {"actuator_range": "length", "leg_length": "length", "joint_angle": "angle",
                 "leg_axis_angle": "angle", "interference": "length"}.get(t)
+        if t == "actuator_range":
+            # The range of every actuator: lengths (m) for leg lengths and slider positions, angles
+            # (rad) for cranks; one range cannot hold both.
+            if actuator_kind == "mixed":
+                raise DescriptionError(f"{path}: an actuator_range applies to every actuator, and this mechanism's "
+                                       f"actuators are both lengths (legs, sliders) and crank angles (RUS legs); "
+                                       f"limit the lengths with leg_length constraints instead")
+            kind = "angle" if actuator_kind == "angle" else "length"
+            for key in ("min", "max"):
+                if key in raw:
+                    _check_kind_of_parameters(raw[key], kind, f"{path}.{key}", pscope)
+        self.actuator_kind = kind
         if t == "coordinate_range":
             c = raw["coordinate"]
             if c not in task.kinds:
@@ -124,11 +149,19 @@ class _ConstraintSpec:
         lo = self.min(env) if self.min is not None else None
         hi = self.max(env) if self.max is not None else None
         if lo is not None and hi is not None and not lo < hi:
-            raise DescriptionError(f"{mech.name}: {self.path}: min ({lo:g}) must be below max ({hi:g}) (SI)")
+            raise DescriptionError(f"{self.path}: min ({lo:g}) must be below max ({hi:g}) (SI)")
         lo_ = -np.inf if lo is None else lo
         hi_ = np.inf if hi is None else hi
         t = self.type
         if t == "actuator_range":
+            if self.actuator_kind == "angle":
+                # Crank angles are wrapped to (-pi, pi]: a range beyond it would never be reached.
+                for key, v in (("min", lo), ("max", hi)):
+                    if v is not None and not -np.pi <= v <= np.pi:
+                        raise DescriptionError(f"{self.path}.{key}: a crank angle range lies within "
+                                               f"[-180 deg, 180 deg] (crank angles are wrapped to (-180, 180] deg), "
+                                               f"got {np.degrees(v):g} deg")
+                return ActuatorRange(self.name, lo=-np.inf if lo is None else lo, hi=hi_, doc=self.doc, unit="rad")
             return ActuatorRange(self.name, lo=-np.inf if lo is None else lo, hi=hi_, doc=self.doc)
         if t == "leg_length":
             return LegLengthRange(self.name, legs=self.legs, lo=-np.inf if lo is None else lo, hi=hi_, doc=self.doc)
@@ -145,7 +178,7 @@ class _ConstraintSpec:
             try:
                 return SingularityMarginFloor(self.name, floor=lo, doc=self.doc or f"singularity margin >= {lo:g}")
             except ValueError as e:
-                raise DescriptionError(f"{mech.name}: {self.path}.min: {e}") from None
+                raise DescriptionError(f"{self.path}.min: {e}") from None
         if t == "coordinate_range":
             unit = "rad" if mech.description.task.kinds[self.coordinate] == "angle" else "m"
             return CoordinateRange(self.name, unit=unit, index=mech.task_coordinates.index(self.coordinate),

@@ -98,6 +98,18 @@ class Description:
         dup = sorted({n for n in self.leg_names if self.leg_names.count(n) > 1})
         if dup:
             raise DescriptionError(f"legs: leg name(s) {dup} used twice")
+        #: The mechanism's leg order as positions in the description's order (:func:`leg_order`).
+        self.leg_order = leg_order(self.leg_names)
+        self.leg_names = [self.leg_names[i] for i in self.leg_order]
+        kinds = sorted({g.cls.actuator_kind for g in self.legs if g.actuated})
+        #: What the actuators are: "length" (leg lengths, slider positions), "angle" (cranks),
+        #: "mixed", or None without actuators.
+        if not kinds:
+            self.actuator_kind = None
+        elif set(kinds) <= {"length", "slider"}:
+            self.actuator_kind = "length"
+        else:
+            self.actuator_kind = "angle" if kinds == ["angle"] else "mixed"
         self.stiffness = _StiffnessSpec(data.get("stiffness"), self.legs, pscope,
                                         {p.name: p.kind for p in self.params})
         self.task = _Task(data.get("task"), pscope, set(self.param_by_name))
@@ -106,7 +118,8 @@ class Description:
         cons = data.get("constraints") or []
         if not isinstance(cons, list):
             raise DescriptionError("constraints: give a list of constraints")
-        self.constraints = [_ConstraintSpec(i, c, self.leg_names, self.task, pscope) for i, c in enumerate(cons)]
+        self.constraints = [_ConstraintSpec(i, c, self.leg_names, self.task, pscope, self.actuator_kind)
+                            for i, c in enumerate(cons)]
         names = [c.name for c in self.constraints]
         dup = sorted({n for n in names if names.count(n) > 1})
         if dup:
@@ -119,6 +132,7 @@ class Description:
         legs = []
         for g in self.legs:
             legs += g.build(env, base, plat)
+        legs = [legs[i] for i in self.leg_order]
         home = np.array([s(env) for s in self.task.home])
         for c, (lo, hi) in self.task.ranges.items():
             if not lo(env) < hi(env):
@@ -130,6 +144,24 @@ class Description:
         else:
             L = max(max(float(np.linalg.norm(leg.base)) for leg in legs), 1e-3)
         return legs, home, L
+
+
+_NUMBERED = re.compile(r"^L([1-9]\d*)$")
+
+
+def leg_order(names: list) -> list:
+    """The order of the mechanism's legs, as positions in the description's order ``names``.
+
+    When every leg's name has the form of the default names, ``L<number>``, and the numbers are
+    1 to the number of legs, the legs are put in the order of their numbers: the leg named
+    ``L<k>`` is the k-th leg, and its actuator the k-th (``q<k>``, ``s<k>`` or ``t<k>``), whatever
+    the order of the entries that name them (a mirrored crank pair written as two entries,
+    ``names: [L1, L3, L5]`` and ``names: [L2, L4, L6]``). Any other names keep the description's
+    order, and a leg's number is its position there."""
+    nums = [_NUMBERED.match(n) for n in names]
+    if all(nums) and sorted(int(m.group(1)) for m in nums) == list(range(1, len(names) + 1)):
+        return sorted(range(len(names)), key=lambda i: int(nums[i].group(1)))
+    return list(range(len(names)))
 
 
 def _digest(data) -> str:
