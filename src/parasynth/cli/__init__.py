@@ -220,10 +220,18 @@ def _checked_study(path):
     except StudyError as e:
         msg = str(e)
         raise CliError(msg if str(path) in msg else f"{path}: {msg}") from None
-    problems = check_study(study)
+    warnings: list = []
+    problems = check_study(study, warnings=warnings)
     if problems:
         raise CliError(f"{path}: {len(problems)} problem(s):\n  " + "\n  ".join(problems))
+    _print_warnings(path, warnings)
     return study
+
+
+def _print_warnings(path, warnings) -> None:
+    """What :func:`check_study` accepts but doubts, one ``warning:`` line each on stderr."""
+    for w in warnings:
+        print(f"warning: {path}: {w}", file=sys.stderr)
 
 
 # -- commands ------------------------------------------------------------------------------------
@@ -272,9 +280,11 @@ def cmd_validate(args) -> int:
 
     study = _load_study(args.study)
     stats: dict = {}
-    problems = check_study(study, measures=not args.quick, stats=stats)
+    warnings: list = []
+    problems = check_study(study, measures=not args.quick, stats=stats, warnings=warnings)
     if problems:
         raise CliError(f"{args.study}: {len(problems)} problem(s):\n  " + "\n  ".join(problems))
+    _print_warnings(args.study, warnings)
     from ..measures.display import fmt_column_value as fq, fmt_evaluation
 
     on = (f"the {study.structures.motion} structures {', '.join(study.structures.labels)}" if study.structures
@@ -297,8 +307,11 @@ def cmd_validate(args) -> int:
     print(f"  evaluation: {fmt_evaluation(study)}")
     probe = (f"; {stats['measures']} measure(s) evaluated once on the first of them"
              if stats.get("measures") else "")
-    print(f"  checked: {stats.get('designs', 0)} design(s) built (the reference or the box centre, "
-          f"{stats.get('corners', 0)} corner(s) of the variable box){probe}")
+    built = stats.get("corners_built", stats.get("corners", 0))
+    corners = (f"{stats.get('corners', 0)} corner(s) of the variable box" if built == stats.get("corners", 0) else
+               f"{stats.get('corners', 0)} corner(s) of the variable box, {built} of them buildable")
+    print(f"  checked: {stats.get('designs', 0)} design(s) (the reference or the box centre, {corners}){probe}"
+          + (f"; {len(warnings)} warning(s)" if warnings else ""))
     return EXIT_OK
 
 
