@@ -268,3 +268,18 @@ def test_a_start_outside_the_bounds_is_named_in_the_study_units(low, high, shown
     with pytest.raises(StudyError) as e:
         load_study(yaml.safe_dump(d), is_text=True)
     assert str(e.value).startswith("optimizer.start.link_length:") and shown in str(e.value)
+
+
+@pytest.mark.parametrize("text,n", [("1.6e4", 16000), ("4096", 4096), ("2e3", 2000)])
+def test_a_count_in_exponent_form_is_the_integer_it_writes(text, n):
+    t = yaml.safe_dump({**BASE, "evaluation": {"samples": "@N@"}}).replace("'@N@'", text)
+    s = load_study(t, is_text=True)
+    assert s.evaluation["n"] == n and isinstance(s.evaluation["n"], int)
+
+
+@pytest.mark.parametrize("text", ["4096.5", "true", "'4096'", "1e30"])
+def test_what_is_not_a_count_is_still_refused(text):
+    t = yaml.safe_dump({**BASE, "evaluation": {"samples": "@N@"}}).replace("'@N@'", text)
+    with pytest.raises(StudyError) as e:
+        load_study(t, is_text=True)
+    assert str(e.value).startswith("evaluation.samples:")

@@ -33,7 +33,7 @@ from pathlib import Path
 from typing import Annotated, Any, Literal
 
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, Strict, ValidationError
+from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, Strict, ValidationError
 
 from ..model.geometry_checks import degenerate_geometry
 from ..mechanisms import load_mechanism, mechanism_class, resolve_mechanism_name
@@ -77,8 +77,16 @@ MAX_DESIGNS = MAX_TRIALS
 
 
 Scalar = float | int | str | bool
-#: Integers of the study file: true/false and 4096.5 are not counts.
-Int = Annotated[int, Strict()]
+def _integral_float(value):
+    """A count written in exponent form (``1.6e4``, a float in YAML) as the integer it is;
+    anything else as it is, for the strict check."""
+    if isinstance(value, float) and math.isfinite(value) and value.is_integer():
+        return int(value)
+    return value
+
+
+#: Integers of the study file: true/false and 4096.5 are not counts; 1.6e4 is 16000.
+Int = Annotated[int, Strict(), BeforeValidator(_integral_float)]
 
 
 class _Model(BaseModel):
