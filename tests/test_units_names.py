@@ -283,3 +283,25 @@ def test_what_is_not_a_count_is_still_refused(text):
     with pytest.raises(StudyError) as e:
         load_study(t, is_text=True)
     assert str(e.value).startswith("evaluation.samples:")
+
+
+def test_a_crank_whose_home_height_must_match_its_link_is_accepted_with_the_share():
+    # 6-RUS: the home pose is reachable only where the height and the link length roughly match
+    # (a band of the plane): of the corners of this box three build, the low platform on the long
+    # link does not; each bound alone, with the other's default (height 400 mm, link 350 mm), builds
+    rus = str(ROOT / "tests" / "data" / "export_6rus.yaml")
+    for h, link, ok in [(0.25, 0.35, True), (0.4, 0.55, True), (0.4, 0.35, True), (0.25, 0.55, False)]:
+        try:
+            load_mechanism(rus, height=h, link_length=link)
+            built = True
+        except ValueError:
+            built = False
+        assert built == ok, (h, link)
+    d = {**BASE, "mechanism": rus, "variables": [{"name": "height", "low": "250 mm", "high": "400 mm"},
+                                                 {"name": "link_length", "low": "350 mm", "high": "550 mm"}]}
+    warnings = []
+    problems = check_study(load_study(yaml.safe_dump(d), is_text=True), measures=False, warnings=warnings)
+    assert problems == []
+    (w,) = [w for w in warnings if "corners" in w]
+    assert w.startswith("variables: 3 of 4 corners") and "(75 %)" in w
+    assert "{height=250 mm, link_length=550 mm}" in w and "not reachable" in w
