@@ -2,10 +2,11 @@
 
 Commands
 --------
-run STUDY.yaml       run a design study (sweep, NLopt or Optuna) and write its results
+run STUDY.yaml       run a design study (sweep, NLopt or Optuna) and write its results and report
+                     (runs/<name>/, the report in runs/<name>/report/)
 validate STUDY.yaml  check a study file (builds its designs, probes its measures) and print it
 evaluate STUDY.yaml  evaluate one design of a study (all objectives and constraints)
-report RUN_DIR       write index.html, report.md and pareto.csv for a run
+report RUN_DIR       write index.html, report.md and pareto.csv for a run (in RUN_DIR/report/)
 run-all [FOLDER]     run every study of a folder and write all reports (reports/README.md)
 list                 mechanisms with their parameters, measures with their settings, optimisers
 analyze NAME         kinematic analysis of a mechanism at its home pose and a pose sample
@@ -219,10 +220,18 @@ def _checked_study(path):
     except StudyError as e:
         msg = str(e)
         raise CliError(msg if str(path) in msg else f"{path}: {msg}") from None
-    problems = check_study(study)
+    warnings: list = []
+    problems = check_study(study, warnings=warnings)
     if problems:
         raise CliError(f"{path}: {len(problems)} problem(s):\n  " + "\n  ".join(problems))
+    _print_warnings(path, warnings)
     return study
+
+
+def _print_warnings(path, warnings) -> None:
+    """What :func:`check_study` accepts but doubts, one ``warning:`` line each on stderr."""
+    for w in warnings:
+        print(f"warning: {path}: {w}", file=sys.stderr)
 
 
 # -- commands ------------------------------------------------------------------------------------
@@ -271,9 +280,11 @@ def cmd_validate(args) -> int:
 
     study = _load_study(args.study)
     stats: dict = {}
-    problems = check_study(study, measures=not args.quick, stats=stats)
+    warnings: list = []
+    problems = check_study(study, measures=not args.quick, stats=stats, warnings=warnings)
     if problems:
         raise CliError(f"{args.study}: {len(problems)} problem(s):\n  " + "\n  ".join(problems))
+    _print_warnings(args.study, warnings)
     from ..measures.display import fmt_column_value as fq, fmt_evaluation
 
     on = (f"the {study.structures.motion} structures {', '.join(study.structures.labels)}" if study.structures
@@ -296,8 +307,11 @@ def cmd_validate(args) -> int:
     print(f"  evaluation: {fmt_evaluation(study)}")
     probe = (f"; {stats['measures']} measure(s) evaluated once on the first of them"
              if stats.get("measures") else "")
-    print(f"  checked: {stats.get('designs', 0)} design(s) built (the reference or the box centre, "
-          f"{stats.get('corners', 0)} corner(s) of the variable box){probe}")
+    built = stats.get("corners_built", stats.get("corners", 0))
+    corners = (f"{stats.get('corners', 0)} corner(s) of the variable box" if built == stats.get("corners", 0) else
+               f"{stats.get('corners', 0)} corner(s) of the variable box, {built} of them buildable")
+    print(f"  checked: {stats.get('designs', 0)} design(s) (the reference or the box centre, {corners}){probe}"
+          + (f"; {len(warnings)} warning(s)" if warnings else ""))
     return EXIT_OK
 
 
@@ -674,7 +688,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--quiet", action="store_true", help="no progress bar, e.g. --quiet")
     p.add_argument("--no-report", action="store_true", help="do not write the report at the end, e.g. --no-report")
     p.add_argument("--report-dir", type=_path_arg("--report-dir"),
-                   help="report directory (default reports/<study name>/), e.g. --report-dir reports/qs")
+                   help="report directory (default report/ in the run directory: runs/<study name>/report/), "
+                        "e.g. --report-dir /tmp/qs-report")
     p.add_argument("--workers", type=_count_type("--workers", 1, 1024), metavar="N",
                    help="local worker processes for an Optuna study (e.g. --workers 2); sweeps and NLopt run in one")
     p.add_argument("--storage", metavar="URL",
@@ -698,9 +713,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--reports", default="reports", type=_path_arg("--reports"),
                    help="reports folder (default reports/), e.g. --reports reports")
     p.add_argument("--quiet", action="store_true", help="no progress bars, e.g. --quiet")
-    p = add("report", cmd_report, "write the report of a run directory", "parasynth report runs/quickstart --out reports/qs")
+    p = add("report", cmd_report, "write the report of a run directory",
+            "parasynth report runs/quickstart --out /tmp/qs-report")
     p.add_argument("run_dir", nargs="?", type=_path_arg("the run directory"), help="run directory, e.g. runs/quickstart")
-    p.add_argument("--out", type=_path_arg("--out"), help="report directory (default reports/<study name>/), e.g. --out reports/qs")
+    p.add_argument("--out", type=_path_arg("--out"), help="report directory (default RUN_DIR/report/, where run "
+                                                         "writes it), e.g. --out /tmp/qs-report")
     p.add_argument("--storage", metavar="URL", help="rebuild the run from this storage (with --study NAME), "
                                                      "e.g. --storage sqlite:///optuna.db")
     p.add_argument("--study", metavar="NAME", help="study name in --storage, e.g. --study quickstart")

@@ -11,17 +11,24 @@ named:
 * files larger than :data:`MAX_BYTES`, files that are not UTF-8 text (binary files, other
   encodings), directories and unreadable paths.
 
+Numbers in exponent form are numbers as YAML 1.2 writes them: PyYAML follows YAML 1.1, where
+a float needs a dot and a signed exponent (``2.0e+6``), so ``2e6``, ``2.0e6``, ``1e-3`` and
+``.5e3`` would be read as strings. This reader takes them as floats (:data:`EXPONENT_FLOAT`);
+what YAML 1.1 already read as a number is unchanged.
+
 Errors are :class:`YamlError` (a ``ValueError``) with a one-line message.
 """
 
 from __future__ import annotations
 
 import os
+import re
 from pathlib import Path
 
 import yaml
 
-__all__ = ["YamlError", "load_yaml", "read_text", "MAX_ALIASES", "MAX_NODES", "MAX_DEPTH", "MAX_BYTES"]
+__all__ = ["YamlError", "load_yaml", "read_text", "MAX_ALIASES", "MAX_NODES", "MAX_DEPTH", "MAX_BYTES",
+           "EXPONENT_FLOAT"]
 
 #: Aliases allowed in one document.
 MAX_ALIASES = 100
@@ -31,6 +38,12 @@ MAX_NODES = 200_000
 MAX_DEPTH = 50
 #: Largest file read (bytes).
 MAX_BYTES = 4 * 1024 * 1024
+
+
+#: Plain scalars read as floats beside YAML 1.1's: a decimal number with an exponent whose sign
+#: and dot are optional (YAML 1.2's core schema, with 1.1's digit separators ``_``): ``2e6``,
+#: ``2.0e6``, ``-3e-2``, ``.5e3``, ``1_000e2``.
+EXPONENT_FLOAT = re.compile(r"^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9_]+)[eE][-+]?[0-9]+$")
 
 
 class YamlError(ValueError):
@@ -96,6 +109,13 @@ class _Loader(yaml.SafeLoader):
                                     f"(first at {_where(seen[key])}); each key may appear once")
                 seen[key] = key_node.start_mark
         return super().construct_mapping(node, deep=deep)
+
+
+# The loader's own copy of the implicit resolvers (PyYAML's add_implicit_resolver would append
+# to lists SafeLoader shares), with the exponent floats after YAML 1.1's own.
+_Loader.yaml_implicit_resolvers = {ch: list(rs) for ch, rs in yaml.SafeLoader.yaml_implicit_resolvers.items()}
+for _ch in "-+0123456789.":
+    _Loader.yaml_implicit_resolvers.setdefault(_ch, []).append(("tag:yaml.org,2002:float", EXPONENT_FLOAT))
 
 
 def _expanded_size(node, memo) -> int:

@@ -5,7 +5,8 @@ summaries show each quantity in the unit a designer reads: the display unit of i
 units table :data:`parasynth.common.units.UNIT_KINDS` (length in mm, angle in deg, area in cm^2, volume
 in cm^3, pressure in GPa, force, stiffness, torque, mass and time in SI).
 
-A quantity's kind comes from the measure registry (``Measure.kind`` or ``Measure.unit``) for
+A quantity's kind comes from the measure registry (``Measure.kind_of(settings)``, the kind,
+which may follow a setting as ``stiffness_min``'s follows ``part``, or ``Measure.unit``) for
 objectives and design constraints, and from the design variable's kind for variables. The
 workspace measures in "sampled units" (a volume in the product of the sampled coordinates'
 units) get a compound unit: ``cm^3`` for three position coordinates, ``cm^3*deg^2`` for three
@@ -18,17 +19,18 @@ trailing zeros or exponent for ordinary magnitudes: ``0.20500000000000002 m`` ->
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..mechanisms import load_mechanism
 from .objectives import OBJECTIVES
-from ..common.units import SI_UNIT_KINDS, UNIT_KINDS
+from ..common.units import SI_UNIT_KINDS, UNIT_KINDS, parse_quantity
 
 __all__ = ["Unit", "UNITS", "unit_for_kind", "unit_for_si", "quantity_unit", "fmt_number", "fmt_quantity",
            "fmt_mean_se", "fmt_value", "column_header", "text_table", "fmt_column_value", "fmt_design",
-           "fmt_evaluation", "reference_name", "reference_short"]
+           "fmt_evaluation", "reference_name", "reference_short", "written_unit", "study_unit", "fmt_study_design"]
 
 
 @dataclass(frozen=True)
@@ -156,11 +158,50 @@ def measure_unit(study, measure_name: str, settings: dict | None = None) -> Unit
     m = OBJECTIVES.get(measure_name)
     if m is None:
         return NONE
-    if m.kind:
-        return unit_for_kind(m.kind)
+    kind = m.kind_of(settings)  # a kind that follows a setting: stiffness_min's part
+    if kind:
+        return unit_for_kind(kind)
     if m.unit in ("sampled units", "sampled unit"):
         return _sampled_unit(study, m, settings or {})
     return unit_for_si(m.unit)
+
+
+_WRITTEN = re.compile(r"\s*[-+]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][-+]?[0-9]+)?\s*([^\s0-9].*?)\s*")
+
+
+def written_unit(value, kind: str | None) -> Unit | None:
+    """The unit a study file writes ``value`` in (``"160 m"`` -> m, ``"15 deg"`` -> deg) as a
+    display unit of ``kind``; None for a bare number, an unparsable value or another kind."""
+    if not kind or not isinstance(value, str):
+        return None
+    m = _WRITTEN.fullmatch(value)
+    if m is None:
+        return None
+    try:
+        si = parse_quantity(f"1 {m.group(1)}", kind)
+    except ValueError:
+        return None
+    return Unit(m.group(1), 1.0 / si) if si > 0 else None
+
+
+def study_unit(study, name: str) -> Unit:
+    """The unit design variable ``name`` is written in in the study file (the first of its
+    ``low``, ``high``, ``values`` and ``choices`` that has one: a study in m is answered in m),
+    else the display unit of its column (:func:`quantity_unit`)."""
+    var = next((v for v in study.variables if v.name == name), None)
+    spec = next((v for v in getattr(getattr(study, "spec", None), "variables", ()) if v.name == name), None)
+    if var is not None and spec is not None:
+        for x in (spec.low, spec.high, *(spec.values or ()), *(spec.choices or ())):
+            u = written_unit(x, var.kind)
+            if u is not None:
+                return u
+    return quantity_unit(study, name)
+
+
+def fmt_study_design(study, values: dict) -> str:
+    """``{link_length=160 mm, slider_radius=100 mm}``: a design's values (SI) in the units the
+    study file writes them in (:func:`study_unit`), for messages about the study."""
+    return "{" + ", ".join(f"{k}={fmt_quantity(x, study_unit(study, k))}" for k, x in values.items()) + "}"
 
 
 def column_header(study, name: str) -> str:

@@ -94,6 +94,9 @@ class Measure:
     those, accepted by name in the older call form); ``params``: {setting name:
     :class:`~parasynth.measures.measure_spec.Setting`}, the typed declaration of every setting (kinds,
     ranges, choices, defaults; which settings override a field of the workspace sample).
+    ``kind_by``: for a measure whose quantity follows a setting, ``(setting, {choice: kind})``
+    (``stiffness_min``: ``part`` translational -> stiffness, rotational -> rotational_stiffness);
+    :meth:`kind_of` gives the kind for given settings.
     """
 
     name: str
@@ -136,6 +139,22 @@ class Measure:
         if self.estimate is not None:
             return self.estimate
         return "statistic" if self.sample else "exact"
+
+    kind_by: tuple | None = None
+
+    def kind_of(self, settings: Mapping | None = None) -> str | None:
+        """The quantity kind of the value for these settings: :attr:`kind`, or for a measure
+        whose kind follows a setting (:attr:`kind_by`) the kind of the setting's value (its
+        default when not given)."""
+        if self.kind_by is None:
+            return self.kind
+        name, kinds = self.kind_by
+        value = (settings or {}).get(name, self.params[name].default if name in self.params else None)
+        return kinds.get(value, self.kind)
+
+    def kind_setting(self) -> str | None:
+        """The setting the kind follows (None when it is fixed)."""
+        return None if self.kind_by is None else self.kind_by[0]
 
     def check_settings(self, settings: Mapping, path: str = "settings", resolve=None) -> dict:
         """``settings`` checked against the declared :attr:`params` (with ``resolve``, the
@@ -223,7 +242,7 @@ _WS_SETTINGS = {**SAMPLE_PARAMS, **COMMON_PARAMS}
 
 def register(name: str, unit: str, sense: str, settings: dict | None = None, kind: str | None = None,
              models: tuple | None = None, cost: str = "workspace", sample: bool | None = None, own: tuple = (),
-             estimate: str | None = None):
+             estimate: str | None = None, kind_by: tuple | None = None):
     """Decorator registering ``f(mech, **settings) -> float`` as measure ``name``.
 
     ``settings``: {name: :class:`~parasynth.measures.measure_spec.Setting` or kind name} of every
@@ -237,7 +256,8 @@ def register(name: str, unit: str, sense: str, settings: dict | None = None, kin
     that are the measure's own (e.g. an error model's ``method``): with a sample they are
     passed to the function, not taken from it. ``estimate``: how the value depends on the
     points it is computed on (:data:`ESTIMATES`, see :meth:`Measure.estimate_of`; default
-    derived from ``sample`` and a ``quantile`` setting)."""
+    derived from ``sample`` and a ``quantile`` setting). ``kind_by``: ``(setting, {choice: kind})``
+    when the quantity's kind follows a setting (:meth:`Measure.kind_of`)."""
     if estimate is not None and estimate not in ESTIMATES:
         raise ValueError(f"estimate must be one of {ESTIMATES}, got {estimate!r}")
     if sense not in ("maximize", "minimize"):
@@ -256,7 +276,8 @@ def register(name: str, unit: str, sense: str, settings: dict | None = None, kin
 
     def deco(func):
         OBJECTIVES[name] = Measure(name, func, unit, sense, (func.__doc__ or "").strip(), kind,
-                                   kinds, models, cost, bool(sample), own_settings, params, estimate)
+                                   kinds, models, cost, bool(sample), own_settings, params, estimate=estimate,
+                                   kind_by=kind_by)
         return func
 
     return deco
@@ -705,7 +726,8 @@ def _split(kw, keys):
 
 @register("stiffness_min", unit="N/m (translational) or N*m/rad (rotational)", sense="maximize",
           settings={**_STIFF_MEASURE, "part": Setting("str", default="translational",
-                                                      choices=("translational", "rotational"))})
+                                                      choices=("translational", "rotational"))},
+          kind_by=("part", {"translational": "stiffness", "rotational": "rotational_stiffness"}))
 def stiffness_min(mech, quantile: float = 0.0, part: str = "translational", **kw) -> float:
     """Smallest (or the ``quantile`` of the) translational (N/m) or rotational (N m/rad)
     stiffness over the feasible workspace samples (``parasynth.measures.stiffness.part_stiffness``):

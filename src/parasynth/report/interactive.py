@@ -289,7 +289,7 @@ def viewer_script() -> Markup:
 
 def default_assets_dir(out: Path) -> Path:
     """Where a report's shared scripts go: ``<reports>/assets`` for a report directory inside a
-    folder named ``reports`` (``reports/<study name>/``, the default), else ``<out>/assets``."""
+    folder named ``reports`` (``reports/<study name>/``, as run-all writes them), else ``<out>/assets``."""
     out = Path(out)
     return out.parent / "assets" if out.resolve().parent.name == "reports" else out / "assets"
 

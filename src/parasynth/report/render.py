@@ -32,7 +32,7 @@ from .structures import plot_structures, structure_sections
 from .tables import display_table, final_display_table
 
 __all__ = ["write_report", "ReportError", "load_run", "render_html", "render_markdown", "analyse", "make_figures",
-           "display_table", "final_display_table", "Analysis", "NOISE_Z"]
+           "display_table", "final_display_table", "Analysis", "NOISE_Z", "default_report_dir", "REPORT_SUBDIR"]
 
 
 class ReportError(ValueError):
@@ -97,8 +97,19 @@ def render_markdown(run: Run, secs: list[Section], figs: Figures, interactive: b
     return text.rstrip("\n") + "\n"
 
 
+#: The report's folder inside its run directory when no other is given.
+REPORT_SUBDIR = "report"
+
+
+def default_report_dir(run_dir) -> Path:
+    """Where the report of ``run_dir`` goes unless told otherwise: ``<run_dir>/report/``."""
+    return Path(run_dir) / REPORT_SUBDIR
+
+
 def write_report(run_dir, out=None, noise_z: float = NOISE_Z, assets=None) -> Path:
-    """Write index.html, report.md and pareto.csv for a run directory; returns the report dir.
+    """Write index.html, report.md and pareto.csv for a run directory; returns the report dir,
+    ``out`` or by default ``<run_dir>/report/`` (:func:`default_report_dir`: the report goes with
+    its run; ``parasynth run-all`` writes the committed ``reports/<study name>/``).
 
     ``pareto.csv``: the distinct non-dominated feasible designs, columns as results.csv plus
     ``count`` (how many times the design was evaluated). ``noise_z``: a difference between
@@ -108,7 +119,7 @@ def write_report(run_dir, out=None, noise_z: float = NOISE_Z, assets=None) -> Pa
     (:func:`.interactive.default_assets_dir`)."""
     run = load_run(run_dir)
     study = run.study
-    out = Path(out) if out else Path("reports") / study.name
+    out = Path(out) if out else default_report_dir(run_dir)
     out.mkdir(parents=True, exist_ok=True)
     a = analyse(run, noise_z=noise_z)
     to_csv_columns(study, a.front).to_csv(out / "pareto.csv", index=False)  # unit suffixes, SI values

@@ -3,11 +3,15 @@
 suffix, so that ``pandas.read_csv`` needs no option and a reader sees the unit:
 ``link_length_m``, ``hinge_rotation_rad``, ``volume_m3``, ``footprint_margin_m``,
 ``max_force_N``, ``volume_stderr_m3``; dimensionless columns keep their name (``margin_q05``,
-``trial``; ``time_s`` is already in seconds). Inside the library tables keep the study's
+``trial``; ``time_s`` is already in seconds). A column name is an identifier with one unit: a
+measure whose unit follows a setting is named in the unit of its setting (``stiffness_min`` with
+``part: rotational``: ``k_min_N_m_per_rad``; translational: ``k_min_N_per_m``). Inside the library tables keep the study's
 names; :func:`to_csv_columns` and :func:`from_csv_columns` convert between the two.
 """
 
 from __future__ import annotations
+
+import re
 
 import pandas as pd
 
@@ -38,7 +42,8 @@ def si_suffix(study, name: str) -> str:
         num = _SI.get(num, num)
         den = _SI.get(den, den)
         parts.append(num + power + (f"_per_{den}" if den else ""))
-    return "_".join(parts)
+    # an identifier whatever a measure declares as its unit (letters, digits, '_')
+    return re.sub(r"[^A-Za-z0-9_]+", "_", "_".join(parts)).strip("_")
 
 
 def csv_column(study, name: str) -> str:

@@ -33,7 +33,7 @@ from pathlib import Path
 from typing import Annotated, Any, Literal
 
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, Strict, ValidationError
+from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, Strict, ValidationError
 
 from ..model.geometry_checks import degenerate_geometry
 from ..mechanisms import load_mechanism, mechanism_class, resolve_mechanism_name
@@ -41,9 +41,12 @@ from ..measures.measure_spec import SettingError
 from ..measures.objectives import OBJECTIVES, get as get_measure
 from ..measures.robustness import RobustError, check_robust_spec, resolve_tolerances, robust
 from ..common.validation import MAX_SAMPLES, MAX_SEED, MAX_TRIALS, is_real_number, numpy_reference
+from ..common.units import QuantityError, parse_quantity, si_unit
 from ..common.yamlio import YamlError, load_yaml
+from ..measures.display import fmt_quantity, fmt_study_design, unit_for_kind, written_unit
 from .design import design_params, evaluation_sample, measure_arguments, with_pose_constraints
 from .errors import StudyError
+from .magnitudes import scale_warnings
 from .space import DesignSpace, Variable, quantity
 from .structure_space import centre_design, check_structure_optimizer, resolve_structures, structure_variables
 
@@ -75,8 +78,16 @@ MAX_DESIGNS = MAX_TRIALS
 
 
 Scalar = float | int | str | bool
-#: Integers of the study file: true/false and 4096.5 are not counts.
-Int = Annotated[int, Strict()]
+def _integral_float(value):
+    """A count written in exponent form (``1.6e4``, a float in YAML) as the integer it is;
+    anything else as it is, for the strict check."""
+    if isinstance(value, float) and math.isfinite(value) and value.is_integer():
+        return int(value)
+    return value
+
+
+#: Integers of the study file: true/false and 4096.5 are not counts; 1.6e4 is 16000.
+Int = Annotated[int, Strict(), BeforeValidator(_integral_float)]
 
 
 class _Model(BaseModel):
@@ -620,9 +631,10 @@ def resolve_study(data: dict, source: str | None = None) -> ResolvedStudy:
         m = get_measure(c.name)
         if c.min is None and c.max is None:
             raise StudyError(f"{path}: give a bound: min and/or max")
-        kind = m.kind
-        lo = _q(c.min, kind, f"{path}.min") if c.min is not None else None
-        hi = _q(c.max, kind, f"{path}.max") if c.max is not None else None
+        settings = resolve_settings(m, c.settings, f"{path}.settings")
+        kind = m.kind_of(settings)  # stiffness_min: the unit follows settings.part
+        lo = _bound(c.min, kind, f"{path}.min", m, settings) if c.min is not None else None
+        hi = _bound(c.max, kind, f"{path}.max", m, settings) if c.max is not None else None
         if kind is None:
             for nm, x in (("min", lo), ("max", hi)):
                 if x is not None:
@@ -643,8 +655,7 @@ def resolve_study(data: dict, source: str | None = None) -> ResolvedStudy:
         prob = c.robust.probability if c.robust is not None else None
         if prob is not None and lo is not None and hi is not None:
             raise StudyError(f"{path}.robust.probability: a chance constraint takes one bound, min or max")
-        constraints.append(DesignConstraint(c.name, label, lo, hi, resolve_settings(m, c.settings, f"{path}.settings"),
-                                            rb, None if prob is None else float(prob)))
+        constraints.append(DesignConstraint(c.name, label, lo, hi, settings, rb, None if prob is None else float(prob)))
 
     ev = spec.evaluation
     ranges = _resolve_ranges(ev.ranges, mech_cls, "evaluation.ranges", task) if ev.ranges is not None else None
@@ -723,7 +734,10 @@ def resolve_study(data: dict, source: str | None = None) -> ResolvedStudy:
             v = byname[k]
             val = space.parse_value(k, x, where)
             if v.low is not None and is_real_number(val) and not v.low <= val <= v.high:
-                raise StudyError(f"{where}: {x!r} is outside the variable's bounds [{v.low:.6g}, {v.high:.6g}] (SI)")
+                raw = next((r for r in spec.variables if r.name == v.name), None)  # the unit the file uses
+                u = (raw and (written_unit(raw.low, v.kind) or written_unit(raw.high, v.kind))) or unit_for_kind(v.kind)
+                raise StudyError(f"{where}: {x!r} is outside the variable's bounds [{fmt_quantity(v.low, u)}, "
+                                 f"{fmt_quantity(v.high, u)}]")
 
     if opt.storage is not None and "://" not in opt.storage and not opt.storage.startswith("journal:"):
         raise StudyError(f"optimizer.storage: {opt.storage!r} is neither a URL (postgresql://user:password@host/db, "
@@ -746,6 +760,34 @@ def resolve_study(data: dict, source: str | None = None) -> ResolvedStudy:
         check_structure_optimizer(opt)
     return ResolvedStudy(spec, mech_name, fixed, tuple(variables), tuple(objectives), tuple(constraints),
                          evaluation, opt, reference, source, tied, ref_label, ref_source, setup)
+
+
+def _bound(value, kind, path, measure, settings):
+    """A constraint's bound in SI; for a measure whose unit follows a setting (``stiffness_min``'s
+    ``part``) a bound in the other setting's unit is refused naming both."""
+    try:
+        return _q(value, kind, path)
+    except StudyError as e:
+        setting = measure.kind_setting()
+        if setting is None:
+            raise
+        chosen = settings.get(setting, measure.params[setting].default)
+        wants = si_unit(kind)
+        for other, k in measure.kind_by[1].items():
+            if k != kind and isinstance(value, str):
+                try:
+                    parse_quantity(value, k, path)
+                except QuantityError:
+                    continue
+                raise StudyError(f"{path}: {value!r} is in {si_unit(k)}, the unit of {setting}: {other}; with "
+                                 f"settings.{setting}: {chosen} give the bound in {wants}, e.g. "
+                                 f"'{_number_of(value)} {wants}'") from None
+        raise StudyError(f"{e} (the unit follows settings.{setting}: {chosen})") from None
+
+
+def _number_of(value: str) -> str:
+    m = re.match(r"\s*([-+]?[0-9.]+(?:[eE][-+]?[0-9]+)?)", value)
+    return m.group(1) if m else "1"
 
 
 #: Text keys of ``reference`` beside the parameter values, with an example each.
@@ -929,7 +971,8 @@ def _fmt_si(v) -> str:
 
 
 def check_study(study: ResolvedStudy, *, measures: bool = True, max_corners: int = MAX_CORNERS,
-                probe_samples: int = PROBE_SAMPLES, stats: dict | None = None) -> list[str]:
+                probe_samples: int = PROBE_SAMPLES, stats: dict | None = None,
+                warnings: list | None = None) -> list[str]:
     """Problems that would make designs of ``study`` fail when it runs, each with its key path.
 
     Builds the mechanism with each ``fixed`` and ``reference`` value and each variable's
@@ -942,11 +985,18 @@ def check_study(study: ResolvedStudy, *, measures: bool = True, max_corners: int
     none was found. A model whose designs are valid at the corners may still be invalid inside
     the box (a non-convex parameter set); such designs are recorded as failed by the run, with
     their reason. ``stats``, when given, receives the
-    counts of what was checked (``designs``, ``corners``, ``measures``).
+    counts of what was checked (``designs``, ``corners``, ``corners_built``, ``measures``).
+
+    ``warnings``, when given, receives what is accepted but doubtful, one line each: a box some
+    of whose corners cannot be built (the share that builds and one failing corner, in the
+    study's units; the box is refused only when no corner builds and neither does its centre),
+    and lengths far from the mechanism's scale (:func:`parasynth.study.magnitudes.scale_warnings`).
     """
     problems: list[str] = []
     stats = {} if stats is None else stats
-    stats.update(designs=0, corners=0, measures=0)
+    stats.update(designs=0, corners=0, corners_built=0, measures=0)
+    warnings = [] if warnings is None else warnings
+    warnings += scale_warnings(study)
     mech = study.mechanism
 
     def try_build(params):
@@ -996,9 +1046,9 @@ def check_study(study: ResolvedStudy, *, measures: bool = True, max_corners: int
         base_where = "variables (the centre of the box)"
     base_mech, err = try_build(design_params(study, base))
     if err:
-        problems.append(f"{base_where}: the design {_design_str(base)} cannot be built: {err}")
+        problems.append(f"{base_where}: the design {_design_str(study, base)} cannot be built: {err}")
     else:
-        problems += [f"mechanism: {why} (design {_design_str(base)})"
+        problems += [f"mechanism: {why} (design {_design_str(study, base)})"
                      for why in degenerate_geometry(base_mech, study.evaluation.get("ranges"))]
     axes = []
     for v in study.variables:
@@ -1021,12 +1071,11 @@ def check_study(study: ResolvedStudy, *, measures: bool = True, max_corners: int
         _, err = try_build(design_params(study, d))
         if err:
             bad.append((d, err))
+    stats["corners_built"] = len(combos) - len(bad)
     if bad and study.structures is None:  # structures differ in where they can be built: their
         # designs that cannot are recorded as failed, with the reason, per structure in the report
-        d, err = bad[0]
-        more = f" (and {len(bad) - 1} more of {len(combos)} corners)" if len(bad) > 1 else ""
-        problems.append(f"variables: the corner {_design_str(d)} of the variable box cannot be built{more}: {err}; "
-                        f"narrow the bounds")
+        refused, msg = _box_check(study, combos, bad, try_build)
+        (problems if refused else warnings).append(msg)
     for j, d in enumerate(study.optimizer.designs or ()):
         dd = study.space.parse(d, f"optimizer.designs[{j}]")
         _, err = try_build(design_params(study, dd))
@@ -1066,8 +1115,32 @@ def check_study(study: ResolvedStudy, *, measures: bool = True, max_corners: int
     return problems
 
 
-def _design_str(d: dict) -> str:
-    return "{" + ", ".join(f"{k}={_fmt_si(v)}" for k, v in d.items()) + "}"
+def _box_check(study, combos, bad, try_build) -> tuple[bool, str]:
+    """(refused, message) on a variable box some of whose corners cannot be built: a warning
+    with the share that builds and one failing corner, refused when no corner builds and
+    neither does the box centre."""
+    d, err = bad[0]
+    n, ok = len(combos), len(combos) - len(bad)
+    corner = _design_str(study, d)
+    if ok:
+        return False, (f"variables: {ok} of {n} corners of the variable box ({100.0 * ok / n:.0f} %) can be "
+                       f"built; the corner {corner} cannot: {err}; designs that cannot be built are recorded as "
+                       f"failed")
+    centre = centre_design(study)
+    if try_build(design_params(study, centre))[1] is None:
+        return False, (f"variables: none of the {n} corners of the variable box can be built, its centre "
+                       f"{_design_str(study, centre)} can; e.g. the corner {corner} cannot: {err}; designs that "
+                       f"cannot be built are recorded as failed")
+    return True, (f"variables: no corner of the variable box can be built ({n} checked), nor its centre; e.g. the "
+                  f"corner {corner}: {err}; narrow the bounds")
+
+
+def _design_str(study, d: dict) -> str:
+    """A design in the units the study file writes its variables in (``{link_length=160 mm}``)."""
+    try:
+        return fmt_study_design(study, d)
+    except Exception:  # a value the display cannot format: SI, as it is
+        return "{" + ", ".join(f"{k}={_fmt_si(v)}" for k, v in d.items()) + "}"
 
 
 # -- documentation of every key, for the JSON Schema and docs/study-format.md -------------------
