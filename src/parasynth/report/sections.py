@@ -13,7 +13,8 @@ import numpy as np
 import pandas as pd
 
 from ..measures.display import fmt_mean_se, fmt_number, fmt_quantity, reference_name
-from ..study.rundir import Run, design_key
+from ..measures.objectives import usable_workspace_of
+from ..study.rundir import Run, design_key, design_mechanism, estimate_of, measure_settings
 from .analysis import Analysis, FinalAnalysis
 from .summary import reevaluated_text
 from .tables import display_table, final_display_table
@@ -192,13 +193,16 @@ def _sections(run: Run, a: Analysis) -> list[tuple[str, str, pd.DataFrame | None
     fa = a.final
     if fa is not None:
         fin = fa.table
+        reps = int(fin["repeats"].max()) if "repeats" in fin and len(fin) else 0
+        how = (f"Mean ± standard error over {reps} seed{'s' if reps != 1 else ''} with {int(fin['samples'].max())} samples each"
+               if reps else "The run's own values (no objective or constraint depends on a seed)")
         sec.append(("Re-evaluation of the best designs",
-                    f"Mean ± standard error over {int(fin['repeats'].iloc[0])} seeds with "
-                    f"{int(fin['samples'].iloc[0])} samples each, for the best designs, the recommended (knee) "
-                    f"design, the designs that dominate {reference_name(study)} on single samples by the largest "
-                    f"normalised margin and {reference_name(study)}. A design is dominated beyond noise when another is better by "
-                    f"more than {fmt_number(a.noise_z)} combined standard errors on some objective and worse by "
-                    f"as much on none.", final_display_table(study, fa)))
+                    f"{how}, for the best designs, the recommended design, the designs that dominate "
+                    f"{reference_name(study)} on single samples by the largest normalised margin, the designs the "
+                    f"verification walked (docs/verification.md) and {reference_name(study)}. A design is "
+                    f"dominated beyond noise when another is better by more than {fmt_number(a.noise_z)} combined "
+                    f"standard errors on some objective and worse by as much on none." + grid_note(run, a),
+                    final_display_table(study, fa)))
     elif run.final is not None and len(run.final):
         sec.append(("Re-evaluation of the best designs", "final.csv (columns as written by the run):", run.final))
     if study.constraints or (runs["status"] != "ok").any():
@@ -221,6 +225,35 @@ def _sections(run: Run, a: Analysis) -> list[tuple[str, str, pd.DataFrame | None
     sec.append(("Study and software", "Software: " + ", ".join(f"{k} {x}" for k, x in v.items())
                 + f". Report written {time.strftime('%Y-%m-%d %H:%M:%S')}. Study file as run:", None))
     return sec
+
+
+def grid_note(run: Run, a: Analysis) -> str:
+    """A sentence on the objectives exact on their grid (:meth:`Measure.estimate_of` ``grid``):
+    not resampled, with the grid's cells and cell size for the recommended design, the
+    resolution a finer grid could move them by (about a cell at each boundary)."""
+    study = run.study
+    grids = [o for o in study.objectives if estimate_of(o) == "grid"]
+    if not grids or a.knee_row is None:
+        return ""
+    o = grids[0]
+    try:
+        mech = design_mechanism(study, {v.name: a.knee_row[v.name] for v in study.variables})
+        u = usable_workspace_of(mech, **measure_settings(study, o.name, o.settings))
+    except (ValueError, ArithmeticError, KeyError):
+        return ""
+    cells = " x ".join(str(int(c)) for c in u.shape)
+    sizes = []
+    for name, edges in zip(u.coordinates, u.edges):
+        width = float(edges[1] - edges[0]) if len(edges) > 1 else float("nan")
+        sizes.append(f"{name} {fmt_quantity(width, _unit_of_coordinate(name))}")
+    labels = ", ".join(x.label for x in grids)
+    return (f" {labels} {'is' if len(grids) == 1 else 'are'} exact on {'its' if len(grids) == 1 else 'their'} grid and "
+            f"not resampled (± 0): {cells} cells of {', '.join(sizes)} for the recommended design; a finer grid may "
+            "move the boundary by about one cell.")
+
+
+def _unit_of_coordinate(name: str) -> str:
+    return "length" if name in ("x", "y", "z") else "angle"
 
 
 def _recommended_words(a: Analysis) -> str:
