@@ -139,6 +139,12 @@ def structure_verdict(run: Run, a: Analysis) -> Verdict:
             return Verdict(False, True, txt)
     front = a.front
     n = int((front[STRUCTURE] == ref).sum()) if len(front) else 0
+    if fin is not None and STRUCTURE in fin and "verified" in fin:
+        tried = fin[(fin["source"] == "best") & (fin[STRUCTURE] == ref)]
+        if len(tried):
+            return Verdict(None, True, f"**No verdict on {ref}**: none of its {len(tried)} re-evaluated designs passed "
+                           "verification (docs/verification.md), and a design that fails counts in no verdict. "
+                           f"On single samples it has {n} design(s) on the combined front of {len(front)}.")
     txt = (f"On single samples (no re-evaluation of its designs in final.csv), {ref} has {n} design(s) on the "
            f"combined front of {len(front)}: {'on' if n else 'not on'} the combined front; set "
            "evaluation.final_samples to decide beyond noise.")

@@ -13,6 +13,7 @@ import numpy as np
 from ...model.constraints import (ActuatorRange, Constraint, CoordinateRange, JointAngleLimit, LegAxisAngle,
                                   LegInterference, LegLengthRange, SingularityMarginFloor)
 from ...model.mechanism import Mechanism
+from ...common.units import format_quantity
 from .errors import DescriptionError
 from .expressions import Expression, POSE_NAMES, R_NAMES, _Scope
 from .parameters import _Scalar, _check_keys
@@ -160,7 +161,7 @@ class _ConstraintSpec:
                     if v is not None and not -np.pi <= v <= np.pi:
                         raise DescriptionError(f"{self.path}.{key}: a crank angle range lies within "
                                                f"[-180 deg, 180 deg] (crank angles are wrapped to (-180, 180] deg), "
-                                               f"got {np.degrees(v):g} deg")
+                                               f"got {format_quantity(v, 'angle')}")
                 return ActuatorRange(self.name, lo=-np.inf if lo is None else lo, hi=hi_, doc=self.doc, unit="rad")
             return ActuatorRange(self.name, lo=-np.inf if lo is None else lo, hi=hi_, doc=self.doc)
         if t == "leg_length":
