@@ -1,0 +1,98 @@
+"""Writes naval_testbed_poses.csv: the 342 required poses of the naval testbed task.
+
+Transcribed from ``naval_testbed/dimsynth/lufi_synth_traj.m`` of the public repository
+SchapplM/robotics-paper_mdpi2025_dimsynth (Schappler et al., Robotics 14(3):29, 2025), with the
+setting the synthesis used, ``refTraj = 'process+workspace'``: the surge/roll, sway/pitch and
+heave/yaw motions and the corner points with one, two and three tilted axes, 357 rows, of which
+``unique(..., 'rows', 'stable')`` keeps 342 in their first order. The file's world frame has
+the cube centre at z = 1.0 m (the working height ``X1``); the poses here are given in the task
+frame W at the cube centre (z up), so 1.0 m is subtracted from z. Angles are X-Y'-Z'' intrinsic
+Euler angles (``r2eulxyz``; parasynth's ``xyz``), written in degrees; positions in millimetres.
+
+Run ``python studies/tasks/naval_testbed_poses.py`` to write the file again.
+"""
+
+from pathlib import Path
+
+import numpy as np
+
+B_WS = 0.100  # half width of the cube (m)
+H_WS = 0.200  # height of the cube (m)
+PHI = np.deg2rad(15.0)  # tilt of every axis
+
+
+def rows() -> np.ndarray:
+    """The 357 rows of XE = [SR; SP; HY; IL] of lufi_synth_traj.m (x, y, z in m, Euler xyz in rad),
+    in the file's world frame."""
+    X0 = np.array([0, 0, 1.1, 0, 0, 0.0])
+    X1 = X0 + [0, 0, -H_WS / 2, 0, 0, 0]
+    # rotx(0) etc. in r2eulxyz give zero angles; rotx(+-phi) gives (+-phi, 0, 0) and so on
+    SR = [X1]
+    for z in (1, 0, -1):  # alpha = 0 only (xp = 0): Pos = [+-b, 0, z h/2]
+        SR.append(X1 + [B_WS, 0, z * H_WS / 2, 0, 0, 0])
+        SR.append(X1 + [-B_WS, 0, z * H_WS / 2, 0, 0, 0])
+        SR.append(X1 + [0, 0, z * H_WS / 2, PHI, 0, 0])
+        SR.append(X1 + [0, 0, z * H_WS / 2, -PHI, 0, 0])
+    SR.append(X1)
+    SP = [X0]
+    for z in (1, 0, -1):
+        SP.append(X1 + [0, B_WS, z * H_WS / 2, 0, 0, 0])
+        SP.append(X1 + [0, -B_WS, z * H_WS / 2, 0, PHI, 0])
+        SP.append(X1 + [0, 0, z * H_WS / 2, 0, 0, 0])
+        SP.append(X1 + [0, 0, z * H_WS / 2, 0, PHI, 0])
+    SP.append(X1)
+    HY = [X1]
+    for z in (1, 0, -1):
+        HY.append(X1 + [0, 0, z * H_WS / 2, 0, 0, 0])
+        HY.append(X1 + [0, 0, z * H_WS / 2, 0, 0, PHI])
+        HY.append(X1 + [0, 0, z * H_WS / 2, 0, 0, -PHI])
+        HY.append(X1 + [0, 0, z * H_WS / 2, 0, 0, 0])
+    HY.append(X1)
+    IL = []
+    single = [(1, 0, 0), (-1, 0, 0), (0, 1, 0), (0, -1, 0), (0, 0, 1), (0, 0, -1)]
+    double = [(1, 1, 0), (-1, 1, 0), (1, -1, 0), (-1, -1, 0), (1, 0, 1), (-1, 0, 1), (1, 0, -1), (-1, 0, -1),
+              (0, 1, 1), (0, 1, -1), (0, -1, 1), (0, -1, -1)]
+    triple = [(1, 1, 1), (-1, 1, 1), (1, -1, 1), (1, 1, -1), (-1, -1, 1), (-1, 1, -1), (1, -1, -1), (-1, -1, -1)]
+    jP, lP = [1, 1, -1, -1], [1, -1, -1, 1]
+    for i in (1, 0, -1):
+        for j, l in zip(jP, lP):
+            for a in single + double + triple:
+                IL.append(X1 + [j * B_WS, l * B_WS, i * 0.1, a[0] * PHI, a[1] * PHI, a[2] * PHI])
+        # after the loop MATLAB's m is 4: lPoints(4) = 1
+        IL.append(X1 + [jP[0] * B_WS, lP[3] * B_WS, i * 0.1, PHI, PHI, PHI])
+    return np.array(SR + SP + HY + IL)
+
+
+def unique_stable(X: np.ndarray) -> np.ndarray:
+    """MATLAB's unique(X, 'rows', 'stable') (rows compared after rounding away float noise)."""
+    seen, out = set(), []
+    for r in X:
+        k = tuple(np.round(r, 12))
+        if k not in seen:
+            seen.add(k)
+            out.append(r)
+    return np.array(out)
+
+
+def poses_in_W() -> np.ndarray:
+    """The 342 poses, W at the cube centre: x, y, z (m), alpha, beta, gamma (rad)."""
+    X = unique_stable(rows())
+    X[:, 2] -= 1.0
+    return X
+
+
+def main(path: Path = Path(__file__).with_name("naval_testbed_poses.csv")) -> Path:
+    X = poses_in_W()
+    lines = ["x_mm,y_mm,z_mm,alpha_deg,beta_deg,gamma_deg"]
+    for r in X:
+        vals = list(np.round(1000 * r[:3], 6)) + list(np.round(np.rad2deg(r[3:]), 6))
+        lines.append(",".join(f"{v:g}" for v in vals))
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+if __name__ == "__main__":
+    X = rows()
+    assert len(X) == 357, len(X)
+    assert len(unique_stable(X)) == 342, len(unique_stable(X))
+    print(main())
