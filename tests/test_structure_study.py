@@ -106,11 +106,43 @@ def test_structure_is_a_categorical_variable_with_conditional_dimensions():
     ({"optimizer": {"kind": "nlopt", "n_trials": None}}, "use optimizer.kind: optuna"),
     ({"variables": [{"name": "crank_length", "low": "50 mm", "high": "90 mm"}]},
      "'crank_length' is used by none of the structures"),
+    # empty selections are refused, never read as "every structure"
+    ({"structure": {"include": []}}, "structure.include: an empty list would keep no structure"),
+    ({"structure": {"arrangements": []}}, "structure.arrangements: an empty list would keep no structure"),
+    ({"structure": {"axes": {}}}, "structure.axes must be a mapping"),
+    ({"structure": {"leg_types": []}}, "structure.leg_types must name at least one limb type"),
+    ({"structure": {"legs": [1000000]}}, "structure.legs must be at most 1000"),
+    # halving settings the budget would clip or that would not act (n_trials 8, 3 structures)
+    ({"structure": {"screening": 9}}, "structure.screening: 9 designs per structure in the first rung exceed "
+                                      "the budget of 8"),
+    ({"structure": {"screening": 8, "eta": 3}}, "structure.eta: the screening (8 designs) is already the whole "
+                                                "budget"),
+    ({"structure": {"screening": 8, "eta": 2, "keep": 1}}, "structure.eta: the screening"),
+    ({"structure": {"keep": 3}}, "structure.keep: 3 structures continuing after each rung keep every one of the 3"),
+    ({"optimizer": {"kind": "sweep", "n_trials": None, "seed": None, "designs": [{"base_radius": "120 mm"}]}},
+     "structure.screening: successive halving spreads the trials of an Optuna study; a sweep"),
 ])
 def test_bad_structure_sections_name_the_key(over, needle):
     with pytest.raises(StudyError) as e:
         resolved(**over)
     assert needle in str(e.value), str(e.value)
+
+
+def test_halving_settings_that_act_are_accepted():
+    """Three structures, 8 designs each at most: screening 4 -> rungs of 4 and 8 designs; keep 2
+    of 3 halves; the defaults (screening 16 clipped to the budget) are not refused."""
+    s = resolved(structure={"screening": 4, "eta": 2, "keep": 2})
+    sch = structure_schedule(s)
+    assert sch.targets == (4, 8) and len(s.space.by_name["structure"].choices) == 3
+    d = study_dict()
+    d["structure"] = {k: v for k, v in d["structure"].items() if k not in ("screening", "eta")}
+    assert structure_schedule(load_study(yaml.safe_dump(d), is_text=True)).targets == (8,)
+    # --n-trials below the screening would clip it: refused as the study file would be
+    from parasynth.study.budget import with_budget
+
+    assert structure_schedule(with_budget(s, 6)).targets == (4, 6)
+    with pytest.raises(StudyError, match=r"^--n-trials 3: structure.screening: 4 designs per structure"):
+        with_budget(s, 3)
 
 
 # -- the schedule against an independent ranking ---------------------------------------------------------
