@@ -401,6 +401,11 @@ def test_study_records_robust_and_nominal_values():
     (("probability: 0.5", "probability: 0"), "constraints[0].robust.probability"),
     (("samples: 4", "samples: 4, probability: 0.9"), "objectives[0].robust.probability"),
     (("samples: 4", "samples: 4, draws: 3"), "objectives[0].robust.draws"),
+    # a chance constraint counts the draws within the bound: a statistic (even the default) is refused
+    (("probability: 0.5,", "probability: 0.5, statistic: worst,"), "constraints[0].robust.statistic: a chance "
+                                                                    "constraint (probability)"),
+    (("probability: 0.5,", "probability: 0.5, statistic: mean,"), "constraints[0].robust.statistic"),
+    (("probability: 0.5,", "probability: 0.5, statistic: quantile, level: 0.1,"), "constraints[0].robust.statistic"),
 ])
 def test_bad_robust_block_names_the_field(change, needle):
     text = STUDY.replace(*change)
