@@ -432,9 +432,13 @@ def test_leg_types_order_and_repetition_do_not_matter():
     the registry's order: the same structures (names, descriptions), the same drops."""
     from parasynth.structures import candidates
 
+    from parasynth.structures import StructureWarning
+
     a = structures("3T3R", leg_types=["PUS", "UPS", "SPS"], legs=6)
-    b = structures("3T3R", leg_types=["SPS", "UPS", "PUS", "UPS"], legs=[6])
-    c = structures("3T3R", leg_types="UPS, SPS, PUS, SPS", legs=(6, 6))
+    with pytest.warns(StructureWarning, match=r"^leg_types: UPS given more than once, counted once$"):
+        b = structures("3T3R", leg_types=["SPS", "UPS", "PUS", "UPS"], legs=[6])
+    with pytest.warns(StructureWarning, match=r"^leg_types: SPS given more than once"):
+        c = structures("3T3R", leg_types="UPS, SPS, PUS, SPS", legs=(6, 6))
     for x in (b, c):
         assert [s.key for s in x] == [s.key for s in a]
         assert [s.description for s in x] == [s.description for s in a]
@@ -444,6 +448,20 @@ def test_leg_types_order_and_repetition_do_not_matter():
     # an interleaved structure names the type first in the registry first (SPS, UPS, PUS, ...)
     inter = [s.name for s in a if "&" in s.name]
     assert inter and all(n.split("&")[0][2:] in ("SPS", "UPS") for n in inter), inter
+
+
+def test_limb_counts_no_candidate_has_are_said():
+    """UPS and PUS rings have 3-6 limbs (regular 3-6, paired 4 and 6) and interleave as 3+3:
+    9 limbs give nothing, with a warning; 6 and 9 give the 6-limb candidates, with a warning."""
+    from parasynth.structures import StructureWarning, candidates
+
+    with pytest.warns(StructureWarning, match=r"^legs: no candidate of the limb types UPS, PUS has 9 limbs "
+                                              r"\(possible: 3, 4, 5, 6\); nothing is enumerated"):
+        none = structures("3T3R", leg_types=["PUS", "UPS"], legs=9)
+    assert none.enumerated == 0 and len(none) == 0
+    with pytest.warns(StructureWarning, match="those counts add nothing"):
+        six = structures("3T3R", leg_types=["PUS", "UPS"], legs=[6, 9], n_poses=1)
+    assert six.enumerated == len(candidates(["UPS", "PUS"], [6])) > 0
 
 
 def test_pose_checks_beyond_the_budget_are_refused_before_any_work():

@@ -27,6 +27,7 @@ import dataclasses
 import errno
 import os
 import sys
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -620,8 +621,15 @@ def cmd_structures(args) -> int:
     types = args.types if args.types is not None else None
     axes = {k: getattr(args, k) for k in ("translations", "rotations") if getattr(args, k) is not None} or None
     try:
-        found = synthesis.structures(args.motion, leg_types=types, legs=args.legs, axes=axes,
-                                     all_axes=args.all_axes, seed=args.seed)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", synthesis.StructureWarning)
+            found = synthesis.structures(args.motion, leg_types=types, legs=args.legs, axes=axes,
+                                         all_axes=args.all_axes, seed=args.seed)
+        for w in caught:
+            if issubclass(w.category, synthesis.StructureWarning):
+                print(f"warning: {w.message}", file=sys.stderr)
+            else:
+                warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     except ValueError as e:
         msg = str(e)
         for arg, flag in (("leg_types", "--types"), ("legs", "--legs"), ("axes.translations", "--translations"),

@@ -15,6 +15,7 @@ from __future__ import annotations
 import hashlib
 import itertools
 import math
+import warnings
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -23,11 +24,11 @@ import numpy as np
 
 from ..common.validation import MAX_LEGS, MAX_SEED, InputError, check_count, is_real_number
 from ..mechanisms import described_class
-from .vocabulary import (ARRANGEMENTS, CHECKS, LIMB_TYPES, PARAMETERS, TEMPLATES, StructureError, limb_type,
-                         parse_motion)
+from .vocabulary import (ARRANGEMENTS, CHECKS, LIMB_TYPES, PARAMETERS, TEMPLATES, StructureError, StructureWarning,
+                         limb_type, parse_motion)
 
 __all__ = ["Group", "Structure", "StructureList", "structures", "DROP_REASONS", "candidates", "parse_axes",
-           "StructureError", "MAX_POSES", "MAX_POSE_CHECKS", "MAX_STRUCTURE_LEGS"]
+           "StructureError", "StructureWarning", "MAX_POSES", "MAX_POSE_CHECKS", "MAX_STRUCTURE_LEGS"]
 
 #: Why a candidate is dropped, in the order the checks run.
 DROP_REASONS = {
@@ -475,15 +476,21 @@ def _leg_types(leg_types) -> list[str]:
     if not leg_types:
         raise StructureError(f"leg_types must name at least one limb type of {', '.join(LIMB_TYPES)}, got "
                              f"{_describe(original)}")
-    given = set()
+    given, twice = set(), []
     for j, t in enumerate(leg_types):
         if not isinstance(t, str):
             raise StructureError(f"leg_types[{j}] must be a limb type name of {', '.join(LIMB_TYPES)}, got "
                                  f"{_describe(t)}")
         try:
-            given.add(limb_type(t.strip()).name)
+            name = limb_type(t.strip()).name
         except StructureError as e:
             raise StructureError(f"leg_types: {e}") from None
+        if name in given and name not in twice:
+            twice.append(name)
+        given.add(name)
+    if twice:
+        warnings.warn(f"leg_types: {', '.join(twice)} given more than once, counted once", StructureWarning,
+                      stacklevel=3)
     return [t for t in LIMB_TYPES if t in given]
 
 
@@ -552,6 +559,14 @@ def structures(motion, *, leg_types=None, legs=None, axes=None, all_axes: bool =
     dropped_names = {r: [] for r in DROP_REASONS}
     seen = set()
     cands = candidates(types, legs, all_axes)
+    if legs is not None:
+        possible = sorted({c.n_legs for c in candidates(types, None, all_axes)})
+        none = [n for n in legs if n not in possible]
+        if none:
+            warnings.warn(f"legs: no candidate of the limb types {', '.join(types)} has {', '.join(map(str, none))} "
+                          f"limbs (possible: {', '.join(map(str, possible)) or 'none'}); "
+                          f"{'those counts add nothing' if len(none) < len(legs) else 'nothing is enumerated'}",
+                          StructureWarning, stacklevel=2)
 
     def drop(reason, c):
         dropped[reason] += 1

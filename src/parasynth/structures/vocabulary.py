@@ -18,12 +18,17 @@ from dataclasses import dataclass, field
 from ..model.legs import LEG_TYPES
 
 __all__ = ["Arrangement", "LimbType", "Template", "LIMB_TYPES", "ARRANGEMENTS", "TEMPLATES", "PARAMETERS",
-           "CHECKS", "register_limb", "limb_type", "parse_motion", "StructureError"]
+           "CHECKS", "register_limb", "limb_type", "parse_motion", "StructureError", "StructureWarning"]
 
 
 class StructureError(ValueError):
     """An argument of structural synthesis that is not allowed (a motion, a limb type, limb
     counts, axes, a setting); the message starts with the argument's name."""
+
+
+class StructureWarning(UserWarning):
+    """An argument of structural synthesis that is taken but partly has no effect (a limb type
+    given twice, a number of limbs no candidate can have); the message starts with its name."""
 
 
 @dataclass(frozen=True)
