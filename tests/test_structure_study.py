@@ -267,6 +267,51 @@ def test_a_run_follows_the_schedule(whole):
     assert ostudy.metric_names == ["volume", "margin"]
 
 
+@pytest.mark.parametrize("change", ["other structure", "no structure"])
+def test_report_and_export_refuse_a_journal_naming_a_structure_not_in_the_study(whole, tmp_path, change):
+    """A design of a structure the study does not have (a journal edited or copied from another
+    study) makes the run damaged: report and export stop, naming the journal and the trial; the
+    intact copy is read."""
+    import contextlib
+    import io
+    import json
+    import shutil
+
+    from parasynth.cli import main
+
+    s, out, _ = whole
+    run = tmp_path / "run"
+    shutil.copytree(out, run, ignore=shutil.ignore_patterns("run.lock"))
+    lines = (run / "journal.jsonl").read_text().splitlines()
+    k, rec = next((i, json.loads(ln)) for i, ln in enumerate(lines) if json.loads(ln).get("source") == "run")
+    if change == "other structure":
+        rec["values"]["structure"] = "6-UPS"
+        assert "6-UPS" not in s.structures.labels
+    else:
+        del rec["values"]["structure"]
+    lines[k] = json.dumps(rec)
+    (run / "journal.jsonl").write_text("\n".join(lines) + "\n")
+
+    def cli(args):
+        err = io.StringIO()
+        with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(err):
+            try:
+                code = main([str(a) for a in args])
+            except SystemExit as e:
+                code = e.code
+        return code, err.getvalue()
+
+    what = "names the structure '6-UPS'" if change == "other structure" else "names no structure"
+    for args in (["report", run, "--out", tmp_path / "rep"], ["export", run, "--out", tmp_path / "best.xml"]):
+        code, err = cli(args)
+        assert code not in (0, None) and "Traceback" not in err and len(err.strip().splitlines()) == 1, err
+        assert f"journal.jsonl: the run design of trial {rec['trial']} {what}, not one of the study's " \
+               f"structures ({', '.join(s.structures.labels)})" in err, err
+    assert not (tmp_path / "best.xml").exists()
+    code, err = cli(["export", out, "--out", tmp_path / "intact.xml"])
+    assert code == 0 and (tmp_path / "intact.xml").is_file(), err
+
+
 def test_report_has_the_structure_table_front_and_verdict(whole, tmp_path):
     from parasynth.report import write_report
 
