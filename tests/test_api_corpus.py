@@ -312,13 +312,14 @@ def _export_cases(tmp: Path) -> list[Case]:
         for mech in (m, r):
             n = mech.n_task
             home = np.asarray(mech.home, float)
-            for p in ("home", "0,0,0,0,0", "", b"\x00" * n, {"z": 0.1}, [0.1], home[:-1], np.append(home, 0.0),
-                      np.array([home, home]), [[*home]], [True] * n, np.ones(n, bool), [None] * n,
-                      list(home.astype(str)), home + 0j, 5, 0.1, [home.tolist()]):
+            for p in ("home", "0,0,0,0,0", "", b"\x00" * n, {"z": 0.1}, [True] * n, np.ones(n, bool), [None] * n,
+                      list(home.astype(str)), home + 0j, [home.tolist(), "x"]):
                 out.append(Case(f"{name}[{mech.name}].pose={p!r}"[:80],
                                 (lambda fn=fn, mech=mech, p=p, path=path: fn(mech, path, p)), "error",
                                 f"{name} pose", ExportError))
-            for p in ([NAN] * n, [INF] * n, np.full(n, 1e9)):  # numbers, but not a reachable pose
+            # numbers, but not the task coordinates, or not a reachable pose
+            for p in ([0.1], home[:-1], np.append(home, 0.0), np.array([home, home]), [[*home]], 5, 0.1,
+                      [home.tolist()], [NAN] * n, [INF] * n, np.full(n, 1e9)):
                 out.append(Case(f"{name}[{mech.name}].pose={p!r}"[:80],
                                 (lambda fn=fn, mech=mech, p=p, path=path: fn(mech, path, p)), "error", "pose",
                                 ExportError))

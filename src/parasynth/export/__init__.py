@@ -42,9 +42,9 @@ def _checked_mech(mech, what: str):
 
 
 def _checked_pose(mech, pose, what: str):
-    """``pose`` (None: home) as a float array of the mechanism's task coordinates;
-    :class:`ExportError` naming ``<what> pose`` for a string, a mapping, booleans, complex
-    numbers or another shape. Reachability is checked where the model is laid out."""
+    """``pose`` (None: home) as a float array; :class:`ExportError` naming ``<what> pose`` for a
+    string, a mapping, booleans or complex numbers. Its shape and reachability are checked where
+    the model is laid out (:func:`build_tree`, naming the pose too)."""
     if pose is None:
         return None
     coords = ", ".join(mech.task_coordinates)
@@ -54,8 +54,6 @@ def _checked_pose(mech, pose, what: str):
     except InputError:
         got = repr(pose) if len(repr(pose)) <= 60 else repr(pose)[:57] + "..."
         raise ExportError(f"{what} pose must be {allowed}, got {got}") from None
-    if X.shape != (mech.n_task,):
-        raise ExportError(f"{what} pose must be {allowed}, got shape {X.shape}")
     return X
 
 
