@@ -618,7 +618,7 @@ def cmd_structures(args) -> int:
     from .. import structures as synthesis
 
     # an empty --types, --translations or --rotations is refused, never read as "any"
-    types = args.types if args.types is not None else None
+    types = args.types
     axes = {k: getattr(args, k) for k in ("translations", "rotations") if getattr(args, k) is not None} or None
     try:
         with warnings.catch_warnings(record=True) as caught:

@@ -128,6 +128,10 @@ def resolve_structures(sec) -> StructureSetup:
         return _CACHE[key]
     # an empty leg_types, axes, arrangements or include is refused: it never means "all"
     axes = dict(sec.axes) if sec.axes is not None else None
+    for k in ("arrangements", "include"):
+        if getattr(sec, k) is not None and not getattr(sec, k):
+            raise StudyError(f"structure.{k}: an empty list would keep no structure; name at least one, or leave "
+                             f"the key out for all")
     try:
         found = synthesis.structures(sec.motion, leg_types=sec.leg_types, legs=sec.legs, axes=axes,
                                      all_axes=sec.all_axes)
@@ -138,10 +142,6 @@ def resolve_structures(sec) -> StructureSetup:
         field = "leg_types" if "limb type" in msg else "motion"
         raise StudyError(f"structure.{field}: {msg}") from None
     kept = list(found)
-    for key in ("arrangements", "include"):
-        if getattr(sec, key) is not None and not getattr(sec, key):
-            raise StudyError(f"structure.{key}: an empty list would keep no structure; name at least one, or leave "
-                             f"the key out for all")
     if sec.arrangements is not None:
         known = [a for a, v in synthesis.ARRANGEMENTS.items() if v.role == "ring"]
         for j, a in enumerate(sec.arrangements):
