@@ -128,6 +128,23 @@ def test_bad_structure_sections_name_the_key(over, needle):
     assert needle in str(e.value), str(e.value)
 
 
+def test_the_study_does_not_depend_on_the_order_of_leg_types_or_include():
+    """The same limb types or included structures in another order (or named twice) give the
+    same structures in the same order, hence the same combined description (its registry name
+    is a digest of it) and the same reference and first structure."""
+    a = resolved()
+    labels = list(a.structures.labels)
+    assert len(labels) == 3
+    from parasynth.structures import StructureWarning
+
+    with pytest.warns(StructureWarning, match="^leg_types: UPS given more than once"):
+        b = resolved(structure={"leg_types": ["UPU", "PUS", "UPS", "SPS", "UPS"]})
+    c = resolved(structure={"include": list(reversed(labels))})
+    for x in (b, c):
+        assert x.mechanism == a.mechanism and list(x.structures.labels) == labels
+        assert x.space.by_name["structure"].choices == a.space.by_name["structure"].choices
+
+
 def test_halving_settings_that_act_are_accepted():
     """Three structures, 8 designs each at most: screening 4 -> rungs of 4 and 8 designs; keep 2
     of 3 halves; the defaults (screening 16 clipped to the budget) are not refused."""
