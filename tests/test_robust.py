@@ -401,6 +401,11 @@ def test_study_records_robust_and_nominal_values():
     (("probability: 0.5", "probability: 0"), "constraints[0].robust.probability"),
     (("samples: 4", "samples: 4, probability: 0.9"), "objectives[0].robust.probability"),
     (("samples: 4", "samples: 4, draws: 3"), "objectives[0].robust.draws"),
+    # a chance constraint counts the draws within the bound: a statistic (even the default) is refused
+    (("probability: 0.5,", "probability: 0.5, statistic: worst,"), "constraints[0].robust.statistic: a chance "
+                                                                    "constraint (probability)"),
+    (("probability: 0.5,", "probability: 0.5, statistic: mean,"), "constraints[0].robust.statistic"),
+    (("probability: 0.5,", "probability: 0.5, statistic: quantile, level: 0.1,"), "constraints[0].robust.statistic"),
 ])
 def test_bad_robust_block_names_the_field(change, needle):
     text = STUDY.replace(*change)
@@ -408,3 +413,83 @@ def test_bad_robust_block_names_the_field(change, needle):
     with pytest.raises(StudyError) as e:
         load_study(text, is_text=True)
     assert needle in str(e.value)
+
+
+# -- arguments of the API: bounds, the applicability rule, the measure ---------------------------
+BAD_BOUNDS = [("max",), "max", ("less", 0.1), ("min", float("nan")), ("max", float("inf")), ("min", "0.1"),
+              ("min", True), [("min", 0.1)], ("min", 0.1, 2), 5, ("MIN", 0.1), (None, 0.1), ("min", 0.1 + 0j)]
+
+
+@pytest.mark.parametrize("bound", BAD_BOUNDS, ids=[repr(b) for b in BAD_BOUNDS])
+def test_bad_bound_is_refused_naming_it(bound):
+    m = load_mechanism("5pus_upu")
+    rm = robust("footprint_radius", tolerances={"slider_radius": 1e-4}, samples=4)
+    for call in (rm.evaluate, rm.probability_of):
+        with pytest.raises(RobustError, match=r"^bound"):
+            call(m, bound)
+
+
+def test_bound_sides_and_a_missing_bound():
+    """A chance constraint needs its bound; a list is a bound as a tuple is; the sides count the
+    draws on the right side of it (r uniform in r0 +- t: P(r >= r0) = 1/2 within its error)."""
+    m = load_mechanism("5pus_upu")
+    r0, t, k = m.params.slider_radius, 1e-3, 400
+    rm = robust("footprint_radius", tolerances={"slider_radius": t}, samples=k, seed=1)
+    with pytest.raises(RobustError, match=r"^bound must be .* for a chance constraint, got None"):
+        rm.probability_of(m, None)
+    P_min, _, _ = rm.probability_of(m, ["min", r0])
+    P_max, _, _ = rm.probability_of(m, ("max", np.float32(r0)))
+    assert abs(P_min - 0.5) <= 3 * math.sqrt(0.25 / k) and abs(P_max - 0.5) <= 3 * math.sqrt(0.25 / k)
+    assert P_min + P_max == pytest.approx(1.0, abs=2.0 / k)  # only draws at r0 exactly count twice
+    # evaluate without a bound takes the measure's sense: the worst footprint is the largest
+    w = robust("footprint_radius", tolerances={"slider_radius": t}, samples=k, seed=1, statistic="worst")
+    assert w.evaluate(m).value == pytest.approx(max(w.values(m))) and w.evaluate(m).value <= r0 + t
+
+
+def test_per_leg_scatter_on_a_redundantly_constrained_mechanism_is_refused_as_in_a_study():
+    """The 2-RPU&2-SPS has 2 redundant constraints: per-leg scatter is refused by every API entry
+    point with the message the study's check gives; scatter of its description parameters is not."""
+    m = load_mechanism("2rpu_2sps")
+    rm = robust("home_singularity_margin", tolerances={"anchor_tolerance": "0.02 mm"}, samples=4)
+    msgs = []
+    for call in (lambda: rm.evaluate(m), lambda: rm.probability_of(m, ("min", 0.0)), lambda: rm.values(m),
+                 lambda: rm(m), lambda: rm.draws(m), lambda: rm.check(m)):
+        with pytest.raises(RobustError) as e:
+            call()
+        msgs.append(str(e.value))
+    assert len(set(msgs)) == 1 and "2rpu_2sps: per-leg scatter (tolerances anchor_tolerance) needs a mechanism " \
+                                   "without redundant constraints (2 here)" in msgs[0], msgs
+    study = STUDY.replace("mechanism: 5pus_upu", "mechanism: 2rpu_2sps").replace(
+        "variables:\n  - {name: link_length, low: 180 mm, high: 230 mm}",
+        "variables:\n  - {name: a1, low: 140 mm, high: 160 mm}").replace(
+        "tolerances: {slider_radius: 0.1 mm, anchor_tolerance: 0.02 mm}", "tolerances: {anchor_tolerance: 0.02 mm}")
+    study = study.split("constraints:")[0] + "evaluation: {samples: 64, ranges: {z: [550 mm, 1000 mm], " \
+                                             "psi: [-30 deg, 30 deg], theta: [-45 deg, 45 deg]}}\n" \
+                                             "optimizer: {kind: sweep, designs: [{a1: 150 mm}]}\n"
+    from parasynth.study.spec import check_study
+
+    problems = check_study(load_study(study, is_text=True))
+    assert any("objectives[0].robust.tolerances" in p and msgs[0] in p for p in problems), problems
+    # description parameters keep the constraints consistent: accepted, values near the nominal
+    ok = robust("footprint_radius", tolerances={"a1": "0.1 mm"}, samples=4).evaluate(m)
+    assert all(abs(v - ok.nominal) <= 1e-4 + 1e-12 for v in ok.values)
+
+
+def test_robust_of_a_measure_object_is_robust_of_its_name():
+    m = load_mechanism("5pus_upu")
+    by_name = robust("footprint_radius", tolerances={"slider_radius": 1e-3}, samples=16, seed=3)
+    by_obj = robust(get_measure("footprint_radius"), tolerances={"slider_radius": 1e-3}, samples=16, seed=3)
+    assert by_obj.name == by_name.name == "robust:footprint_radius"
+    assert by_obj.evaluate(m).values == by_name.evaluate(m).values
+    with pytest.raises(RobustError, match=r"^robust: 'robust:footprint_radius' is already robust"):
+        robust(by_name, tolerances={"slider_radius": 1e-3})
+    unregistered = dataclasses.replace(get_measure("footprint_radius"), name="my_footprint")
+    with pytest.raises(RobustError, match=r"^robust: name must be a registered measure or its name"):
+        robust(unregistered, tolerances={"slider_radius": 1e-3})
+    for bad in (5, None, ["footprint_radius"], {"name": "footprint_radius"}):
+        with pytest.raises(RobustError, match=r"^robust: name must be the name of a registered measure"):
+            robust(bad, tolerances={"slider_radius": 1e-3})
+    with pytest.raises(RobustError, match=r"^robust: name: unknown objective 'volumee'"):
+        robust("volumee", tolerances={"slider_radius": 1e-3})
+    with pytest.raises(RobustError, match=r"^mech must be a mechanism, e.g. parasynth.load_mechanism\('5pus_upu'\)"):
+        by_name.evaluate("5pus_upu")

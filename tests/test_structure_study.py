@@ -106,11 +106,60 @@ def test_structure_is_a_categorical_variable_with_conditional_dimensions():
     ({"optimizer": {"kind": "nlopt", "n_trials": None}}, "use optimizer.kind: optuna"),
     ({"variables": [{"name": "crank_length", "low": "50 mm", "high": "90 mm"}]},
      "'crank_length' is used by none of the structures"),
+    # empty selections are refused, never read as "every structure"
+    ({"structure": {"include": []}}, "structure.include: an empty list would keep no structure"),
+    ({"structure": {"arrangements": []}}, "structure.arrangements: an empty list would keep no structure"),
+    ({"structure": {"axes": {}}}, "structure.axes must be a mapping"),
+    ({"structure": {"leg_types": []}}, "structure.leg_types must name at least one limb type"),
+    ({"structure": {"legs": [1000000]}}, "structure.legs must be at most 1000"),
+    # halving settings the budget would clip or that would not act (n_trials 8, 3 structures)
+    ({"structure": {"screening": 9}}, "structure.screening: 9 designs per structure in the first rung exceed "
+                                      "the budget of 8"),
+    ({"structure": {"screening": 8, "eta": 3}}, "structure.eta: the screening (8 designs) is already the whole "
+                                                "budget"),
+    ({"structure": {"screening": 8, "eta": 2, "keep": 1}}, "structure.eta: the screening"),
+    ({"structure": {"keep": 3}}, "structure.keep: 3 structures continuing after each rung keep every one of the 3"),
+    ({"optimizer": {"kind": "sweep", "n_trials": None, "seed": None, "designs": [{"base_radius": "120 mm"}]}},
+     "structure.screening: successive halving spreads the trials of an Optuna study; a sweep"),
 ])
 def test_bad_structure_sections_name_the_key(over, needle):
     with pytest.raises(StudyError) as e:
         resolved(**over)
     assert needle in str(e.value), str(e.value)
+
+
+def test_the_study_does_not_depend_on_the_order_of_leg_types_or_include():
+    """The same limb types or included structures in another order (or named twice) give the
+    same structures in the same order, hence the same combined description (its registry name
+    is a digest of it) and the same reference and first structure."""
+    a = resolved()
+    labels = list(a.structures.labels)
+    assert len(labels) == 3
+    from parasynth.structures import StructureWarning
+
+    with pytest.warns(StructureWarning, match="^leg_types: UPS given more than once"):
+        b = resolved(structure={"leg_types": ["UPU", "PUS", "UPS", "SPS", "UPS"]})
+    c = resolved(structure={"include": list(reversed(labels))})
+    for x in (b, c):
+        assert x.mechanism == a.mechanism and list(x.structures.labels) == labels
+        assert x.space.by_name["structure"].choices == a.space.by_name["structure"].choices
+
+
+def test_halving_settings_that_act_are_accepted():
+    """Three structures, 8 designs each at most: screening 4 -> rungs of 4 and 8 designs; keep 2
+    of 3 halves; the defaults (screening 16 clipped to the budget) are not refused."""
+    s = resolved(structure={"screening": 4, "eta": 2, "keep": 2})
+    sch = structure_schedule(s)
+    assert sch.targets == (4, 8) and len(s.space.by_name["structure"].choices) == 3
+    d = study_dict()
+    d["structure"] = {k: v for k, v in d["structure"].items() if k not in ("screening", "eta")}
+    assert structure_schedule(load_study(yaml.safe_dump(d), is_text=True)).targets == (8,)
+    # --n-trials below the screening would clip it: refused as the study file would be
+    from parasynth.study.budget import with_budget
+
+    assert structure_schedule(with_budget(s, 6)).targets == (4, 6)
+    with pytest.raises(StudyError, match=r"^--n-trials 3: structure.screening: 4 designs per structure"):
+        with_budget(s, 3)
 
 
 # -- the schedule against an independent ranking ---------------------------------------------------------
@@ -233,6 +282,51 @@ def test_a_run_follows_the_schedule(whole):
 
     ostudy = optuna.load_study(study_name=s.name, storage=open_storage(f"journal:{out / 'optuna.journal'}"))
     assert ostudy.metric_names == ["volume", "margin"]
+
+
+@pytest.mark.parametrize("change", ["other structure", "no structure"])
+def test_report_and_export_refuse_a_journal_naming_a_structure_not_in_the_study(whole, tmp_path, change):
+    """A design of a structure the study does not have (a journal edited or copied from another
+    study) makes the run damaged: report and export stop, naming the journal and the trial; the
+    intact copy is read."""
+    import contextlib
+    import io
+    import json
+    import shutil
+
+    from parasynth.cli import main
+
+    s, out, _ = whole
+    run = tmp_path / "run"
+    shutil.copytree(out, run, ignore=shutil.ignore_patterns("run.lock"))
+    lines = (run / "journal.jsonl").read_text().splitlines()
+    k, rec = next((i, json.loads(ln)) for i, ln in enumerate(lines) if json.loads(ln).get("source") == "run")
+    if change == "other structure":
+        rec["values"]["structure"] = "6-UPS"
+        assert "6-UPS" not in s.structures.labels
+    else:
+        del rec["values"]["structure"]
+    lines[k] = json.dumps(rec)
+    (run / "journal.jsonl").write_text("\n".join(lines) + "\n")
+
+    def cli(args):
+        err = io.StringIO()
+        with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(err):
+            try:
+                code = main([str(a) for a in args])
+            except SystemExit as e:
+                code = e.code
+        return code, err.getvalue()
+
+    what = "names the structure '6-UPS'" if change == "other structure" else "names no structure"
+    for args in (["report", run, "--out", tmp_path / "rep"], ["export", run, "--out", tmp_path / "best.xml"]):
+        code, err = cli(args)
+        assert code not in (0, None) and "Traceback" not in err and len(err.strip().splitlines()) == 1, err
+        assert f"journal.jsonl: the run design of trial {rec['trial']} {what}, not one of the study's " \
+               f"structures ({', '.join(s.structures.labels)})" in err, err
+    assert not (tmp_path / "best.xml").exists()
+    code, err = cli(["export", out, "--out", tmp_path / "intact.xml"])
+    assert code == 0 and (tmp_path / "intact.xml").is_file(), err
 
 
 def test_report_has_the_structure_table_front_and_verdict(whole, tmp_path):

@@ -424,3 +424,57 @@ def test_cli_required_axes():
     with redirect_stdout(out), redirect_stderr(err):
         code = cli.main(["structures", "2T2R", "--types", "RPU,SPS", "--translations", "x,y"])
     assert code == 0 and "0 kept" in out.getvalue() and "other axes 2" in out.getvalue(), out.getvalue()
+
+
+# -- arguments: order, repetition, resource limits ---------------------------------------------
+def test_leg_types_order_and_repetition_do_not_matter():
+    """The same limb types in any order, or one named twice, enumerate the same candidates in
+    the registry's order: the same structures (names, descriptions), the same drops."""
+    from parasynth.structures import candidates
+
+    from parasynth.structures import StructureWarning
+
+    a = structures("3T3R", leg_types=["PUS", "UPS", "SPS"], legs=6)
+    with pytest.warns(StructureWarning, match=r"^leg_types: UPS given more than once, counted once$"):
+        b = structures("3T3R", leg_types=["SPS", "UPS", "PUS", "UPS"], legs=[6])
+    with pytest.warns(StructureWarning, match=r"^leg_types: SPS given more than once"):
+        c = structures("3T3R", leg_types="UPS, SPS, PUS, SPS", legs=(6, 6))
+    for x in (b, c):
+        assert [s.key for s in x] == [s.key for s in a]
+        assert [s.description for s in x] == [s.description for s in a]
+        assert x.dropped == a.dropped and x.enumerated == a.enumerated
+    # counted independently: every 6-limb candidate of the three types, each type once
+    assert a.enumerated == len(candidates(["SPS", "UPS", "PUS"], [6]))
+    # an interleaved structure names the type first in the registry first (SPS, UPS, PUS, ...)
+    inter = [s.name for s in a if "&" in s.name]
+    assert inter and all(n.split("&")[0][2:] in ("SPS", "UPS") for n in inter), inter
+
+
+def test_limb_counts_no_candidate_has_are_said():
+    """UPS and PUS rings have 3-6 limbs (regular 3-6, paired 4 and 6) and interleave as 3+3:
+    9 limbs give nothing, with a warning; 6 and 9 give the 6-limb candidates, with a warning."""
+    from parasynth.structures import StructureWarning, candidates
+
+    with pytest.warns(StructureWarning, match=r"^legs: no candidate of the limb types UPS, PUS has 9 limbs "
+                                              r"\(possible: 3, 4, 5, 6\); nothing is enumerated"):
+        none = structures("3T3R", leg_types=["PUS", "UPS"], legs=9)
+    assert none.enumerated == 0 and len(none) == 0
+    with pytest.warns(StructureWarning, match="those counts add nothing"):
+        six = structures("3T3R", leg_types=["PUS", "UPS"], legs=[6, 9], n_poses=1)
+    assert six.enumerated == len(candidates(["UPS", "PUS"], [6])) > 0
+
+
+def test_pose_checks_beyond_the_budget_are_refused_before_any_work():
+    import time
+
+    from parasynth.structures import MAX_POSE_CHECKS, StructureError
+
+    t0 = time.perf_counter()
+    with pytest.raises(StructureError, match=r"^n_poses: 1024 poses for each of the \d+ candidates"):
+        structures("3T3R", n_poses=1024)
+    assert time.perf_counter() - t0 < 5.0
+    with pytest.raises(StructureError, match=r"^n_poses must be at most 1024"):
+        structures("3T3R", n_poses=10**9)
+    # within the budget it runs: 1 candidate of 3T2R from PUS and UPU (the 5-PUS/UPU) at 2 poses each
+    assert MAX_POSE_CHECKS >= 2
+    assert [s.name for s in structures("3T2R", leg_types=["PUS", "UPU"], n_poses=2)] == ["5-PUS/UPU"]

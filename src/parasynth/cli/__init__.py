@@ -28,6 +28,7 @@ import dataclasses
 import errno
 import os
 import sys
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -36,7 +37,7 @@ from .. import __version__
 from ..mechanisms import list_mechanisms, load_mechanism, mechanism_summaries
 from .plugins import load_plugins  # noqa: F401  (also parasynth.cli.load_plugins)
 from ..common.units import SI_UNIT_KINDS, UNIT_KINDS
-from ..common.validation import MAX_SAMPLES, MAX_SEED, MAX_TRIALS
+from ..common.validation import MAX_LEGS, MAX_SAMPLES, MAX_SEED, MAX_TRIALS
 
 EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_INTERRUPTED, EXIT_PIPE = 0, 1, 2, 130, 141
 
@@ -614,6 +615,8 @@ def _int_list(text: str) -> list[int]:
                                          f"got {text!r}") from None
     if not vals or min(vals) < 2:
         raise argparse.ArgumentTypeError(f"--legs must be numbers of limbs >= 2 (e.g. 5,6), got {text!r}")
+    if max(vals) > MAX_LEGS:
+        raise argparse.ArgumentTypeError(f"--legs must be at most {MAX_LEGS} (the documented maximum), got {text!r}")
     return vals
 
 
@@ -628,13 +631,27 @@ def cmd_export(args) -> int:
 def cmd_structures(args) -> int:
     from .. import structures as synthesis
 
-    types = [t for t in args.types.replace(",", " ").split()] if args.types else None
-    axes = {k: getattr(args, k) for k in ("translations", "rotations") if getattr(args, k)} or None
+    # an empty --types, --translations or --rotations is refused, never read as "any"
+    types = args.types
+    axes = {k: getattr(args, k) for k in ("translations", "rotations") if getattr(args, k) is not None} or None
     try:
-        found = synthesis.structures(args.motion, leg_types=types, legs=args.legs, axes=axes,
-                                     all_axes=args.all_axes, seed=args.seed)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", synthesis.StructureWarning)
+            found = synthesis.structures(args.motion, leg_types=types, legs=args.legs, axes=axes,
+                                         all_axes=args.all_axes, seed=args.seed)
+        for w in caught:
+            if issubclass(w.category, synthesis.StructureWarning):
+                print(f"warning: {w.message}", file=sys.stderr)
+            else:
+                warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     except ValueError as e:
-        raise CliError(str(e)) from None
+        msg = str(e)
+        for arg, flag in (("leg_types", "--types"), ("legs", "--legs"), ("axes.translations", "--translations"),
+                          ("axes.rotations", "--rotations"), ("all_axes", "--all-axes"), ("seed", "--seed")):
+            if msg.startswith(arg):
+                msg = f"{flag} ({arg}){msg[len(arg):]}"
+                break
+        raise CliError(msg) from None
     kept = len(found)
     print(f"{found.motion}: {found.enumerated} candidate(s) enumerated, {kept} kept")
     out = _out_dir(args.out, "--out") if args.out else None

@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from ..common.validation import InputError, check_pose_array
 from .mjcf import DEFAULTS as MJCF_DEFAULTS, servo_gains, write_mjcf
 from .tree import SUPPORTED_LEGS, ExportError, Tree, build_tree, joint_values, wxyz
 from .urdf import ROOT_JOINT, ball_joint_names, closure_path, write_urdf
@@ -28,6 +29,32 @@ __all__ = ["to_mjcf", "to_urdf", "joint_positions", "build_tree", "joint_values"
 
 #: Export formats of :func:`joint_positions` and the command line.
 FORMATS = ("mjcf", "urdf")
+
+
+def _checked_mech(mech, what: str):
+    """``mech`` when it is a mechanism; :class:`ExportError` naming ``<what> mech`` otherwise (a
+    model's name or a description file given where the model is expected, None, a number)."""
+    if hasattr(mech, "task_coordinates") and callable(getattr(mech, "is_feasible", None)) and hasattr(mech, "legs"):
+        return mech
+    hint = repr(mech) if isinstance(mech, str) else "'5pus_upu'"
+    got = repr(mech) if len(repr(mech)) <= 60 else repr(mech)[:57] + "..."
+    raise ExportError(f"{what} mech must be a mechanism, e.g. parasynth.load_mechanism({hint}), got {got}")
+
+
+def _checked_pose(mech, pose, what: str):
+    """``pose`` (None: home) as a float array; :class:`ExportError` naming ``<what> pose`` for a
+    string, a mapping, booleans or complex numbers. Its shape and reachability are checked where
+    the model is laid out (:func:`build_tree`, naming the pose too)."""
+    if pose is None:
+        return None
+    coords = ", ".join(mech.task_coordinates)
+    allowed = f"None (the home pose) or {mech.n_task} numbers, the task coordinates {coords} (SI: m, rad)"
+    try:
+        X = check_pose_array(f"{what} pose", pose)
+    except InputError:
+        got = repr(pose) if len(repr(pose)) <= 60 else repr(pose)[:57] + "..."
+        raise ExportError(f"{what} pose must be {allowed}, got {got}") from None
+    return X
 
 
 def _checked_path(path, what: str) -> Path:
@@ -41,8 +68,11 @@ def to_mjcf(mech, path, pose=None, **options) -> Path:
     default the home pose), and return the path. ``options`` override
     :data:`MJCF_DEFAULTS` (``timestep``, ``gravity``, ``servo_frequency``, ``servo_damping_ratio``).
     Raises :class:`ExportError` (a ``ValueError``) for an unreachable pose or a leg type the
-    exporter does not know."""
+    exporter does not know, and naming the argument for a ``mech`` that is not a mechanism (a
+    model's name: load it first) or a ``pose`` that is not its task coordinates."""
+    _checked_mech(mech, "to_mjcf")
     path = _checked_path(path, "to_mjcf path")
+    pose = _checked_pose(mech, pose, "to_mjcf")
     unknown = sorted(set(options) - {"timestep", "gravity", "servo_frequency", "servo_damping_ratio"})
     if unknown:
         raise ExportError(f"to_mjcf: unknown option(s) {unknown}; options: timestep, gravity, servo_frequency, "
@@ -61,7 +91,9 @@ def to_urdf(mech, path, pose=None) -> tuple[Path, Path]:
     """Write ``mech`` as a URDF spanning tree at ``path`` (laid out at ``pose``, default home)
     and its closure file next to it (:func:`closure_path`: same name, ``.yaml``); returns both
     paths. Raises :class:`ExportError` as :func:`to_mjcf`."""
+    _checked_mech(mech, "to_urdf")
     path = _checked_path(path, "to_urdf path")
+    pose = _checked_pose(mech, pose, "to_urdf")
     return write_urdf(build_tree(mech, pose), path)
 
 

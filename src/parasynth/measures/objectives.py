@@ -428,12 +428,27 @@ def usable_workspace_of(mech, resolution=None, **settings):
     return _usable(mech, settings, resolution)
 
 
-def _box(mech, kw, resolution, coords, region):
+def _box(mech, kw, resolution, coords, region, axis=None):
+    """The largest box of a measure's settings (None when no cell is feasible); with ``axis``
+    (``inscribed_box_size``), the axis is checked against the box's coordinates first, so that
+    an axis the box does not have is refused whether or not the box is empty."""
     if region not in ("feasible", "usable"):
         raise ValueError(f"region must be 'feasible' or 'usable', got {region!r}")
+    if axis is not None and axis not in mech.task_coordinates:
+        raise SettingError(f"inscribed_box_size.axis: must be one of the box's coordinates, a task coordinate of "
+                           f"{mech.name} ({', '.join(mech.task_coordinates)}), got {axis!r}")
     if region == "usable":
-        return _usable(mech, kw, resolution).largest_box(coords=coords)
-    return _ws(mech, kw).largest_box(coords=coords, resolution=resolution)
+        usable = _usable(mech, kw, resolution)
+        names = usable._names(coords, "coords")
+    else:
+        ws = _ws(mech, kw)
+        names = ws._box_coords(coords)
+    if axis is not None and axis not in names:
+        raise SettingError(f"inscribed_box_size.axis: must be one of the box's coordinates {names} (coords "
+                           f"{coords!r}), got {axis!r}")
+    if region == "usable":
+        return usable.largest_box(coords=coords)
+    return ws.largest_box(coords=coords, resolution=resolution)
 
 
 @register("inscribed_box_volume", unit="sampled units", sense="maximize", estimate="grid",
@@ -456,12 +471,11 @@ def inscribed_box_volume(mech, resolution: int | None = None, coords="position",
 def inscribed_box_size(mech, axis: str = "z", resolution: int | None = None, coords="position",
                        region: str = "feasible", **kw) -> float:
     """Side along coordinate ``axis`` of the largest inscribed axis-aligned box (``region``
-    as ``inscribed_box_volume``)."""
-    box = _box(mech, kw, resolution, coords, region)
+    as ``inscribed_box_volume``). ``axis`` must be one of the box's coordinates (``coords``),
+    also when no box fits (0.0): ``SettingError`` naming it otherwise."""
+    box = _box(mech, kw, resolution, coords, region, axis=axis)
     if box is None:
         return 0.0
-    if axis not in box.coordinates:
-        raise ValueError(f"inscribed_box_size: axis must be one of {list(box.coordinates)}, got {axis!r}")
     return float(box.sizes[list(box.coordinates).index(axis)])
 
 

@@ -84,13 +84,13 @@ from .accuracy import (TOLERANCE_SETTINGS, _actuated_row_mask, _compose, _leg_ch
 from ..model.constraints import PoseContext, SingularityMarginFloor
 from ..model.legs import solve_geometry
 from ..model.mechanism import EngineFallbackWarning, Mechanism
-from .objectives import Measure
+from .objectives import OBJECTIVES, Measure
 from .objectives import get as get_measure
 from ..common.units import UNIT_KINDS, QuantityError, parse_quantity
-from ..common.validation import MAX_SEED, check_count
+from ..common.validation import MAX_SEED, check_count, is_real_number
 
 __all__ = ["robust", "RobustMeasure", "RobustValue", "AsBuilt", "STATISTICS", "LEG_TOLERANCES",
-           "resolve_tolerances", "SAMPLE_COUNTED", "check_robust_spec"]
+           "resolve_tolerances", "SAMPLE_COUNTED", "check_robust_spec", "RobustError", "check_bound"]
 
 STATISTICS = ("mean", "quantile", "worst", "first_order")
 #: Per-leg tolerances, as :mod:`parasynth.measures.accuracy` names them, and their quantity kinds.
@@ -106,6 +106,40 @@ MAX_DRAWS = 4096
 
 class RobustError(ValueError):
     """A robust block that is not allowed; the message starts with the field path."""
+
+
+#: {id(mechanism): (weak reference, redundant constraints)} of :meth:`RobustMeasure.applicable`.
+_REDUNDANT: "OrderedDict[int, tuple]" = OrderedDict()
+
+
+def check_mechanism_arg(mech, arg: str = "mech"):
+    """``mech`` when it is a mechanism; :class:`RobustError` naming ``arg`` otherwise (a
+    model's name given where the model is expected, a number, None)."""
+    if hasattr(mech, "task_coordinates") and callable(getattr(mech, "is_feasible", None)):
+        return mech
+    hint = repr(mech) if isinstance(mech, str) else "'5pus_upu'"
+    got = repr(mech) if len(repr(mech)) <= 60 else repr(mech)[:57] + "..."
+    raise RobustError(f"{arg} must be a mechanism, e.g. parasynth.load_mechanism({hint}), got {got}")
+
+
+def check_bound(bound, required: bool, arg: str = "bound"):
+    """``bound`` as ``("min" | "max", float)``; None when it is not ``required`` and not given.
+    :class:`RobustError` naming ``arg`` for another shape, side, or a value that is not a finite
+    real number (NaN, inf, a boolean, a string)."""
+    allowed = "('min' or 'max', a finite number in the measure's SI unit)"
+    if bound is None:
+        if required:
+            raise RobustError(f"{arg} must be {allowed} for a chance constraint, got None")
+        return None
+    got = repr(bound) if len(repr(bound)) <= 60 else repr(bound)[:57] + "..."
+    if isinstance(bound, (str, bytes)) or not isinstance(bound, (tuple, list)) or len(bound) != 2:
+        raise RobustError(f"{arg} must be {allowed}, got {got}")
+    side, value = bound
+    if not isinstance(side, str) or side not in ("min", "max"):
+        raise RobustError(f"{arg}: the side must be 'min' or 'max', got {side!r}")
+    if not is_real_number(value) or not math.isfinite(float(value)):
+        raise RobustError(f"{arg}: the value must be a finite number in the measure's SI unit, got {value!r}")
+    return side, float(value)
 
 
 # -- tolerances ------------------------------------------------------------------------------------
@@ -823,45 +857,73 @@ class RobustMeasure(Measure):
 
     def draws(self, mech) -> list:
         """The ``samples`` scatter draws of ``mech``: mechanisms (rebuilt with the drawn
-        parameters, as built with the drawn leg errors), the same draws for every design."""
+        parameters, as built with the drawn leg errors), the same draws for every design.
+        :class:`RobustError` when the scatter does not apply to ``mech`` (:meth:`applicable`)."""
+        check_mechanism_arg(mech)
         params, legs = self._resolved(mech)
         key = (id(mech), tuple(sorted(params.items())), tuple(sorted(legs.items())), self.samples, self.seed)
         hit = _DRAW_CACHE.get(key)
         if hit is not None and hit[0]() is mech:
             _DRAW_CACHE.move_to_end(key)
             return hit[1]
+        self.applicable(mech)
         out = _draw_mechanisms(mech, params, legs, self.samples, self.seed)
         _DRAW_CACHE[key] = (weakref.ref(mech), out)
         if len(_DRAW_CACHE) > _DRAW_CACHE_SIZE:
             _DRAW_CACHE.popitem(last=False)
         return out
 
-    def check(self, mech) -> None:
-        """``ValueError`` when the scatter cannot be applied to ``mech``: a tolerance on a
-        parameter without a length or angle unit, a drawn design that cannot be built, per-leg
-        scatter on a mechanism whose closure equations do not fix the pose (under-actuated) or
-        that has redundant constraints (over-constrained: a perturbed rigid closure has no
-        solution), or a home pose the mechanism cannot reach as built."""
+    def applicable(self, mech) -> None:
+        """The rule that decides whether this scatter applies to ``mech`` at all, the same for a
+        study (:meth:`check`, ``parasynth validate``) and for every evaluation through the API
+        (:meth:`evaluate`, :meth:`probability_of`, :meth:`values`, :meth:`draws`):
+        :class:`RobustError` for a tolerance on a parameter without a length or angle unit, and
+        for per-leg scatter on a mechanism that has redundant constraints (over-constrained, as
+        the 2-RPU&2-SPS: a perturbed rigid closure has no solution, so every draw would be
+        unreachable as built). Cached per mechanism object."""
+        check_mechanism_arg(mech)
         params, legs = self._resolved(mech)
-        if any(legs.values()):
+        if not any(legs.values()):
+            return
+        hit = _REDUNDANT.get(id(mech))
+        if hit is not None and hit[0]() is mech:
+            redundant = hit[1]
+        else:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
                 redundant = int(getattr(mech.mobility(), "redundant_constraints", 0) or 0)
-            if redundant:
-                raise ValueError(f"{mech.name}: per-leg scatter needs a mechanism without redundant constraints "
-                                 f"({redundant} here): the rigid closure of a perturbed over-constrained mechanism "
-                                 f"has no solution (as built it assembles only by deforming); scatter its "
-                                 f"description parameters instead, which keep its constraints consistent")
+            _REDUNDANT[id(mech)] = (weakref.ref(mech), redundant)
+            while len(_REDUNDANT) > 64:
+                _REDUNDANT.popitem(last=False)
+        if redundant:
+            given = ", ".join(k for k, v in legs.items() if v)
+            raise RobustError(f"{mech.name}: per-leg scatter (tolerances {given}) needs a mechanism without "
+                              f"redundant constraints ({redundant} here): the rigid closure of a perturbed over-constrained mechanism "
+                              f"has no solution (as built it assembles only by deforming); scatter its "
+                              f"description parameters instead, which keep its constraints consistent")
+
+    def check(self, mech) -> None:
+        """``ValueError`` (:class:`RobustError`) when the scatter cannot be applied to ``mech``:
+        the rule of :meth:`applicable`, a drawn design that cannot be built, per-leg scatter on a
+        mechanism whose closure equations do not fix the pose (under-actuated), or a home pose
+        the mechanism cannot reach as built."""
+        params, legs = self._resolved(mech)
+        self.applicable(mech)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", EngineFallbackWarning)
             for m in _draw_mechanisms(mech, params, legs, 2, self.seed):
                 if isinstance(m, AsBuilt) and not m._context(m.home[None, :]).reachable[0]:
-                    raise ValueError(f"{mech.name}: the home pose is not reachable as built with these tolerances "
+                    raise RobustError(f"{mech.name}: the home pose is not reachable as built with these tolerances "
                                      f"(the perturbed closure has no solution near it)")
 
     def evaluate(self, mech, bound=None, **settings) -> RobustValue:
         """The :class:`RobustValue` of ``mech`` (settings as the base measure's; ``bound``
-        ``("min"|"max", value)``: the side ``worst`` and ``first_order`` take)."""
+        ``("min"|"max", value)``, value a finite number in the measure's SI unit, or None: the
+        side ``worst`` and ``first_order`` take). :class:`RobustError` naming ``mech`` or
+        ``bound``, or when the scatter does not apply to ``mech`` (:meth:`applicable`)."""
+        check_mechanism_arg(mech)
+        bound = check_bound(bound, required=False)
+        self.applicable(mech)
         base = get_measure(self.base)
         nominal = float(base(mech, **settings))
         worse = _worse_side(base.sense, bound)
@@ -873,6 +935,7 @@ class RobustMeasure(Measure):
 
     def values(self, mech, **settings) -> np.ndarray:
         """The base measure on every draw (samples,)."""
+        check_mechanism_arg(mech)
         base = get_measure(self.base)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", EngineFallbackWarning)
@@ -880,8 +943,12 @@ class RobustMeasure(Measure):
 
     def probability_of(self, mech, bound, **settings) -> tuple[float, float, float]:
         """Chance constraint: (fraction of the draws whose value satisfies ``bound``
-        ``("min"|"max", value)``, its standard error ``sqrt(P (1 - P) / k)``, the nominal value)."""
-        side, b = bound
+        ``("min"|"max", value)``, its standard error ``sqrt(P (1 - P) / k)``, the nominal value).
+        ``bound`` is required (a finite number in the measure's SI unit); :class:`RobustError`
+        as :meth:`evaluate`."""
+        check_mechanism_arg(mech)
+        side, b = check_bound(bound, required=True)
+        self.applicable(mech)
         base = get_measure(self.base)
         nominal = float(base(mech, **settings))
         v = self.values(mech, **settings)
@@ -988,6 +1055,7 @@ def _initial_band(mech, params, tol) -> dict:
 def _first_order(rm: RobustMeasure, base: Measure, mech, nominal, worse, settings):
     """``nominal + worse * sum_j |dv/dx_j| tol_j`` by central differences (step tol_j / 10)."""
     params, legs = rm._resolved(mech)
+    rm.applicable(mech)
     contrib = []
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", EngineFallbackWarning)
@@ -1041,8 +1109,25 @@ def robust(name: str, tolerances=None, statistic: str = "mean", samples: int = 3
     (module documentation): ``tolerances`` {description parameter or per-leg tolerance: value}
     (SI numbers or strings with units), ``statistic`` one of :data:`STATISTICS` (``level`` for
     ``quantile``, e.g. 0.05), ``samples`` scatter draws, ``seed`` of the draws (the same draws for
-    every design)."""
-    base = get_measure(name)
+    every design). ``name`` may also be a registered measure itself
+    (``parasynth.objectives.get("workspace_volume")``), which stands for its name; a robust
+    measure, an unregistered measure or anything else is a :class:`RobustError`."""
+    if isinstance(name, RobustMeasure):
+        raise RobustError(f"robust: {name.name!r} is already robust; give the name of the measure, "
+                          f"e.g. robust({name.base!r}, ...)")
+    if isinstance(name, Measure):
+        if OBJECTIVES.get(name.name) is not name:
+            raise RobustError(f"robust: name must be a registered measure or its name; {name.name!r} is not "
+                              f"registered as this measure")
+        name = name.name
+    if not isinstance(name, str):
+        got = repr(name) if len(repr(name)) <= 60 else repr(name)[:57] + "..."
+        raise RobustError(f"robust: name must be the name of a registered measure (e.g. 'workspace_volume'; see "
+                          f"parasynth list) or the measure itself, got {got}")
+    try:
+        base = get_measure(name)
+    except ValueError as e:
+        raise RobustError(f"robust: name: {e}") from None
     if isinstance(base, RobustMeasure):
         raise RobustError(f"robust: {name!r} is already robust")
     statistic, level, samples, seed, _ = check_robust_spec(statistic, level, samples, seed,

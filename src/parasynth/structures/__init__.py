@@ -11,13 +11,14 @@ study layer.
 import sys
 import types
 
-from .synthesis import DROP_REASONS, Group, Structure, StructureList, candidates, parse_axes, structures
-from .vocabulary import (ARRANGEMENTS, LIMB_TYPES, PARAMETERS, TEMPLATES, Arrangement, LimbType, Template,
-                         limb_type, parse_motion, register_limb)
+from .synthesis import (DROP_REASONS, MAX_POSE_CHECKS, MAX_POSES, MAX_STRUCTURE_LEGS, Group, Structure, StructureList,
+                        candidates, parse_axes, structures)
+from .vocabulary import (ARRANGEMENTS, LIMB_TYPES, PARAMETERS, TEMPLATES, Arrangement, LimbType, StructureError,
+                         StructureWarning, Template, limb_type, parse_motion, register_limb)
 
 __all__ = ["structures", "Structure", "StructureList", "Group", "candidates", "parse_axes", "DROP_REASONS", "LIMB_TYPES",
            "ARRANGEMENTS", "PARAMETERS", "TEMPLATES", "Arrangement", "LimbType", "Template", "limb_type",
-           "parse_motion", "register_limb"]
+           "parse_motion", "register_limb", "StructureError", "StructureWarning", "MAX_POSES", "MAX_POSE_CHECKS", "MAX_STRUCTURE_LEGS"]
 
 
 class _StructuresModule(types.ModuleType):

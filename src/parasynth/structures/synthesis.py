@@ -14,16 +14,21 @@ from __future__ import annotations
 
 import hashlib
 import itertools
+import math
+import warnings
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from ..common.validation import MAX_LEGS, MAX_SEED, InputError, check_count, is_real_number
 from ..mechanisms import described_class
-from .vocabulary import ARRANGEMENTS, CHECKS, LIMB_TYPES, PARAMETERS, TEMPLATES, limb_type, parse_motion
+from .vocabulary import (ARRANGEMENTS, CHECKS, LIMB_TYPES, PARAMETERS, TEMPLATES, StructureError, StructureWarning,
+                         limb_type, parse_motion)
 
-__all__ = ["Group", "Structure", "StructureList", "structures", "DROP_REASONS", "candidates", "parse_axes"]
+__all__ = ["Group", "Structure", "StructureList", "structures", "DROP_REASONS", "candidates", "parse_axes",
+           "StructureError", "StructureWarning", "MAX_POSES", "MAX_POSE_CHECKS", "MAX_STRUCTURE_LEGS"]
 
 #: Why a candidate is dropped, in the order the checks run.
 DROP_REASONS = {
@@ -338,7 +343,7 @@ class Structure:
         fields = set(cls.Params.__dataclass_fields__)
         unknown = sorted(set(params) - fields)
         if unknown:
-            raise ValueError(f"unknown parameter(s) {unknown} for structure {self.name!r}; valid: "
+            raise StructureError(f"unknown parameter(s) {unknown} for structure {self.name!r}; valid: "
                              f"{', '.join(sorted(fields))}")
         return cls(cls.Params(**params))
 
@@ -417,18 +422,23 @@ def parse_axes(axes) -> dict | None:
     """``axes`` as {"translations": frozenset, "rotations": frozenset} of axis names (lower
     case, single spaces), or None. Given as a mapping with the keys ``translations`` and/or
     ``rotations``, each a list of axis names (``x``, ``z``, ``moving x``, ...) or a comma-separated
-    string; a key left out is not required."""
+    string; a key left out is not required. An empty mapping is refused (it would require
+    nothing, i.e. allow everything): leave ``axes`` out for any axes."""
     if axes is None:
         return None
     if not isinstance(axes, dict) or not axes or set(axes) - {"translations", "rotations"}:
-        raise ValueError(f"axes must be a mapping with the keys translations and/or rotations, each a list of axis "
-                         f"names (e.g. {{'translations': ['x', 'z'], 'rotations': ['y', 'moving x']}}), got {axes!r}")
+        raise StructureError(f"axes must be a mapping with the keys translations and/or rotations, each a list of "
+                             f"axis names (e.g. {{'translations': ['x', 'z'], 'rotations': ['y', 'moving x']}}), "
+                             f"got {axes!r}")
     out = {}
     for k, v in axes.items():
         items = v.split(",") if isinstance(v, str) else v
         if not isinstance(items, (list, tuple)) or not all(isinstance(a, str) and a.strip() for a in items):
-            raise ValueError(f"axes.{k} must be a list of axis names such as 'x' or 'moving x', got {v!r}")
-        out[k] = frozenset(" ".join(a.lower().split()) for a in items)
+            raise StructureError(f"axes.{k} must be a list of axis names such as 'x' or 'moving x', got {v!r}")
+        names = [" ".join(a.lower().split()) for a in items]
+        if len(set(names)) != len(names):
+            raise StructureError(f"axes.{k}: an axis is named twice in {v!r}")
+        out[k] = frozenset(names)
     return out
 
 
@@ -436,56 +446,134 @@ def _axes_match(template, want) -> bool:
     return all(frozenset(" ".join(a.lower().split()) for a in template.axes.get(k, ())) == v for k, v in want.items())
 
 
+#: Largest ``n_poses`` of :func:`structures` (reachable random poses checked per candidate).
+MAX_POSES = 1024
+#: Largest number of mobility evaluations one call of :func:`structures` may plan (candidates
+#: checked times ``n_poses``); each costs about 15 ms, so this is a few minutes of work.
+MAX_POSE_CHECKS = 16_384
+#: Largest allowed number of limbs in ``legs`` (the resource limit of an anchor pattern).
+MAX_STRUCTURE_LEGS = MAX_LEGS
+
+
+def _describe(value) -> str:
+    r = repr(value)
+    return r if len(r) <= 60 else r[:57] + "..."
+
+
+def _leg_types(leg_types) -> list[str]:
+    """The limb types to draw from, each once, in the registry's order (so that neither the
+    result nor its validity depends on the order or repetition of ``leg_types``)."""
+    if leg_types is None:
+        return list(LIMB_TYPES)
+    original = leg_types
+    if isinstance(leg_types, str):
+        leg_types = [t for t in leg_types.replace(",", " ").split() if t]
+    elif isinstance(leg_types, (set, frozenset)):
+        leg_types = sorted(leg_types, key=str)
+    if not isinstance(leg_types, (list, tuple)):
+        raise StructureError(f"leg_types must be a list of limb type names of {', '.join(LIMB_TYPES)} (or one "
+                             f"string of them separated by commas), got {_describe(leg_types)}")
+    if not leg_types:
+        raise StructureError(f"leg_types must name at least one limb type of {', '.join(LIMB_TYPES)}, got "
+                             f"{_describe(original)}")
+    given, twice = set(), []
+    for j, t in enumerate(leg_types):
+        if not isinstance(t, str):
+            raise StructureError(f"leg_types[{j}] must be a limb type name of {', '.join(LIMB_TYPES)}, got "
+                                 f"{_describe(t)}")
+        try:
+            name = limb_type(t.strip()).name
+        except StructureError as e:
+            raise StructureError(f"leg_types: {e}") from None
+        if name in given and name not in twice:
+            twice.append(name)
+        given.add(name)
+    if twice:
+        warnings.warn(f"leg_types: {', '.join(twice)} given more than once, counted once", StructureWarning,
+                      stacklevel=3)
+    return [t for t in LIMB_TYPES if t in given]
+
+
+def _legs(legs) -> list[int] | None:
+    """The allowed total numbers of limbs, sorted, each once (None: any)."""
+    if legs is None:
+        return None
+    allowed = f"integers in [2, {MAX_STRUCTURE_LEGS}], e.g. [5, 6]"
+    if is_real_number(legs):
+        legs = [legs]
+    if isinstance(legs, np.ndarray) and legs.ndim == 1:
+        legs = legs.tolist()
+    if not isinstance(legs, (list, tuple, set, frozenset)) or not legs:
+        raise StructureError(f"legs must be numbers of limbs ({allowed}), got {_describe(legs)}")
+    out = set()
+    for n in legs:
+        if not is_real_number(n) or not math.isfinite(float(n)) or not float(n).is_integer() or n < 2:
+            raise StructureError(f"legs must be numbers of limbs ({allowed}), got {_describe(n)} in "
+                                 f"{_describe(legs)}")
+        if n > MAX_STRUCTURE_LEGS:
+            raise StructureError(f"legs must be at most {MAX_STRUCTURE_LEGS} (the documented maximum), got "
+                                 f"{_describe(n)}")
+        out.add(int(n))
+    return sorted(out)
+
+
 def structures(motion, *, leg_types=None, legs=None, axes=None, all_axes: bool = False, n_poses: int = 4,
                seed: int = 0) -> StructureList:
     """The candidate structures of the vocabulary for ``motion`` (``"3T3R"``, ``"3T2R"``,
     ``"2T2R"``, ...), each verified numerically.
 
-    ``leg_types``: limb types to draw from (default: the whole vocabulary,
-    ``parasynth.structures.LIMB_TYPES``); ``legs``: allowed total numbers of limbs (e.g. ``[5,
-    6]``; default any); ``axes``: the axes the freedoms must have, e.g. ``{"translations": ["x",
-    "z"], "rotations": ["y", "moving x"]}`` (the 2-RPU&2-SPS's; :func:`parse_axes`; the axes of a
-    structure are those of its motion template, ``Structure.axes``); ``all_axes``: every joint-axis choice of the vocabulary instead of the
-    first of each; ``n_poses``: reachable random poses of the task box checked per candidate;
-    ``seed``: their seed. Returns a :class:`StructureList` of :class:`Structure` with the counts
-    of the dropped candidates by reason."""
+    ``leg_types``: limb types to draw from (a list of names, or one string separated by commas;
+    default the whole vocabulary, ``parasynth.structures.LIMB_TYPES``; a type given twice counts
+    once, and the order does not matter: candidates are always enumerated in the registry's
+    order); ``legs``: allowed total numbers of limbs (e.g. ``[5, 6]``, integers in [2,
+    :data:`MAX_STRUCTURE_LEGS`]; default any); ``axes``: the axes the freedoms must have, e.g.
+    ``{"translations": ["x", "z"], "rotations": ["y", "moving x"]}`` (the 2-RPU&2-SPS's;
+    :func:`parse_axes`; the axes of a structure are those of its motion template,
+    ``Structure.axes``); ``all_axes`` (a bool): every joint-axis choice of the vocabulary
+    instead of the first of each; ``n_poses``: reachable random poses of the task box checked
+    per candidate (1 to :data:`MAX_POSES`; the candidates to check times ``n_poses`` at most
+    :data:`MAX_POSE_CHECKS`, about 15 ms each); ``seed``: their seed (0 to 2**32 - 1).
+    Returns a :class:`StructureList` of :class:`Structure` with the counts of the dropped
+    candidates by reason. :class:`StructureError` (a ``ValueError``) names the argument at
+    fault."""
     nt, nr = parse_motion(motion)
     motion = f"{nt}T{nr}R"
-    if leg_types is None:
-        types = list(LIMB_TYPES)
-    else:
-        if isinstance(leg_types, str):
-            leg_types = [s for s in leg_types.replace(",", " ").split() if s]
-        types = [limb_type(t).name for t in leg_types]
-        if not types:
-            raise ValueError(f"leg_types must name at least one limb type of {', '.join(LIMB_TYPES)}")
-    if legs is not None:
-        if isinstance(legs, int) and not isinstance(legs, bool):
-            legs = [legs]
-        try:
-            legs = sorted({int(n) for n in legs})
-        except (TypeError, ValueError):
-            raise ValueError(f"legs must be numbers of limbs (integers >= 2), got {legs!r}") from None
-        if not legs or min(legs) < 2:
-            raise ValueError(f"legs must be numbers of limbs (integers >= 2), got {legs!r}")
-    if not (isinstance(n_poses, int) and n_poses >= 1):
-        raise ValueError(f"n_poses must be an integer >= 1, got {n_poses!r}")
+    types = _leg_types(leg_types)
+    legs = _legs(legs)
+    try:
+        n_poses = check_count("n_poses", n_poses, 1, MAX_POSES)
+        seed = check_count("seed", seed, 0, MAX_SEED, what="an integer")
+    except InputError as e:
+        raise StructureError(str(e)) from None
+    if not isinstance(all_axes, (bool, np.bool_)):
+        raise StructureError(f"all_axes must be True or False, got {_describe(all_axes)}")
+    all_axes = bool(all_axes)
     dof = nt + nr
     want_axes = parse_axes(axes)
     if want_axes is not None:
         for k, n in (("translations", nt), ("rotations", nr)):
             if k in want_axes and len(want_axes[k]) != n:
-                raise ValueError(f"axes.{k}: {motion} has {n} {k}, {len(want_axes[k])} axes given "
-                                 f"({', '.join(sorted(want_axes[k]))})")
+                raise StructureError(f"axes.{k}: {motion} has {n} {k}, {len(want_axes[k])} axes given "
+                                     f"({', '.join(sorted(want_axes[k])) or 'none'})")
     dropped = {r: 0 for r in DROP_REASONS}
     dropped_names = {r: [] for r in DROP_REASONS}
-    seen, found = set(), []
+    seen = set()
     cands = candidates(types, legs, all_axes)
+    if legs is not None:
+        possible = sorted({c.n_legs for c in candidates(types, None, all_axes)})
+        none = [n for n in legs if n not in possible]
+        if none:
+            warnings.warn(f"legs: no candidate of the limb types {', '.join(types)} has {', '.join(map(str, none))} "
+                          f"limbs (possible: {', '.join(map(str, possible)) or 'none'}); "
+                          f"{'those counts add nothing' if len(none) < len(legs) else 'nothing is enumerated'}",
+                          StructureWarning, stacklevel=2)
 
     def drop(reason, c):
         dropped[reason] += 1
         dropped_names[reason].append(c.name)
 
+    # the cheap rules first, so that the work of the checks is known before any is done
+    to_check = []
     for c in cands:
         key = _key(c.groups)
         if key in seen:
@@ -505,6 +593,14 @@ def structures(motion, *, leg_types=None, legs=None, axes=None, all_axes: bool =
         if c.n_actuated > dof:
             drop("over-actuated", c)
             continue
+        to_check.append((c, key, template))
+    if len(to_check) * n_poses > MAX_POSE_CHECKS:
+        raise StructureError(f"n_poses: {n_poses} poses for each of the {len(to_check)} candidates to check are "
+                             f"{len(to_check) * n_poses} mobility evaluations (about "
+                             f"{len(to_check) * n_poses * 0.015 / 60:.0f} min), more than the documented maximum "
+                             f"{MAX_POSE_CHECKS}; give a smaller n_poses or fewer leg_types")
+    found = []
+    for c, key, template in to_check:
         arrs = "-".join(dict.fromkeys(g.arrangement for g in c.groups if g.actuated))
         short = f"{arrs}-{hashlib.sha1(repr(key).encode()).hexdigest()[:6]}"
         desc = _description(c, template, short)

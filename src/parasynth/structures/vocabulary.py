@@ -18,7 +18,17 @@ from dataclasses import dataclass, field
 from ..model.legs import LEG_TYPES
 
 __all__ = ["Arrangement", "LimbType", "Template", "LIMB_TYPES", "ARRANGEMENTS", "TEMPLATES", "PARAMETERS",
-           "CHECKS", "register_limb", "limb_type", "parse_motion"]
+           "CHECKS", "register_limb", "limb_type", "parse_motion", "StructureError", "StructureWarning"]
+
+
+class StructureError(ValueError):
+    """An argument of structural synthesis that is not allowed (a motion, a limb type, limb
+    counts, axes, a setting); the message starts with the argument's name."""
+
+
+class StructureWarning(UserWarning):
+    """An argument of structural synthesis that is taken but partly has no effect (a limb type
+    given twice, a number of limbs no candidate can have); the message starts with its name."""
 
 
 @dataclass(frozen=True)
@@ -200,19 +210,18 @@ def register_limb(limb: LimbType) -> LimbType:
 
 
 def limb_type(name: str) -> LimbType:
-    """The registered limb type ``name``; ``ValueError`` naming the vocabulary otherwise."""
-    try:
-        return LIMB_TYPES[name]
-    except KeyError:
-        raise ValueError(f"unknown limb type {name!r}; the vocabulary: {', '.join(LIMB_TYPES)}") from None
+    """The registered limb type ``name``; :class:`StructureError` naming the vocabulary otherwise."""
+    if not isinstance(name, str) or name not in LIMB_TYPES:
+        raise StructureError(f"unknown limb type {name!r}; the vocabulary: {', '.join(LIMB_TYPES)}")
+    return LIMB_TYPES[name]
 
 
 def parse_motion(motion) -> tuple[int, int]:
-    """``"3T2R"`` -> (3, 2); ``ValueError`` naming the form otherwise."""
+    """``"3T2R"`` -> (3, 2); :class:`StructureError` naming the form otherwise."""
     s = motion.strip().upper() if isinstance(motion, str) else None
     if s is None or len(s) != 4 or s[1] != "T" or s[3] != "R" or s[0] not in "0123" or s[2] not in "0123" \
             or s in ("0T0R",):
-        raise ValueError(f"motion must be written like '3T2R' (translations 0-3 'T', rotations 0-3 'R', at least "
+        raise StructureError(f"motion must be written like '3T2R' (translations 0-3 'T', rotations 0-3 'R', at least "
                          f"one freedom), got {motion!r}")
     return int(s[0]), int(s[2])
 

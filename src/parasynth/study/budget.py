@@ -14,6 +14,7 @@ from pathlib import Path
 import yaml
 
 from .spec import ResolvedStudy, StudyError
+from .structure_space import STRUCTURE, check_halving
 
 __all__ = ["budget_key", "budget_of", "with_budget", "recorded_budget", "budget_for_run", "same_study"]
 
@@ -37,6 +38,11 @@ def with_budget(study: ResolvedStudy, n: int) -> ResolvedStudy:
         return study
     opt = study.optimizer.model_copy(update={key: int(n)})
     spec = study.spec.model_copy(update={"optimizer": opt})
+    if study.structures is not None:  # the halving settings must still act within the new budget
+        try:
+            check_halving(spec.structure, opt, study.space.by_name[STRUCTURE].choices, int(n))
+        except StudyError as e:
+            raise StudyError(f"--n-trials {n}: {e}") from None
     return dataclasses.replace(study, spec=spec, optimizer=opt)
 
 

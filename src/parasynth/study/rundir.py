@@ -26,6 +26,7 @@ from .final import best_designs, knee_of, merge_duplicates, pareto_front, recomm
 from .journal import read_journal
 from .schedule import structure_schedule
 from .spec import ResolvedStudy, StudyError, load_study
+from .structure_space import STRUCTURE
 from .tables import results_table
 
 __all__ = ["Run", "RunDirError", "read_run", "read_final", "to_csv_columns", "measure_settings", "design_key", "design_params", "design_mechanism", "pareto_front", "knee_of",
@@ -87,6 +88,7 @@ def read_run(run_dir) -> Run:
     records = read_journal(run_dir)
     if not records:
         raise RunDirError(f"{str(run_dir)!r} holds no evaluated designs yet; run (or resume) the study")
+    _check_structures(study, records, run_dir)
     table = results_table(study, records)
     final = None
     if (run_dir / "final.csv").exists():
@@ -95,6 +97,23 @@ def read_run(run_dir) -> Run:
     if schedule is not None:  # the designs its schedule plans, given the stored ones
         return Run(study, table, final, run_dir, schedule.plan(records).total, schedule.plan(records))
     return Run(study, table, final, run_dir, planned_designs(study))
+
+
+def _check_structures(study, records, run_dir: Path) -> None:
+    """A study over structures: every journal record names one of the study's structures.
+    :class:`RunDirError` (a damaged run) for a record with another structure or none: the
+    schedule would not count it, the tables would show a structure the study does not have,
+    and exporting it would build another mechanism."""
+    if getattr(study, "structures", None) is None:
+        return
+    choices = tuple(study.space.by_name[STRUCTURE].choices)
+    for r in records:
+        s = r.values.get(STRUCTURE)
+        if s not in choices:
+            what = f"names the structure {s!r}" if STRUCTURE in r.values else "names no structure"
+            raise RunDirError(f"{run_dir / 'journal.jsonl'}: the {r.source} design of trial {r.trial} {what}, not one "
+                              f"of the study's structures ({', '.join(choices)}): the journal is damaged or belongs to "
+                              f"another study; remove or repair that line, or start a new run (--out)")
 
 
 def read_final(study, path) -> pd.DataFrame:

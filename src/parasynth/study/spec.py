@@ -48,7 +48,9 @@ from .design import design_params, evaluation_sample, measure_arguments, with_po
 from .errors import StudyError
 from .magnitudes import scale_warnings
 from .space import DesignSpace, Variable, quantity
-from .structure_space import centre_design, check_structure_optimizer, resolve_structures, structure_variables
+from .defaults import OPTUNA_TRIALS
+from .structure_space import (STRUCTURE, centre_design, check_halving, check_structure_optimizer, resolve_structures,
+                              structure_variables)
 
 __all__ = ["StudyError", "StudySpec", "ResolvedStudy", "load_study", "resolve_study", "check_study", "OPTIMIZERS",
            "RESERVED_COLUMNS"]
@@ -393,6 +395,12 @@ def _resolve_robust(spec, measure: str, mech_cls, path: str, constraint: bool):
         return None
     if not constraint and spec.probability is not None:
         raise StudyError(f"{path}.probability: only a constraint takes a probability (a chance constraint)")
+    if spec.probability is not None:  # a chance constraint counts the draws within the bound: no statistic
+        for key in ("statistic", "level"):
+            if key in spec.model_fields_set and getattr(spec, key) is not None:
+                raise StudyError(f"{path}.{key}: a chance constraint (probability) is the fraction of the draws "
+                                 f"within the bound and takes no {key}; leave {key} out, or drop probability for "
+                                 f"a constraint on the {key if key == 'statistic' else 'quantile'}")
     try:
         check_robust_spec(spec.statistic, spec.level, spec.samples, spec.seed, spec.probability, path, measure)
         params, legs = resolve_tolerances(spec.tolerances, _param_kinds(mech_cls), f"{path}.tolerances", study=True)
@@ -758,6 +766,8 @@ def resolve_study(data: dict, source: str | None = None) -> ResolvedStudy:
 
     if setup is not None:
         check_structure_optimizer(opt)
+        choices = next(v.choices for v in variables if v.name == STRUCTURE)
+        check_halving(spec.structure, opt, choices, int(opt.n_trials or OPTUNA_TRIALS))
     return ResolvedStudy(spec, mech_name, fixed, tuple(variables), tuple(objectives), tuple(constraints),
                          evaluation, opt, reference, source, tied, ref_label, ref_source, setup)
 

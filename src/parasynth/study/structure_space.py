@@ -38,7 +38,7 @@ from .errors import StudyError
 from .space import Variable, centre_value
 
 __all__ = ["STRUCTURE", "StructureSetup", "resolve_structures", "conditions", "labels_of", "structure_variables",
-           "check_structure_optimizer", "STRUCTURE_ALGORITHMS", "centre_design"]
+           "check_structure_optimizer", "check_halving", "STRUCTURE_ALGORITHMS", "centre_design"]
 
 #: Optuna samplers of a study over structures: those whose proposals depend only on the trials
 #: they are shown (each structure's sampler sees that structure's trials, see
@@ -126,17 +126,23 @@ def resolve_structures(sec) -> StructureSetup:
     key = json.dumps(sec.model_dump(), sort_keys=True)
     if key in _CACHE:
         return _CACHE[key]
-    axes = {k: v for k, v in (sec.axes or {}).items()} or None
+    # an empty leg_types, axes, arrangements or include is refused: it never means "all"
+    axes = dict(sec.axes) if sec.axes is not None else None
+    for k in ("arrangements", "include"):
+        if getattr(sec, k) is not None and not getattr(sec, k):
+            raise StudyError(f"structure.{k}: an empty list would keep no structure; name at least one, or leave "
+                             f"the key out for all")
     try:
         found = synthesis.structures(sec.motion, leg_types=sec.leg_types, legs=sec.legs, axes=axes,
                                      all_axes=sec.all_axes)
     except ValueError as e:
         msg = str(e)
-        field = ("leg_types" if "limb type" in msg or msg.startswith("leg_types") else
-                 "legs" if msg.startswith("legs") else "axes" if msg.startswith("axes") else "motion")
+        if msg.startswith(("leg_types", "legs", "axes", "all_axes")):  # the message names its field
+            raise StudyError(f"structure.{msg}") from None
+        field = "leg_types" if "limb type" in msg else "motion"
         raise StudyError(f"structure.{field}: {msg}") from None
     kept = list(found)
-    if sec.arrangements:
+    if sec.arrangements is not None:
         known = [a for a, v in synthesis.ARRANGEMENTS.items() if v.role == "ring"]
         for j, a in enumerate(sec.arrangements):
             if a not in known:
@@ -145,7 +151,7 @@ def resolve_structures(sec) -> StructureSetup:
         kept = [s for s in kept if all(g.arrangement in sec.arrangements for g in s.groups
                                        if g.arrangement != "central")]
     labels = labels_of(kept)
-    if sec.include:
+    if sec.include is not None:
         for j, x in enumerate(sec.include):
             if x not in labels and x not in [s.name for s in kept]:
                 raise StudyError(f"structure.include[{j}]: {x!r} is not among the structures found; found: "
@@ -225,6 +231,36 @@ def check_structure_optimizer(opt) -> None:
     if opt.kind == "optuna" and opt.algorithm not in (None,) + STRUCTURE_ALGORITHMS:
         raise StudyError(f"optimizer.algorithm: {opt.algorithm!r} keeps state across the trials of all structures; a "
                          f"study over structures uses one of {', '.join(STRUCTURE_ALGORITHMS)} (default tpe)")
+
+
+def check_halving(sec, opt, choices, budget: int) -> None:
+    """The successive-halving settings of a ``structure:`` section given explicitly
+    (``screening``, ``eta``, ``keep``) must act: :class:`StudyError` naming the key when a sweep
+    would ignore them (a sweep evaluates its listed designs, no rungs), when the budget per
+    structure (``budget``: optimizer.n_trials, or its default) would clip the screening, when
+    there is only one rung (screening equal to the budget: ``eta`` and ``keep`` unused), or
+    when ``keep`` keeps every one of the structures (``choices``) after every rung. Defaults
+    left out are not checked (the default screening is clipped to a smaller budget, as
+    documented)."""
+    given = [k for k in ("screening", "eta", "keep") if k in sec.model_fields_set and getattr(sec, k) is not None]
+    if not given:
+        return
+    if opt.kind != "optuna":
+        raise StudyError(f"structure.{given[0]}: successive halving spreads the trials of an Optuna study; a "
+                         f"{opt.kind} evaluates its listed designs and would ignore it -- leave it out")
+    if "screening" in given and sec.screening > budget:
+        raise StudyError(f"structure.screening: {sec.screening} designs per structure in the first rung exceed the "
+                         f"budget of {budget} designs per structure (optimizer.n_trials); give screening <= {budget} "
+                         f"or raise optimizer.n_trials")
+    if min(sec.screening, budget) >= budget:
+        for k in ("eta", "keep"):
+            if k in given:
+                raise StudyError(f"structure.{k}: the screening ({min(sec.screening, budget)} designs) is already the "
+                                 f"whole budget per structure (optimizer.n_trials {budget}): there is one rung and "
+                                 f"{k} is not used -- leave it out, or give a smaller structure.screening")
+    if "keep" in given and sec.keep >= len(choices):
+        raise StudyError(f"structure.keep: {sec.keep} structures continuing after each rung keep every one of the "
+                         f"{len(choices)} structures (no halving); give keep < {len(choices)} or leave it out")
 
 
 def centre_design(study) -> dict:
