@@ -176,6 +176,9 @@ def test_inverse_dynamics_of_a_payload_against_newton_euler(gs):
     ok = ev.path_feasible
     assert ok.all()
     np.testing.assert_allclose(got, expected, rtol=1e-7, atol=1e-7)
+    ref = parasynth.inverse_dynamics(gs, X, Xd, Xdd, parasynth.InertiaModel(
+        parasynth.measures.dynamics.PlatformInertia(m, com, I))).actuator
+    np.testing.assert_allclose(got, np.abs(ref), rtol=1e-9, atol=1e-9)
     assert objectives.get("task_actuator_force_max")(gs, task=task) == pytest.approx(expected.max(), rel=1e-9)
     # actuator speeds: the rates of the closed-form leg lengths by central differences
     L = np.linalg.norm(_legs_by_hand(gs, X), axis=2)

@@ -48,15 +48,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from .accuracy import TOLERANCE_SETTINGS, _bound, _check_tolerances, sensitivity
-from .dynamics import InertiaModel, PlatformInertia, inverse_dynamics
+from .dynamics import InertiaModel, PlatformInertia, _equivalent, _motion
 from .indices import _scale_wrench, local_condition_number, local_transmission_index, wrench_system
 from .measure_spec import Setting
 from .objectives import COMMON_PARAMS, register
+from .objectives import get as get_measure
 from .stiffness import STIFFNESS_SETTINGS, compliance, stiffness_matrix
 from .usable import oriented_determinant, sign_rule
 from ..model.legs import PUS, RUS
 from ..model.mechanism import ForwardKinematicsError
-from ..model.task import Task, TaskError
+from ..model.task import Payload, Task, TaskError
 
 __all__ = ["TaskEvaluation", "task_evaluation", "Continuity", "path_continuity", "static_task_forces",
            "task_measures", "TASK_MEASURES"]
@@ -316,46 +317,53 @@ class TaskEvaluation:
             raise TaskError(f"task.trajectory: {what} needs a trajectory (motion limits or timed poses)")
         return self.path
 
-    @property
-    def dynamic_forces(self) -> np.ndarray:
-        """Worst |F| (K, n_act) at the path samples (NaN where infeasible): inverse dynamics of
-        the payload plus the wrench (its sign combinations with ``wrench_signs``)."""
+    def _dynamics(self):
+        """Worst |F| and |dq/dt| (K, n_act) at the path samples (NaN where infeasible): the
+        inverse dynamics of :mod:`parasynth.measures.dynamics` (the payload's mass and inertia
+        on the platform, massless legs, the equivalent load of every sample) with the wrench
+        (its sign combinations with ``wrench_signs``), one wrench system and one
+        pseudo-inverse for every load; the rates from the same wrench system and twists."""
         def f():
             pa = self._need_path("inverse dynamics")
             mech, task = self.mech, self.task
             ok = self.path_feasible
             X, Xd, Xdd = pa.X[ok], pa.Xd[ok], pa.Xdd[ok]
-            out = np.full((len(pa.X), mech.n_actuators), np.nan)
+            F_out = np.full((len(pa.X), mech.n_actuators), np.nan)
+            q_out = np.full((len(pa.X), mech.n_actuators), np.nan)
             if not len(X):
-                return out
+                return F_out, q_out
             pl = task.payload
             inertia = InertiaModel(PlatformInertia(pl.mass, pl.com, pl.tensor))
-            base = inverse_dynamics(mech, X, Xd, Xdd, inertia, gravity=task.gravity_vector()).actuator
-            F = np.abs(base)
+            Xa, _, okr, ws, p, R, t, acc, legs = _motion(mech, X, Xd, Xdd, inertia)
+            weq = _equivalent(mech, Xa, okr, p, R, t, acc, legs, inertia, task.gravity_vector(), None)
+            cols = [weq]
             if task.wrench is not None:
-                Tw = task
+                Tw = task._copy(payload=Payload())
                 if task.wrench.ndim == 2:  # per pose: the wrench of each segment's start pose
                     seg = pa.samples.segment[ok] if pa.samples is not None else np.zeros(len(X), int)
-                    Tw = task._copy(wrench=task.wrench[seg])
-                loads = _load_columns(Tw._copy(payload=type(task.payload)()), mech, X)
-                Fw = static_task_forces(mech, X, loads)
-                F = np.abs(base + Fw[:, 0]) + np.sum(np.abs(Fw[:, 1:]), axis=1)
-            out[ok] = F
-            return out
-        return self._get("dynamic", f)
+                    Tw = Tw._copy(wrench=task.wrench[seg])
+                wc = _load_columns(Tw, mech, X)
+                cols = [weq + wc[:, 0]] + [wc[:, k] for k in range(1, wc.shape[1])]
+            L = float(mech.length_scale)
+            G, okb = _balance_matrix(ws, L)
+            w = _scale_wrench(np.stack(cols, axis=1), L)
+            F = np.einsum("nkj,nmj->nmk", G[:, :ws.n_act, :], w)
+            F[~okb] = np.nan
+            F_out[ok] = _worst(F)
+            with np.errstate(invalid="ignore", divide="ignore"):
+                q_out[ok] = np.abs(np.einsum("nkj,nj->nk", ws.actuation, t) / ws.rate_scale)
+            return F_out, q_out
+        return self._get("dynamics", f)
+
+    @property
+    def dynamic_forces(self) -> np.ndarray:
+        """Worst |F| (K, n_act) at the path samples (NaN where infeasible)."""
+        return self._dynamics()[0]
 
     @property
     def actuator_rates(self) -> np.ndarray:
         """|dq_i/dt| (K, n_act) along the path (NaN where infeasible)."""
-        def f():
-            pa = self._need_path("the actuator speed")
-            ok = self.path_feasible
-            out = np.full((len(pa.X), self.mech.n_actuators), np.nan)
-            if ok.any():
-                J = self.mech.jacobian(pa.X[ok])
-                out[ok] = np.abs(np.einsum("nij,nj->ni", J, pa.Xd[ok]))
-            return out
-        return self._get("rates", f)
+        return self._dynamics()[1]
 
     # geometry
     @property
@@ -585,12 +593,15 @@ TASK_MEASURES = ("task_coverage", "task_margin_min", "task_condition_max", "task
 
 
 def task_measures(mech, task: Task, names=TASK_MEASURES, **settings) -> dict:
-    """{name: value} of several task measures on one evaluation (measures needing a
-    trajectory are skipped without one)."""
+    """{name: value} of several task measures on one evaluation; each takes the ``settings``
+    it declares (the path measures are skipped without a trajectory, the position error
+    without a tolerance)."""
     out = {}
     for n in names:
         if task.trajectory is None and n in ("task_actuator_speed_max", "task_actuator_power_max"):
             continue
-        fn = globals()[n]
-        out[n] = fn(mech, task=task, **settings)
+        own = {k: v for k, v in settings.items() if k in get_measure(n).params}
+        if n == "task_position_error_max" and not any(own.get(k) for k in TOLERANCE_SETTINGS):
+            continue  # no tolerance, no error
+        out[n] = get_measure(n)(mech, task=task, **own)
     return out

@@ -738,9 +738,13 @@ class Task:
             Xs = X[seg_] + sv[:, None] * (X[seg_ + 1] - X[seg_])
             return mech.pose(Xs)
 
+        if mode == "own" and self.placement.identity and (self.frame == "platform" or self.tool.identity):
+            dX = X[seg + 1] - X[seg]  # the path is a straight line in the mechanism's own coordinates
+            return TaskPath(ps.t, X[seg] + s[:, None] * dX, dX * ps.sd[:, None], dX * ps.sdd[:, None], ps)
+
         def coords(sv):
             p, R = pose_at(sv, seg)
-            guess = base_X[seg] + sv[:, None] * (base_X[seg + 1] - base_X[seg])
+            guess = base_X[seg] + sv[:, None] * (base_X[seg + 1] - base_X[seg]) if mode == "own" else None
             return self.coordinates_of(mech, p, R, guess=guess, where="task.trajectory")
 
         h = 1e-4
@@ -842,10 +846,9 @@ def solve_pose(mech, p, R, guess, where="task.poses", tol: float = 1e-9, max_ite
     X = np.array(guess, dtype=float, copy=True)
     N = X.shape[0]
 
-    def err(Xc):
+    def err(Xc, sel=slice(None)):
         pc, Rc = mech.pose(Xc)
-        e = np.concatenate([(p - pc) / L, rotation_log(R @ np.swapaxes(Rc, 1, 2))], axis=1)
-        return e
+        return np.concatenate([(p[sel] - pc) / L, rotation_log(R[sel] @ np.swapaxes(Rc, 1, 2))], axis=1)
 
     e = err(X)
     n = np.linalg.norm(e, axis=1)
@@ -859,14 +862,14 @@ def solve_pose(mech, p, R, guess, where="task.poses", tol: float = 1e-9, max_ite
         Ts[:, :3, :] /= L
         dY = np.einsum("nij,nj->ni", np.linalg.pinv(Ts, rcond=1e-10), e[idx])
         Xn = X[idx] + dY / cs
-        en = err(Xn)
+        en = err(Xn, idx)
         nn = np.linalg.norm(en, axis=1)
         better = nn < n[idx]
         # a half step where the full one does not improve
         if not np.all(better):
             k = ~better
             Xh = X[idx[k]] + 0.5 * dY[k] / cs
-            eh = err(Xh)
+            eh = err(Xh, idx[k])
             nh = np.linalg.norm(eh, axis=1)
             Xn[k], en[k], nn[k] = Xh, eh, nh
         X[idx], e[idx], n[idx] = Xn, en, nn
