@@ -343,3 +343,18 @@ def test_measures_refuse_a_missing_task_and_a_missing_trajectory(gs):
         objectives.get("task_coverage")(gs, task={"poses": [[0, 0, 0.6, 0, 0, 0]]})
     with pytest.raises(TaskError, match=r"task\.trajectory"):
         objectives.get("task_actuator_speed_max")(gs, task=Task(poses=gs.home[None]))
+
+
+def test_continuity_applies_the_floors_to_every_path_sample(gs):
+    P = np.array([[0.0, 0.0, 0.6, 0.0, 0.0, np.deg2rad(60)], [0.0, 0.0, 0.6, 0.0, 0.0, np.deg2rad(85)]])
+    floor = float(gs.singularity_margin(np.array([0.0, 0.0, 0.6, 0.0, 0.0, np.deg2rad(80)])))
+    task = Task(poses=P, floors={"singularity_margin": {"min": floor}},
+                trajectory={"speed": 0.5, "acceleration": 2.0, "angular_speed": 1.0, "angular_acceleration": 4.0,
+                            "dt": 0.01})
+    ev = task_evaluation(gs, task, [])
+    X = ev.path.X
+    # the margin falls as gamma nears 90 deg: the first sample past 80 deg breaks the floor
+    expected = int(np.argmax(X[:, 5] > np.deg2rad(80) + 1e-12))
+    c = ev.continuity()
+    assert c.reason == "floor" and c.first_break == expected
+    assert task_evaluation(gs, Task(poses=P, trajectory=task.trajectory), []).continuity().ok

@@ -146,7 +146,7 @@ class Continuity:
 
 
 def path_continuity(mech, X, feasible=None, floor: float = 1e-3, substeps: int = 4, tol: float | None = None,
-                    margin=None) -> Continuity:
+                    margin=None, floors_ok=None) -> Continuity:
     """The first sample of the ordered path ``X`` (K, d) that the robot cannot reach from the
     previous one: an infeasible sample (``feasible`` (K,) bool, default reachable), a
     singularity crossed (where the wrench system is square: the oriented singularity function
@@ -154,7 +154,8 @@ def path_continuity(mech, X, feasible=None, floor: float = 1e-3, substeps: int =
     otherwise the singularity margin falls below ``floor``), or a change of assembly mode
     (forward kinematics continued from the previous sample's pose through ``substeps`` equal
     steps of the actuators does not return the inverse kinematics' pose within ``tol``,
-    default 1e-6 of the length scale for lengths and 1e-6 rad for angles)."""
+    default 1e-6 of the length scale for lengths and 1e-6 rad for angles). ``floors_ok`` (K,)
+    bool: samples where the task's floors hold (a sample breaking one: reason "floor")."""
     X = np.atleast_2d(np.asarray(X, dtype=float))
     K = len(X)
     ik = mech.inverse_kinematics(X)
@@ -164,6 +165,10 @@ def path_continuity(mech, X, feasible=None, floor: float = 1e-3, substeps: int =
     reason = np.full(K, "", dtype=object)
     bad[~ok] = True
     reason[~ok] = "infeasible"
+    if floors_ok is not None:
+        fl = ~np.asarray(floors_ok, bool) & ~bad
+        bad |= fl
+        reason[fl] = "floor"
     if rule is None:
         det = oriented_determinant(mech, X)
         flip = np.zeros(K, bool)
@@ -380,10 +385,31 @@ class TaskEvaluation:
         """:func:`path_continuity` along the path (or the poses in their order without one),
         with the task's floors applied to every sample."""
         def f():
-            X = self.path.X if self.task.trajectory is not None else self.X
-            feas = self.path_feasible if self.task.trajectory is not None else self.feasible
-            return path_continuity(self.mech, X, feas, floor=floor, substeps=substeps)
+            if self.task.trajectory is None:
+                return path_continuity(self.mech, self.X, self.feasible, floor=floor, substeps=substeps,
+                                       floors_ok=self.covered | ~self.feasible)
+            X, feas = self.path.X, self.path_feasible
+            return path_continuity(self.mech, X, feas, floor=floor, substeps=substeps,
+                                   floors_ok=_floors_ok(self, X, feas))
         return self._get(("continuity", floor, substeps), f)
+
+
+def _floors_ok(ev, X, feas) -> np.ndarray:
+    """(K,) bool: the task's floors hold at the feasible samples ``X`` (True elsewhere)."""
+    ok = np.ones(len(X), bool)
+    fl = ev.task.floors
+    if not fl or not feas.any():
+        return ok
+    Y, sub = X[feas], np.ones(int(feas.sum()), bool)
+    with np.errstate(invalid="ignore"):
+        if "singularity_margin" in fl:
+            sub &= ev.mech.singularity_margin(Y, engine=ev.engine) >= fl["singularity_margin"]
+        if "condition" in fl:
+            sub &= local_condition_number(ev.mech, Y, length=1.0, engine=ev.engine) <= fl["condition"]
+        if "lti" in fl:
+            sub &= local_transmission_index(ev.mech, Y, engine=ev.engine) >= fl["lti"]
+    ok[feas] = sub
+    return ok
 
 
 # ---------------------------------------------------------------------------------------------
