@@ -612,6 +612,13 @@ class Task:
         """Task coordinates (N, d) of ``mech`` for poses ``(p, R)`` in ``W`` of the task's frame."""
         mode = self._mode(mech)
         pb, Rb = self.frame_to_platform(p, R)
+        std = standard_parametrisation(mech)
+        if std is not None:  # the mechanism's coordinates are a position and named Euler angles: exact
+            conv, ip, ia = std
+            X = np.empty((pb.shape[0], mech.n_task))
+            X[:, ip] = pb
+            X[:, ia] = matrix_to_euler(conv, Rb)
+            return X
         if guess is None:
             guess = self._guess(mech, pb, Rb, mode)
         return solve_pose(mech, pb, Rb, guess, where)
@@ -788,6 +795,36 @@ class TaskPath:
     Xd: np.ndarray
     Xdd: np.ndarray
     samples: PathSamples | None
+
+
+_STANDARD: dict = {}
+
+
+def standard_parametrisation(mech):
+    """``(convention, position columns, angle columns)`` when the mechanism's six task
+    coordinates are its platform position and the angles of a named three-angle Euler
+    convention (a description whose ``task:`` section says so, with no defined names); else
+    None. Its coordinates of a pose are then the closed form, on the principal branch."""
+    t = getattr(getattr(mech, "description", None), "task", None)
+    key = (type(mech), id(t))
+    hit = _STANDARD.get(key)
+    if hit is not None and hit[0] is t:
+        return hit[1]
+    out = None
+    tc = tuple(mech.task_coordinates)
+    try:
+        if t is not None and len(tc) == 6 and not t.defines and t.convention in TASK_CONVENTIONS:
+            pos = [getattr(e, "text", None) for e in t.position]
+            ang = [getattr(e, "text", None) for e in t.angles]
+            if all(c in tc for c in pos + ang) and len(set(pos + ang)) == 6 \
+                    and all(c in mech.angular_coordinates for c in ang):
+                out = (t.convention, [tc.index(c) for c in pos], [tc.index(c) for c in ang])
+    except (AttributeError, TypeError):
+        out = None
+    if len(_STANDARD) > 256:
+        _STANDARD.clear()
+    _STANDARD[key] = (t, out)
+    return out
 
 
 def _standard_kind(name):
