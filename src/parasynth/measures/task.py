@@ -49,7 +49,8 @@ import numpy as np
 
 from .accuracy import TOLERANCE_SETTINGS, _bound, _check_tolerances, sensitivity
 from .dynamics import InertiaModel, PlatformInertia, _equivalent, _motion
-from .indices import _scale_wrench, local_condition_number, local_transmission_index, wrench_system
+from .. import engine
+from .indices import WrenchSystem, _scale_wrench, local_condition_number, local_transmission_index
 from .measure_spec import Setting
 from .objectives import COMMON_PARAMS, register
 from .objectives import get as get_measure
@@ -82,17 +83,69 @@ def _balance_matrix(ws, L: float, rtol: float = 1e-10):
     return G, ok
 
 
-def static_task_forces(mech, X, loads, L=None):
+def _wrench_system(mech, X) -> WrenchSystem:
+    """:func:`parasynth.measures.indices.wrench_system` without the passive joint angles (the
+    wrenches do not need them) and with the platform poses from the engine's pose batch."""
+    Xa, _ = mech._poses(X)
+    valid, p, R, _ = engine.pose_batch(mech, Xa)
+    states = [leg.solve(p, R, joint_angles=False) for leg in mech.legs]
+    reachable = valid & np.logical_and.reduce([st.reachable for st in states])
+    A, S, anchors, C = [], [], [], []
+    for leg, st in zip(mech.legs, states):
+        if leg.is_actuated:
+            w, sc = leg.actuation_wrench(st, p)
+            A.append(w)
+            S.append(np.broadcast_to(sc, st.length.shape))
+            anchors.append(st.platform_point)
+        C.append(leg.constraint_wrenches(st, p))
+    N = Xa.shape[0]
+    A = np.stack(A, axis=1) if A else np.zeros((N, 0, 6))
+    S = np.stack(S, axis=1).astype(float) if S else np.zeros((N, 0))
+    anchors = np.stack(anchors, axis=1) if anchors else np.zeros((N, 0, 3))
+    C = np.concatenate(C, axis=1) if C else np.zeros((N, 0, 6))
+    for arr in (A, S, anchors, C):
+        arr[~reachable] = np.nan
+    return WrenchSystem(Xa, reachable, A, S, C, anchors, p, R, states, False)
+
+
+def static_task_forces(mech, X, loads, L=None, ws=None):
     """Generalised actuator forces (N, m, n_act) balancing each of the loads (N, m, 6) (wrenches
     about the platform point in the base frame) at poses ``X``, massless legs; NaN where
-    unreachable."""
-    ws = wrench_system(mech, X)
+    unreachable. The least squares of :func:`parasynth.measures.indices.static_forces` (a
+    square, regular system: its one solution, by LU)."""
+    ws = _wrench_system(mech, X) if ws is None else ws
     Ls = float(mech.length_scale if L is None else L)
-    G, ok = _balance_matrix(ws, Ls)
     w = _scale_wrench(np.asarray(loads, dtype=float), Ls)
-    F = np.einsum("nkj,nmj->nmk", G[:, :ws.n_act, :], w)
-    F[~ok] = np.nan
+    F = _solve_square(ws, w, Ls)
+    if F is None:
+        G, ok = _balance_matrix(ws, Ls)
+        F = np.einsum("nkj,nmj->nmk", G[:, :ws.n_act, :], w)
+        F[~ok] = np.nan
     return F
+
+
+def _solve_square(ws, w, L):
+    """Actuator forces (N, m, n_act) from ``M x = -w`` by LU where the wrench system is square
+    and regular at every pose (None otherwise: the least squares decides)."""
+    M = ws.matrix()
+    if M.shape[1] != M.shape[2] or not np.all(ws.reachable) or not np.all(np.isfinite(M)):
+        return None
+    Ms = np.swapaxes(_scale_wrench(np.swapaxes(M, 1, 2), L), 1, 2)
+    cn = np.linalg.norm(Ms, axis=1)
+    if np.any(cn <= 0):
+        return None
+    Mn = Ms / cn[:, None, :]
+    try:
+        y = np.linalg.solve(Mn, -np.swapaxes(w, 1, 2))  # (N, k, m)
+    except np.linalg.LinAlgError:
+        return None
+    # near a singularity (unknowns beyond 1e9 of the load) the least squares, which drops
+    # singular values below 1e-10, decides
+    scale = max(1.0, float(np.max(np.abs(w))))
+    if not np.all(np.isfinite(y)) or float(np.max(np.abs(y))) > 1e9 * scale:
+        return None
+    x = y / cn[:, :, None]
+    return np.swapaxes(x[:, :ws.n_act, :], 1, 2)
 
 
 def _load_columns(task: Task, mech, X):
@@ -349,11 +402,7 @@ class TaskEvaluation:
                     Tw = Tw._copy(wrench=task.wrench[seg])
                 wc = _load_columns(Tw, mech, X)
                 cols = [weq + wc[:, 0]] + [wc[:, k] for k in range(1, wc.shape[1])]
-            L = float(mech.length_scale)
-            G, okb = _balance_matrix(ws, L)
-            w = _scale_wrench(np.stack(cols, axis=1), L)
-            F = np.einsum("nkj,nmj->nmk", G[:, :ws.n_act, :], w)
-            F[~okb] = np.nan
+            F = static_task_forces(mech, X, np.stack(cols, axis=1), ws=ws)
             F_out[ok] = _worst(F)
             with np.errstate(invalid="ignore", divide="ignore"):
                 q_out[ok] = np.abs(np.einsum("nkj,nj->nk", ws.actuation, t) / ws.rate_scale)
