@@ -148,10 +148,12 @@ def _solve_square(ws, w, L):
     return np.swapaxes(x[:, :ws.n_act, :], 1, 2)
 
 
-def _load_columns(task: Task, mech, X):
+def _load_columns(task: Task, mech, X, R=None):
     """Loads at P (N, 1 + m, 6): the payload's weight (with the constant part of the wrench
-    unless signs are asked for), then one column per wrench component taken with both signs."""
-    p, R = mech.pose(X)
+    unless signs are asked for), then one column per wrench component taken with both signs.
+    ``R``: the platform orientations at ``X`` when known."""
+    if R is None:
+        _, R = mech.pose(X)
     N = X.shape[0]
     pl = task.payload
     g = task.gravity_vector()
@@ -358,7 +360,8 @@ class TaskEvaluation:
             Y = self.Xf
             if not len(Y):
                 return np.zeros((0, self.mech.n_actuators))
-            return _worst(static_task_forces(self.mech, Y, _load_columns(self.task, self.mech, Y)))
+            ws = _wrench_system(self.mech, Y)
+            return _worst(static_task_forces(self.mech, Y, _load_columns(self.task, self.mech, Y, ws.R), ws=ws))
         return self._get("static", f)
 
     @property
@@ -392,7 +395,11 @@ class TaskEvaluation:
                 return F_out, q_out
             pl = task.payload
             inertia = InertiaModel(PlatformInertia(pl.mass, pl.com, pl.tensor))
-            Xa, _, okr, ws, p, R, t, acc, legs = _motion(mech, X, Xd, Xdd, inertia)
+            if pa.twist is not None:  # the platform's motion from the path; massless legs
+                ws = _wrench_system(mech, X)
+                Xa, okr, p, R, t, acc, legs = X, ws.reachable, ws.p, ws.R, pa.twist[ok], pa.accel[ok], []
+            else:
+                Xa, _, okr, ws, p, R, t, acc, legs = _motion(mech, X, Xd, Xdd, inertia)
             weq = _equivalent(mech, Xa, okr, p, R, t, acc, legs, inertia, task.gravity_vector(), None)
             cols = [weq]
             if task.wrench is not None:
@@ -400,7 +407,7 @@ class TaskEvaluation:
                 if task.wrench.ndim == 2:  # per pose: the wrench of each segment's start pose
                     seg = pa.samples.segment[ok] if pa.samples is not None else np.zeros(len(X), int)
                     Tw = Tw._copy(wrench=task.wrench[seg])
-                wc = _load_columns(Tw, mech, X)
+                wc = _load_columns(Tw, mech, X, R)
                 cols = [weq + wc[:, 0]] + [wc[:, k] for k in range(1, wc.shape[1])]
             F = static_task_forces(mech, X, np.stack(cols, axis=1), ws=ws)
             F_out[ok] = _worst(F)

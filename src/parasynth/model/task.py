@@ -565,21 +565,22 @@ class Task:
 
     def frame_to_platform(self, p, R):
         """Platform poses in ``B`` for poses ``(p, R)`` in ``W`` of the task's frame."""
-        if self.frame == "tool":
-            Rp = R @ self.tool.R.T
-            p = p - Rp @ np.array(self.tool.offset)
-            R = Rp
+        if self.frame == "tool" and not self.tool.identity:
+            R = _rmul(R, self.tool.R.T)
+            p = p - R @ np.array(self.tool.offset)
+        if self.placement.identity:
+            return p, R
         Rw, pw = self.placement.R, self.placement.p
-        return pw + p @ Rw.T, Rw @ R
+        return pw + p @ Rw.T, _lmul(Rw, R)
 
     def platform_to_frame(self, p, R):
         """Poses in ``W`` of the task's frame for platform poses ``(p, R)`` in ``B``."""
         Rw, pw = self.placement.R, self.placement.p
         p = (p - pw) @ Rw
-        R = Rw.T @ R
+        R = _lmul(Rw.T, R)
         if self.frame == "tool":
             p = p + R @ np.array(self.tool.offset)
-            R = R @ self.tool.R
+            R = _rmul(R, self.tool.R)
         return p, R
 
     def tool_points(self, p, R) -> np.ndarray:
@@ -723,45 +724,63 @@ class Task:
         tr = self.trajectory
         if tr.times is not None:
             return self._timed_path(mech, mode)
-        pW, RW = self._frame_pose_W(mech, mode)
         if mode == "full":
-            dist = np.linalg.norm(np.diff(pW, axis=0), axis=1)
-            ang = np.linalg.norm(rotation_log(np.swapaxes(RW[:-1], 1, 2) @ RW[1:]), axis=1)
-        else:
-            X = self._own_coordinates(mech)
-            lin = np.array([c not in mech.angular_coordinates for c in mech.task_coordinates])
-            dX = np.diff(X, axis=0)
-            dist = np.linalg.norm(dX[:, lin], axis=1)
-            ang = np.linalg.norm(dX[:, ~lin], axis=1)
-        ps = sample_path(dist, ang, tr.limits, tr.dt)
+            return self._full_path(mech)
+        X = self._own_coordinates(mech)
+        lin = np.array([c not in mech.angular_coordinates for c in mech.task_coordinates])
+        dX = np.diff(X, axis=0)
+        ps = sample_path(np.linalg.norm(dX[:, lin], axis=1), np.linalg.norm(dX[:, ~lin], axis=1), tr.limits, tr.dt)
         seg, s = ps.segment, ps.s
-        base_X = self.platform_poses(mech)
-
-        def pose_at(sv, seg_):
-            if mode == "full":
-                pa, dp = pW[seg_], pW[seg_ + 1] - pW[seg_]
-                rv = rotation_log(np.swapaxes(RW[seg_], 1, 2) @ RW[seg_ + 1])
-                return pa + sv[:, None] * dp, RW[seg_] @ rotation_exp(sv[:, None] * rv)
-            Xs = X[seg_] + sv[:, None] * (X[seg_ + 1] - X[seg_])
-            return mech.pose(Xs)
-
-        if mode == "own" and self.placement.identity and (self.frame == "platform" or self.tool.identity):
-            dX = X[seg + 1] - X[seg]  # the path is a straight line in the mechanism's own coordinates
+        dX = X[seg + 1] - X[seg]
+        if self.placement.identity and (self.frame == "platform" or self.tool.identity):
+            # a straight line in the mechanism's own coordinates
             return TaskPath(ps.t, X[seg] + s[:, None] * dX, dX * ps.sd[:, None], dX * ps.sdd[:, None], ps)
 
         def coords(sv):
-            p, R = pose_at(sv, seg)
-            guess = base_X[seg] + sv[:, None] * (base_X[seg + 1] - base_X[seg]) if mode == "own" else None
-            return self.coordinates_of(mech, p, R, guess=guess, where="task.trajectory")
+            Xs = X[seg] + sv[:, None] * dX
+            return self.coordinates_of(mech, *mech.pose(Xs), guess=Xs, where="task.trajectory")
 
-        h = 1e-4
-        Xs = coords(s)
-        Xp, Xm = coords(s + h), coords(s - h)
-        dXs = (Xp - Xm) / (2 * h)
-        d2Xs = (Xp - 2 * Xs + Xm) / (h * h)
-        Xd = dXs * ps.sd[:, None]
-        Xdd = d2Xs * (ps.sd ** 2)[:, None] + dXs * ps.sdd[:, None]
-        return TaskPath(ps.t, Xs, Xd, Xdd, ps)
+        return _chain(ps, coords(s), coords(s + _H), coords(s - _H))
+
+    def _full_samples(self, mech):
+        """The path's samples in ``W`` (mechanism-independent but for the home values of the
+        coordinates not named), cached on the task."""
+        named = self.coordinates is not None and set(self.coordinates) >= set(STANDARD_NAMES)
+        key = "all" if named else tuple(np.round(self._home_standard(mech), 12))
+        cache = self.__dict__.setdefault("_paths", {})
+        hit = cache.get(key)
+        if hit is not None:
+            return hit
+        pW, RW = self._frame_pose_W(mech, "full")
+        dist = np.linalg.norm(np.diff(pW, axis=0), axis=1)
+        rv_all = rotation_log(np.swapaxes(RW[:-1], 1, 2) @ RW[1:])
+        ps = sample_path(dist, np.linalg.norm(rv_all, axis=1), self.trajectory.limits, self.trajectory.dt)
+        seg, s = ps.segment, ps.s
+        dp, rv, Ra = pW[seg + 1] - pW[seg], rv_all[seg], RW[seg]
+        at = {k: (pW[seg] + sv[:, None] * dp, Ra @ rotation_exp(sv[:, None] * rv))
+              for k, sv in (("0", s), ("+", s + _H), ("-", s - _H))}
+        axis = np.einsum("njk,nk->nj", Ra, rv)  # rotation axis times angle, in W
+        if len(cache) > 8:
+            cache.clear()
+        cache[key] = hit = (ps, at, dp, axis)
+        return hit
+
+    def _full_path(self, mech):
+        ps, at, dp, axis = self._full_samples(mech)
+        X0 = self.coordinates_of(mech, *at["0"], where="task.trajectory")
+        path = _chain(ps, X0, self.coordinates_of(mech, *at["+"], where="task.trajectory"),
+                      self.coordinates_of(mech, *at["-"], where="task.trajectory"))
+        # the platform's twist and acceleration in B, exactly
+        Rw = self.placement.R
+        w, al = (axis @ Rw.T) * ps.sd[:, None], (axis @ Rw.T) * ps.sdd[:, None]
+        v, a = (dp @ Rw.T) * ps.sd[:, None], (dp @ Rw.T) * ps.sdd[:, None]
+        if self.frame == "tool":  # from the tool point to the platform point
+            _, Rb = self.frame_to_platform(*at["0"])
+            d = -Rb @ np.array(self.tool.offset)
+            v = v + np.cross(w, d)
+            a = a + np.cross(al, d) + np.cross(w, np.cross(w, d))
+        path.twist, path.accel = np.concatenate([v, w], axis=1), np.concatenate([a, al], axis=1)
+        return path
 
     def _timed_path(self, mech, mode):
         tr = self.trajectory
@@ -788,13 +807,17 @@ class Task:
 @dataclass
 class TaskPath:
     """A task's path for one mechanism: ``t`` (K,) s, ``X``, ``Xd``, ``Xdd`` (K, d) its task
-    coordinates and their time derivatives, ``samples`` the profile (None for timed poses)."""
+    coordinates and their time derivatives, ``samples`` the profile (None for timed poses);
+    for a mechanism with six task coordinates also the platform's ``twist`` ``(v_P, omega)``
+    and ``accel`` ``(a_P, alpha)`` (K, 6) in the base frame, from the profile exactly."""
 
     t: np.ndarray
     X: np.ndarray
     Xd: np.ndarray
     Xdd: np.ndarray
     samples: PathSamples | None
+    twist: np.ndarray | None = None
+    accel: np.ndarray | None = None
 
 
 _STANDARD: dict = {}
@@ -825,6 +848,27 @@ def standard_parametrisation(mech):
         _STANDARD.clear()
     _STANDARD[key] = (t, out)
     return out
+
+
+def _rmul(R, M):
+    """``R @ M`` for a stack R (N, 3, 3) and one M (3, 3), as one matrix product."""
+    return (R.reshape(-1, 3) @ M).reshape(R.shape)
+
+
+def _lmul(M, R):
+    """``M @ R`` for one M (3, 3) and a stack R (N, 3, 3), as one matrix product."""
+    return np.swapaxes(_rmul(np.swapaxes(R, 1, 2), M.T), 1, 2)
+
+
+#: Step of the progress for the derivatives of the mechanism's coordinates along a segment.
+_H = 1e-4
+
+
+def _chain(ps, X0, Xp, Xm) -> "TaskPath":
+    """X, X', X'' of the samples by the chain rule: central differences in the progress."""
+    dXs = (Xp - Xm) / (2 * _H)
+    d2Xs = (Xp - 2 * X0 + Xm) / (_H * _H)
+    return TaskPath(ps.t, X0, dXs * ps.sd[:, None], d2Xs * (ps.sd ** 2)[:, None] + dXs * ps.sdd[:, None], ps)
 
 
 def _standard_kind(name):
