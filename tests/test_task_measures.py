@@ -358,3 +358,21 @@ def test_continuity_applies_the_floors_to_every_path_sample(gs):
     c = ev.continuity()
     assert c.reason == "floor" and c.first_break == expected
     assert task_evaluation(gs, Task(poses=P, trajectory=task.trajectory), []).continuity().ok
+
+
+def test_per_pose_wrenches_follow_their_poses(gs):
+    """One wrench per pose, some poses infeasible, the poses reordered: each pose keeps its wrench."""
+    X = _poses(40, seed=8)
+    rng = np.random.default_rng(9)
+    Wr = rng.uniform(-50, 50, (40, 6)) * np.array([1, 1, 1, 0.05, 0.05, 0.05])
+    feas = gs.is_feasible(X, names=["stroke"])
+    assert 0 < feas.sum() < 40
+    W, _ = _wrench_rows(gs, X)
+    expected = 0.0
+    for k in np.flatnonzero(feas):
+        F, *_ = np.linalg.lstsq(W[k].T, -Wr[k], rcond=None)
+        expected = max(expected, np.abs(F).max())
+    for order in ("given", "nearest"):
+        task = Task(poses=X, wrench=Wr, order=order)
+        got = objectives.get("task_actuator_force_max")(gs, task=task, constraints=["stroke"])
+        assert got == pytest.approx(expected, rel=1e-9), order

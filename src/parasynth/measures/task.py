@@ -360,8 +360,11 @@ class TaskEvaluation:
             Y = self.Xf
             if not len(Y):
                 return np.zeros((0, self.mech.n_actuators))
+            task = self.task
+            if task.wrench is not None and task.wrench.ndim == 2:  # per pose: those of the feasible poses
+                task = task._copy(wrench=task.wrench[self.feasible])
             ws = _wrench_system(self.mech, Y)
-            return _worst(static_task_forces(self.mech, Y, _load_columns(self.task, self.mech, Y, ws.R), ws=ws))
+            return _worst(static_task_forces(self.mech, Y, _load_columns(task, self.mech, Y, ws.R), ws=ws))
         return self._get("static", f)
 
     @property

@@ -463,9 +463,13 @@ class Task:
         if order not in ("given", "nearest"):
             raise TaskError(f"task.poses.order: must be given or nearest, got {order!r}")
         self.order = order
-        if order == "nearest":
-            self.poses = _nearest_order(self.poses)
+        if order == "nearest":  # the poses (and per-pose wrenches) in nearest-neighbour order
+            idx = _nearest_order(self.poses)
+            self.poses = self.poses[idx]
             self.poses.setflags(write=False)
+            if self.wrench is not None and self.wrench.ndim == 2:
+                self.wrench = self.wrench[idx]
+                self.wrench.setflags(write=False)
         self.leg_diameter = None if leg_diameter is None else _num("task.space.leg_diameter", leg_diameter,
                                                                    "a diameter >= 0 (m)", low=0.0)
 
@@ -887,7 +891,7 @@ def _angle_order(names, ang):
 
 
 def _nearest_order(P: np.ndarray) -> np.ndarray:
-    """Rows of ``P`` in greedy nearest-neighbour order from the first (NaN as 0)."""
+    """Indices of the rows of ``P`` in greedy nearest-neighbour order from the first (NaN as 0)."""
     Q = np.nan_to_num(P)
     n = len(Q)
     left = np.ones(n, bool)
@@ -899,7 +903,7 @@ def _nearest_order(P: np.ndarray) -> np.ndarray:
         k = int(np.argmin(d))
         order.append(k)
         left[k] = False
-    return P[order].copy()
+    return np.array(order, dtype=int)
 
 
 def _check_floors(where, floors) -> dict:
