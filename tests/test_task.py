@@ -240,6 +240,8 @@ def test_installation_space_must_contain_the_home_pose(gs):
     ({"poses": {"file": "missing.csv"}}, r"^task\.poses\.file: cannot read 'missing.csv'"),
     ({"poses": [{"x": "1 kg"}]}, r"^task\.poses\.list\[0\]\.x: '1 kg' is not a length"),
     ({}, r"^task\.poses: required"),
+    ({"poses": [{"x": "1 mm"}], "loads": {"wrench": [["1 N"] * 3 + ["0 N*m"] * 3] * 2}},
+     r"^task\.loads\.wrench: 2 wrenches for 1 poses"),
 ])
 def test_bad_task_sections_name_the_key(spec, message):
     with pytest.raises(TaskError, match=message) as e:
@@ -260,6 +262,17 @@ def test_bad_csv_files(tmp_path, content, message):
         Task.from_mapping({"poses": {"file": "p.csv"}}, base_dir=tmp_path)
     with pytest.raises(TaskError, match=message):
         Task.from_mapping({"poses": {"file": "p.csv"}}, base_dir=tmp_path)
+
+
+def test_per_pose_wrenches_inline_and_the_units_argument():
+    t = Task.from_mapping({"poses": [{"x": "1 mm"}, {"x": "2 mm"}],
+                           "loads": {"wrench": [["1 N", "0 N", "0 N", "0 N*m", "0 N*m", "3 N*m"],
+                                                {"force": ["0 N", "2 N", "0 N"]}]}})
+    np.testing.assert_allclose(t.wrench, [[1, 0, 0, 0, 0, 3], [0, 2, 0, 0, 0, 0]])
+    with pytest.raises(TaskError, match=r"^units\.lenght: unknown kind"):
+        Task.from_mapping({"poses": [{"x": 1}]}, units={"lenght": "mm"})
+    t = Task.from_mapping({"poses": [{"x": 1, "gamma": 90}]}, units={"length": "mm", "angle": "deg"})
+    np.testing.assert_allclose(t.poses, [[0.001, np.pi / 2]])
 
 
 def test_timed_file_needs_a_time_column(tmp_path):

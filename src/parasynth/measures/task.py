@@ -83,11 +83,11 @@ def _balance_matrix(ws, L: float, rtol: float = 1e-10):
     return G, ok
 
 
-def _wrench_system(mech, X) -> WrenchSystem:
+def _wrench_system(mech, X, engine_name: str = "compiled") -> WrenchSystem:
     """:func:`parasynth.measures.indices.wrench_system` without the passive joint angles (the
     wrenches do not need them) and with the platform poses from the engine's pose batch."""
     Xa, _ = mech._poses(X)
-    valid, p, R, _ = engine.pose_batch(mech, Xa)
+    valid, p, R, _ = engine.pose_batch(mech, Xa, engine=engine_name)
     states = [leg.solve(p, R, joint_angles=False) for leg in mech.legs]
     reachable = valid & np.logical_and.reduce([st.reachable for st in states])
     A, S, anchors, C = [], [], [], []
@@ -363,7 +363,7 @@ class TaskEvaluation:
             task = self.task
             if task.wrench is not None and task.wrench.ndim == 2:  # per pose: those of the feasible poses
                 task = task._copy(wrench=task.wrench[self.feasible])
-            ws = _wrench_system(self.mech, Y)
+            ws = _wrench_system(self.mech, Y, self.engine)
             return _worst(static_task_forces(self.mech, Y, _load_columns(task, self.mech, Y, ws.R), ws=ws))
         return self._get("static", f)
 
@@ -399,7 +399,7 @@ class TaskEvaluation:
             pl = task.payload
             inertia = InertiaModel(PlatformInertia(pl.mass, pl.com, pl.tensor))
             if pa.twist is not None:  # the platform's motion from the path; massless legs
-                ws = _wrench_system(mech, X)
+                ws = _wrench_system(mech, X, self.engine)
                 Xa, okr, p, R, t, acc, legs = X, ws.reachable, ws.p, ws.R, pa.twist[ok], pa.accel[ok], []
             else:
                 Xa, _, okr, ws, p, R, t, acc, legs = _motion(mech, X, Xd, Xdd, inertia)

@@ -64,7 +64,7 @@ import numpy as np
 
 from .spatial import EULER_CONVENTIONS, euler_to_matrix, rot_x, rot_z
 from .trajectory import MotionLimits, PathSamples, sample_path
-from ..common.units import QuantityError, _ureg, parse_quantity
+from ..common.units import UNIT_KINDS, QuantityError, _ureg, parse_quantity
 
 __all__ = ["Task", "TaskError", "Payload", "Placement", "Tool", "Space", "TrajectorySpec", "STANDARD_NAMES", "G0",
            "matrix_to_euler", "rotation_log", "FLOOR_KINDS"]
@@ -983,6 +983,12 @@ class _Reader:
         if units is not None and not isinstance(units, Mapping):
             raise TaskError(f"units: give a mapping {{kind: unit}}, e.g. {{length: mm, angle: deg}}, got {units!r}")
         self.units = dict(units or {})
+        for k, u in self.units.items():
+            if k not in UNIT_KINDS or k == "dimensionless":
+                raise TaskError(f"units.{k}: unknown kind; allowed: "
+                                f"{', '.join(x for x in UNIT_KINDS if x != 'dimensionless')}")
+            if not isinstance(u, str) or not u.strip():
+                raise TaskError(f"units.{k}: give a unit such as 'mm', got {u!r}")
         self.base_dir = os.fspath(base_dir) if base_dir is not None else os.getcwd()
         self.where = where
         self.pose_kinds = {}
@@ -1274,6 +1280,10 @@ class _Reader:
                 if len(data) != n_poses:
                     raise TaskError(f"{path}.wrench.file: {len(data)} rows for {n_poses} poses")
                 out["wrench"] = data
+            elif isinstance(wr, list) and wr and all(isinstance(r, (list, Mapping)) for r in wr):
+                if len(wr) != n_poses:
+                    raise TaskError(f"{path}.wrench: {len(wr)} wrenches for {n_poses} poses (one per pose, or one)")
+                out["wrench"] = np.array([self._wrench(r, f"{path}.wrench[{i}]") for i, r in enumerate(wr)])
             else:
                 out["wrench"] = self._wrench(wr, f"{path}.wrench")
         if "signs" in m:
