@@ -376,3 +376,35 @@ def test_per_pose_wrenches_follow_their_poses(gs):
         task = Task(poses=X, wrench=Wr, order=order)
         got = objectives.get("task_actuator_force_max")(gs, task=task, constraints=["stroke"])
         assert got == pytest.approx(expected, rel=1e-9), order
+
+
+def test_stiffness_height_and_mass_by_hand(gs):
+    X = _poses(30, seed=10, spread=0.5)
+    tool = np.array([0.03, -0.01, 0.15])
+    task = Task(poses=X, tool=tool)
+    feas = gs.is_feasible(X)
+    W, r = _wrench_rows(gs, X)
+    R = _rot(X)
+    k = 2.0e7
+    best = np.inf
+    for i in np.flatnonzero(feas):
+        C = np.linalg.inv(k * W[i].T @ W[i])  # twist (dp, dtheta) per wrench (f, m_P)
+        rt = R[i] @ tool
+        S = np.array([[0, -rt[2], rt[1]], [rt[2], 0, -rt[0]], [-rt[1], rt[0], 0]])
+        A = np.hstack([np.eye(3), -S])  # tool displacement dp + dtheta x r_t; a force at the tool: A^T f
+        best = min(best, 1.0 / np.linalg.eigvalsh(A @ C @ A.T)[-1])
+    got = objectives.get("task_stiffness_min")(gs, task=task, axial_stiffness=k)
+    assert got == pytest.approx(best, rel=1e-8)
+    # the tool offset matters: the platform point's stiffness differs
+    assert got != pytest.approx(objectives.get("task_stiffness_min")(gs, task=Task(poses=X), axial_stiffness=k),
+                                rel=1e-3)
+    # installed height: base joints at z = 0, platform joints at p_z + (R a)_z
+    B, A = _anchors(gs)
+    zt = (X[:, None, 2] + np.einsum("nij,kj->nki", R, A)[..., 2])[feas]
+    h = max(zt.max(), B[:, 2].max()) - min(zt.min(), B[:, 2].min())
+    assert objectives.get("installed_height")(gs, task=task) == pytest.approx(h, rel=1e-12)
+    # moving mass: six rods at their longest length over the task and the platform disc
+    L = np.linalg.norm(_legs_by_hand(gs, X[feas]), axis=2).max(axis=0)
+    rad = np.max(np.linalg.norm(A[:, :2], axis=1))
+    mass = 7850 * (np.pi * 0.04 ** 2 / 4 * L.sum() + np.pi * rad ** 2 * 0.02)
+    assert objectives.get("moving_mass")(gs, task=task) == pytest.approx(mass, rel=1e-12)
