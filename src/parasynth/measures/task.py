@@ -55,7 +55,7 @@ from .measure_spec import Setting
 from .objectives import COMMON_PARAMS, register
 from .objectives import get as get_measure
 from .stiffness import STIFFNESS_SETTINGS, compliance, stiffness_matrix
-from .usable import oriented_determinant, sign_rule
+from .usable import _orientation, sign_rule
 from ..model.legs import PUS, RUS
 from ..model.mechanism import ForwardKinematicsError
 from ..model.task import Payload, Task, TaskError
@@ -200,72 +200,120 @@ class Continuity:
         return self.first_break is None
 
 
-def path_continuity(mech, X, feasible=None, floor: float = 1e-3, substeps: int = 4, tol: float | None = None,
-                    margin=None, floors_ok=None) -> Continuity:
+def path_continuity(mech, X, feasible=None, floor: float = 1e-3, substeps: int | None = None,
+                    tol: float | None = None, margin=None, floors_ok=None, max_step: float = 0.05) -> Continuity:
     """The first sample of the ordered path ``X`` (K, d) that the robot cannot reach from the
-    previous one: an infeasible sample (``feasible`` (K,) bool, default reachable), a
-    singularity crossed (where the wrench system is square: the oriented singularity function
-    of :func:`parasynth.measures.usable.oriented_determinant` changes sign between samples;
-    otherwise the singularity margin falls below ``floor``), or a change of assembly mode
-    (forward kinematics continued from the previous sample's pose through ``substeps`` equal
-    steps of the actuators does not return the inverse kinematics' pose within ``tol``,
-    default 1e-6 of the length scale for lengths and 1e-6 rad for angles). ``floors_ok`` (K,)
-    bool: samples where the task's floors hold (a sample breaking one: reason "floor")."""
+    previous one: an infeasible sample (``feasible`` (K,) bool, default reachable), a sample
+    where the task's floors fail (``floors_ok`` (K,) bool, reason "floor"), a singularity
+    crossed (where the wrench system is square: the oriented singularity function of
+    :meth:`Mechanism.singularity_function`, its constraint basis oriented continuously along the
+    path as :func:`parasynth.measures.usable.oriented_determinant` does, changes sign between
+    samples; otherwise the singularity margin falls below ``floor``), or a change of assembly
+    mode: forward kinematics continued from the previous sample's pose (Newton steps on the
+    inverse kinematics, every transition at once) through ``substeps`` equal steps of the
+    actuators (default: enough for steps of at most ``max_step`` times the length scale, or
+    ``max_step`` rad, at least 1) does not return the inverse kinematics' pose within ``tol``
+    (default 1e-6 of the length scale for lengths, 1e-6 rad for angles)."""
     X = np.atleast_2d(np.asarray(X, dtype=float))
     K = len(X)
-    ik = mech.inverse_kinematics(X)
-    ok = ik.reachable if feasible is None else (np.asarray(feasible, bool) & ik.reachable)
+    q_all = _actuators(mech, X)
+    reach = np.all(np.isfinite(q_all), axis=1)
+    ok = reach if feasible is None else (np.asarray(feasible, bool) & reach)
     rule = sign_rule(mech)
     bad = np.zeros(K, bool)
     reason = np.full(K, "", dtype=object)
-    bad[~ok] = True
-    reason[~ok] = "infeasible"
+
+    def flag(mask, why):
+        new = mask & ~bad
+        bad[new] = True
+        reason[new] = why
+
+    flag(~ok, "infeasible")
     if floors_ok is not None:
-        fl = ~np.asarray(floors_ok, bool) & ~bad
-        bad |= fl
-        reason[fl] = "floor"
+        flag(~np.asarray(floors_ok, bool), "floor")
     if rule is None:
-        det = oriented_determinant(mech, X)
-        flip = np.zeros(K, bool)
-        flip[1:] = (np.sign(det[1:]) != np.sign(det[:-1])) | (det[1:] == 0)
-        new = flip & ~bad
-        bad |= new
-        reason[new] = "singularity"
+        det, V = mech.singularity_function(X)
+        if V.shape[1]:
+            o = np.ones(K)
+            o[1:] = _orientation(V[:-1], V[1:])  # b's basis against a's, for every neighbouring pair
+            o = np.where(np.isfinite(o), np.sign(o), 1.0)
+            det = det * np.cumprod(o)
+        cross = np.zeros(K, bool)
+        cross[1:] = (np.sign(det[1:]) != np.sign(det[:-1])) | (det[1:] == 0)
+        flag(cross, "singularity")
         rule_txt = "sign"
     else:
         m = mech.singularity_margin(X) if margin is None else margin
-        low = ~(m >= floor) & ~bad
-        bad |= low
-        reason[low] = "singularity"
+        flag(~(m >= floor), "singularity")
         rule_txt = rule
-    # forward kinematics continued from each sample to the next
-    if K > 1:
-        first = int(np.argmax(bad)) if bad.any() else K
-        n = first - 1  # transitions 0 -> 1, ..., n-1 -> n are between good samples
-        if n > 0:
-            q = ik.actuators
-            L = mech.length_scale
-            lin = np.array([c not in mech.angular_coordinates for c in mech.task_coordinates])
-            tl = np.where(lin, 1e-6 * L, 1e-6) if tol is None else np.full(mech.n_task, float(tol))
-            Xc = X[:n].copy()
-            failed = np.zeros(n, bool)
-            for j in range(1, substeps + 1):
-                qj = q[:n] + (j / substeps) * (q[1:n + 1] - q[:n])
-                try:
-                    Xc = mech.forward_kinematics(qj, guess=Xc)
-                except ForwardKinematicsError as e:
-                    idx = e.indices[e.indices < n]
-                    failed[idx] = True
-                    break
-            far = failed | np.any(np.abs(Xc - X[1:n + 1]) > tl, axis=1)
-            new = np.zeros(K, bool)
-            new[1:n + 1] = far
-            bad |= new
-            reason[new] = "assembly mode"
+    first = int(np.argmax(bad)) if bad.any() else K
+    n = first - 1  # transitions 0 -> 1, ..., n-1 -> n are between good samples
+    if n > 0:
+        q = q_all
+        L = mech.length_scale
+        ang_act = np.array([mech.actuator_kinds[a] == "angle" for a in mech.actuators])
+        qs = np.where(ang_act, 1.0, L)
+        if substeps is None:
+            substeps = int(np.clip(np.ceil(np.max(np.abs(np.diff(q[:n + 1], axis=0)) / qs) / max_step), 1, 100))
+        lin = np.array([c not in mech.angular_coordinates for c in mech.task_coordinates])
+        tl = np.where(lin, 1e-6 * L, 1e-6) if tol is None else np.full(mech.n_task, float(tol))
+        Xc = _continue(mech, X[:n], q[:n], q[1:n + 1], int(substeps), qs)
+        # where the chord steps have not converged (near a singularity), the damped forward
+        # kinematics from the previous sample decides
+        with np.errstate(invalid="ignore"):
+            res = np.max(np.abs(_actuators(mech, Xc) - q[1:n + 1]) / qs, axis=1)
+        slow = np.flatnonzero(~(res <= 1e-10))
+        for _ in range(4):  # samples it refuses are not reached (NaN), the others solved again
+            if not slow.size:
+                break
+            try:
+                Xc[slow] = mech.forward_kinematics(q[1:n + 1][slow], guess=X[:n][slow])
+                break
+            except ForwardKinematicsError as e:
+                failed = slow[e.indices[e.indices < slow.size]]
+                Xc[failed] = np.nan
+                slow = np.setdiff1d(slow, failed)
+        else:
+            Xc[slow] = np.nan
+        far = ~np.all(np.abs(Xc - X[1:n + 1]) <= tl, axis=1)
+        new = np.zeros(K, bool)
+        new[1:n + 1] = far
+        flag(new, "assembly mode")
     if not bad.any():
         return Continuity(None, "", rule_txt)
     i = int(np.argmax(bad))
     return Continuity(i, str(reason[i]), rule_txt)
+
+
+def _actuators(mech, X) -> np.ndarray:
+    """Actuator values (N, n_act) of poses ``X`` (the inverse kinematics without passive joint
+    angles), NaN where unreachable or where the parametrisation is undefined."""
+    Xa, _ = mech._poses(X)
+    valid = mech.pose_valid(Xa)
+    with np.errstate(all="ignore"):
+        p, R = mech.pose(np.where(valid[:, None], Xa, mech.home))
+    states = [leg.solve(p, R, joint_angles=False) for leg in mech.legs]
+    ok = valid & np.logical_and.reduce([st.reachable for st in states])
+    q = np.stack([st.actuator for leg, st in zip(mech.legs, states) if leg.is_actuated], axis=-1)
+    return np.where(ok[:, None], q, np.nan)
+
+
+def _continue(mech, X0, q0, q1, substeps: int, qs, steps: int = 1, final: int = 4) -> np.ndarray:
+    """Poses reached from ``X0`` (M, d) when the actuators move from ``q0`` to ``q1`` (M, n_act)
+    in ``substeps`` equal steps, each followed by chord-Newton steps on the inverse kinematics
+    (the actuator Jacobian once per sub-step; ``steps`` iterations, ``final`` after the last);
+    NaN where a step leaves the reachable set."""
+    X = X0.copy()
+    for j in range(1, substeps + 1):
+        qt = q0 + (j / substeps) * (q1 - q0)
+        J = mech.jacobian(X)
+        okJ = np.all(np.isfinite(J), axis=(1, 2))
+        Jp = np.linalg.pinv(np.where(okJ[:, None, None], J / qs[None, :, None], 0.0), rcond=1e-12)
+        for _ in range(final if j == substeps else steps):
+            r = (_actuators(mech, X) - qt) / qs
+            ok = okJ & np.all(np.isfinite(r), axis=1)
+            X = np.where(ok[:, None], X - np.einsum("nij,nj->ni", Jp, np.where(ok[:, None], r, 0.0)), np.nan)
+    return X
 
 
 # ---------------------------------------------------------------------------------------------
@@ -440,7 +488,7 @@ class TaskEvaluation:
             return c
         return self._get("clearance", f)
 
-    def continuity(self, floor: float = 1e-3, substeps: int = 4) -> Continuity:
+    def continuity(self, floor: float = 1e-3, substeps: int | None = None) -> Continuity:
         """:func:`path_continuity` along the path (or the poses in their order without one),
         with the task's floors applied to every sample."""
         def f():
