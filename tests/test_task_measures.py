@@ -408,3 +408,29 @@ def test_stiffness_height_and_mass_by_hand(gs):
     rad = np.max(np.linalg.norm(A[:, :2], axis=1))
     mass = 7850 * (np.pi * 0.04 ** 2 / 4 * L.sum() + np.pi * rad ** 2 * 0.02)
     assert objectives.get("moving_mass")(gs, task=task) == pytest.approx(mass, rel=1e-12)
+
+
+def test_a_path_in_a_lower_mobility_mechanisms_own_coordinates():
+    mech = parasynth.load_mechanism("2rpu_2sps")
+    P = np.array([[0.65, np.deg2rad(20), np.deg2rad(10)], [0.70, np.deg2rad(28), np.deg2rad(16)]])
+    task = Task(poses=P, coordinates=mech.task_coordinates, payload={"mass": 3.0},
+                trajectory={"speed": 0.05, "acceleration": 0.5, "angular_speed": 0.3, "angular_acceleration": 3.0,
+                            "jerk_time": 0.02, "dt": 0.002})
+    ev = task_evaluation(mech, task, [])
+    path = ev.path
+    assert np.all(ev.path_feasible)
+    # a straight line in (z, psi, theta), at rest at both ends
+    d = (path.X - P[0]) / (P[1] - P[0])
+    np.testing.assert_allclose(d, d[:, :1] * np.ones((1, 3)), atol=1e-12)
+    np.testing.assert_allclose(path.Xd[[0, -1]], 0.0, atol=1e-12)
+    # actuator speeds: central differences of the inverse kinematics along the path
+    q = mech.inverse_kinematics(path.X).actuators
+    t = path.t
+    rates = np.abs((q[2:] - q[:-2]) / (t[2:] - t[:-2])[:, None])
+    assert objectives.get("task_actuator_speed_max")(mech, task=task, constraints=[]) == pytest.approx(
+        rates.max(), rel=1e-3)
+    # at rest (the path's ends) the forces are the static ones of the payload's weight
+    F = ev.dynamic_forces
+    sf = parasynth.static_forces(mech, path.X[[0, -1]], parasynth.measures.indices.gravity_wrench(
+        mech, path.X[[0, -1]], 3.0))
+    np.testing.assert_allclose(F[[0, -1]], np.abs(sf.actuator), rtol=1e-9)
