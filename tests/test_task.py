@@ -108,6 +108,10 @@ def test_a_mechanism_with_fewer_freedoms_takes_its_own_coordinates(rpu):
     np.testing.assert_allclose(t.platform_poses(rpu)[0], [0.65, np.deg2rad(25), np.deg2rad(15)])
     with pytest.raises(TaskError, match=r"task\.poses\.gamma: 2rpu_2sps has no freedom 'gamma'"):
         Task.from_mapping({"poses": [{"z": "650 mm", "gamma": "5 deg"}]}).platform_poses(rpu)
+    with pytest.raises(TaskError, match=r"^study\.task\.poses\.gamma: 2rpu_2sps has no freedom"):
+        Task.from_mapping({"poses": [{"z": "650 mm", "gamma": "5 deg"}]}, where="study.task").platform_poses(rpu)
+    with pytest.raises(TaskError, match=r"^study\.task\.poses\.grid\.z\[2\]: the step must be positive"):
+        Task.from_mapping({"poses": {"grid": {"z": ["1 mm", "2 mm", "0 mm"]}}}, where="study.task")
     with pytest.raises(TaskError, match=r"task\.poses\.psi: 'psi' is an angle coordinate"):
         Task.from_mapping({"poses": [{"z": "650 mm", "psi": "5 mm"}]}).platform_poses(rpu)
     # a tool offset that needs a motion the mechanism lacks

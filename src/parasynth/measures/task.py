@@ -669,7 +669,8 @@ def installed_height(mech, task=None, **kw) -> float:
     if not len(Y):
         return np.inf
     _, states, _ = mech.leg_states(Y)
-    pts = np.concatenate([np.stack([st.base_point for st in states], 1), np.stack([st.platform_point for st in states], 1)],
+    pts = np.concatenate([np.stack([st.base_point for st in states], 1),
+                          np.stack([st.platform_point for st in states], 1)],
                          axis=1)
     z = ((pts - task.placement.p) @ task.placement.R)[..., 2]
     return float(np.nanmax(z) - np.nanmin(z))

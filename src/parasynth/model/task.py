@@ -374,7 +374,7 @@ class Task:
                  payload=None, placement=None, convention: str = "xyz", frame: str | None = None,
                  wrench_frame: str = "task", wrench_signs: bool = False, gravity: float = G0, trajectory=None,
                  space=None, floors=None, order: str = "given", leg_diameter: float | None = None,
-                 coordinate_kinds=None):
+                 coordinate_kinds=None, where: str = "task"):
         if poses is None:
             raise TaskError("task.poses: give the required poses (an (N, k) array)")
         try:
@@ -384,7 +384,8 @@ class Task:
         if P is not None and P.ndim == 1:
             P = P[None, :]
         if P is None or P.ndim != 2 or P.shape[0] == 0 or P.shape[1] == 0:
-            raise TaskError(f"task.poses: give an (N, k) array of numbers, got {np.shape(poses) if P is not None else poses!r}")
+            got = np.shape(poses) if P is not None else repr(poses)
+            raise TaskError(f"task.poses: give an (N, k) array of numbers, got {got}")
         if np.any(np.isinf(P)):
             raise TaskError("task.poses: coordinates must be finite (NaN leaves a coordinate at home)")
         if coordinates is not None:
@@ -397,6 +398,8 @@ class Task:
         self.poses.setflags(write=False)
         self.coordinates = coordinates
         self.coordinate_kinds = dict(coordinate_kinds or {})
+        #: The key path of the task in its file, for the messages of a task meeting a mechanism.
+        self.where = str(where)
         if convention not in TASK_CONVENTIONS:
             raise TaskError(f"task.convention: unknown Euler convention {convention!r}; allowed: "
                             f"{', '.join(TASK_CONVENTIONS)}")
@@ -418,7 +421,8 @@ class Task:
                 raise TaskError(f"task.placement.{unknown[0]}: unknown key; allowed: offset, yaw, hanging")
             self.placement = Placement(**placement)
         else:
-            raise TaskError(f"task.placement: give a Placement or a mapping {{offset, yaw, hanging}}, got {placement!r}")
+            raise TaskError(f"task.placement: give a Placement or a mapping {{offset, yaw, hanging}}, "
+                            f"got {placement!r}")
         N = P.shape[0]
         if wrench is None:
             self.wrench = None
@@ -519,24 +523,27 @@ class Task:
         """'own' (the mechanism's own task coordinates) or 'full' (x, y, z, alpha, beta, gamma)."""
         if self.coordinates is None:
             if self.poses.shape[1] != mech.n_task:
-                raise TaskError(f"task.poses: {self.poses.shape[1]} columns given; {mech.name} has {mech.n_task} task "
+                raise TaskError(f"{self.where}.poses: {self.poses.shape[1]} columns given; {mech.name} has "
+                                f"{mech.n_task} task "
                                 f"coordinates {', '.join(mech.task_coordinates)}")
             return "own"
         if mech.n_task == 6:
             bad = [c for c in self.coordinates if c not in STANDARD_NAMES]
             if bad:
-                raise TaskError(f"task.poses.{bad[0]}: not a pose coordinate of a 6-freedom mechanism; allowed: "
+                raise TaskError(f"{self.where}.poses.{bad[0]}: not a pose coordinate of a 6-freedom mechanism; "
+                                f"allowed: "
                                 f"{', '.join(STANDARD_NAMES)}")
             return "full"
         bad = [c for c in self.coordinates if c not in mech.task_coordinates]
         if bad:
-            raise TaskError(f"task.poses.{bad[0]}: {mech.name} has no freedom {bad[0]!r} (it has "
+            raise TaskError(f"{self.where}.poses.{bad[0]}: {mech.name} has no freedom {bad[0]!r} (it has "
                             f"{mech.n_task}: {', '.join(mech.task_coordinates)}; a mechanism with fewer than 6 "
                             f"freedoms takes poses in its own task coordinates)")
         for c, kind in self.coordinate_kinds.items():
             want = "angle" if c in mech.angular_coordinates else "length"
             if c in mech.task_coordinates and kind != want:
-                raise TaskError(f"task.poses.{c}: {c!r} is a{'n' if want == 'angle' else ''} {want} coordinate of "
+                raise TaskError(f"{self.where}.poses.{c}: {c!r} is a{'n' if want == 'angle' else ''} {want} "
+                                f"coordinate of "
                                 f"{mech.name}, given as a{'n' if kind == 'angle' else ''} {kind}")
         return "own"
 
@@ -599,7 +606,8 @@ class Task:
         if self.space is not None:
             c = self.space_clearance(mech, mech.home[None, :])
             if not np.all(c >= 0):
-                raise TaskError(f"task.space: the mechanism's bodies at its home pose are not inside the installation "
+                raise TaskError(f"{self.where}.space: the mechanism's bodies at its home pose are not inside the "
+                                f"installation "
                                 f"space (clearance {float(np.min(c)) * 1e3:.4g} mm)")
 
     def platform_poses(self, mech) -> np.ndarray:
@@ -613,9 +621,10 @@ class Task:
         """Poses (p, R) in ``W`` of the task's frame at every required pose."""
         return self._frame_pose_W(mech, self._mode(mech))
 
-    def coordinates_of(self, mech, p, R, guess=None, where: str = "task.poses") -> np.ndarray:
+    def coordinates_of(self, mech, p, R, guess=None, where: str | None = None) -> np.ndarray:
         """Task coordinates (N, d) of ``mech`` for poses ``(p, R)`` in ``W`` of the task's frame."""
         mode = self._mode(mech)
+        where = f"{self.where}.poses" if where is None else where
         pb, Rb = self.frame_to_platform(p, R)
         std = standard_parametrisation(mech)
         if std is not None:  # the mechanism's coordinates are a position and named Euler angles: exact
@@ -708,7 +717,7 @@ class Task:
         N = R.shape[0]
         w = np.broadcast_to(self.wrench, (N, 6)) if self.wrench.ndim == 1 else self.wrench
         if w.shape[0] != N:
-            raise TaskError(f"task.wrench: {w.shape[0]} per-pose wrenches for {N} samples")
+            raise TaskError(f"{self.where}.wrench: {w.shape[0]} per-pose wrenches for {N} samples")
         if self.wrench_frame == "task":
             Rf = np.broadcast_to(self.placement.R, (N, 3, 3))
         elif self.wrench_frame == "base":
@@ -742,7 +751,7 @@ class Task:
 
         def coords(sv):
             Xs = X[seg] + sv[:, None] * dX
-            return self.coordinates_of(mech, *mech.pose(Xs), guess=Xs, where="task.trajectory")
+            return self.coordinates_of(mech, *mech.pose(Xs), guess=Xs, where=f"{self.where}.trajectory")
 
         return _chain(ps, coords(s), coords(s + _H), coords(s - _H))
 
@@ -771,9 +780,9 @@ class Task:
 
     def _full_path(self, mech):
         ps, at, dp, axis = self._full_samples(mech)
-        X0 = self.coordinates_of(mech, *at["0"], where="task.trajectory")
-        path = _chain(ps, X0, self.coordinates_of(mech, *at["+"], where="task.trajectory"),
-                      self.coordinates_of(mech, *at["-"], where="task.trajectory"))
+        X0 = self.coordinates_of(mech, *at["0"], where=f"{self.where}.trajectory")
+        path = _chain(ps, X0, self.coordinates_of(mech, *at["+"], where=f"{self.where}.trajectory"),
+                      self.coordinates_of(mech, *at["-"], where=f"{self.where}.trajectory"))
         # the platform's twist and acceleration in B, exactly
         Rw = self.placement.R
         w, al = (axis @ Rw.T) * ps.sd[:, None], (axis @ Rw.T) * ps.sdd[:, None]
@@ -789,7 +798,7 @@ class Task:
     def _timed_path(self, mech, mode):
         tr = self.trajectory
         sub = Task(tr.values, coordinates=tr.coordinates, tool=self.tool, placement=self.placement,
-                   convention=self.convention, frame=self.frame)
+                   convention=self.convention, frame=self.frame, where=f"{self.where}.trajectory.file")
         X = sub.platform_poses(mech)
         t = np.asarray(tr.times, dtype=float)
         Xd = np.gradient(X, t, axis=0, edge_order=2)
@@ -1010,7 +1019,8 @@ class _Reader:
             v = self.q(value, kind, path)
         old = self.pose_kinds.setdefault(name, kind)
         if old != kind:
-            raise TaskError(f"{path}: {name!r} is a{'n' if old == 'angle' else ''} {old} elsewhere, here a{'n' if kind == 'angle' else ''} {kind}")
+            raise TaskError(f"{path}: {name!r} is a{'n' if old == 'angle' else ''} {old} elsewhere, "
+                            f"here a{'n' if kind == 'angle' else ''} {kind}")
         return v
 
     # quantities
@@ -1084,7 +1094,7 @@ class _Reader:
         try:
             return Task(P, coordinates=names, tool=tool, placement=placement, convention=conv, frame=frame,
                         trajectory=traj, space=space, floors=floors, order=order, leg_diameter=dia,
-                        coordinate_kinds=dict(self.pose_kinds), **loads)
+                        coordinate_kinds=dict(self.pose_kinds), where=w, **loads)
         except TaskError as e:
             msg = str(e)
             raise TaskError(msg if msg.startswith(w) else f"{w}.{msg.removeprefix('task.')}") from None
