@@ -605,7 +605,7 @@ def _skew(v):
                      np.stack([-v[:, 1], v[:, 0], z], -1)], -2)
 
 
-@register("task_position_error_max", unit="m", kind="length", sense="minimize", cost="cheap",
+@register("task_position_error_max", unit="m", kind="length", sense="minimize", cost="expensive",
           settings={**_BASE, **{k: Setting(kind, default=0.0, low=0.0) for k, kind in TOLERANCE_SETTINGS.items()}})
 def task_position_error_max(mech, task=None, **kw) -> float:
     """Largest first-order worst-case position error (m) of the tool point over the task's
