@@ -662,16 +662,17 @@ def envelope_clearance(mech, task=None, **kw) -> float:
 
 @register("installed_height", unit="m", kind="length", sense="minimize", settings=_BASE, cost="cheap")
 def installed_height(mech, task=None, **kw) -> float:
-    """Extent (m) along the task frame's z of the base anchors, the legs' joint centres and the
-    platform anchors over the task's feasible poses (inf if none)."""
+    """Extent (m) along the task frame's z of the base anchors, the legs' joint centres (a
+    crank's tip) and the platform joints over the task's feasible poses (inf if none)."""
     ev = _ev(mech, task, kw)
     Y = ev.Xf
     if not len(Y):
         return np.inf
     _, states, _ = mech.leg_states(Y)
-    pts = np.concatenate([np.stack([st.base_point for st in states], 1),
-                          np.stack([st.platform_point for st in states], 1)],
-                         axis=1)
+    fixed = np.broadcast_to(np.array([np.asarray(leg.base, dtype=float) for leg in mech.legs]),
+                            (len(Y), len(mech.legs), 3))
+    pts = np.concatenate([fixed, np.stack([st.base_point for st in states], 1),
+                          np.stack([st.platform_point for st in states], 1)], axis=1)
     z = ((pts - task.placement.p) @ task.placement.R)[..., 2]
     return float(np.nanmax(z) - np.nanmin(z))
 

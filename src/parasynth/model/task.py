@@ -662,7 +662,8 @@ class Task:
         not pass it, to the base plane): base anchors and the legs' base and platform joint
         centres (leg segments of ``diameter``, default ``leg_diameter`` of the task or the
         mechanism's parameter ``leg_diameter``, else 0: the clearance of a segment in a convex
-        space is the smaller of its ends'), the platform anchors and a 16-point circle through
+        space is the smaller of its ends'; a crank from its pivot to its tip likewise), the
+        platform anchors and a 16-point circle through
         the farthest anchor in the platform plane (the platform as a disc). NaN where
         unreachable. ``inf`` without a space."""
         if self.space is None:
@@ -677,7 +678,10 @@ class Task:
         def toW(x):
             return (x - pw) @ Rw
 
-        ends = np.stack([st.base_point for st in states] + [st.platform_point for st in states], axis=1)
+        fixed = np.broadcast_to(np.array([np.asarray(leg.base, dtype=float) for leg in mech.legs]),
+                                (len(Xa), len(mech.legs), 3))  # the base anchors (a crank's pivot)
+        ends = np.concatenate([fixed, np.stack([st.base_point for st in states] + [st.platform_point for st in states],
+                                               axis=1)], axis=1)
         c_leg = self.space.clearance(toW(ends)) - 0.5 * d
         # the platform as a disc through its farthest anchor
         anchors = np.stack([leg.platform for leg in mech.legs], axis=0) if hasattr(mech.legs[0], "platform") else None
