@@ -199,11 +199,14 @@ def test_a_path_through_the_gamma_90_singularity_breaks_at_the_first_sample_past
     assert 0 < past < len(gam) - 1 and gam[past - 1] < np.pi / 2
     c = path_continuity(gs, path.X)
     assert c.rule == "sign" and c.reason == "singularity" and c.first_break == past
+    got = objectives.get("task_path_followed")(gs, task=task, constraints=[])
+    assert got == pytest.approx(past / len(gam))
     # the same path stopping short of 90 deg is followed
     short = Task(poses=np.array([P[0], [0.0, 0.0, 0.6, 0.0, 0.0, np.deg2rad(85)]]),
                  trajectory={"speed": 0.5, "acceleration": 2.0, "angular_speed": 1.0,
                              "angular_acceleration": 4.0, "dt": 0.01})
     assert path_continuity(gs, short.path(gs).X).ok
+    assert objectives.get("task_path_followed")(gs, task=short, constraints=[]) == 1.0
 
 
 def test_continuity_flags_a_change_of_assembly_mode(gs):

@@ -721,10 +721,25 @@ def moving_mass(mech, task=None, density: float = 7850.0, leg_diameter=None, pla
     return float(rod + disc)
 
 
+@register("task_path_followed", unit="1", sense="maximize", cost="expensive",
+          settings={**_BASE, "floor": Setting("float", default=1e-3, low=0.0, high=1.0,
+                                              doc="singularity-margin floor where no sign rule applies")})
+def task_path_followed(mech, task=None, floor: float = 1e-3, **kw) -> float:
+    """Share of the path (of its samples; of the required poses in their order without a
+    trajectory) that the robot follows before the first sample breaking continuity
+    (infeasible, a floor, a singularity crossed, a change of assembly mode): 1 when it follows
+    all of it (:func:`path_continuity`)."""
+    ev = _ev(mech, task, kw)
+    c = ev.continuity(floor=floor)
+    n = len(ev.path.X) if task.trajectory is not None else len(ev.X)
+    return 1.0 if c.first_break is None else c.first_break / n
+
+
 #: The task measures, in the order of docs/tasks.md.
 TASK_MEASURES = ("task_coverage", "task_margin_min", "task_condition_max", "task_lti_min", "task_stiffness_min",
                  "task_position_error_max", "task_actuator_force_max", "task_actuator_speed_max",
-                 "task_actuator_power_max", "envelope_clearance", "installed_height", "total_stroke", "moving_mass")
+                 "task_actuator_power_max", "envelope_clearance", "installed_height", "total_stroke", "moving_mass",
+                 "task_path_followed")
 
 
 def task_measures(mech, task: Task, names=TASK_MEASURES, **settings) -> dict:
