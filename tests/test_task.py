@@ -132,6 +132,10 @@ def test_loads_and_gravity_in_the_task_frame(gs):
     np.testing.assert_allclose(np.diag(t.payload.tensor), [0.01, 0.02, 0.03])
     np.testing.assert_allclose(t.wrench, [0, 0, -10, 0, 0, 0])
     assert t.wrench_signs and t.wrench_frame == "base"
+    # a gravity vector in W (a model whose vertical is y)
+    t = Task.from_mapping({"poses": [{"z": "600 mm"}], "placement": {"yaw": "90 deg"},
+                           "loads": {"gravity": ["0 m/s^2", "-9.81 m/s^2", "0 m/s^2"]}})
+    np.testing.assert_allclose(t.gravity_vector(), [9.81, 0, 0], atol=1e-12)  # W's -y is B's +x
 
 
 def test_profile_limits_on_a_sampled_path(gs):

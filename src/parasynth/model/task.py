@@ -48,7 +48,8 @@ Loads
 tool frame (``"tool"``, turning with it); one wrench or one per pose; ``wrench_signs=True``
 takes, per actuator, the worst of every sign combination of its nonzero components. The
 ``payload`` (mass, centre of mass in the platform frame, inertia about the centre of mass in
-the platform frame) weighs ``gravity`` (default 9.80665 m/s^2) along ``-z`` of ``W``.
+the platform frame) weighs ``gravity`` (default 9.80665 m/s^2) along ``-z`` of ``W``, or along a
+gravity vector given in ``W`` (for a model whose vertical is another axis, e.g. ``4ups_1rps``'s y).
 """
 
 from __future__ import annotations
@@ -364,7 +365,7 @@ class Task:
     array, "tool" otherwise). ``wrench`` (6,) or (N, 6) N and N m at the tool point;
     ``wrench_frame`` "task" | "base" | "tool"; ``wrench_signs``. ``payload``: a
     :class:`Payload` or a mapping ``{mass, com, inertia}``. ``gravity`` (m/s^2, along -z of
-    ``W``). ``trajectory``: a :class:`TrajectorySpec` or a mapping of motion limits (SI) with
+    ``W``; or a vector (3,) in ``W``). ``trajectory``: a :class:`TrajectorySpec` or a mapping of motion limits (SI) with
     ``dt``. ``space``: a :class:`Space` or a mapping. ``floors``: {"condition": {"max": 500},
     "singularity_margin": {"min": 0.05}, "lti": {"min": 0.5}} that hold at every pose and path
     sample. ``order``: "given" or "nearest" (greedy nearest neighbour from the first pose).
@@ -451,7 +452,10 @@ class Task:
             self.payload = Payload(**payload)
         else:
             raise TaskError(f"task.payload: give a mapping {{mass, com, inertia}}, got {payload!r}")
-        self.gravity = _num("task.loads.gravity", gravity, "a gravity >= 0 (m/s^2)", low=0.0)
+        if isinstance(gravity, (list, tuple, np.ndarray)):
+            self.gravity = np.array(_vec("task.loads.gravity", gravity, 3, "m/s^2"))
+        else:
+            self.gravity = _num("task.loads.gravity", gravity, "a gravity >= 0 (m/s^2) or a vector in W", low=0.0)
         self.trajectory = _as_trajectory("task.trajectory", trajectory)
         if space is None or isinstance(space, Space):
             self.space = space
@@ -710,8 +714,9 @@ class Task:
 
     # -- loads ---------------------------------------------------------------------------------------
     def gravity_vector(self) -> np.ndarray:
-        """Gravity (m/s^2) in ``B``: ``gravity`` along -z of ``W``."""
-        return self.placement.R @ np.array([0.0, 0.0, -self.gravity])
+        """Gravity (m/s^2) in ``B``: ``gravity`` along -z of ``W`` (or the vector given in ``W``)."""
+        g = self.gravity if isinstance(self.gravity, np.ndarray) else np.array([0.0, 0.0, -self.gravity])
+        return self.placement.R @ g
 
     def wrench_components(self, R, n: int | None = None) -> np.ndarray | None:
         """The external wrench at the tool point in ``B``, (N, 6), for platform orientations
@@ -1309,10 +1314,13 @@ class _Reader:
                 raise TaskError(f"{path}.frame: must be task, base or tool, got {m['frame']!r}")
             out["wrench_frame"] = m["frame"]
         if "gravity" in m:
-            g = self.q(m["gravity"], "gravity", f"{path}.gravity")
-            if g < 0:
-                raise TaskError(f"{path}.gravity: must be >= 0, got {m['gravity']!r}")
-            out["gravity"] = g
+            if isinstance(m["gravity"], list):
+                out["gravity"] = self.qlist(m["gravity"], "gravity", 3, f"{path}.gravity")
+            else:
+                g = self.q(m["gravity"], "gravity", f"{path}.gravity")
+                if g < 0:
+                    raise TaskError(f"{path}.gravity: must be >= 0, got {m['gravity']!r}")
+                out["gravity"] = g
         return out
 
     def _wrench(self, wr, path):
