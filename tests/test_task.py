@@ -304,3 +304,21 @@ def test_timed_file_needs_a_time_column(tmp_path):
 def test_bad_python_arguments(kwargs, message):
     with pytest.raises(TaskError, match=message):
         Task(**kwargs)
+
+
+def test_a_coupled_mechanism_reaches_a_placed_pose_within_the_pose_tolerance():
+    """The 5-PUS/UPU's orientation is coupled to its position: a placement offset is reached in
+    the least-squares sense, within pose_tolerance, or refused."""
+    mech = parasynth.load_mechanism("5pus_upu")
+    X = np.tile(mech.home, (2, 1))
+    X[1, 0], X[1, 3] = 0.02, 0.05  # off-centre and tilted: the limb's angle q1 = atan2(x, z - z_B) moves with z
+    strict = Task(poses=X, coordinates=mech.task_coordinates, placement={"offset": (0, 0, 0.01)}, pose_tolerance=1e-9)
+    with pytest.raises(TaskError, match=r"task\.poses\[1\]: the platform pose asked for is outside the freedoms"):
+        strict.platform_poses(mech)
+    loose = Task(poses=X, coordinates=mech.task_coordinates, placement={"offset": (0, 0, 0.01)}, pose_tolerance=1e-3)
+    Y = loose.platform_poses(mech)
+    p, R = mech.pose(Y)
+    p0, R0 = mech.pose(X)
+    np.testing.assert_allclose(p[0], p0[0] + [0, 0, 0.01], atol=1e-12)  # at home the shift is exact
+    assert np.linalg.norm(p[1] - p0[1] - [0, 0, 0.01]) < 1e-3 * mech.length_scale
+    assert np.linalg.norm(rotation_log(R[1] @ R0[1].T)) < 1e-3

@@ -29,9 +29,11 @@ A pose is a set of named coordinates; a coordinate not named takes its home valu
   mechanism's home pose.
 * For a mechanism with fewer freedoms the poses are given in its own task coordinates (its
   ``task_coordinates``, e.g. ``z, psi, theta``); a name it does not have is an error
-  (:class:`TaskError`) when the task meets the mechanism. The pose of the frame in ``W`` is
-  then ``mech.pose`` of those coordinates (its own parametrisation read in ``W``), so with
-  no placement and no tool the mechanism's coordinates are the given ones.
+  (:class:`TaskError`) when the task meets the mechanism. They describe the **platform**
+  (its own parametrisation read in ``W``: without a placement the mechanism's coordinates are
+  the given ones); a tool only places the tool point (where the wrench acts, the stiffness
+  and the position error are taken), since such a mechanism cannot in general hold a tool
+  pose derived from its own coordinates (its freedoms are coupled).
 
 Poses describe the tool frame (``frame="tool"``, the default of a task file) or the platform
 frame (``frame="platform"``; the default of ``Task(poses=X)`` with an unnamed array, whose
@@ -369,13 +371,17 @@ class Task:
     ``dt``. ``space``: a :class:`Space` or a mapping. ``floors``: {"condition": {"max": 500},
     "singularity_margin": {"min": 0.05}, "lti": {"min": 0.5}} that hold at every pose and path
     sample. ``order``: "given" or "nearest" (greedy nearest neighbour from the first pose).
+    ``pose_tolerance``: the largest residual (fraction of the length scale) of a platform pose
+    the mechanism reaches only in the least-squares sense (default 1e-6; a mechanism whose
+    orientation is coupled to its position, e.g. the 5-PUS/UPU, reaches a placed pose only
+    approximately).
     """
 
     def __init__(self, poses=None, *, coordinates=None, tool=None, tool_yaw: float = 0.0, wrench=None,
                  payload=None, placement=None, convention: str = "xyz", frame: str | None = None,
                  wrench_frame: str = "task", wrench_signs: bool = False, gravity: float = G0, trajectory=None,
                  space=None, floors=None, order: str = "given", leg_diameter: float | None = None,
-                 coordinate_kinds=None, where: str = "task"):
+                 coordinate_kinds=None, where: str = "task", pose_tolerance: float = 1e-6):
         if poses is None:
             raise TaskError("task.poses: give the required poses (an (N, k) array)")
         try:
@@ -401,6 +407,10 @@ class Task:
         self.coordinate_kinds = dict(coordinate_kinds or {})
         #: The key path of the task in its file, for the messages of a task meeting a mechanism.
         self.where = str(where)
+        #: Largest residual (fraction of the length scale; rotations in rad) of a platform pose
+        #: the mechanism reaches only in the least-squares sense.
+        self.pose_tolerance = _num("task.pose_tolerance", pose_tolerance, "a fraction > 0 of the length scale",
+                                   low=0.0, strict=True)
         if convention not in TASK_CONVENTIONS:
             raise TaskError(f"task.convention: unknown Euler convention {convention!r}; allowed: "
                             f"{', '.join(TASK_CONVENTIONS)}")
@@ -617,9 +627,17 @@ class Task:
     def platform_poses(self, mech) -> np.ndarray:
         """The mechanism's task coordinates (N, d) of the platform for every required pose."""
         mode = self._mode(mech)
-        if mode == "own" and self.placement.identity and (self.frame == "platform" or self.tool.identity):
-            return self._own_coordinates(mech)
+        if mode == "own":
+            if self.placement.identity:
+                return self._own_coordinates(mech)
+            own = self._as_platform()
+            return own.coordinates_of(mech, *own._frame_pose_W(mech, mode))
         return self.coordinates_of(mech, *self._frame_pose_W(mech, mode))
+
+    def _as_platform(self) -> "Task":
+        """This task with its poses read as the platform's (own coordinates describe the
+        platform: a tool on a mechanism with fewer than 6 freedoms only places the tool point)."""
+        return self if self.frame == "platform" else self._copy(frame="platform")
 
     def frame_pose_W(self, mech):
         """Poses (p, R) in ``W`` of the task's frame at every required pose."""
@@ -639,7 +657,7 @@ class Task:
             return X
         if guess is None:
             guess = self._guess(mech, pb, Rb, mode)
-        return solve_pose(mech, pb, Rb, guess, where)
+        return solve_pose(mech, pb, Rb, guess, where, tol=self.pose_tolerance)
 
     def _guess(self, mech, pb, Rb, mode):
         N = pb.shape[0]
@@ -754,13 +772,14 @@ class Task:
         ps = sample_path(np.linalg.norm(dX[:, lin], axis=1), np.linalg.norm(dX[:, ~lin], axis=1), tr.limits, tr.dt)
         seg, s = ps.segment, ps.s
         dX = X[seg + 1] - X[seg]
-        if self.placement.identity and (self.frame == "platform" or self.tool.identity):
+        own = self._as_platform()
+        if self.placement.identity:
             # a straight line in the mechanism's own coordinates
             return TaskPath(ps.t, X[seg] + s[:, None] * dX, dX * ps.sd[:, None], dX * ps.sdd[:, None], ps)
 
         def coords(sv):
             Xs = X[seg] + sv[:, None] * dX
-            return self.coordinates_of(mech, *mech.pose(Xs), guess=Xs, where=f"{self.where}.trajectory")
+            return own.coordinates_of(mech, *mech.pose(Xs), guess=Xs, where=f"{self.where}.trajectory")
 
         return _chain(ps, coords(s), coords(s + _H), coords(s - _H))
 
@@ -940,14 +959,16 @@ def _check_floors(where, floors) -> dict:
     return out
 
 
-def solve_pose(mech, p, R, guess, where="task.poses", tol: float = 1e-9, max_iter: int = 30) -> np.ndarray:
-    """Task coordinates (N, d) of ``mech`` whose platform pose is ``(p, R)`` in ``B``: damped
+def solve_pose(mech, p, R, guess, where="task.poses", tol: float = 1e-6, max_iter: int = 40) -> np.ndarray:
+    """Task coordinates (N, d) of ``mech`` whose platform pose is nearest ``(p, R)`` in ``B``:
     Gauss-Newton on the pose parametrisation from ``guess`` (lengths scaled by the length
-    scale). :class:`TaskError` naming the first pose whose residual stays above ``tol`` times
-    the length scale (a pose outside the mechanism's freedoms)."""
+    scale, halved steps where a full one does not improve), to the exact pose or the least
+    squares one. :class:`TaskError` naming the first pose whose residual stays above ``tol``
+    times the length scale (a pose outside the mechanism's freedoms; a mechanism whose
+    orientation is coupled to its position reaches a shifted pose only to within such a
+    residual)."""
     L = float(mech.length_scale)
     X = np.array(guess, dtype=float, copy=True)
-    N = X.shape[0]
 
     def err(Xc, sel=slice(None)):
         pc, Rc = mech.pose(Xc)
@@ -955,12 +976,12 @@ def solve_pose(mech, p, R, guess, where="task.poses", tol: float = 1e-9, max_ite
 
     e = err(X)
     n = np.linalg.norm(e, axis=1)
-    bad = ~(n <= tol)
+    active = ~(n <= 1e-12)
     it = 0
     lin = np.array([c not in mech.angular_coordinates for c in mech.task_coordinates])
     cs = np.where(lin, 1.0 / L, 1.0)
-    while np.any(bad) and it < max_iter:
-        idx = np.flatnonzero(bad)
+    while np.any(active) and it < max_iter:
+        idx = np.flatnonzero(active)
         Ts = mech.twist_map(X[idx]) / cs[None, None, :]
         Ts[:, :3, :] /= L
         dY = np.einsum("nij,nj->ni", np.linalg.pinv(Ts, rcond=1e-10), e[idx])
@@ -968,21 +989,23 @@ def solve_pose(mech, p, R, guess, where="task.poses", tol: float = 1e-9, max_ite
         en = err(Xn, idx)
         nn = np.linalg.norm(en, axis=1)
         better = nn < n[idx]
-        # a half step where the full one does not improve
-        if not np.all(better):
+        if not np.all(better):  # a half step where the full one does not improve
             k = ~better
             Xh = X[idx[k]] + 0.5 * dY[k] / cs
             eh = err(Xh, idx[k])
             nh = np.linalg.norm(eh, axis=1)
             Xn[k], en[k], nn[k] = Xh, eh, nh
-        X[idx], e[idx], n[idx] = Xn, en, nn
-        bad = ~(n <= tol)
+        take = nn <= n[idx]
+        X[idx[take]], e[idx[take]], n[idx[take]] = Xn[take], en[take], nn[take]
+        step = np.linalg.norm(dY, axis=1)
+        active[idx] = take & (nn > 1e-12) & (step > 1e-13)
         it += 1
+    bad = ~(n <= tol)
     if np.any(bad):
         i = int(np.flatnonzero(bad)[0])
         raise TaskError(f"{where}[{i}]: the platform pose asked for is outside the freedoms of {mech.name} "
-                        f"(residual {n[i]:.3g} of its length scale after {it} steps: a pose, placement or tool "
-                        f"that needs a motion the mechanism does not have)")
+                        f"(residual {n[i]:.3g} of its length scale, above {tol:g}: a pose, placement or tool that "
+                        f"needs a motion the mechanism does not have)")
     return X
 
 
@@ -1083,7 +1106,7 @@ class _Reader:
     def task(self, m):
         w = self.where
         self.keys(m, {"poses", "convention", "frame", "placement", "tool", "trajectory", "loads", "space", "floors",
-                      "doc"}, w)
+                      "pose_tolerance", "doc"}, w)
         conv = m.get("convention", "xyz")
         if conv not in TASK_CONVENTIONS:
             raise TaskError(f"{w}.convention: unknown orientation convention {conv!r}; allowed: "
@@ -1103,7 +1126,8 @@ class _Reader:
         try:
             return Task(P, coordinates=names, tool=tool, placement=placement, convention=conv, frame=frame,
                         trajectory=traj, space=space, floors=floors, order=order, leg_diameter=dia,
-                        coordinate_kinds=dict(self.pose_kinds), where=w, **loads)
+                        coordinate_kinds=dict(self.pose_kinds), where=w,
+                        pose_tolerance=m.get("pose_tolerance", 1e-6), **loads)
         except TaskError as e:
             msg = str(e)
             raise TaskError(msg if msg.startswith(w) else f"{w}.{msg.removeprefix('task.')}") from None
