@@ -36,8 +36,8 @@ Definitions (docs/tasks.md has the details):
   poses and path samples (m, or rad for cranks); ``moving_mass``: legs as solid rods and the
   platform as a solid disc of ``density`` (kg).
 
-Measures over poses return the worst value (0 for a "min" measure, inf for a "max" measure)
-when no pose is feasible.
+Measures over poses return their worst value when no pose is feasible: 0 for a measure to
+maximise (-inf for ``envelope_clearance``), inf for one to minimise.
 """
 
 from __future__ import annotations
