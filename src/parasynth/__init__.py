@@ -20,6 +20,7 @@ from .measures.robustness import robust
 from . import structures  # the package, callable as parasynth.structures(motion, ...)
 from .structures import Structure
 from .measures import objectives
+from .model.task import Task, TaskError
 from . import _compat
 
 _compat.install()  # the flat module paths of earlier releases import the same modules
@@ -64,4 +65,6 @@ __all__ = [
     "stiffness_matrix",
     "robust",
     "objectives",
+    "Task",
+    "TaskError",
 ]

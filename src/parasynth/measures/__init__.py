@@ -5,6 +5,7 @@ named measures (:mod:`.objectives`, settings declared with :mod:`.measure_spec`)
 scatter (:mod:`.robustness`) and display units (:mod:`.display`)."""
 
 from . import objectives
+from . import task  # registers the task measures
 from .dynamics import GRINDING_INERTIA, InertiaModel, force_decoupling, inverse_dynamics
 from .indices import (StaticForces, global_conditioning_index, local_condition_number, local_transmission_index,
                       min_max_forces, pressure_angle_indices, singularity_margin_stats, static_forces,

@@ -133,9 +133,9 @@ def _leg_residual(leg, p, R) -> np.ndarray:
         cb = unit(np.cross(leg.u_axis, n))
         cp = unit(np.cross(rotate_rows(R, leg.u_platform_axis), n))
         out.append(np.arctan2(np.sum(np.cross(cb, cp) * n, -1), np.sum(cb * cp, -1)))
-    elif j not in ("SPS", "UPS", "PUS"):
+    elif j not in ("SPS", "UPS", "PUS", "RUS"):  # six joint freedoms: the actuator alone closes the leg
         raise ValueError(f"accuracy: leg type {j!r} (leg {leg.name}) has no closure residual; supported: "
-                         f"SPS, UPS, PUS, RPS, PRS, RPU, UPU")
+                         f"SPS, UPS, PUS, RUS, RPS, PRS, RPU, UPU")
     return np.stack(out, axis=-1) if out else np.zeros(p.shape[:1] + (0,))
 
 
@@ -414,7 +414,7 @@ def _length_rows(mech):
     rows = []
     for leg in mech.legs:
         if leg.is_actuated:
-            rows.append(True)
+            rows.append(leg.actuator_kind != "angle")  # a crank angle is an angle
         rows += {"RPS": [True], "PRS": [True], "RPU": [True, False], "UPU": [False]}.get(leg.joints, [])
     return np.array(rows, bool)
 

@@ -364,8 +364,11 @@ def _motion(mech, X, Xd, Xdd, inertia: InertiaModel):
     Xds = np.where(ok[:, None], Xd, 0.0)
     Xdds = np.where(ok[:, None], Xdd, 0.0) if Xdd is not None else np.zeros_like(Xds)
     t, acc = platform_motion(mech, Xs, Xds, Xdds)
-    _, states, p = mech.leg_states(Xs)
-    _, R = mech.pose(Xs)
+    if ok.all():  # every pose reachable: the wrench system's leg states are those of Xs
+        states, p, R = ws.states, ws.p, ws.R
+    else:
+        _, states, p = mech.leg_states(Xs)
+        _, R = mech.pose(Xs)
     v, w = t[:, :3], t[:, 3:]
     a, al = acc[:, :3], acc[:, 3:]
     legs = []

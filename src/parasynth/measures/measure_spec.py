@@ -31,13 +31,14 @@ from dataclasses import dataclass
 from typing import Any, Callable, Mapping
 
 from ..common.units import UNIT_KINDS, QuantityError, parse_quantity
+from ..model.task import Task
 from ..common.validation import check_count, check_number
 
 __all__ = ["Setting", "SettingError", "check_settings", "KINDS", "as_setting"]
 
 #: Kinds of settings that are not quantities: Python types, and the model-dependent kinds a
 #: study resolves against the mechanism (a task box, pose coordinates, pose constraint names).
-TYPE_KINDS = ("int", "float", "str", "bool", "list", "dict", "ranges", "pose", "pose_constraints")
+TYPE_KINDS = ("int", "float", "str", "bool", "list", "dict", "ranges", "pose", "pose_constraints", "task")
 #: Every kind a setting may have: the type kinds and the quantity kinds of :mod:`parasynth.common.units`.
 KINDS = TYPE_KINDS + tuple(k for k in UNIT_KINDS if k != "dimensionless")
 #: Kinds of the older ``{name: kind}`` declarations and the kind they stand for.
@@ -114,6 +115,12 @@ class Setting:
         if k == "dict":
             if not isinstance(value, Mapping):
                 raise SettingError(f"{where}: must be a mapping, got {value!r}")
+            return value
+        if k == "task":  # a parasynth.Task (a study resolves its task: section into one)
+            if resolve is not None and k in resolve:
+                return resolve[k](value, where)
+            if not isinstance(value, Task):
+                raise SettingError(f"{where}: must be a parasynth.Task, got {type(value).__name__}")
             return value
         if k in ("ranges", "pose", "pose_constraints"):
             return resolve[k](value, where) if resolve is not None and k in resolve else value
