@@ -64,7 +64,9 @@ def terminal_summary(study, table: pd.DataFrame, final: pd.DataFrame | None, out
         show = show.sort_values(o.label, ascending=(o.goal == "minimize"), kind="stable")
     if len(show):
         show = show.copy()
-        show.insert(0, "listed as", design_roles(study, show, kk, front=pool))
+        roles = design_roles(study, show, kk if a.recommendation is None or a.recommendation.verified else None,
+                             front=pool)
+        show.insert(0, "listed as", _with_verification(study, show, roles, a))
         n_front = len(pool)
         head = (f"non-dominated feasible designs: {n_front} distinct" + (f", {len(show)} listed (spread along the "
                 f"front)" if n_front > len(show) else "") if several else f"best feasible designs ({len(show)})")
@@ -90,6 +92,26 @@ def terminal_summary(study, table: pd.DataFrame, final: pd.DataFrame | None, out
     return lines
 
 
+def _with_verification(study, rows: pd.DataFrame, roles: list[str], a) -> list[str]:
+    """``roles`` with the outcome of verification: the recommended design says so (for one
+    objective too), a design that failed verification says that."""
+    rec = a.recommendation
+    fa = a.final
+    if rec is None or fa is None or "verified" not in fa.table:
+        return roles
+    verdict = {design_key(study, r): bool(r["verified"]) for _, r in fa.best.iterrows()}
+    rk = design_key(study, rec.row) if rec.verified and rec.row is not None else None
+    out = []
+    for role, (_, r) in zip(roles, rows.iterrows()):
+        k = design_key(study, r)
+        if k == rk and "recommended" not in role:
+            role = "recommended, " + role
+        if verdict.get(k) is False:
+            role += ", failed verification"
+        out.append(role)
+    return out
+
+
 def recommendation_lines(study, a) -> list[str]:
     """The first lines of a summary: the recommended design and whether it passed verification
     (:mod:`parasynth.study.verify`), or that none did, with what failed."""
@@ -107,7 +129,13 @@ def recommendation_lines(study, a) -> list[str]:
                      "version): run it again with --resume to verify it")
     elif rec.status == "verified":
         first = rec.first is not None and design_key(study, rec.first) == design_key(study, knee)
-        why = what if first else "the first design of the ranking that passed verification"
+        if first:
+            why = what
+        elif rec.failed:
+            why = "the first design of the ranking that passed verification"
+        else:  # the first-ranked design passed, and this one dominates it beyond noise once re-evaluated
+            why = (f"it dominates the {'knee' if several else 'best design on single samples'}, trial "
+                   f"{int(rec.first['trial'])}, beyond noise once re-evaluated")
         lines.append(f"recommended ({why}), verified: trial {int(knee['trial'])}: {vals} (single sample)")
         lines.append("  " + verification_text(study, rec.final_row))
     else:

@@ -396,8 +396,9 @@ def _resolve_robust(spec, measure: str, mech_cls, path: str, constraint: bool):
     if not constraint and spec.probability is not None:
         raise StudyError(f"{path}.probability: only a constraint takes a probability (a chance constraint)")
     if spec.probability is not None:  # a chance constraint counts the draws within the bound: no statistic
-        for key in ("statistic", "level"):
-            if key in spec.model_fields_set and getattr(spec, key) is not None:
+        # the defaults (statistic: mean, no level) are what a run's copy of the study file writes out
+        for key, default in (("statistic", "mean"), ("level", None)):
+            if key in spec.model_fields_set and getattr(spec, key) not in (None, default):
                 raise StudyError(f"{path}.{key}: a chance constraint (probability) is the fraction of the draws "
                                  f"within the bound and takes no {key}; leave {key} out, or drop probability for "
                                  f"a constraint on the {key if key == 'statistic' else 'quantile'}")
