@@ -9,6 +9,12 @@ the cube centre at z = 1.0 m (the working height ``X1``); the poses here are giv
 frame W at the cube centre (z up), so 1.0 m is subtracted from z. Angles are X-Y'-Z'' intrinsic
 Euler angles (``r2eulxyz``; parasynth's ``xyz``), written in degrees; positions in millimetres.
 
+Assumption (docs/tasks.md, the naval testbed): the robot hangs, and its tool frame E at rest
+points down (E's z axis, like the platform's, points away from the base). The listed angles tilt
+E from that rest orientation about its own axes: ``R_WE = Rx(180 deg) Rx(alpha) Ry(beta) Rz(gamma)``,
+whose X-Y'-Z'' angles are ``(alpha + 180 deg, beta, gamma)``. So the file's alpha column is the
+listed alpha plus 180 deg (wrapped to (-180, 180] deg); beta and gamma are as listed.
+
 Run ``python studies/tasks/naval_testbed_poses.py`` to write the file again.
 """
 
@@ -19,6 +25,7 @@ import numpy as np
 B_WS = 0.100  # half width of the cube (m)
 H_WS = 0.200  # height of the cube (m)
 PHI = np.deg2rad(15.0)  # tilt of every axis
+REST_ALPHA_DEG = 180.0  # the hanging tool's rest orientation, Rx(180 deg) in W
 
 
 def rows() -> np.ndarray:
@@ -83,9 +90,14 @@ def poses_in_W() -> np.ndarray:
 
 def main(path: Path = Path(__file__).with_name("naval_testbed_poses.csv")) -> Path:
     X = poses_in_W()
-    lines = ["x_mm,y_mm,z_mm,alpha_deg,beta_deg,gamma_deg"]
+    lines = ["# the naval testbed's 342 required tool poses in W (studies/tasks/naval_testbed_poses.py)",
+             "x [mm],y [mm],z [mm],alpha [deg],beta [deg],gamma [deg]"]
     for r in X:
-        vals = list(np.round(1000 * r[:3], 6)) + list(np.round(np.rad2deg(r[3:]), 6))
+        ang = np.rad2deg(r[3:]) + [REST_ALPHA_DEG, 0.0, 0.0]
+        ang[0] = (ang[0] + 180.0) % 360.0 - 180.0
+        if ang[0] == -180.0:
+            ang[0] = 180.0
+        vals = list(np.round(1000 * r[:3], 6)) + list(np.round(ang, 6))
         lines.append(",".join(f"{v:g}" for v in vals))
     path.write_text("\n".join(lines) + "\n")
     return path

@@ -67,7 +67,7 @@ import numpy as np
 
 from .spatial import EULER_CONVENTIONS, euler_to_matrix, rot_x, rot_z
 from .trajectory import MotionLimits, PathSamples, sample_path
-from ..common.units import UNIT_KINDS, QuantityError, _ureg, parse_quantity
+from ..common.units import UNIT_KINDS, QuantityError, _ureg, format_quantity, parse_quantity
 
 __all__ = ["Task", "TaskError", "Payload", "Placement", "Tool", "Space", "TrajectorySpec", "STANDARD_NAMES", "G0",
            "matrix_to_euler", "rotation_log", "FLOOR_KINDS"]
@@ -524,6 +524,39 @@ class Task:
                 (po if part == "placement" else to)["xyz".index(comp)] = v
         return self._copy(placement=Placement(tuple(po), pyaw, pl.hanging), tool=Tool(tuple(to), tyaw))
 
+    #: The most poses :meth:`refined` makes of a grid.
+    MAX_REFINED = 200_000
+
+    def refined(self, factor: int = 3, rate: int = 10) -> "Task":
+        """The denser task a recommended design is re-checked on (docs/verification.md): poses
+        that form a full grid (every combination of each coordinate's distinct values) refined
+        ``factor`` times per axis (``(n - 1) * factor + 1`` values between the same extremes; a
+        smaller factor where the grid would exceed :attr:`MAX_REFINED` poses), other pose lists
+        kept as they are; a profiled path sampled ``rate`` times as often (a file of timed
+        poses kept)."""
+        poses = self.poses
+        grid = None
+        if len(poses) and np.all(np.isfinite(poses)):
+            vals = [np.unique(poses[:, j]) for j in range(poses.shape[1])]
+            if math.prod(len(v) for v in vals) == len(poses):
+                grid = vals
+        new_poses = poses
+        if grid is not None and factor > 1:
+            f = int(factor)
+            while f > 1 and math.prod((len(v) - 1) * f + 1 for v in grid) > self.MAX_REFINED:
+                f -= 1
+            axes = [np.linspace(v[0], v[-1], (len(v) - 1) * f + 1) if len(v) > 1 else v for v in grid]
+            new_poses = np.array(np.meshgrid(*axes, indexing="ij")).reshape(len(axes), -1).T.copy()
+            new_poses.setflags(write=False)
+        traj = self.trajectory
+        if traj is not None and traj.limits is not None and rate > 1:
+            traj = dataclasses.replace(traj, dt=traj.dt / rate)
+        changes = {"poses": new_poses, "trajectory": traj}
+        if self.wrench is not None and self.wrench.ndim == 2 and new_poses is not poses:
+            changes["wrench"] = None  # a per-pose wrench has no value at the new poses
+            raise TaskError("task: a per-pose wrench cannot be refined to new poses; give a constant wrench")
+        return self._copy(**changes)
+
     def __repr__(self) -> str:
         return (f"<Task {self.poses.shape[0]} poses {self.coordinates or '(mechanism order)'} frame={self.frame}"
                 f"{' trajectory' if self.trajectory else ''}>")
@@ -621,8 +654,7 @@ class Task:
             c = self.space_clearance(mech, mech.home[None, :])
             if not np.all(c >= 0):
                 raise TaskError(f"{self.where}.space: the mechanism's bodies at its home pose are not inside the "
-                                f"installation "
-                                f"space (clearance {float(np.min(c)) * 1e3:.4g} mm)")
+                                f"installation space (clearance {format_quantity(float(np.min(c)), 'length')})")
 
     def platform_poses(self, mech) -> np.ndarray:
         """The mechanism's task coordinates (N, d) of the platform for every required pose."""
@@ -838,7 +870,7 @@ class Task:
     def from_mapping(cls, mapping, *, units=None, base_dir=None, where: str = "task") -> "Task":
         """The task of a study's ``task:`` section (docs/tasks.md). Quantities carry their
         units (``"200 mm"``, ``"15 deg"``, ``"0.5 m/s"``); ``units`` ({kind: unit}, e.g.
-        ``{"length": "mm", "angle": "deg"}``) gives the unit of bare numbers and of CSV columns
+        millimetres for lengths and degrees for angles) gives the unit of bare numbers and of CSV columns
         without one (a bare number without it is an error). Files are relative to
         ``base_dir`` (default the working directory). Raises :class:`TaskError` naming the key
         path under ``where``."""

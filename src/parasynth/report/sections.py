@@ -56,6 +56,16 @@ INDEX_MEANINGS = {
                                  "cross from home.",
     "force_decoupling_ratio": "the largest change of a driving-leg force per newton of grinding force: 0 is fully "
                               "decoupled, 1 a change as large as the grinding force itself.",
+    "task_coverage": "the share of the task's required poses the design reaches within every limit and floor, "
+                     "from 0 to 1 (1: every pose).",
+    "task_margin_min": f"the smallest singularity margin over the task's feasible poses; the singularity margin is "
+                       f"{_MARGIN}.",
+    "task_condition_max": "the largest condition number of the actuator Jacobian over the task's poses, in SI units "
+                          "(not made homogeneous): 1 is isotropic, it grows without bound towards a singularity; "
+                          "its value depends on the units, so compare it only within one study.",
+    "task_lti_min": f"the smallest local transmission index over the task's feasible poses; {_LTI}.",
+    "task_path_followed": "the share of the task's path followed before the first sample that is infeasible, "
+                          "crosses a singularity or changes the assembly mode, from 0 to 1 (1: all of it).",
 }
 
 #: Measures whose value is a share of a whole: the verdict states how the designs divide.

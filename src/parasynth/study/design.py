@@ -38,8 +38,9 @@ __all__ = ["design_params", "design_key", "BOX_CENTRE_U", "centre_value", "box_c
 
 def design_params(study, values: dict) -> dict:
     """Parameters of the mechanism for design ``values``: the fixed parameters, the design
-    values, and each tied parameter set to the variable it follows."""
-    params = {**study.fixed, **values}
+    values, and each tied parameter set to the variable it follows (the task's variables,
+    ``task.*``, are not the mechanism's: :func:`design_task`)."""
+    params = {**study.fixed, **{k: v for k, v in values.items() if not str(k).startswith("task.")}}
     for k, src in study.tied.items():
         if src in values:
             params[k] = values[src]
@@ -65,15 +66,29 @@ def evaluation_sample(study, n: int | None = None, seed: int | None = None) -> W
                            seed=ev["seed"] if seed is None else seed, fixed=ev.get("fixed"))
 
 
+def design_task(study, values: dict | None = None):
+    """The study's task (``study.task``, a :class:`parasynth.Task`) with the design's task
+    variables (``task.placement.z``, ``task.tool.yaw``, ...) applied; None without a task."""
+    task = getattr(study, "task", None)
+    if task is None:
+        return None
+    own = {str(k)[5:]: float(v) for k, v in (values or {}).items() if str(k).startswith("task.")}
+    return task.with_settings(own) if own else task
+
+
 def measure_arguments(study, measure_name: str, settings: dict, sample: WorkspaceSample,
-                      pinned: tuple = ()) -> dict:
+                      pinned: tuple = (), task=None) -> dict:
     """Keyword arguments of measure ``measure_name`` for one design: ``sample=`` the design's
     workspace sample (with the fields the measure's ``settings`` override, except those in
     ``pinned``, e.g. ``n`` and ``seed`` of a re-evaluation) where the measure takes one, the
     measure's own settings, and the study's evaluation value of each own setting declared with
-    an ``evaluation_key`` that ``settings`` leave out."""
+    an ``evaluation_key`` that ``settings`` leave out; a task measure's ``task`` is ``task`` (the
+    design's, :func:`design_task`), else the study's."""
     m = get_measure(measure_name)
     out = m.own(settings)
+    for k, p in m.params.items():
+        if p.kind == "task" and k not in out:
+            out[k] = task if task is not None else getattr(study, "task", None)
     for k, p in m.params.items():
         if p.evaluation_key and k not in out and study.evaluation.get(p.evaluation_key) is not None:
             out[k] = study.evaluation[p.evaluation_key]

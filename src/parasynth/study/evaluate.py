@@ -17,7 +17,7 @@ import traceback
 from dataclasses import dataclass, field
 
 from ..measures.objectives import get as get_measure
-from .design import design_mechanism, evaluation_sample, measure_arguments, measure_settings
+from .design import design_mechanism, design_task, evaluation_sample, measure_arguments, measure_settings
 from .spec import ResolvedStudy
 
 __all__ = ["Record", "Evaluator"]
@@ -94,14 +94,15 @@ class Evaluator:
         try:
             sample = self.sample(n, seed)
             mech = self.build(values)
+            task = design_task(self.study, values)  # one object per design: the task measures share its evaluation
             cons = sorted(self.study.constraints, key=lambda c: get_measure(c.name).cost != "cheap")
             for c in cons:
-                args = measure_arguments(self.study, c.name, c.settings, sample, pinned)
+                args = measure_arguments(self.study, c.name, c.settings, sample, pinned, task)
                 v = self._value(c, mech, args, rec, bound=c.bound, probability=c.probability)
                 rec.constraint_values[c.label] = v
                 rec.margins[c.label] = c.margin(v) if math.isfinite(v) else -math.inf
             for o in self.study.objectives:
-                args = measure_arguments(self.study, o.name, o.settings, sample, pinned)
+                args = measure_arguments(self.study, o.name, o.settings, sample, pinned, task)
                 v = self._value(o, mech, args, rec)
                 if not math.isfinite(v):
                     raise FloatingPointError(f"objective {o.label!r} is not finite ({v})")

@@ -36,6 +36,7 @@ import yaml
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, Strict, ValidationError
 
 from ..model.geometry_checks import degenerate_geometry
+from ..model.task import Task, TaskError
 from ..mechanisms import load_mechanism, mechanism_class, resolve_mechanism_name
 from ..measures.measure_spec import SettingError
 from ..measures.objectives import OBJECTIVES, get as get_measure
@@ -298,6 +299,11 @@ class StudySpec(_Model):
     tied: dict[str, str] = Field(default_factory=dict, description=(
         "Parameters that follow a design variable, {parameter: variable}; same unit."))
     output: str | None = Field(default=None, description="Run directory (default runs/<name>/); --out overrides it.")
+    task: dict[str, Any] | None = Field(default=None, description=(
+        "What the robot must do (docs/tasks.md): required poses, placement, tool, trajectory, loads, "
+        "installation space and floors, read by parasynth.Task.from_mapping; the task measures (task_coverage, "
+        "task_actuator_force_max, ...) are evaluated on it, and task.placement.* / task.tool.* may be design "
+        "variables. Not the task: section of a mechanism description (its task coordinates)."))
 
 
 #: The keys of ``reference`` that are not mechanism parameters (a mapping, so not fields of a model).
@@ -368,6 +374,7 @@ class ResolvedStudy:
     reference_label: str | None = None  # what the reference design is ("the paper's design")
     reference_source: str | None = None  # where it comes from (a paper, a drawing)
     structures: object = None  # StructureSetup of a study over structures (study.structure_space)
+    task: object = None  # the parasynth.Task of the study's task: section, or None
 
     @property
     def name(self) -> str:
@@ -468,6 +475,30 @@ def _allowed_keys(parent_loc) -> list[str]:
     return list(model.model_fields)
 
 
+#: Design variables a study's task offers: {name: kind} (docs/tasks.md, ``Task.with_settings``).
+TASK_VARIABLES = {"task.placement.x": "length", "task.placement.y": "length", "task.placement.z": "length",
+                  "task.placement.yaw": "angle", "task.tool.x": "length", "task.tool.y": "length",
+                  "task.tool.z": "length", "task.tool.yaw": "angle"}
+
+
+def _absolute_files(mapping, base_dir):
+    """``mapping`` with every ``file:`` value that is a relative path made absolute against
+    ``base_dir`` (a copy; the mapping itself when nothing changes)."""
+    if base_dir is None:
+        return mapping
+    if isinstance(mapping, dict):
+        out = {}
+        for k, v in mapping.items():
+            if k == "file" and isinstance(v, str) and v and not Path(v).is_absolute():
+                out[k] = str((Path(base_dir) / v).resolve())
+            else:
+                out[k] = _absolute_files(v, base_dir)
+        return out
+    if isinstance(mapping, list):
+        return [_absolute_files(v, base_dir) for v in mapping]
+    return mapping
+
+
 def _param_kinds(mech_cls) -> dict:
     return dict(getattr(mech_cls.Params, "UNITS", {}))
 
@@ -521,8 +552,22 @@ def resolve_study(data: dict, source: str | None = None) -> ResolvedStudy:
             spec = spec.model_copy(update={"mechanism": mech_name})
     kinds = _param_kinds(mech_cls)
     params = [f.name for f in dataclasses.fields(mech_cls.Params)]
+    study_task = None
+    if spec.task is not None:
+        base_dir = Path(source).parent if source else None
+        task_map = _absolute_files(spec.task, base_dir)
+        try:
+            study_task = Task.from_mapping(task_map, base_dir=base_dir, where="task")
+        except TaskError as e:
+            raise StudyError(str(e)) from None
+        if task_map != spec.task:  # recorded with absolute paths, so that run copies still find the files
+            spec = spec.model_copy(update={"task": task_map})
+        kinds.update(TASK_VARIABLES)
+        params = params + list(TASK_VARIABLES)
 
     def check_param(name, path):
+        if name.startswith("task.") and study_task is None and name in TASK_VARIABLES:
+            raise StudyError(f"{path}: {name!r} is a variable of the study's task; give a task: section")
         if name not in params:
             raise StudyError(f"{path}: {name!r} is not a parameter of {spec.mechanism or 'the structures'}; valid: "
                              f"{', '.join(params)}")
@@ -581,11 +626,19 @@ def resolve_study(data: dict, source: str | None = None) -> ResolvedStudy:
             "ranges": lambda val, where: _resolve_ranges(val, mech_cls, where, task),
             "pose_constraints": lambda val, where: _check_pose_constraints(val, where, pose_constraints),
             "pose": _resolve_pose,
+            "task": _refuse_task_setting,
         }
+        if study_task is None and any(p.kind == "task" for p in measure.params.values()):
+            raise StudyError(f"{path.rsplit('.', 1)[0]}.name: {measure.name!r} is a task measure: give the study a "
+                             "task: section (docs/tasks.md)")
         try:
             return measure.check_settings(settings, path, resolve)
         except SettingError as e:
             raise StudyError(str(e)) from None
+
+    def _refuse_task_setting(val, where):
+        raise StudyError(f"{where}: the task of a study is its task: section; leave {where.rsplit('.', 1)[-1]} out "
+                         "of the settings")
 
     def _resolve_pose(val, where):
         if not isinstance(val, dict):
@@ -770,7 +823,7 @@ def resolve_study(data: dict, source: str | None = None) -> ResolvedStudy:
         choices = next(v.choices for v in variables if v.name == STRUCTURE)
         check_halving(spec.structure, opt, choices, int(opt.n_trials or OPTUNA_TRIALS))
     return ResolvedStudy(spec, mech_name, fixed, tuple(variables), tuple(objectives), tuple(constraints),
-                         evaluation, opt, reference, source, tied, ref_label, ref_source, setup)
+                         evaluation, opt, reference, source, tied, ref_label, ref_source, setup, study_task)
 
 
 def _bound(value, kind, path, measure, settings):

@@ -37,7 +37,8 @@ import numpy as np
 
 from ..measures.display import fmt_number, fmt_quantity, quantity_unit
 from ..measures.objectives import get as get_measure
-from .design import design_mechanism
+from ..measures.task import task_evaluation, task_margin_min
+from .design import design_mechanism, design_task, evaluation_sample, measure_arguments
 
 __all__ = ["Check", "Verification", "verify", "estimate_of", "home_margin_check", "SINGULARITY_FLOOR", "EXTREME_RTOL",
            "NOISE_Z", "STATISTIC_RTOL", "VERIFY_LIMIT"]
@@ -65,7 +66,7 @@ class Check:
     ``tolerance`` (>= 0): how far outside it may lie and still pass."""
 
     requirement: str  # the constraint's label, or "singularity margin at home"
-    kind: str  # statistic | extreme | grid | exact | floor
+    kind: str  # statistic | extreme | grid | exact | floor | task
     value: float
     bound: str  # ">= 2e+06" as the study states it, SI
     margin: float
@@ -89,7 +90,8 @@ class Check:
         except ValueError:
             bound = self.bound
         val = "not computable" if not np.isfinite(self.value) else fq(self.value)
-        tol = f", tolerance {fq(self.tolerance)}" if self.tolerance > 0 and self.kind in ("statistic", "extreme") else ""
+        tol = (f", tolerance {fq(self.tolerance)}" if self.tolerance > 0 and self.kind in ("statistic", "extreme", "task")
+               else "")
         se = f" ± {fq(self.stderr)}" if np.isfinite(self.stderr) and self.kind == "statistic" else ""
         if self.kind in ("grid", "exact", "floor"):
             return f"{self.requirement} = {val}, required {bound} ({self.where or self.kind})"
@@ -206,6 +208,49 @@ def home_margin_check(mech, floor: float = SINGULARITY_FLOOR) -> Check:
                  0.0, where=where)
 
 
+def _uses_task(item) -> bool:
+    return any(p.kind == "task" for p in get_measure(item.name).params.values())
+
+
+def task_checks(study, values: dict, mech, floor: float = SINGULARITY_FLOOR) -> list[Check]:
+    """The dense re-check of a study with a task (docs/verification.md): the design's task
+    refined (:meth:`parasynth.Task.refined`: grid poses 3x per axis, the path at 10x the sample
+    rate); every task constraint of the study on it, within :data:`EXTREME_RTOL` of its bound (a
+    least or largest value over more poses only gets worse); the singularity margin at every
+    feasible pose and path sample at least ``floor``; and the path followed without a
+    singularity crossed or a change of assembly mode (:func:`parasynth.measures.task.path_continuity`)."""
+    task = design_task(study, values)
+    if task is None:
+        return []
+    dense = task.refined()
+    n_poses = len(dense.poses)
+    ev = task_evaluation(mech, dense, study.evaluation.get("constraints"), study.evaluation.get("engine", "compiled"))
+    where = f"dense task: {n_poses} poses" + (f", path every {fmt_number(1000 * dense.trajectory.dt)} ms"
+                                              if dense.trajectory is not None and dense.trajectory.limits is not None
+                                              else "")
+    out = []
+    for c in study.constraints:
+        if not _uses_task(c) or getattr(c, "robust", None) is not None:
+            continue
+        args = measure_arguments(study, c.name, c.settings, evaluation_sample(study), task=dense)
+        v = float(get_measure(c.name)(mech, **args))
+        tol = EXTREME_RTOL * _bound_scale(c)
+        out.append(Check(f"{c.label} on the dense task", "task", v, _bound_text(c),
+                         c.margin(v) if math.isfinite(v) else -math.inf, tol, where=where, label=c.label))
+    m = float(task_margin_min(mech, task=dense))
+    out.append(Check("singularity margin over the task", "floor", m, f">= {floor!r}",
+                     m - floor if math.isfinite(m) else -math.inf, 0.0, where=where))
+    cont = ev.continuity(floor=floor)
+    if cont.first_break is None:
+        out.append(Check("path continuity", "floor", 1.0, ">= 1.0", 0.0, 0.0,
+                         where=where + ": followed to its end"))
+    else:
+        n = len(ev.path.X) if dense.trajectory is not None else len(ev.X)
+        out.append(Check("path continuity", "floor", cont.first_break / n, ">= 1.0", cont.first_break / n - 1.0, 0.0,
+                         where=f"{where}: breaks at sample {cont.first_break} of {n} ({cont.reason})"))
+    return out
+
+
 def verify(study, values: dict, records, screened: dict | None = None, mech=None,
            floor: float = SINGULARITY_FLOOR) -> Verification:
     """Verify the design ``values`` of ``study`` on its re-evaluations ``records`` (one
@@ -226,4 +271,9 @@ def verify(study, values: dict, records, screened: dict | None = None, mech=None
     except (ValueError, ArithmeticError) as e:
         return Verification(tuple(checks), error=f"the design cannot be built: {e}", samples=samples, seeds=seeds)
     checks.append(home_margin_check(mech, floor))
+    try:
+        checks += task_checks(study, values, mech, floor)
+    except (ValueError, ArithmeticError) as e:
+        return Verification(tuple(checks), error=f"the dense task could not be evaluated: {e}", samples=samples,
+                            seeds=seeds)
     return Verification(tuple(checks), samples=samples, seeds=seeds)
