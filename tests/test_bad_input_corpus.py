@@ -56,7 +56,20 @@ def assert_refused(code, err, *needles):
 
 # -- studies ------------------------------------------------------------------------------------
 def _load(path):
-    return yaml.safe_load(path.read_text())
+    """A shipped study as a mapping, its task's files made absolute (the mutated copies are written
+    elsewhere)."""
+    d = yaml.safe_load(path.read_text())
+
+    def absolute(m):
+        if isinstance(m, dict):
+            return {k: (str(path.parent / v) if k == "file" and isinstance(v, str) else absolute(v)) for k, v in m.items()}
+        if isinstance(m, list):
+            return [absolute(v) for v in m]
+        return m
+
+    if isinstance(d, dict) and "task" in d:
+        d["task"] = absolute(d["task"])
+    return d
 
 
 def _unit_of(value):

@@ -40,7 +40,7 @@ def test_the_json_schema_carries_each_fields_description():
             n += 1
     # 65 keys before the robust blocks: objectives[].robust and constraints[].robust, and the
     # six keys of each (tolerances, statistic, level, samples, seed, probability)
-    assert n == len(study_keys()) == 81
+    assert n == len(study_keys()) == 82
     assert schema["title"] == "parasynth study"
     assert schema["description"].startswith("A parasynth design study")
     assert schema["$schema"] == "https://json-schema.org/draft/2020-12/schema"
