@@ -187,6 +187,12 @@ def _sections(run: Run, a: Analysis) -> list[tuple[str, str, pd.DataFrame | None
             if notes:
                 txt += (" On the re-evaluated values some of these designs are dominated beyond noise: "
                         + "; ".join(notes) + ".")
+        if fa is not None and fa.unverified is not None and len(fa.unverified):
+            failed = {design_key(study, r) for _, r in fa.unverified.iterrows()}
+            names = [f"trial {int(r['trial'])}" for _, r in front.iterrows() if design_key(study, r) in failed]
+            if names:
+                txt += (" Of these, " + ", ".join(names) + (" fails" if len(names) == 1 else " fail")
+                        + " verification (see Recommendation): not to be built as designed.")
         if fa is not None and fa.knee_missing:
             txt += (" final.csv does not hold this design (it was written before the run's last designs): its "
                     "re-evaluated values are not known; run the study again with --resume to redo the final stage.")
