@@ -58,6 +58,20 @@ REFUSAL_TIME_LIMIT = 10.0
 MEMORY_LIMIT = 200 * 2**20
 
 
+def _r(v) -> str:
+    """repr with sets sorted: test ids must not depend on hash randomisation (pytest-xdist
+    collects them in every worker)."""
+    if isinstance(v, (set, frozenset)):
+        return "{" + ", ".join(sorted(_r(x) for x in v)) + "}" if v else repr(v)
+    if isinstance(v, dict):
+        return "{" + ", ".join(f"{_r(k)}: {_r(x)}" for k, x in v.items()) + "}"
+    if isinstance(v, list):
+        return "[" + ", ".join(_r(x) for x in v) + "]"
+    if isinstance(v, tuple):
+        return "(" + ", ".join(_r(x) for x in v) + ("," if len(v) == 1 else "") + ")"
+    return repr(v)
+
+
 class CaseTimeout(BaseException):
     """Raised by the alarm when a case runs past :data:`TIME_LIMIT` (a BaseException, so that
     no ``except Exception`` of the code under test swallows it)."""
@@ -158,7 +172,7 @@ def _structure_cases() -> list[Case]:
     for ctx, base in (("3T2R", {}), ("2T2R", {"motion": "2T2R", "leg_types": ["RPU", "SPS"]})):
         def add(name, value, needle, **extra):
             kw = {**base, **extra, name: value}
-            out.append(Case(f"structures[{ctx}].{name}={value!r}"[:80], _structures(**kw), "error", needle,
+            out.append(Case(f"structures[{ctx}].{name}={_r(value)}"[:80], _structures(**kw), "error", needle,
                             StructureError))
         if ctx == "3T2R":
             for v in BAD_MOTIONS:
@@ -183,19 +197,19 @@ def _structure_cases() -> list[Case]:
     # said: a limb type given twice, limb counts no candidate has
     one = lambda r: [s.name for s in r] == ["5-PUS/UPU"]  # noqa: E731 -- the one 3T2R structure of PUS and UPU
     for types in (["PUS", "UPU", "PUS"], "PUS, UPU, UPU", ["UPU", "PUS", "UPU", "PUS"]):
-        out.append(Case(f"structures.leg_types={types!r}", _structures(leg_types=types), "warning", "leg_types",
+        out.append(Case(f"structures.leg_types={_r(types)}", _structures(leg_types=types), "warning", "leg_types",
                         warning=StructureWarning, check=one))
     for legs in ([9], [6, 9], 1000):
         exp = (lambda r: len(r) == 0 and r.enumerated == 0) if legs != [6, 9] else one
-        out.append(Case(f"structures.legs={legs!r}", _structures(legs=legs), "warning", "legs",
+        out.append(Case(f"structures.legs={_r(legs)}", _structures(legs=legs), "warning", "legs",
                         warning=StructureWarning, check=exp))
     # accepted: any order and spelling of the same types gives the 5-PUS/UPU alone
     for types in (["UPU", "PUS"], ("PUS", "UPU"), {"UPU", "PUS"}, "UPU,PUS", " PUS UPU "):
-        out.append(Case(f"structures.leg_types={types!r}", _structures(leg_types=types), "ok", check=one))
+        out.append(Case(f"structures.leg_types={_r(types)}", _structures(leg_types=types), "ok", check=one))
     for kw in ({"legs": 6}, {"legs": [6, 6]}, {"legs": np.array([6])}, {"legs": 6.0}, {"seed": 2**32 - 1},
                {"seed": np.int64(3)}, {"n_poses": 2.0}, {"all_axes": np.bool_(False)},
                {"axes": {"translations": "x, y, z"}}, {"motion": " 3t2r "}):
-        out.append(Case(f"structures.{kw!r}"[:80], _structures(**kw), "ok", check=one))
+        out.append(Case(f"structures.{_r(kw)}"[:80], _structures(**kw), "ok", check=one))
     # 4 + 6 limbs exist, 6 only is the 5-PUS/UPU: the enumeration is the candidates' count
     out.append(Case("structures.legs=[4]", _structures(legs=[4]), "ok",
                     check=lambda r: len(r) == 0 and r.enumerated == len(candidates(["PUS", "UPU"], [4])) > 0))
@@ -213,23 +227,23 @@ def _robust_cases() -> list[Case]:
     unregistered = dataclasses.replace(registered, name="my_footprint")
     for v in (5, None, 2.5, ["footprint_radius"], {"name": "footprint_radius"}, b"footprint_radius", "volumee", "",
               already, unregistered, True):
-        out.append(Case(f"robust.name={v!r}"[:80], (lambda v=v: robust(v, tolerances=TOL)), "error", "robust",
+        out.append(Case(f"robust.name={_r(v)}"[:80], (lambda v=v: robust(v, tolerances=TOL)), "error", "robust",
                         RobustError))
     for v in (None, {}, [], "slider_radius", 0.1, [("slider_radius", 1e-4)], {"slider_radius": 0},
               {"slider_radius": -1e-4}, {"slider_radius": NAN}, {"slider_radius": INF}, {"slider_radius": True},
               {"slider_radius": "abc"}, {"slider_radius": "1 kg"}, {"slider_radius": None}, {5: 1e-4},
               {"anchor_tolerance": "1 kg"}, {"anchor_tolerance": -1.0}, {"anchor_tolerance": [1e-4]}):
-        out.append(Case(f"robust.tolerances={v!r}"[:80], (lambda v=v: robust("footprint_radius", tolerances=v)),
+        out.append(Case(f"robust.tolerances={_r(v)}"[:80], (lambda v=v: robust("footprint_radius", tolerances=v)),
                         "error", "tolerances", RobustError))
     for k, vals in (("statistic", ["median", 5, None, "", ["mean"], "MEAN"]),
                     ("samples", [0, 1, -1, 10**9, 4097, 2.5, "4", True, None, NAN]),
                     ("seed", [-1, 2**40, 1.5, "0", None, True, NAN])):
         for v in vals:
-            out.append(Case(f"robust.{k}={v!r}", (lambda k=k, v=v: robust("footprint_radius", tolerances=TOL,
+            out.append(Case(f"robust.{k}={_r(v)}", (lambda k=k, v=v: robust("footprint_radius", tolerances=TOL,
                                                                          **{k: v})),
                             "error", k, RobustError))
     for lv in (1.5, 0, 1, -0.1, NAN, "0.1", True, None):
-        out.append(Case(f"robust.quantile.level={lv!r}",
+        out.append(Case(f"robust.quantile.level={_r(lv)}",
                         (lambda lv=lv: robust("footprint_radius", tolerances=TOL, statistic="quantile", level=lv)),
                         "error", "level", RobustError))
     out.append(Case("robust.mean.level=0.1", lambda: robust("footprint_radius", tolerances=TOL, level=0.1),
@@ -260,15 +274,15 @@ def _evaluation_cases() -> list[Case]:
     worst = robust("footprint_radius", tolerances={"slider_radius": 1e-3}, samples=8, seed=0, statistic="worst")
     for meas, tag in ((rm, "mean"), (worst, "worst")):
         for b in BAD_BOUNDS:
-            out.append(Case(f"{tag}.evaluate.bound={b!r}"[:80], (lambda meas=meas, b=b: meas.evaluate(m, b)), "error",
+            out.append(Case(f"{tag}.evaluate.bound={_r(b)}"[:80], (lambda meas=meas, b=b: meas.evaluate(m, b)), "error",
                             "bound", RobustError))
             if tag == "mean":
-                out.append(Case(f"probability_of.bound={b!r}"[:80], (lambda b=b: rm.probability_of(m, b)), "error",
+                out.append(Case(f"probability_of.bound={_r(b)}"[:80], (lambda b=b: rm.probability_of(m, b)), "error",
                                 "bound", RobustError))
     out.append(Case("probability_of.bound=None", lambda: rm.probability_of(m, None), "error", "bound", RobustError))
     for x in BAD_MECHS:
-        out.append(Case(f"evaluate.mech={x!r}"[:80], (lambda x=x: rm.evaluate(x)), "error", "mech", RobustError))
-        out.append(Case(f"probability_of.mech={x!r}"[:80], (lambda x=x: rm.probability_of(x, ("max", r0))),
+        out.append(Case(f"evaluate.mech={_r(x)}"[:80], (lambda x=x: rm.evaluate(x)), "error", "mech", RobustError))
+        out.append(Case(f"probability_of.mech={_r(x)}"[:80], (lambda x=x: rm.probability_of(x, ("max", r0))),
                         "error", "mech", RobustError))
     # the study's applicability rule: per-leg scatter on a redundantly constrained mechanism (the
     # 2-RPU&2-SPS has 2 redundant constraints) is refused by every entry point
@@ -307,29 +321,29 @@ def _export_cases(tmp: Path) -> list[Case]:
         name = fn.__name__
         path = tmp / f"out{ext}"
         for x in BAD_MECHS + [[m], (m,), "3rps", "src/parasynth/mechanisms/3rps.yaml"]:
-            out.append(Case(f"{name}.mech={x!r}"[:80], (lambda fn=fn, x=x, path=path: fn(x, path)), "error",
+            out.append(Case(f"{name}.mech={_r(x)}"[:80], (lambda fn=fn, x=x, path=path: fn(x, path)), "error",
                             f"{name} mech", ExportError))
         for mech in (m, r):
             n = mech.n_task
             home = np.asarray(mech.home, float)
             for p in ("home", "0,0,0,0,0", "", b"\x00" * n, {"z": 0.1}, [True] * n, np.ones(n, bool), [None] * n,
                       list(home.astype(str)), home + 0j, [home.tolist(), "x"]):
-                out.append(Case(f"{name}[{mech.name}].pose={p!r}"[:80],
+                out.append(Case(f"{name}[{mech.name}].pose={_r(p)}"[:80],
                                 (lambda fn=fn, mech=mech, p=p, path=path: fn(mech, path, p)), "error",
                                 f"{name} pose", ExportError))
             # numbers, but not the task coordinates, or not a reachable pose
             for p in ([0.1], home[:-1], np.append(home, 0.0), np.array([home, home]), [[*home]], 5, 0.1,
                       [home.tolist()], [NAN] * n, [INF] * n, np.full(n, 1e9)):
-                out.append(Case(f"{name}[{mech.name}].pose={p!r}"[:80],
+                out.append(Case(f"{name}[{mech.name}].pose={_r(p)}"[:80],
                                 (lambda fn=fn, mech=mech, p=p, path=path: fn(mech, path, p)), "error", "pose",
                                 ExportError))
         for p in ("", "  ", None, 5, ["a.xml"]):
-            out.append(Case(f"{name}.path={p!r}", (lambda fn=fn, p=p: fn(m, p)), "error", f"{name} path",
+            out.append(Case(f"{name}.path={_r(p)}", (lambda fn=fn, p=p: fn(m, p)), "error", f"{name} path",
                             ExportError))
     for k, v in (("timestep", -1.0), ("timestep", "fast"), ("timestep", True), ("timestep", NAN),
                  ("gravity", "down"), ("gravity", [0, 0]), ("gravity", [0, 0, NAN]), ("servo_frequency", 0),
                  ("servo_damping_ratio", INF), ("stiffness", 1.0)):
-        out.append(Case(f"to_mjcf.{k}={v!r}", (lambda k=k, v=v: to_mjcf(m, tmp / "o.xml", **{k: v})), "error", k,
+        out.append(Case(f"to_mjcf.{k}={_r(v)}", (lambda k=k, v=v: to_mjcf(m, tmp / "o.xml", **{k: v})), "error", k,
                         ExportError))
     # accepted: the home pose given as None, as a list and as an array write the same file
     def same_file():
@@ -362,7 +376,7 @@ def _box_cases() -> list[Case]:
             # computed: only with the feasible region, the usable one costs seconds with tracing)
             regions = ("feasible", "usable") if rtag == "box" and axis != "alpha" else ("feasible",)
             for region in regions:
-                out.append(Case(f"inscribed_box_size[{rtag},{region}].axis={axis!r}", call(axis, ranges, region),
+                out.append(Case(f"inscribed_box_size[{rtag},{region}].axis={_r(axis)}", call(axis, ranges, region),
                                 "error", "axis", SettingError))
         out.append(Case(f"inscribed_box_size[{rtag}].axis=z-not-in-coords", call("z", ranges, coords="x"),
                         "error", "axis", SettingError))
