@@ -439,7 +439,7 @@ class TaskEvaluation:
             pa = self._need_path("inverse dynamics")
             mech, task = self.mech, self.task
             ok = self.path_feasible
-            X, Xd, Xdd = pa.X[ok], pa.Xd[ok], pa.Xdd[ok]
+            X = pa.X[ok]
             F_out = np.full((len(pa.X), mech.n_actuators), np.nan)
             q_out = np.full((len(pa.X), mech.n_actuators), np.nan)
             if not len(X):
@@ -450,7 +450,7 @@ class TaskEvaluation:
                 ws = _wrench_system(mech, X, self.engine)
                 Xa, okr, p, R, t, acc, legs = X, ws.reachable, ws.p, ws.R, pa.twist[ok], pa.accel[ok], []
             else:
-                Xa, _, okr, ws, p, R, t, acc, legs = _motion(mech, X, Xd, Xdd, inertia)
+                Xa, _, okr, ws, p, R, t, acc, legs = _motion(mech, X, pa.Xd[ok], pa.Xdd[ok], inertia)
             weq = _equivalent(mech, Xa, okr, p, R, t, acc, legs, inertia, task.gravity_vector(), None)
             cols = [weq]
             if task.wrench is not None:
