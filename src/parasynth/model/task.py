@@ -62,6 +62,7 @@ import math
 import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
@@ -191,9 +192,12 @@ class Placement:
         if not isinstance(self.hanging, bool):
             raise TaskError(f"placement.hanging: give true or false, got {self.hanging!r}")
 
-    @property
+    @cached_property
     def R(self) -> np.ndarray:
-        return rot_z(self.yaw) @ (rot_x(np.pi) if self.hanging else np.eye(3))
+        """``R_BW`` (read-only, computed once)."""
+        R = rot_z(self.yaw) @ (rot_x(np.pi) if self.hanging else np.eye(3))
+        R.setflags(write=False)
+        return R
 
     @property
     def p(self) -> np.ndarray:
@@ -216,9 +220,12 @@ class Tool:
         object.__setattr__(self, "offset", _vec("tool", self.offset, 3))
         object.__setattr__(self, "yaw", _num("tool.yaw", self.yaw, "an angle (rad)"))
 
-    @property
+    @cached_property
     def R(self) -> np.ndarray:
-        return rot_z(self.yaw)
+        """``R_PT`` (read-only, computed once)."""
+        R = rot_z(self.yaw)
+        R.setflags(write=False)
+        return R
 
     @property
     def identity(self) -> bool:
