@@ -95,36 +95,30 @@ def _line_legs(mech):
 
 
 def _line_wrench_system(Xa, valid, p, R, base, plat) -> WrenchSystem:
-    """The wrench system of SPS/UPS legs (:func:`_line_legs`) for all legs at once: the same
-    arithmetic as the legs' ``solve`` and ``actuation_wrench`` one leg at a time, on arrays
-    of one component each (N, n_legs)."""
+    """The wrench system of SPS/UPS legs (:func:`_line_legs`) for all legs at once: the
+    arithmetic of the legs' ``solve`` and ``actuation_wrench`` (the anchors rotated by one matrix
+    product for all legs, so the values agree with the leg-by-leg ones to rounding), on arrays
+    (N, 3, n_legs) whose components are contiguous per pose."""
     N, n = Xa.shape[0], base.shape[0]
-    ax, ay, az = plat[:, 0], plat[:, 1], plat[:, 2]
-
-    def rot(i):  # component i of R a for every leg: R[i, 0] a_x + R[i, 1] a_y + R[i, 2] a_z
-        return R[:, i, 0, None] * ax + R[:, i, 1, None] * ay + R[:, i, 2, None] * az
-
-    A = np.empty((N, n, 3))  # platform anchors in B
-    u = np.empty((N, n, 3))  # unit leg directions
-    act = np.empty((N, n, 6))
-    r, d = [], []
-    for i in range(3):
-        Ai = A[..., i]
-        np.add(p[:, i, None], rot(i), out=Ai)
-        d.append(Ai - base[:, i])
-        r.append(Ai - p[:, i, None])
-    length = np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+    # few large temporaries: on a busy machine fresh memory costs more than the arithmetic
+    r = R @ plat.T  # (N, 3, n): R a_i, the anchors relative to P
+    A3 = r + p[:, :, None]  # the anchors in B
+    u = A3 - base.T[None]
+    length = np.sqrt(u[:, 0] * u[:, 0] + u[:, 1] * u[:, 1] + u[:, 2] * u[:, 2])  # (N, n)
     pos = length > 0
-    for i in range(3):
-        u[..., i] = np.divide(d[i], length, out=np.zeros_like(length), where=pos)
-    # the actuation wrench (u, (A - p) x u), as force_wrench
-    act[..., :3] = u
-    act[..., 3] = r[1] * u[..., 2] - r[2] * u[..., 1]
-    act[..., 4] = r[2] * u[..., 0] - r[0] * u[..., 2]
-    act[..., 5] = r[0] * u[..., 1] - r[1] * u[..., 0]
+    np.divide(u, length[:, None, :], out=u, where=pos[:, None, :])  # unit leg directions
+    if not pos.all():
+        np.copyto(u, 0.0, where=~pos[:, None, :])
+    # the actuation wrench (u, r x u), as force_wrench
+    act = np.empty((N, n, 6))
+    act[..., :3] = np.swapaxes(u, 1, 2)
+    act[..., 3] = r[:, 1] * u[:, 2] - r[:, 2] * u[:, 1]
+    act[..., 4] = r[:, 2] * u[:, 0] - r[:, 0] * u[:, 2]
+    act[..., 5] = r[:, 0] * u[:, 1] - r[:, 1] * u[:, 0]
     reachable = valid & np.all(pos, axis=1)
+    A, U = np.swapaxes(A3, 1, 2), np.swapaxes(u, 1, 2)  # (N, n, 3) views
     B = np.broadcast_to(base, A.shape)
-    states = [LegState(length[:, i], pos[:, i], B[:, i], A[:, i], u[:, i], length[:, i]) for i in range(n)]
+    states = [LegState(length[:, i], pos[:, i], B[:, i], A[:, i], U[:, i], length[:, i]) for i in range(n)]
     S = np.ones((N, n))
     anchors = A
     C = np.zeros((N, 0, 6))
@@ -204,7 +198,8 @@ def _solve_square(ws, w, L):
     cn = np.sqrt(cn)
     if np.any(cn <= 0):
         return None
-    Mn = np.swapaxes(Wt / cn[..., None], 1, 2)
+    Wt /= cn[..., None]
+    Mn = np.swapaxes(Wt, 1, 2)
     try:
         y = np.linalg.solve(Mn, -np.swapaxes(w, 1, 2))  # (N, k, m)
     except np.linalg.LinAlgError:
