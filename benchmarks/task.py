@@ -6,7 +6,9 @@ payload, a constant process wrench; docs/tasks.md) is evaluated on a new design 
 pose is reached, so every pose-wise measure does its whole work; a fresh mechanism, hence a
 fresh task evaluation, each time). The mechanism and the design's task are built outside the
 timed region; the compiled kernels are compiled (or loaded from the cache) by warm-up designs
-that are not timed. Two workloads:
+that are not timed, which also compute the task's mechanism-independent work once (the poses
+and the path's samples in the task frame, shared by the design's task copies as in a study).
+Two workloads:
 
 * ``task evaluation``: ``task_measures`` of ``task_coverage``, ``task_margin_min``,
   ``task_condition_max``, ``task_lti_min`` and ``task_actuator_force_max`` on the task
