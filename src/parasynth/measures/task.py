@@ -56,9 +56,9 @@ from .objectives import COMMON_PARAMS, register
 from .objectives import get as get_measure
 from .stiffness import STIFFNESS_SETTINGS, compliance, stiffness_matrix
 from .usable import _orientation, sign_rule
-from ..model.legs import PUS, RUS
+from ..model.legs import PUS, RUS, SPS, UPS, LegState
 from ..model.mechanism import ForwardKinematicsError
-from ..model.task import Payload, Task, TaskError
+from ..model.task import Payload, Task, TaskError, _cross
 
 __all__ = ["TaskEvaluation", "task_evaluation", "Continuity", "path_continuity", "static_task_forces",
            "task_measures", "TASK_MEASURES"]
@@ -83,11 +83,61 @@ def _balance_matrix(ws, L: float, rtol: float = 1e-10):
     return G, ok
 
 
+def _line_legs(mech):
+    """``(base anchors (n, 3), platform anchors (n, 3))`` when every leg is an actuated SPS or
+    UPS leg (their wrench is a unit force along the line of the anchors, no constraint wrench,
+    rate scale 1, the state reachable where the anchors differ), else None."""
+    legs = mech.legs
+    if not legs or not all(type(leg) in (SPS, UPS) and leg.is_actuated for leg in legs):
+        return None
+    return (np.array([np.asarray(leg.base, dtype=float) for leg in legs]),
+            np.array([np.asarray(leg.platform, dtype=float) for leg in legs]))
+
+
+def _line_wrench_system(Xa, valid, p, R, base, plat) -> WrenchSystem:
+    """The wrench system of SPS/UPS legs (:func:`_line_legs`) for all legs at once: the
+    arithmetic of the legs' ``solve`` and ``actuation_wrench`` (the anchors rotated by one matrix
+    product for all legs, so the values agree with the leg-by-leg ones to rounding), on arrays
+    (N, 3, n_legs) whose components are contiguous per pose."""
+    N, n = Xa.shape[0], base.shape[0]
+    # few large temporaries: on a busy machine fresh memory costs more than the arithmetic
+    r = R @ plat.T  # (N, 3, n): R a_i, the anchors relative to P
+    A3 = r + p[:, :, None]  # the anchors in B
+    u = A3 - base.T[None]
+    length = np.sqrt(u[:, 0] * u[:, 0] + u[:, 1] * u[:, 1] + u[:, 2] * u[:, 2])  # (N, n)
+    pos = length > 0
+    np.divide(u, length[:, None, :], out=u, where=pos[:, None, :])  # unit leg directions
+    if not pos.all():
+        np.copyto(u, 0.0, where=~pos[:, None, :])
+    # the actuation wrench (u, r x u), as force_wrench
+    act = np.empty((N, n, 6))
+    act[..., :3] = np.swapaxes(u, 1, 2)
+    act[..., 3] = r[:, 1] * u[:, 2] - r[:, 2] * u[:, 1]
+    act[..., 4] = r[:, 2] * u[:, 0] - r[:, 0] * u[:, 2]
+    act[..., 5] = r[:, 0] * u[:, 1] - r[:, 1] * u[:, 0]
+    reachable = valid & np.all(pos, axis=1)
+    A, U = np.swapaxes(A3, 1, 2), np.swapaxes(u, 1, 2)  # (N, n, 3) views
+    B = np.broadcast_to(base, A.shape)
+    states = [LegState(length[:, i], pos[:, i], B[:, i], A[:, i], U[:, i], length[:, i]) for i in range(n)]
+    S = np.ones((N, n))
+    anchors = A
+    C = np.zeros((N, 0, 6))
+    if not reachable.all():
+        anchors = A.copy()
+        for arr in (act, S, anchors, C):
+            arr[~reachable] = np.nan
+    return WrenchSystem(Xa, reachable, act, S, C, anchors, p, R, states, False)
+
+
 def _wrench_system(mech, X, engine_name: str = "compiled") -> WrenchSystem:
     """:func:`parasynth.measures.indices.wrench_system` without the passive joint angles (the
-    wrenches do not need them) and with the platform poses from the engine's pose batch."""
+    wrenches do not need them) and with the platform poses from the engine's pose batch; for
+    SPS/UPS legs computed for all legs at once (:func:`_line_wrench_system`)."""
     Xa, _ = mech._poses(X)
     valid, p, R, _ = engine.pose_batch(mech, Xa, engine=engine_name)
+    lines = _line_legs(mech)
+    if lines is not None:
+        return _line_wrench_system(Xa, valid, p, R, *lines)
     states = [leg.solve(p, R, joint_angles=False) for leg in mech.legs]
     reachable = valid & np.logical_and.reduce([st.reachable for st in states])
     A, S, anchors, C = [], [], [], []
@@ -127,14 +177,29 @@ def static_task_forces(mech, X, loads, L=None, ws=None):
 def _solve_square(ws, w, L):
     """Actuator forces (N, m, n_act) from ``M x = -w`` by LU where the wrench system is square
     and regular at every pose (None otherwise: the least squares decides)."""
-    M = ws.matrix()
-    if M.shape[1] != M.shape[2] or not np.all(ws.reachable) or not np.all(np.isfinite(M)):
+    if ws.actuation.shape[1] + ws.constraint.shape[1] != 6 or not np.all(ws.reachable):
         return None
-    Ms = np.swapaxes(_scale_wrench(np.swapaxes(M, 1, 2), L), 1, 2)
-    cn = np.linalg.norm(Ms, axis=1)
+    # the columns of M as rows (N, k, 6): generalised actuator wrenches, then constraints
+    if ws.constraint.shape[1]:
+        with np.errstate(divide="ignore", invalid="ignore"):
+            Wt = np.concatenate([ws.actuation / ws.rate_scale[..., None], ws.constraint], axis=1)
+    elif np.all(ws.rate_scale == 1.0):  # moments / L in the same pass (dividing by 1 is exact)
+        Wt = ws.actuation / np.array([1.0, 1.0, 1.0, L, L, L])
+    else:
+        with np.errstate(divide="ignore", invalid="ignore"):
+            Wt = ws.actuation / ws.rate_scale[..., None]
+    if not np.all(np.isfinite(Wt)):
+        return None
+    if ws.constraint.shape[1] or not np.all(ws.rate_scale == 1.0):
+        Wt[..., 3:] /= L
+    cn = Wt[..., 0] * Wt[..., 0]  # the column norms, summed in order
+    for j in range(1, 6):
+        cn += Wt[..., j] * Wt[..., j]
+    cn = np.sqrt(cn)
     if np.any(cn <= 0):
         return None
-    Mn = Ms / cn[:, None, :]
+    Wt /= cn[..., None]
+    Mn = np.swapaxes(Wt, 1, 2)
     try:
         y = np.linalg.solve(Mn, -np.swapaxes(w, 1, 2))  # (N, k, m)
     except np.linalg.LinAlgError:
@@ -159,21 +224,38 @@ def _load_columns(task: Task, mech, X, R=None):
     g = task.gravity_vector()
     f = pl.mass * np.broadcast_to(g, (N, 3))
     rc = R @ np.array(pl.com)
-    base = np.concatenate([f, np.cross(rc, f)], axis=1)
+    base = np.concatenate([f, _cross(rc, f)], axis=1)
     cols = [base]
     w = task.wrench_components(R)
     if w is not None:
         r = R @ np.array(task.tool.offset)
-        wp = np.concatenate([w[:, :3], w[:, 3:] + np.cross(r, w[:, :3])], axis=1)
+        wp = np.concatenate([w[:, :3], w[:, 3:] + _cross(r, w[:, :3])], axis=1)
         if task.wrench_signs:
             for k in range(6):
                 wk = np.zeros_like(w)
                 wk[:, k] = w[:, k]
                 if np.any(wk):
-                    cols.append(np.concatenate([wk[:, :3], wk[:, 3:] + np.cross(r, wk[:, :3])], axis=1))
+                    cols.append(np.concatenate([wk[:, :3], wk[:, 3:] + _cross(r, wk[:, :3])], axis=1))
         else:
             cols[0] = base + wp
     return np.stack(cols, axis=1)
+
+
+def _payload_load(pl, ok, R, t, acc, g):
+    """The equivalent load (N, 6) about P of the payload alone (massless legs): the one of
+    :func:`parasynth.measures.dynamics.equivalent_load`, weight minus mass times acceleration of
+    the centre of mass and minus the rate of angular momentum, the same arithmetic; NaN where
+    not ``ok``."""
+    v, w = t[:, :3], t[:, 3:]
+    a, al = acc[:, :3], acc[:, 3:]
+    rc = R @ np.asarray(pl.com)
+    ac = a + _cross(al, rc) + _cross(w, _cross(w, rc))
+    Iw = R @ pl.tensor @ np.swapaxes(R, 1, 2)
+    F = pl.mass * (g - ac)
+    Tq = -(np.einsum("nij,nj->ni", Iw, al) + _cross(w, np.einsum("nij,nj->ni", Iw, w)))
+    weq = np.concatenate([F, _cross(rc, F) + Tq], axis=1)
+    weq[~ok] = np.nan
+    return weq
 
 
 def _worst(F):
@@ -439,7 +521,7 @@ class TaskEvaluation:
             pa = self._need_path("inverse dynamics")
             mech, task = self.mech, self.task
             ok = self.path_feasible
-            X, Xd, Xdd = pa.X[ok], pa.Xd[ok], pa.Xdd[ok]
+            X = pa.X[ok]
             F_out = np.full((len(pa.X), mech.n_actuators), np.nan)
             q_out = np.full((len(pa.X), mech.n_actuators), np.nan)
             if not len(X):
@@ -450,8 +532,11 @@ class TaskEvaluation:
                 ws = _wrench_system(mech, X, self.engine)
                 Xa, okr, p, R, t, acc, legs = X, ws.reachable, ws.p, ws.R, pa.twist[ok], pa.accel[ok], []
             else:
-                Xa, _, okr, ws, p, R, t, acc, legs = _motion(mech, X, Xd, Xdd, inertia)
-            weq = _equivalent(mech, Xa, okr, p, R, t, acc, legs, inertia, task.gravity_vector(), None)
+                Xa, _, okr, ws, p, R, t, acc, legs = _motion(mech, X, pa.Xd[ok], pa.Xdd[ok], inertia)
+            if legs:
+                weq = _equivalent(mech, Xa, okr, p, R, t, acc, legs, inertia, task.gravity_vector(), None)
+            else:
+                weq = _payload_load(pl, okr, R, t, acc, task.gravity_vector())
             cols = [weq]
             if task.wrench is not None:
                 Tw = task._copy(payload=Payload())

@@ -62,6 +62,7 @@ import math
 import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
@@ -191,9 +192,12 @@ class Placement:
         if not isinstance(self.hanging, bool):
             raise TaskError(f"placement.hanging: give true or false, got {self.hanging!r}")
 
-    @property
+    @cached_property
     def R(self) -> np.ndarray:
-        return rot_z(self.yaw) @ (rot_x(np.pi) if self.hanging else np.eye(3))
+        """``R_BW`` (read-only, computed once)."""
+        R = rot_z(self.yaw) @ (rot_x(np.pi) if self.hanging else np.eye(3))
+        R.setflags(write=False)
+        return R
 
     @property
     def p(self) -> np.ndarray:
@@ -216,9 +220,12 @@ class Tool:
         object.__setattr__(self, "offset", _vec("tool", self.offset, 3))
         object.__setattr__(self, "yaw", _num("tool.yaw", self.yaw, "an angle (rad)"))
 
-    @property
+    @cached_property
     def R(self) -> np.ndarray:
-        return rot_z(self.yaw)
+        """``R_PT`` (read-only, computed once)."""
+        R = rot_z(self.yaw)
+        R.setflags(write=False)
+        return R
 
     @property
     def identity(self) -> bool:
@@ -490,6 +497,9 @@ class Task:
                 self.wrench.setflags(write=False)
         self.leg_diameter = None if leg_diameter is None else _num("task.space.leg_diameter", leg_diameter,
                                                                    "a diameter >= 0 (m)", low=0.0)
+        #: Mechanism-independent work (the poses in ``W``, the path's samples in ``W``), shared
+        #: by the task's copies (:meth:`with_settings` of a study's designs): see :meth:`_shared`.
+        self._cache = {}
 
     # -- copies ------------------------------------------------------------------------------------
     def _copy(self, **changes) -> "Task":
@@ -599,13 +609,43 @@ class Task:
         if mode == "own":
             X = self._own_coordinates(mech)
             return mech.pose(X)
-        home = self._home_standard(mech)
-        full = np.tile(home, (self.n_poses, 1))
+        if self._all_named():  # the poses alone: the same for every mechanism, computed once
+            return self._shared(("W", self.convention, self.coordinates),
+                                lambda: _read_only(self._standard_pose_W(None)))
+        return self._standard_pose_W(self._home_standard(mech))
+
+    def _all_named(self) -> bool:
+        """Whether the poses give every standard coordinate (no NaN): their poses in ``W`` do not
+        depend on the mechanism's home."""
+        ok = self.__dict__.get("_named")
+        if ok is None or ok[0] is not self.poses:
+            full = self.coordinates is not None and set(self.coordinates) >= set(STANDARD_NAMES)
+            ok = (self.poses, bool(full and not np.isnan(self.poses).any()))
+            self.__dict__["_named"] = ok
+        return ok[1]
+
+    def _standard_pose_W(self, home):
+        full = np.zeros((self.n_poses, 6)) if home is None else np.tile(home, (self.n_poses, 1))
         for j, c in enumerate(self.coordinates):
             col = self.poses[:, j]
             k = STANDARD_NAMES.index(c)
-            full[:, k] = np.where(np.isnan(col), full[:, k], col)
+            full[:, k] = col if home is None else np.where(np.isnan(col), full[:, k], col)
         return full[:, :3], euler_to_matrix(self.convention, full[:, 3:])
+
+    def _shared(self, key, fn):
+        """``fn()`` computed once for this task's poses and ``key`` (mechanism-independent work),
+        kept in the cache the task's copies share; recomputed for copies with other poses."""
+        cache = self.__dict__.get("_cache")
+        if cache is None:  # a task made without __init__
+            cache = self.__dict__["_cache"] = {}
+        hit = cache.get(key)
+        if hit is not None and hit[0] is self.poses:
+            return hit[1]
+        if len(cache) > 16:
+            cache.clear()
+        val = fn()
+        cache[key] = (self.poses, val)
+        return val
 
     def _own_coordinates(self, mech) -> np.ndarray:
         X = np.tile(mech.home, (self.n_poses, 1))
@@ -682,11 +722,7 @@ class Task:
         pb, Rb = self.frame_to_platform(p, R)
         std = standard_parametrisation(mech)
         if std is not None:  # the mechanism's coordinates are a position and named Euler angles: exact
-            conv, ip, ia = std
-            X = np.empty((pb.shape[0], mech.n_task))
-            X[:, ip] = pb
-            X[:, ia] = matrix_to_euler(conv, Rb)
-            return X
+            return _standard_coordinates(mech, std, pb, Rb)
         if guess is None:
             guess = self._guess(mech, pb, Rb, mode)
         return solve_pose(mech, pb, Rb, guess, where, tol=self.pose_tolerance)
@@ -818,12 +854,12 @@ class Task:
     def _full_samples(self, mech):
         """The path's samples in ``W`` (mechanism-independent but for the home values of the
         coordinates not named), cached on the task."""
-        named = self.coordinates is not None and set(self.coordinates) >= set(STANDARD_NAMES)
-        key = "all" if named else tuple(np.round(self._home_standard(mech), 12))
-        cache = self.__dict__.setdefault("_paths", {})
-        hit = cache.get(key)
-        if hit is not None:
-            return hit
+        home = None if self._all_named() else tuple(np.round(self._home_standard(mech), 12))
+        tr = self.trajectory
+        key = ("path", home, self.convention, self.coordinates, tr.limits, tr.dt)
+        return self._shared(key, lambda: self._sample_full(mech))
+
+    def _sample_full(self, mech):
         pW, RW = self._frame_pose_W(mech, "full")
         dist = np.linalg.norm(np.diff(pW, axis=0), axis=1)
         rv_all = rotation_log(np.swapaxes(RW[:-1], 1, 2) @ RW[1:])
@@ -833,25 +869,36 @@ class Task:
         at = {k: (pW[seg] + sv[:, None] * dp, Ra @ rotation_exp(sv[:, None] * rv))
               for k, sv in (("0", s), ("+", s + _H), ("-", s - _H))}
         axis = np.einsum("njk,nk->nj", Ra, rv)  # rotation axis times angle, in W
-        if len(cache) > 8:
-            cache.clear()
-        cache[key] = hit = (ps, at, dp, axis)
-        return hit
+        for v in at.values():
+            _read_only(v)
+        return ps, at, _read_only(dp), _read_only(axis)
 
     def _full_path(self, mech):
         ps, at, dp, axis = self._full_samples(mech)
-        X0 = self.coordinates_of(mech, *at["0"], where=f"{self.where}.trajectory")
-        path = _chain(ps, X0, self.coordinates_of(mech, *at["+"], where=f"{self.where}.trajectory"),
-                      self.coordinates_of(mech, *at["-"], where=f"{self.where}.trajectory"))
+        where = f"{self.where}.trajectory"
+        std = standard_parametrisation(mech)
+        if std is not None:  # closed form: the coordinates of the samples' platform poses
+            pb, Rb = self.frame_to_platform(*at["0"])
+            X0 = _standard_coordinates(mech, std, pb, Rb)
+
+            def rates():  # X', X'' by the chain rule, computed when first read
+                return _rates(ps, X0, self.coordinates_of(mech, *at["+"], where=where),
+                              self.coordinates_of(mech, *at["-"], where=where))
+
+            path = TaskPath(ps.t, X0, samples=ps, rates=rates)
+        else:
+            path = _chain(ps, self.coordinates_of(mech, *at["0"], where=where),
+                          self.coordinates_of(mech, *at["+"], where=where),
+                          self.coordinates_of(mech, *at["-"], where=where))
+            Rb = self.frame_to_platform(*at["0"])[1] if self.frame == "tool" else None
         # the platform's twist and acceleration in B, exactly
         Rw = self.placement.R
         w, al = (axis @ Rw.T) * ps.sd[:, None], (axis @ Rw.T) * ps.sdd[:, None]
         v, a = (dp @ Rw.T) * ps.sd[:, None], (dp @ Rw.T) * ps.sdd[:, None]
         if self.frame == "tool":  # from the tool point to the platform point
-            _, Rb = self.frame_to_platform(*at["0"])
             d = -Rb @ np.array(self.tool.offset)
-            v = v + np.cross(w, d)
-            a = a + np.cross(al, d) + np.cross(w, np.cross(w, d))
+            v = v + _cross(w, d)
+            a = a + _cross(al, d) + _cross(w, _cross(w, d))
         path.twist, path.accel = np.concatenate([v, w], axis=1), np.concatenate([a, al], axis=1)
         return path
 
@@ -877,20 +924,40 @@ class Task:
         return _Reader(units, base_dir, where).task(mapping)
 
 
-@dataclass
 class TaskPath:
     """A task's path for one mechanism: ``t`` (K,) s, ``X``, ``Xd``, ``Xdd`` (K, d) its task
     coordinates and their time derivatives, ``samples`` the profile (None for timed poses);
     for a mechanism with six task coordinates also the platform's ``twist`` ``(v_P, omega)``
-    and ``accel`` ``(a_P, alpha)`` (K, 6) in the base frame, from the profile exactly."""
+    and ``accel`` ``(a_P, alpha)`` (K, 6) in the base frame, from the profile exactly.
 
-    t: np.ndarray
-    X: np.ndarray
-    Xd: np.ndarray
-    Xdd: np.ndarray
-    samples: PathSamples | None
-    twist: np.ndarray | None = None
-    accel: np.ndarray | None = None
+    ``rates``: instead of ``Xd`` and ``Xdd``, a function returning both, called when either is
+    first read (the path of a mechanism with six task coordinates: its dynamics read the exact
+    twist and acceleration, so the finite differences are computed only when asked for)."""
+
+    def __init__(self, t, X, Xd=None, Xdd=None, samples: PathSamples | None = None, twist=None, accel=None,
+                 rates=None):
+        if rates is None and (Xd is None or Xdd is None):
+            raise ValueError("TaskPath: give Xd and Xdd, or rates")
+        self.t, self.X, self.samples, self.twist, self.accel = t, X, samples, twist, accel
+        self._Xd, self._Xdd, self._rates = Xd, Xdd, rates
+
+    def _get_rates(self):
+        if self._Xd is None or self._Xdd is None:
+            self._Xd, self._Xdd = self._rates()
+            self._rates = None
+
+    @property
+    def Xd(self) -> np.ndarray:
+        self._get_rates()
+        return self._Xd
+
+    @property
+    def Xdd(self) -> np.ndarray:
+        self._get_rates()
+        return self._Xdd
+
+    def __repr__(self) -> str:
+        return f"<TaskPath {len(self.t)} samples, {self.X.shape[1]} coordinates>"
 
 
 _STANDARD: dict = {}
@@ -937,11 +1004,49 @@ def _lmul(M, R):
 _H = 1e-4
 
 
-def _chain(ps, X0, Xp, Xm) -> "TaskPath":
-    """X, X', X'' of the samples by the chain rule: central differences in the progress."""
+def _rates(ps, X0, Xp, Xm):
+    """X', X'' of the samples by the chain rule: central differences in the progress."""
     dXs = (Xp - Xm) / (2 * _H)
     d2Xs = (Xp - 2 * X0 + Xm) / (_H * _H)
-    return TaskPath(ps.t, X0, dXs * ps.sd[:, None], d2Xs * (ps.sd ** 2)[:, None] + dXs * ps.sdd[:, None], ps)
+    return dXs * ps.sd[:, None], d2Xs * (ps.sd ** 2)[:, None] + dXs * ps.sdd[:, None]
+
+
+def _chain(ps, X0, Xp, Xm) -> "TaskPath":
+    """The path with X, X', X'' of the samples by the chain rule (:func:`_rates`)."""
+    Xd, Xdd = _rates(ps, X0, Xp, Xm)
+    return TaskPath(ps.t, X0, Xd, Xdd, ps)
+
+
+def _standard_coordinates(mech, std, pb, Rb) -> np.ndarray:
+    """Task coordinates (N, 6) of platform poses ``(pb, Rb)`` in ``B`` for a mechanism whose
+    coordinates are its position and named Euler angles (``std``, :func:`standard_parametrisation`)."""
+    conv, ip, ia = std
+    X = np.empty((pb.shape[0], mech.n_task))
+    X[:, ip] = pb
+    X[:, ia] = matrix_to_euler(conv, Rb)
+    return X
+
+
+def _read_only(arrays):
+    """Mark an array (or each array of a tuple) read-only (values kept in a shared cache); returns it."""
+    for a in (arrays if isinstance(arrays, tuple) else (arrays,)):
+        a.setflags(write=False)
+    return arrays
+
+
+def _cross(a, b) -> np.ndarray:
+    """Row-wise cross products (..., 3): the arithmetic of ``np.cross`` (the same results)
+    without its per-call overhead."""
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    np.multiply(a1, b2, out=out[..., 0])
+    out[..., 0] -= a2 * b1
+    np.multiply(a2, b0, out=out[..., 1])
+    out[..., 1] -= a0 * b2
+    np.multiply(a0, b1, out=out[..., 2])
+    out[..., 2] -= a1 * b0
+    return out
 
 
 def _standard_kind(name):
