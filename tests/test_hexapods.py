@@ -81,16 +81,20 @@ def test_pus_slider_positions_closed_form(params):
 
 
 def test_pus_home_by_hand():
-    """At the default home pose (platform centre 700 mm up, level) every leg is alike: with
-    B = 500 mm (cos -10 deg, sin -10 deg) and S = 300 mm (cos 310 deg, sin 310 deg), the
-    horizontal distance is sqrt(500^2 + 300^2 - 2*500*300*cos 40 deg) = 331.94 mm, and the
-    carriage height 700 - sqrt(500^2 - 331.94^2) = 326.08 mm."""
+    """The default home pose: level, the carriages at mid-stroke (300 mm). Every leg is alike:
+    with B = 500 mm (cos -10 deg, sin -10 deg) and S = 300 mm (cos 310 deg, sin 310 deg) the
+    horizontal distance is sqrt(500^2 + 300^2 - 2*500*300*cos 40 deg) = 331.94 mm, so the
+    platform is sqrt(500^2 - 331.94^2) = 373.92 mm above the carriages, at 673.92 mm. At a
+    level pose 700 mm up the carriages are at 700 - 373.92 = 326.08 mm."""
     mech = _load("hexapod_6pus", {})
     dh = math.sqrt(0.5**2 + 0.3**2 - 2 * 0.5 * 0.3 * math.cos(math.radians(40)))
     assert dh == pytest.approx(0.33194, abs=1e-5)
-    assert 0.7 - math.sqrt(0.5**2 - 0.33194**2) == pytest.approx(0.32608, abs=1e-4)
-    s = 0.7 - math.sqrt(0.5**2 - dh**2)
-    np.testing.assert_allclose(mech.inverse_kinematics(mech.home).actuators, np.full(6, s), rtol=0, atol=1e-12)
+    rise = math.sqrt(0.5**2 - dh**2)
+    assert rise == pytest.approx(0.37392, abs=1e-5)
+    np.testing.assert_allclose(mech.home, [0, 0, 0.3 + rise, 0, 0, 0], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(mech.inverse_kinematics(mech.home).actuators, np.full(6, 0.3), rtol=0, atol=1e-12)
+    X = np.array([0, 0, 0.7, 0, 0, 0])
+    np.testing.assert_allclose(mech.inverse_kinematics(X).actuators, np.full(6, 0.7 - rise), rtol=0, atol=1e-12)
 
 
 def _crank_closed_form(p, X, branch=1):
@@ -133,23 +137,34 @@ def test_rus_crank_angles_closed_form(params):
     np.testing.assert_allclose(dist, p.link_length, rtol=0, atol=1e-12)
 
 
-def test_rus_home_cranks_raised_by_hand():
-    """Level home, 600 mm up: leg 1's anchor B = 500 mm at -10 deg, sphere S = 300 mm at 310 deg.
-    The crank axis is radial at -10 deg; in the crank's plane (c0 = -tangent, c1 = -z) the
-    sphere is at a = d.c0, b = d.c1 = -600 mm. Both assembly modes reach S; the mode taken is
-    the larger angle, about -18.75 deg (raised), the other near -125.6 deg."""
+def test_rus_home_and_raised_cranks_by_hand():
+    """Leg 1's anchor B = 500 mm at -10 deg, its sphere S = 300 mm at 310 deg. The crank axis
+    is radial at -10 deg, the crank's zero c0 = -tangent, its positive turn towards c1 = -z.
+    Home is level with the cranks horizontal: the tip B + 200 mm c0 is at a horizontal distance
+    from S that leaves the 600 mm link a rise of 535.68 mm, the home height. At the level pose
+    600 mm up, in the crank's plane the sphere is at a = d.c0, b = d.c1 = -600 mm; both
+    assembly modes reach it, the mode taken is the larger angle, about -18.75 deg (raised),
+    the other near -125.6 deg."""
     mech = _load("hexapod_6rus", {})
     th_b, th_s = math.radians(-10), math.radians(310)
-    d = np.array([0.3 * math.cos(th_s) - 0.5 * math.cos(th_b), 0.3 * math.sin(th_s) - 0.5 * math.sin(th_b), 0.6])
+    B = np.array([0.5 * math.cos(th_b), 0.5 * math.sin(th_b), 0.0])
+    S0 = np.array([0.3 * math.cos(th_s), 0.3 * math.sin(th_s), 0.0])
     c0 = -np.array([-math.sin(th_b), math.cos(th_b), 0.0])
     c1 = np.array([0.0, 0.0, -1.0])
+    tip = B + 0.2 * c0
+    rise = math.sqrt(0.6**2 - np.sum((S0 - tip) ** 2))
+    assert rise == pytest.approx(0.53568, abs=1e-5)
+    np.testing.assert_allclose(mech.home, [0, 0, rise, 0, 0, 0], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(mech.inverse_kinematics(mech.home).actuators, np.zeros(6), rtol=0, atol=1e-12)
+    d = S0 + [0, 0, 0.6] - B
     a, b = d @ c0, d @ c1
     c = (d @ d + 0.2**2 - 0.6**2) / (2 * 0.2)
     t_hi = math.atan2(b, a) + math.acos(c / math.hypot(a, b))
     t_lo = math.atan2(b, a) - math.acos(c / math.hypot(a, b))
     assert math.degrees(t_hi) == pytest.approx(-18.75, abs=0.01)
     assert math.degrees(t_lo) == pytest.approx(-125.6, abs=0.1)
-    np.testing.assert_allclose(mech.inverse_kinematics(mech.home).actuators, np.full(6, t_hi), rtol=0, atol=1e-12)
+    X = np.array([0, 0, 0.6, 0, 0, 0])
+    np.testing.assert_allclose(mech.inverse_kinematics(X).actuators, np.full(6, t_hi), rtol=0, atol=1e-12)
 
 
 def test_rus_crank_pairs_are_mirror_images():
@@ -173,6 +188,9 @@ def test_rus_crank_pairs_are_mirror_images():
 @pytest.mark.parametrize("name,params", [("hexapod_6pus", {}), ("hexapod_6pus", PUS_CHANGED),
                                          ("hexapod_6rus", {}), ("hexapod_6rus", RUS_CHANGED)])
 def test_home_is_assembled_feasible_and_not_singular(name, params):
+    """Home (level, carriages at mid-stroke or cranks horizontal) for the defaults and a changed
+    geometry: every leg assembled, every constraint met, the normalised singularity margin above
+    0.05 (a regular layout would have it at 0), 6 DOF 3T3R."""
     mech = _load(name, params)
     assert mech.inverse_kinematics(mech.home).reachable.all()
     assert mech.is_feasible(mech.home[None])[0]
@@ -210,6 +228,14 @@ def test_compiled_engine_agrees_with_numpy(name, params):
     mech = _load(name, params)
     ref = check_mechanism(mech, n=4000, seed=5)
     assert 0.0 < ref.mean() < 1.0
+
+
+@pytest.mark.parametrize("name,params", [("hexapod_6pus", {"link_length": 0.3}), ("hexapod_6rus", {"link_length": 0.2})])
+def test_a_link_too_short_for_a_level_home_is_refused(name, params):
+    """A link shorter than the horizontal distance it must bridge at home: no level pose is
+    assembled, and the parameters are refused naming the check, not built half-way."""
+    with pytest.raises(ValueError, match="link_length"):
+        _load(name, params)
 
 
 def test_registry_lists_them():
