@@ -84,17 +84,17 @@ def test_pus_home_by_hand():
     """The default home pose: level, the carriages at mid-stroke (300 mm). Every leg is alike:
     with B = 500 mm (cos -10 deg, sin -10 deg) and S = 300 mm (cos 310 deg, sin 310 deg) the
     horizontal distance is sqrt(500^2 + 300^2 - 2*500*300*cos 40 deg) = 331.94 mm, so the
-    platform is sqrt(500^2 - 331.94^2) = 373.92 mm above the carriages, at 673.92 mm. At a
-    level pose 700 mm up the carriages are at 700 - 373.92 = 326.08 mm."""
+    700 mm link rises sqrt(700^2 - 331.94^2) = 616.29 mm and the platform is at 916.29 mm. At a
+    level pose 900 mm up the carriages are at 900 - 616.29 = 283.71 mm."""
     mech = _load("hexapod_6pus", {})
     dh = math.sqrt(0.5**2 + 0.3**2 - 2 * 0.5 * 0.3 * math.cos(math.radians(40)))
     assert dh == pytest.approx(0.33194, abs=1e-5)
-    rise = math.sqrt(0.5**2 - dh**2)
-    assert rise == pytest.approx(0.37392, abs=1e-5)
+    rise = math.sqrt(0.7**2 - dh**2)
+    assert rise == pytest.approx(0.61629, abs=1e-5)
     np.testing.assert_allclose(mech.home, [0, 0, 0.3 + rise, 0, 0, 0], rtol=0, atol=1e-12)
     np.testing.assert_allclose(mech.inverse_kinematics(mech.home).actuators, np.full(6, 0.3), rtol=0, atol=1e-12)
-    X = np.array([0, 0, 0.7, 0, 0, 0])
-    np.testing.assert_allclose(mech.inverse_kinematics(X).actuators, np.full(6, 0.7 - rise), rtol=0, atol=1e-12)
+    X = np.array([0, 0, 0.9, 0, 0, 0])
+    np.testing.assert_allclose(mech.inverse_kinematics(X).actuators, np.full(6, 0.9 - rise), rtol=0, atol=1e-12)
 
 
 def _crank_closed_form(p, X, branch=1):
