@@ -140,8 +140,9 @@ def test_rus_crank_angles_closed_form(params):
 def test_rus_home_and_raised_cranks_by_hand():
     """Leg 1's anchor B = 500 mm at -10 deg, its sphere S = 300 mm at 310 deg. The crank axis
     is radial at -10 deg, the crank's zero c0 = -tangent, its positive turn towards c1 = -z.
-    Home is level with the cranks horizontal: the tip B + 200 mm c0 is at a horizontal distance
-    from S that leaves the 600 mm link a rise of 535.68 mm, the home height. At the level pose
+    Home is level with the cranks raised 30 deg (t = -30 deg): the tip
+    B + 200 mm (cos 30 deg c0 + sin 30 deg z) is 100 mm up, at a horizontal distance from S
+    that leaves the 600 mm link a rise of 535.36 mm: home at 635.36 mm. At the level pose
     600 mm up, in the crank's plane the sphere is at a = d.c0, b = d.c1 = -600 mm; both
     assembly modes reach it, the mode taken is the larger angle, about -18.75 deg (raised),
     the other near -125.6 deg."""
@@ -151,11 +152,13 @@ def test_rus_home_and_raised_cranks_by_hand():
     S0 = np.array([0.3 * math.cos(th_s), 0.3 * math.sin(th_s), 0.0])
     c0 = -np.array([-math.sin(th_b), math.cos(th_b), 0.0])
     c1 = np.array([0.0, 0.0, -1.0])
-    tip = B + 0.2 * c0
-    rise = math.sqrt(0.6**2 - np.sum((S0 - tip) ** 2))
-    assert rise == pytest.approx(0.53568, abs=1e-5)
-    np.testing.assert_allclose(mech.home, [0, 0, rise, 0, 0, 0], rtol=0, atol=1e-12)
-    np.testing.assert_allclose(mech.inverse_kinematics(mech.home).actuators, np.zeros(6), rtol=0, atol=1e-12)
+    tip = B + 0.2 * (math.cos(math.radians(30)) * c0 + math.sin(math.radians(30)) * np.array([0.0, 0.0, 1.0]))
+    assert tip[2] == pytest.approx(0.1, abs=1e-15)
+    rise = math.sqrt(0.6**2 - np.sum((S0 - tip)[:2] ** 2))
+    assert 0.1 + rise == pytest.approx(0.63536, abs=1e-5)
+    np.testing.assert_allclose(mech.home, [0, 0, 0.1 + rise, 0, 0, 0], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(mech.inverse_kinematics(mech.home).actuators, np.full(6, math.radians(-30)), rtol=0,
+                               atol=1e-12)
     d = S0 + [0, 0, 0.6] - B
     a, b = d @ c0, d @ c1
     c = (d @ d + 0.2**2 - 0.6**2) / (2 * 0.2)
@@ -188,7 +191,7 @@ def test_rus_crank_pairs_are_mirror_images():
 @pytest.mark.parametrize("name,params", [("hexapod_6pus", {}), ("hexapod_6pus", PUS_CHANGED),
                                          ("hexapod_6rus", {}), ("hexapod_6rus", RUS_CHANGED)])
 def test_home_is_assembled_feasible_and_not_singular(name, params):
-    """Home (level, carriages at mid-stroke or cranks horizontal) for the defaults and a changed
+    """Home (level, carriages at mid-stroke or cranks raised 30 deg) for the defaults and a changed
     geometry: every leg assembled, every constraint met, the normalised singularity margin above
     0.05 (a regular layout would have it at 0), 6 DOF 3T3R."""
     mech = _load(name, params)
