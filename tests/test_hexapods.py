@@ -202,6 +202,20 @@ def test_home_is_assembled_feasible_and_not_singular(name, params):
     assert mob.dof == 6 and mob.type == "3T3R"
 
 
+def test_regular_6pus_is_singular_at_home():
+    """Both separations at 60 deg: the joints on regular hexagons, each base joint at the angle
+    of its platform joint, so every link lies in its radial plane with the vertical slider.
+    At the level home a rotation about z moves each sphere normal to that plane, hence normal
+    to its link: no slider moves (the Jacobian's gamma column is zero), the margin is 0. Turning
+    the platform pairs off the base's angles removes it."""
+    mech = _load("hexapod_6pus", {"base_separation": math.radians(60), "platform_separation": math.radians(60)})
+    assert mech.singularity_margin(mech.home) < 1e-9
+    J = np.atleast_2d(mech.jacobian(mech.home))
+    np.testing.assert_allclose(J[:, 5], 0.0, atol=1e-12)  # gamma moves no actuator
+    turned = _load("hexapod_6pus", {"base_separation": math.radians(60), "platform_separation": math.radians(50)})
+    assert turned.singularity_margin(turned.home) > 0.01
+
+
 @pytest.mark.parametrize("name", ["hexapod_6pus", "hexapod_6rus"])
 def test_jacobian_against_finite_differences_and_fk_round_trip(name):
     """J maps task rates to actuator rates; the rates are those of the twist map, so the columns
