@@ -262,3 +262,41 @@ def test_registry_lists_them():
         mech = parasynth.load_mechanism(name)
         assert list(mech.actuators) == [f"{kind}{i}" for i in range(1, 7)]
         assert mech.task_coordinates == ("x", "y", "z", "alpha", "beta", "gamma")
+
+
+@pytest.mark.parametrize("study,name", [("naval_testbed_6pus", "hexapod_6pus"), ("naval_testbed_6rus", "hexapod_6rus")])
+def test_naval_studies_assemble_every_corner_of_their_geometry(study, name):
+    """Every corner of the studies' geometric variables (radii, separations, link and crank
+    lengths; the placement and tool are the task's) with the studies' fixed values builds a
+    mechanism whose home is assembled and within the actuator and joint ranges: the
+    link-length bounds clear the horizontal span at home (computed here from the corner's
+    values). Not asked for: the links' interference (two spheres of a pair 5 deg apart on a
+    100 mm circle are closer than the 40 mm links) and the singularity margin (both separations
+    at 60 deg is the regular, singular 6-PUS): designs the study rejects or verification catches."""
+    import itertools
+    from pathlib import Path
+
+    from parasynth.study import load_study
+
+    s = load_study(Path(__file__).resolve().parents[1] / "studies" / f"{study}.yaml")
+    assert s.mechanism == name
+    geo = [v for v in s.variables if not v.name.startswith("task.")]
+    assert {v.name for v in geo} >= {"base_radius", "platform_radius", "base_separation", "platform_separation",
+                                     "link_length"}
+    fixed = dict(s.fixed)
+    for corner in itertools.product(*[(v.low, v.high) for v in geo]):
+        p = dict(fixed, **{v.name: x for v, x in zip(geo, corner)})
+        rb, rp, sb, sp = p["base_radius"], p["platform_radius"], p["base_separation"], p["platform_separation"]
+        if name == "hexapod_6pus":
+            span = math.sqrt(rb**2 + rp**2 - 2 * rb * rp * math.cos(math.pi / 3 - sb / 2 - sp / 2))
+        else:
+            hc = p["crank_length"] * math.cos(math.radians(30))
+            span = math.hypot(rb * math.cos(sb / 2) - hc * math.sin(sb / 2) - rp * math.cos(math.pi / 3 - sp / 2),
+                              rb * math.sin(sb / 2) + hc * math.cos(sb / 2) - rp * math.sin(math.pi / 3 - sp / 2))
+        assert p["link_length"] > span
+        mech = _load(name, p)
+        assert mech.inverse_kinematics(mech.home).reachable.all(), p
+        margins = mech.constraint_margins(mech.home[None], engine="numpy")
+        for c in ("stroke", "crank_range", "ujoint_limit", "sphere_limit"):
+            if c in margins:
+                assert margins[c][0] >= 0, (c, p)
