@@ -24,8 +24,6 @@ from parasynth.measures.robustness import _chord_matrix, _Nominal, _newton
 
 pytestmark = pytest.mark.skipif(not ei.HAVE_NUMBA, reason="numba is not importable: no compiled closure")
 
-CONFIGS = [(name, {}) for name in parasynth.list_mechanisms()] + [("5pus_upu", {"platform": "pentagonal"})]
-IDS = [n + ("-" + "-".join(f"{k}={v}" for k, v in kw.items()) if kw else "") for n, kw in CONFIGS]
 CLOSED = {"SPS", "UPS", "PUS", "RPS", "RPU", "UPU", "PRS"}
 TOL = {"anchor_tolerance": 2e-4, "axis_tolerance": 2e-3, "link_tolerance": 1e-4, "actuator_tolerance": 1e-4}
 
@@ -36,6 +34,11 @@ def _mech(name, kw):
         return parasynth.load_mechanism(name, **kw)
 
 
+# every shipped mechanism whose legs all have a closure residual (a RUS leg has none: the
+# 6-RUS hexapod is left to the NumPy closure, test_a_leg_type_without_a_compiled_closure_gives_no_plan)
+CONFIGS = [(name, {}) for name in parasynth.list_mechanisms()
+           if all(leg.joints in CLOSED for leg in _mech(name, {}).legs)] + [("5pus_upu", {"platform": "pentagonal"})]
+IDS = [n + ("-" + "-".join(f"{k}={v}" for k, v in kw.items()) if kw else "") for n, kw in CONFIGS]
 def _reachable_poses(mech, n=200, seed=0):
     rng = np.random.default_rng(seed)
     rg = mech.default_ranges()

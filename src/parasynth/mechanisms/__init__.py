@@ -76,6 +76,10 @@ register("5pus_upu", _packaged("5pus_upu.yaml"),
          "5-PUS/UPU 3T2R mechanism (Wang, Lyu & Liu, Appl. Sci. 2021; described in 5pus_upu.yaml)")
 register("gough_stewart_6ups", _packaged("gough_stewart_6ups.yaml"),
          "6-UPS Gough-Stewart platform, semi-regular hexagons (described in gough_stewart_6ups.yaml)")
+register("hexapod_6pus", _packaged("hexapod_6pus.yaml"),
+         "6-PUS hexapod on vertical sliders, paired joints (described in hexapod_6pus.yaml)")
+register("hexapod_6rus", _packaged("hexapod_6rus.yaml"),
+         "6-RUS rotary hexapod, mirrored crank pairs (described in hexapod_6rus.yaml)")
 register("3rps", _packaged("3rps.yaml"), "3-RPS 1T2R platform with parasitic motion (described in 3rps.yaml)")
 register("3prs", _packaged("3prs.yaml"), "3-PRS 1T2R platform on vertical sliders (described in 3prs.yaml)")
 
