@@ -128,6 +128,15 @@ def wrench_system(mech, X) -> WrenchSystem:
     valid = mech.pose_valid(Xa)
     _, R = mech.pose(np.where(valid[:, None], Xa, mech.home))
     reachable = np.logical_and.reduce([st.reachable for st in states])
+    A, S, anchors, C = leg_wrench_arrays(mech, states, p, reachable)
+    return WrenchSystem(Xa, reachable, A, S, C, anchors, p, R, states, single)
+
+
+def leg_wrench_arrays(mech, states, p, reachable) -> tuple:
+    """The legs' wrenches stacked over the poses from their solved ``states`` and platform
+    points ``p`` (N, 3): unit actuation wrenches ``A`` (N, n_act, 6), transmission scales ``S``
+    (N, n_act), platform anchors (N, n_act, 3) and constraint wrenches ``C`` (N, k, 6), NaN
+    where ``reachable`` (N,) is False."""
     A, S, anchors, C = [], [], [], []
     for leg, st in zip(mech.legs, states):
         if leg.is_actuated:
@@ -136,7 +145,7 @@ def wrench_system(mech, X) -> WrenchSystem:
             S.append(np.broadcast_to(s, st.length.shape))
             anchors.append(st.platform_point)
         C.append(leg.constraint_wrenches(st, p))
-    N = Xa.shape[0]
+    N = p.shape[0]
     A = np.stack(A, axis=1) if A else np.zeros((N, 0, 6))
     S = np.stack(S, axis=1).astype(float) if S else np.zeros((N, 0))
     anchors = np.stack(anchors, axis=1) if anchors else np.zeros((N, 0, 3))
@@ -144,7 +153,7 @@ def wrench_system(mech, X) -> WrenchSystem:
     bad = ~reachable
     for arr in (A, S, anchors, C):
         arr[bad] = np.nan
-    return WrenchSystem(Xa, reachable, A, S, C, anchors, p, R, states, single)
+    return A, S, anchors, C
 
 
 def _scale_wrench(W: np.ndarray, L: float) -> np.ndarray:

@@ -50,7 +50,7 @@ import numpy as np
 from .accuracy import TOLERANCE_SETTINGS, _bound, _check_tolerances, sensitivity
 from .dynamics import InertiaModel, PlatformInertia, _equivalent, _motion
 from .. import engine
-from .indices import WrenchSystem, _scale_wrench, local_condition_number, local_transmission_index
+from .indices import WrenchSystem, _scale_wrench, leg_wrench_arrays, local_condition_number, local_transmission_index
 from .measure_spec import Setting
 from .objectives import COMMON_PARAMS, register
 from .objectives import get as get_measure
@@ -140,21 +140,7 @@ def _wrench_system(mech, X, engine_name: str = "compiled") -> WrenchSystem:
         return _line_wrench_system(Xa, valid, p, R, *lines)
     states = [leg.solve(p, R, joint_angles=False) for leg in mech.legs]
     reachable = valid & np.logical_and.reduce([st.reachable for st in states])
-    A, S, anchors, C = [], [], [], []
-    for leg, st in zip(mech.legs, states):
-        if leg.is_actuated:
-            w, sc = leg.actuation_wrench(st, p)
-            A.append(w)
-            S.append(np.broadcast_to(sc, st.length.shape))
-            anchors.append(st.platform_point)
-        C.append(leg.constraint_wrenches(st, p))
-    N = Xa.shape[0]
-    A = np.stack(A, axis=1) if A else np.zeros((N, 0, 6))
-    S = np.stack(S, axis=1).astype(float) if S else np.zeros((N, 0))
-    anchors = np.stack(anchors, axis=1) if anchors else np.zeros((N, 0, 3))
-    C = np.concatenate(C, axis=1) if C else np.zeros((N, 0, 6))
-    for arr in (A, S, anchors, C):
-        arr[~reachable] = np.nan
+    A, S, anchors, C = leg_wrench_arrays(mech, states, p, reachable)
     return WrenchSystem(Xa, reachable, A, S, C, anchors, p, R, states, False)
 
 
