@@ -199,7 +199,8 @@ def _constraint_check(study, c, records, screened: float | None) -> Check:
 def home_margin_check(mech, floor: float = SINGULARITY_FLOOR) -> Check:
     """The singularity margin of ``mech`` at its home pose against ``floor``."""
     try:
-        s = float(np.asarray(mech.singularity_margin(np.atleast_2d(mech.home))).ravel()[0])
+        # one pose: the NumPy reference (the compiled path would compile a kernel for it on a cold cache)
+        s = float(np.asarray(mech.singularity_margin(np.atleast_2d(mech.home), engine="numpy")).ravel()[0])
     except (ValueError, ArithmeticError, np.linalg.LinAlgError) as e:
         return Check("singularity margin at home", "floor", math.nan, f">= {floor!r}", -math.inf, 0.0,
                      where=f"not computable: {e}")
