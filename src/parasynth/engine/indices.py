@@ -63,7 +63,7 @@ import math
 
 import numpy as np
 
-from ..model.legs import GEOM_TOL, PRS, PUS, RPS, RPU, RUS, SPS, UPS, UPU, Leg
+from ..model.legs import GEOM_TOL, PRS, PUS, RPS, RPU, RUS, SPS, UPS, UPU, Leg, require
 from ..model.mechanism import Mechanism
 from .evaluate import compiled_pose_batch
 
@@ -121,6 +121,7 @@ def _check_covered(mech) -> None:
     if not mech.legs:
         raise _Unsupported("the mechanism has no legs")
     for leg in mech.legs:
+        require(leg, "compiled", _Unsupported)
         cls = type(leg)
         if cls not in _CODES:
             base = next((b for b in cls.__mro__[1:] if b in _CODES), None)
@@ -181,6 +182,7 @@ def _check_legs(legs) -> None:
     if not HAVE_NUMBA:
         raise _Unsupported("numba is not available")
     for leg in legs:
+        require(leg, "compiled", _Unsupported)
         cls = type(leg)
         base = next((b for b in cls.__mro__ if b in _CODES), None)
         if base is None:

@@ -30,6 +30,7 @@ import pandas as pd
 from markupsafe import Markup
 from plotly.offline import get_plotlyjs_version
 
+from ..model.legs import require
 from ..measures.display import UNITS, fmt_number, fmt_quantity, reference_name, reference_short
 from ..measures.objectives import TRAJECTORIES, workspace_of
 from ..study.rundir import Run, design_key, design_mechanism
@@ -115,7 +116,10 @@ def _tour(X: np.ndarray, start: int) -> list[int]:
 
 def _design_view(study, mech, k: int, path) -> dict | None:
     """One design's drawing: anchors, the legs at each pose, the platform centres, the feasible
-    workspace samples and the text of each pose."""
+    workspace samples and the text of each pose. A leg type without the ``view`` capability is
+    refused by name (``LegCapabilityError``, a ``ValueError``: the design is not drawn)."""
+    for leg in mech.legs:
+        require(leg, "view")
     ev = study.evaluation
     try:
         ws = workspace_of(mech, ranges=ev.get("ranges"), n=N_WORKSPACE, method=ev["method"], seed=ev["seed"] + 7 * (k + 1),

@@ -8,7 +8,7 @@ import re
 
 import numpy as np
 
-from ...model.legs import LEG_TYPES
+from ...model.legs import LEG_TYPES, types_with
 from .errors import DescriptionError
 from .parameters import _Scalar, _check_keys
 from .anchors import _Anchors, _PLANES, _directions
@@ -29,7 +29,7 @@ _LEG_REQUIRED = {"PUS": ("link_length",), "PRS": ("link_length",), "RUS": ("cran
 #: Names of the joints the leg library actuates, for messages.
 _JOINT_WORDS = {"P": "prismatic", "R": "revolute"}
 #: Leg types the leg library can build without an actuator (a constraining limb).
-PASSIVE_CAPABLE = ("RPS", "UPU")
+PASSIVE_CAPABLE = types_with("passive")
 _LEG_COMMON = {"type", "name", "names", "base", "platform", "actuated", "doc"}
 _NAMED_AXES = {"x": (1, 0, 0), "y": (0, 1, 0), "z": (0, 0, 1)}
 _ANCHOR_AXES = ("radial", "tangent", "normal")
