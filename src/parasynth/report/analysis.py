@@ -14,6 +14,7 @@ from ..common.pareto import (NoisyComparison, ReferenceStanding, compare_with_no
                              reference_standing, to_min)
 from ..study.rundir import Run, design_key, knee_of, pareto_front, recommendation_order, screening_dominators
 from .checks import design_warnings
+from ..common import columns as derived
 
 __all__ = ["Analysis", "FinalAnalysis", "Recommendation", "analyse", "passed_mask", "NOISE_Z"]
 
@@ -188,7 +189,7 @@ def _final_analysis(run: Run, knee_row, noise_z: float) -> FinalAnalysis | None:
     study, fin = run.study, run.final
     labels = [o.label for o in study.objectives]
     senses = [o.goal for o in study.objectives]
-    need = labels + [f"{lab}_stderr" for lab in labels] + ["source"]
+    need = labels + [derived.stderr(lab) for lab in labels] + ["source"]
     if fin is None or not len(fin) or any(c not in fin for c in need):
         return None
     fin = fin.copy()
@@ -200,7 +201,7 @@ def _final_analysis(run: Run, knee_row, noise_z: float) -> FinalAnalysis | None:
     ref = fin[fin["source"] == "reference"]
 
     def mse(row):
-        return row[labels].to_numpy(float), row[[f"{lab}_stderr" for lab in labels]].to_numpy(float)
+        return row[labels].to_numpy(float), row[[derived.stderr(lab) for lab in labels]].to_numpy(float)
 
     dominated_by = {}
     for i, ri in best.iterrows():
