@@ -12,7 +12,8 @@ import pandas as pd
 
 from ..common.pareto import (NoisyComparison, ReferenceStanding, compare_with_noise, default_reference_point, hypervolume,
                              reference_standing, to_min)
-from ..study.rundir import Run, design_key, knee_of, pareto_front, recommendation_order, screening_dominators
+from ..study.rundir import (Run, design_key, knee_of, pareto_front, recommendation_order, screening_dominators,
+                            sorted_front)
 from .checks import design_warnings
 from ..common import columns as derived
 
@@ -127,9 +128,7 @@ def analyse(run: Run, noise_z: float = NOISE_Z) -> Analysis:
     ok = (runs["status"] == "ok").to_numpy()
     feas = (runs["feasible"].astype(bool)).to_numpy() & ok
     F = runs[labels].to_numpy(float)
-    front = pareto_front(study, runs)
-    if len(front):  # best first in the first objective
-        front = front.sort_values(labels[0], ascending=senses[0] == "minimize", kind="stable")
+    front = sorted_front(study, pareto_front(study, runs))  # best first in the first objective
     a = Analysis(runs=runs, front=front, labels=labels, senses=senses, noise_z=float(noise_z))
     ref = t[t["source"] == "reference"]
     a.ref_row = ref.iloc[0] if len(ref) and ref.iloc[0]["status"] == "ok" else None

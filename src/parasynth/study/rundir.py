@@ -29,12 +29,12 @@ from .spec import ResolvedStudy, StudyError, load_study
 from .structure_space import STRUCTURE
 from .tables import results_table
 from .view import (MAX_FRONT_DESIGNS, N_CLOUD, N_POSES, design_values, design_view, front_choice, read_view,
-                   rounded, trajectory_of, view_key)
+                   rounded, sorted_front, trajectory_of, view_key)
 from ..common import columns as derived
 
 __all__ = ["Run", "RunDirError", "read_run", "read_final", "to_csv_columns", "measure_settings", "design_key", "design_params", "design_mechanism", "pareto_front", "knee_of",
            "screening_dominators", "merge_duplicates", "best_designs", "recommendation_order", "estimate_of",
-           "SINGULARITY_FLOOR", "read_view", "design_view", "design_values", "view_key", "front_choice",
+           "SINGULARITY_FLOOR", "read_view", "design_view", "design_values", "view_key", "front_choice", "sorted_front",
            "trajectory_of", "rounded", "MAX_FRONT_DESIGNS", "N_POSES", "N_CLOUD"]
 
 

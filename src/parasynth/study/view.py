@@ -28,8 +28,8 @@ from ..measures.objectives import TRAJECTORIES, workspace_of
 from ..model.legs import require
 from .design import design_key, design_mechanism
 
-__all__ = ["design_view", "design_values", "rounded", "front_choice", "view_key", "write_view", "read_view", "trajectory_of", "VIEW_FILE", "MAX_FRONT_DESIGNS",
-           "N_POSES", "N_CLOUD", "N_WORKSPACE"]
+__all__ = ["design_view", "design_values", "rounded", "front_choice", "sorted_front", "view_key", "write_view",
+           "read_view", "trajectory_of", "VIEW_FILE", "MAX_FRONT_DESIGNS", "N_POSES", "N_CLOUD", "N_WORKSPACE"]
 
 #: The file of a run's stored drawings.
 VIEW_FILE = "view.json"
@@ -156,6 +156,15 @@ def front_choice(n_front: int, n: int = MAX_FRONT_DESIGNS) -> list[int]:
     return sorted({int(round(x)) for x in np.linspace(0, n_front - 1, n)})
 
 
+def sorted_front(study, front: pd.DataFrame) -> pd.DataFrame:
+    """The front best first in the study's first objective (stable): the order in which the
+    report lists it and :func:`front_choice` spreads the viewer's designs along it."""
+    if not len(front):
+        return front
+    o = study.objectives[0]
+    return front.sort_values(o.label, ascending=o.goal == "minimize", kind="stable")
+
+
 def view_key(study, row=None) -> str:
     """The key of a design in ``view.json``: ``"reference"`` for the reference design (``row``
     None), else its design key (:func:`parasynth.study.design.design_key`) written out."""
@@ -171,8 +180,9 @@ def write_view(study, final: pd.DataFrame, front: pd.DataFrame, out_dir) -> dict
     entries = []
     for _, row in final.iterrows():
         ref = str(row.get("source", "")) == "reference"
-        entries.append((view_key(study, None if ref else row), dict(study.reference or {}) if ref else design_values(study, row)))
-    front = front.reset_index(drop=True)
+        values = dict(study.reference or {}) if ref else design_values(study, row)
+        entries.append((view_key(study, None if ref else row), values))
+    front = sorted_front(study, front).reset_index(drop=True)
     for i in front_choice(len(front)):
         entries.append((view_key(study, front.iloc[i]), design_values(study, front.iloc[i])))
     views, seed = {}, int(study.evaluation["seed"])
