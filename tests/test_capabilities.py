@@ -37,6 +37,16 @@ def test_every_registered_leg_type_is_covered_and_declares_every_capability():
         assert len(cls.constraint_rows) == sum(1 for _ in cls.constraint_rows if _ in ("length", "angle"))
 
 
+def test_description_options_are_fields_of_the_leg_type():
+    """What a description may give a leg (declared on the leg type) is what the class takes."""
+    import dataclasses
+
+    for name, cls in LEG_TYPES.items():
+        fields = {f.name for f in dataclasses.fields(cls)}
+        assert set(cls.description_options) <= fields, name
+        assert set(cls.required_options) <= set(cls.description_options), name
+
+
 def _refused(exc, leg, capability):
     msg = str(exc.value)
     assert f"leg {leg.name}" in msg and f"leg type {leg.joints}" in msg and repr(capability) in msg, msg

@@ -6,5 +6,6 @@ parameters (:mod:`.geometry_checks`). It imports only :mod:`parasynth.common`.""
 from .legs import CAPABILITIES, LEG_TYPES, PRS, PUS, RPS, RPU, RUS, SPS, UPS, UPU, Leg, LegCapabilities, LegCapabilityError
 from .mechanism import EngineFallbackWarning, ForwardKinematicsError, IKResult, Mechanism, Mobility
 
-__all__ = ["CAPABILITIES", "LegCapabilities", "LegCapabilityError", "LEG_TYPES", "PRS", "PUS", "RPS", "RPU", "RUS", "SPS", "UPS", "UPU", "Leg", "EngineFallbackWarning",
+__all__ = ["CAPABILITIES", "LegCapabilities", "LegCapabilityError",
+           "LEG_TYPES", "PRS", "PUS", "RPS", "RPU", "RUS", "SPS", "UPS", "UPU", "Leg", "EngineFallbackWarning",
            "ForwardKinematicsError", "IKResult", "Mechanism", "Mobility"]

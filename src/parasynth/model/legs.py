@@ -226,6 +226,11 @@ class Leg:
     actuator_kind: ClassVar[str] = "length"
     #: Freedoms of the leg that do not move the platform (e.g. the spin of an SPS leg).
     local_dof: ClassVar[int] = 0
+    #: The options a mechanism description gives a leg of this type, {field: "axis_base" |
+    #: "axis_platform" | "length" | "branch"} (None: the type cannot be described), and those
+    #: it must give.
+    description_options: ClassVar[dict | None] = None
+    required_options: ClassVar[tuple[str, ...]] = ()
     #: What the parts of parasynth support for this leg type (:data:`CAPABILITIES`).
     capabilities: ClassVar[LegCapabilities] = LegCapabilities()
     #: The kind ("length" or "angle") of each closure row beyond the actuator: one per
@@ -333,7 +338,10 @@ class SPS(Leg):
     local freedom), so it imposes no constraint."""
 
     joints: ClassVar[str] = "SPS"
-    capabilities: ClassVar[LegCapabilities] = LegCapabilities(compiled=True, closure=True, dynamics=True, accuracy=True, stiffness=True, export=True, view=True, stacked=True)
+    description_options: ClassVar[dict | None] = {}
+    capabilities: ClassVar[LegCapabilities] = LegCapabilities(
+        compiled=True, closure=True, dynamics=True, accuracy=True, stiffness=True, export=True, view=True,
+        stacked=True)
     actuator_value = _anchor_distance
     local_dof: ClassVar[int] = 1
 
@@ -370,7 +378,10 @@ class UPS(Leg):
 
     u_axis: np.ndarray = field(default_factory=lambda: np.array([1.0, 0.0, 0.0]))
     joints: ClassVar[str] = "UPS"
-    capabilities: ClassVar[LegCapabilities] = LegCapabilities(compiled=True, closure=True, dynamics=True, accuracy=True, stiffness=True, export=True, view=True, stacked=True)
+    description_options: ClassVar[dict | None] = {"u_axis": "axis_base"}
+    capabilities: ClassVar[LegCapabilities] = LegCapabilities(
+        compiled=True, closure=True, dynamics=True, accuracy=True, stiffness=True, export=True, view=True,
+        stacked=True)
     actuator_value = _anchor_distance
 
     def __post_init__(self):
@@ -439,7 +450,12 @@ class PUS(Leg):
     branch: int = 1
     u_axis: np.ndarray = field(default_factory=lambda: np.array([1.0, 0.0, 0.0]))
     joints: ClassVar[str] = "PUS"
-    capabilities: ClassVar[LegCapabilities] = LegCapabilities(compiled=True, closure=True, dynamics=True, accuracy=True, stiffness=True, export=True, view=True, stacked=True)
+    description_options: ClassVar[dict | None] = {"slider_axis": "axis_base", "u_axis": "axis_base", "link_length": "length",
+                                                            "branch": "branch"}
+    required_options: ClassVar[tuple[str, ...]] = ("link_length",)
+    capabilities: ClassVar[LegCapabilities] = LegCapabilities(
+        compiled=True, closure=True, dynamics=True, accuracy=True, stiffness=True, export=True, view=True,
+        stacked=True)
     actuator_value = _slider_position
     actuated: ClassVar[int | None] = 0
     actuator_kind: ClassVar[str] = "slider"
@@ -508,7 +524,10 @@ class RPS(Leg):
     r_axis: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, 1.0]))
     passive: bool = False
     joints: ClassVar[str] = "RPS"
-    capabilities: ClassVar[LegCapabilities] = LegCapabilities(compiled=True, closure=True, dynamics=True, accuracy=True, stiffness=True, export=True, view=True, stacked=True, passive=True)
+    description_options: ClassVar[dict | None] = {"r_axis": "axis_base"}
+    capabilities: ClassVar[LegCapabilities] = LegCapabilities(
+        compiled=True, closure=True, dynamics=True, accuracy=True, stiffness=True, export=True, view=True,
+        stacked=True, passive=True)
     constraint_rows: ClassVar[tuple[str, ...]] = ("length",)
     actuator_value = _anchor_distance
 
@@ -567,7 +586,10 @@ class RPU(Leg):
     r_axis: np.ndarray = field(default_factory=lambda: np.array([0.0, 1.0, 0.0]))
     u_platform_axis: np.ndarray = field(default_factory=lambda: np.array([1.0, 0.0, 0.0]))
     joints: ClassVar[str] = "RPU"
-    capabilities: ClassVar[LegCapabilities] = LegCapabilities(compiled=True, closure=True, dynamics=True, accuracy=True, stiffness=True, export=True, view=True, stacked=True)
+    description_options: ClassVar[dict | None] = {"r_axis": "axis_base", "u_platform_axis": "axis_platform"}
+    capabilities: ClassVar[LegCapabilities] = LegCapabilities(
+        compiled=True, closure=True, dynamics=True, accuracy=True, stiffness=True, export=True, view=True,
+        stacked=True)
     constraint_rows: ClassVar[tuple[str, ...]] = ("length", "angle")
     actuator_value = _anchor_distance
 
@@ -631,7 +653,10 @@ class UPU(Leg):
     u_platform_axis: np.ndarray = field(default_factory=lambda: np.array([0.0, 1.0, 0.0]))
     passive: bool = True
     joints: ClassVar[str] = "UPU"
-    capabilities: ClassVar[LegCapabilities] = LegCapabilities(compiled=True, closure=True, dynamics=True, accuracy=True, stiffness=True, export=True, view=True, stacked=True, passive=True)
+    description_options: ClassVar[dict | None] = {"u_axis": "axis_base", "u_platform_axis": "axis_platform"}
+    capabilities: ClassVar[LegCapabilities] = LegCapabilities(
+        compiled=True, closure=True, dynamics=True, accuracy=True, stiffness=True, export=True, view=True,
+        stacked=True, passive=True)
     constraint_rows: ClassVar[tuple[str, ...]] = ("angle",)
     actuator_value = _anchor_distance
 
@@ -721,7 +746,11 @@ class PRS(Leg):
     link_length: float = 0.2
     branch: int = 1
     joints: ClassVar[str] = "PRS"
-    capabilities: ClassVar[LegCapabilities] = LegCapabilities(compiled=True, accuracy=True, closure=True, stiffness=True, export=True, view=True)
+    description_options: ClassVar[dict | None] = {"slider_axis": "axis_base", "r_axis": "axis_base", "link_length": "length",
+                                                            "branch": "branch"}
+    required_options: ClassVar[tuple[str, ...]] = ("link_length",)
+    capabilities: ClassVar[LegCapabilities] = LegCapabilities(
+        compiled=True, accuracy=True, closure=True, stiffness=True, export=True, view=True)
     constraint_rows: ClassVar[tuple[str, ...]] = ("length",)
     actuator_value = _slider_position
     actuated: ClassVar[int | None] = 0
@@ -816,7 +845,11 @@ class RUS(Leg):
     link_length: float = 0.3
     branch: int = 1
     joints: ClassVar[str] = "RUS"
-    capabilities: ClassVar[LegCapabilities] = LegCapabilities(compiled=True, accuracy=True, stiffness=True, export=True, view=True)
+    description_options: ClassVar[dict | None] = {"r_axis": "axis_base", "crank_direction": "axis_base", "crank_length": "length",
+                                                            "link_length": "length", "branch": "branch"}
+    required_options: ClassVar[tuple[str, ...]] = ("crank_length", "link_length")
+    capabilities: ClassVar[LegCapabilities] = LegCapabilities(
+        compiled=True, accuracy=True, stiffness=True, export=True, view=True)
     actuated: ClassVar[int | None] = 0
     actuator_kind: ClassVar[str] = "angle"
 
