@@ -85,10 +85,10 @@ import numpy as np
 
 from ..engine import check_engine, pose_batch
 from ..common.qmc import sobol_engine, sobol_points
-from ..common.units import UNIT_KINDS, si_compound
+from ..common.units import UNIT_KINDS, in_display, si_compound
 from ..common.validation import MAX_SAMPLES, check_count, check_mechanism, check_names
 
-_LENGTH, _ANGLE = UNIT_KINDS["length"], UNIT_KINDS["angle"]  # display units of sizes and extents
+_LENGTH = UNIT_KINDS["length"]  # the display unit of extents
 
 #: Largest ``n`` of :func:`workspace`. Samples stream chunk by chunk, so the limit is time, not
 #: memory (2**34 samples is about half an hour at 1e7 poses/s); the measures and studies keep
@@ -186,8 +186,7 @@ class Box:
     def __str__(self) -> str:
         parts = []
         for c, s, u in zip(self.coordinates, self.sizes, self.units):
-            k = _LENGTH if u == "m" else _ANGLE
-            parts.append(f"{c}: {s * k.factor:.4g} {k.display}")
+            parts.append(f"{c}: {in_display(s, 'length' if u == 'm' else 'angle', '.4g')}")
         return " x ".join(parts)
 
 
