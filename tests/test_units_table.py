@@ -119,6 +119,8 @@ def test_derived_tables_are_the_units_table():
     assert units.column_suffix(units.NONE) == ""
     assert units.si_compound(("m", "m", "m", "rad", "rad")) == "m^3 rad^2"
     assert units.si_compound(("rad", "m")) == "m rad" and units.si_compound(()) == "1"
+    assert units.format_pose(("x", "alpha"), {"alpha"}, (0.205, math.radians(15.0)), ".4g") == "x=205 mm, alpha=15 deg"
+    assert units.in_display(0.205, "length", ".3f") == "205.000 mm"
     for kind, u in UNIT_KINDS.items():
         assert display.UNITS[kind].symbol == u.display and display.UNITS[kind].factor == u.factor
         assert SI_UNIT_KINDS[u.si] == kind
