@@ -47,6 +47,19 @@ def test_description_options_are_fields_of_the_leg_type():
         assert set(cls.required_options) <= set(cls.description_options), name
 
 
+@pytest.mark.parametrize("joints", sorted(LEG_TYPES))
+def test_declared_constraint_rows_are_the_legs_constraint_wrenches(joints):
+    """One closure row per constraint wrench the leg transmits (its twists' reciprocal screws)."""
+    mech, leg = _with_leg(joints)
+    p, R = mech.pose(np.asarray(mech.home, float)[None, :])
+    st = leg.solve(p, R)
+    W = leg.constraint_wrenches(st, p)
+    assert W.shape[1] == len(leg.constraint_rows)
+    T = leg.joint_twists(st, p)  # reciprocal: no power on any joint twist (w @ t = 0, model.spatial)
+    if W.shape[1]:
+        assert np.allclose(np.einsum("ncj,nkj->nck", W, T), 0.0, atol=1e-9)
+
+
 def _refused(exc, leg, capability):
     msg = str(exc.value)
     assert f"leg {leg.name}" in msg and f"leg type {leg.joints}" in msg and repr(capability) in msg, msg
