@@ -203,7 +203,7 @@ def test_a_leg_type_the_exporter_does_not_know_is_refused(tmp_path):
     mech = parasynth.load_mechanism("gough_stewart_6ups")
     leg = mech.legs[0]
     mech.legs = (CPS(leg.name, leg.base, leg.platform, leg.base_ref, leg.platform_ref, leg.u_axis),) + mech.legs[1:]
-    with pytest.raises(ExportError, match="leg L1: the exporter does not know the leg type CPS"):
+    with pytest.raises(ExportError, match="leg L1: leg type CPS does not support 'export'"):
         to_mjcf(mech, tmp_path / "m.xml")
 
 

@@ -338,6 +338,52 @@ def test_viewer_draws_the_mechanisms_own_joints(mo_run):
     assert designs[1]["C"][0] == pytest.approx(list(mech.pose(mech.home)[0] * 1e3), abs=0.06)
 
 
+def test_viewer_reads_the_drawings_the_run_stored(mo_run, monkeypatch, tmp_path):
+    """The run's final stage stores the drawings (view.json) and the view reads them without
+    sampling a workspace again; a run without view.json (an older version) is drawn again, and
+    the view says so."""
+    import shutil
+
+    from parasynth.report import interactive
+    from parasynth.study.rundir import design_mechanism, read_view, view_key
+
+    study, res, out = mo_run
+    stored = read_view(res.out_dir)
+    assert stored is not None and "reference" in stored
+    mech = design_mechanism(study, dict(study.reference))
+    anchors = np.array([leg.base for leg in mech.legs]) * 1e3  # mm, from the design itself
+    assert np.array(stored["reference"]["anchors"]) == pytest.approx(anchors, abs=0.06)
+
+    def no_drawing(*a, **k):
+        raise AssertionError("the view sampled a workspace again")
+
+    run = load_run(res.out_dir)
+    monkeypatch.setattr(interactive, "design_view", no_drawing)
+    data = viewer_data_of(run)
+    assert data["note"] == "" and len(data["designs"]) > 2
+    assert data["designs"][1]["role"] == "reference" and view_key(study, None) in stored
+    monkeypatch.undo()
+
+    old = tmp_path / "old_run"
+    shutil.copytree(res.out_dir, old)
+    (old / "view.json").unlink()
+    calls = []
+    real = interactive.design_view
+    monkeypatch.setattr(interactive, "design_view", lambda *a, **k: calls.append(1) or real(*a, **k))
+    data_old = viewer_data_of(load_run(old))
+    assert calls and "stored no drawings" in data_old["note"]
+    assert [d["role"] for d in data_old["designs"]] == [d["role"] for d in data["designs"]]
+    # the same design drawn again: the same anchors and home pose (the legs are the design's)
+    assert data_old["designs"][1]["anchors"] == data["designs"][1]["anchors"]
+    assert data_old["designs"][1]["C"][0] == pytest.approx(data["designs"][1]["C"][0], abs=0.06)
+
+
+def viewer_data_of(run):
+    from parasynth.report.interactive import viewer_data
+
+    return viewer_data(run, analyse(run))
+
+
 def test_ci_installs_and_requires_the_browser_and_the_dashboard():
     """.ci/run installs Chromium and its driver when missing and fails, not skips, the tests of
     optional tools; the test extra holds their Python packages; plotly is a dependency."""

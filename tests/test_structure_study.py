@@ -404,3 +404,18 @@ def test_workers_complete_the_schedule(tmp_path):
     for lab, n in _counts(res.table).items():
         target = 8 if lab in plan.full() else plan.stopped_at()[lab][1]
         assert n == target, (lab, n)  # a rung's last place goes to one worker only
+
+
+def test_box_centre_is_at_the_reference_structure_with_its_dimensions():
+    """The one design-space centre: the middle of each dimension's range, and for a study over
+    structures its reference structure (not the first choice) with the dimensions it uses."""
+    from parasynth.study.design import box_centre
+    from parasynth.study.structure_space import STRUCTURE
+
+    study = resolved()
+    c = box_centre(study)
+    assert c[STRUCTURE] == "5-PUS/UPU"
+    choices = next(v.choices for v in study.variables if v.name == STRUCTURE)
+    assert choices[0] != "5-PUS/UPU" or len(choices) == 1  # the reference is not merely the first choice
+    assert c["base_radius"] == pytest.approx(0.125) and c["height"] == pytest.approx(0.275)
+    assert set(c) == {v.name for v in study.space.active(c)}  # only the dimensions that structure uses

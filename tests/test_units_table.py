@@ -14,7 +14,6 @@ from parasynth.measures import display
 from parasynth.common import units
 from parasynth.mechanisms.description import expressions, parameters
 from parasynth.mechanisms.description.expressions import Expression
-from parasynth.study import columns
 from parasynth.common.units import DISPLAY_TO_SI, DISPLAY_UNITS, LITERAL_UNITS, SI_UNIT_KINDS, UNIT_KINDS
 
 SRC = Path(units.__file__).resolve().parents[1]
@@ -91,7 +90,7 @@ def test_previous_tables_are_unchanged():
     (0, 1, "deg", 180 / math.pi), (3, 2, "cm^3*deg^2", 1e6 * (180 / math.pi) ** 2),
     (1, 4, "mm*deg^4", 1e3 * (180 / math.pi) ** 4)])
 def test_compound_unit(n_length, n_angle, symbol, factor):
-    u = display.compound_unit(n_length, n_angle)
+    u = units.compound_unit(n_length, n_angle)
     assert u.symbol == symbol
     assert u.factor == pytest.approx(factor, rel=1e-15)
     if symbol and not symbol.startswith("m^"):  # pint agrees on the product's factor
@@ -110,7 +109,18 @@ def test_expression_literals_give_the_same_si_values():
 
 
 def test_derived_tables_are_the_units_table():
-    assert columns._SI is DISPLAY_TO_SI
+    # the column suffix of each display unit names its SI unit (the one units layer does both)
+    assert units.column_suffix(units.UNITS["length"]) == "m"
+    assert units.column_suffix(units.UNITS["angle"]) == "rad"
+    assert units.column_suffix(units.UNITS["volume"]) == "m3"
+    assert units.column_suffix(units.compound_unit(3, 2)) == "m3_rad2"
+    assert units.column_suffix(units.UNITS["stiffness"]) == "N_per_m"
+    assert units.column_suffix(units.UNITS["pressure"]) == "Pa"
+    assert units.column_suffix(units.NONE) == ""
+    assert units.si_compound(("m", "m", "m", "rad", "rad")) == "m^3 rad^2"
+    assert units.si_compound(("rad", "m")) == "m rad" and units.si_compound(()) == "1"
+    assert units.format_pose(("x", "alpha"), {"alpha"}, (0.205, math.radians(15.0)), ".4g") == "x=205 mm, alpha=15 deg"
+    assert units.in_display(0.205, "length", ".3f") == "205.000 mm"
     for kind, u in UNIT_KINDS.items():
         assert display.UNITS[kind].symbol == u.display and display.UNITS[kind].factor == u.factor
         assert SI_UNIT_KINDS[u.si] == kind

@@ -36,8 +36,9 @@ import numpy as np
 from .. import __version__
 from ..mechanisms import list_mechanisms, load_mechanism, mechanism_summaries
 from .plugins import load_plugins  # noqa: F401  (also parasynth.cli.load_plugins)
-from ..common.units import SI_UNIT_KINDS, UNIT_KINDS
+from ..common.units import SI_UNIT_KINDS, UNIT_KINDS, format_pose, format_quantity, in_display
 from ..common.validation import MAX_LEGS, MAX_SAMPLES, MAX_SEED, MAX_TRIALS
+from ..common import columns as derived
 
 EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_INTERRUPTED, EXIT_PIPE = 0, 1, 2, 130, 141
 
@@ -123,23 +124,12 @@ def _parse_params(name: str, items: list[str], flag: str = "--param") -> dict:
     return out
 
 
-def _in_display(value, kind: str, spec: str) -> str:
-    """``value`` (SI) in the display unit of ``kind``, formatted with ``spec``: '205.000 mm'."""
-    u = UNIT_KINDS[kind]
-    return f"{value * u.factor:{spec}} {u.display}"
-
-
 def _fmt_pose(mech, X) -> str:
-    parts = []
-    for name, v in zip(mech.task_coordinates, np.atleast_1d(X)):
-        parts.append(f"{name}={_in_display(v, 'angle' if name in mech.angular_coordinates else 'length', '.3f')}")
-    return ", ".join(parts)
+    return format_pose(mech.task_coordinates, mech.angular_coordinates, np.atleast_1d(X), ".3f")
 
 
 def _fmt_value(v, kind) -> str:
     """A parameter or variable value (SI) in display units: '205 mm', '25 deg', '0.8'."""
-    from ..common.units import format_quantity
-
     if isinstance(v, bool) or isinstance(v, str):
         return str(v).lower() if isinstance(v, bool) else v
     if isinstance(v, (tuple, list)):
@@ -300,7 +290,7 @@ def cmd_validate(args) -> int:
         sets = _fmt_settings(o.name, o.settings)
         print(f"  objective {o.label}: {o.goal} {o.name}" + (f" ({sets})" if sets else "") + _fmt_robust(o))
     for c in study.constraints:
-        col = f"{c.label}_nominal" if c.probability is not None else c.label  # a chance constraint's bound
+        col = derived.nominal(c.label) if c.probability is not None else c.label  # a chance constraint's bound
         bounds = [f"{b} {fq(study, col, x)}" for b, x in (("min", c.min), ("max", c.max)) if x is not None]
         sets = _fmt_settings(c.name, c.settings)
         print(f"  constraint {c.label}: {c.name} " + " ".join(bounds) + (f" ({sets})" if sets else "")
@@ -519,7 +509,7 @@ def cmd_analyze(args) -> int:
     X = mech.home + span * rng.uniform(-1, 1, size=(args.samples, mech.n_task))
     ik = mech.inverse_kinematics(X)
     reach = ik.reachable
-    spans = ", ".join(f"{c} +-{_in_display(w, 'angle' if c in mech.angular_coordinates else 'length', '.4g')}"
+    spans = ", ".join(f"{c} +-{in_display(w, 'angle' if c in mech.angular_coordinates else 'length', '.4g')}"
                       for c, w in zip(mech.task_coordinates, span))
     print(f"\n{args.samples} random poses around home ({spans}): {reach.sum()} reachable")
     if reach.any():
@@ -535,8 +525,8 @@ def cmd_analyze(args) -> int:
                 err = np.abs(Xfk - X[reach][:5])
                 ang = np.array([c in mech.angular_coordinates for c in mech.task_coordinates])
                 print(f"forward kinematics from home on {len(q)} poses: max error "
-                      f"{_in_display(np.max(err[:, ~ang]) if (~ang).any() else 0.0, 'length', '.2e')}"
-                      + (f", {_in_display(np.max(err[:, ang]), 'angle', '.2e')}" if ang.any() else "")
+                      f"{in_display(np.max(err[:, ~ang]) if (~ang).any() else 0.0, 'length', '.2e')}"
+                      + (f", {in_display(np.max(err[:, ang]), 'angle', '.2e')}" if ang.any() else "")
                       + " (a large value means another assembly mode)")
             except ForwardKinematicsError as e:
                 findings.append(f"forward kinematics fails on the sampled poses: {e}")
@@ -565,14 +555,14 @@ def _analyze_home(mech) -> list[str]:
     acts = []
     for n, v in zip(mech.actuators, np.atleast_1d(ik.actuators)):
         kind = getattr(mech, "actuator_kinds", {}).get(n) if isinstance(getattr(mech, "actuator_kinds", None), dict) else None
-        acts.append(f"{n}={_in_display(v, 'angle' if kind == 'angle' else 'length', '.4f')}")
+        acts.append(f"{n}={in_display(v, 'angle' if kind == 'angle' else 'length', '.4f')}")
     print("actuators at home: " + ", ".join(acts))
     margins = mech.constraint_margins(mech.home)
     for cname, mv in margins.items():
         mv = float(np.asarray(mv))
         c = mech.constraints[cname]
         unit = getattr(c, "unit", "")
-        shown = (_in_display(mv, SI_UNIT_KINDS[unit], ".4g") if unit in ("m", "rad")
+        shown = (in_display(mv, SI_UNIT_KINDS[unit], ".4g") if unit in ("m", "rad")
                  else f"{mv:.4g} {unit}".rstrip())
         print(f"pose limit {cname} at home: margin {shown}" + ("" if mv >= 0 else "  (violated)"))
         if mv < 0:

@@ -21,7 +21,7 @@ from ..export import ExportError, build_tree, to_mjcf, to_urdf
 from ..export.mjcf import MIN_CONDITIONING
 from ..mechanisms import load_mechanism
 from ..study import rundir
-from ..common.units import UNIT_KINDS, parse_quantity
+from ..common.units import format_pose, parse_quantity
 
 __all__ = ["export_command", "design_of_run", "parse_pose", "format_of"]
 
@@ -87,15 +87,6 @@ def design_of_run(run_dir, trial: int | None):
     return study.mechanism, rundir.design_params(study, values), what
 
 
-def _si(mech, X) -> str:
-    parts = []
-    for c, v in zip(mech.task_coordinates, X):
-        kind = "angle" if c in mech.angular_coordinates else "length"
-        u = UNIT_KINDS[kind]
-        parts.append(f"{c}={v * u.factor:.6g} {u.display}")
-    return ", ".join(parts)
-
-
 def export_command(args, params: dict | None) -> int:
     """Run ``parasynth export`` for parsed arguments; ``params`` are the parsed ``--set`` values of a
     mechanism (None for a run directory)."""
@@ -124,7 +115,7 @@ def export_command(args, params: dict | None) -> int:
     else:
         written = list(to_urdf(mech, out, X))
     kinds = [c.kind for c in tree.closures]
-    print(f"{mech.name} ({what}) at {_si(mech, X)}")
+    print(f"{mech.name} ({what}) at {format_pose(mech.task_coordinates, mech.angular_coordinates, X)}")
     closes = f"{kinds.count('3D')} ball (connect), {kinds.count('6D')} rigid (weld)" if fmt == "mjcf" else \
         f"{kinds.count('3D')} 3D, {kinds.count('6D')} 6D"
     print(f"  {len(mech.legs)} legs, {len(tree.closures)} closed loops ({closes}), {len(tree.actuators)} actuated "

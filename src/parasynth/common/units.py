@@ -16,11 +16,13 @@ from __future__ import annotations
 
 import math
 import re
+from dataclasses import dataclass
 from functools import lru_cache
 from typing import NamedTuple
 
 __all__ = ["UnitKind", "UNIT_KINDS", "DISPLAY_UNITS", "SI_UNIT_KINDS", "LITERAL_UNITS", "DISPLAY_TO_SI",
-           "si_unit", "parse_quantity", "format_quantity", "QuantityError"]
+           "si_unit", "parse_quantity", "format_quantity", "QuantityError", "Unit", "NONE", "UNITS", "unit_for_kind",
+           "unit_for_si", "compound_unit", "si_compound", "column_suffix", "in_display", "format_pose"]
 
 
 class UnitKind(NamedTuple):
@@ -81,6 +83,110 @@ def si_unit(kind: str | None) -> str:
     """The SI unit of ``kind`` ('' for a pure number, ``None`` or an unknown kind)."""
     u = UNIT_KINDS.get(kind or "")
     return u.si if u else ""
+
+
+# -- display units and compound units -------------------------------------------------------------
+@dataclass(frozen=True)
+class Unit:
+    """A display unit: ``display value = SI value * factor``; ``symbol`` is empty for pure numbers."""
+
+    symbol: str
+    factor: float = 1.0
+
+    def __call__(self, value_si):
+        return value_si * self.factor
+
+    def label(self, name: str) -> str:
+        """``name [symbol]`` (``name`` alone for a pure number)."""
+        return f"{name} [{self.symbol}]" if self.symbol else name
+
+
+NONE = Unit("", 1.0)
+
+#: Display unit of each quantity kind (from :data:`UNIT_KINDS`).
+UNITS = {k: Unit(u.display, u.factor) if u.display else NONE for k, u in UNIT_KINDS.items()}
+
+_POWER = {1: "", 2: "^2", 3: "^3"}
+#: Kind of a product of 1, 2, 3 lengths.
+_LENGTH_POWER = {1: "length", 2: "area", 3: "volume"}
+
+
+def unit_for_kind(kind: str | None) -> Unit:
+    """Display unit of a quantity kind (``None`` or an unknown kind: shown as a plain number)."""
+    return UNITS.get(kind or "dimensionless", NONE)
+
+
+def unit_for_si(unit: str | None) -> Unit:
+    """Display unit for a value declared in the SI unit string ``unit`` ("m", "m^3", "N", "1", ...).
+    Unknown strings are kept as they are (factor 1)."""
+    if unit is None:
+        return NONE
+    u = unit.strip()
+    if u in SI_UNIT_KINDS:
+        return UNITS[SI_UNIT_KINDS[u]]
+    if u == "mixed":
+        return NONE
+    return Unit(u, 1.0)
+
+
+def compound_unit(n_length: int, n_angle: int) -> Unit:
+    """Display unit of a product of ``n_length`` lengths and ``n_angle`` angles: lengths in mm
+    for one, cm^2 / cm^3 for two / three (m^n beyond), angles in deg."""
+    parts, factor = [], 1.0
+    if n_length in _LENGTH_POWER:
+        u = UNITS[_LENGTH_POWER[n_length]]
+        parts.append(u.symbol)
+        factor *= u.factor
+    elif n_length > 3:
+        parts.append(f"{UNIT_KINDS['length'].si}^{n_length}")
+    if n_angle:
+        parts.append(f"{UNITS['angle'].symbol}{_POWER.get(n_angle, f'^{n_angle}')}")
+        factor *= UNITS["angle"].factor ** n_angle
+    return Unit("*".join(parts), factor)
+
+
+def si_compound(units) -> str:
+    """The SI unit of a product of quantities in the SI ``units`` ("m", "rad", ...) as the
+    workspace measures state it: ``("m", "m", "m", "rad", "rad")`` -> ``"m^3 rad^2"``, ``"1"``
+    for none (lengths first, then angles, then any other unit in order of appearance)."""
+    units = [u for u in units if u not in ("", "1")]
+    order = [UNIT_KINDS["length"].si, UNIT_KINDS["angle"].si] + [u for u in dict.fromkeys(units)
+                                                                  if u not in ("m", "rad")]
+    parts = []
+    for sym in order:
+        k = units.count(sym)
+        if k:
+            parts.append(sym if k == 1 else f"{sym}^{k}")
+    return " ".join(parts) or "1"
+
+
+def column_suffix(unit: Unit) -> str:
+    """The SI unit of a display unit as a column-name suffix ('' for a pure number): 'm' for mm,
+    'rad' for deg, 'm3' for cm^3, 'm3_rad2' for cm^3*deg^2, 'N_per_m' for N/m, 'Pa' for GPa --
+    an identifier whatever a measure declares as its unit (letters, digits, '_')."""
+    if not unit.symbol:
+        return ""
+    parts = []
+    for factor in unit.symbol.split("*"):
+        u, _, power = factor.partition("^")
+        num, _, den = u.partition("/")
+        num = DISPLAY_TO_SI.get(num, num)
+        den = DISPLAY_TO_SI.get(den, den)
+        parts.append(num + power + (f"_per_{den}" if den else ""))
+    return re.sub(r"[^A-Za-z0-9_]+", "_", "_".join(parts)).strip("_")
+
+
+def in_display(value, kind: str, spec: str = ".4g") -> str:
+    """``value`` (SI) in the display unit of ``kind``, formatted with ``spec``: '205.000 mm'."""
+    u = UNIT_KINDS[kind]
+    return f"{value * u.factor:{spec}} {u.display}"
+
+
+def format_pose(coordinates, angular, X, spec: str = ".6g") -> str:
+    """``x=10 mm, alpha=5 deg``: task coordinates ``X`` (SI) named by ``coordinates``, those in
+    ``angular`` as angles, the others as lengths, each formatted with ``spec``."""
+    return ", ".join(f"{c}={in_display(v, 'angle' if c in angular else 'length', spec)}"
+                     for c, v in zip(coordinates, X))
 
 
 class QuantityError(ValueError):

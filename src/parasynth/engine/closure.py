@@ -32,9 +32,9 @@ import math
 
 import numpy as np
 
-from ..model.legs import GEOM_TOL
+from ..model.legs import GEOM_TOL, require
 from .core import HAVE_NUMBA, _array
-from .indices import _NC, _PRS, _PUS, _RPS, _RPU, _UPU, _check_legs, _legs_plan, _Unsupported
+from .indices import _NC, _PRS, _PUS, _RPS, _RPU, _SPS, _UPS, _UPU, _check_legs, _legs_plan, _Unsupported
 
 if HAVE_NUMBA:
     from numba import njit
@@ -42,8 +42,6 @@ if HAVE_NUMBA:
 
 __all__ = ["plan", "prep", "solve", "signatures", "ClosurePlan"]
 
-#: Leg types with a compiled closure.
-_CLOSED = {"SPS", "UPS", "PUS", "RPS", "RPU", "UPU", "PRS"}
 
 
 class ClosurePlan:
@@ -65,8 +63,8 @@ class ClosurePlan:
 
 
 #: Geometry slots of :func:`parasynth.engine.indices._legs_plan` per leg type.
-_SLOTS = {"SPS": (), "UPS": ("u_axis",), "PUS": ("slider_axis", "u_axis"), "RPS": ("r_axis",),
-          "RPU": ("r_axis", "u_platform_axis"), "UPU": ("u_axis", "u_platform_axis"), "PRS": ("slider_axis", "r_axis")}
+_SLOTS = {_SPS: (), _UPS: ("u_axis",), _PUS: ("slider_axis", "u_axis"), _RPS: ("r_axis",),
+          _RPU: ("r_axis", "u_platform_axis"), _UPU: ("u_axis", "u_platform_axis"), _PRS: ("slider_axis", "r_axis")}
 
 
 def plan(leg_sets, fields=None) -> ClosurePlan:
@@ -76,9 +74,8 @@ def plan(leg_sets, fields=None) -> ClosurePlan:
     leg_sets = list(leg_sets)
     first = leg_sets[0]
     _check_legs(first)
-    for leg in first:
-        if leg.joints not in _CLOSED:
-            raise _Unsupported(f"leg {leg.name}: leg type {leg.joints} has no compiled closure")
+    for leg in first:  # the leg type declares whether the closure as built is compiled for it
+        require(leg, "closure", _Unsupported)
     for legs in leg_sets:
         if len(legs) != len(first) or any(type(a) is not type(b) for a, b in zip(legs, first)):
             raise _Unsupported("the draws' legs differ in type or number")
@@ -94,9 +91,9 @@ def plan(leg_sets, fields=None) -> ClosurePlan:
     sc = np.repeat(sc0[None], nd, axis=0)
     for j, leg in enumerate(first):
         fl = fields[j]
-        for slot, name in enumerate(("base", "platform") + _SLOTS[leg.joints]):
+        for slot, name in enumerate(("base", "platform") + _SLOTS[int(code[j])]):
             geo[:, j, slot] = fl[name]
-        if leg.joints in ("PUS", "PRS"):
+        if int(code[j]) in (_PUS, _PRS):
             sc[:, j, 0] = fl["link_length"]
     return ClosurePlan(code, act, geo, sc)
 

@@ -63,7 +63,7 @@ import math
 
 import numpy as np
 
-from ..model.legs import GEOM_TOL, PRS, PUS, RPS, RPU, RUS, SPS, UPS, UPU, Leg
+from ..model.legs import GEOM_TOL, PRS, PUS, RPS, RPU, RUS, SPS, UPS, UPU, Leg, require
 from ..model.mechanism import Mechanism
 from .evaluate import compiled_pose_batch
 
@@ -95,8 +95,8 @@ if HAVE_NUMBA:
 # Leg type codes in the kernels.
 _SPS, _UPS, _PUS, _RPS, _RPU, _UPU, _PRS, _RUS = 0, 1, 2, 3, 4, 5, 6, 7
 _CODES = {SPS: _SPS, UPS: _UPS, PUS: _PUS, RPS: _RPS, RPU: _RPU, UPU: _UPU, PRS: _PRS, RUS: _RUS}
-#: Constraint rows of each leg type.
-_NC = {_SPS: 0, _UPS: 0, _PUS: 0, _RPS: 1, _RPU: 2, _UPU: 1, _PRS: 1, _RUS: 0}
+#: Constraint rows of each leg type (as the leg type declares them: ``constraint_rows``).
+_NC = {code: len(cls.constraint_rows) for cls, code in _CODES.items()}
 # Methods whose NumPy definitions the kernels reproduce: a subclass overriding one of them is
 # not covered.
 _LEG_METHODS = ("solve", "actuation_wrench", "constraint_wrenches", "joint_twists", "platform_points")
@@ -121,6 +121,7 @@ def _check_covered(mech) -> None:
     if not mech.legs:
         raise _Unsupported("the mechanism has no legs")
     for leg in mech.legs:
+        require(leg, "compiled", _Unsupported)
         cls = type(leg)
         if cls not in _CODES:
             base = next((b for b in cls.__mro__[1:] if b in _CODES), None)
@@ -181,6 +182,7 @@ def _check_legs(legs) -> None:
     if not HAVE_NUMBA:
         raise _Unsupported("numba is not available")
     for leg in legs:
+        require(leg, "compiled", _Unsupported)
         cls = type(leg)
         base = next((b for b in cls.__mro__ if b in _CODES), None)
         if base is None:

@@ -45,7 +45,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ..model.constraints import ActuatorRange, JointAngleLimit, LegInterference, LegLengthRange
-from ..model.legs import Leg, LegState
+from ..model.legs import LEG_TYPES, PRS, PUS, RPS, RPU, RUS, SPS, UPS, UPU, Leg, LegState, require, types_with
 # The universal-joint angles of a direction about a fixed axis, as the legs define them.
 from ..model.legs import _u_angles
 from ..model.spatial import reciprocal_basis, rot_axis, unit
@@ -53,8 +53,9 @@ from ..model.spatial import reciprocal_basis, rot_axis, unit
 __all__ = ["JointSpec", "GeomSpec", "SiteSpec", "BodySpec", "Closure", "Tree", "build_tree", "joint_values",
            "ExportError", "SUPPORTED_LEGS"]
 
-#: Leg types the exporter knows (joints base to platform).
-SUPPORTED_LEGS = ("SPS", "UPS", "PUS", "RPS", "PRS", "RUS", "RPU", "UPU")
+#: Leg types the exporter knows (joints base to platform): those that declare the ``export``
+#: capability (:data:`parasynth.model.legs.CAPABILITIES`).
+SUPPORTED_LEGS = types_with("export")
 #: Density (kg/m^3) of every exported body: structural steel, an assumption (the descriptions
 #: carry no masses). Masses only matter for simulation, never for the kinematic checks.
 STEEL_DENSITY = 7850.0
@@ -244,7 +245,7 @@ def _chain(leg: Leg, st: LegState, R: np.ndarray, R_home: np.ndarray, act_home: 
     """The bodies of ``leg`` at N poses (its states ``st``, platform rotations ``R``), and the
     kind of its closure ("3D" or "6D"). ``act_home`` is the leg's actuator value at home."""
     N = st.length.shape[0]
-    t = leg.joints
+    t = LEG_TYPES[leg.joints]  # the registered leg type (its capabilities were checked)
     n, n_h = st.direction, leg.base_ref
     B, A = st.base_point, st.platform_point
     ang = st.angles
@@ -265,25 +266,25 @@ def _chain(leg: Leg, st: LegState, R: np.ndarray, R_home: np.ndarray, act_home: 
         return [_Body(lead, B, G, lead_joints),
                 _Body("rod", A, G, [("P", "slide", n, st.length, act, src)])]
 
-    if t == "SPS":
+    if t is SPS:
         G = _min_rotation(n_h, n)
         bodies = telescope(G, [("S", "ball", None, G, False, "smallest rotation from the home direction")], "cyl")
         return bodies, "3D"
-    if t == "UPS":
+    if t is UPS:
         G, joints = base_u(leg.u_axis)
         return telescope(G, joints, "cyl"), "3D"
-    if t == "RPS":
+    if t is RPS:
         G = rot_axis(leg.r_axis, ang["R_base"])
         return telescope(G, [("R", "hinge", axis(leg.r_axis), ang["R_base"], False, f"{leg.name}.R_base")], "cyl"), "3D"
-    if t == "PUS":
+    if t is PUS:
         G, joints = base_u(leg.u_axis)
         return [_Body("slider", B, I3, [("P", "slide", axis(leg.slider_axis), st.actuator, True, "actuator")]),
                 _Body("link", B, G, joints)], "3D"
-    if t == "PRS":
+    if t is PRS:
         G = rot_axis(leg.r_axis, ang["R_base"])
         return [_Body("slider", B, I3, [("P", "slide", axis(leg.slider_axis), st.actuator, True, "actuator")]),
                 _Body("link", B, G, [("R", "hinge", axis(leg.r_axis), ang["R_base"], False, f"{leg.name}.R_base")])], "3D"
-    if t == "RUS":
+    if t is RUS:
         a = leg.r_axis
         Gc = rot_axis(a, st.actuator - act_home)
         n_loc = np.einsum("nji,nj->ni", Gc, n)  # the link direction in the crank's home frame
@@ -297,7 +298,7 @@ def _chain(leg: Leg, st: LegState, R: np.ndarray, R_home: np.ndarray, act_home: 
     G_end = R @ R_home.T
     a4_h = R_home @ leg.u_platform_axis
     a4 = R @ leg.u_platform_axis
-    if t == "RPU":
+    if t is RPU:
         r = leg.r_axis
         G = rot_axis(r, ang["R_base"])
         th1 = ang["U_platform_1"]
@@ -307,7 +308,7 @@ def _chain(leg: Leg, st: LegState, R: np.ndarray, R_home: np.ndarray, act_home: 
         bodies.append(_Body("end", A, G_end, [("U1", "hinge", axis(r), th1, False, f"{leg.name}.U_platform_1"),
                                               ("U2", "hinge", a4, th2, False, "leg state (platform U, axis 2)")]))
         return bodies, "6D"
-    if t == "UPU":
+    if t is UPU:
         G, joints = base_u(leg.u_axis)
         a3_h = unit(np.cross(a4_h, n_h))
         M = np.swapaxes(G, -1, -2) @ G_end
@@ -422,16 +423,16 @@ def _ranges(mech):
         if isinstance(c, ActuatorRange):
             for leg in mech.legs:
                 if leg.is_actuated:
-                    put(leg.name, "R" if leg.joints == "RUS" else "P", c.lo, c.hi, c.name)
+                    put(leg.name, "R" if leg.actuator_kind == "angle" else "P", c.lo, c.hi, c.name)
         elif isinstance(c, LegLengthRange):
             for leg in mech.legs:
-                if leg.name in c.legs and leg.joints in ("SPS", "UPS", "RPS", "RPU", "UPU"):
+                if leg.name in c.legs and isinstance(leg, (SPS, UPS, RPS, RPU, UPU)):
                     put(leg.name, "P", c.lo, c.hi, c.name)
         elif isinstance(c, JointAngleLimit) and c.key in keys:
             for leg in mech.legs:
-                has = (c.key == "R_base" and leg.joints in ("RPS", "RPU", "PRS")) or \
-                      (c.key in ("U_base_1", "U_base_2") and leg.joints in ("UPS", "PUS", "UPU")) or \
-                      (c.key == "U_platform_1" and leg.joints == "RPU")
+                has = (c.key == "R_base" and isinstance(leg, (RPS, RPU, PRS))) or \
+                      (c.key in ("U_base_1", "U_base_2") and isinstance(leg, (UPS, PUS, UPU))) or \
+                      (c.key == "U_platform_1" and isinstance(leg, RPU))
                 if has and (not c.legs or leg.name in c.legs):
                     put(leg.name, keys[c.key], c.lo, c.hi, c.name)
         else:
@@ -447,9 +448,7 @@ def build_tree(mech, pose=None) -> Tree:
         raise ExportError(f"{mech.name}: pose must have {mech.n_task} task coordinates "
                           f"({', '.join(mech.task_coordinates)}, SI), got shape {Xe.shape}")
     for leg in mech.legs:
-        if leg.joints not in SUPPORTED_LEGS:
-            raise ExportError(f"leg {leg.name}: the exporter does not know the leg type {type(leg).__name__} "
-                              f"(joints {leg.joints!r}); it writes {', '.join(SUPPORTED_LEGS)}")
+        require(leg, "export", ExportError)
     _, p, R, chains = _chains(mech, Xe[None, :])
     p, R = p[0], R[0]
     diam = _leg_diameters(mech)

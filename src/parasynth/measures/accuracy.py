@@ -51,7 +51,8 @@ Assumptions: rigid links, errors small enough for the linearisation (Monte Carlo
 the closure Jacobian ``G_t`` of rank 6 (an under-actuated mechanism, e.g. the 4-UPS/1-RPS, has an
 uncontrolled freedom whose error is not defined: ``ValueError``), poses near a singularity give
 large (and at the singularity ``inf``) errors. With more closure rows than 6 (redundant
-constraints) the least-squares solution is used. Unknown leg types raise ``ValueError``.
+constraints) the least-squares solution is used. A leg type without the ``accuracy`` capability
+(:data:`parasynth.model.legs.CAPABILITIES`) is refused by name (``LegCapabilityError``, a ``ValueError``).
 """
 
 from __future__ import annotations
@@ -62,7 +63,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..model.spatial import dot_rows, rot_axis, rotate_rows, unit
+from ..model.legs import require
+from ..model.spatial import rot_axis, unit
 from ..common.units import parse_quantity
 
 __all__ = [
@@ -117,39 +119,13 @@ def _check_tolerances(tol: dict) -> dict:
 # -- closure residuals ----------------------------------------------------------------------------
 def _leg_residual(leg, p, R) -> np.ndarray:
     """Closure residuals (N, r) of one leg, rows as in ``mech.wrench_matrix`` for this leg:
-    (actuator value if actuated), then the constraint residuals."""
-    j = leg.joints
-    out = []
+    (actuator value if actuated), then the constraint residuals the leg type declares
+    (``leg.constraint_residuals``); a leg type without the ``accuracy`` capability is refused."""
+    require(leg, "accuracy")
     A = leg.platform_points(p, R)
-    if leg.is_actuated:
-        out.append(_actuator_value(leg, A, p, R))
-    if j in ("RPS", "PRS"):
-        out.append(dot_rows(A - leg.base, leg.r_axis))
-    elif j == "RPU":
-        out.append(dot_rows(A - leg.base, leg.r_axis))
-        out.append(dot_rows(rotate_rows(R, leg.u_platform_axis), leg.r_axis))
-    elif j == "UPU":
-        n = unit(A - leg.base)
-        cb = unit(np.cross(leg.u_axis, n))
-        cp = unit(np.cross(rotate_rows(R, leg.u_platform_axis), n))
-        out.append(np.arctan2(np.sum(np.cross(cb, cp) * n, -1), np.sum(cb * cp, -1)))
-    elif j not in ("SPS", "UPS", "PUS", "RUS"):  # six joint freedoms: the actuator alone closes the leg
-        raise ValueError(f"accuracy: leg type {j!r} (leg {leg.name}) has no closure residual; supported: "
-                         f"SPS, UPS, PUS, RUS, RPS, PRS, RPU, UPU")
+    out = [leg.actuator_value(A, p, R)] if leg.is_actuated else []
+    out += leg.constraint_residuals(A, R)
     return np.stack(out, axis=-1) if out else np.zeros(p.shape[:1] + (0,))
-
-
-def _actuator_value(leg, A, p, R):
-    """The leg's actuator value for platform anchor points ``A``: the closed forms of
-    ``leg.solve`` (leg length; slider position of a fixed-length link), or ``leg.solve``."""
-    if leg.joints in ("SPS", "UPS", "RPS", "RPU", "UPU"):
-        return np.linalg.norm(A - leg.base, axis=-1)
-    if leg.joints in ("PUS", "PRS"):
-        d = A - leg.base
-        de = dot_rows(d, leg.slider_axis)
-        disc = leg.link_length ** 2 - (np.einsum("ij,ij->i", d, d) - de ** 2)
-        return de + leg.branch * np.sqrt(np.where(disc >= 0, disc, np.nan))
-    return leg.solve(p, R).actuator
 
 
 def closure_residuals(mech, p, R, legs=None) -> np.ndarray:
@@ -161,8 +137,7 @@ def closure_residuals(mech, p, R, legs=None) -> np.ndarray:
 def _rows_per_leg(mech):
     n = []
     for leg in mech.legs:
-        c = {"RPS": 1, "PRS": 1, "RPU": 2, "UPU": 1}.get(leg.joints, 0)
-        n.append(int(leg.is_actuated) + c)
+        n.append(int(leg.is_actuated) + len(leg.constraint_rows))
     return n
 
 
@@ -415,7 +390,7 @@ def _length_rows(mech):
     for leg in mech.legs:
         if leg.is_actuated:
             rows.append(leg.actuator_kind != "angle")  # a crank angle is an angle
-        rows += {"RPS": [True], "PRS": [True], "RPU": [True, False], "UPU": [False]}.get(leg.joints, [])
+        rows += [kind == "length" for kind in leg.constraint_rows]
     return np.array(rows, bool)
 
 

@@ -10,7 +10,9 @@ which may follow a setting as ``stiffness_min``'s follows ``part``, or ``Measure
 objectives and design constraints, and from the design variable's kind for variables. The
 workspace measures in "sampled units" (a volume in the product of the sampled coordinates'
 units) get a compound unit: ``cm^3`` for three position coordinates, ``cm^3*deg^2`` for three
-positions and two angles, and so on.
+positions and two angles, and so on. The units themselves (:class:`Unit`, the display unit of each
+kind, compound units, column suffixes) live in the one units layer, :mod:`parasynth.common.units`;
+this module decides which unit a study's column carries.
 
 Numbers are rounded to a number of significant digits (default 4) and written without
 trailing zeros or exponent for ordinary magnitudes: ``0.20500000000000002 m`` -> ``205 mm``.
@@ -20,88 +22,31 @@ from __future__ import annotations
 
 import math
 import re
-from dataclasses import dataclass
 
 import numpy as np
 
-from ..mechanisms import load_mechanism
+from ..common.columns import MARGIN, ROBUST_SE, STDERR, nominal
+from ..common.units import NONE, UNITS, Unit, compound_unit, parse_quantity, unit_for_kind, unit_for_si
+from ..mechanisms import mechanism_class
 from .objectives import OBJECTIVES
-from ..common.units import SI_UNIT_KINDS, UNIT_KINDS, parse_quantity
 
 __all__ = ["Unit", "UNITS", "unit_for_kind", "unit_for_si", "quantity_unit", "fmt_number", "fmt_quantity",
            "fmt_mean_se", "fmt_value", "column_header", "text_table", "fmt_column_value", "fmt_design",
            "fmt_evaluation", "reference_name", "reference_short", "written_unit", "study_unit", "fmt_study_design"]
 
 
-@dataclass(frozen=True)
-class Unit:
-    """A display unit: ``display value = SI value * factor``; ``symbol`` is empty for pure numbers."""
-
-    symbol: str
-    factor: float = 1.0
-
-    def __call__(self, value_si):
-        return value_si * self.factor
-
-    def label(self, name: str) -> str:
-        """``name [symbol]`` (``name`` alone for a pure number)."""
-        return f"{name} [{self.symbol}]" if self.symbol else name
-
-
-NONE = Unit("", 1.0)
-
-#: Display unit of each quantity kind (from the one units table, :data:`parasynth.common.units.UNIT_KINDS`).
-UNITS = {k: Unit(u.display, u.factor) if u.display else NONE for k, u in UNIT_KINDS.items()}
-
-_POWER = {1: "", 2: "^2", 3: "^3"}
-#: Kind of a product of 1, 2, 3 lengths.
-_LENGTH_POWER = {1: "length", 2: "area", 3: "volume"}
-
-
-def unit_for_kind(kind: str | None) -> Unit:
-    """Display unit of a quantity kind (``None`` or an unknown kind: shown as a plain number)."""
-    return UNITS.get(kind or "dimensionless", NONE)
-
-
-def unit_for_si(unit: str | None) -> Unit:
-    """Display unit for a value declared in the SI unit string ``unit`` ("m", "m^3", "N", "1", ...).
-    Unknown strings are kept as they are (factor 1)."""
-    if unit is None:
-        return NONE
-    u = unit.strip()
-    if u in SI_UNIT_KINDS:
-        return UNITS[SI_UNIT_KINDS[u]]
-    if u == "mixed":
-        return NONE
-    return Unit(u, 1.0)
-
-
-def compound_unit(n_length: int, n_angle: int) -> Unit:
-    """Display unit of a product of ``n_length`` lengths and ``n_angle`` angles: lengths in mm
-    for one, cm^2 / cm^3 for two / three (m^n beyond), angles in deg."""
-    parts, factor = [], 1.0
-    if n_length in _LENGTH_POWER:
-        u = UNITS[_LENGTH_POWER[n_length]]
-        parts.append(u.symbol)
-        factor *= u.factor
-    elif n_length > 3:
-        parts.append(f"{UNIT_KINDS['length'].si}^{n_length}")
-    if n_angle:
-        parts.append(f"{UNITS['angle'].symbol}{_POWER.get(n_angle, f'^{n_angle}')}")
-        factor *= UNITS["angle"].factor ** n_angle
-    return Unit("*".join(parts), factor)
-
-
 # -- which unit for a study column ---------------------------------------------------------------
 def _sampled_coordinates(study, settings: dict) -> tuple[list[str], set]:
-    """Names of the coordinates a workspace measure samples, and the angular ones."""
+    """Names of the coordinates a workspace measure samples, and the angular ones, from the
+    mechanism's class (its declared task coordinates and default ranges: nothing is built)."""
     ranges = settings.get("ranges") or study.evaluation.get("ranges")
     try:
-        mech = load_mechanism(study.mechanism, **{**study.fixed, **(study.reference or {})})
-        angular = set(mech.angular_coordinates)
+        cls = mechanism_class(study.mechanism)
+        angular = set(cls.angular_coordinates)
         if not ranges:
-            ranges = mech.default_ranges()
-    except Exception:  # a design that cannot be built: fall back on the usual angle names
+            desc = getattr(cls, "description", None)
+            ranges = list(desc.task.ranges) if desc is not None else list(cls.task_coordinates)
+    except Exception:  # a mechanism that cannot be loaded: fall back on the usual angle names
         angular = {"alpha", "beta", "gamma", "psi", "theta", "phi"}
     return list(ranges or ()), angular
 
@@ -127,14 +72,14 @@ def quantity_unit(study, name: str) -> Unit:
     """Display unit of a result column of ``study``: a design variable (by name), an objective or
     design constraint (by label, also ``<label>_stderr``), or a constraint margin
     (``<label>_margin``, in the constraint's unit). Other columns: no unit."""
-    for suffix in ("_stderr", "_margin", "_robust_se"):
+    for suffix in (STDERR, MARGIN, ROBUST_SE):
         if name.endswith(suffix) and quantity_known(study, name[: -len(suffix)]):
             return quantity_unit(study, name[: -len(suffix)])
     for o in study.constraints:  # a chance constraint's nominal value is the measure's, its value a fraction
-        if name == f"{o.label}_nominal" and getattr(o, "robust", None) is not None:
+        if name == nominal(o.label) and getattr(o, "robust", None) is not None:
             return measure_unit(study, o.name, getattr(o, "settings", {}) or {})
     for o in study.objectives:
-        if name == f"{o.label}_nominal" and getattr(o, "robust", None) is not None:
+        if name == nominal(o.label) and getattr(o, "robust", None) is not None:
             return quantity_unit(study, o.label)
     for v in study.variables:
         if v.name == name:
@@ -149,7 +94,7 @@ def quantity_unit(study, name: str) -> Unit:
 
 def quantity_known(study, name: str) -> bool:
     return any(v.name == name for v in study.variables) or any(
-        o.label == name or (getattr(o, "robust", None) is not None and name == f"{o.label}_nominal")
+        o.label == name or (getattr(o, "robust", None) is not None and name == nominal(o.label))
         for o in list(study.objectives) + list(study.constraints))
 
 

@@ -58,7 +58,7 @@ import numpy as np
 
 from .indices import (StaticForces, _as_poses, _lstsq_balance, _pack, default_gravity, point_force_wrench,
                       wrench_system)
-from ..model.legs import PUS, RPS, RPU, SPS, UPS, UPU
+from ..model.legs import PUS, RPS, RPU, SPS, UPS, UPU, LegCapabilityError, require, unsupported_message
 from ..mechanisms import load_mechanism
 
 __all__ = [
@@ -247,15 +247,14 @@ def platform_motion(mech, X, Xd, Xdd):
 
 
 def _axis_kind(leg):
+    require(leg, "dynamics")
     if isinstance(leg, (UPS, UPU, PUS)):
         return "U", np.asarray(leg.u_axis, dtype=float)
     if isinstance(leg, (RPS, RPU)):
         return "R", np.asarray(leg.r_axis, dtype=float)
     if isinstance(leg, SPS):
         return "S", None
-    raise NotImplementedError(
-        f"leg {leg.name}: dynamics of {type(leg).__name__} legs are not implemented "
-        f"(supported: UPS, SPS, RPS, RPU, UPU, PUS)")
+    raise LegCapabilityError(unsupported_message(leg, "dynamics"))  # pragma: no cover - required first
 
 
 def _skew(v):

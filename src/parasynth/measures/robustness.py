@@ -82,7 +82,7 @@ from .. import engine
 from .accuracy import (TOLERANCE_SETTINGS, _actuated_row_mask, _compose, _leg_changes_batch, _length_rows, _perturbed_legs,
                        _pinv_rank6, _pose_jacobian, _sample_errors, closure_residuals, error_sources)
 from ..model.constraints import PoseContext, SingularityMarginFloor
-from ..model.legs import solve_geometry
+from ..model.legs import solve_geometry, supports
 from ..model.mechanism import EngineFallbackWarning, Mechanism
 from .objectives import OBJECTIVES, Measure
 from .objectives import get as get_measure
@@ -337,8 +337,6 @@ def _newton(mech, legs, p0, R0, Gi, target, ok, scale, max_iter=20):
     return ok & conv, p, R
 
 
-#: Leg types whose geometry may be one value per pose (draws stacked into one batch).
-_STACKABLE = ("SPS", "UPS", "PUS", "RPS", "RPU", "UPU")
 _GEOMETRY = ("base", "platform", "slider_axis", "u_axis", "r_axis", "u_platform_axis", "link_length", "base_ref",
              "platform_ref")
 
@@ -426,7 +424,7 @@ class _Group:
             v0 = self.views[0]
             cons0 = tuple(repr(c) for c in v0.constraints.values())
             self._stackable = len(self.views) > 1 and all(
-                leg.joints in _STACKABLE for leg in v0.legs) and all(
+                supports(leg, "stacked") for leg in v0.legs) and all(
                 tuple(repr(c) for c in v.constraints.values()) == cons0 and len(v.legs) == len(v0.legs)
                 for v in self.views)
         return self._stackable

@@ -62,6 +62,7 @@ import math
 import numpy as np
 
 from ..common.units import parse_quantity
+from ..model.legs import require
 
 __all__ = [
     "STEEL_E",
@@ -254,6 +255,8 @@ def stiffness_matrix(mech, X, **stiffness) -> np.ndarray:
     unknown = sorted(set(stiffness) - set(STIFFNESS_SETTINGS))
     if unknown:
         raise ValueError(f"stiffness_matrix: unknown setting(s) {unknown}; allowed: {', '.join(STIFFNESS_SETTINGS)}")
+    for leg in mech.legs:
+        require(leg, "stiffness")
     Xa, single = mech._poses(X)
     _, states, p = mech.leg_states(Xa)
     W = mech.wrench_matrix(Xa)

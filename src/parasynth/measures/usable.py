@@ -68,8 +68,9 @@ import numpy as np
 
 from ..engine import effective_engine
 from ..common.validation import MAX_SAMPLES, check_count, check_engine, check_mechanism, check_names, check_number
+from ..common.units import si_compound
 from .workspace import (Box, WorkspaceSample, _check_constraints, _check_ranges, _fixed_pose, _grid_shape,
-                        _GridBoundary, _raster_shape, _units_string, box_in, freeze)
+                        _GridBoundary, _raster_shape, box_in, freeze)
 
 __all__ = ["UsableWorkspace", "usable_workspace", "usable_of", "oriented_determinant", "DEFAULT_FLOOR_FRACTION",
            "MIN_ALIGNMENT", "MAX_CELLS"]
@@ -411,7 +412,7 @@ def usable_workspace(mech, ranges=None, n: int = 4096, fixed=None, constraints=N
         margin=margin.reshape(shape), reference=ref, reference_cell=ref_cell,
         start_cell=None if start is None else tuple(int(i) for i in np.unravel_index(start, shape)), floor=float(floor),
         sign_rule=rule or "determinant", cut_edges=cut, ambiguous_edges=ambiguous, coordinate_units=cunits,
-        units=_units_string(tuple(cunits[c] for c in coords)))
+        units=si_compound(tuple(cunits[c] for c in coords)))
 
 
 def _start_cell(mech, ref, m_ref, floor, ref_cell, frac, shape, above, pos, det, V, edges, cols, names, engine):

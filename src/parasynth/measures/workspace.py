@@ -85,10 +85,10 @@ import numpy as np
 
 from ..engine import check_engine, pose_batch
 from ..common.qmc import sobol_engine, sobol_points
-from ..common.units import UNIT_KINDS
+from ..common.units import UNIT_KINDS, in_display, si_compound
 from ..common.validation import MAX_SAMPLES, check_count, check_mechanism, check_names
 
-_LENGTH, _ANGLE = UNIT_KINDS["length"], UNIT_KINDS["angle"]  # display units of sizes and extents
+_LENGTH = UNIT_KINDS["length"]  # the display unit of extents
 
 #: Largest ``n`` of :func:`workspace`. Samples stream chunk by chunk, so the limit is time, not
 #: memory (2**34 samples is about half an hour at 1e7 poses/s); the measures and studies keep
@@ -174,7 +174,7 @@ class Box:
 
     @property
     def volume_units(self) -> str:
-        return _units_string(self.units)
+        return si_compound(self.units)
 
     def as_dict(self) -> dict[str, tuple[float, float]]:
         """{coordinate: (low, high)}."""
@@ -186,8 +186,7 @@ class Box:
     def __str__(self) -> str:
         parts = []
         for c, s, u in zip(self.coordinates, self.sizes, self.units):
-            k = _LENGTH if u == "m" else _ANGLE
-            parts.append(f"{c}: {s * k.factor:.4g} {k.display}")
+            parts.append(f"{c}: {in_display(s, 'length' if u == 'm' else 'angle', '.4g')}")
         return " x ".join(parts)
 
 
@@ -828,7 +827,7 @@ def workspace(mech, ranges=None, n: int = 2**16, method: str = "sobol", seed: in
         n_feasible=n_feasible,
         volume=volume,
         volume_error=volume_error,
-        units=_units_string(tuple(cunits[c] for c in coords)),
+        units=si_compound(tuple(cunits[c] for c in coords)),
         coordinate_units=cunits,
         extents=extents,
         points=points,
@@ -978,16 +977,6 @@ def _default_raster(method, n_samples, d, shape) -> tuple[int, ...]:
         return tuple(min(m, rmax) for m in shape)
     r = int((n_samples / _SAMPLES_PER_CELL) ** (1.0 / d) + 1e-9)
     return (max(1, min(r, rmax)),) * d
-
-
-def _units_string(units) -> str:
-    nm = sum(1 for u in units if u == "m")
-    nr = sum(1 for u in units if u == "rad")
-    parts = []
-    for sym, k in (("m", nm), ("rad", nr)):
-        if k:
-            parts.append(sym if k == 1 else f"{sym}^{k}")
-    return " ".join(parts) or "1"
 
 
 # ---------------------------------------------------------------------------------------------

@@ -3,8 +3,9 @@ rotations and screws (:mod:`.spatial`), leg types (:mod:`.legs`), the mechanism 
 pose constraints as margins (:mod:`.constraints`) and the geometry checks of a mechanism's
 parameters (:mod:`.geometry_checks`). It imports only :mod:`parasynth.common`."""
 
-from .legs import LEG_TYPES, PRS, PUS, RPS, RPU, RUS, SPS, UPS, UPU, Leg
+from .legs import CAPABILITIES, LEG_TYPES, PRS, PUS, RPS, RPU, RUS, SPS, UPS, UPU, Leg, LegCapabilities, LegCapabilityError
 from .mechanism import EngineFallbackWarning, ForwardKinematicsError, IKResult, Mechanism, Mobility
 
-__all__ = ["LEG_TYPES", "PRS", "PUS", "RPS", "RPU", "RUS", "SPS", "UPS", "UPU", "Leg", "EngineFallbackWarning",
+__all__ = ["CAPABILITIES", "LegCapabilities", "LegCapabilityError",
+           "LEG_TYPES", "PRS", "PUS", "RPS", "RPU", "RUS", "SPS", "UPS", "UPU", "Leg", "EngineFallbackWarning",
            "ForwardKinematicsError", "IKResult", "Mechanism", "Mobility"]

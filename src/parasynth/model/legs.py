@@ -41,6 +41,14 @@ __all__ = [
     "RUS",
     "LEG_TYPES",
     "JOINT_DOF",
+    "CAPABILITIES",
+    "LegCapabilities",
+    "LegCapabilityError",
+    "capabilities_of",
+    "supports",
+    "types_with",
+    "require",
+    "unsupported_message",
 ]
 
 #: Freedoms of each joint letter.
@@ -81,6 +89,99 @@ def _perp_unit(a: np.ndarray, n: np.ndarray) -> np.ndarray:
     """Unit vector along ``a x n`` (the cross axis of a U joint with fixed axis ``a`` whose
     link lies along ``n``)."""
     return unit(np.cross(a, n))
+
+
+#: The parts of parasynth that may support a leg type, with what each one means. A leg type
+#: declares which it supports in one place, its ``capabilities`` (:class:`LegCapabilities`), and
+#: every part asks it (:func:`require`) instead of keeping its own list of leg types.
+CAPABILITIES = {
+    "compiled": "compiled kernels (engine: indices, feasibility)",
+    "closure": "compiled closure of the mechanism as built (engine: robust and as-built measures)",
+    "stacked": "one geometry per pose in a compiled batch (robust measures over scatter draws)",
+    "dynamics": "inverse dynamics with massive legs (measures.dynamics)",
+    "accuracy": "closure residuals and error sensitivity (measures.accuracy)",
+    "stiffness": "stiffness from the leg wrenches (measures.stiffness)",
+    "export": "MJCF / URDF export (export.tree)",
+    "view": "the report's interactive view (report.interactive)",
+    "passive": "an unactuated leg in a description (a passive constraining limb)",
+}
+
+
+@dataclass(frozen=True)
+class LegCapabilities:
+    """What a leg type supports: one flag per part of :data:`CAPABILITIES` (False: the part
+    refuses the leg by name, see :func:`require`)."""
+
+    compiled: bool = False
+    closure: bool = False
+    stacked: bool = False
+    dynamics: bool = False
+    accuracy: bool = False
+    stiffness: bool = False
+    export: bool = False
+    view: bool = False
+    passive: bool = False
+
+    def names(self) -> tuple[str, ...]:
+        """The capabilities this leg type has, in the order of :data:`CAPABILITIES`."""
+        return tuple(c for c in CAPABILITIES if getattr(self, c))
+
+
+class LegCapabilityError(ValueError, NotImplementedError):
+    """A part of parasynth asked to handle a leg type that does not declare the capability."""
+
+
+def capabilities_of(leg) -> LegCapabilities:
+    """The capabilities declared for the leg type of ``leg`` (a leg or a leg class). They belong
+    to a joint string: a subclass that changes ``joints`` without declaring its own has none."""
+    cls = leg if isinstance(leg, type) else type(leg)
+    owner = next((c for c in cls.__mro__ if "capabilities" in vars(c)), None)
+    if owner is None or getattr(owner, "joints", None) != getattr(cls, "joints", None):
+        return LegCapabilities()
+    return vars(owner)["capabilities"]
+
+
+def supports(leg, capability: str) -> bool:
+    """Whether ``leg`` (a leg or a leg class) declares ``capability`` (a key of :data:`CAPABILITIES`)."""
+    if capability not in CAPABILITIES:
+        raise ValueError(f"unknown leg capability {capability!r}; allowed: {', '.join(CAPABILITIES)}")
+    return bool(getattr(capabilities_of(leg), capability))
+
+
+def types_with(capability: str) -> tuple[str, ...]:
+    """The names of the registered leg types (:data:`LEG_TYPES`) that declare ``capability``."""
+    return tuple(name for name, cls in LEG_TYPES.items() if supports(cls, capability))
+
+
+def unsupported_message(leg, capability: str) -> str:
+    """``leg L1: leg type RUS does not support 'closure' (compiled closure ...); leg types that
+    do: SPS, UPS, ...`` -- the one wording every part uses to refuse a leg."""
+    cls = leg if isinstance(leg, type) else type(leg)
+    who = "" if isinstance(leg, type) else f"leg {leg.name}: "
+    name = getattr(cls, "joints", "") or cls.__name__
+    return (f"{who}leg type {name} does not support {capability!r} ({CAPABILITIES[capability]}); "
+            f"leg types that do: {', '.join(types_with(capability)) or 'none'}")
+
+
+def require(leg, capability: str, error: type[Exception] = LegCapabilityError) -> None:
+    """Raise ``error`` (default :class:`LegCapabilityError`, a ``ValueError`` and a
+    ``NotImplementedError``) naming the leg, its type and ``capability`` unless ``leg`` declares it."""
+    if not supports(leg, capability):
+        raise error(unsupported_message(leg, capability))
+
+
+def _anchor_distance(leg, A, p, R):
+    """The actuator of a leg whose actuated prismatic joint spans the anchors: their distance."""
+    return np.linalg.norm(A - leg.base, axis=-1)
+
+
+def _slider_position(leg, A, p, R):
+    """The actuator of a slider carrying a link of fixed length to the anchor ``A``: the slider
+    position of the leg's assembly branch (NaN out of reach)."""
+    d = A - leg.base
+    de = dot_rows(d, leg.slider_axis)
+    disc = leg.link_length ** 2 - (np.einsum("ij,ij->i", d, d) - de ** 2)
+    return de + leg.branch * np.sqrt(np.where(disc >= 0, disc, np.nan))
 
 
 @dataclass
@@ -125,6 +226,16 @@ class Leg:
     actuator_kind: ClassVar[str] = "length"
     #: Freedoms of the leg that do not move the platform (e.g. the spin of an SPS leg).
     local_dof: ClassVar[int] = 0
+    #: The options a mechanism description gives a leg of this type, {field: "axis_base" |
+    #: "axis_platform" | "length" | "branch"} (None: the type cannot be described), and those
+    #: it must give.
+    description_options: ClassVar[dict | None] = None
+    required_options: ClassVar[tuple[str, ...]] = ()
+    #: What the parts of parasynth support for this leg type (:data:`CAPABILITIES`).
+    capabilities: ClassVar[LegCapabilities] = LegCapabilities()
+    #: The kind ("length" or "angle") of each closure row beyond the actuator: one per
+    #: constraint wrench, in the order of :meth:`constraint_residuals`.
+    constraint_rows: ClassVar[tuple[str, ...]] = ()
 
     def __post_init__(self):
         object.__setattr__(self, "base", _vec3(f"leg {self.name}: base", self.base))
@@ -178,6 +289,18 @@ class Leg:
         """Wrenches (N, c, 6) reciprocal to every joint twist of the leg."""
         return np.zeros(st.length.shape + (0, 6))
 
+    def actuator_value(self, A: np.ndarray, p: np.ndarray, R: np.ndarray) -> np.ndarray:
+        """The actuator value (N,) for platform anchor points ``A`` (N, 3) at poses ``(p, R)``,
+        by a closed form where the leg type has one (evaluated also off the leg's constraint
+        manifold, for closure residuals), else by :meth:`solve`."""
+        return self.solve(p, R).actuator
+
+    def constraint_residuals(self, A: np.ndarray, R: np.ndarray) -> list[np.ndarray]:
+        """The closure residuals (N,) each of the leg's constraints for anchor points ``A`` and
+        platform orientations ``R``, one per :attr:`constraint_rows` (zero where the pose
+        satisfies the leg's constraint)."""
+        return []
+
     # shared pieces --------------------------------------------------------------------------
     def _line(self, base_pts: np.ndarray, plat_pts: np.ndarray):
         d = plat_pts - base_pts
@@ -215,6 +338,11 @@ class SPS(Leg):
     local freedom), so it imposes no constraint."""
 
     joints: ClassVar[str] = "SPS"
+    description_options: ClassVar[dict | None] = {}
+    capabilities: ClassVar[LegCapabilities] = LegCapabilities(
+        compiled=True, closure=True, dynamics=True, accuracy=True, stiffness=True, export=True, view=True,
+        stacked=True)
+    actuator_value = _anchor_distance
     local_dof: ClassVar[int] = 1
 
     def solve(self, p, R, joint_angles: bool = True):
@@ -250,6 +378,11 @@ class UPS(Leg):
 
     u_axis: np.ndarray = field(default_factory=lambda: np.array([1.0, 0.0, 0.0]))
     joints: ClassVar[str] = "UPS"
+    description_options: ClassVar[dict | None] = {"u_axis": "axis_base"}
+    capabilities: ClassVar[LegCapabilities] = LegCapabilities(
+        compiled=True, closure=True, dynamics=True, accuracy=True, stiffness=True, export=True, view=True,
+        stacked=True)
+    actuator_value = _anchor_distance
 
     def __post_init__(self):
         super().__post_init__()
@@ -317,6 +450,13 @@ class PUS(Leg):
     branch: int = 1
     u_axis: np.ndarray = field(default_factory=lambda: np.array([1.0, 0.0, 0.0]))
     joints: ClassVar[str] = "PUS"
+    description_options: ClassVar[dict | None] = {"slider_axis": "axis_base", "u_axis": "axis_base", "link_length": "length",
+                                                            "branch": "branch"}
+    required_options: ClassVar[tuple[str, ...]] = ("link_length",)
+    capabilities: ClassVar[LegCapabilities] = LegCapabilities(
+        compiled=True, closure=True, dynamics=True, accuracy=True, stiffness=True, export=True, view=True,
+        stacked=True)
+    actuator_value = _slider_position
     actuated: ClassVar[int | None] = 0
     actuator_kind: ClassVar[str] = "slider"
 
@@ -384,6 +524,12 @@ class RPS(Leg):
     r_axis: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, 1.0]))
     passive: bool = False
     joints: ClassVar[str] = "RPS"
+    description_options: ClassVar[dict | None] = {"r_axis": "axis_base"}
+    capabilities: ClassVar[LegCapabilities] = LegCapabilities(
+        compiled=True, closure=True, dynamics=True, accuracy=True, stiffness=True, export=True, view=True,
+        stacked=True, passive=True)
+    constraint_rows: ClassVar[tuple[str, ...]] = ("length",)
+    actuator_value = _anchor_distance
 
     def __post_init__(self):
         super().__post_init__()
@@ -415,6 +561,10 @@ class RPS(Leg):
         tw += _spherical_twists(st.platform_point, P)
         return np.stack(tw, axis=1)
 
+    def constraint_residuals(self, A, R):
+        """The anchor's offset (m) from the plane through ``base`` normal to ``r_axis``."""
+        return [dot_rows(A - self.base, self.r_axis)]
+
     def constraint_wrenches(self, st, P):
         N = st.length.shape[0]
         return force_wrench(np.broadcast_to(self.r_axis, (N, 3)), st.platform_point, P)[:, None, :]
@@ -436,6 +586,12 @@ class RPU(Leg):
     r_axis: np.ndarray = field(default_factory=lambda: np.array([0.0, 1.0, 0.0]))
     u_platform_axis: np.ndarray = field(default_factory=lambda: np.array([1.0, 0.0, 0.0]))
     joints: ClassVar[str] = "RPU"
+    description_options: ClassVar[dict | None] = {"r_axis": "axis_base", "u_platform_axis": "axis_platform"}
+    capabilities: ClassVar[LegCapabilities] = LegCapabilities(
+        compiled=True, closure=True, dynamics=True, accuracy=True, stiffness=True, export=True, view=True,
+        stacked=True)
+    constraint_rows: ClassVar[tuple[str, ...]] = ("length", "angle")
+    actuator_value = _anchor_distance
 
     def __post_init__(self):
         super().__post_init__()
@@ -469,6 +625,11 @@ class RPU(Leg):
         tw += [revolute_twist(a, st.platform_point, P), revolute_twist(a4, st.platform_point, P)]
         return np.stack(tw, axis=1)
 
+    def constraint_residuals(self, A, R):
+        """The anchor's offset (m) from the R joint's plane, and the platform U axis's component
+        along ``r_axis`` (the two stay normal)."""
+        return [dot_rows(A - self.base, self.r_axis), dot_rows(rotate_rows(R, self.u_platform_axis), self.r_axis)]
+
     def constraint_wrenches(self, st, P):
         N = st.length.shape[0]
         a = np.broadcast_to(self.r_axis, (N, 3))
@@ -492,6 +653,12 @@ class UPU(Leg):
     u_platform_axis: np.ndarray = field(default_factory=lambda: np.array([0.0, 1.0, 0.0]))
     passive: bool = True
     joints: ClassVar[str] = "UPU"
+    description_options: ClassVar[dict | None] = {"u_axis": "axis_base", "u_platform_axis": "axis_platform"}
+    capabilities: ClassVar[LegCapabilities] = LegCapabilities(
+        compiled=True, closure=True, dynamics=True, accuracy=True, stiffness=True, export=True, view=True,
+        stacked=True, passive=True)
+    constraint_rows: ClassVar[tuple[str, ...]] = ("angle",)
+    actuator_value = _anchor_distance
 
     def __post_init__(self):
         super().__post_init__()
@@ -526,6 +693,13 @@ class UPU(Leg):
         tw.append(prismatic_twist(st.direction))
         tw += [revolute_twist(a3, st.platform_point, P), revolute_twist(a4, st.platform_point, P)]
         return np.stack(tw, axis=1)
+
+    def constraint_residuals(self, A, R):
+        """The twist (rad) about the leg line between the cross axes of the two U joints."""
+        n = unit(A - self.base)
+        cb = unit(np.cross(self.u_axis, n))
+        cp = unit(np.cross(rotate_rows(R, self.u_platform_axis), n))
+        return [np.arctan2(np.sum(np.cross(cb, cp) * n, -1), np.sum(cb * cp, -1))]
 
     def constraint_wrenches(self, st, P, length_scale: float | None = None):
         T = self.joint_twists(st, P)
@@ -572,6 +746,13 @@ class PRS(Leg):
     link_length: float = 0.2
     branch: int = 1
     joints: ClassVar[str] = "PRS"
+    description_options: ClassVar[dict | None] = {"slider_axis": "axis_base", "r_axis": "axis_base", "link_length": "length",
+                                                            "branch": "branch"}
+    required_options: ClassVar[tuple[str, ...]] = ("link_length",)
+    capabilities: ClassVar[LegCapabilities] = LegCapabilities(
+        compiled=True, accuracy=True, closure=True, stiffness=True, export=True, view=True)
+    constraint_rows: ClassVar[tuple[str, ...]] = ("length",)
+    actuator_value = _slider_position
     actuated: ClassVar[int | None] = 0
     actuator_kind: ClassVar[str] = "slider"
 
@@ -625,6 +806,10 @@ class PRS(Leg):
         w = force_wrench(st.direction, st.platform_point, P)
         return w, dot_rows(st.direction, self.slider_axis)
 
+    def constraint_residuals(self, A, R):
+        """The anchor's offset (m) from the plane through ``base`` normal to ``r_axis``."""
+        return [dot_rows(A - self.base, self.r_axis)]
+
     def constraint_wrenches(self, st, P):
         N = st.length.shape[0]
         return force_wrench(np.broadcast_to(self.r_axis, (N, 3)), st.platform_point, P)[:, None, :]
@@ -660,6 +845,11 @@ class RUS(Leg):
     link_length: float = 0.3
     branch: int = 1
     joints: ClassVar[str] = "RUS"
+    description_options: ClassVar[dict | None] = {"r_axis": "axis_base", "crank_direction": "axis_base", "crank_length": "length",
+                                                            "link_length": "length", "branch": "branch"}
+    required_options: ClassVar[tuple[str, ...]] = ("crank_length", "link_length")
+    capabilities: ClassVar[LegCapabilities] = LegCapabilities(
+        compiled=True, accuracy=True, stiffness=True, export=True, view=True)
     actuated: ClassVar[int | None] = 0
     actuator_kind: ClassVar[str] = "angle"
 

@@ -12,8 +12,10 @@ import pandas as pd
 
 from ..common.pareto import (NoisyComparison, ReferenceStanding, compare_with_noise, default_reference_point, hypervolume,
                              reference_standing, to_min)
-from ..study.rundir import Run, design_key, knee_of, pareto_front, recommendation_order, screening_dominators
+from ..study.rundir import (Run, design_key, knee_of, pareto_front, recommendation_order, screening_dominators,
+                            sorted_front)
 from .checks import design_warnings
+from ..common import columns as derived
 
 __all__ = ["Analysis", "FinalAnalysis", "Recommendation", "analyse", "passed_mask", "NOISE_Z"]
 
@@ -126,9 +128,7 @@ def analyse(run: Run, noise_z: float = NOISE_Z) -> Analysis:
     ok = (runs["status"] == "ok").to_numpy()
     feas = (runs["feasible"].astype(bool)).to_numpy() & ok
     F = runs[labels].to_numpy(float)
-    front = pareto_front(study, runs)
-    if len(front):  # best first in the first objective
-        front = front.sort_values(labels[0], ascending=senses[0] == "minimize", kind="stable")
+    front = sorted_front(study, pareto_front(study, runs))  # best first in the first objective
     a = Analysis(runs=runs, front=front, labels=labels, senses=senses, noise_z=float(noise_z))
     ref = t[t["source"] == "reference"]
     a.ref_row = ref.iloc[0] if len(ref) and ref.iloc[0]["status"] == "ok" else None
@@ -188,7 +188,7 @@ def _final_analysis(run: Run, knee_row, noise_z: float) -> FinalAnalysis | None:
     study, fin = run.study, run.final
     labels = [o.label for o in study.objectives]
     senses = [o.goal for o in study.objectives]
-    need = labels + [f"{lab}_stderr" for lab in labels] + ["source"]
+    need = labels + [derived.stderr(lab) for lab in labels] + ["source"]
     if fin is None or not len(fin) or any(c not in fin for c in need):
         return None
     fin = fin.copy()
@@ -200,7 +200,7 @@ def _final_analysis(run: Run, knee_row, noise_z: float) -> FinalAnalysis | None:
     ref = fin[fin["source"] == "reference"]
 
     def mse(row):
-        return row[labels].to_numpy(float), row[[f"{lab}_stderr" for lab in labels]].to_numpy(float)
+        return row[labels].to_numpy(float), row[[derived.stderr(lab) for lab in labels]].to_numpy(float)
 
     dominated_by = {}
     for i, ri in best.iterrows():

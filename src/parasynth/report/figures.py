@@ -19,6 +19,7 @@ mm = UNITS["length"]
 from .analysis import Analysis
 from .tables import is_number_col as _is_number_col
 from .tables import unit as _unit
+from ..common import columns as derived
 
 __all__ = ["Figures", "make_figures", "plot_pareto", "plot_parallel", "plot_convergence", "plot_sweep", "plot_designs",
            "sketch_boxes"]
@@ -221,11 +222,11 @@ def plot_sweep(figs, study, run_df, final):
         x = xu(d[v.name].astype(float)) if numeric else d[v.name].astype(str)
         ax.plot(x, u(d[o.label].astype(float)), "o-", c="#1f77b4",
                 label=f"{int(d['samples'].iloc[0]) if len(d) else ''} samples, one seed")
-        if final is not None and f"{o.label}_stderr" in final and v.name in final:
+        if final is not None and derived.stderr(o.label) in final and v.name in final:
             fb = final[final["source"] == "best"].sort_values(v.name)
             if len(fb):
                 xf = xu(fb[v.name].astype(float)) if numeric else fb[v.name].astype(str)
-                ax.errorbar(xf, u(fb[o.label].astype(float)), yerr=u(2 * fb[f"{o.label}_stderr"].astype(float)),
+                ax.errorbar(xf, u(fb[o.label].astype(float)), yerr=u(2 * fb[derived.stderr(o.label)].astype(float)),
                             fmt="s", c="#d62728", capsize=4, ms=4,
                             label=f"re-evaluated, +-2 s.e. ({int(fb['samples'].iloc[0])} x {int(fb['repeats'].iloc[0])})")
         if study.reference and v.name in study.reference and numeric:

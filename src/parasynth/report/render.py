@@ -82,7 +82,7 @@ def render_html(run: Run, secs: list[Section], figs: Figures, viewer: dict | Non
     if viewer is not None and script is not None:
         sources = {d["pose_source"] for d in viewer["designs"]}
         view = {"script": script, "data": viewer_json(viewer), "code": viewer_script(),
-                "n_designs": len(viewer["designs"]),
+                "n_designs": len(viewer["designs"]), "note": viewer.get("note", ""),
                 "pose_source": sources.pop() if len(sources) == 1 else "poses of each design"}
     return _env().get_template("report.html").render(
         name=run.study.name, partial=run.partial_reason if run.partial else None, sections=secs,

@@ -27,6 +27,7 @@ from ..measures.display import fmt_mean_se, fmt_number, fmt_quantity
 from ..study.rundir import Run, design_key
 from .analysis import Analysis
 from .tables import unit
+from ..common import columns as derived
 
 __all__ = ["robust_items", "robust_table", "robust_verdict", "robust_sections"]
 
@@ -46,7 +47,7 @@ def _nominally_feasible(study, df) -> np.ndarray:
     ``<label>_nominal``, the others' own value)."""
     ok = (df["status"] == "ok").to_numpy().copy()
     for c in study.constraints:
-        col = f"{c.label}_nominal" if getattr(c, "robust", None) is not None else c.label
+        col = derived.nominal(c.label) if getattr(c, "robust", None) is not None else c.label
         v = df[col].to_numpy(float)
         with np.errstate(invalid="ignore"):
             if c.min is not None:
@@ -103,7 +104,7 @@ def robust_table(run: Run, a: Analysis) -> pd.DataFrame:
         if getattr(o, "robust", None) is None:
             continue
         for role, col, nom in ((f"robust optimum of {o.label}", o.label, False),
-                               (f"nominal optimum of {o.label}", f"{o.label}_nominal", True)):
+                               (f"nominal optimum of {o.label}", derived.nominal(o.label), True)):
             r = _best(study, df[df["source"] == "run"], o.goal, col, nom)
             if r is not None:
                 picks.append((role, r))
@@ -123,10 +124,10 @@ def robust_table(run: Run, a: Analysis) -> pd.DataFrame:
             row[v.name] = fmt_quantity(r[v.name], unit(study, v.name)) if isinstance(r[v.name], (int, float, np.floating)) \
                 else str(r[v.name])
         for x in items:
-            u = unit(study, f"{x.label}_nominal")
+            u = unit(study, derived.nominal(x.label))
             ur = unit(study, x.label)
-            nom, rob = r.get(f"{x.label}_nominal", np.nan), r.get(x.label, np.nan)
-            se = r.get(f"{x.label}_robust_se", np.nan)
+            nom, rob = r.get(derived.nominal(x.label), np.nan), r.get(x.label, np.nan)
+            se = r.get(derived.robust_se(x.label), np.nan)
             row[f"{x.label} nominal"] = fmt_quantity(nom, u)
             row[f"{x.label} robust"] = (fmt_mean_se(rob, se, ur, with_unit=True) if np.isfinite(se)
                                         else fmt_quantity(rob, ur))
@@ -150,7 +151,7 @@ def robust_verdict(run: Run) -> list[str]:
         if getattr(o, "robust", None) is None:
             continue
         rb = _best(study, df, o.goal, o.label)
-        nb = _best(study, df, o.goal, f"{o.label}_nominal", nominal=True)
+        nb = _best(study, df, o.goal, derived.nominal(o.label), nominal=True)
         if rb is None or nb is None:
             continue
         u = unit(study, o.label)
@@ -159,9 +160,9 @@ def robust_verdict(run: Run) -> list[str]:
         def desc(r):
             vals = ", ".join(fmt_quantity(r[v.name], unit(study, v.name)) if isinstance(r[v.name], (int, float, np.floating))
                              else str(r[v.name]) for v in study.variables)
-            d, pct = _loss(r[f"{o.label}_nominal"], r[o.label])
-            se = r.get(f"{o.label}_robust_se", np.nan)
-            return vals, fmt_quantity(r[f"{o.label}_nominal"], u), fmt_mean_se(r[o.label], se, u, with_unit=True) \
+            d, pct = _loss(r[derived.nominal(o.label)], r[o.label])
+            se = r.get(derived.robust_se(o.label), np.nan)
+            return vals, fmt_quantity(r[derived.nominal(o.label)], u), fmt_mean_se(r[o.label], se, u, with_unit=True) \
                 if np.isfinite(se) else fmt_quantity(r[o.label], u), d, pct
 
         nv, nn, nr, nd, npct = desc(nb)
@@ -174,7 +175,7 @@ def robust_verdict(run: Run) -> list[str]:
                  and float(nb[c.label]) < c.probability]
         fails += [f"{c.label} misses its bound under scatter" for c in study.constraints
                   if getattr(c, "robust", None) is not None and getattr(c, "probability", None) is None
-                  and float(nb.get(f"{c.label}_margin", 0.0)) < 0]
+                  and float(nb.get(derived.margin(c.label), 0.0)) < 0]
         if fails:
             text += "Under scatter it is not feasible: " + "; ".join(fails) + ". "
         if design_key(study, rb) == design_key(study, nb):
@@ -182,8 +183,8 @@ def robust_verdict(run: Run) -> list[str]:
         else:
             rv, rn, rr, rd, rpct = desc(rb)
             diff = float(rb[o.label]) - float(nb[o.label])
-            se = math.hypot(float(np.nan_to_num(rb.get(f"{o.label}_robust_se", 0.0))),
-                            float(np.nan_to_num(nb.get(f"{o.label}_robust_se", 0.0))))
+            se = math.hypot(float(np.nan_to_num(rb.get(derived.robust_se(o.label), 0.0))),
+                            float(np.nan_to_num(nb.get(derived.robust_se(o.label), 0.0))))
             beyond = se > 0 and abs(diff) > 2.0 * se
             noise = (" (beyond twice the combined standard error)." if beyond else
                      " (within twice the combined standard error: not a difference the draws resolve)."

@@ -21,6 +21,7 @@ from .tables import display_table, final_display_table
 from .verdict import recommendation_section
 from .tables import is_number_col as _is_number_col
 from .tables import unit as _unit
+from ..common import columns as derived
 
 __all__ = ["Section", "Table", "sections", "INDEX_MEANINGS", "SHARE_MEASURES", "reading_text", "share_text"]
 
@@ -224,7 +225,7 @@ def _sections(run: Run, a: Analysis) -> list[tuple[str, str, pd.DataFrame | None
     if study.constraints or (runs["status"] != "ok").any():
         rows = []
         for c in study.constraints:
-            m = runs[f"{c.label}_margin"]
+            m = runs[derived.margin(c.label)]
             u = _unit(study, c.label)
             bounds = " and ".join(x for x in ((f"min {fmt_quantity(c.min, u)}" if c.min is not None else ""),
                                               (f"max {fmt_quantity(c.max, u)}" if c.max is not None else "")) if x)

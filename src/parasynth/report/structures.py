@@ -29,6 +29,7 @@ from ..study.rundir import Run, knee_of, pareto_front
 from .analysis import Analysis, passed_mask
 from .figures import _grid, _label, _tidy
 from .tables import unit
+from ..common import columns as derived
 
 __all__ = ["structure_table", "structure_verdict", "structure_sections", "plot_structures", "Verdict"]
 
@@ -44,7 +45,7 @@ def _why_failed(study, rows: pd.DataFrame) -> str:
     evaluation errors (their exception types)."""
     parts = []
     for c in study.constraints:
-        n = int((rows[f"{c.label}_margin"] < 0).sum()) if f"{c.label}_margin" in rows else 0
+        n = int((rows[derived.margin(c.label)] < 0).sum()) if derived.margin(c.label) in rows else 0
         if n:
             parts.append(f"{c.label} violated {n}x")
     failed = rows[rows["status"] != "ok"]
@@ -115,7 +116,7 @@ def structure_verdict(run: Run, a: Analysis) -> Verdict:
         others = best[best[STRUCTURE] != ref]
         if len(mine):
             def mse(r):
-                return r[labels].to_numpy(float), r[[f"{x}_stderr" for x in labels]].to_numpy(float)
+                return r[labels].to_numpy(float), r[[derived.stderr(x) for x in labels]].to_numpy(float)
 
             free, beaten = [], {}
             for _, r in mine.iterrows():

@@ -18,6 +18,7 @@ from ..measures.display import fmt_mean_se, fmt_number, fmt_quantity, quantity_u
 from ..study.rundir import SINGULARITY_FLOOR, Run, best_designs, design_key, estimate_of, read_final
 from .checks import design_roles
 from .analysis import analyse
+from ..common import columns as derived
 
 __all__ = ["terminal_summary", "run_summary", "recommendation_lines", "verification_text", "reevaluated_text"]
 
@@ -158,7 +159,7 @@ def reevaluated_text(study, o, row) -> str:
     kind = estimate_of(o)
     if kind in ("grid", "exact"):
         return fmt_quantity(row[o.label], u) + (" (exact on its grid)" if kind == "grid" else " (exact)")
-    return fmt_mean_se(row[o.label], row[o.label + "_stderr"], u, True)
+    return fmt_mean_se(row[o.label], row[derived.stderr(o.label)], u, True)
 
 
 def verification_text(study, fr) -> str:

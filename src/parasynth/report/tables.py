@@ -9,6 +9,7 @@ from ..measures.display import Unit, fmt_mean_se, fmt_number, fmt_value, quantit
 from ..study.rundir import estimate_of
 from .analysis import FinalAnalysis
 from .checks import design_roles
+from ..common import columns as derived
 
 __all__ = ["display_table", "final_display_table", "unit", "is_number_col"]
 
@@ -81,7 +82,7 @@ def final_display_table(study, fa: FinalAnalysis) -> pd.DataFrame:
             if estimate_of(o) in ("grid", "exact"):  # not resampled: the run's own value
                 row[u.label(o.label)] = fmt_value(r[o.label], u)
             else:
-                row[u.label(o.label)] = fmt_mean_se(r[o.label], r[f"{o.label}_stderr"], u)
+                row[u.label(o.label)] = fmt_mean_se(r[o.label], r[derived.stderr(o.label)], u)
         row["feasible"] = "yes" if bool(r.get("feasible", True)) else "no"
         if "verified" in fin:
             row["verification"] = str(r.get("verification", "")) or ("verified" if bool(r["verified"]) else "failed")

@@ -15,40 +15,16 @@ import re
 
 import pandas as pd
 
+from ..common.columns import DERIVED_SUFFIXES, margin, nominal, robust_se, split_derived, stderr
+from ..common.units import column_suffix
 from ..measures.display import quantity_known, quantity_unit
-from ..common.units import DISPLAY_TO_SI
 
-__all__ = ["si_suffix", "csv_column", "csv_columns", "to_csv_columns", "from_csv_columns", "read_run_csv"]
-
-_SI = DISPLAY_TO_SI
-
-
-def si_suffix(study, name: str) -> str:
-    """The SI unit of result column ``name`` as a column-name suffix ('' for none):
-    'm', 'rad', 'm3', 'm3_rad2', 'N', 'N_per_m', 'Pa'."""
-    base = name
-    for sfx in ("_stderr", "_margin", "_nominal", "_robust_se"):
-        if name.endswith(sfx) and quantity_known(study, name[: -len(sfx)]):
-            base = name[: -len(sfx)]
-    if not quantity_known(study, base):
-        return ""
-    sym = quantity_unit(study, name).symbol
-    if not sym:
-        return ""
-    parts = []
-    for factor in sym.split("*"):
-        unit, _, power = factor.partition("^")
-        num, _, den = unit.partition("/")
-        num = _SI.get(num, num)
-        den = _SI.get(den, den)
-        parts.append(num + power + (f"_per_{den}" if den else ""))
-    # an identifier whatever a measure declares as its unit (letters, digits, '_')
-    return re.sub(r"[^A-Za-z0-9_]+", "_", "_".join(parts)).strip("_")
-
+__all__ = ["csv_column", "csv_columns", "to_csv_columns", "from_csv_columns", "read_run_csv"]
 
 def csv_column(study, name: str) -> str:
     """``name`` with its SI unit: ``link_length`` -> ``link_length_m``."""
-    sfx = si_suffix(study, name)
+    base = split_derived(name, lambda label: quantity_known(study, label))[0]
+    sfx = column_suffix(quantity_unit(study, name)) if quantity_known(study, base) else ""
     return f"{name}_{sfx}" if sfx else name
 
 
@@ -72,13 +48,13 @@ def from_csv_columns(study, df: pd.DataFrame) -> pd.DataFrame:
     :func:`to_csv_columns`; a file of an older version without suffixes is read as it is)."""
     names = [v.name for v in study.variables] + [o.label for o in study.objectives]
     for c in study.constraints:
-        names += [c.label, f"{c.label}_margin"]
-    names += [f"{o.label}_stderr" for o in study.objectives] + [f"{c.label}_stderr" for c in study.constraints]
-    names += sum(([f"{x.label}_nominal", f"{x.label}_robust_se"] for x in (*study.objectives, *study.constraints)
+        names += [c.label, margin(c.label)]
+    names += [stderr(o.label) for o in study.objectives] + [stderr(c.label) for c in study.constraints]
+    names += sum(([nominal(x.label), robust_se(x.label)] for x in (*study.objectives, *study.constraints)
                   if getattr(x, "robust", None) is not None), [])
     back = {}
     for n in names:
-        if n in df.columns or not (quantity_known(study, n) or n.endswith(("_stderr", "_margin", "_nominal", "_robust_se"))):
+        if n in df.columns or not (quantity_known(study, n) or n.endswith(DERIVED_SUFFIXES)):
             continue
         c = csv_column(study, n)
         if c in df.columns:

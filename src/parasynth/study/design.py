@@ -4,7 +4,8 @@
   parameters, the design variables, and the tied parameters that follow a variable);
 * :func:`design_key` -- the identity of a design (two rows or records with the same key are
   the same design);
-* :func:`box_centre` -- the centre of the variable box (log scale and integers respected);
+* :func:`box_centre` -- the centre of the design space (log scale and integers respected; a study
+  over structures at its reference structure), defined in :mod:`.structure_space`;
 * :func:`evaluation_sample` -- the workspace sample of a design, one
   :class:`~parasynth.measures.workspace.WorkspaceSample` built from the study's evaluation section;
 * :func:`measure_arguments` -- the keyword arguments of a measure for a design: that sample
@@ -29,7 +30,8 @@ from ..model.constraints import SingularityMarginFloor
 from ..mechanisms import load_mechanism
 from ..measures.objectives import get as get_measure
 from ..measures.workspace import WorkspaceSample
-from .space import BOX_CENTRE_U, DesignSpace, centre_value
+from .space import BOX_CENTRE_U, centre_value
+from .structure_space import box_centre
 from .space import design_key as key_of
 
 __all__ = ["design_params", "design_key", "BOX_CENTRE_U", "centre_value", "box_centre", "evaluation_sample",
@@ -51,11 +53,6 @@ def design_key(study, values) -> tuple:
     """Identity of a design of ``study`` (:func:`parasynth.study.space.design_key` over the
     study's variables). ``values`` is a mapping or a table row."""
     return key_of(study.variables, values)
-
-
-def box_centre(study) -> dict:
-    """The centre of the variable box, {variable: value} (see :func:`centre_value`)."""
-    return DesignSpace(study.variables).centre()
 
 
 def evaluation_sample(study, n: int | None = None, seed: int | None = None) -> WorkspaceSample:

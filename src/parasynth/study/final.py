@@ -28,11 +28,13 @@ import pandas as pd
 
 from ..common.pareto import (compare_with_noise, crowding_distance, dominators_of, knee_index, knee_order,
                              non_dominated_ranks, pareto_mask, spread_by_crowding, to_min)
+from .view import write_view
 from .columns import to_csv_columns
 from .design import design_key
 from .evaluate import Evaluator
 from .spec import ResolvedStudy
 from .verify import NOISE_Z, SINGULARITY_FLOOR, VERIFY_LIMIT, Verification, estimate_of, verify
+from ..common import columns as derived
 
 __all__ = ["best_designs", "reevaluate_best", "recommendation_order", "structure_candidates", "screening_dominators", "final_candidates", "n_screen_dominators", "merge_duplicates", "pareto_front", "knee_of", "crowding_distance",
            "spread_by_crowding", "design_key"]  # crowding_distance, spread_by_crowding (parasynth.common.pareto) and
@@ -277,17 +279,17 @@ def _reevaluate_one(study: ResolvedStudy, evaluator: Evaluator, values: dict, ro
         if estimate_of(o) in ("grid", "exact") or not recs:
             # exact on its grid or without a sample: the run's own value, no spread to state
             out[o.label] = float(row[o.label]) if pd.notna(row.get(o.label)) else np.nan
-            out[f"{o.label}_stderr"] = 0.0
+            out[derived.stderr(o.label)] = 0.0
             continue
         vals = np.array([r.objectives.get(o.label, np.nan) for r in recs], float)
         fin = vals[np.isfinite(vals)]
         out[o.label] = float(fin.mean()) if len(fin) else np.nan
-        out[f"{o.label}_stderr"] = float(fin.std(ddof=1) / np.sqrt(len(fin))) if len(fin) > 1 else np.nan
+        out[derived.stderr(o.label)] = float(fin.std(ddof=1) / np.sqrt(len(fin))) if len(fin) > 1 else np.nan
     by_label = {c.label: c for c in ver.checks if c.label}
     for c in study.constraints:
         chk = by_label.get(c.label)
         out[c.label] = chk.value if chk is not None else np.nan
-        out[f"{c.label}_stderr"] = chk.stderr if chk is not None and chk.kind == "statistic" else np.nan
+        out[derived.stderr(c.label)] = chk.stderr if chk is not None and chk.kind == "statistic" else np.nan
     home = [c for c in ver.checks if not c.label]
     out["home_margin"] = home[0].value if home else np.nan
     out["feasible"] = all(r.feasible for r in recs) if recs else bool(row.get("feasible", True))
@@ -362,6 +364,7 @@ def reevaluate_best(study: ResolvedStudy, evaluator: Evaluator, table: pd.DataFr
         add(row, "reference")
     df = pd.DataFrame(rows)
     to_csv_columns(study, df).to_csv(out_dir / "final.csv", index=False)  # unit suffixes in the names
+    write_view(study, df, pareto_front(study, runs), out_dir)  # the report's drawings (view.json)
     return df
 
 
@@ -373,7 +376,7 @@ def _undominated(study: ResolvedStudy, rows: list[dict], pick: int) -> int:
 
     def mse(r):
         return (np.array([r[lab] for lab in labels], float),
-                np.nan_to_num(np.array([r[f"{lab}_stderr"] for lab in labels], float), nan=0.0))
+                np.nan_to_num(np.array([r[derived.stderr(lab)] for lab in labels], float), nan=0.0))
 
     seen = {pick}
     while True:

@@ -28,10 +28,14 @@ from .schedule import structure_schedule
 from .spec import ResolvedStudy, StudyError, load_study
 from .structure_space import STRUCTURE
 from .tables import results_table
+from .view import (MAX_FRONT_DESIGNS, N_CLOUD, N_POSES, design_values, design_view, front_choice, read_view,
+                   rounded, sorted_front, trajectory_of, view_key)
+from ..common import columns as derived
 
 __all__ = ["Run", "RunDirError", "read_run", "read_final", "to_csv_columns", "measure_settings", "design_key", "design_params", "design_mechanism", "pareto_front", "knee_of",
            "screening_dominators", "merge_duplicates", "best_designs", "recommendation_order", "estimate_of",
-           "SINGULARITY_FLOOR"]
+           "SINGULARITY_FLOOR", "read_view", "design_view", "design_values", "view_key", "front_choice", "sorted_front",
+           "trajectory_of", "rounded", "MAX_FRONT_DESIGNS", "N_POSES", "N_CLOUD"]
 
 
 class RunDirError(StudyError):
@@ -132,7 +136,7 @@ def read_final(study, path) -> pd.DataFrame:
         raise RunDirError(f"{path}: not a table of re-evaluated designs ({first}); delete it and run the study again "
                           f"with --resume to redo the final re-evaluation") from None
     labels = [o.label for o in study.objectives]
-    need = ["source"] + labels + [f"{lab}_stderr" for lab in labels]
+    need = ["source"] + labels + [derived.stderr(lab) for lab in labels]
     missing = [c for c in need if c not in df.columns]
     if missing:
         missing = [csv_column(study, c) for c in missing]
@@ -143,7 +147,7 @@ def read_final(study, path) -> pd.DataFrame:
         i = int(np.flatnonzero(bad.to_numpy())[0])
         raise RunDirError(f"{path}: line {i + 2}: source is {df['source'].iloc[i]!r}, not 'best' or 'reference'")
     cons = [c.label for c in study.constraints]
-    numeric = (labels + [f"{lab}_stderr" for lab in labels] + [c for c in cons + [f"{x}_stderr" for x in cons]
+    numeric = (labels + [derived.stderr(lab) for lab in labels] + [c for c in cons + [derived.stderr(x) for x in cons]
                                                               if c in df]
                + [c for c in ("trial", "samples", "repeats", "home_margin") if c in df])
     for c in numeric:

@@ -209,15 +209,17 @@ class DesignSpace:
         return out
 
     # -- the centre -----------------------------------------------------------------------------------
-    def centre(self) -> dict:
-        """The centre of the box, {variable: value} (see :func:`centre_value`); with conditional
-        variables only those active at the centre."""
+    def centre(self, chosen: dict | None = None) -> dict:
+        """The centre of the box, {variable: value} (see :func:`centre_value`), with the values
+        ``chosen`` in place of the centre's (e.g. a study's reference structure); with conditional
+        variables only those active there. A study's centre is
+        :func:`parasynth.study.structure_space.box_centre`, which calls this."""
         out = {}
         for v in self.variables:
-            x = centre_value(v)
+            x = chosen[v.name] if chosen and v.name in chosen else centre_value(v)
             if x is not None:
                 out[v.name] = x
-        return self.restrict(out) if self.conditional else out
+        return self.restrict(out) if self.conditional or chosen else out
 
     # -- the sweep grid ---------------------------------------------------------------------------------
     def grid(self) -> list[dict]:

@@ -50,7 +50,8 @@ from .errors import StudyError
 from .magnitudes import scale_warnings
 from .space import DesignSpace, Variable, quantity
 from .defaults import OPTUNA_TRIALS
-from .structure_space import (STRUCTURE, centre_design, check_halving, check_structure_optimizer, resolve_structures,
+from ..common.columns import DERIVED_SUFFIXES  # the suffixes of derived columns, in one module
+from .structure_space import (STRUCTURE, box_centre, check_halving, check_structure_optimizer, resolve_structures,
                               structure_variables)
 
 __all__ = ["StudyError", "StudySpec", "ResolvedStudy", "load_study", "resolve_study", "check_study", "OPTIMIZERS",
@@ -70,9 +71,6 @@ NLOPT_WITH_CONSTRAINTS = ("LN_COBYLA", "GN_ISRES")
 RESERVED_COLUMNS = ("trial", "source", "feasible", "status", "error", "seed", "samples", "time_s", "repeats",
                     "knee", "count", "role", "dominates_reference_screen", "verified", "verification",
                     "recommended", "home_margin")
-#: Suffixes of derived columns: ``<constraint>_margin`` (results.csv), ``<objective>_stderr`` (final.csv),
-#: ``<label>_nominal`` and ``<label>_robust_se`` of a robust measure (results.csv).
-DERIVED_SUFFIXES = ("_margin", "_stderr", "_nominal", "_robust_se")
 
 # The settings of each measure (kinds, ranges, choices) are declared with the measure
 # (parasynth.objectives, parasynth.measures.measure_spec) and checked by its own validator.
@@ -1106,7 +1104,7 @@ def check_study(study: ResolvedStudy, *, measures: bool = True, max_corners: int
         base = dict(study.reference)
         base_where = "reference"
     else:
-        base = centre_design(study)
+        base = box_centre(study)
         base_where = "variables (the centre of the box)"
     base_mech, err = try_build(design_params(study, base))
     if err:
@@ -1190,7 +1188,7 @@ def _box_check(study, combos, bad, try_build) -> tuple[bool, str]:
         return False, (f"variables: {ok} of {n} corners of the variable box ({100.0 * ok / n:.0f} %) can be "
                        f"built; the corner {corner} cannot: {err}; designs that cannot be built are recorded as "
                        f"failed")
-    centre = centre_design(study)
+    centre = box_centre(study)
     if try_build(design_params(study, centre))[1] is None:
         return False, (f"variables: none of the {n} corners of the variable box can be built, its centre "
                        f"{_design_str(study, centre)} can; e.g. the corner {corner} cannot: {err}; designs that "

@@ -35,10 +35,10 @@ from dataclasses import dataclass
 from .. import structures as synthesis
 from ..mechanisms import described_class, register
 from .errors import StudyError
-from .space import Variable, centre_value
+from .space import DesignSpace, Variable
 
 __all__ = ["STRUCTURE", "StructureSetup", "resolve_structures", "conditions", "labels_of", "structure_variables",
-           "check_structure_optimizer", "check_halving", "STRUCTURE_ALGORITHMS", "centre_design"]
+           "check_structure_optimizer", "check_halving", "STRUCTURE_ALGORITHMS", "box_centre"]
 
 #: Optuna samplers of a study over structures: those whose proposals depend only on the trials
 #: they are shown (each structure's sampler sees that structure's trials, see
@@ -263,13 +263,13 @@ def check_halving(sec, opt, choices, budget: int) -> None:
                          f"{len(choices)} structures (no halving); give keep < {len(choices)} or leave it out")
 
 
-def centre_design(study) -> dict:
-    """The centre of the variable box (:meth:`DesignSpace.centre`); for a study over structures
-    with the reference structure (else the first) and the dimensions it uses."""
-    space = study.space
+def box_centre(study) -> dict:
+    """The centre of a study's design space, {variable: value}: the one entry point for it. The
+    middle of every variable's range (:func:`parasynth.study.space.centre_value`: on its scale,
+    integers rounded, the middle listed value, the first choice), and for a study over
+    structures its reference structure (else the first) with the dimensions that structure uses."""
+    space = getattr(study, "space", None) or DesignSpace(study.variables)
     setup = getattr(study, "structures", None)
     if setup is None or setup.reference is None:
         return space.centre()
-    values = {v.name: centre_value(v) for v in space}
-    values[STRUCTURE] = setup.reference
-    return space.restrict({k: v for k, v in values.items() if v is not None})
+    return space.centre({STRUCTURE: setup.reference})

@@ -12,6 +12,7 @@ import pandas as pd
 from .columns import to_csv_columns
 from .evaluate import Record
 from .spec import ResolvedStudy
+from ..common import columns as derived
 
 __all__ = ["results_table", "write_tables"]
 
@@ -32,18 +33,18 @@ def results_table(study: ResolvedStudy, records: list[Record]) -> pd.DataFrame:
             row[o.label] = r.objectives.get(o.label, np.nan)
         for c in study.constraints:
             row[c.label] = r.constraint_values.get(c.label, np.nan)
-            row[f"{c.label}_margin"] = r.margins.get(c.label, np.nan)
+            row[derived.margin(c.label)] = r.margins.get(c.label, np.nan)
         for label in robust:
             info = r.robust.get(label) or {}
-            row[f"{label}_nominal"] = info.get("nominal", np.nan)
+            row[derived.nominal(label)] = info.get("nominal", np.nan)
             se = info.get("stderr")
-            row[f"{label}_robust_se"] = np.nan if se is None else se
+            row[derived.robust_se(label)] = np.nan if se is None else se
         row.update(feasible=r.feasible, status=r.status, error=r.error, seed=r.seed, samples=r.samples,
                    time_s=r.time_s)
         rows.append(row)
     cols = (["trial", "source"] + [v.name for v in study.variables] + [o.label for o in study.objectives]
-            + sum(([c.label, f"{c.label}_margin"] for c in study.constraints), [])
-            + sum(([f"{lb}_nominal", f"{lb}_robust_se"] for lb in robust), [])
+            + sum(([c.label, derived.margin(c.label)] for c in study.constraints), [])
+            + sum(([derived.nominal(lb), derived.robust_se(lb)] for lb in robust), [])
             + ["feasible", "status", "error", "seed", "samples", "time_s"])
     df = pd.DataFrame(rows, columns=cols)
     if len(df):

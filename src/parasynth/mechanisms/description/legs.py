@@ -8,28 +8,20 @@ import re
 
 import numpy as np
 
-from ...model.legs import LEG_TYPES
+from ...model.legs import LEG_TYPES, types_with
 from .errors import DescriptionError
 from .parameters import _Scalar, _check_keys
 from .anchors import _Anchors, _PLANES, _directions
 
-#: Options of each leg type: {key: "axis_base" | "axis_platform" | "length" | "branch"}.
-LEG_OPTIONS = {
-    "SPS": {},
-    "UPS": {"u_axis": "axis_base"},
-    "PUS": {"slider_axis": "axis_base", "u_axis": "axis_base", "link_length": "length", "branch": "branch"},
-    "RPS": {"r_axis": "axis_base"},
-    "RPU": {"r_axis": "axis_base", "u_platform_axis": "axis_platform"},
-    "UPU": {"u_axis": "axis_base", "u_platform_axis": "axis_platform"},
-    "PRS": {"slider_axis": "axis_base", "r_axis": "axis_base", "link_length": "length", "branch": "branch"},
-    "RUS": {"r_axis": "axis_base", "crank_direction": "axis_base", "crank_length": "length",
-            "link_length": "length", "branch": "branch"},
-}
-_LEG_REQUIRED = {"PUS": ("link_length",), "PRS": ("link_length",), "RUS": ("crank_length", "link_length")}
+#: Options of each leg type: {key: "axis_base" | "axis_platform" | "length" | "branch"}, as the
+#: leg types declare them (``description_options``, ``required_options``).
+LEG_OPTIONS = {name: dict(cls.description_options) for name, cls in LEG_TYPES.items()
+               if cls.description_options is not None}
+_LEG_REQUIRED = {name: cls.required_options for name, cls in LEG_TYPES.items() if cls.required_options}
 #: Names of the joints the leg library actuates, for messages.
 _JOINT_WORDS = {"P": "prismatic", "R": "revolute"}
 #: Leg types the leg library can build without an actuator (a constraining limb).
-PASSIVE_CAPABLE = ("RPS", "UPU")
+PASSIVE_CAPABLE = types_with("passive")
 _LEG_COMMON = {"type", "name", "names", "base", "platform", "actuated", "doc"}
 _NAMED_AXES = {"x": (1, 0, 0), "y": (0, 1, 0), "z": (0, 0, 1)}
 _ANCHOR_AXES = ("radial", "tangent", "normal")

@@ -234,7 +234,7 @@ class DescribedMechanism(Mechanism):
             n = st.direction[0]
             if not (st.reachable[0] and np.all(np.isfinite(n))) or not np.any(n):
                 why = ""
-                if not np.isfinite(st.actuator[0]) and leg.joints == "RUS":
+                if not np.isfinite(st.actuator[0]) and leg.actuator_kind == "angle":  # a crank
                     why = " (its platform anchor is out of the link's reach from every crank position)"
                 elif not np.isfinite(st.actuator[0]):
                     why = " (its platform anchor is further than link_length from its slider line)"

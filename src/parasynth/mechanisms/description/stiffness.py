@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import math
 
+from ...model.legs import LEG_TYPES
 from .errors import DescriptionError
 from .parameters import _EXAMPLE_UNIT, _Scalar, _check_keys
 
@@ -42,8 +43,9 @@ STIFFNESS_KEYS = {
     "youngs_modulus": "pressure",
     "shear_modulus": "pressure",
 }
-#: Leg types with constraint wrenches (the others transmit only their actuation force).
-CONSTRAINING_TYPES = ("RPS", "RPU", "UPU", "PRS")
+#: Leg types with constraint wrenches (the others transmit only their actuation force): those
+#: that declare constraint rows.
+CONSTRAINING_TYPES = tuple(name for name, cls in LEG_TYPES.items() if cls.constraint_rows)
 _ACTUATED_ONLY = ("axial", "actuator")
 _CONSTRAINT_ONLY = ("constraint_force", "constraint_couple")
 
