@@ -327,7 +327,7 @@ def cmd_run(args) -> int:
     study = _checked_study(args.study)
     if args.resume:
         target = Path(args.out or study.spec.output or Path("runs") / study.name)
-        shared = study.optimizer.kind == "optuna" and (args.storage or study.optimizer.storage)
+        shared = study.optimizer.plugin.uses_storage and (args.storage or study.optimizer.storage)
         if not target.exists() and not shared:
             raise CliError(f"--resume: the run directory {str(target)!r} does not exist, so there is nothing to "
                            f"resume; give the directory of the run (--out) or drop --resume to start a new run")

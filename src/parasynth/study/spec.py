@@ -33,7 +33,7 @@ from pathlib import Path
 from typing import Annotated, Any, Literal
 
 import yaml
-from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, Strict, ValidationError
+from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, Strict, ValidationError, field_validator
 
 from ..model.geometry_checks import degenerate_geometry
 from ..model.task import Task, TaskError
@@ -50,20 +50,16 @@ from .errors import StudyError
 from .magnitudes import scale_warnings
 from .space import DesignSpace, Variable, quantity
 from .defaults import OPTUNA_TRIALS
+from .optimizers.base import ALGORITHMS, kinds, optimizer_class
 from .structure_space import (STRUCTURE, centre_design, check_halving, check_structure_optimizer, resolve_structures,
                               structure_variables)
 
 __all__ = ["StudyError", "StudySpec", "ResolvedStudy", "load_study", "resolve_study", "check_study", "OPTIMIZERS",
            "RESERVED_COLUMNS"]
 
-#: Optimiser kinds and their algorithms.
-OPTIMIZERS = {
-    "sweep": ("grid", "list"),
-    "nlopt": ("LN_COBYLA", "LN_BOBYQA", "LN_NELDERMEAD", "LN_SBPLX", "GN_ISRES", "GN_DIRECT_L", "GN_CRS2_LM",
-              "GN_ESCH"),
-    "optuna": ("tpe", "nsga2", "nsga3", "random", "qmc", "cmaes"),
-}
-NLOPT_WITH_CONSTRAINTS = ("LN_COBYLA", "GN_ISRES")
+#: Optimiser kinds and their algorithms (a mapping read from the registry of
+#: :mod:`parasynth.study.optimizers`).
+OPTIMIZERS = ALGORITHMS
 
 #: Columns of results.csv and final.csv besides the design variables, objectives and
 #: constraints: a label may not take one of these names.
@@ -209,7 +205,8 @@ class EvaluationSpec(_Model):
 
 
 class OptimizerSpec(_Model):
-    kind: Literal["sweep", "nlopt", "optuna"] = Field(default="sweep", description="sweep (default), nlopt or optuna.")
+    kind: str = Field(default="sweep", description="The optimiser: sweep (default), nlopt, optuna, ... (the registered "
+                      "kinds; see `parasynth list`).", json_schema_extra=lambda s: s.update(enum=list(kinds())))
     algorithm: str | None = Field(default=None, description=(
         "Algorithm of the kind: sweep grid|list; NLopt LN_COBYLA, LN_BOBYQA, ...; Optuna "
         "tpe, nsga2, ... (see `parasynth list`)."))
@@ -234,6 +231,18 @@ class OptimizerSpec(_Model):
         "For a sweep: the list of designs to evaluate, each {variable: value with unit}."))
     population_size: Int | None = Field(default=None, ge=2, le=100_000, description=(
         "Population of the evolutionary Optuna samplers (2 to 100000)."))
+
+    @field_validator("kind")
+    @classmethod
+    def _registered_kind(cls, v):
+        if v not in kinds():
+            raise ValueError(f"{v!r} is not an optimiser; allowed: {', '.join(kinds())}")
+        return v
+
+    @property
+    def plugin(self):
+        """The registered optimiser class of :attr:`kind` (:mod:`parasynth.study.optimizers`)."""
+        return optimizer_class(self.kind)
 
 
 class StructureSpec(_Model):
@@ -741,29 +750,11 @@ def resolve_study(data: dict, source: str | None = None) -> ResolvedStudy:
                       verify_designs=ev.verify_designs)
 
     opt = spec.optimizer
-    allowed = OPTIMIZERS[opt.kind]
-    if opt.algorithm is not None and opt.algorithm not in allowed:
-        raise StudyError(f"optimizer.algorithm: {opt.algorithm!r} is not available for {opt.kind}; allowed: {', '.join(allowed)}")
-    if opt.kind in ("nlopt", "optuna") and not variables:
-        raise StudyError(f"variables: {opt.kind} needs at least one design variable (with low and high); "
-                         f"to evaluate fixed designs use optimizer.kind: sweep")
-    if opt.kind == "nlopt":
-        if len(objectives) != 1:
-            raise StudyError(f"objectives: nlopt optimises one objective, {len(objectives)} given; use optimizer.kind: optuna for several")
-        for v in variables:
-            if v.type != "continuous" or v.low is None:
-                raise StudyError(f"variables: nlopt needs continuous variables with low/high; {v.name!r} is {v.type}")
-    if opt.kind == "optuna":
-        for v in variables:
-            if v.type != "categorical" and (v.low is None or v.high is None):
-                raise StudyError(f"variables: optuna needs low/high for {v.name!r} (or type: categorical with choices)")
-    if opt.kind == "sweep" and not opt.designs:
-        for v in variables:
-            if v.values is None and v.choices is None:
-                raise StudyError(f"variables: a sweep needs values (or num with low/high, or choices) for {v.name!r}")
-        n_designs = space.grid_size()
-        if n_designs > MAX_DESIGNS:
-            raise StudyError(f"variables: the sweep grid has {n_designs} designs; the maximum is {MAX_DESIGNS}")
+    plugin = opt.plugin
+    if opt.algorithm is not None and opt.algorithm not in plugin.algorithms:
+        raise StudyError(f"optimizer.algorithm: {opt.algorithm!r} is not available for {opt.kind}; allowed: "
+                         f"{', '.join(plugin.algorithms)}")
+    plugin.check(opt, variables, objectives, space)
     if opt.designs:
         if len(opt.designs) > MAX_DESIGNS:
             raise StudyError(f"optimizer.designs: {len(opt.designs)} designs; the maximum is {MAX_DESIGNS}")
