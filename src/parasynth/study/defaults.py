@@ -49,5 +49,8 @@ def optimizer_seed(study) -> int:
 def planned_designs(study) -> int | None:
     """Designs a finished run of ``study`` holds with its own budget: every design of a sweep,
     the trials of an Optuna study; ``None`` for NLopt (it may stop early on its tolerances)
-    (each optimiser's :meth:`~parasynth.study.optimizers.BaseOptimizer.planned_designs`)."""
+    (each optimiser's :meth:`~parasynth.study.optimizers.BaseOptimizer.planned_designs`);
+    ``None`` with ``optimizer.polish`` (the local search may stop before its budget)."""
+    if getattr(study.optimizer, "polish", None) is not None:
+        return None
     return optimizer_class(study.optimizer.kind).planned_designs(study)

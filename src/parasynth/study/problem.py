@@ -18,6 +18,7 @@ from .defaults import optimizer_seed
 from .evaluate import Evaluator, Record
 from .signals import Interrupt
 from .optimizers import optimizer_class
+from .polish import polish_budget
 from .spec import ResolvedStudy
 from .space import DesignSpace
 
@@ -51,10 +52,11 @@ class Problem:
         return self.study.name
 
     def budget(self, n_trials: int | None = None) -> int:
-        """Designs a run may evaluate: ``n_trials`` when given, else the study's own budget
-        (the sweep's designs, ``optimizer.maxeval`` of NLopt, ``optimizer.n_trials`` of Optuna,
-        each with its default from :mod:`parasynth.study.defaults`)."""
-        return self.optimizer.budget(self.study, n_trials)
+        """Designs the optimiser may evaluate: ``n_trials`` when given, else the study's own
+        budget (the sweep's designs, ``optimizer.maxeval`` of NLopt, ``optimizer.n_trials`` of
+        Optuna, each with its default from :mod:`parasynth.study.defaults`), less the designs
+        of ``optimizer.polish`` (:mod:`parasynth.study.polish`)."""
+        return self.optimizer.budget(self.study, n_trials) - polish_budget(self.study)
 
     def designs(self) -> list[dict]:
         """The designs of a sweep: ``optimizer.designs`` (SI), else the grid."""

@@ -1,7 +1,8 @@
 """Running a study: the run directory and its result tables, the journal, resuming, and the
 optimiser of the study's kind (:mod:`parasynth.study.optimizers`: one
 :class:`~parasynth.study.optimizers.BaseOptimizer` per kind, run against a
-:class:`~parasynth.study.problem.Problem`).
+:class:`~parasynth.study.problem.Problem`), then the polish of ``optimizer.polish``
+(:mod:`parasynth.study.polish`: ``polish.json``).
 
 Run directory (default ``runs/<study name>/``):
 
@@ -57,6 +58,7 @@ from .evaluate import Record
 from .final import reevaluate_best
 from .journal import Journal, RunLock, read_journal
 from .optimizers import optimizer_class
+from .polish import polish_budget, polish_run
 from .problem import Problem, RunContext
 from .signals import Interrupt
 from .spec import ResolvedStudy, StudyError
@@ -162,6 +164,9 @@ def run_study(study: ResolvedStudy, out_dir=None, resume: bool = False, n_trials
         raise StudyError(f"--resume: the run directory {str(out_dir)!r} does not exist, so there is nothing to "
                          f"resume; give the directory of the run (--out) or drop --resume to start a new run")
     study = budget_for_run(study, out_dir, resume, n_trials, note=lambda m: print(m, file=sys.stderr))
+    if n_trials is not None and polish_budget(study) >= n_trials:
+        raise StudyError(f"--n-trials: {n_trials} designs leave none to the global search after the "
+                         f"{polish_budget(study)} of optimizer.polish.budget; give more")
     lock = RunLock(out_dir)
     try:
         previous = prepare_dir(study, out_dir, resume, lock=lock)
@@ -219,6 +224,8 @@ def _run_locked(study, out_dir, previous, resume, n_trials, progress, storage, n
                              workers=n_workers, journal=journal)
             if not guard.requested:
                 optimizer.run(problem, ctx)
+            if not guard.requested:
+                polish_run(problem, optimizer, ctx)
         except KeyboardInterrupt:
             guard.requested = True
         finally:

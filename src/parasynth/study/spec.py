@@ -204,6 +204,14 @@ class EvaluationSpec(_Model):
         "not cover) or numpy (the NumPy reference)."))
 
 
+class PolishSpec(_Model):
+    method: Literal["cobyla", "bobyqa"] = Field(default="cobyla", description=(
+        "Local NLopt search refining the best (or recommended) design: cobyla (takes the design constraints; "
+        "default) or bobyqa (only for a study without design constraints)."))
+    budget: Int = Field(ge=1, le=MAX_TRIALS, description=(
+        "Designs the polish may evaluate, part of the study's budget (the global search gets the rest)."))
+
+
 class OptimizerSpec(_Model):
     kind: str = Field(default="sweep", description="The optimiser: sweep (default), nlopt, optuna, ... (the registered "
                       "kinds; see `parasynth list`).", json_schema_extra=lambda s: s.update(enum=list(kinds())))
@@ -231,6 +239,9 @@ class OptimizerSpec(_Model):
         "For a sweep: the list of designs to evaluate, each {variable: value with unit}."))
     population_size: Int | None = Field(default=None, ge=2, le=100_000, description=(
         "Population of the evolutionary Optuna samplers (2 to 100000)."))
+    polish: PolishSpec | None = Field(default=None, description=(
+        "After a global optimiser, refine its best design (one objective) or recommended design (several) by a "
+        "local NLopt search within the bounds, {method: cobyla | bobyqa, budget: N} (docs/study-format.md)."))
 
     @field_validator("kind")
     @classmethod
@@ -813,6 +824,8 @@ def resolve_study(data: dict, source: str | None = None) -> ResolvedStudy:
         check_structure_optimizer(opt)
         choices = next(v.choices for v in variables if v.name == STRUCTURE)
         check_halving(spec.structure, opt, choices, int(opt.n_trials or OPTUNA_TRIALS))
+    check_polish(opt, plugin, variables, constraints, setup is not None,
+                 (getattr(opt, plugin.budget_key) or plugin.default_budget) if plugin.budget_key else None)
     return ResolvedStudy(spec, mech_name, fixed, tuple(variables), tuple(objectives), tuple(constraints),
                          evaluation, opt, reference, source, tied, ref_label, ref_source, setup, study_task)
 
@@ -1198,6 +1211,31 @@ def _design_str(study, d: dict) -> str:
         return "{" + ", ".join(f"{k}={_fmt_si(v)}" for k, v in d.items()) + "}"
 
 
+# -- the polish (optimizer.polish; the run is parasynth.study.polish) ---------------------------------
+def check_polish(opt, plugin, variables, constraints, structures: bool, total: int | None) -> None:
+    """:class:`StudyError` naming ``optimizer.polish.*`` when the polish cannot run: after a
+    local or listing optimiser, BOBYQA with design constraints, no continuous variable, a study
+    over structures, or a budget not below the study's (``total``)."""
+    pol = opt.polish
+    if pol is None:
+        return
+    if not plugin.searches_globally(opt):
+        alg = opt.algorithm or (plugin.algorithms or ("",))[0]
+        raise StudyError(f"optimizer.polish: refines the result of a global optimiser; {opt.kind} {alg} is not "
+                         f"one (use optuna, scipy or an NLopt GN_ algorithm), or leave polish out")
+    if pol.method == "bobyqa" and constraints:
+        raise StudyError(f"optimizer.polish.method: bobyqa takes no constraints and the study has "
+                         f"{len(constraints)} ({', '.join(c.label for c in constraints)}); use cobyla")
+    if not any(v.type == "continuous" and v.low is not None for v in variables):
+        raise StudyError("optimizer.polish: needs a continuous design variable with low/high to refine")
+    if structures:
+        raise StudyError("optimizer.polish: a study over structures is not polished; leave polish out")
+    if total is not None and pol.budget >= total:
+        raise StudyError(f"optimizer.polish.budget: {pol.budget} designs of a budget of {total}; give fewer than "
+                         f"{total} (the global search gets the rest)")
+
+
+
 # -- documentation of every key, for the JSON Schema and docs/study-format.md -------------------
 # The text of each key is the description of its field in the models above; docs/study-format.md
 # documents each key (a test checks it).
@@ -1215,6 +1253,8 @@ def _model_keys(model, prefix="") -> list[str]:
             out += _model_keys(subs[name], f"{key}{sep}")
         elif model in (MeasureRef, ConstraintRef) and name == "robust":
             out += _model_keys(RobustSpec, f"{key}.")
+        elif model is OptimizerSpec and name == "polish":
+            out += _model_keys(PolishSpec, f"{key}.")
     return out
 
 
@@ -1228,7 +1268,7 @@ def key_docs() -> dict[str, str]:
     list): the fields' descriptions, and the keys of ``reference`` (:data:`REFERENCE_KEYS`)."""
     models = {"": StudySpec, "variables[].": VariableSpec, "objectives[].": MeasureRef,
               "constraints[].": ConstraintRef, "evaluation.": EvaluationSpec, "optimizer.": OptimizerSpec,
-              "structure.": StructureSpec, "objectives[].robust.": RobustSpec, "constraints[].robust.": RobustSpec}
+              "optimizer.polish.": PolishSpec, "structure.": StructureSpec, "objectives[].robust.": RobustSpec, "constraints[].robust.": RobustSpec}
     docs = {}
     for key in study_keys():
         prefix, _, leaf = key.rpartition(".")

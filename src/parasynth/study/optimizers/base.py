@@ -27,8 +27,11 @@ The contract (every method but :meth:`BaseOptimizer.run` has a default):
 * :meth:`run`: evaluate designs only through the :class:`~parasynth.study.problem.Problem`
   (``problem.evaluate``), hand every record to ``ctx.record``, skip or replay ``ctx.records``
   on resume, evaluate inside ``ctx.guard.evaluating()`` and stop when ``ctx.guard.requested``;
-* :meth:`stored_reference` / :meth:`stored_final`: hooks after the reference design and the
-  final re-evaluation (an optimiser with its own storage keeps them there).
+* :meth:`stored_reference` / :meth:`stored_final` / :meth:`stored_polished`: hooks after the
+  reference design, the final re-evaluation and each design of the polish (an optimiser with
+  its own storage keeps them there); :meth:`polish_trial`: the trial number of the next
+  polish design;
+* :meth:`searches_globally` (classmethod): whether ``optimizer.polish`` may refine its result.
 """
 
 from __future__ import annotations
@@ -106,6 +109,19 @@ class BaseOptimizer:
 
     def stored_final(self, out_dir) -> None:
         """``final.csv`` was written in ``out_dir``."""
+
+    def stored_polished(self, rec) -> None:
+        """A design of the polish was evaluated (``rec``, already recorded in the journal)."""
+
+    def polish_trial(self, records) -> int:
+        """The trial number of the next design of the polish: after every trial of the run."""
+        return 1 + max((r.trial for r in records if r.source == "run"), default=-1)
+
+    @classmethod
+    def searches_globally(cls, opt) -> bool:
+        """Whether the optimiser of the ``optimizer:`` section ``opt`` searches the whole box
+        (``optimizer.polish`` refines the result of a global search only)."""
+        return True
 
     @property
     def storage_url(self) -> str | None:

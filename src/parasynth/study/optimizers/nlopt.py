@@ -54,6 +54,10 @@ class NLopt(BaseOptimizer):
     def planned_designs(cls, study) -> None:
         return None  # it may stop early on its tolerances
 
+    @classmethod
+    def searches_globally(cls, opt) -> bool:
+        return (opt.algorithm or cls.algorithms[0]).startswith("GN_")
+
     def run(self, problem: Problem, ctx: RunContext) -> None:
         run_nlopt(problem, ctx)
 

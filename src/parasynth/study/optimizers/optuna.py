@@ -5,6 +5,7 @@ storage is shared)."""
 
 from __future__ import annotations
 
+import math
 import sys
 from pathlib import Path
 
@@ -14,6 +15,7 @@ from ..defaults import OPTUNA_TRIALS, optimizer_seed, optuna_algorithm, optuna_b
 from ..errors import StudyError
 from ..journal import jsonable, rewrite_journal
 from ..optuna_adapter import fail_trial
+from ..polish import polish_budget
 from ..problem import Problem, RunContext
 from ..progress import Progress
 from ..schedule import structure_schedule
@@ -84,6 +86,25 @@ class Optuna(BaseOptimizer):
         except Exception as e:
             print(f"warning: could not store final.csv in the storage ({type(e).__name__})", file=sys.stderr)
 
+    def polish_trial(self, records) -> int:
+        return len(self.backend["ostudy"].get_trials(deepcopy=False))
+
+    def stored_polished(self, rec) -> None:
+        """The polish's design as a finished trial of the storage (a resumed run reads it back)."""
+        import optuna  # lazy: optuna takes about a second to import
+
+        ostudy = self.backend["ostudy"]
+        last = next((t for t in reversed(ostudy.get_trials(deepcopy=False)) if t.distributions), None)
+        dists = {k: d for k, d in (last.distributions if last else {}).items() if k in rec.values}
+        ok = rec.status == "ok"
+        vals = [rec.objectives[lab] for lab in self.backend["labels"]] if ok else None
+        cons = {c: (-m if ok and math.isfinite(m) else 1e9) for c, m in rec.margins.items()}
+        ostudy.add_trial(optuna.trial.create_trial(
+            state=optuna.trial.TrialState.COMPLETE if ok else optuna.trial.TrialState.FAIL,
+            values=vals, params={k: rec.values[k] for k in dists}, distributions=dists,
+            user_attrs={st.ATTR_RECORD: jsonable(rec.to_dict()), "constraints": list(cons.values()) or [0.0]},
+            constraints=cons or None))
+
     @property
     def storage_url(self) -> str | None:
         b = self.backend
@@ -142,7 +163,7 @@ def _optuna_setup(study, out_dir, resume, n_trials, storage_override, journal_re
     explicit = bool(storage_override or study.optimizer.storage)
     shared = st.is_shared_server(url)
     seed = optimizer_seed(study)
-    total = optuna_budget(study, n_trials)
+    total = optuna_budget(study, n_trials) - polish_budget(study)  # the polish takes the rest
     schedule = structure_schedule(study)
     if schedule is not None:  # a study over structures: n_trials designs per structure at most
         total = schedule.max_total
@@ -195,4 +216,4 @@ def _optuna_setup(study, out_dir, resume, n_trials, storage_override, journal_re
     if want != have and (records or jpath.exists()):
         rewrite_journal(jpath, records)
     return {"url": url, "explicit": explicit, "shared": shared, "storage": storage, "ostudy": ostudy,
-            "total": total, "seed": seed, "records": records}
+            "total": total, "seed": seed, "records": records, "labels": [o.label for o in study.objectives]}

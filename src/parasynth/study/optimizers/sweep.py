@@ -52,6 +52,10 @@ class Sweep(BaseOptimizer):
             return len(opt.designs)
         return DesignSpace(study.variables).grid_size()
 
+    @classmethod
+    def searches_globally(cls, opt) -> bool:
+        return False  # it evaluates listed designs
+
     def run(self, problem: Problem, ctx: RunContext) -> None:
         run_sweep(problem, ctx)
 
