@@ -152,3 +152,8 @@ def test_study_format_doc_describes_every_registered_optimiser():
         assert row is not None, f"docs/study-format.md has no row for optimizer.kind {kind}"
         assert cls.description in row, kind
         assert all(a in row for a in cls.algorithms), kind
+
+
+def test_the_base_class_is_abstract():
+    with pytest.raises(TypeError):
+        BaseOptimizer()

@@ -218,7 +218,8 @@ class OptimizerSpec(_Model):
     algorithm: str | None = Field(default=None, description=(
         "Algorithm of the kind: sweep grid|list; NLopt LN_COBYLA, LN_BOBYQA, ...; Optuna "
         "tpe, nsga2, ... (see `parasynth list`)."))
-    n_trials: Int | None = Field(default=None, ge=1, le=MAX_TRIALS, description=f"Optuna trials (1 to {MAX_TRIALS}).")
+    n_trials: Int | None = Field(default=None, ge=1, le=MAX_TRIALS, description=(
+        f"Optuna trials, SciPy designs (1 to {MAX_TRIALS})."))
     maxeval: Int | None = Field(default=None, ge=1, le=MAX_TRIALS, description=(
         f"NLopt evaluations (1 to {MAX_TRIALS})."))
     xtol_rel: float | None = Field(default=None, gt=0, allow_inf_nan=False, description=(

@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import importlib
 import pkgutil
+from abc import ABC, abstractmethod
 from collections.abc import Mapping
 from typing import ClassVar
 
@@ -49,7 +50,7 @@ _REGISTRY: dict[str, type] = {}
 _DISCOVERED = [False]
 
 
-class BaseOptimizer:
+class BaseOptimizer(ABC):
     """One optimiser: see the module docstring for the contract."""
 
     kind: ClassVar[str] = ""
@@ -101,8 +102,9 @@ class BaseOptimizer:
                              f"in the run directory's journal")
         return records
 
-    def run(self, problem, ctx) -> None:  # pragma: no cover - the contract
-        raise NotImplementedError(f"{type(self).__name__}.run")
+    @abstractmethod
+    def run(self, problem, ctx) -> None:
+        """Search: evaluate designs through ``problem``, record them with ``ctx.record``."""
 
     def stored_reference(self, rec) -> None:
         """The reference design was evaluated (``rec``)."""
