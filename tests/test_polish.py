@@ -5,6 +5,11 @@ moved; with several objectives no objective gets worse; bad combinations are ref
 an interrupted polish resumes to the uninterrupted result."""
 
 import json
+import os
+import signal
+import subprocess
+import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -125,3 +130,40 @@ def test_the_report_says_which_design_was_polished_and_how_far_it_moved(tmp_path
     moved_mm = (info["moved"]["link_length"]["to"] - info["moved"]["link_length"]["from"]) * 1e3
     assert "link_length" in sec and f"{100 * info['moved']['link_length']['share_of_range']:.2g} %" in sec
     assert abs(moved_mm) > 0 or info["moved"]["slider_radius"]["share_of_range"] > 0
+
+
+def test_optuna_polish_interrupted_by_ctrl_c_resumes_to_the_uninterrupted_run(tmp_path):
+    """Ctrl-C in the polish of an Optuna run: the polish designs are trials of its storage, and
+    ``--resume`` continues the same path to the same journal and polish.json."""
+    d = study_dict({"kind": "optuna", "algorithm": "random", "n_trials": 14, "seed": 3,
+                    "polish": {"method": "bobyqa", "budget": 8}},
+                   objectives=[{"name": "test_quadratic", "goal": "maximize", "settings": {"delay": 0.2}}])
+    path = tmp_path / "study.yaml"
+    path.write_text(yaml.safe_dump(d))
+    out = tmp_path / "run"
+    cmd = [sys.executable, "-m", "parasynth.cli", "run", str(path), "--out", str(out), "--quiet", "--no-report"]
+    proc = subprocess.Popen(cmd, env={**os.environ, "PARASYNTH_PLUGINS": PLUGIN}, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    deadline = time.time() + 90
+    while time.time() < deadline:  # the 6 trials of the global search, then 2 of the polish
+        p = out / "journal.jsonl"
+        if p.exists() and len([x for x in p.read_text().splitlines() if x.endswith("}")]) >= 8:
+            break
+        if proc.poll() is not None:
+            raise AssertionError(f"the run ended early: {proc.communicate()}")
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGINT)
+    _, stderr = proc.communicate(timeout=120)
+    assert proc.returncode == 130, stderr
+    assert read_polish(out)["status"] == "running"
+    cut = [json.loads(x) for x in (out / "journal.jsonl").read_text().splitlines()]
+    assert 8 <= len(cut) < 14
+    run_study(load_study(yaml.safe_dump(d), is_text=True), out_dir=out, resume=True, progress=False)
+    fresh = tmp_path / "fresh"
+    run_study(load_study(yaml.safe_dump(d), is_text=True), out_dir=fresh, progress=False)
+    key = lambda x: (x["trial"], json.dumps(x["values"], sort_keys=True), json.dumps(x["objectives"]))
+    lines = lambda o: [key(json.loads(x)) for x in (o / "journal.jsonl").read_text().splitlines()]
+    assert lines(out) == lines(fresh)
+    assert lines(out)[:len(cut)] == [key(x) for x in cut]
+    a, b = read_polish(out), read_polish(fresh)
+    assert a["status"] == b["status"] == "done" and a["polished"] == b["polished"] and a["first_trial"] == 6
