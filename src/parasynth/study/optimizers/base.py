@@ -16,10 +16,12 @@ The contract (every method but :meth:`BaseOptimizer.run` has a default):
   once: the final re-evaluation takes them all), ``uses_storage`` (an external storage and
   worker processes: ``--storage``/``--workers`` apply), ``runs_structures`` (it can run a
   ``structure:`` study), ``halving`` (it spreads its budget over the structures by successive
-  halving: ``structure.screening``/``eta``/``keep`` apply), ``description`` (one line for the docs and ``parasynth list``);
+  halving: ``structure.screening``/``eta``/``keep`` apply), ``description`` (one line for
+  the docs and ``parasynth list``);
 * :meth:`check` (classmethod): check the study's ``optimizer:`` section against the resolved
   variables and objectives; raise :class:`~parasynth.study.errors.StudyError` naming the field
-  and what is allowed;
+  and what is allowed; :meth:`check_structures`: the same for a ``structure:`` study (refused
+  by name unless ``runs_structures``); :meth:`algorithm`: the algorithm a study runs;
 * :meth:`budget` / :meth:`planned_designs` (classmethods): the designs a run may evaluate, the
   designs a finished run holds (None when it may stop early);
 * :meth:`open`: open or resume the optimiser's storage before any work and return the records
