@@ -11,10 +11,7 @@ import pytest
 from parasynth.study import load_study
 from parasynth.study.evaluate import Record
 from parasynth.study.problem import Problem, RunContext
-from parasynth.study.runner import RUNNERS
-from parasynth.study.run_nlopt import run_nlopt
-from parasynth.study.run_optuna import run_optuna
-from parasynth.study.run_sweep import run_sweep
+from parasynth.study.optimizers import BaseOptimizer, registered
 
 DOCS = Path(__file__).resolve().parents[1] / "docs"
 
@@ -48,7 +45,9 @@ def test_the_documented_runner_is_the_tested_file():
 
 
 def test_registry_names_every_kind():
-    assert RUNNERS == {"sweep": run_sweep, "nlopt": run_nlopt, "optuna": run_optuna}
+    reg = registered()
+    assert {"sweep", "nlopt", "optuna"} <= set(reg)
+    assert all(issubclass(c, BaseOptimizer) and c.kind == k for k, c in reg.items())
 
 
 class Analytic(Problem):

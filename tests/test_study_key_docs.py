@@ -10,12 +10,12 @@ import pytest
 
 from parasynth.study import spec
 from parasynth.study.spec import (KEY_DOCS, REFERENCE_KEYS, ConstraintRef, EvaluationSpec, MeasureRef, OptimizerSpec,
-                                  RobustSpec, StructureSpec, StudySpec, VariableSpec, study_json_schema, study_keys)
+                                  PolishSpec, RobustSpec, StructureSpec, StudySpec, VariableSpec, study_json_schema, study_keys)
 
 ROOT = Path(__file__).resolve().parents[1]
 MODELS = {"": StudySpec, "variables[].": VariableSpec, "objectives[].": MeasureRef, "constraints[].": ConstraintRef,
-          "evaluation.": EvaluationSpec, "optimizer.": OptimizerSpec, "structure.": StructureSpec,
-          "objectives[].robust.": RobustSpec, "constraints[].robust.": RobustSpec}
+          "evaluation.": EvaluationSpec, "optimizer.": OptimizerSpec, "optimizer.polish.": PolishSpec,
+          "structure.": StructureSpec, "objectives[].robust.": RobustSpec, "constraints[].robust.": RobustSpec}
 
 
 @pytest.mark.parametrize("prefix", sorted(MODELS))
@@ -39,8 +39,9 @@ def test_the_json_schema_carries_each_fields_description():
             assert props[name]["description"] == field.description, f"{prefix}{name}"
             n += 1
     # 65 keys before the robust blocks: objectives[].robust and constraints[].robust, and the
-    # six keys of each (tolerances, statistic, level, samples, seed, probability)
-    assert n == len(study_keys()) == 82
+    # six keys of each (tolerances, statistic, level, samples, seed, probability); optimizer.polish
+    # and its two keys (method, budget)
+    assert n == len(study_keys()) == 85
     assert schema["title"] == "parasynth study"
     assert schema["description"].startswith("A parasynth design study")
     assert schema["$schema"] == "https://json-schema.org/draft/2020-12/schema"

@@ -317,7 +317,7 @@ def cmd_run(args) -> int:
     study = _checked_study(args.study)
     if args.resume:
         target = Path(args.out or study.spec.output or Path("runs") / study.name)
-        shared = study.optimizer.kind == "optuna" and (args.storage or study.optimizer.storage)
+        shared = study.optimizer.plugin.uses_storage and (args.storage or study.optimizer.storage)
         if not target.exists() and not shared:
             raise CliError(f"--resume: the run directory {str(target)!r} does not exist, so there is nothing to "
                            f"resume; give the directory of the run (--out) or drop --resume to start a new run")
@@ -691,14 +691,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--resume", action="store_true",
                    help="continue an interrupted run in the same directory, e.g. --resume --out runs/qs")
     p.add_argument("--n-trials", type=_n_trials, metavar="N",
-                   help=f"evaluation budget (Optuna trials / NLopt maxeval), 1 to {MAX_TRIALS}, e.g. --n-trials 40")
+                   help=f"evaluation budget (optimizer.n_trials / maxeval, optimizer.polish's designs included), "
+                        f"1 to {MAX_TRIALS}, e.g. --n-trials 40")
     p.add_argument("--quiet", action="store_true", help="no progress bar, e.g. --quiet")
     p.add_argument("--no-report", action="store_true", help="do not write the report at the end, e.g. --no-report")
     p.add_argument("--report-dir", type=_path_arg("--report-dir"),
                    help="report directory (default report/ in the run directory: runs/<study name>/report/), "
                         "e.g. --report-dir /tmp/qs-report")
     p.add_argument("--workers", type=_count_type("--workers", 1, 1024), metavar="N",
-                   help="local worker processes for an Optuna study (e.g. --workers 2); sweeps and NLopt run in one")
+                   help="local worker processes for an Optuna study (e.g. --workers 2); the other optimisers run in one")
     p.add_argument("--storage", metavar="URL",
                    help="Optuna storage, e.g. postgresql://user:pw@host/db, sqlite:///optuna.db, journal:FILE "
                         "(default: optuna.journal in the run directory); see docs/scaling.md")

@@ -35,9 +35,9 @@ def cmd_worker(args) -> int:
 
     try:
         study = load_study(args.study)
-        if study.optimizer.kind != "optuna":
+        if not study.optimizer.plugin.uses_storage:
             return _err(f"{args.study}: optimizer.kind is {study.optimizer.kind!r}; workers join Optuna studies "
-                        f"(sweeps and NLopt run in one process: parasynth run)")
+                        f"(the other optimisers run in one process: parasynth run)")
         url = args.storage or study.optimizer.storage
         if not url:
             return _err("parasynth worker needs the study's storage: --storage URL (or optimizer.storage in the file)")

@@ -148,7 +148,7 @@ def analyse(run: Run, noise_z: float = NOISE_Z) -> Analysis:
         a.standing = reference_standing(F[feas], senses, np.ones(feas.sum(), bool),
                                         a.ref_row[labels].to_numpy(float), labels)
     a.final = _final_analysis(run, a.knee_row, noise_z)
-    a.warnings = design_warnings(study, a.knee_row, front)
+    a.warnings = design_warnings(study, a.knee_row, front, a.runs)
     return a
 
 

@@ -2,6 +2,9 @@
 
 * a recommended or best design on a design variable's bound (within ``BOUND_TOL`` of the
   variable's range): the optimum may lie beyond the box, widen the variable's bounds;
+* a recommended or best design near a bound (within ``NEAR_BOUND_TOL``) whose objectives
+  improve towards it (a local trend fitted to the nearest designs of the run, see
+  :func:`near_bound_warnings`): a global optimiser stops near an optimum on a bound, not at it;
 * a design whose feasible workspace reaches the faces of the sampled box (feasible samples
   within ``FACE_TOL`` of a coordinate's range from a face, more than ``FACE_SHARE`` of them):
   the box cuts the workspace, so volumes and extents measure the box; widen
@@ -18,10 +21,17 @@ from ..measures.objectives import _WS_SETTINGS, workspace_of
 from ..measures.objectives import get as get_measure
 from ..study.rundir import design_key, design_mechanism, measure_settings
 
-__all__ = ["design_roles", "design_warnings", "bound_warnings", "face_warnings", "BOUND_TOL", "FACE_TOL", "FACE_SHARE"]
+__all__ = ["design_roles", "design_warnings", "bound_warnings", "near_bound_warnings", "face_warnings", "BOUND_TOL",
+           "NEAR_BOUND_TOL", "TREND_NEIGHBOURS", "FACE_TOL", "FACE_SHARE"]
 
 #: A design lies on a bound when within this share of the variable's range from it.
 BOUND_TOL = 0.01
+#: A design lies near a bound when within this share of the variable's range from it; the report
+#: warns when the objectives improve towards the bound there (:func:`near_bound_warnings`).
+NEAR_BOUND_TOL = 0.05
+#: Designs nearest to the checked one (unit cube of the numeric variables) the local trend is
+#: fitted to (fewer when the run has fewer feasible designs).
+TREND_NEIGHBOURS = 12
 #: Width of the layer at each face of the sampled box, as a share of the coordinate's range.
 FACE_TOL = 0.01
 #: Share of the feasible samples in the face layers above which the report warns. A feasible
@@ -72,6 +82,82 @@ def bound_warnings(study, knee_row, front: pd.DataFrame | None = None, tol: floa
         if hits:
             out.append(f"{name} lies on a bound of the design variables: " + "; ".join(hits)
                        + ". The best design may lie beyond it: widen the bound if the design allows it.")
+    return out
+
+
+def _share(v, x: float) -> float:
+    if v.log and v.low > 0 and x > 0:
+        return (np.log(x) - np.log(v.low)) / (np.log(v.high) - np.log(v.low))
+    return (x - v.low) / (v.high - v.low)
+
+
+def _trend_towards(study, runs: pd.DataFrame, row, v, side: int, numeric: list) -> list[str] | None:
+    """The objectives (labels) that a local trend says improve from ``row`` towards the bound
+    of ``v`` on ``side`` (-1 lower, +1 upper); None when the trend cannot be fitted.
+
+    The trend: over the :data:`TREND_NEIGHBOURS` feasible designs nearest to ``row`` (unit
+    cube of the numeric variables), least squares of each objective (as "larger is better") on
+    the numeric variables, with a square term in ``v`` when there are enough designs; an
+    objective improves towards the bound when the fitted value at the bound is better than at
+    the design and the fitted slope at the design points the same way."""
+    ok = runs[(runs["status"] == "ok") & runs["feasible"].astype(bool)]
+    ok = ok.dropna(subset=[w.name for w in numeric] + [o.label for o in study.objectives])
+    if len(ok) < len(numeric) + 2:
+        return None
+    U = np.column_stack([[_share(w, float(x)) for x in ok[w.name]] for w in numeric])
+    u0 = np.array([_share(w, float(row[w.name])) for w in numeric])
+    near = np.argsort(np.linalg.norm(U - u0, axis=1), kind="stable")[:max(TREND_NEIGHBOURS, len(numeric) + 2)]
+    U = U[near] - u0
+    j = numeric.index(v)
+    quad = len(near) >= len(numeric) + 4
+    A = np.column_stack([np.ones(len(U)), U] + ([U[:, j] ** 2] if quad else []))
+    ub = (0.0 if side < 0 else 1.0) - u0[j]  # the bound, relative to the design
+    better = []
+    for o in study.objectives:
+        h = ok[o.label].to_numpy(float)[near] * (1.0 if o.goal == "maximize" else -1.0)
+        coef, *_ = np.linalg.lstsq(A, h, rcond=None)
+        b, c = coef[1 + j], (coef[-1] if quad else 0.0)
+        slope_towards = b * side
+        gain = b * ub + c * ub ** 2  # fitted value at the bound minus at the design
+        if slope_towards > 0 and gain > 0:
+            better.append(o.label)
+    return better
+
+
+def near_bound_warnings(study, knee_row, front: pd.DataFrame | None = None, runs: pd.DataFrame | None = None,
+                        tol: float = NEAR_BOUND_TOL, on_bound: float = BOUND_TOL) -> list[str]:
+    """A recommended or best design with a variable within ``tol`` of its range from a bound
+    (but farther than ``on_bound``: :func:`bound_warnings` speaks of those) where every objective
+    improves towards the bound by the local trend of the run's designs ``runs``
+    (:func:`_trend_towards`)."""
+    if runs is None or not len(runs):
+        return []
+    numeric = [w for w in study.variables if w.type != "categorical" and w.low is not None and w.high is not None
+               and w.name in runs]
+    out = []
+    for name, row in _named_designs(study, knee_row, front):
+        hits = []
+        for v in numeric:
+            if v.name not in row or pd.isna(row[v.name]):
+                continue
+            x = float(row[v.name])
+            s = _share(v, x)
+            side = -1 if s <= tol else (1 if s >= 1 - tol else 0)
+            if side == 0 or min(s, 1 - s) <= on_bound:
+                continue
+            better = _trend_towards(study, runs, row, v, side, numeric)
+            if better is None or len(better) < len(study.objectives):
+                continue
+            u = quantity_unit(study, v.name)
+            bound, key = (v.low, "low") if side < 0 else (v.high, "high")
+            hits.append(f"{v.name} = {fmt_quantity(x, u)} is {100 * min(s, 1 - s):.1f} % of its range from its "
+                        f"{'lower' if side < 0 else 'upper'} bound {fmt_quantity(bound, u)} "
+                        f"({study.variable_path(v.name)}.{key}) and {', '.join(better)} improve"
+                        f"{'s' if len(better) == 1 else ''} towards it")
+        if hits:
+            out.append(f"{name} lies near a bound of the design variables: " + "; ".join(hits)
+                       + " (a local trend of the nearest designs). The optimum may lie at or beyond the bound: widen "
+                       "it if the design allows it, or refine the design (optimizer.polish).")
     return out
 
 
@@ -127,12 +213,13 @@ def face_warnings(study, knee_row, share: float = FACE_SHARE) -> list[str]:
     return out
 
 
-def design_warnings(study, knee_row, front: pd.DataFrame | None) -> list[str]:
+def design_warnings(study, knee_row, front: pd.DataFrame | None, runs: pd.DataFrame | None = None) -> list[str]:
     """Every warning of :mod:`parasynth.report.checks` for the recommended design
-    ``knee_row`` and the non-dominated ``front`` of a run (a failing check is skipped: a
-    warning must not cost the report)."""
+    ``knee_row``, the non-dominated ``front`` and the designs ``runs`` of a run (a failing check
+    is skipped: a warning must not cost the report)."""
     out = []
-    for check in (lambda: bound_warnings(study, knee_row, front), lambda: face_warnings(study, knee_row)):
+    for check in (lambda: bound_warnings(study, knee_row, front), lambda: near_bound_warnings(study, knee_row, front, runs),
+                  lambda: face_warnings(study, knee_row)):
         try:
             out += check()
         except Exception:  # noqa: BLE001 - best effort

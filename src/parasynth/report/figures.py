@@ -209,7 +209,7 @@ def plot_convergence(figs, study, run_df):
 
 
 def plot_sweep(figs, study, run_df, final):
-    if study.optimizer.kind != "sweep" or len(study.variables) != 1:
+    if not study.optimizer.plugin.lists_designs or len(study.variables) != 1:
         return
     v = study.variables[0]
     xl, xu = _label(study, v.name)

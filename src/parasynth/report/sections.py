@@ -222,6 +222,9 @@ def _sections(run: Run, a: Analysis) -> list[tuple[str, str, pd.DataFrame | None
                     final_display_table(study, fa)))
     elif run.final is not None and len(run.final):
         sec.append(("Re-evaluation of the best designs", "final.csv (columns as written by the run):", run.final))
+    pol = polish_section(run)
+    if pol is not None:
+        sec.append(pol)
     if study.constraints or (runs["status"] != "ok").any():
         rows = []
         for c in study.constraints:
@@ -242,6 +245,36 @@ def _sections(run: Run, a: Analysis) -> list[tuple[str, str, pd.DataFrame | None
     sec.append(("Study and software", "Software: " + ", ".join(f"{k} {x}" for k, x in v.items())
                 + f". Report written {time.strftime('%Y-%m-%d %H:%M:%S')}. Study file as run:", None))
     return sec
+
+
+def polish_section(run: Run) -> tuple[str, str, pd.DataFrame | None] | None:
+    """The "Polish" section of a run with ``optimizer.polish`` (its ``polish.json``): which
+    design was polished, by which method and budget, where it moved and how each objective
+    changed."""
+    info, study = run.polish, run.study
+    if not info or not info.get("start"):
+        return None
+    start, pol = info["start"], info.get("polished")
+    head = (f"The {'best' if len(study.objectives) == 1 else 'recommended'} design of the global search "
+            f"(trial {start['trial']}) was polished by a local {info['method'].upper()} search within the bounds "
+            f"({info.get('evaluations', 0)} of {info['budget']} designs, trials from {info['first_trial']}).")
+    if info.get("status") != "done":
+        return ("Polish", head + " The polish was interrupted: resume the run to finish it.", None)
+    if pol is None:
+        return ("Polish", head + " " + (info.get("note") or "No better design was found") + ".", None)
+    rows = []
+    for name, m in info.get("moved", {}).items():
+        u = _unit(study, name)
+        rows.append({"variable": name, "start": fmt_quantity(m["from"], u), "polished": fmt_quantity(m["to"], u),
+                     "moved": fmt_quantity(m["to"] - m["from"], u),
+                     "share of range": f"{100 * m['share_of_range']:.2g} %"})
+    changes = []
+    for o in study.objectives:
+        u = _unit(study, o.label)
+        changes.append(f"{o.label} {fmt_quantity(start['objectives'][o.label], u)} -> "
+                       f"{fmt_quantity(pol['objectives'][o.label], u)}")
+    return ("Polish", head + f" Polished design: trial {pol['trial']}; " + ", ".join(changes) + ".",
+            pd.DataFrame(rows) if rows else None)
 
 
 def grid_note(run: Run, a: Analysis) -> str:

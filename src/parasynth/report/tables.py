@@ -59,7 +59,7 @@ def final_display_table(study, fa: FinalAnalysis) -> pd.DataFrame:
     best_rows = fin[fin["source"] == "best"]
     why = dict(zip(best_rows.index, design_roles(study, best_rows))) if len(best_rows) else {}
     for i, r in fin.iterrows():
-        other = "sweep point" if study.optimizer.kind == "sweep" else why.get(i, "best")
+        other = "sweep point" if study.optimizer.plugin.lists_designs else why.get(i, "best")
         if "recommended" in fin:  # verified (docs/verification.md)
             recommended, rec = bool(r["recommended"]), "recommended (verified)"
             if bool(r["knee"]) and not recommended:

@@ -13,7 +13,8 @@ from pathlib import Path
 
 import yaml
 
-from .spec import ResolvedStudy, StudyError
+from .optimizers.base import kinds, optimizer_class
+from .spec import OptimizerSpec, ResolvedStudy, StudyError
 from .structure_space import STRUCTURE, check_halving
 
 __all__ = ["budget_key", "budget_of", "with_budget", "recorded_budget", "budget_for_run", "same_study"]
@@ -21,7 +22,7 @@ __all__ = ["budget_key", "budget_of", "with_budget", "recorded_budget", "budget_
 
 def budget_key(study: ResolvedStudy) -> str | None:
     """``n_trials`` (Optuna), ``maxeval`` (NLopt) or None (a sweep: its designs are listed)."""
-    return {"optuna": "n_trials", "nlopt": "maxeval"}.get(study.optimizer.kind)
+    return optimizer_class(study.optimizer.kind).budget_key
 
 
 def budget_of(study: ResolvedStudy) -> int | None:
@@ -90,6 +91,7 @@ def same_study(saved_text: str, text: str) -> bool:
     for d in (a, b):
         opt = d.get("optimizer")
         if isinstance(opt, dict):
-            kind = opt.get("kind", "sweep")
-            opt.pop({"optuna": "n_trials", "nlopt": "maxeval"}.get(kind, ""), None)
+            kind = opt.get("kind", OptimizerSpec.model_fields["kind"].default)
+            if kind in kinds():
+                opt.pop(optimizer_class(kind).budget_key or "", None)
     return a == b

@@ -3,7 +3,7 @@ algorithm of each kind and the seed of the optimiser."""
 
 from __future__ import annotations
 
-from .space import DesignSpace
+from .optimizers import optimizer_class
 
 __all__ = ["OPTUNA_TRIALS", "NLOPT_MAXEVAL", "NLOPT_ALGORITHM", "optuna_algorithm", "nlopt_algorithm",
            "optuna_budget", "nlopt_budget", "optimizer_seed", "planned_designs"]
@@ -48,12 +48,9 @@ def optimizer_seed(study) -> int:
 
 def planned_designs(study) -> int | None:
     """Designs a finished run of ``study`` holds with its own budget: every design of a sweep,
-    the trials of an Optuna study; ``None`` for NLopt (it may stop early on its tolerances)."""
-    opt = study.optimizer
-    if opt.kind == "sweep":
-        if opt.designs:
-            return len(opt.designs)
-        return DesignSpace(study.variables).grid_size()
-    if opt.kind == "optuna":
-        return optuna_budget(study)
-    return None
+    the trials of an Optuna study; ``None`` for NLopt (it may stop early on its tolerances)
+    (each optimiser's :meth:`~parasynth.study.optimizers.BaseOptimizer.planned_designs`);
+    ``None`` with ``optimizer.polish`` (the local search may stop before its budget)."""
+    if getattr(study.optimizer, "polish", None) is not None:
+        return None
+    return optimizer_class(study.optimizer.kind).planned_designs(study)

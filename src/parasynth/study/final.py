@@ -169,7 +169,7 @@ def final_candidates(study: ResolvedStudy, table: pd.DataFrame) -> pd.DataFrame:
     its role."""
     ev = study.evaluation
     runs = table[table["source"] == "run"] if len(table) else table
-    if study.optimizer.kind == "sweep":
+    if study.optimizer.plugin.lists_designs:
         best = merge_duplicates(study, runs[runs["status"] == "ok"])
     else:
         best = best_designs(study, runs, k=ev.get("final_top", 5))
@@ -189,7 +189,7 @@ def final_candidates(study: ResolvedStudy, table: pd.DataFrame) -> pd.DataFrame:
             keys.append(kk)
     screen = screening_dominators(study, table)
     screen_keys = [design_key(study, r) for _, r in screen.iterrows()]
-    if study.optimizer.kind != "sweep":
+    if not study.optimizer.plugin.lists_designs:
         limit = n_screen_dominators(ev.get("final_top", 5))
         # The ``limit`` dominators by the largest margin are all re-evaluated: those already
         # among the candidates keep their role, the others are added.

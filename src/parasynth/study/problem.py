@@ -1,8 +1,8 @@
 """The problem a runner solves: one object with the design space, the objectives, the
 constraints, the budget, the seed and the evaluation of a design.
 
-Every runner (:data:`parasynth.study.runner.RUNNERS`) is a function ``run(problem, ctx)``
-against a :class:`Problem` and a :class:`RunContext` (the records so far, the callback that
+Every optimiser (:mod:`parasynth.study.optimizers`) runs ``run(problem, ctx)`` against a
+:class:`Problem` and a :class:`RunContext` (the records so far, the callback that
 records a new one, the progress flag and the interrupt guard); the run directory, the
 journal, resuming and the tables are the caller's (:mod:`parasynth.study.runner`).
 """
@@ -14,9 +14,11 @@ from pathlib import Path
 from typing import Callable
 
 from ..measures.display import fmt_column_value
-from .defaults import nlopt_budget, optimizer_seed, optuna_budget, planned_designs
+from .defaults import optimizer_seed
 from .evaluate import Evaluator, Record
 from .signals import Interrupt
+from .optimizers import optimizer_class
+from .polish import polish_budget
 from .spec import ResolvedStudy
 from .space import DesignSpace
 
@@ -43,21 +45,18 @@ class Problem:
         self.constraints = study.constraints
         self.seed = optimizer_seed(study)
         self.evaluator = evaluator or Evaluator(study)
+        self.optimizer = optimizer_class(study.optimizer.kind)
 
     @property
     def name(self) -> str:
         return self.study.name
 
     def budget(self, n_trials: int | None = None) -> int:
-        """Designs a run may evaluate: ``n_trials`` when given, else the study's own budget
-        (the sweep's designs, ``optimizer.maxeval`` of NLopt, ``optimizer.n_trials`` of Optuna,
-        each with its default from :mod:`parasynth.study.defaults`)."""
-        kind = self.study.optimizer.kind
-        if kind == "nlopt":
-            return nlopt_budget(self.study, n_trials)
-        if kind == "sweep" and not n_trials:
-            return planned_designs(self.study)
-        return optuna_budget(self.study, n_trials)
+        """Designs the optimiser may evaluate: ``n_trials`` when given, else the study's own
+        budget (the sweep's designs, ``optimizer.maxeval`` of NLopt, ``optimizer.n_trials`` of
+        Optuna, each with its default from :mod:`parasynth.study.defaults`), less the designs
+        of ``optimizer.polish`` (:mod:`parasynth.study.polish`)."""
+        return self.optimizer.budget(self.study, n_trials) - polish_budget(self.study)
 
     def designs(self) -> list[dict]:
         """The designs of a sweep: ``optimizer.designs`` (SI), else the grid."""
@@ -99,7 +98,7 @@ class RunContext:
     them); ``record(rec)``: journal, keep and count a new record; ``progress``: show a
     progress bar; ``guard``: the interrupt guard (evaluate inside ``guard.evaluating()``, stop
     when ``guard.requested``); ``n_trials``: the budget given on the command line.
-    The remaining fields serve the Optuna runner (storage, workers)."""
+    The remaining fields serve the optimisers with a storage and workers (Optuna)."""
 
     records: list
     record: Callable[[Record], None]

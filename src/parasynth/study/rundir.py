@@ -24,6 +24,7 @@ from .design import design_key, design_mechanism, design_params, measure_setting
 from .verify import SINGULARITY_FLOOR, estimate_of
 from .final import best_designs, knee_of, merge_duplicates, pareto_front, recommendation_order, screening_dominators
 from .journal import read_journal
+from .polish import read_polish
 from .schedule import structure_schedule
 from .spec import ResolvedStudy, StudyError, load_study
 from .structure_space import STRUCTURE
@@ -56,6 +57,7 @@ class Run:
     run_dir: Path
     budget: int | None
     plan: object = None  # a study over structures: its schedule's Plan (study.schedule)
+    polish: dict | None = None  # polish.json of a run with optimizer.polish (study.polish)
 
     @property
     def n_run(self) -> int:
@@ -100,7 +102,7 @@ def read_run(run_dir) -> Run:
     schedule = structure_schedule(study)
     if schedule is not None:  # the designs its schedule plans, given the stored ones
         return Run(study, table, final, run_dir, schedule.plan(records).total, schedule.plan(records))
-    return Run(study, table, final, run_dir, planned_designs(study))
+    return Run(study, table, final, run_dir, planned_designs(study), polish=read_polish(run_dir))
 
 
 def _check_structures(study, records, run_dir: Path) -> None:

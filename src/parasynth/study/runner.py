@@ -1,7 +1,8 @@
 """Running a study: the run directory and its result tables, the journal, resuming, and the
-dispatch to the runner of the study's kind (:data:`RUNNERS`: :mod:`~parasynth.study.run_sweep`,
-:mod:`~parasynth.study.run_nlopt`, :mod:`~parasynth.study.run_optuna`, each a function
-``run(problem, ctx)`` against :class:`~parasynth.study.problem.Problem`).
+optimiser of the study's kind (:mod:`parasynth.study.optimizers`: one
+:class:`~parasynth.study.optimizers.BaseOptimizer` per kind, run against a
+:class:`~parasynth.study.problem.Problem`), then the polish of ``optimizer.polish``
+(:mod:`parasynth.study.polish`: ``polish.json``).
 
 Run directory (default ``runs/<study name>/``):
 
@@ -52,27 +53,18 @@ import pandas as pd
 
 from ..measures.display import reference_name
 from ..engine import warm_up
-from . import storage as st
 from .budget import budget_for_run, same_study
-from .defaults import optimizer_seed, optuna_budget
 from .evaluate import Record
 from .final import reevaluate_best
-from .journal import Journal, RunLock, jsonable, read_journal, rewrite_journal
-from .optuna_adapter import fail_trial
+from .journal import Journal, RunLock, read_journal
+from .optimizers import optimizer_class
+from .polish import polish_budget, polish_run
 from .problem import Problem, RunContext
-from .run_nlopt import run_nlopt
-from .run_optuna import run_optuna
-from .run_sweep import run_sweep
-from .schedule import structure_schedule
 from .signals import Interrupt
 from .spec import ResolvedStudy, StudyError
 from .tables import results_table, write_tables
-from .workers import make_sampler
 
-__all__ = ["run_study", "RunResult", "results_table", "read_journal", "RUNNERS"]
-
-#: The runner of each ``optimizer.kind``: ``run(problem, ctx)`` (see :mod:`parasynth.study.problem`).
-RUNNERS = {"sweep": run_sweep, "nlopt": run_nlopt, "optuna": run_optuna}
+__all__ = ["run_study", "RunResult", "results_table", "read_journal"]
 
 
 @dataclass
@@ -158,20 +150,23 @@ def run_study(study: ResolvedStudy, out_dir=None, resume: bool = False, n_trials
     if n_trials is not None and (not isinstance(n_trials, int) or isinstance(n_trials, bool) or n_trials < 1):
         raise StudyError(f"n_trials: a positive whole number of designs is needed, got {n_trials!r}")
     kind = study.optimizer.kind
+    plugin = optimizer_class(kind)
     n_workers = _workers_of(study, workers)
-    if kind != "optuna":
+    if not plugin.uses_storage:
         if storage:
             raise StudyError(f"--storage applies to Optuna studies; a {kind} run keeps its designs in the run "
                              f"directory's journal")
         if n_workers > 1:
-            print(f"note: a {'sweep' if kind == 'sweep' else 'NLopt run'} runs in one process; "
-                  f"--workers applies to Optuna studies", file=sys.stderr)
+            print(f"note: a {plugin.title} runs in one process; --workers applies to Optuna studies", file=sys.stderr)
             n_workers = 1
     out_dir = Path(out_dir or study.spec.output or Path("runs") / study.name)
-    if resume and not out_dir.exists() and not (kind == "optuna" and (storage or study.optimizer.storage)):
+    if resume and not out_dir.exists() and not (plugin.uses_storage and (storage or study.optimizer.storage)):
         raise StudyError(f"--resume: the run directory {str(out_dir)!r} does not exist, so there is nothing to "
                          f"resume; give the directory of the run (--out) or drop --resume to start a new run")
     study = budget_for_run(study, out_dir, resume, n_trials, note=lambda m: print(m, file=sys.stderr))
+    if n_trials is not None and polish_budget(study) >= n_trials:
+        raise StudyError(f"--n-trials: {n_trials} designs leave none to the global search after the "
+                         f"{polish_budget(study)} of optimizer.polish.budget; give more")
     lock = RunLock(out_dir)
     try:
         previous = prepare_dir(study, out_dir, resume, lock=lock)
@@ -191,20 +186,18 @@ def _workers_of(study, workers):
 
 def _run_locked(study, out_dir, previous, resume, n_trials, progress, storage, n_workers) -> RunResult:
     problem = Problem(study)
+    optimizer = optimizer_class(study.optimizer.kind)()
     t0 = time.perf_counter()
     records = list(previous)
     new = []
     last_tables = [time.monotonic()]
-    ctx = {}
 
     with Interrupt(quiet=not progress) as guard:
         journal = None
         try:
-            if study.optimizer.kind == "optuna":
-                # Set up (and check) the storage before any work, and reconcile the journal
-                # with it: the storage is the record of an Optuna study.
-                ctx = _optuna_setup(study, out_dir, resume, n_trials, storage, records)
-                records[:] = ctx["records"]
+            # Set up (and check) the optimiser's storage before any work, and reconcile the
+            # journal with it (the storage is the record of an Optuna study).
+            records[:] = optimizer.open(problem, out_dir, resume, n_trials, storage, records)
 
             n_warm = max(1, int(study.evaluation["n"]) // 2)  # not the run's sample count: no cache hit later
             warm_up(lambda: problem.evaluate(_warm_up_design(problem), n=n_warm, source="warm-up"),
@@ -226,12 +219,13 @@ def _run_locked(study, out_dir, previous, resume, n_trials, progress, storage, n
                 with guard.evaluating():
                     rec = problem.evaluate(dict(study.reference), trial=-1, source="reference")
                 record(rec)
-                if ctx:
-                    _store_reference(ctx["ostudy"], rec)
+                optimizer.stored_reference(rec)
+            ctx = RunContext(records, record, progress=progress, guard=guard, n_trials=n_trials, out_dir=out_dir,
+                             workers=n_workers, journal=journal)
             if not guard.requested:
-                run = RUNNERS[study.optimizer.kind]
-                run(problem, RunContext(records, record, progress=progress, guard=guard, n_trials=n_trials,
-                                        out_dir=out_dir, workers=n_workers, journal=journal, backend=ctx))
+                optimizer.run(problem, ctx)
+            if not guard.requested:
+                polish_run(problem, optimizer, ctx)
         except KeyboardInterrupt:
             guard.requested = True
         finally:
@@ -251,13 +245,13 @@ def _run_locked(study, out_dir, previous, resume, n_trials, progress, storage, n
             except KeyboardInterrupt:
                 interrupted = True
             interrupted = interrupted or guard2.requested
-        if final is not None and ctx:
-            _store_final(ctx["ostudy"], out_dir)
+        if final is not None:
+            optimizer.stored_final(out_dir)
     # New designs of this run, those of other workers on the same study included.
     before = {(r.source, r.trial) for r in previous}
     new = [r for r in records if (r.source, r.trial) not in before]
     return RunResult(out_dir, table, final, len(new), len(records), time.perf_counter() - t0, interrupted, new,
-                     storage=ctx.get("url") if ctx and ctx.get("explicit") else None)
+                     storage=optimizer.storage_url)
 
 
 def _warm_up_design(problem: Problem) -> dict:
@@ -272,85 +266,3 @@ def _warm_up_design(problem: Problem) -> dict:
 
 def print_err(msg: str) -> None:
     print(msg, file=sys.stderr, flush=True)
-
-
-# -- Optuna ----------------------------------------------------------------------------------------------
-def _optuna_setup(study, out_dir, resume, n_trials, storage_override, journal_records):
-    """Open (and check) the storage, create or load the study, rebuild the embedded storage on
-    resume, and return the records the run starts from (the reference from the journal, the
-    designs from the storage)."""
-    import optuna  # lazy: optuna takes about a second to import; sweeps and NLopt never need it
-
-    optuna.logging.set_verbosity(optuna.logging.ERROR)
-    url = st.resolve_storage_url(study, out_dir, storage_override)
-    explicit = bool(storage_override or study.optimizer.storage)
-    shared = st.is_shared_server(url)
-    seed = optimizer_seed(study)
-    total = optuna_budget(study, n_trials)
-    schedule = structure_schedule(study)
-    if schedule is not None:  # a study over structures: n_trials designs per structure at most
-        total = schedule.max_total
-    if resume and not shared and st._is_journal(url):
-        dropped = st.rebuild_journal_storage(url, study.name)
-        if dropped:
-            print(f"resume: {dropped} unfinished trial(s) of the interrupted run removed from the storage; "
-                  f"their designs are proposed again", file=sys.stderr)
-    storage = st.open_storage(url)
-    exists = study.name in st.study_names(storage)
-    if exists and not resume:
-        raise st.StorageError(
-            f"storage {st.describe_url(url)!r} already holds a study named {study.name!r}; pass --resume to "
-            f"continue it, or give the study another name")
-    directions = [o.goal for o in study.objectives]
-    ostudy = optuna.create_study(study_name=study.name, storage=storage, directions=directions,
-                                 sampler=None, load_if_exists=True)
-    if [d.name.lower() for d in ostudy.directions] != [d.lower() for d in directions]:
-        raise st.StorageError(f"storage {st.describe_url(url)!r}: study {study.name!r} there has other objectives "
-                              f"({len(ostudy.directions)} directions); give the study another name")
-    text = study.to_yaml()
-    stored = ostudy.user_attrs.get(st.ATTR_STUDY)
-    if stored is not None and not same_study(stored, text):
-        raise st.StorageError(f"storage {st.describe_url(url)!r}: the study {study.name!r} stored there differs "
-                              f"from this study file; give the study another name or use the same file")
-    if stored is None:
-        ostudy.set_user_attr(st.ATTR_STUDY, text)
-    st.name_objectives(ostudy, study)
-    ostudy.set_user_attr(st.ATTR_BUDGET, total)
-    from optuna.trial import TrialState  # lazy: optuna
-
-    if resume and not shared and not st._is_journal(url):
-        # SQLite: trials left running by the killed process are failed, their designs
-        # proposed again.
-        for t in ostudy.get_trials(deepcopy=False, states=(TrialState.RUNNING,)):
-            fail_trial(ostudy, t)
-    ostudy.sampler = make_sampler(study, seed)
-    trials = ostudy.get_trials(deepcopy=False)
-    recs = st.records_from_trials(trials)
-    ref = [r for r in journal_records if r.source == "reference"]
-    if not ref:
-        sref = st.reference_record(ostudy)
-        ref = [sref] if sref is not None else []
-    records = ref + recs
-    # The journal mirrors the storage: rewrite it when they differ (a trial the interruption
-    # left unfinished, designs of other workers).
-    want = [(r.source, r.trial) for r in records]
-    have = [(r.source, r.trial) for r in journal_records]
-    jpath = Path(out_dir) / "journal.jsonl"
-    if want != have and (records or jpath.exists()):
-        rewrite_journal(jpath, records)
-    return {"url": url, "explicit": explicit, "shared": shared, "storage": storage, "ostudy": ostudy,
-            "total": total, "seed": seed, "records": records}
-
-
-def _store_reference(ostudy, rec):
-    try:
-        ostudy.set_user_attr(st.ATTR_REFERENCE, jsonable(rec.to_dict()))
-    except Exception as e:  # the reference stays in the journal
-        print(f"warning: could not store the reference design in the storage ({type(e).__name__})", file=sys.stderr)
-
-
-def _store_final(ostudy, out_dir):
-    try:
-        ostudy.set_user_attr(st.ATTR_FINAL, (Path(out_dir) / "final.csv").read_text())
-    except Exception as e:
-        print(f"warning: could not store final.csv in the storage ({type(e).__name__})", file=sys.stderr)

@@ -37,6 +37,7 @@ import numpy as np
 
 from ..common.pareto import hypervolume, to_min
 from .defaults import optuna_budget
+from .optimizers.base import optimizer_class
 from .structure_space import STRUCTURE
 
 __all__ = ["Rung", "Plan", "Schedule", "structure_schedule", "ATTR_STRUCTURE", "REF_POINT"]
@@ -195,7 +196,7 @@ class Schedule:
 def structure_schedule(study) -> Schedule | None:
     """The schedule of an Optuna study over structures (None for every other study)."""
     setup = getattr(study, "structures", None)
-    if setup is None or study.optimizer.kind != "optuna":
+    if setup is None or not optimizer_class(study.optimizer.kind).halving:
         return None
     sec = study.spec.structure
     choices = study.space.by_name[STRUCTURE].choices

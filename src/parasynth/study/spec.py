@@ -33,7 +33,7 @@ from pathlib import Path
 from typing import Annotated, Any, Literal
 
 import yaml
-from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, Strict, ValidationError
+from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, Strict, ValidationError, field_validator
 
 from ..model.geometry_checks import degenerate_geometry
 from ..model.task import Task, TaskError
@@ -51,20 +51,16 @@ from .magnitudes import scale_warnings
 from .space import DesignSpace, Variable, quantity
 from .defaults import OPTUNA_TRIALS
 from ..common.columns import DERIVED_SUFFIXES  # the suffixes of derived columns, in one module
+from .optimizers.base import ALGORITHMS, kinds, optimizer_class
 from .structure_space import (STRUCTURE, box_centre, check_halving, check_structure_optimizer, resolve_structures,
                               structure_variables)
 
 __all__ = ["StudyError", "StudySpec", "ResolvedStudy", "load_study", "resolve_study", "check_study", "OPTIMIZERS",
            "RESERVED_COLUMNS"]
 
-#: Optimiser kinds and their algorithms.
-OPTIMIZERS = {
-    "sweep": ("grid", "list"),
-    "nlopt": ("LN_COBYLA", "LN_BOBYQA", "LN_NELDERMEAD", "LN_SBPLX", "GN_ISRES", "GN_DIRECT_L", "GN_CRS2_LM",
-              "GN_ESCH"),
-    "optuna": ("tpe", "nsga2", "nsga3", "random", "qmc", "cmaes"),
-}
-NLOPT_WITH_CONSTRAINTS = ("LN_COBYLA", "GN_ISRES")
+#: Optimiser kinds and their algorithms (a mapping read from the registry of
+#: :mod:`parasynth.study.optimizers`).
+OPTIMIZERS = ALGORITHMS
 
 #: Columns of results.csv and final.csv besides the design variables, objectives and
 #: constraints: a label may not take one of these names.
@@ -206,12 +202,22 @@ class EvaluationSpec(_Model):
         "not cover) or numpy (the NumPy reference)."))
 
 
+class PolishSpec(_Model):
+    method: Literal["cobyla", "bobyqa"] = Field(default="cobyla", description=(
+        "Local NLopt search refining the best (or recommended) design: cobyla (takes the design constraints; "
+        "default) or bobyqa (only for a study without design constraints)."))
+    budget: Int = Field(ge=1, le=MAX_TRIALS, description=(
+        "Designs the polish may evaluate, part of the study's budget (the global search gets the rest)."))
+
+
 class OptimizerSpec(_Model):
-    kind: Literal["sweep", "nlopt", "optuna"] = Field(default="sweep", description="sweep (default), nlopt or optuna.")
+    kind: str = Field(default="sweep", description="The optimiser: sweep (default), nlopt, optuna, ... (the registered "
+                      "kinds; see `parasynth list`).", json_schema_extra=lambda s: s.update(enum=list(kinds())))
     algorithm: str | None = Field(default=None, description=(
         "Algorithm of the kind: sweep grid|list; NLopt LN_COBYLA, LN_BOBYQA, ...; Optuna "
         "tpe, nsga2, ... (see `parasynth list`)."))
-    n_trials: Int | None = Field(default=None, ge=1, le=MAX_TRIALS, description=f"Optuna trials (1 to {MAX_TRIALS}).")
+    n_trials: Int | None = Field(default=None, ge=1, le=MAX_TRIALS, description=(
+        f"Optuna trials, SciPy designs (1 to {MAX_TRIALS})."))
     maxeval: Int | None = Field(default=None, ge=1, le=MAX_TRIALS, description=(
         f"NLopt evaluations (1 to {MAX_TRIALS})."))
     xtol_rel: float | None = Field(default=None, gt=0, allow_inf_nan=False, description=(
@@ -232,6 +238,21 @@ class OptimizerSpec(_Model):
         "For a sweep: the list of designs to evaluate, each {variable: value with unit}."))
     population_size: Int | None = Field(default=None, ge=2, le=100_000, description=(
         "Population of the evolutionary Optuna samplers (2 to 100000)."))
+    polish: PolishSpec | None = Field(default=None, description=(
+        "After a global optimiser, refine its best design (one objective) or recommended design (several) by a "
+        "local NLopt search within the bounds, {method: cobyla | bobyqa, budget: N} (docs/study-format.md)."))
+
+    @field_validator("kind")
+    @classmethod
+    def _registered_kind(cls, v):
+        if v not in kinds():
+            raise ValueError(f"{v!r} is not an optimiser; allowed: {', '.join(kinds())}")
+        return v
+
+    @property
+    def plugin(self):
+        """The registered optimiser class of :attr:`kind` (:mod:`parasynth.study.optimizers`)."""
+        return optimizer_class(self.kind)
 
 
 class StructureSpec(_Model):
@@ -739,29 +760,11 @@ def resolve_study(data: dict, source: str | None = None) -> ResolvedStudy:
                       verify_designs=ev.verify_designs)
 
     opt = spec.optimizer
-    allowed = OPTIMIZERS[opt.kind]
-    if opt.algorithm is not None and opt.algorithm not in allowed:
-        raise StudyError(f"optimizer.algorithm: {opt.algorithm!r} is not available for {opt.kind}; allowed: {', '.join(allowed)}")
-    if opt.kind in ("nlopt", "optuna") and not variables:
-        raise StudyError(f"variables: {opt.kind} needs at least one design variable (with low and high); "
-                         f"to evaluate fixed designs use optimizer.kind: sweep")
-    if opt.kind == "nlopt":
-        if len(objectives) != 1:
-            raise StudyError(f"objectives: nlopt optimises one objective, {len(objectives)} given; use optimizer.kind: optuna for several")
-        for v in variables:
-            if v.type != "continuous" or v.low is None:
-                raise StudyError(f"variables: nlopt needs continuous variables with low/high; {v.name!r} is {v.type}")
-    if opt.kind == "optuna":
-        for v in variables:
-            if v.type != "categorical" and (v.low is None or v.high is None):
-                raise StudyError(f"variables: optuna needs low/high for {v.name!r} (or type: categorical with choices)")
-    if opt.kind == "sweep" and not opt.designs:
-        for v in variables:
-            if v.values is None and v.choices is None:
-                raise StudyError(f"variables: a sweep needs values (or num with low/high, or choices) for {v.name!r}")
-        n_designs = space.grid_size()
-        if n_designs > MAX_DESIGNS:
-            raise StudyError(f"variables: the sweep grid has {n_designs} designs; the maximum is {MAX_DESIGNS}")
+    plugin = opt.plugin
+    if opt.algorithm is not None and opt.algorithm not in plugin.algorithms:
+        raise StudyError(f"optimizer.algorithm: {opt.algorithm!r} is not available for {opt.kind}; allowed: "
+                         f"{', '.join(plugin.algorithms)}")
+    plugin.check(opt, variables, objectives, space)
     if opt.designs:
         if len(opt.designs) > MAX_DESIGNS:
             raise StudyError(f"optimizer.designs: {len(opt.designs)} designs; the maximum is {MAX_DESIGNS}")
@@ -820,6 +823,8 @@ def resolve_study(data: dict, source: str | None = None) -> ResolvedStudy:
         check_structure_optimizer(opt)
         choices = next(v.choices for v in variables if v.name == STRUCTURE)
         check_halving(spec.structure, opt, choices, int(opt.n_trials or OPTUNA_TRIALS))
+    check_polish(opt, plugin, variables, constraints, setup is not None,
+                 (getattr(opt, plugin.budget_key) or plugin.default_budget) if plugin.budget_key else None)
     return ResolvedStudy(spec, mech_name, fixed, tuple(variables), tuple(objectives), tuple(constraints),
                          evaluation, opt, reference, source, tied, ref_label, ref_source, setup, study_task)
 
@@ -1205,6 +1210,31 @@ def _design_str(study, d: dict) -> str:
         return "{" + ", ".join(f"{k}={_fmt_si(v)}" for k, v in d.items()) + "}"
 
 
+# -- the polish (optimizer.polish; the run is parasynth.study.polish) ---------------------------------
+def check_polish(opt, plugin, variables, constraints, structures: bool, total: int | None) -> None:
+    """:class:`StudyError` naming ``optimizer.polish.*`` when the polish cannot run: after a
+    local or listing optimiser, BOBYQA with design constraints, no continuous variable, a study
+    over structures, or a budget not below the study's (``total``)."""
+    pol = opt.polish
+    if pol is None:
+        return
+    if not plugin.searches_globally(opt):
+        alg = opt.algorithm or (plugin.algorithms or ("",))[0]
+        raise StudyError(f"optimizer.polish: refines the result of a global optimiser; {opt.kind} {alg} is not "
+                         f"one (use optuna, scipy or an NLopt GN_ algorithm), or leave polish out")
+    if pol.method == "bobyqa" and constraints:
+        raise StudyError(f"optimizer.polish.method: bobyqa takes no constraints and the study has "
+                         f"{len(constraints)} ({', '.join(c.label for c in constraints)}); use cobyla")
+    if not any(v.type == "continuous" and v.low is not None for v in variables):
+        raise StudyError("optimizer.polish: needs a continuous design variable with low/high to refine")
+    if structures:
+        raise StudyError("optimizer.polish: a study over structures is not polished; leave polish out")
+    if total is not None and pol.budget >= total:
+        raise StudyError(f"optimizer.polish.budget: {pol.budget} designs of a budget of {total}; give fewer than "
+                         f"{total} (the global search gets the rest)")
+
+
+
 # -- documentation of every key, for the JSON Schema and docs/study-format.md -------------------
 # The text of each key is the description of its field in the models above; docs/study-format.md
 # documents each key (a test checks it).
@@ -1222,6 +1252,8 @@ def _model_keys(model, prefix="") -> list[str]:
             out += _model_keys(subs[name], f"{key}{sep}")
         elif model in (MeasureRef, ConstraintRef) and name == "robust":
             out += _model_keys(RobustSpec, f"{key}.")
+        elif model is OptimizerSpec and name == "polish":
+            out += _model_keys(PolishSpec, f"{key}.")
     return out
 
 
@@ -1235,7 +1267,7 @@ def key_docs() -> dict[str, str]:
     list): the fields' descriptions, and the keys of ``reference`` (:data:`REFERENCE_KEYS`)."""
     models = {"": StudySpec, "variables[].": VariableSpec, "objectives[].": MeasureRef,
               "constraints[].": ConstraintRef, "evaluation.": EvaluationSpec, "optimizer.": OptimizerSpec,
-              "structure.": StructureSpec, "objectives[].robust.": RobustSpec, "constraints[].robust.": RobustSpec}
+              "optimizer.polish.": PolishSpec, "structure.": StructureSpec, "objectives[].robust.": RobustSpec, "constraints[].robust.": RobustSpec}
     docs = {}
     for key in study_keys():
         prefix, _, leaf = key.rpartition(".")

@@ -35,6 +35,7 @@ from dataclasses import dataclass
 from .. import structures as synthesis
 from ..mechanisms import described_class, register
 from .errors import StudyError
+from .optimizers.base import optimizer_class
 from .space import DesignSpace, Variable
 
 __all__ = ["STRUCTURE", "StructureSetup", "resolve_structures", "conditions", "labels_of", "structure_variables",
@@ -223,14 +224,10 @@ def structure_variables(setup: StructureSetup, variables) -> list:
 
 
 def check_structure_optimizer(opt) -> None:
-    """A study over structures runs on Optuna (successive halving over the structures) with a
-    sampler of :data:`STRUCTURE_ALGORITHMS`, or as a sweep; :class:`StudyError` otherwise."""
-    if opt.kind == "nlopt":
-        raise StudyError("optimizer.kind: a study over structures has a categorical design variable (the structure); "
-                         "use optimizer.kind: optuna (or sweep)")
-    if opt.kind == "optuna" and opt.algorithm not in (None,) + STRUCTURE_ALGORITHMS:
-        raise StudyError(f"optimizer.algorithm: {opt.algorithm!r} keeps state across the trials of all structures; a "
-                         f"study over structures uses one of {', '.join(STRUCTURE_ALGORITHMS)} (default tpe)")
+    """A study over structures runs on an optimiser that can (Optuna, successive halving over
+    the structures, with a sampler of :data:`STRUCTURE_ALGORITHMS`; or a sweep); :class:`StudyError`
+    naming the optimiser otherwise (:meth:`~parasynth.study.optimizers.BaseOptimizer.check_structures`)."""
+    optimizer_class(opt.kind).check_structures(opt)
 
 
 def check_halving(sec, opt, choices, budget: int) -> None:
@@ -245,7 +242,7 @@ def check_halving(sec, opt, choices, budget: int) -> None:
     given = [k for k in ("screening", "eta", "keep") if k in sec.model_fields_set and getattr(sec, k) is not None]
     if not given:
         return
-    if opt.kind != "optuna":
+    if not optimizer_class(opt.kind).halving:
         raise StudyError(f"structure.{given[0]}: successive halving spreads the trials of an Optuna study; a "
                          f"{opt.kind} evaluates its listed designs and would ignore it -- leave it out")
     if "screening" in given and sec.screening > budget:

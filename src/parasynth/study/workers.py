@@ -79,28 +79,34 @@ def derive_seed(seed: int, number: int) -> int:
     return int(np.random.SeedSequence([int(seed) % 2**32, int(number)]).generate_state(1)[0])
 
 
+def _with_population(cls):
+    def make(optuna, seed, cf, pop):
+        return getattr(optuna.samplers, cls)(seed=seed, constraints_func=cf, **({"population_size": pop} if pop else {}))
+    return make
+
+
+#: Optuna's samplers by ``optimizer.algorithm``: (optuna, seed, constraints function, population) -> sampler.
+SAMPLERS = {
+    "tpe": lambda optuna, seed, cf, pop: optuna.samplers.TPESampler(seed=seed, constraints_func=cf, multivariate=True),
+    "nsga2": _with_population("NSGAIISampler"),
+    "nsga3": _with_population("NSGAIIISampler"),
+    "random": lambda optuna, seed, cf, pop: optuna.samplers.RandomSampler(seed=seed),
+    "qmc": lambda optuna, seed, cf, pop: optuna.samplers.QMCSampler(seed=seed, scramble=True),
+    "cmaes": lambda optuna, seed, cf, pop: optuna.samplers.CmaEsSampler(seed=seed),
+}
+#: Samplers of one objective only.
+SINGLE_OBJECTIVE_SAMPLERS = ("cmaes",)
+
+
 def _base_sampler(study, seed, constraints_func):
     import optuna  # lazy: optuna takes about a second to import; sweeps and NLopt never need it
 
     alg = optuna_algorithm(study)
-    pop = study.optimizer.population_size
-    if alg == "tpe":
-        return optuna.samplers.TPESampler(seed=seed, constraints_func=constraints_func, multivariate=True)
-    if alg == "nsga2":
-        kw = {"population_size": pop} if pop else {}
-        return optuna.samplers.NSGAIISampler(seed=seed, constraints_func=constraints_func, **kw)
-    if alg == "nsga3":
-        kw = {"population_size": pop} if pop else {}
-        return optuna.samplers.NSGAIIISampler(seed=seed, constraints_func=constraints_func, **kw)
-    if alg == "random":
-        return optuna.samplers.RandomSampler(seed=seed)
-    if alg == "qmc":
-        return optuna.samplers.QMCSampler(seed=seed, scramble=True)
-    if alg == "cmaes":
-        if len(study.objectives) > 1:
-            raise StudyError("optimizer.algorithm: cmaes is single-objective; use nsga2 or tpe")
-        return optuna.samplers.CmaEsSampler(seed=seed)
-    raise StudyError(f"optimizer.algorithm: unknown {alg!r}")
+    if alg not in SAMPLERS:
+        raise StudyError(f"optimizer.algorithm: unknown {alg!r}; allowed: {', '.join(SAMPLERS)}")
+    if alg in SINGLE_OBJECTIVE_SAMPLERS and len(study.objectives) > 1:
+        raise StudyError(f"optimizer.algorithm: {alg} is single-objective; use nsga2 or tpe")
+    return SAMPLERS[alg](optuna, seed, constraints_func, study.optimizer.population_size)
 
 
 _PER_TRIAL_CLASS = None
@@ -241,7 +247,9 @@ def owner_id() -> str:
 
 def optuna_objective(study, evaluator: Evaluator, on_record=None, guard: Interrupt | None = None,
                      mark_owner: bool = False):
-    """The Optuna objective of a study: suggest the design variables, evaluate the design,
+    """The Optuna objective of a study: suggest the design variables, evaluate the design
+    (``evaluator.evaluate(values, trial=k)``: the run's :class:`~parasynth.study.problem.Problem`,
+    or an :class:`Evaluator` in a worker process),
     store its record (trial user attribute ``record``) and constraints, hand the record to
     ``on_record``, return the objectives (NaN for a failed design, which Optuna records as a
     failed trial that still counts as an evaluated design)."""

@@ -10,14 +10,56 @@ import sys
 
 import numpy as np
 
-from .defaults import nlopt_algorithm
-from .design import BOX_CENTRE_U
-from .evaluate import Record
-from .problem import Problem, RunContext
-from .progress import Progress
-from .spec import NLOPT_WITH_CONSTRAINTS
+from ..defaults import NLOPT_MAXEVAL
+from ..design import BOX_CENTRE_U
+from ..errors import StudyError
+from ..evaluate import Record
+from ..problem import Problem, RunContext
+from ..progress import Progress
+from .base import BaseOptimizer, register
 
-__all__ = ["run_nlopt"]
+__all__ = ["NLopt", "NLOPT_WITH_CONSTRAINTS"]
+
+#: The NLopt algorithms that take the design constraints as constraints (the others: a penalty).
+NLOPT_WITH_CONSTRAINTS = ("LN_COBYLA", "GN_ISRES")
+
+
+@register("nlopt")
+class NLopt(BaseOptimizer):
+    title = "NLopt run"
+    algorithms = ("LN_COBYLA", "LN_BOBYQA", "LN_NELDERMEAD", "LN_SBPLX", "GN_ISRES", "GN_DIRECT_L", "GN_CRS2_LM",
+                  "GN_ESCH")
+    budget_key = "maxeval"
+    default_budget = NLOPT_MAXEVAL
+    description = "one objective on the unit cube of the continuous variables; the path replayed on resume"
+
+    @classmethod
+    def check(cls, opt, variables, objectives, space) -> None:
+        if not variables:
+            raise StudyError("variables: nlopt needs at least one design variable (with low and high); "
+                             "to evaluate fixed designs use optimizer.kind: sweep")
+        if len(objectives) != 1:
+            raise StudyError(f"objectives: nlopt optimises one objective, {len(objectives)} given; use "
+                             f"optimizer.kind: optuna for several")
+        for v in variables:
+            if v.type != "continuous" or v.low is None:
+                raise StudyError(f"variables: nlopt needs continuous variables with low/high; {v.name!r} is {v.type}")
+
+    @classmethod
+    def check_structures(cls, opt) -> None:
+        raise StudyError("optimizer.kind: a study over structures has a categorical design variable (the structure); "
+                         "use optimizer.kind: optuna (or sweep)")
+
+    @classmethod
+    def planned_designs(cls, study) -> None:
+        return None  # it may stop early on its tolerances
+
+    @classmethod
+    def searches_globally(cls, opt) -> bool:
+        return (opt.algorithm or cls.algorithms[0]).startswith("GN_")
+
+    def run(self, problem: Problem, ctx: RunContext) -> None:
+        run_nlopt(problem, ctx)
 
 
 def run_nlopt(problem: Problem, ctx: RunContext) -> None:
@@ -25,7 +67,7 @@ def run_nlopt(problem: Problem, ctx: RunContext) -> None:
 
     study, space, guard, record = problem.study, problem.space, ctx.guard, ctx.record
     opt_spec = study.optimizer
-    alg = nlopt_algorithm(study)
+    alg = NLopt.algorithm(study)
     vars_ = space.numeric
     nv = len(vars_)
     o = problem.objectives[0]
