@@ -66,12 +66,19 @@ class Run:
 
     @property
     def partial(self) -> bool:
-        """True when the run holds fewer designs than its budget (an interrupted run)."""
+        """True when the run holds fewer designs than its budget (an interrupted run); a run whose
+        polish finished is complete (a local polish may converge before its budget is spent)."""
+        if self.polish is not None:
+            return self.polish.get("status") != "done"
         return self.budget is not None and self.n_run < self.budget
 
     @property
     def partial_reason(self) -> str:
-        return f"{self.n_run} of {self.budget} planned designs evaluated (interrupted run?)" if self.partial else ""
+        if not self.partial:
+            return ""
+        if self.polish is not None:
+            return f"the polish did not finish ({self.n_run} designs evaluated; interrupted run?)"
+        return f"{self.n_run} of {self.budget} planned designs evaluated (interrupted run?)"
 
     @property
     def expected(self) -> int | None:
