@@ -20,6 +20,7 @@ from parasynth.cli.plugins import load_plugins
 from parasynth.report import write_report
 from parasynth.study import StudyError, load_study, run_study
 from parasynth.study.polish import read_polish
+from parasynth.study.rundir import read_run
 
 PLUGIN = str(Path(__file__).parent / "data" / "analytic_plugin.py")
 load_plugins(PLUGIN)
@@ -60,6 +61,11 @@ def test_polish_refines_the_best_design_within_the_budget(tmp_path, method):
     assert moved["share_of_range"] == pytest.approx(abs(moved["to"] - moved["from"]) / 0.1)
     assert info["change"]["test_quadratic"] == pytest.approx(pol["objectives"]["test_quadratic"]
                                                            - start["test_quadratic"])
+    # a finished polish is a complete run, even when the local search converged before its budget
+    run_ = read_run(tmp_path / "r")
+    assert not run_.partial and run_.partial_reason == ""
+    if info["evaluations"] < 12:
+        assert run_.n_run < 30  # the case the budget rule alone would call partial
 
 
 def test_cobyla_polish_keeps_the_constraints_and_resume_equals_uninterrupted(tmp_path):
