@@ -170,9 +170,10 @@ class LimbType:
 
 
 #: Default offsets (deg strings) of limbs 2..6 of an irregular ring from the regular polygon, base and
-#: platform: unequal, so that the default irregular ring has no symmetry.
-OFFSET_DEFAULTS = (("10 deg", "-15 deg", "5 deg", "-10 deg", "15 deg"),
-                   ("-20 deg", "10 deg", "-5 deg", "15 deg", "-10 deg"))
+#: platform: the base regular, the platform not similar to it (a platform polygon similar to the
+#: base polygon leaves the 5-x/UPU singular with the platform level, as the regular pentagon).
+OFFSET_DEFAULTS = (("0 deg", "0 deg", "0 deg", "0 deg", "0 deg"),
+                   ("-15 deg", "-5 deg", "-20 deg", "-10 deg", "-25 deg"))
 #: Home tilts (deg) tried, in order, for a structure singular at its level home pose.
 HOME_TILTS = (10.0, 20.0)
 
