@@ -86,7 +86,12 @@ def labels_of(found) -> list[str]:
         else:
             arr = "/".join(dict.fromkeys(g.arrangement for g in s.groups if g.arrangement != "central"))
             out.append(f"{s.name} ({arr})")
-    if len(set(out)) != len(out):  # the same name and arrangement, other joint axes
+    if len(set(out)) != len(out):  # the same name and arrangement, other joint axes: name the axes that differ
+        axes = [tuple((g.limb, k, v) for g in s.groups for k, v in g.axes) for s in found]
+        fixed = {lab: set.intersection(*[set(a) for a, o in zip(axes, out) if o == lab]) for lab in set(out)}
+        out = [f"{lab} [{', '.join(f'{t} {k}={v}' for t, k, v in a if (t, k, v) not in fixed[lab])}]"
+               if out.count(lab) > 1 else lab for lab, a in zip(out, axes)]
+    if len(set(out)) != len(out):  # still the same: the description's key
         out = [f"{lab} [{s.key.rsplit('-', 1)[-1]}]" if out.count(lab) > 1 else lab for lab, s in zip(out, found)]
     return out
 
