@@ -6,8 +6,10 @@ limbs; a ring plus one passive constraining limb at the centre; or two rings of 
 limbs of two kinds, interleaved. Each candidate is written as a mechanism description with the
 shared parameters of :data:`~parasynth.structures.vocabulary.PARAMETERS`, its task section taken
 from the motion template its constraining limbs select, then built and checked: the
-screw-theory mobility at random poses of its task box must be the requested motion, and the
-actuators must control it at some pose.
+screw-theory mobility at random poses of its task box must be the requested motion, the
+actuators must control it at some pose, and at its default dimensions it must be controlled at
+its home pose with a singularity margin of at least :data:`SINGULARITY_FLOOR` (else it is dropped
+as ``singular at home``); equivalent structures are folded into one (:data:`EQUIVALENT_LIMBS`).
 """
 
 from __future__ import annotations
