@@ -31,8 +31,8 @@ from ..measures.usable import SINGULARITY_FLOOR
 from .vocabulary import (ARRANGEMENTS, CHECKS, HOME_TILTS, LIMB_TYPES, PARAMETERS, TEMPLATES, StructureError,
                          StructureWarning, limb_type, parse_motion)
 
-__all__ = ["Group", "Structure", "StructureList", "structures", "DROP_REASONS", "EQUIVALENT_LIMBS", "SINGULARITY_FLOOR", "verdict_text", "candidates", "parse_axes",
-           "StructureError", "StructureWarning", "MAX_POSES", "MAX_POSE_CHECKS", "MAX_STRUCTURE_LEGS"]
+__all__ = ["Group", "Structure", "StructureList", "structures", "DROP_REASONS", "EQUIVALENT_LIMBS", "SINGULARITY_FLOOR",
+           "verdict_text", "candidates", "parse_axes", "StructureError", "StructureWarning", "MAX_POSES", "MAX_POSE_CHECKS", "MAX_STRUCTURE_LEGS"]
 
 #: Why a candidate is dropped, in the order the checks run.
 DROP_REASONS = {
