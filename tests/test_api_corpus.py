@@ -195,7 +195,8 @@ def _structure_cases() -> list[Case]:
                                                                                     n_poses=1024, all_axes=True),
                         "error", "n_poses: 1024 poses for each of the", StructureError))
     # said: a limb type given twice, limb counts no candidate has
-    one = lambda r: [s.name for s in r] == ["5-PUS/UPU"]  # noqa: E731 -- the one 3T2R structure of PUS and UPU
+    # the one 3T2R structure of PUS and UPU, in its paired and irregular rings (the regular one is singular at home)
+    one = lambda r: [(s.name, s.groups[0].arrangement) for s in r] == [("5-PUS/UPU", "paired"), ("5-PUS/UPU", "irregular")]  # noqa: E731
     for types in (["PUS", "UPU", "PUS"], "PUS, UPU, UPU", ["UPU", "PUS", "UPU", "PUS"]):
         out.append(Case(f"structures.leg_types={_r(types)}", _structures(leg_types=types), "warning", "leg_types",
                         warning=StructureWarning, check=one))

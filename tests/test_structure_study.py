@@ -36,8 +36,8 @@ KILLER = str(Path(__file__).parent / "data" / "kill_at_trial.py")
 def study_dict(**over):
     d = {
         "name": "structures_test",
-        "structure": {"motion": "3T2R", "leg_types": ["SPS", "UPS", "PUS", "UPU"], "reference": "5-PUS/UPU",
-                      "screening": 4, "eta": 2},
+        "structure": {"motion": "3T2R", "leg_types": ["UPS", "PUS", "RUS", "UPU"], "arrangements": ["paired"],
+                      "reference": "5-PUS/UPU", "screening": 4, "eta": 2},
         "variables": [{"name": "base_radius", "low": "100 mm", "high": "150 mm"},
                       {"name": "platform_radius", "low": "40 mm", "high": "80 mm"},
                       {"name": "link_length", "low": "150 mm", "high": "205 mm"},
@@ -67,16 +67,16 @@ def resolved(**over):
 # -- resolution ------------------------------------------------------------------------------------
 def test_structure_is_a_categorical_variable_with_conditional_dimensions():
     s = resolved()
-    found = structures("3T2R", leg_types=["SPS", "UPS", "PUS", "UPU"])
-    assert s.structures.labels == tuple(labels_of(found)) == ("5-SPS/UPU", "5-UPS/UPU", "5-PUS/UPU")
+    found = [x for x in structures("3T2R", leg_types=["UPS", "PUS", "RUS", "UPU"]) if x.groups[0].arrangement == "paired"]
+    assert s.structures.labels == tuple(labels_of(found)) == ("5-UPS/UPU", "5-PUS/UPU", "5-RUS/UPU")
     v = s.space.by_name["structure"]
     assert s.variables[0] is v and v.type == "categorical" and v.choices == s.structures.labels
-    # link_length is a dimension of the slider limbs only (the others have no link of fixed length)
-    assert s.space.by_name["link_length"].when == (("structure", ("5-PUS/UPU",)),)
+    # link_length is a dimension of the limbs with a link of fixed length only (PUS, RUS)
+    assert s.space.by_name["link_length"].when == (("structure", ("5-PUS/UPU", "5-RUS/UPU")),)
     assert s.space.by_name["base_radius"].when == ()
     # every part of a study builds the structure's mechanism by name: the same as the structure
     m = load_mechanism(s.mechanism, structure="5-UPS/UPU", base_radius=0.12)
-    ref = found[1].mechanism(base_radius=0.12)
+    ref = found[0].mechanism(base_radius=0.12)
     X = ref.home + np.random.default_rng(0).normal(0, 0.01, (20, 5))
     np.testing.assert_allclose(m.inverse_kinematics(X).actuators, ref.inverse_kinematics(X).actuators, equal_nan=True)
     assert [leg.joints for leg in m.legs] == ["UPS"] * 5 + ["UPU"]
@@ -98,14 +98,14 @@ def test_structure_is_a_categorical_variable_with_conditional_dimensions():
     ({"structure": {"motion": "3X2R"}}, "structure.motion: motion must be written like"),
     ({"structure": {"leg_types": ["PUS", "XYZ"]}}, "structure.leg_types: unknown limb type 'XYZ'"),
     ({"structure": {"reference": "6-UPS"}}, "structure.reference: '6-UPS' is not any of the structures found"),
-    ({"structure": {"include": ["5-RUS/UPU"]}}, "structure.include[0]: '5-RUS/UPU' is not among the structures"),
+    ({"structure": {"include": ["5-SPS/UPU"]}}, "structure.include[0]: '5-SPS/UPU' is not among the structures"),
     ({"structure": {"arrangements": ["round"]}}, "structure.arrangements[0]: unknown arrangement 'round'"),
     ({"structure": {"leg_types": ["PUS", "UPU"]}}, "a study over structures needs at least two"),
     ({"structure": {"screening": 0}}, "structure.screening"),
     ({"optimizer": {"algorithm": "nsga2"}}, "a study over structures uses one of tpe, random"),
     ({"optimizer": {"kind": "nlopt", "n_trials": None}}, "use optimizer.kind: optuna"),
-    ({"variables": [{"name": "crank_length", "low": "50 mm", "high": "90 mm"}]},
-     "'crank_length' is used by none of the structures"),
+    ({"variables": [{"name": "base_offset_2", "low": "0 deg", "high": "10 deg"}]},
+     "'base_offset_2' is used by none of the structures"),
     # empty selections are refused, never read as "every structure"
     ({"structure": {"include": []}}, "structure.include: an empty list would keep no structure"),
     ({"structure": {"arrangements": []}}, "structure.arrangements: an empty list would keep no structure"),
@@ -138,7 +138,7 @@ def test_the_study_does_not_depend_on_the_order_of_leg_types_or_include():
     from parasynth.structures import StructureWarning
 
     with pytest.warns(StructureWarning, match="^leg_types: UPS given more than once"):
-        b = resolved(structure={"leg_types": ["UPU", "PUS", "UPS", "SPS", "UPS"]})
+        b = resolved(structure={"leg_types": ["UPU", "RUS", "PUS", "UPS", "UPS"]})
     c = resolved(structure={"include": list(reversed(labels))})
     for x in (b, c):
         assert x.mechanism == a.mechanism and list(x.structures.labels) == labels
@@ -270,8 +270,8 @@ def test_a_run_follows_the_schedule(whole):
     assert "5-PUS/UPU" in full  # the reference structure always continues
     for lab in s.structures.labels:
         assert counts[lab] == (8 if lab in full else plan.stopped_at()[lab][1])
-    # inactive dimensions are absent: link_length only for the slider limbs
-    assert run.loc[run["structure"] != "5-PUS/UPU", "link_length_m" if "link_length_m" in run else "link_length"].isna().all()
+    # inactive dimensions are absent: link_length only for the limbs with a link of fixed length
+    assert run.loc[run["structure"] == "5-UPS/UPU", "link_length_m" if "link_length_m" in run else "link_length"].isna().all()
     # the final re-evaluation covers every structure's best design
     fin = pd.read_csv(out / "final.csv")
     assert set(s.structures.labels) <= set(fin.loc[fin["source"] == "best", "structure"])

@@ -42,7 +42,8 @@ def default_results():
 
 
 def _names(found):
-    return {s.name for s in found}
+    """The structures reported: their names and those of the equivalent ones reported with them."""
+    return {s.name for s in found} | {n for s in found for n, _ in s.equivalents}
 
 
 def _check_controlled_motion(s):
@@ -175,7 +176,12 @@ def _joint_graph(desc: dict) -> nx.MultiGraph:
         else:
             pat = desc["base"][ref]
             where = pat["pattern"]
-            count = pat["n"] * (2 if where == "paired" else 1)
+            if where == "circle":  # explicit angles: which shared parameters space them
+                words = str(pat["angles"])
+                where = ("circle", "separation" in words, "offset" in words)
+                count = len(pat["angles"])
+            else:
+                count = pat["n"] * (2 if where == "paired" else 1)
         opts = tuple(sorted((k, str(v)) for k, v in leg.items() if k not in ("type", "base", "platform", "actuated")))
         act = leg.get("actuated", "none")
         for k in range(count):  # one chain of bodies per limb of the entry
@@ -456,7 +462,7 @@ def test_limb_counts_no_candidate_has_are_said():
     from parasynth.structures import StructureWarning, candidates
 
     with pytest.warns(StructureWarning, match=r"^legs: no candidate of the limb types UPS, PUS has 9 limbs "
-                                              r"\(possible: 3, 4, 5, 6\); nothing is enumerated"):
+                                              r"\(possible: 2, 3, 4, 5, 6\); nothing is enumerated"):
         none = structures("3T3R", leg_types=["PUS", "UPS"], legs=9)
     assert none.enumerated == 0 and len(none) == 0
     with pytest.warns(StructureWarning, match="those counts add nothing"):
@@ -475,6 +481,8 @@ def test_pose_checks_beyond_the_budget_are_refused_before_any_work():
     assert time.perf_counter() - t0 < 5.0
     with pytest.raises(StructureError, match=r"^n_poses must be at most 1024"):
         structures("3T3R", n_poses=10**9)
-    # within the budget it runs: 1 candidate of 3T2R from PUS and UPU (the 5-PUS/UPU) at 2 poses each
+    # within the budget it runs: the 5-PUS/UPU of 3T2R from PUS and UPU at 2 poses each, in its paired and
+    # irregular rings (the regular one is singular at home)
     assert MAX_POSE_CHECKS >= 2
-    assert [s.name for s in structures("3T2R", leg_types=["PUS", "UPU"], n_poses=2)] == ["5-PUS/UPU"]
+    found = structures("3T2R", leg_types=["PUS", "UPU"], n_poses=2)
+    assert [(s.name, s.groups[0].arrangement) for s in found] == [("5-PUS/UPU", "paired"), ("5-PUS/UPU", "irregular")]

@@ -133,12 +133,15 @@ def test_two_rpu_two_sps_theta_zero_singularity_of_the_paper():
     """An et al. 2018, eq. (29): an actuated singularity at theta = 0 (and 77.63 deg, outside
     the |theta| <= 45 deg range). The usable component from home (theta = 15 deg) stops at it."""
     mech = parasynth.load_mechanism("2rpu_2sps")
-    u = usable_workspace(mech, resolution=(12, 12, 90), floor=1e-4)  # 1 deg cells in theta
+    u = usable_workspace(mech, resolution=(12, 12, 90), floor=1e-3)  # 1 deg cells in theta
     theta = np.rad2deg(u.centres()[:, 2])
     rest = np.rad2deg(u.centres(u.feasible & ~u.usable)[:, 2])
-    assert theta.min() > 0 and theta.min() < 1.0  # the component starts within a cell of theta = 0
-    assert rest.max() < 0 and rest.max() > -1.0  # what is feasible but not usable lies beyond it
-    assert u.fraction == pytest.approx(0.5, abs=0.02)  # the workspace is symmetric in theta
+    # the component starts within two cells of theta = 0 (the floor SINGULARITY_FLOOR cuts the cell at 0.5 deg)
+    assert theta.min() > 0 and theta.min() < 2.0
+    # what is feasible but not usable lies beyond it, or in the cut cell beside it (margin below the floor)
+    assert -1.0 < rest.max() < 1.0
+    # the workspace is symmetric in theta: half of it, less the cells by theta = 0 under the floor
+    assert 0.44 < u.fraction < 0.5
 
 
 def test_non_square_wrench_system_uses_the_margin_floor_only():
@@ -181,7 +184,7 @@ def test_grid_convergence_on_position_sections(gs, capsys):
 
 def test_largest_box_and_ball_inside_the_component():
     mech = parasynth.load_mechanism("2rpu_2sps")
-    u = usable_workspace(mech, resolution=(12, 12, 90), floor=1e-4)
+    u = usable_workspace(mech, resolution=(12, 12, 90), floor=1e-3)
     box = u.largest_box(coords="all")
     assert box.lows[2] >= 0.0  # inside theta > 0, the component
     # independent: every cell of the box is usable, and it holds more than one cell per axis
@@ -191,7 +194,7 @@ def test_largest_box_and_ball_inside_the_component():
     assert box.volume == pytest.approx(np.prod([(x.stop - x.start) for x in sl]) * u.cell_volume)
     s = WorkspaceSample(n=12 * 12 * 90, method="grid")
     inside = objectives.get("inscribed_box_volume")(mech, sample=s, coords="all", region="usable", resolution=None,
-                                                    floor=1e-4)
+                                                    floor=1e-3)
     whole = objectives.get("inscribed_box_volume")(mech, sample=s, coords="all")
     assert 0 < inside < whole
     # the ball in (psi, theta) around home (0, 15 deg) reaches the singular theta = 0 at most

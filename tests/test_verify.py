@@ -200,11 +200,11 @@ def test_the_home_margin_is_the_mechanisms_least_singular_value_at_home():
 
 
 def test_a_design_singular_at_home_fails():
-    """The enumerated 5-PUS/UPU at its default dimensions (five limbs on a regular pentagon) is
-    singular at the symmetric home pose: margin ~1e-16 by the NumPy reference."""
+    """The 2021 paper's first scheme of the 5-PUS/UPU (five limbs on a regular pentagon, its
+    pentagonal platform) is singular at the symmetric home pose: margin ~1e-16 by the NumPy
+    reference."""
     import parasynth
-    s = next(x for x in parasynth.structures("3T2R") if x.name == "5-PUS/UPU")
-    mech = s.mechanism()
+    mech = parasynth.load_mechanism("5pus_upu", platform="pentagonal")
     m = float(mech.singularity_margin(np.atleast_2d(mech.home), engine="numpy")[0])
     chk = home_margin_check(mech)
     assert m < 1e-8 and not chk.passed and chk.value == pytest.approx(m, abs=1e-12)

@@ -628,7 +628,7 @@ def cmd_structures(args) -> int:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", synthesis.StructureWarning)
             found = synthesis.structures(args.motion, leg_types=types, legs=args.legs, axes=axes,
-                                         all_axes=args.all_axes, seed=args.seed)
+                                         all_axes=args.all_axes, seed=args.seed, show_dropped=args.show_dropped)
         for w in caught:
             if issubclass(w.category, synthesis.StructureWarning):
                 print(f"warning: {w.message}", file=sys.stderr)
@@ -646,17 +646,19 @@ def cmd_structures(args) -> int:
     print(f"{found.motion}: {found.enumerated} candidate(s) enumerated, {kept} kept")
     out = _out_dir(args.out, "--out") if args.out else None
     for s in found:
-        axes = f"T {', '.join(s.axes['translations'])}; R {', '.join(s.axes['rotations'])}"
-        print(f"\n{s.name}  [{s.key}]")
+        verdict, _, rest = synthesis.verdict_text(s).partition(": ")
+        print(f"\n{s.label}  [{s.key}]")
         print(f"  limbs:       {s.limbs}")
         print(f"  actuation:   {s.actuation}")
         print(f"  arrangement: {s.arrangement}")
-        print(f"  verified:    {s.motion} ({axes}) at {s.checked_poses} random pose(s) of the task box, "
-              f"actuators control it at {s.controlled_poses}")
+        print(f"  {verdict + ':':13s}{rest}")
         if out is not None:
             print(f"  written:     {s.write(out)}")
     dropped = {k: v for k, v in found.dropped.items() if v}
     print("\ndropped: " + (", ".join(f"{k} {v}" for k, v in dropped.items()) if dropped else "none"))
+    if args.show_dropped:
+        for line in found.dropped_lines():
+            print(f"  {line}")
     return EXIT_OK
 
 
@@ -769,6 +771,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--all-axes", action="store_true",
                    help="every joint-axis choice of the vocabulary, not only the first of each, e.g. --all-axes")
     p.add_argument("--seed", type=_seed, default=0, help="seed of the checked poses (default 0), e.g. --seed 1")
+    p.add_argument("--show-dropped", action="store_true",
+                   help="list the dropped candidates by name under their reason (under-actuated, singular at home, "
+                        "...), e.g. --show-dropped")
     p.add_argument("--out", type=_path_arg("--out"), help="directory to write the descriptions to, e.g. --out structures/")
     p = add("export", cmd_export, "write a mechanism or a run's design as MJCF (MuJoCo) or URDF with a closure file "
             "(Pinocchio)", "parasynth export 5pus_upu --format mjcf --out m.xml\n"

@@ -73,9 +73,18 @@ from .workspace import (Box, WorkspaceSample, _check_constraints, _check_ranges,
                         _GridBoundary, _raster_shape, box_in, freeze)
 
 __all__ = ["UsableWorkspace", "usable_workspace", "usable_of", "oriented_determinant", "DEFAULT_FLOOR_FRACTION",
+           "SINGULARITY_FLOOR",
            "MIN_ALIGNMENT", "MAX_CELLS"]
 
-#: Default floor of the singularity margin, as a fraction of its value at the reference pose.
+#: The singularity floor of parasynth, one rule for every part: the least singularity margin (the
+#: least singular value of the normalised wrench system, 0 at a singularity) at which a pose
+#: counts as controlled -- the usable workspace's least floor, the verification of a design at its
+#: home pose and over its task (:mod:`parasynth.study.verify` re-exports it; a study's
+#: ``evaluation.singularity_floor`` overrides it there), and the check of a structure's home pose
+#: (:func:`parasynth.structures`).
+SINGULARITY_FLOOR = 1e-3
+#: Default floor of the singularity margin, as a fraction of its value at the reference pose
+#: (never below :data:`SINGULARITY_FLOOR`).
 DEFAULT_FLOOR_FRACTION = 0.02
 #: Smallest |det(V_a V_b^T)| with which neighbouring constraint bases are oriented alike.
 MIN_ALIGNMENT = 0.5
@@ -318,8 +327,10 @@ def usable_workspace(mech, ranges=None, n: int = 4096, fixed=None, constraints=N
     ``sample`` gives ``ranges``, ``n`` and ``fixed``; its method and seed do not apply: this
     is always a grid). ``n``: cells in all, spread over the gridded coordinates as the "grid"
     method does; ``resolution``: cells per coordinate instead (an int, one per coordinate, or
-    a dict). ``floor``: the singularity-margin floor (dimensionless, in [0, 1)); default
-    ``floor_fraction`` (default 0.02) times the margin at the reference pose. ``home``:
+    a dict). ``floor``: the singularity-margin floor (dimensionless, in [SINGULARITY_FLOOR, 1));
+    default ``floor_fraction`` (default 0.02) times the margin at the reference pose, but never
+    below :data:`SINGULARITY_FLOOR` (a floor relative to a singular home pose would be ~0 and
+    call every feasible cell usable). ``home``:
     {coordinate: value} (SI) of gridded coordinates of the reference pose (default the model's
     home pose with the fixed coordinates); it must lie in the box.
     """
@@ -340,7 +351,7 @@ def usable_workspace(mech, ranges=None, n: int = 4096, fixed=None, constraints=N
     names = _check_constraints(mech, constraints, base, engine)
     shape = _shape(mech, coords, resolution, n)
     if floor is not None:
-        floor = check_number("floor", floor, "dimensionless", 0.0, 1.0, hi_open=True)
+        floor = check_number("floor", floor, "dimensionless", SINGULARITY_FLOOR, 1.0, hi_open=True)
     floor_fraction = check_number("floor_fraction", floor_fraction, "dimensionless", 0.0, 1.0)
     task = tuple(mech.task_coordinates)
     cols = [task.index(c) for c in coords]
@@ -366,7 +377,7 @@ def usable_workspace(mech, ranges=None, n: int = 4096, fixed=None, constraints=N
         margin[fi] = mech.singularity_margin(X[fi], engine=engine)
     m_ref = float(mech.singularity_margin(ref, engine=engine))
     if floor is None:
-        floor = floor_fraction * m_ref if np.isfinite(m_ref) else 0.0
+        floor = max(SINGULARITY_FLOOR, floor_fraction * m_ref if np.isfinite(m_ref) else 0.0)
     with np.errstate(invalid="ignore"):
         above = feas & (margin >= floor)
 

@@ -162,6 +162,14 @@ def structure_sections(run: Run, a: Analysis) -> list:
     dropped = ", ".join(f"{k} {v}" for k, v in setup.dropped.items()) or "none"
     txt = (f"Structures of **{setup.motion}** (parasynth.structures): {setup.enumerated} candidates enumerated "
            f"(dropped: {dropped}), **{len(choices)} screened**: {', '.join(choices)}.")
+    same = [f"{lab} also stands for {', '.join(f'{n} ({why})' for n, why in setup.structures[lab].equivalents)}"
+            for lab in choices if setup.structures[lab].equivalents]
+    if same:
+        txt += " Equivalent structures are reported as one: " + "; ".join(same) + "."
+    floor = next((c.min for c in study.constraints if c.name == "home_singularity_margin"), None)
+    if floor is not None:
+        txt += (f" Every structure is compared on designs controlled at their home pose with a singularity margin of "
+                f"at least {fmt_number(floor)} (the study's floor; docs/structures.md).")
     if plan is not None:
         targets = "; ".join(f"rung {r.index + 1}: {r.target} designs each for {len(r.alive)}" for r in plan.rungs)
         full = plan.full() if plan.done else ()

@@ -121,7 +121,8 @@ def recommendation_lines(study, a) -> list[str]:
     several = len(study.objectives) > 1
     what = "knee of the non-dominated front" if several else "best feasible design"
     vals = ", ".join(f"{x} = {fmt_quantity(knee[x], quantity_unit(study, x))}"
-                     for x in [v.name for v in study.variables] + [o.label for o in study.objectives])
+                     for x in [v.name for v in study.variables] + [o.label for o in study.objectives]
+                     if fmt_quantity(knee[x], quantity_unit(study, x)) != "")  # a dimension its structure does not use
     lines = []
     fa = a.final
     if rec is None or rec.status == "not verified":

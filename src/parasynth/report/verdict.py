@@ -3,7 +3,7 @@
 
 from __future__ import annotations
 
-from ..study.rundir import Run
+from ..study.rundir import SINGULARITY_FLOOR, Run
 from .analysis import Analysis
 from .summary import recommendation_lines
 
@@ -31,6 +31,6 @@ def recommendation_section(run: Run, a: Analysis) -> tuple[str, str, None]:
                  "bound, a least or largest value over the samples within 5 % of its bound, a grid or exact "
                  "measure without tolerance), and the design must be controlled at its home pose (singularity "
                  "margin, the least singular value of the normalised wrench system, 0 at a singularity, at least "
-                 f"{run.study.evaluation.get('singularity_floor', 1e-3):g}). Only designs that pass count in the "
+                 f"{run.study.evaluation.get('singularity_floor', SINGULARITY_FLOOR):g}). Only designs that pass count in the "
                  "verdicts below.")
     return ("Recommendation", text, None)

@@ -11,14 +11,17 @@ study layer.
 import sys
 import types
 
-from .synthesis import (DROP_REASONS, MAX_POSE_CHECKS, MAX_POSES, MAX_STRUCTURE_LEGS, Group, Structure, StructureList,
-                        candidates, parse_axes, structures)
-from .vocabulary import (ARRANGEMENTS, LIMB_TYPES, PARAMETERS, TEMPLATES, Arrangement, LimbType, StructureError,
-                         StructureWarning, Template, limb_type, parse_motion, register_limb)
+from .synthesis import (DROP_REASONS, EQUIVALENT_LIMBS, MAX_POSE_CHECKS, MAX_POSES, MAX_STRUCTURE_LEGS,
+                        SINGULARITY_FLOOR, Group, Structure, StructureList, candidates, parse_axes, structures,
+                        verdict_text)
+from .vocabulary import (ARRANGEMENTS, HOME_TILTS, LIMB_TYPES, PARAMETERS, TEMPLATES, Arrangement, LimbType,
+                         StructureError, StructureWarning, Template, limb_type, parse_motion, register_limb)
 
 __all__ = ["structures", "Structure", "StructureList", "Group", "candidates", "parse_axes", "DROP_REASONS", "LIMB_TYPES",
+           "EQUIVALENT_LIMBS", "SINGULARITY_FLOOR", "HOME_TILTS", "verdict_text",
            "ARRANGEMENTS", "PARAMETERS", "TEMPLATES", "Arrangement", "LimbType", "Template", "limb_type",
-           "parse_motion", "register_limb", "StructureError", "StructureWarning", "MAX_POSES", "MAX_POSE_CHECKS", "MAX_STRUCTURE_LEGS"]
+           "parse_motion", "register_limb", "StructureError", "StructureWarning", "MAX_POSES", "MAX_POSE_CHECKS",
+           "MAX_STRUCTURE_LEGS"]
 
 
 class _StructuresModule(types.ModuleType):

@@ -6,12 +6,15 @@ limbs; a ring plus one passive constraining limb at the centre; or two rings of 
 limbs of two kinds, interleaved. Each candidate is written as a mechanism description with the
 shared parameters of :data:`~parasynth.structures.vocabulary.PARAMETERS`, its task section taken
 from the motion template its constraining limbs select, then built and checked: the
-screw-theory mobility at random poses of its task box must be the requested motion, and the
-actuators must control it at some pose.
+screw-theory mobility at random poses of its task box must be the requested motion, the
+actuators must control it at some pose, and at its default dimensions it must be controlled at
+its home pose with a singularity margin of at least :data:`SINGULARITY_FLOOR` (else it is dropped
+as ``singular at home``); equivalent structures are folded into one (:data:`EQUIVALENT_LIMBS`).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import itertools
 import math
@@ -24,11 +27,12 @@ import numpy as np
 
 from ..common.validation import MAX_LEGS, MAX_SEED, InputError, check_count, is_real_number
 from ..mechanisms import described_class
-from .vocabulary import (ARRANGEMENTS, CHECKS, LIMB_TYPES, PARAMETERS, TEMPLATES, StructureError, StructureWarning,
-                         limb_type, parse_motion)
+from ..measures.usable import SINGULARITY_FLOOR
+from .vocabulary import (ARRANGEMENTS, CHECKS, HOME_TILTS, LIMB_TYPES, PARAMETERS, TEMPLATES, StructureError,
+                         StructureWarning, limb_type, parse_motion)
 
-__all__ = ["Group", "Structure", "StructureList", "structures", "DROP_REASONS", "candidates", "parse_axes",
-           "StructureError", "StructureWarning", "MAX_POSES", "MAX_POSE_CHECKS", "MAX_STRUCTURE_LEGS"]
+__all__ = ["Group", "Structure", "StructureList", "structures", "DROP_REASONS", "EQUIVALENT_LIMBS", "SINGULARITY_FLOOR",
+           "verdict_text", "candidates", "parse_axes", "StructureError", "StructureWarning", "MAX_POSES", "MAX_POSE_CHECKS", "MAX_STRUCTURE_LEGS"]
 
 #: Why a candidate is dropped, in the order the checks run.
 DROP_REASONS = {
@@ -44,7 +48,17 @@ DROP_REASONS = {
                     "coordinates do not follow the limbs)",
     "unreachable": "no checked pose of the task box is reachable",
     "singular everywhere": "the actuators do not control the freedoms at any checked pose",
+    "singular at home": "at the default dimensions the singularity margin at the home pose is below "
+                        "SINGULARITY_FLOOR with the platform level, and at every tilt of HOME_TILTS (not tried "
+                        "for a regular ring of four or more limbs, singular by symmetry along its centre line; its "
+                        "paired and irregular rings are the structure's layouts)",
+    "equivalent": "kinematically equivalent to a kept structure, reported with it (Structure.equivalents)",
 }
+
+#: Limb types that are another's kinematic equivalent in a structure: the first differs from the
+#: second only by an idle spin of the limb about its own axis (an SPS is a UPS whose universal
+#: joint is a sphere: the extra freedom moves no other body and changes no constraint).
+EQUIVALENT_LIMBS = {"SPS": ("UPS", "idle spin")}
 
 
 @dataclass(frozen=True)
@@ -189,19 +203,38 @@ def _deg(x: float) -> str:
     return f"{x:g} deg"
 
 
-def _anchor_sets(g: Group, twist: bool):
-    """Base and platform anchor sets of a ring group and its platform index list (None: in order)."""
+def _anchor_sets(g: Group, twist: bool, second: bool = False):
+    """Base and platform anchor sets of a ring group and its platform index list (None: in order).
+    ``second``: the second group of a two-kind structure, on circles scaled by
+    ``second_base_scale`` and ``second_platform_scale``."""
     n, ph = g.count, g.phase
-    if g.arrangement == "paired":
+    rb, rp = ("base_radius*second_base_scale", "platform_radius*second_platform_scale") if second else \
+        ("base_radius", "platform_radius")
+    if g.arrangement == "paired" and n % 2 == 0:
         m = n // 2
-        base = {"pattern": "paired", "n": m, "radius": "base_radius", "phase": _deg(ph),
-                "separation": "base_separation"}
-        plat = {"pattern": "paired", "n": m, "radius": "platform_radius", "phase": _deg(ph + 180.0 / m),
+        base = {"pattern": "paired", "n": m, "radius": rb, "phase": _deg(ph), "separation": "base_separation"}
+        plat = {"pattern": "paired", "n": m, "radius": rp, "phase": _deg(ph + 180.0 / m),
                 "separation": "platform_separation"}
         return base, plat, [n - 1] + list(range(n - 1))
-    base = {"pattern": "polygon", "n": n, "radius": "base_radius", "phase": _deg(ph)}
+    if g.arrangement == "paired":  # odd n: alternately closer and farther, crossed
+        sign = ["+" if i % 2 == 0 else "-" for i in range(n)]
+        base = {"pattern": "circle", "radius": rb,
+                "angles": [f"{ph + 360.0 * i / n:g} deg {sign[i]} base_separation/2" for i in range(n)]}
+        plat = {"pattern": "circle", "radius": rp,
+                "angles": [f"{ph + 360.0 * i / n:g} deg {'-' if sign[i] == '+' else '+'} platform_separation/2"
+                           for i in range(n)]}
+        return base, plat, None
+    if g.arrangement == "irregular":
+        tw = " + platform_twist" if twist else ""
+        base = {"pattern": "circle", "radius": rb,
+                "angles": [f"{ph + 360.0 * i / n:g} deg" + (f" + base_offset_{i + 1}" if i else "") for i in range(n)]}
+        plat = {"pattern": "circle", "radius": rp,
+                "angles": [f"{ph + 360.0 * i / n:g} deg{tw}" + (f" + platform_offset_{i + 1}" if i else "")
+                           for i in range(n)]}
+        return base, plat, None
+    base = {"pattern": "polygon", "n": n, "radius": rb, "phase": _deg(ph)}
     pphase = f"{ph:g} deg + platform_twist" if twist and g.arrangement == "regular" else _deg(ph)
-    plat = {"pattern": "polygon", "n": n, "radius": "platform_radius", "phase": pphase}
+    plat = {"pattern": "polygon", "n": n, "radius": rp, "phase": pphase}
     return base, plat, None
 
 
@@ -246,6 +279,7 @@ def _description(c: _Candidate, template, key: str) -> dict:
     base, plat, legs = {}, {}, []
     index = 1
     telescopic, sliders = [], []
+    ring_groups = [g for g in c.groups if g.arrangement != "central"]
     for i, g in enumerate(c.groups, start=1):
         lt = LIMB_TYPES[g.limb]
         entry = {"type": g.limb}
@@ -253,7 +287,7 @@ def _description(c: _Candidate, template, key: str) -> dict:
             entry["base"] = ["0 mm", "0 mm", "0 mm"]
             entry["platform"] = ["0 mm", "0 mm", "0 mm"]
         else:
-            b, p, idx = _anchor_sets(g, twist)
+            b, p, idx = _anchor_sets(g, twist, second=len(ring_groups) > 1 and g is ring_groups[1])
             base[f"B{i}"], plat[f"A{i}"] = b, p
             entry["base"] = f"B{i}"
             entry["platform"] = f"A{i}" if idx is None else f"A{i}[{', '.join(map(str, idx))}]"
@@ -306,7 +340,10 @@ class Structure:
     task coordinates), ``axes`` (the translation axes and rotation axes of its freedoms),
     ``description`` (a dict that ``load_mechanism`` accepts once written to YAML),
     ``checked_poses`` and ``controlled_poses`` (how many random poses of the task box were
-    checked, and at how many the actuators controlled every freedom)."""
+    checked, and at how many the actuators controlled every freedom), ``home_margin`` (the
+    singularity margin at the home pose, default dimensions), ``checked_margin`` (the least
+    margin over the checked poses), ``equivalents`` ((name, reason) of the kinematically
+    equivalent structures reported as this one, :data:`EQUIVALENT_LIMBS`)."""
 
     name: str
     key: str
@@ -320,7 +357,25 @@ class Structure:
     description: dict = field(repr=False)
     checked_poses: int = 0
     controlled_poses: int = 0
+    home_margin: float = math.nan
+    checked_margin: float = math.nan
+    equivalents: tuple = ()
     _cls: list = field(default_factory=list, repr=False)
+
+    @property
+    def verified(self) -> bool:
+        """Controlled at its home pose and at every checked pose with a singularity margin of at
+        least :data:`SINGULARITY_FLOOR` (at the default dimensions)."""
+        return bool(self.home_margin >= SINGULARITY_FLOOR and self.checked_margin >= SINGULARITY_FLOOR
+                    and self.controlled_poses == self.checked_poses)
+
+    @property
+    def label(self) -> str:
+        """The name, with the kinematically equivalent structures reported with it:
+        ``5-UPS/UPU (also 5-SPS/UPU: idle spin)``."""
+        if not self.equivalents:
+            return self.name
+        return f"{self.name} (also {', '.join(f'{n}: {why}' for n, why in self.equivalents)})"
 
     @property
     def limbs(self) -> str:
@@ -369,14 +424,51 @@ class Structure:
 class StructureList(list):
     """The structures found (a list), with ``motion``, ``enumerated`` (candidates generated),
     ``dropped`` ({reason: count}, reasons of :data:`DROP_REASONS`) and ``dropped_names``
-    ({reason: [candidate names]})."""
+    ({reason: [candidate names]}); :meth:`dropped_lines` lists them."""
 
-    def __init__(self, items, motion, enumerated, dropped, dropped_names):
+    def __init__(self, items, motion, enumerated, dropped, dropped_names, show_dropped: bool = False):
         super().__init__(items)
+        self.show_dropped = show_dropped
         self.motion = motion
         self.enumerated = enumerated
         self.dropped = dropped
         self.dropped_names = dropped_names
+
+    def dropped_lines(self, include_duplicates: bool = False) -> list[str]:
+        """One line per reason: ``under-actuated (3): 4-UPS/RPS, ...`` with the reason's
+        meaning; duplicates (isomorphic re-enumerations) only with ``include_duplicates``."""
+        out = []
+        for reason, names in self.dropped_names.items():
+            if not names or (reason == "duplicate" and not include_duplicates):
+                continue
+            counted = Counter(names)
+            listed = ", ".join(n if k == 1 else f"{n} x{k}" for n, k in counted.items())
+            out.append(f"{reason} ({len(names)}; {DROP_REASONS[reason]}): {listed}")
+        return out
+
+    def summary(self) -> str:
+        """The structures kept, each with its verdict at the default dimensions ("verified" or
+        "NOT VERIFIED" with its margins against :data:`SINGULARITY_FLOOR`), the dropped counts
+        and, with ``show_dropped``, the dropped candidates by reason."""
+        lines = [f"{self.motion}: {self.enumerated} candidate(s) enumerated, {len(self)} kept"]
+        for s in self:
+            lines.append(f"  {s.label} [{s.arrangement}]: {verdict_text(s)}")
+        dropped = {k: v for k, v in self.dropped.items() if v}
+        lines.append("dropped: " + (", ".join(f"{k} {v}" for k, v in dropped.items()) if dropped else "none"))
+        if self.show_dropped:
+            lines += ["  " + x for x in self.dropped_lines()]
+        return "\n".join(lines)
+
+
+def verdict_text(s) -> str:
+    """"verified: ..." for a structure controlled at home and at every checked pose with margin
+    at least :data:`SINGULARITY_FLOOR`; "NOT VERIFIED: ..." with the margins otherwise."""
+    axes = f"T {', '.join(s.axes['translations']) or '-'}; R {', '.join(s.axes['rotations']) or '-'}"
+    margins = (f"singularity margin {s.home_margin:.3g} at home, least {s.checked_margin:.3g} at the checked poses "
+               f"(floor {SINGULARITY_FLOOR:g})")
+    what = (f"{s.motion} ({axes}) at {s.checked_poses} random pose(s) of the task box, actuators control it at "
+            f"{s.controlled_poses}; {margins}")
+    return ("verified: " if s.verified else "NOT VERIFIED: ") + what
 
 
 def _check(c: _Candidate, motion: str, desc: dict, n_poses: int, seed: int):
@@ -410,12 +502,54 @@ def _check(c: _Candidate, motion: str, desc: dict, n_poses: int, seed: int):
         types[m.type] += 1
         consistent &= bool(m.consistent) and m.dof == mech.n_task
         controlled += int(m.controlled and not m.singular_at_pose)
-    details.update(types=dict(types), controlled=controlled)
+    details.update(types=dict(types), controlled=controlled,
+                   margin=float(np.min(mech.singularity_margin(X, engine="numpy"))))
     if not consistent:
         return "wrong motion", details, None
     if controlled == 0:
         return "singular everywhere", details, None
     return None, details, cls
+
+
+def _home_margin(cls) -> float:
+    """The singularity margin of ``cls`` at its default dimensions and home pose (NumPy)."""
+    mech = cls(cls.Params())
+    return float(np.asarray(mech.singularity_margin(np.atleast_2d(mech.home), engine="numpy")).ravel()[0])
+
+
+def _with_home_tilt(desc: dict, tilt_deg: float) -> dict:
+    """``desc`` with the default ``home_tilt`` set to ``tilt_deg``."""
+    params = dict(desc["parameters"])
+    params["home_tilt"] = {**params["home_tilt"], "value": f"{tilt_deg:g} deg"}
+    return {**desc, "parameters": params}
+
+
+def _controlled_home(c: _Candidate, desc: dict, cls):
+    """(description, class, home margin) with a home pose where the structure is controlled:
+    the level platform if its margin is at least :data:`SINGULARITY_FLOOR`, else (unless a ring
+    is regular with four or more limbs) the first tilt of :data:`HOME_TILTS` that is (the
+    description's default ``home_tilt``); (None, None, best margin) when none is."""
+    m = _home_margin(cls)
+    if m >= SINGULARITY_FLOOR:
+        return desc, cls, m
+    best = m
+    # a regular ring of four or more limbs singular with the platform level is singular by
+    # symmetry along its whole centre line: no tilt is tried (its paired and irregular rings are
+    # the structure's layouts)
+    symmetric = any(g.arrangement == "regular" and g.count >= 4 for g in c.groups)
+    if not symmetric and "home_tilt" in repr(desc["task"]):
+        for tilt in HOME_TILTS:
+            d2 = _with_home_tilt(desc, tilt)
+            try:
+                cls2 = described_class(d2, source=c.name)
+                m2 = _home_margin(cls2)
+            except ValueError:
+                continue
+            if m2 >= SINGULARITY_FLOOR:
+                return d2, cls2, m2
+            best = max(best, m2)
+    return None, None, best
+
 
 
 def parse_axes(axes) -> dict | None:
@@ -518,7 +652,7 @@ def _legs(legs) -> list[int] | None:
 
 
 def structures(motion, *, leg_types=None, legs=None, axes=None, all_axes: bool = False, n_poses: int = 4,
-               seed: int = 0) -> StructureList:
+               seed: int = 0, show_dropped: bool = False) -> StructureList:
     """The candidate structures of the vocabulary for ``motion`` (``"3T3R"``, ``"3T2R"``,
     ``"2T2R"``, ...), each verified numerically.
 
@@ -532,7 +666,14 @@ def structures(motion, *, leg_types=None, legs=None, axes=None, all_axes: bool =
     ``Structure.axes``); ``all_axes`` (a bool): every joint-axis choice of the vocabulary
     instead of the first of each; ``n_poses``: reachable random poses of the task box checked
     per candidate (1 to :data:`MAX_POSES`; the candidates to check times ``n_poses`` at most
-    :data:`MAX_POSE_CHECKS`, about 15 ms each); ``seed``: their seed (0 to 2**32 - 1).
+    :data:`MAX_POSE_CHECKS`, about 15 ms each); ``seed``: their seed (0 to 2**32 - 1);
+    ``show_dropped`` (a bool): :meth:`StructureList.summary` lists every dropped candidate by
+    name under its reason (under- and over-actuated, singular at home, equivalent, ...; the
+    names are in ``dropped_names`` either way). A kept structure is controlled at its home pose
+    with a singularity margin of at least :data:`SINGULARITY_FLOOR` at the default dimensions
+    (the level platform, else the first of ``HOME_TILTS`` that is, as its default
+    ``home_tilt``); kinematically equivalent structures are reported as one
+    (``Structure.equivalents``, ``Structure.label``).
     Returns a :class:`StructureList` of :class:`Structure` with the counts of the dropped
     candidates by reason. :class:`StructureError` (a ``ValueError``) names the argument at
     fault."""
@@ -547,6 +688,8 @@ def structures(motion, *, leg_types=None, legs=None, axes=None, all_axes: bool =
         raise StructureError(str(e)) from None
     if not isinstance(all_axes, (bool, np.bool_)):
         raise StructureError(f"all_axes must be True or False, got {_describe(all_axes)}")
+    if not isinstance(show_dropped, (bool, np.bool_)):
+        raise StructureError(f"show_dropped must be True or False, got {_describe(show_dropped)}")
     all_axes = bool(all_axes)
     dof = nt + nr
     want_axes = parse_axes(axes)
@@ -608,13 +751,57 @@ def structures(motion, *, leg_types=None, legs=None, axes=None, all_axes: bool =
         if reason is not None:
             drop(reason, c)
             continue
+        desc, cls, home_margin = _controlled_home(c, desc, cls)
+        if desc is None:
+            drop("singular at home", c)
+            continue
         s = Structure(
             name=c.name, key=desc["name"], motion=motion,
             leg_counts=dict(Counter(g.limb for g in c.groups for _ in range(g.count))),
             actuated_counts=dict(Counter(g.limb for g in c.groups if g.actuated for _ in range(g.count))),
             groups=c.groups, arrangement="; ".join(g.label() for g in c.groups), template=template.name,
             axes=dict(template.axes), description=desc, checked_poses=det["checked"],
-            controlled_poses=det["controlled"])
+            controlled_poses=det["controlled"], home_margin=home_margin, checked_margin=det["margin"])
         s._cls.append(cls)
         found.append(s)
-    return StructureList(found, motion, len(cands), dropped, dropped_names)
+    found = _fold_equivalents(found, drop)
+    return StructureList(found, motion, len(cands), dropped, dropped_names, show_dropped=bool(show_dropped))
+
+
+def _signature(s: Structure, mapping: dict) -> tuple:
+    """The limb groups of ``s`` with limb types renamed by ``mapping`` and joint axes left out."""
+    return tuple((mapping.get(g.limb, g.limb), g.count, g.actuated, g.arrangement, g.phase) for g in s.groups)
+
+
+def _fold_equivalents(found: list, drop) -> list:
+    """Report kinematically equivalent structures as one (:data:`EQUIVALENT_LIMBS`): a structure
+    with an SPS group is folded into the kept structure with a UPS group in its place (the same
+    arrangement), which lists it in ``equivalents``; the folded one is counted as dropped,
+    reason ``equivalent``."""
+    rename = {a: b for a, (b, _) in EQUIVALENT_LIMBS.items()}
+    why = {a: r for a, (_, r) in EQUIVALENT_LIMBS.items()}
+    by_sig = {}
+    for i, s in enumerate(found):
+        if not any(g.limb in rename for g in s.groups):
+            by_sig.setdefault(_signature(s, {}), i)
+    extra: dict = {}
+    folded = set()
+    for i, s in enumerate(found):
+        if not any(g.limb in rename for g in s.groups):
+            continue
+        j = by_sig.get(_signature(s, rename))
+        if j is None:
+            continue
+        reason = ", ".join(dict.fromkeys(why[g.limb] for g in s.groups if g.limb in rename))
+        if (s.name, reason) not in extra.get(j, []):
+            extra.setdefault(j, []).append((s.name, reason))
+        folded.add(i)
+        drop("equivalent", s)
+    out = []
+    for i, s in enumerate(found):
+        if i in folded:
+            continue
+        if i in extra:
+            s = dataclasses.replace(s, equivalents=tuple(extra[i]), _cls=list(s._cls))
+        out.append(s)
+    return out

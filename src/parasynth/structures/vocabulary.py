@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 from ..model.legs import LEG_TYPES
 
 __all__ = ["Arrangement", "LimbType", "Template", "LIMB_TYPES", "ARRANGEMENTS", "TEMPLATES", "PARAMETERS",
-           "CHECKS", "register_limb", "limb_type", "parse_motion", "StructureError", "StructureWarning"]
+           "CHECKS", "HOME_TILTS", "OFFSET_DEFAULTS", "register_limb", "limb_type", "parse_motion", "StructureError", "StructureWarning"]
 
 
 class StructureError(ValueError):
@@ -49,11 +49,21 @@ ARRANGEMENTS = {
     "regular": Arrangement("regular", "ring", (3, 4, 5, 6),
                            "base: regular polygon of n on base_radius at phi; platform: regular polygon of n on "
                            "platform_radius at phi + platform_twist"),
-    "paired": Arrangement("paired", "ring", (4, 6),
-                          "base: n/2 pairs on base_radius centred at phi + 360 k/(n/2), base_separation apart; "
-                          "platform: n/2 pairs on platform_radius turned by 180/(n/2) deg, platform_separation "
-                          "apart; each base joint goes to the nearest joint of the neighbouring platform pair "
-                          "(semi-regular hexagons for n = 6)"),
+    "paired": Arrangement("paired", "ring", (3, 4, 5, 6),
+                          "n = 4, 6: base: n/2 pairs on base_radius centred at phi + 360 k/(n/2), base_separation "
+                          "apart; platform: n/2 pairs on platform_radius turned by 180/(n/2) deg, "
+                          "platform_separation apart; each base joint goes to the nearest joint of the "
+                          "neighbouring platform pair (semi-regular hexagons for n = 6). n = 3, 5 (no even "
+                          "split): limb i (0 to n-1) at phi + 360 i/n + s_i base_separation/2 on the base and "
+                          "phi + 360 i/n - s_i platform_separation/2 on the platform, s_i = +1 for even i, -1 for "
+                          "odd i: neighbouring limbs alternately closer and farther apart, crossed between base "
+                          "and platform"),
+    "irregular": Arrangement("irregular", "ring", (2, 3, 4, 5, 6),
+                             "limb i (1 to n) at phi + 360 (i-1)/n + base_offset_i on base_radius and at phi + "
+                             "360 (i-1)/n + platform_twist + platform_offset_i on platform_radius (no twist in a "
+                             "structure with an opposed pair); base_offset_1 = platform_offset_1 = 0 (the phase "
+                             "and the twist turn the whole ring): the spacing of the limbs is a design variable, "
+                             "and the regular ring is its point with every offset 0"),
     "opposed": Arrangement("opposed", "ring", (2,),
                            "two limbs facing each other across the centre: base at phi and phi + 180 deg on "
                            "base_radius, platform at the same angles on platform_radius (no twist)"),
@@ -80,6 +90,7 @@ _LEN = "length"
 _BOX_XY = ["-reach", "reach"]
 _BOX_Z = ["height - reach", "height + reach"]
 _TILT = ["-tilt", "tilt"]
+_HOME_TILT = "home_tilt"
 
 TEMPLATES = {
     "free": Template(
@@ -87,7 +98,7 @@ TEMPLATES = {
         {"coordinates": {"x": _LEN, "y": _LEN, "z": _LEN, "alpha": _ANG, "beta": _ANG, "gamma": _ANG},
          "position": ["x", "y", "z"],
          "orientation": {"convention": "xyz", "angles": ["alpha", "beta", "gamma"]},
-         "home": {"x": "0 mm", "y": "0 mm", "z": "height", "alpha": "0 deg", "beta": "0 deg", "gamma": "0 deg"},
+         "home": {"x": "0 mm", "y": "0 mm", "z": "height", "alpha": "0 deg", "beta": _HOME_TILT, "gamma": "0 deg"},
          "ranges": {"x": _BOX_XY, "y": _BOX_XY, "z": _BOX_Z, "alpha": _TILT, "beta": _TILT, "gamma": _TILT}},
         {"translations": ("x", "y", "z"), "rotations": ("x", "moving y", "moving z")},
         "no limb constrains the platform: the platform centre and x-y-z angles, R = Rx Ry Rz"),
@@ -98,7 +109,7 @@ TEMPLATES = {
          "position": ["x", "y", "z"],
          "orientation": {"convention": "yxy", "angles": ["q1", "alpha", "beta - q1"]},
          "valid": ["x**2 + z**2 > 1e-12"],
-         "home": {"x": "0 mm", "y": "0 mm", "z": "height", "alpha": "0 deg", "beta": "0 deg"},
+         "home": {"x": "0 mm", "y": "0 mm", "z": "height", "alpha": "0 deg", "beta": _HOME_TILT},
          "ranges": {"x": _BOX_XY, "y": _BOX_XY, "z": _BOX_Z, "alpha": _TILT, "beta": _TILT}},
         {"translations": ("x", "y", "z"), "rotations": ("y", "the limb's cross axis")},
         "a central U-P-U limb with its base and platform universal-joint axes along y (the 5-PUS/UPU's "
@@ -109,7 +120,7 @@ TEMPLATES = {
         {"coordinates": {"x": _LEN, "z": _LEN, "alpha": _ANG, "beta": _ANG, "gamma": _ANG},
          "position": ["x", "0 mm", "z"],
          "orientation": {"convention": "xyz", "angles": ["alpha", "beta", "gamma"]},
-         "home": {"x": "0 mm", "z": "height", "alpha": "0 deg", "beta": "0 deg", "gamma": "0 deg"},
+         "home": {"x": "0 mm", "z": "height", "alpha": "0 deg", "beta": _HOME_TILT, "gamma": "0 deg"},
          "ranges": {"x": _BOX_XY, "z": _BOX_Z, "alpha": _TILT, "beta": _TILT, "gamma": _TILT}},
         {"translations": ("x", "z"), "rotations": ("x", "moving y", "moving z")},
         "a central R-P-S limb with its revolute axis along y keeps the platform centre in the plane y = 0 "
@@ -119,7 +130,7 @@ TEMPLATES = {
         {"coordinates": {"x": _LEN, "z": _LEN, "theta": _ANG, "psi": _ANG},
          "position": ["x", "0 mm", "z"],
          "orientation": {"rotations": [{"axis": "y", "angle": "theta"}, {"axis": "x", "angle": "psi"}]},
-         "home": {"x": "0 mm", "z": "height", "theta": "0 deg", "psi": "0 deg"},
+         "home": {"x": "0 mm", "z": "height", "theta": _HOME_TILT, "psi": "0 deg"},
          "ranges": {"x": _BOX_XY, "z": _BOX_Z, "theta": _TILT, "psi": _TILT}},
         {"translations": ("x", "z"), "rotations": ("y", "moving x")},
         "two R-P-U limbs facing each other on the x axis, revolute axes along y (tangential) and platform "
@@ -158,6 +169,14 @@ class LimbType:
         return self.name
 
 
+#: Default offsets (deg strings) of limbs 2..6 of an irregular ring from the regular polygon, base and
+#: platform: the base regular, the platform not similar to it (a platform polygon similar to the
+#: base polygon leaves the 5-x/UPU singular with the platform level, as the regular pentagon).
+OFFSET_DEFAULTS = (("0 deg", "0 deg", "0 deg", "0 deg", "0 deg"),
+                   ("-15 deg", "-5 deg", "-20 deg", "-10 deg", "-25 deg"))
+#: Home tilts (deg) tried, in order, for a structure singular at its level home pose.
+HOME_TILTS = (10.0, 20.0)
+
 #: The shared parametrisation: every structure's description declares these parameters, so a
 #: study can compare structures with the same base, platform, links and strokes.
 PARAMETERS = {
@@ -166,7 +185,18 @@ PARAMETERS = {
     "platform_twist": ("25 deg", "turn of a regular platform polygon against the base polygon"),
     "base_separation": ("20 deg", "angle between the two joints of a base pair (paired arrangement)"),
     "platform_separation": ("20 deg", "angle between the two joints of a platform pair (paired arrangement)"),
+    "second_base_scale": ("1", "base radius of the second limb group of a two-kind structure, as a multiple of "
+                               "base_radius (the 2-RPU&2-SPS's SPS limbs sit farther out than its RPU limbs)"),
+    "second_platform_scale": ("1", "platform radius of the second limb group of a two-kind structure, as a multiple "
+                                   "of platform_radius"),
+    **{f"base_offset_{i}": (v, f"angle of limb {i}'s base anchor from its place in the regular polygon "
+                               f"(irregular arrangement)") for i, v in zip(range(2, 7), OFFSET_DEFAULTS[0])},
+    **{f"platform_offset_{i}": (v, f"angle of limb {i}'s platform anchor from its place in the regular polygon "
+                                   f"(irregular arrangement)") for i, v in zip(range(2, 7), OFFSET_DEFAULTS[1])},
     "height": ("400 mm", "height of the platform centre above the base at home"),
+    "home_tilt": ("0 deg", "rotation of the platform about y at the home pose (the template's rotation about y); a "
+                           "structure singular with a level platform gets the first of HOME_TILTS at which its "
+                           "actuators control it as its default"),
     "link_length": ("350 mm", "fixed link length of PUS, PRS and RUS limbs"),
     "crank_length": ("120 mm", "crank length of RUS limbs"),
     "q_min": ("250 mm", "shortest telescopic limb (SPS, UPS, RPU, RPS, UPU)"),
@@ -229,14 +259,14 @@ def parse_motion(motion) -> tuple[int, int]:
 _SLIDER = {"slider_axis": "z", "link_length": "link_length", "branch": -1}
 
 for _limb in (
-    LimbType("SPS", "P", False, 0, ("regular", "paired"),
+    LimbType("SPS", "P", False, 0, ("regular", "paired", "irregular"),
              doc="spherical, actuated prismatic, spherical: six freedoms (and a spin of the limb)"),
-    LimbType("UPS", "P", False, 0, ("regular", "paired"), axes={"u_axis": ("tangent", "radial")},
+    LimbType("UPS", "P", False, 0, ("regular", "paired", "irregular"), axes={"u_axis": ("tangent", "radial")},
              doc="universal (axis fixed to the base), actuated prismatic, spherical: six freedoms"),
-    LimbType("PUS", "P", False, 0, ("regular", "paired"), options=dict(_SLIDER),
+    LimbType("PUS", "P", False, 0, ("regular", "paired", "irregular"), options=dict(_SLIDER),
              axes={"u_axis": ("tangent", "radial")},
              doc="actuated vertical slider, universal, link of link_length, spherical: six freedoms"),
-    LimbType("RUS", "R", False, 0, ("regular", "paired"),
+    LimbType("RUS", "R", False, 0, ("regular", "paired", "irregular"),
              options={"crank_length": "crank_length", "link_length": "link_length", "branch": 1},
              axes={"r_axis": ("tangent", "radial")},
              doc="actuated crank (revolute, axis tangential or radial), universal, link, spherical: six freedoms"),

@@ -40,6 +40,7 @@ from ..model.task import Task, TaskError
 from ..mechanisms import load_mechanism, mechanism_class, resolve_mechanism_name
 from ..measures.measure_spec import SettingError
 from ..measures.objectives import OBJECTIVES, get as get_measure
+from ..measures.usable import SINGULARITY_FLOOR
 from ..measures.robustness import RobustError, check_robust_spec, resolve_tolerances, robust
 from ..common.validation import MAX_SAMPLES, MAX_SEED, MAX_TRIALS, is_real_number, numpy_reference
 from ..common.units import QuantityError, parse_quantity, si_unit
@@ -52,7 +53,8 @@ from .space import DesignSpace, Variable, quantity
 from .defaults import OPTUNA_TRIALS
 from ..common.columns import DERIVED_SUFFIXES  # the suffixes of derived columns, in one module
 from .optimizers.base import ALGORITHMS, kinds, optimizer_class
-from .structure_space import (STRUCTURE, box_centre, check_halving, check_structure_optimizer, resolve_structures,
+from .structure_space import (STRUCTURE, STRUCTURE_FLOOR_LABEL, box_centre, check_halving, check_structure_optimizer,
+                              resolve_structures,
                               structure_variables)
 
 __all__ = ["StudyError", "StudySpec", "ResolvedStudy", "load_study", "resolve_study", "check_study", "OPTIMIZERS",
@@ -191,9 +193,10 @@ class EvaluationSpec(_Model):
         "objective) or k spread along the front by crowding distance, plus the knee and up to "
         "max(3, final_top) designs that dominate the reference on single samples; 0 re-evaluates only the designs "
         "the verification walks (docs/verification.md)."))
-    singularity_floor: Annotated[float, Strict(False)] = Field(default=1e-3, ge=0.0, lt=1.0, description=(
-        "The least singularity margin at the home pose of a design the study may recommend (a number in "
-        "[0, 1), default 0.001; docs/verification.md)."))
+    singularity_floor: Annotated[float, Strict(False)] = Field(default=SINGULARITY_FLOOR, ge=0.0, lt=1.0, description=(
+        "The least singularity margin at the home pose and over the task of a design the study may recommend, and "
+        f"of a structure study's designs (a number in [0, 1), default {SINGULARITY_FLOOR:g}, "
+        "parasynth.measures.usable.SINGULARITY_FLOOR; docs/verification.md)."))
     verify_designs: Int = Field(default=10, ge=0, le=1000, description=(
         "Designs beyond the final candidates re-evaluated at most while looking for a recommendation that "
         "passes verification (0 to 1000, default 10; docs/verification.md)."))
@@ -739,6 +742,12 @@ def resolve_study(data: dict, source: str | None = None) -> ResolvedStudy:
         constraints.append(DesignConstraint(c.name, label, lo, hi, settings, rb, None if prob is None else float(prob)))
 
     ev = spec.evaluation
+    if spec.structure is not None and not any(c.name == "home_singularity_margin" for c in constraints):
+        # a study over structures compares designs that pass the same singularity floor: every design is
+        # controlled at its home pose with margin >= evaluation.singularity_floor (docs/structures.md)
+        check_label(STRUCTURE_FLOOR_LABEL, "constraints", "constraints (the structure study's home floor)")
+        constraints.append(DesignConstraint("home_singularity_margin", STRUCTURE_FLOOR_LABEL,
+                                            float(ev.singularity_floor), None, {}))
     ranges = _resolve_ranges(ev.ranges, mech_cls, "evaluation.ranges", task) if ev.ranges is not None else None
     fixed_pose = {}
     for k, v in ev.fixed_pose.items():

@@ -38,8 +38,8 @@ from .errors import StudyError
 from .optimizers.base import optimizer_class
 from .space import DesignSpace, Variable
 
-__all__ = ["STRUCTURE", "StructureSetup", "resolve_structures", "conditions", "labels_of", "structure_variables",
-           "check_structure_optimizer", "check_halving", "STRUCTURE_ALGORITHMS", "box_centre"]
+__all__ = ["STRUCTURE", "STRUCTURE_FLOOR_LABEL", "StructureSetup", "resolve_structures", "conditions", "labels_of",
+           "structure_variables", "check_structure_optimizer", "check_halving", "STRUCTURE_ALGORITHMS", "box_centre"]
 
 #: Optuna samplers of a study over structures: those whose proposals depend only on the trials
 #: they are shown (each structure's sampler sees that structure's trials, see
@@ -48,6 +48,11 @@ STRUCTURE_ALGORITHMS = ("tpe", "random")
 
 #: The name of the structure design variable (and of the description's variant).
 STRUCTURE = "structure"
+#: The column of the constraint every study over structures gets unless it gives one on
+#: ``home_singularity_margin``: the design's singularity margin at its home pose at least the
+#: study's ``evaluation.singularity_floor`` (default ``SINGULARITY_FLOOR``), so that structures are
+#: compared on designs that pass the same floor.
+STRUCTURE_FLOOR_LABEL = "home_floor"
 
 
 @dataclass(frozen=True)
@@ -82,7 +87,12 @@ def labels_of(found) -> list[str]:
         else:
             arr = "/".join(dict.fromkeys(g.arrangement for g in s.groups if g.arrangement != "central"))
             out.append(f"{s.name} ({arr})")
-    if len(set(out)) != len(out):  # the same name and arrangement, other joint axes
+    if len(set(out)) != len(out):  # the same name and arrangement, other joint axes: name the axes that differ
+        axes = [tuple((g.limb, k, v) for g in s.groups for k, v in g.axes) for s in found]
+        fixed = {lab: set.intersection(*[set(a) for a, o in zip(axes, out) if o == lab]) for lab in set(out)}
+        out = [f"{lab} [{', '.join(f'{t} {k}={v}' for t, k, v in a if (t, k, v) not in fixed[lab])}]"
+               if out.count(lab) > 1 else lab for lab, a in zip(out, axes)]
+    if len(set(out)) != len(out):  # still the same: the description's key
         out = [f"{lab} [{s.key.rsplit('-', 1)[-1]}]" if out.count(lab) > 1 else lab for lab, s in zip(out, found)]
     return out
 
@@ -152,12 +162,15 @@ def resolve_structures(sec) -> StructureSetup:
         kept = [s for s in kept if all(g.arrangement in sec.arrangements for g in s.groups
                                        if g.arrangement != "central")]
     labels = labels_of(kept)
+    def names_of(s):  # its name and those of the equivalent structures reported with it
+        return (s.name,) + tuple(n for n, _ in s.equivalents)
+
     if sec.include is not None:
         for j, x in enumerate(sec.include):
-            if x not in labels and x not in [s.name for s in kept]:
+            if x not in labels and not any(x in names_of(s) for s in kept):
                 raise StudyError(f"structure.include[{j}]: {x!r} is not among the structures found; found: "
                                  f"{', '.join(labels) or '(none)'}")
-        pairs = [(lab, s) for lab, s in zip(labels, kept) if lab in sec.include or s.name in sec.include]
+        pairs = [(lab, s) for lab, s in zip(labels, kept) if lab in sec.include or set(names_of(s)) & set(sec.include)]
         labels, kept = [p[0] for p in pairs], [p[1] for p in pairs]
     dropped = {k: v for k, v in found.dropped.items() if v}
     if len(kept) < 2:
@@ -171,10 +184,12 @@ def resolve_structures(sec) -> StructureSetup:
                          f"restrict structure.leg_types or structure.axes to one motion template")
     ref = sec.reference
     if ref is not None and ref not in labels:
-        byname = [lab for lab, s in zip(labels, kept) if s.name == ref]
-        if len(byname) != 1:
-            raise StudyError(f"structure.reference: {ref!r} is not {'one' if byname else 'any'} of the structures "
-                             f"found; found: {', '.join(labels)}")
+        # a name shared by several structures (their arrangements) is the first of them in
+        # enumeration order; a label names one
+        byname = [lab for lab, s in zip(labels, kept) if ref in names_of(s)]
+        if not byname:
+            raise StudyError(f"structure.reference: {ref!r} is not any of the structures found; found: "
+                             f"{', '.join(labels)}")
         ref = byname[0]
     desc = _combined(found.motion, labels, kept)
     digest = hashlib.sha1(json.dumps(desc, sort_keys=True).encode()).hexdigest()[:10]

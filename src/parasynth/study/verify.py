@@ -20,7 +20,9 @@ follows how the measure's value depends on the points it is computed on
 
 Besides the study's constraints, every design must be controlled at its home pose: the
 singularity margin (:meth:`parasynth.model.mechanism.Mechanism.singularity_margin`, the least
-singular value of the normalised wrench system) at home at least :data:`SINGULARITY_FLOOR`.
+singular value of the normalised wrench system) at home at least :data:`SINGULARITY_FLOOR`
+(defined in :mod:`parasynth.measures.usable`, the one floor of parasynth, re-exported here;
+``evaluation.singularity_floor`` of a study overrides it).
 A margin of ~1e-16 is a layout singular by symmetry (a regular pentagon of five limbs); the
 shipped paper designs have 0.016 (2-RPU&2-SPS) to 0.59 (6-UPS).
 
@@ -38,13 +40,12 @@ import numpy as np
 from ..measures.display import fmt_number, fmt_quantity, quantity_unit
 from ..measures.objectives import get as get_measure
 from ..measures.task import task_evaluation, task_margin_min
+from ..measures.usable import SINGULARITY_FLOOR  # the one floor (a study's evaluation.singularity_floor overrides it)
 from .design import design_mechanism, design_task, evaluation_sample, measure_arguments
 
 __all__ = ["Check", "Verification", "verify", "estimate_of", "home_margin_check", "SINGULARITY_FLOOR", "EXTREME_RTOL",
            "NOISE_Z", "STATISTIC_RTOL", "VERIFY_LIMIT"]
 
-#: The least singularity margin at the home pose of a design that may be recommended.
-SINGULARITY_FLOOR = 1e-3
 #: Tolerance of an ``extreme`` measure (a least or largest value over the points), as a share of
 #: its bound's magnitude: the worst re-evaluation seed may fall short of the bound by this much.
 EXTREME_RTOL = 0.05
