@@ -727,6 +727,9 @@ def build_program(mech, margin_exprs: dict, twist: bool = False) -> Program:
     ``margin_exprs`` ({constraint name: Expression}) and, with ``twist``, the twist map.
     Raises :class:`Untranslatable`."""
     task = mech.description.task
+    if getattr(task, "solve", None) is not None:
+        raise Untranslatable(f"task.solve (the unknowns {', '.join(task.solve.names)} solved on the legs' closure "
+                             f"equations run on the NumPy path)")
     penv = mech._penv
     g = Graph()
     names = tuple(task.names)

@@ -1,0 +1,169 @@
+"""Parasitic (dependent) pose coordinates solved on the legs' closure equations: the NumPy
+reference.
+
+A leg whose joints leave the platform fewer than six freedoms can follow a pose only if the
+pose satisfies its *closure equations*: scalar functions of the platform pose that vanish where
+the leg assembles. A mechanism whose task coordinates are only some of the pose coordinates
+(``z, alpha, beta`` of a 3-RPS) states the others (``x, y, gamma``) as *unknowns* found by a
+Gauss-Newton solve of all legs' closure equations at each pose (docs/structures.md, "Parasitic
+motion").
+
+Closure equations of the leg models of :mod:`parasynth.model.legs` (``A`` the platform anchor,
+``B`` the base anchor, ``n`` the unit leg direction, lengths divided by the length scale ``L``):
+
+* RPS, PRS: the sphere lies in the plane of the revolute joint, ``(A - B) . r_axis / L = 0``;
+* RPU: the same, and the platform axis of the universal joint is normal to the revolute axis,
+  ``(R u_platform_axis) . r_axis = 0``;
+* UPU: the two cross axes of the universal joints (normal to the leg) are parallel, i.e. the
+  base axis, the leg and the platform axis are coplanar, ``det(u_axis, n, R u_platform_axis) =
+  0`` (the assumption of Tsai's 3-UPU: both intermediate axes fixed parallel on the leg);
+* SPS, UPS, PUS, RUS: none (six-freedom chains).
+
+:func:`closure_residuals` evaluates them; :func:`gauss_newton` solves a batch of square or
+over-determined systems with a numerical Jacobian; :func:`implicit_gradient` gives the
+derivative of the solved unknowns with respect to the task coordinates (implicit function
+theorem), so that twist maps and Jacobians follow the solved motion.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .spatial import dot_rows, rotate_rows
+
+__all__ = ["CLOSURE_COUNTS", "closure_count", "closure_residuals", "gauss_newton", "implicit_gradient",
+           "ParasiticError", "SOLVE_TOL", "SOLVE_ITERATIONS"]
+
+#: Closure equations per leg type (see the module docstring).
+CLOSURE_COUNTS = {"SPS": 0, "UPS": 0, "PUS": 0, "RUS": 0, "RPS": 1, "PRS": 1, "RPU": 2, "UPU": 1}
+#: Convergence tolerance on the largest scaled residual (dimensionless).
+SOLVE_TOL = 1e-12
+#: Largest number of Gauss-Newton iterations.
+SOLVE_ITERATIONS = 40
+
+
+class ParasiticError(ValueError):
+    """A leg whose closure equations are not known, or a system that cannot be solved."""
+
+
+def closure_count(leg) -> int:
+    """Number of closure equations of ``leg`` (by its joint string)."""
+    try:
+        return CLOSURE_COUNTS[leg.joints]
+    except KeyError:
+        raise ParasiticError(f"leg {leg.name}: no closure equations for leg type {leg.joints!r}; known: "
+                             f"{', '.join(CLOSURE_COUNTS)}") from None
+
+
+def _leg_residuals(leg, p, R, L):
+    A = leg.platform_points(p, R)
+    j = leg.joints
+    if j in ("RPS", "RPU"):
+        out = [dot_rows(A - leg.base, leg.r_axis) / L]
+        if j == "RPU":
+            out.append(dot_rows(rotate_rows(R, leg.u_platform_axis), leg.r_axis))
+        return out
+    if j == "PRS":
+        return [dot_rows(A - leg.base, leg.r_axis) / L]
+    if j == "UPU":
+        d = A - leg.base
+        n = d / np.maximum(np.linalg.norm(d, axis=-1, keepdims=True), 1e-300)
+        a4 = rotate_rows(R, leg.u_platform_axis)
+        return [np.einsum("ij,ij->i", np.cross(np.broadcast_to(leg.u_axis, n.shape), n), a4)]
+    if closure_count(leg) == 0:
+        return []
+    raise ParasiticError(f"leg {leg.name}: closure equations of {j!r} are not implemented")  # pragma: no cover
+
+
+def closure_residuals(legs, p, R, L: float) -> np.ndarray:
+    """The closure equations of every leg at poses ``p`` (N, 3), ``R`` (N, 3, 3): (N, k),
+    dimensionless (lengths divided by ``L``)."""
+    p = np.asarray(p, dtype=float)
+    cols = []
+    for leg in legs:
+        cols += _leg_residuals(leg, p, R, float(L))
+    if not cols:
+        return np.zeros((p.shape[0], 0))
+    return np.stack(cols, axis=-1)
+
+
+def _jacobian(fun, X, U, F0, h):
+    """dF/dU (N, k, m) by central differences of step ``h`` (m,)."""
+    N, m = U.shape
+    J = np.empty(F0.shape + (m,))
+    for j in range(m):
+        e = np.zeros(m)
+        e[j] = h[j]
+        J[..., j] = (fun(X, U + e) - fun(X, U - e)) / (2.0 * h[j])
+    return J
+
+
+def gauss_newton(fun, X, U0, scale, tol: float = SOLVE_TOL, iterations: int = SOLVE_ITERATIONS):
+    """Solve ``fun(X, U) = 0`` for the unknowns ``U`` (N, m) from ``U0`` at each row of ``X``.
+
+    ``fun(X, U)`` returns (N, k) residuals, k >= m (a consistent over-determined system is
+    solved in the least-squares sense); ``scale`` (m,) is each unknown's magnitude (the length
+    scale for lengths, 1 for angles), used for the difference steps and to limit each step to
+    half a scale (a damped Newton). Returns ``(U, converged)``; rows that do not converge to
+    ``tol`` are NaN and ``converged`` False."""
+    X = np.asarray(X, dtype=float)
+    U = np.array(np.broadcast_to(U0, (X.shape[0], len(scale))), dtype=float)
+    scale = np.asarray(scale, dtype=float)
+    h = 1e-7 * scale
+    done = np.zeros(X.shape[0], dtype=bool)
+    if U.shape[1] == 0:
+        return U, np.ones(X.shape[0], dtype=bool)
+    with np.errstate(all="ignore"):
+        for _ in range(iterations):
+            act = np.flatnonzero(~done)
+            if not act.size:
+                break
+            Xa, Ua = X[act], U[act]
+            F = fun(Xa, Ua)
+            ok = np.all(np.abs(F) <= tol, axis=-1)
+            done[act[ok]] = True
+            act, Xa, Ua, F = act[~ok], Xa[~ok], Ua[~ok], F[~ok]
+            if not act.size:
+                break
+            J = _jacobian(fun, Xa, Ua, F, h) * scale  # in scaled unknowns
+            step = np.full(Ua.shape, np.nan)
+            good = np.all(np.isfinite(J), axis=(1, 2)) & np.all(np.isfinite(F), axis=1)
+            if np.any(good):
+                # least squares per row (pinv handles k > m; a rank-deficient row gets NaN below)
+                Jg, Fg = J[good], F[good]
+                s = np.linalg.svd(Jg, compute_uv=False)
+                rank_ok = s[:, -1] > 1e-10 * np.maximum(s[:, 0], 1e-300)
+                dz = -np.einsum("nij,nj->ni", np.linalg.pinv(Jg), Fg)
+                big = np.max(np.abs(dz), axis=-1, keepdims=True)
+                dz = dz * np.minimum(1.0, 0.5 / np.maximum(big, 1e-300))
+                dz[~rank_ok] = np.nan
+                step[good] = dz
+            U[act] = Ua + step * scale
+        F = fun(X, U)
+        done = np.all(np.abs(F) <= tol * 10.0, axis=-1) & np.all(np.isfinite(U), axis=-1)
+    U[~done] = np.nan
+    return U, done
+
+
+def implicit_gradient(fun, X, U, xscale, uscale) -> np.ndarray:
+    """dU/dX (N, m, n) of the solution ``U`` of ``fun(X, U) = 0``: ``-pinv(F_U) F_X`` with both
+    Jacobians by central differences (steps 1e-6 of ``xscale`` (n,) and ``uscale`` (m,))."""
+    X = np.asarray(X, dtype=float)
+    N, n = X.shape
+    m = U.shape[1]
+    if m == 0:
+        return np.zeros((N, 0, n))
+    with np.errstate(all="ignore"):
+        F0 = fun(X, U)
+        FU = _jacobian(fun, X, U, F0, 1e-6 * np.asarray(uscale, dtype=float))
+        hx = 1e-6 * np.asarray(xscale, dtype=float)
+        FX = np.empty(F0.shape + (n,))
+        for j in range(n):
+            e = np.zeros(n)
+            e[j] = hx[j]
+            FX[..., j] = (fun(X + e, U) - fun(X - e, U)) / (2.0 * hx[j])
+        ok = np.all(np.isfinite(FU), axis=(1, 2)) & np.all(np.isfinite(FX), axis=(1, 2))
+        G = np.full((N, m, n), np.nan)
+        if np.any(ok):
+            G[ok] = -np.linalg.pinv(FU[ok]) @ FX[ok]
+    return G
