@@ -129,15 +129,12 @@ def gauss_newton(fun, X, U0, scale, tol: float = SOLVE_TOL, iterations: int = SO
             step = np.full(Ua.shape, np.nan)
             good = np.all(np.isfinite(J), axis=(1, 2)) & np.all(np.isfinite(F), axis=1)
             if np.any(good):
-                # least squares per row (pinv handles k > m; a rank-deficient row gets NaN below)
+                # least squares, minimum-norm step (pinv: k > m, k < m and dependent equations alike;
+                # a row that does not converge is NaN at the end)
                 Jg, Fg = J[good], F[good]
-                s = np.linalg.svd(Jg, compute_uv=False)
-                rank_ok = s[:, -1] > 1e-10 * np.maximum(s[:, 0], 1e-300)
-                dz = -np.einsum("nij,nj->ni", np.linalg.pinv(Jg), Fg)
+                dz = -np.einsum("nij,nj->ni", np.linalg.pinv(Jg, rcond=1e-10), Fg)
                 big = np.max(np.abs(dz), axis=-1, keepdims=True)
-                dz = dz * np.minimum(1.0, 0.5 / np.maximum(big, 1e-300))
-                dz[~rank_ok] = np.nan
-                step[good] = dz
+                step[good] = dz * np.minimum(1.0, 0.5 / np.maximum(big, 1e-300))
             U[act] = Ua + step * scale
         F = fun(X, U)
         done = np.all(np.abs(F) <= tol * 10.0, axis=-1) & np.all(np.isfinite(U), axis=-1)

@@ -24,6 +24,7 @@ import numpy as np
 
 from ..common.validation import MAX_LEGS, MAX_SEED, InputError, check_count, is_real_number
 from ..mechanisms import described_class
+from .motion import candidate_rule
 from .vocabulary import (ARRANGEMENTS, CHECKS, LIMB_TYPES, PARAMETERS, TEMPLATES, StructureError, StructureWarning,
                          limb_type, parse_motion)
 
@@ -34,8 +35,8 @@ __all__ = ["Group", "Structure", "StructureList", "structures", "DROP_REASONS", 
 DROP_REASONS = {
     "duplicate": "isomorphic to a candidate enumerated before it (same multiset of limbs, joints, actuation "
                  "and arrangement)",
-    "no task rule": "its constraining limbs select no motion template, or several different ones (e.g. the "
-                    "parasitic motion of a 3-RPS ring)",
+    "no task rule": "its constraining limbs select no motion template and no motion can be computed from their "
+                    "closure equations (the reason of each is in ``no_task_rule``)",
     "other axes": "its freedoms are not along the axes required (``axes``)",
     "under-actuated": "fewer actuators than the requested freedoms",
     "over-actuated": "more actuators than the requested freedoms (redundant actuation)",
@@ -369,10 +370,11 @@ class Structure:
 class StructureList(list):
     """The structures found (a list), with ``motion``, ``enumerated`` (candidates generated),
     ``dropped`` ({reason: count}, reasons of :data:`DROP_REASONS`) and ``dropped_names``
-    ({reason: [candidate names]})."""
+    ({reason: [candidate names]}) and ``no_task_rule`` ({candidate name: why no task rule})."""
 
-    def __init__(self, items, motion, enumerated, dropped, dropped_names):
+    def __init__(self, items, motion, enumerated, dropped, dropped_names, no_task_rule=None):
         super().__init__(items)
+        self.no_task_rule = dict(no_task_rule or {})
         self.motion = motion
         self.enumerated = enumerated
         self.dropped = dropped
@@ -568,6 +570,8 @@ def structures(motion, *, leg_types=None, legs=None, axes=None, all_axes: bool =
                           f"{'those counts add nothing' if len(none) < len(legs) else 'nothing is enumerated'}",
                           StructureWarning, stacklevel=2)
 
+    no_rule = {}
+
     def drop(reason, c):
         dropped[reason] += 1
         dropped_names[reason].append(c.name)
@@ -581,9 +585,12 @@ def structures(motion, *, leg_types=None, legs=None, axes=None, all_axes: bool =
             continue
         seen.add(key)
         template = c.template()
-        if template is None:
-            drop("no task rule", c)
-            continue
+        if template is None:  # the motion computed from the limbs' closure equations (structures/motion.py)
+            template, why = candidate_rule(c.groups, lambda t, c=c: _description(c, t, "rule"))
+            if template is None:
+                drop("no task rule", c)
+                no_rule[c.name] = why
+                continue
         if want_axes is not None and template.motion == motion and not _axes_match(template, want_axes):
             drop("other axes", c)
             continue
@@ -592,6 +599,9 @@ def structures(motion, *, leg_types=None, legs=None, axes=None, all_axes: bool =
             continue
         if c.n_actuated > dof:
             drop("over-actuated", c)
+            continue
+        if template.name == "solved" and template.motion != motion:
+            drop("wrong motion", c)
             continue
         to_check.append((c, key, template))
     if len(to_check) * n_poses > MAX_POSE_CHECKS:
@@ -617,4 +627,4 @@ def structures(motion, *, leg_types=None, legs=None, axes=None, all_axes: bool =
             controlled_poses=det["controlled"])
         s._cls.append(cls)
         found.append(s)
-    return StructureList(found, motion, len(cands), dropped, dropped_names)
+    return StructureList(found, motion, len(cands), dropped, dropped_names, no_rule)
