@@ -15,7 +15,8 @@ pose (each closure equation's gradient is the work of a constraint wrench). So:
 3. the ``r`` dependent coordinates are the columns of the Jacobian that are best conditioned
    (largest smallest singular value); among those within a factor 2 of the best, the
    independent coordinates come first in the order ``z, alpha, beta, x, y, gamma`` (the
-   height and the tilts are the usual task coordinates, as z, alpha, beta of the 3-RPS);
+   height and the tilts are the usual task coordinates, as z, alpha, beta of the 3-RPS); the
+   task coordinates are then written in the order ``x, y, z, alpha, beta, gamma``;
 4. the task section states the independent coordinates (home at the nominal values, ranges of
    the ``free`` template) and ``task.solve`` with the dependent ones, started from their values
    at the home pose.
@@ -109,11 +110,8 @@ def motion_rule(description: dict) -> MotionRule:
                          "z = height, level platform)")
     V = V[0]
     # the closure Jacobian at the assembled pose, in scaled coordinates
-    J = np.empty((k, 6))
-    for j in range(6):
-        e = np.zeros(6)
-        e[j] = 1e-6 * scale[j]
-        J[:, j] = (fun(None, (V + e)[None])[0] - fun(None, (V - e)[None])[0]) / 2e-6
+    E = np.diag(1e-6 * scale)
+    J = ((fun(None, V + E) - fun(None, V - E)) / 2e-6).T  # (k, 6)
     s = np.linalg.svd(J, compute_uv=False)
     r = int(np.sum(s > _RANK_TOL * max(s[0], 1e-300)))
     if r == 6:
@@ -132,7 +130,7 @@ def motion_rule(description: dict) -> MotionRule:
         raise NoTaskRule("no set of dependent coordinates solves the closure equations at home")
     sm, _, D = min((sc for sc in scored if sc[0] >= 0.5 * best), key=lambda sc: sc[1])
     dep = tuple(names[j] for j in D)
-    ind = tuple(c for c in PREFERENCE if c not in dep)
+    ind = tuple(c for c in names if c not in dep)  # in the order x, y, z, alpha, beta, gamma
     # the motion type: freedoms = null space of J (scaled), angular part through the rate map
     _, _, Vt = np.linalg.svd(J)
     N = Vt[r:].T / scale[:, None]  # (6, 6 - r) coordinate rates

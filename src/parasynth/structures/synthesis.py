@@ -36,7 +36,8 @@ DROP_REASONS = {
     "duplicate": "isomorphic to a candidate enumerated before it (same multiset of limbs, joints, actuation "
                  "and arrangement)",
     "no task rule": "its constraining limbs select no motion template and no motion can be computed from their "
-                    "closure equations (the reason of each is in ``no_task_rule``)",
+                    "closure equations (the reason of each is in ``no_task_rule``; computed only for a candidate "
+                    "with as many actuators as freedoms)",
     "other axes": "its freedoms are not along the axes required (``axes``)",
     "under-actuated": "fewer actuators than the requested freedoms",
     "over-actuated": "more actuators than the requested freedoms (redundant actuation)",
@@ -370,7 +371,8 @@ class Structure:
 class StructureList(list):
     """The structures found (a list), with ``motion``, ``enumerated`` (candidates generated),
     ``dropped`` ({reason: count}, reasons of :data:`DROP_REASONS`) and ``dropped_names``
-    ({reason: [candidate names]}) and ``no_task_rule`` ({candidate name: why no task rule})."""
+    ({reason: [candidate names]}) and ``no_task_rule`` ({"name [arrangement]": why it has no task
+    rule})."""
 
     def __init__(self, items, motion, enumerated, dropped, dropped_names, no_task_rule=None):
         super().__init__(items)
@@ -585,13 +587,19 @@ def structures(motion, *, leg_types=None, legs=None, axes=None, all_axes: bool =
             continue
         seen.add(key)
         template = c.template()
-        if template is None:  # the motion computed from the limbs' closure equations (structures/motion.py)
+        if template is None and c.n_actuated == dof:
+            # the motion computed from the limbs' closure equations (structures/motion.py), only for
+            # a candidate with as many actuators as freedoms: the others are dropped below by count
             template, why = candidate_rule(c.groups, lambda t, c=c: _description(c, t, "rule"))
             if template is None:
                 drop("no task rule", c)
-                no_rule[c.name] = why
+                no_rule[f"{c.name} [{'; '.join(g.label() for g in c.groups)}]"] = why
                 continue
-        if want_axes is not None and template.motion == motion and not _axes_match(template, want_axes):
+            if template.motion != motion:
+                drop("wrong motion", c)
+                continue
+        if template is not None and want_axes is not None and template.motion == motion \
+                and not _axes_match(template, want_axes):
             drop("other axes", c)
             continue
         if c.n_actuated < dof:
@@ -599,9 +607,6 @@ def structures(motion, *, leg_types=None, legs=None, axes=None, all_axes: bool =
             continue
         if c.n_actuated > dof:
             drop("over-actuated", c)
-            continue
-        if template.name == "solved" and template.motion != motion:
-            drop("wrong motion", c)
             continue
         to_check.append((c, key, template))
     if len(to_check) * n_poses > MAX_POSE_CHECKS:
