@@ -31,9 +31,13 @@ import numpy as np
 
 from .spatial import dot_rows, rotate_rows
 
-__all__ = ["CLOSURE_COUNTS", "closure_count", "closure_residuals", "gauss_newton", "implicit_gradient",
-           "ParasiticError", "SOLVE_TOL", "SOLVE_ITERATIONS"]
+__all__ = ["CLOSURE_COUNTS", "closure_count", "closure_residuals", "closure_geometry", "GEOMETRY_WIDTH", "gauss_newton", "implicit_gradient",
+           "ParasiticError", "SOLVE_KEY", "SOLVE_TOL", "SOLVE_ITERATIONS"]
 
+#: The entry of a described mechanism's parameter environment that holds its task.solve data
+#: (length scale, home solution, scales of the unknowns, :func:`closure_geometry`): the compiled
+#: solve's parameter slots. Not a name an expression can use.
+SOLVE_KEY = "__solve__"
 #: Closure equations per leg type (see the module docstring).
 CLOSURE_COUNTS = {"SPS": 0, "UPS": 0, "PUS": 0, "RUS": 0, "RPS": 1, "PRS": 1, "RPU": 2, "UPU": 1}
 #: Convergence tolerance on the largest scaled residual (dimensionless).
@@ -53,6 +57,25 @@ def closure_count(leg) -> int:
     except KeyError:
         raise ParasiticError(f"leg {leg.name}: no closure equations for leg type {leg.joints!r}; known: "
                              f"{', '.join(CLOSURE_COUNTS)}") from None
+
+
+#: Numbers per leg in :func:`closure_geometry`.
+GEOMETRY_WIDTH = 12
+
+
+def closure_geometry(legs) -> np.ndarray:
+    """The legs' closure geometry as one flat array, per leg (in order) its base anchor, platform
+    anchor (platform frame), first axis and second axis (12 numbers; the axes are ``r_axis`` and
+    ``u_platform_axis`` of RPS, PRS and RPU, ``u_axis`` and ``u_platform_axis`` of UPU, zeros
+    where a leg has none): what the compiled solve reads (:mod:`parasynth.engine.parasitic`)."""
+    rows = []
+    for leg in legs:
+        closure_count(leg)
+        a1 = getattr(leg, "u_axis" if leg.joints == "UPU" else "r_axis", None)
+        a2 = getattr(leg, "u_platform_axis", None)
+        z = np.zeros(3)
+        rows.append(np.concatenate([leg.base, leg.platform, z if a1 is None else a1, z if a2 is None else a2]))
+    return np.concatenate(rows) if rows else np.zeros(0)
 
 
 def _leg_residuals(leg, p, R, L):
@@ -104,8 +127,9 @@ def gauss_newton(fun, X, U0, scale, tol: float = SOLVE_TOL, iterations: int = SO
     ``fun(X, U)`` returns (N, k) residuals, k >= m (a consistent over-determined system is
     solved in the least-squares sense); ``scale`` (m,) is each unknown's magnitude (the length
     scale for lengths, 1 for angles), used for the difference steps and to limit each step to
-    half a scale (a damped Newton). Returns ``(U, converged)``; rows that do not converge to
-    ``tol`` are NaN and ``converged`` False."""
+    half a scale (a damped Newton); a row whose residuals are within ``tol`` takes one more step
+    (to the rounding floor). Returns ``(U, converged)``; rows that do not converge to ``tol`` are
+    NaN and ``converged`` False."""
     X = np.asarray(X, dtype=float)
     U = np.array(np.broadcast_to(U0, (X.shape[0], len(scale))), dtype=float)
     scale = np.asarray(scale, dtype=float)
@@ -120,11 +144,9 @@ def gauss_newton(fun, X, U0, scale, tol: float = SOLVE_TOL, iterations: int = SO
                 break
             Xa, Ua = X[act], U[act]
             F = fun(Xa, Ua)
-            ok = np.all(np.abs(F) <= tol, axis=-1)
-            done[act[ok]] = True
-            act, Xa, Ua, F = act[~ok], Xa[~ok], Ua[~ok], F[~ok]
-            if not act.size:
-                break
+            # a row within tol takes this one more step (to the rounding floor: the compiled solve
+            # iterates on, and the two agree to rounding) and is then done
+            done[act[np.all(np.abs(F) <= tol, axis=-1)]] = True
             J = _jacobian(fun, Xa, Ua, F, h) * scale  # in scaled unknowns
             step = np.full(Ua.shape, np.nan)
             good = np.all(np.isfinite(J), axis=(1, 2)) & np.all(np.isfinite(F), axis=1)
@@ -142,23 +164,32 @@ def gauss_newton(fun, X, U0, scale, tol: float = SOLVE_TOL, iterations: int = SO
     return U, done
 
 
+def _stencil(fun, X, U, which, h):
+    """d fun / d (X or U) (N, k, n) by the five-point central difference of step ``h`` (n,)
+    (truncation ~h^4, rounding ~eps/h: ~1e-13 with h = 1e-3 of the scale)."""
+    V = X if which == "x" else U
+    N, n = V.shape
+    E = np.concatenate([np.diag(h) * c for c in (-2.0, -1.0, 1.0, 2.0)])  # (4n, n)
+    Vp = (V[None] + E[:, None, :]).reshape(4 * n * N, n)
+    other = U if which == "x" else X
+    Op = np.broadcast_to(other[None], (4 * n,) + other.shape).reshape((4 * n * N,) + other.shape[1:])
+    F = (fun(Vp, Op) if which == "x" else fun(Op, Vp)).reshape(4, n, N, -1)
+    D = (F[0] - 8.0 * F[1] + 8.0 * F[2] - F[3]) / (12.0 * h[:, None, None])  # (n, N, k)
+    return np.moveaxis(D, 0, -1)
+
+
 def implicit_gradient(fun, X, U, xscale, uscale) -> np.ndarray:
     """dU/dX (N, m, n) of the solution ``U`` of ``fun(X, U) = 0``: ``-pinv(F_U) F_X`` with both
-    Jacobians by central differences (steps 1e-6 of ``xscale`` (n,) and ``uscale`` (m,))."""
+    Jacobians by five-point central differences (steps 1e-3 of ``xscale`` (n,) and ``uscale``
+    (m,))."""
     X = np.asarray(X, dtype=float)
     N, n = X.shape
     m = U.shape[1]
     if m == 0:
         return np.zeros((N, 0, n))
     with np.errstate(all="ignore"):
-        F0 = fun(X, U)
-        FU = _jacobian(fun, X, U, F0, 1e-6 * np.asarray(uscale, dtype=float))
-        hx = 1e-6 * np.asarray(xscale, dtype=float)
-        E = np.concatenate([np.diag(hx), -np.diag(hx)])  # (2n, n)
-        Xp = (X[None] + E[:, None, :]).reshape(2 * n * N, n)
-        Up = np.broadcast_to(U[None], (2 * n,) + U.shape).reshape(2 * n * N, m)
-        Fp = fun(Xp, Up).reshape(2 * n, N, -1)
-        FX = np.moveaxis((Fp[:n] - Fp[n:]) / (2.0 * hx[:, None, None]), 0, -1)
+        FU = _stencil(fun, X, U, "u", 1e-3 * np.asarray(uscale, dtype=float))
+        FX = _stencil(fun, X, U, "x", 1e-3 * np.asarray(xscale, dtype=float))
         ok = np.all(np.isfinite(FU), axis=(1, 2)) & np.all(np.isfinite(FX), axis=(1, 2))
         G = np.full((N, m, n), np.nan)
         if np.any(ok):

@@ -16,7 +16,7 @@ import numpy as np
 from ... import engine as _engine
 from ...model.legs import solve_geometry
 from ...model.mechanism import Mechanism, Mobility
-from ...model.parasitic import closure_residuals, gauss_newton, implicit_gradient
+from ...model.parasitic import SOLVE_KEY, closure_geometry, closure_residuals, gauss_newton, implicit_gradient
 from ...model.spatial import euler_rate_map, euler_to_matrix, reciprocal_basis, rot_axis, skew
 from ...common.units import UNIT_KINDS
 from .errors import DescriptionError, DescriptionWarning
@@ -132,6 +132,11 @@ class DescribedMechanism(Mechanism):
             raise DescriptionError(f"{self.name}: task.solve: the legs' closure equations have no solution near "
                                    f"task.solve.start at the home pose {self.home.tolist()}")
         self._solve_U0 = U[0]
+        # what the compiled solve reads as parameter slots (engine/parasitic.py): the length scale,
+        # the home solution, the unknowns' scales and the legs' closure geometry
+        self._penv = dict(self._penv)
+        self._penv[SOLVE_KEY] = np.concatenate([[float(L)], self._solve_U0, self._solve_uscale,
+                                                closure_geometry(legs)])
 
     def _closure(self, X, U):
         """The legs' closure residuals (N, k) at task coordinates X with the unknowns U."""
