@@ -227,7 +227,10 @@ def test_no_task_rule_is_rare_and_says_why():
 def test_motion_rule_refuses_with_a_reason():
     from parasynth.structures.synthesis import Group, _Candidate, _description
     from parasynth.structures.vocabulary import TEMPLATES
-    c = _Candidate((Group("UPU", 3, True, "regular", (("u_axis", "tangent"), ("u_platform_axis", "z"))),))
+    # a 3-RPS ring turns the platform by -platform_twist, a central UPU with its axes along y
+    # keeps it from turning: no assembly near home
+    c = _Candidate((Group("RPS", 3, True, "regular", (("r_axis", "tangent"),)),
+                    Group("UPU", 1, False, "central", (("u_axis", "y"), ("u_platform_axis", "y")))))
     with pytest.raises(NoTaskRule, match="no solution near the nominal home"):
         motion_rule(_description(c, TEMPLATES["free"], "t"))
     c = _Candidate((Group("SPS", 6, True, "paired", ()),))

@@ -8,7 +8,8 @@ respect to the six coordinates spans the same space as the limbs' constraint wre
 pose (each closure equation's gradient is the work of a constraint wrench). So:
 
 1. a pose near the nominal home (``x = y = 0``, ``z = height``, level) where every limb
-   assembles is found by a minimum-norm Gauss-Newton solve over all six coordinates;
+   assembles is found by a minimum-norm Gauss-Newton solve over the coordinates but z (the
+   height kept), or, failing that, over all six;
 2. there the rank ``r`` of the closure Jacobian (lengths scaled by the length scale) counts the
    constraints, and ``6 - r`` is the number of freedoms; the motion type is ``nT mR`` with ``m``
    the rank of the rotational part of the freedoms' twists;
@@ -103,12 +104,25 @@ def motion_rule(description: dict) -> MotionRule:
         return closure_residuals(legs, p, R, L)
 
     V0 = np.asarray(home, dtype=float)  # the free template's nominal home: x, y, z, alpha, beta, gamma
-    with np.errstate(all="ignore"):
-        V, ok = gauss_newton(fun, np.zeros((1, 0)), V0, scale)
+    # assemble with z at the nominal height first (a minimum-norm step may otherwise trade the
+    # height for the closure, e.g. UPU legs turned vertical), then over all six coordinates
+    for free_idx in ([0, 1, 3, 4, 5], [0, 1, 2, 3, 4, 5]):
+        fi = np.array(free_idx)
+
+        def fun_free(X, U, fi=fi):
+            W = np.broadcast_to(V0, (U.shape[0], 6)).copy()
+            W[:, fi] = U
+            return fun(None, W)
+
+        with np.errstate(all="ignore"):
+            Uf, ok = gauss_newton(fun_free, np.zeros((1, 0)), V0[fi], scale[fi])
+        if ok[0]:
+            V = V0.copy()
+            V[fi] = Uf[0]
+            break
     if not ok[0]:
         raise NoTaskRule("the limbs' closure equations have no solution near the nominal home (x = y = 0, "
                          "z = height, level platform)")
-    V = V[0]
     # the closure Jacobian at the assembled pose, in scaled coordinates
     E = np.diag(1e-6 * scale)
     J = ((fun(None, V + E) - fun(None, V - E)) / 2e-6).T  # (k, 6)
