@@ -106,12 +106,20 @@ class _Subst:
 
 
 def _normal_solve(g, J, F):
-    """Nodes of ``z`` with ``(J^T J) z = J^T F`` (J: k x m nodes, F: k nodes, or k x c for several
-    right-hand sides) by Cholesky; m small."""
+    """Nodes of ``z`` with ``(J^T J + mu I) z = J^T F`` (J: k x m nodes, F: k nodes, or k x c for
+    several right-hand sides) by Cholesky; m small."""
     m = len(J[0])
     cols = F if isinstance(F[0], list) else [[f] for f in F]
     c = len(cols[0])
     A = [[_dot(g, [row[i] for row in J], [row[j] for row in J]) for j in range(m)] for i in range(m)]
+    # Levenberg-Marquardt's tiny damping, 1e-12 of the mean diagonal: a rank-deficient J (a
+    # degenerate pose, dependent equations) gives a finite step, nearly the reference's
+    # minimum-norm one; a full-rank J a step unchanged to ~1e-12
+    tr = A[0][0]
+    for i in range(1, m):
+        tr = g.add(tr, A[i][i])
+    mu = g.add(g.mul(tr, g.const(1e-12 / m)), g.const(1e-300))
+    A = [[g.add(A[i][j], mu) if i == j else A[i][j] for j in range(m)] for i in range(m)]
     B = [[_dot(g, [row[i] for row in J], [r[q] for r in cols]) for q in range(c)] for i in range(m)]
     Lc = [[None] * m for _ in range(m)]
     for i in range(m):
