@@ -37,7 +37,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..mechanisms.description import Description
+from ..mechanisms import parse_description
 from ..model.parasitic import ParasiticError, closure_count, closure_residuals, gauss_newton
 from ..model.spatial import euler_rate_map, euler_to_matrix
 from .vocabulary import TEMPLATES
@@ -88,7 +88,7 @@ def motion_rule(description: dict) -> MotionRule:
     desc = dict(description)
     desc["task"] = dict(free.task)
     try:
-        d = Description(desc, description.get("name"))
+        d = parse_description(desc, description.get("name"))
         penv = {p.name: (np.float64(p.default) if p.shape == () else np.asarray(p.default, dtype=float))
                 for p in d.params}
         legs, home, L = d.build_geometry(penv)
