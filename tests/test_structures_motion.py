@@ -276,3 +276,11 @@ def test_structure_yaml_round_trip(tmp_path):
     p1, R1 = m._pose(X[None])
     assert np.allclose(p0, p1, atol=1e-12) and np.allclose(R0, R1, atol=1e-12)
     assert "solve" in s.description["task"]
+
+
+def test_forward_kinematics_of_a_solved_structure_inverts_its_inverse_kinematics():
+    s = _by_name(_found("1T2R"), "3-PRS")
+    m = s.mechanism()
+    X = m.home + np.array([0.02, 0.12, -0.08])
+    q = m.inverse_kinematics(X[None]).actuators[0]
+    assert np.allclose(m.forward_kinematics(q), X, atol=1e-9)
