@@ -3,6 +3,7 @@
 shipped 3-RPS and 3-PRS, finite differences and bad input."""
 
 import copy
+import re
 import warnings
 
 import numpy as np
@@ -142,6 +143,13 @@ def test_unreachable_pose_is_invalid():
     (lambda t: t["solve"].update(closure="equations"), "task.solve.closure: 'equations' is not allowed; allowed: legs"),
     (lambda t: t["solve"].update(start={"q": "0 mm"}), "task.solve.start.q: not an unknown"),
     (lambda t: t["solve"].update(extra=1), "task.solve"),
+    (lambda t: (t["solve"].update(unknowns={"x": "length", "y": "length", "gamma": "angle", "q": "length"}),
+                t.update(position=["x + 0*q", "y", "z"])),
+     "task.solve.unknowns: 4 unknowns (x, y, gamma, q) but the legs give 3 closure equation(s); allowed: at most 3"),
+    (lambda t: (t["solve"].update(unknowns={"x": "length", "y": "length", "q": "length"}),
+                t.update(position=["x + 0*q", "y", "z"]),
+                t["orientation"].update(angles=["alpha", "beta", "-atan2(sin(alpha)*sin(beta), cos(alpha) + cos(beta))"])),
+     "task.solve.unknowns: the closure equations fix only 2 of the 3 unknowns"),
     (lambda t: t["solve"].update(start={"x": "2000 mm"}, unknowns={"x": "length", "y": "length", "gamma": "angle"}),
      None),
 ])
@@ -156,5 +164,5 @@ def test_bad_solve_input(edit, message):
         else:
             assert np.isfinite(m.solved_unknowns(m.home[None])).all()
         return
-    with pytest.raises(DescriptionError, match=message.replace("(", r"\(").replace("[", r"\[")):
+    with pytest.raises(DescriptionError, match=re.escape(message)):
         described_class(d, source="t")()

@@ -31,7 +31,7 @@ import numpy as np
 
 from .spatial import dot_rows, rotate_rows
 
-__all__ = ["CLOSURE_COUNTS", "closure_count", "closure_residuals", "closure_geometry", "GEOMETRY_WIDTH", "gauss_newton", "implicit_gradient",
+__all__ = ["CLOSURE_COUNTS", "closure_count", "closure_residuals", "closure_geometry", "closure_jacobian", "GEOMETRY_WIDTH", "gauss_newton", "implicit_gradient",
            "ParasiticError", "SOLVE_KEY", "SOLVE_TOL", "SOLVE_ITERATIONS"]
 
 #: The entry of a described mechanism's parameter environment that holds its task.solve data
@@ -176,6 +176,13 @@ def _stencil(fun, X, U, which, h):
     F = (fun(Vp, Op) if which == "x" else fun(Op, Vp)).reshape(4, n, N, -1)
     D = (F[0] - 8.0 * F[1] + 8.0 * F[2] - F[3]) / (12.0 * h[:, None, None])  # (n, N, k)
     return np.moveaxis(D, 0, -1)
+
+
+def closure_jacobian(fun, X, U, uscale) -> np.ndarray:
+    """d fun / d U (N, k, m) in scaled unknowns (five-point differences, steps 1e-3 of ``uscale``)."""
+    uscale = np.asarray(uscale, dtype=float)
+    with np.errstate(all="ignore"):
+        return _stencil(fun, np.asarray(X, dtype=float), U, "u", 1e-3 * uscale) * uscale
 
 
 def implicit_gradient(fun, X, U, xscale, uscale) -> np.ndarray:

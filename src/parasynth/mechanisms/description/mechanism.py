@@ -16,7 +16,8 @@ import numpy as np
 from ... import engine as _engine
 from ...model.legs import solve_geometry
 from ...model.mechanism import Mechanism, Mobility
-from ...model.parasitic import SOLVE_KEY, closure_geometry, closure_residuals, gauss_newton, implicit_gradient
+from ...model.parasitic import (SOLVE_KEY, ParasiticError, closure_count, closure_geometry, closure_jacobian,
+                                closure_residuals, gauss_newton, implicit_gradient)
 from ...model.spatial import euler_rate_map, euler_to_matrix, reciprocal_basis, rot_axis, skew
 from ...common.units import UNIT_KINDS
 from .errors import DescriptionError, DescriptionWarning
@@ -127,11 +128,26 @@ class DescribedMechanism(Mechanism):
         self._solve_xscale = np.array([1.0 if c in ang else L for c in self.task_coordinates])
         self._solve_uscale = np.array([1.0 if k == "angle" else L for _, k in solve.coords])
         self._solve_U0 = np.array([s(self._penv) for s in solve.start], dtype=float)
+        m = len(solve.names)
+        try:
+            k = sum(closure_count(leg) for leg in legs)
+        except ParasiticError as e:
+            raise DescriptionError(f"{self.name}: task.solve: {e}") from None
+        if k < m:
+            raise DescriptionError(f"{self.name}: task.solve.unknowns: {m} unknowns ({', '.join(solve.names)}) but the "
+                                   f"legs give {k} closure equation(s); allowed: at most {k} unknowns")
         U, ok = gauss_newton(self._closure, self.home[None, :], self._solve_U0, self._solve_uscale)
         if not ok[0]:
             raise DescriptionError(f"{self.name}: task.solve: the legs' closure equations have no solution near "
                                    f"task.solve.start at the home pose {self.home.tolist()}")
         self._solve_U0 = U[0]
+        FU = np.linalg.svd(closure_jacobian(self._closure, self.home[None, :], U, self._solve_uscale)[0],
+                           compute_uv=False)
+        rank = int(np.sum(FU > 1e-8 * max(FU[0], 1e-300)))
+        if rank < m:
+            raise DescriptionError(f"{self.name}: task.solve.unknowns: the closure equations fix only {rank} of the "
+                                   f"{m} unknowns ({', '.join(solve.names)}) at the home pose; name as unknowns the "
+                                   f"coordinates the legs' constraints determine")
         # what the compiled solve reads as parameter slots (engine/parasitic.py): the length scale,
         # the home solution, the unknowns' scales and the legs' closure geometry
         self._penv = dict(self._penv)
