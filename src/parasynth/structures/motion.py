@@ -179,7 +179,7 @@ def motion_rule(description: dict) -> MotionRule:
     }
     axes = {"translations": tuple(_AXIS_NAMES[c] for c in ind if kinds[c] == "length"),
             "rotations": tuple(_AXIS_NAMES[c] for c in ind if kinds[c] == "angle")}
-    doc = (f"computed from the limbs: {r} closure equation(s) of rank {r}, independent {', '.join(ind)}, "
+    doc = (f"computed from the limbs: {k} closure equation(s) of rank {r}, independent {', '.join(ind)}, "
            f"dependent {', '.join(dep)} solved by Gauss-Newton (task.solve)")
     return MotionRule("solved", motion, task, axes, doc, ind, dep)
 
