@@ -5,7 +5,8 @@ A candidate is a tuple of limb groups (:class:`Group`): a ring of ``n`` identica
 limbs; a ring plus one passive constraining limb at the centre; or two rings of ``k`` actuated
 limbs of two kinds, interleaved. Each candidate is written as a mechanism description with the
 shared parameters of :data:`~parasynth.structures.vocabulary.PARAMETERS`, its task section taken
-from the motion template its constraining limbs select, then built and checked: the
+from the motion template its constraining limbs select, or else computed from the limbs' closure
+equations (:mod:`parasynth.structures.motion`), then built and checked: the
 screw-theory mobility at random poses of its task box must be the requested motion, and the
 actuators must control it at some pose.
 """
