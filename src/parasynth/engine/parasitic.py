@@ -15,10 +15,11 @@ through the unrolled iterations.
 
 Assumptions, the reference's: the closure equations of :mod:`parasynth.model.parasitic` (RPS,
 PRS, RPU, UPU), their Jacobian in the unknowns of full column rank at the solution (a
-structure's rule chooses the dependent coordinates so); a pose whose solve needs more than
-:data:`ITERATIONS` steps from home is invalid here while the reference (up to 40) may accept it
--- the program's check against the reference (``core._check_program``) refuses the compiled
-path if that happens on its probe poses.
+structure's rule chooses the dependent coordinates so); both take :data:`ITERATIONS` steps from home
+at most (the reference stops early where converged, after one more step); a pose converging only
+later is unreachable on both paths, up to rounding at the tolerance. The program's check against
+the reference (``core._check_program``) refuses the compiled path where they disagree on its
+probe poses.
 
 This module builds graph nodes only; it imports nothing of the engine (the graph and its
 derivative class are passed in).
@@ -26,12 +27,12 @@ derivative class are passed in).
 
 from __future__ import annotations
 
-from ..model.parasitic import CLOSURE_COUNTS, GEOMETRY_WIDTH, SOLVE_TOL
+from ..model.parasitic import CLOSURE_COUNTS, GEOMETRY_WIDTH, SOLVE_ITERATIONS, SOLVE_TOL
 
 __all__ = ["ITERATIONS", "solve_nodes"]
 
-#: Unrolled Gauss-Newton steps of the compiled solve.
-ITERATIONS = 12
+#: Unrolled Gauss-Newton steps of the compiled solve (the reference's budget at a pose).
+ITERATIONS = SOLVE_ITERATIONS
 
 
 def _p(g, key, q):

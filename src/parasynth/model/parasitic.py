@@ -32,7 +32,7 @@ import numpy as np
 from .spatial import dot_rows, rotate_rows
 
 __all__ = ["CLOSURE_COUNTS", "closure_count", "closure_residuals", "closure_geometry", "closure_jacobian", "GEOMETRY_WIDTH", "gauss_newton", "implicit_gradient",
-           "ParasiticError", "SOLVE_KEY", "SOLVE_TOL", "SOLVE_ITERATIONS"]
+           "ParasiticError", "SOLVE_KEY", "SOLVE_TOL", "SOLVE_ITERATIONS", "HOME_ITERATIONS"]
 
 #: The entry of a described mechanism's parameter environment that holds its task.solve data
 #: (length scale, home solution, scales of the unknowns, :func:`closure_geometry`): the compiled
@@ -42,8 +42,11 @@ SOLVE_KEY = "__solve__"
 CLOSURE_COUNTS = {"SPS": 0, "UPS": 0, "PUS": 0, "RUS": 0, "RPS": 1, "PRS": 1, "RPU": 2, "UPU": 1}
 #: Convergence tolerance on the largest scaled residual (dimensionless).
 SOLVE_TOL = 1e-12
-#: Largest number of Gauss-Newton iterations.
-SOLVE_ITERATIONS = 40
+#: Gauss-Newton iterations at a pose (from the home solution); the compiled solve unrolls as many
+#: (engine/parasitic.py), so that both accept the same poses.
+SOLVE_ITERATIONS = 12
+#: Iterations of the home solve (from task.solve.start or a structure's nominal home).
+HOME_ITERATIONS = 60
 
 
 class ParasiticError(ValueError):

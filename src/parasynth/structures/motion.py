@@ -38,7 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..mechanisms import parse_description
-from ..model.parasitic import ParasiticError, closure_count, closure_residuals, gauss_newton
+from ..model.parasitic import HOME_ITERATIONS, ParasiticError, closure_count, closure_residuals, gauss_newton
 from ..model.spatial import euler_rate_map, euler_to_matrix
 from .vocabulary import TEMPLATES
 
@@ -115,7 +115,7 @@ def motion_rule(description: dict) -> MotionRule:
             return fun(None, W)
 
         with np.errstate(all="ignore"):
-            Uf, ok = gauss_newton(fun_free, np.zeros((1, 0)), V0[fi], scale[fi])
+            Uf, ok = gauss_newton(fun_free, np.zeros((1, 0)), V0[fi], scale[fi], iterations=HOME_ITERATIONS)
         if ok[0]:
             V = V0.copy()
             V[fi] = Uf[0]
@@ -161,9 +161,9 @@ def motion_rule(description: dict) -> MotionRule:
         return fun(None, W)
 
     with np.errstate(all="ignore"):
-        U, ok = gauss_newton(fun_dep, np.zeros((1, 0)), V[dj], scale[dj])
+        U, ok = gauss_newton(fun_dep, np.zeros((1, 0)), V[dj], scale[dj], iterations=HOME_ITERATIONS)
         if not ok[0]:
-            U, ok = gauss_newton(fun_dep, np.zeros((1, 0)), V0[dj], scale[dj])
+            U, ok = gauss_newton(fun_dep, np.zeros((1, 0)), V0[dj], scale[dj], iterations=HOME_ITERATIONS)
     if not ok[0]:
         raise NoTaskRule(f"the dependent coordinates {', '.join(dep)} have no solution at the nominal values of "
                          f"{', '.join(ind)}")

@@ -16,7 +16,7 @@ import numpy as np
 from ... import engine as _engine
 from ...model.legs import solve_geometry
 from ...model.mechanism import Mechanism, Mobility
-from ...model.parasitic import (SOLVE_KEY, ParasiticError, closure_count, closure_geometry, closure_jacobian,
+from ...model.parasitic import (HOME_ITERATIONS, SOLVE_KEY, ParasiticError, closure_count, closure_geometry, closure_jacobian,
                                 closure_residuals, gauss_newton, implicit_gradient)
 from ...model.spatial import euler_rate_map, euler_to_matrix, reciprocal_basis, rot_axis, skew
 from ...common.units import UNIT_KINDS
@@ -136,7 +136,8 @@ class DescribedMechanism(Mechanism):
         if k < m:
             raise DescriptionError(f"{self.name}: task.solve.unknowns: {m} unknowns ({', '.join(solve.names)}) but the "
                                    f"legs give {k} closure equation(s); allowed: at most {k} unknowns")
-        U, ok = gauss_newton(self._closure, self.home[None, :], self._solve_U0, self._solve_uscale)
+        U, ok = gauss_newton(self._closure, self.home[None, :], self._solve_U0, self._solve_uscale,
+                             iterations=HOME_ITERATIONS)
         if not ok[0]:
             raise DescriptionError(f"{self.name}: task.solve: the legs' closure equations have no solution near "
                                    f"task.solve.start at the home pose {self.home.tolist()}")
