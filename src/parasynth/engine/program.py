@@ -42,7 +42,9 @@ import operator
 
 import numpy as np
 
+from ..model.parasitic import SOLVE_KEY
 from ..model.spatial import EULER_CONVENTIONS, R_NAMES
+from .parasitic import solve_nodes
 
 __all__ = ["Untranslatable", "Program", "build_program", "OPS"]
 
@@ -731,18 +733,36 @@ def build_program(mech, margin_exprs: dict, twist: bool = False) -> Program:
     g = Graph()
     names = tuple(task.names)
     n = len(names)
-    scope = {c: g.x(j) for j, c in enumerate(names)}
+
+    def pose_of(unknowns):
+        """scope, angles, R, rate-map columns and position with the unknowns' nodes given."""
+        scope = {c: g.x(j) for j, c in enumerate(names)}
+        if solve is not None:
+            scope.update(zip(solve.names, unknowns))
+        tr = _Translator(g, penv, scope)
+        for name, e in task.defines:
+            scope[name] = tr(e.tree)
+        angles = [tr(e.tree) for e in task.angles]
+        R, cols = _rotation(g, task, angles)
+        pose_scope = dict(scope)
+        for nm in R_NAMES:
+            pose_scope[nm] = R[int(nm[1]) - 1][int(nm[2]) - 1]
+        pos = [_Translator(g, penv, pose_scope)(e.tree) for e in task.position]
+        return scope, angles, R, cols, pose_scope, pos
+
+    solve = getattr(task, "solve", None)
+    chain, seed, solve_valid = [], {}, []
+    unknowns = ()
+    if solve is not None:  # the unrolled Gauss-Newton solve of the legs' closure equations
+        if SOLVE_KEY not in penv:
+            raise Untranslatable("task.solve without its solve data")
+        unknowns, chain, ok, seed = solve_nodes(
+            g, _Diff, [leg.joints for leg in mech.legs], SOLVE_KEY, n, len(solve.names),
+            lambda ph: (lambda o: (o[5], o[2]))(pose_of(ph)))
+        solve_valid = [ok]
+    scope, angles, R, cols, pose_scope, pos = pose_of(unknowns)
     tr = _Translator(g, penv, scope)
-    for name, e in task.defines:
-        scope[name] = tr(e.tree)
-    angles = [tr(e.tree) for e in task.angles]
-    R, cols = _rotation(g, task, angles)
-    pose_scope = dict(scope)
-    for nm in R_NAMES:
-        pose_scope[nm] = R[int(nm[1]) - 1][int(nm[2]) - 1]
-    tr_p = _Translator(g, penv, pose_scope)
-    pos = [tr_p(e.tree) for e in task.position]
-    valid = [tr(e.tree) for e in task.valid]
+    valid = [tr(e.tree) for e in task.valid] + solve_valid
     mscope = dict(pose_scope)
     for k, nm in enumerate(("px", "py", "pz")):
         mscope[nm] = pos[k]
@@ -751,6 +771,7 @@ def build_program(mech, margin_exprs: dict, twist: bool = False) -> Program:
     twist_nodes = None
     if twist:
         d = _Diff(g)
+        d.memo.update(seed)  # the solved unknowns' derivatives (implicit function theorem)
         twist_nodes = [[None] * n for _ in range(6)]
         for j in range(n):
             for i in range(3):
@@ -762,6 +783,9 @@ def build_program(mech, margin_exprs: dict, twist: bool = False) -> Program:
                 twist_nodes[3 + i][j] = acc
 
     em = _Emitter(g, n)
+    for U in chain:  # the solve's iterates in order (a shallow recursion in emit)
+        for u in U:
+            em.emit(u)
     pose_out = [em.emit(x) for x in pos] + [em.emit(R[i][j]) for i in range(3) for j in range(3)]
     valid_out = [em.emit(v) for v in valid]
     n_pose_virt = len(em.code)

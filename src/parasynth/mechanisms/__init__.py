@@ -20,7 +20,7 @@ from typing import Callable
 from ..model.mechanism import Mechanism
 
 __all__ = ["list_mechanisms", "load_mechanism", "register", "mechanism_class", "resolve_mechanism_name",
-           "packaged_descriptions", "described_class"]
+           "packaged_descriptions", "described_class", "parse_description"]
 
 _PACKAGE_DIR = Path(__file__).resolve().parent
 _DESCRIBED: dict = {}
@@ -62,6 +62,13 @@ def described_class(data: dict, source: str | None = None) -> type:
     :func:`parasynth.mechanisms.description.description_class`. Loads the description
     language on first use."""
     return _description_language().description_class(data, source)
+
+
+def parse_description(data: dict, source: str | None = None):
+    """The parsed :class:`~parasynth.mechanisms.description.Description` of a description given
+    as a dict, without a model class or a build at its defaults (its geometry is built with
+    ``build_geometry(env)``). Loads the description language on first use."""
+    return _description_language().Description(data, source)
 
 
 def _packaged(filename: str) -> Callable[[], type]:

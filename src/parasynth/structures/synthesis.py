@@ -5,7 +5,8 @@ A candidate is a tuple of limb groups (:class:`Group`): a ring of ``n`` identica
 limbs; a ring plus one passive constraining limb at the centre; or two rings of ``k`` actuated
 limbs of two kinds, interleaved. Each candidate is written as a mechanism description with the
 shared parameters of :data:`~parasynth.structures.vocabulary.PARAMETERS`, its task section taken
-from the motion template its constraining limbs select, then built and checked: the
+from the motion template its constraining limbs select, or else computed from the limbs' closure
+equations (:mod:`parasynth.structures.motion`), then built and checked: the
 screw-theory mobility at random poses of its task box must be the requested motion, the
 actuators must control it at some pose, and at its default dimensions it must be controlled at
 its home pose with a singularity margin of at least :data:`SINGULARITY_FLOOR` (else it is dropped
@@ -28,6 +29,7 @@ import numpy as np
 from ..common.validation import MAX_LEGS, MAX_SEED, InputError, check_count, is_real_number
 from ..mechanisms import described_class
 from ..measures.usable import SINGULARITY_FLOOR
+from .motion import candidate_rule
 from .vocabulary import (ARRANGEMENTS, CHECKS, HOME_TILTS, LIMB_TYPES, PARAMETERS, TEMPLATES, StructureError,
                          StructureWarning, limb_type, parse_motion)
 
@@ -38,8 +40,9 @@ __all__ = ["Group", "Structure", "StructureList", "structures", "DROP_REASONS", 
 DROP_REASONS = {
     "duplicate": "isomorphic to a candidate enumerated before it (same multiset of limbs, joints, actuation "
                  "and arrangement)",
-    "no task rule": "its constraining limbs select no motion template, or several different ones (e.g. the "
-                    "parasitic motion of a 3-RPS ring)",
+    "no task rule": "its constraining limbs select no motion template and no motion can be computed from their "
+                    "closure equations (the reason of each is in ``no_task_rule``; computed only for a candidate "
+                    "with as many actuators as freedoms)",
     "other axes": "its freedoms are not along the axes required (``axes``)",
     "under-actuated": "fewer actuators than the requested freedoms",
     "over-actuated": "more actuators than the requested freedoms (redundant actuation)",
@@ -424,11 +427,14 @@ class Structure:
 class StructureList(list):
     """The structures found (a list), with ``motion``, ``enumerated`` (candidates generated),
     ``dropped`` ({reason: count}, reasons of :data:`DROP_REASONS`) and ``dropped_names``
-    ({reason: [candidate names]}); :meth:`dropped_lines` lists them."""
+    ({reason: [candidate names]}) and ``no_task_rule`` ({"name [arrangement]": why it has no task
+    rule}); :meth:`dropped_lines` lists them."""
 
-    def __init__(self, items, motion, enumerated, dropped, dropped_names, show_dropped: bool = False):
+    def __init__(self, items, motion, enumerated, dropped, dropped_names, show_dropped: bool = False,
+                 no_task_rule=None):
         super().__init__(items)
         self.show_dropped = show_dropped
+        self.no_task_rule = dict(no_task_rule or {})
         self.motion = motion
         self.enumerated = enumerated
         self.dropped = dropped
@@ -711,6 +717,8 @@ def structures(motion, *, leg_types=None, legs=None, axes=None, all_axes: bool =
                           f"{'those counts add nothing' if len(none) < len(legs) else 'nothing is enumerated'}",
                           StructureWarning, stacklevel=2)
 
+    no_rule = {}
+
     def drop(reason, c):
         dropped[reason] += 1
         dropped_names[reason].append(c.name)
@@ -724,10 +732,19 @@ def structures(motion, *, leg_types=None, legs=None, axes=None, all_axes: bool =
             continue
         seen.add(key)
         template = c.template()
-        if template is None:
-            drop("no task rule", c)
-            continue
-        if want_axes is not None and template.motion == motion and not _axes_match(template, want_axes):
+        if template is None and c.n_actuated == dof:
+            # the motion computed from the limbs' closure equations (structures/motion.py), only for
+            # a candidate with as many actuators as freedoms: the others are dropped below by count
+            template, why = candidate_rule(c.groups, lambda t, c=c: _description(c, t, "rule"))
+            if template is None:
+                drop("no task rule", c)
+                no_rule[f"{c.name} [{'; '.join(g.label() for g in c.groups)}]"] = why
+                continue
+            if template.motion != motion:
+                drop("wrong motion", c)
+                continue
+        if template is not None and want_axes is not None and template.motion == motion \
+                and not _axes_match(template, want_axes):
             drop("other axes", c)
             continue
         if c.n_actuated < dof:
@@ -765,7 +782,8 @@ def structures(motion, *, leg_types=None, legs=None, axes=None, all_axes: bool =
         s._cls.append(cls)
         found.append(s)
     found = _fold_equivalents(found, drop)
-    return StructureList(found, motion, len(cands), dropped, dropped_names, show_dropped=bool(show_dropped))
+    return StructureList(found, motion, len(cands), dropped, dropped_names, show_dropped=bool(show_dropped),
+                         no_task_rule=no_rule)
 
 
 def _signature(s: Structure, mapping: dict) -> tuple:

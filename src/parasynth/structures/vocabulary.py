@@ -281,9 +281,11 @@ for _limb in (
              templates={"opposed": "rpu_opposed"},
              doc="revolute, actuated prismatic, universal: a force along the revolute axis and a couple; an "
                  "opposed pair gives rpu_opposed"),
-    LimbType("UPU", "P", True, 1, ("regular",), axes={"u_axis": ("tangent",), "u_platform_axis": ("tangent",)},
+    LimbType("UPU", "P", True, 1, ("regular",),
+             axes={"u_axis": ("tangent", "radial", "z"), "u_platform_axis": ("tangent", "radial", "z")},
              central={"u_axis": "y", "u_platform_axis": "y"}, templates={"central": "upu_central"},
-             doc="universal, prismatic, universal: one constraint couple; passive at the centre (axes along y): "
-                 "upu_central; an actuated ring has no template"),
+             doc="universal, prismatic, universal (cross axes parallel): one constraint wrench; passive at the "
+                 "centre (axes along y): upu_central; an actuated ring's motion is computed from its closure "
+                 "(tangent axes: Tsai's translational 3-UPU; z axes: 3T1R; radial with z: 1T2R)"),
 ):
     register_limb(_limb)

@@ -16,6 +16,8 @@ import numpy as np
 from ... import engine as _engine
 from ...model.legs import solve_geometry
 from ...model.mechanism import Mechanism, Mobility
+from ...model.parasitic import (HOME_ITERATIONS, SOLVE_KEY, ParasiticError, closure_count, closure_geometry, closure_jacobian,
+                                closure_residuals, gauss_newton, implicit_gradient)
 from ...model.spatial import euler_rate_map, euler_to_matrix, reciprocal_basis, rot_axis, skew
 from ...common.units import UNIT_KINDS
 from .errors import DescriptionError, DescriptionWarning
@@ -82,6 +84,9 @@ class DescribedMechanism(Mechanism):
         except DescriptionError as e:
             raise DescriptionError(f"{self.name}: {e}") from None
         self.home = np.asarray(home, dtype=float)
+        self._solve_cache = None
+        if d.task.solve is not None:
+            self._init_solve(d.task.solve, legs, L)
         self._check_pose_expressions(self.home)
         try:
             super().__init__(P, legs, home, L)  # solves the legs at home (_neutral_refs)
@@ -114,9 +119,64 @@ class DescribedMechanism(Mechanism):
         out = np.stack(vals, -1) if spec.vector else vals[0].copy()
         return out[0] if single else out
 
+    # -- solved (parasitic) coordinates: task.solve ------------------------------------------------
+    def _init_solve(self, solve, legs, L):
+        """Solve the unknowns of ``task.solve`` at home (from ``task.solve.start``); the home
+        solution starts the solve at every other pose."""
+        self._solve_legs, self._solve_L = legs, float(L)
+        ang = set(self.angular_coordinates)
+        self._solve_xscale = np.array([1.0 if c in ang else L for c in self.task_coordinates])
+        self._solve_uscale = np.array([1.0 if k == "angle" else L for _, k in solve.coords])
+        self._solve_U0 = np.array([s(self._penv) for s in solve.start], dtype=float)
+        m = len(solve.names)
+        try:
+            k = sum(closure_count(leg) for leg in legs)
+        except ParasiticError as e:
+            raise DescriptionError(f"{self.name}: task.solve: {e}") from None
+        if k < m:
+            raise DescriptionError(f"{self.name}: task.solve.unknowns: {m} unknowns ({', '.join(solve.names)}) but the "
+                                   f"legs give {k} closure equation(s); allowed: at most {k} unknowns")
+        U, ok = gauss_newton(self._closure, self.home[None, :], self._solve_U0, self._solve_uscale,
+                             iterations=HOME_ITERATIONS)
+        if not ok[0]:
+            raise DescriptionError(f"{self.name}: task.solve: the legs' closure equations have no solution near "
+                                   f"task.solve.start at the home pose {self.home.tolist()}")
+        self._solve_U0 = U[0]
+        FU = np.linalg.svd(closure_jacobian(self._closure, self.home[None, :], U, self._solve_uscale)[0],
+                           compute_uv=False)
+        rank = int(np.sum(FU > 1e-8 * max(FU[0], 1e-300)))
+        if rank < m:
+            raise DescriptionError(f"{self.name}: task.solve.unknowns: the closure equations fix only {rank} of the "
+                                   f"{m} unknowns ({', '.join(solve.names)}) at the home pose; name as unknowns the "
+                                   f"coordinates the legs' constraints determine")
+        # what the compiled solve reads as parameter slots (engine/parasitic.py): the length scale,
+        # the home solution, the unknowns' scales and the legs' closure geometry
+        self._penv = dict(self._penv)
+        self._penv[SOLVE_KEY] = np.concatenate([[float(L)], self._solve_U0, self._solve_uscale,
+                                                closure_geometry(legs)])
+
+    def _closure(self, X, U):
+        """The legs' closure residuals (N, k) at task coordinates X with the unknowns U."""
+        p, R, _, _ = self._pose_eval(X, False, U=U)
+        return closure_residuals(self._solve_legs, p, R, self._solve_L)
+
+    def solved_unknowns(self, X) -> np.ndarray:
+        """The unknowns of ``task.solve`` (N, m) at task coordinates X (N, n_task) (SI; NaN where
+        the solve does not converge); (N, 0) without ``task.solve``."""
+        X = np.atleast_2d(np.asarray(X, dtype=float))
+        if self.description.task.solve is None:
+            return np.zeros((X.shape[0], 0))
+        c = self._solve_cache
+        if c is not None and c[0].shape == X.shape and np.array_equal(c[0], X, equal_nan=True):
+            return c[1]
+        U, _ = gauss_newton(self._closure, X, self._solve_U0, self._solve_uscale)
+        self._solve_cache = (X.copy(), U)
+        return U
+
     # -- pose ------------------------------------------------------------------------------------
-    def _task_env(self, X, dual: bool = False) -> dict:
-        """Parameters, task coordinates and defined names for poses X (N, n_task)."""
+    def _task_env(self, X, dual: bool = False, U=None) -> dict:
+        """Parameters, task coordinates, solved unknowns (``task.solve``; given as ``U`` (N, m),
+        or solved) and defined names for poses X (N, n_task)."""
         env = dict(self._penv)
         N, n = X.shape
         if dual:
@@ -126,6 +186,17 @@ class DescribedMechanism(Mechanism):
         else:
             for j, c in enumerate(self.task_coordinates):
                 env[c] = X[:, j]
+        solve = self.description.task.solve
+        if solve is not None:
+            if U is None:
+                U = self.solved_unknowns(X)
+            if dual:
+                G = implicit_gradient(self._closure, X, U, self._solve_xscale, self._solve_uscale)
+                for j, c in enumerate(solve.names):
+                    env[c] = _Dual(U[:, j], G[:, j, :])
+            else:
+                for j, c in enumerate(solve.names):
+                    env[c] = U[:, j]
         with np.errstate(all="ignore"):
             for name, e in self.description.task.defines:
                 env[name] = e(env, dual)
@@ -146,10 +217,10 @@ class DescribedMechanism(Mechanism):
             R = R @ rot_axis(ax, a[:, k])
         return R, np.stack(cols, axis=-1)
 
-    def _pose_eval(self, X, dual: bool):
+    def _pose_eval(self, X, dual: bool, U=None):
         t = self.description.task
         N, n = X.shape
-        env = self._task_env(X, dual)
+        env = self._task_env(X, dual, U)
         with np.errstate(all="ignore"):
             angs = [e(env, dual) for e in t.angles]
             a = np.stack([np.broadcast_to(_val(v), (N,)) for v in angs], -1) if angs else np.zeros((N, 0))

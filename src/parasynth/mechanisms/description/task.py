@@ -12,7 +12,7 @@ from .expressions import Expression, R_NAMES, _Scope
 from .parameters import _Scalar, _UNITFUL, _bare_number_error, _check_identifier, _check_keys
 from .legs import _NAMED_AXES
 
-_TASK_KEYS = {"coordinates", "define", "position", "orientation", "valid", "home", "ranges", "restricted", "doc"}
+_TASK_KEYS = {"coordinates", "solve", "define", "position", "orientation", "valid", "home", "ranges", "restricted", "doc"}
 _COORD_KINDS = ("length", "angle")
 
 
@@ -46,6 +46,10 @@ class _Task:
         self.names = tuple(c for c, _ in self.coords)
         self.kinds = dict(self.coords)
         scope = pscope.extended("task coordinates", self.names)
+        self.solve = None
+        if raw.get("solve") is not None:
+            self.solve = _Solve(raw["solve"], pscope, param_names, self.names)
+            scope = scope.extended("solved unknowns", self.solve.names)
         self.defines = []
         defs = raw.get("define") or {}
         if not isinstance(defs, dict):
@@ -149,3 +153,49 @@ class _Task:
         if not isinstance(restricted, bool):
             raise DescriptionError(f"task.restricted: true or false, got {restricted!r}")
         self.restricted = restricted
+
+
+_SOLVE_KEYS = {"unknowns", "closure", "start", "doc"}
+_CLOSURES = ("legs",)
+
+
+class _Solve:
+    """``task.solve``: dependent pose coordinates (``unknowns``, {name: length | angle}) found at
+    each pose by a Gauss-Newton solve of the legs' closure equations (``closure: legs``, the only
+    kind) from ``start`` ({unknown: value with unit}, default 0) at the home pose, and from the
+    home solution elsewhere (:mod:`parasynth.model.parasitic`). The unknowns are names of the
+    pose expressions as the task coordinates are."""
+
+    def __init__(self, raw, pscope: _Scope, param_names, coord_names):
+        path = "task.solve"
+        if not isinstance(raw, dict):
+            raise DescriptionError(f"{path}: give {{unknowns: {{name: length | angle}}, closure: legs}}, got {raw!r}")
+        _check_keys(raw, _SOLVE_KEYS, path, "task.solve")
+        unk = raw.get("unknowns")
+        if not isinstance(unk, dict) or not unk:
+            raise DescriptionError(f"{path}.unknowns: give a mapping {{name: length | angle}}, e.g. "
+                                   f"{{x: length, gamma: angle}}")
+        self.coords = []
+        for c, kind in unk.items():
+            p = f"{path}.unknowns.{c}"
+            _check_identifier(c, p, "unknown")
+            if c in param_names or c in coord_names:
+                raise DescriptionError(f"{p}: {c!r} is also a parameter or task coordinate; use distinct names")
+            if kind not in _COORD_KINDS:
+                raise DescriptionError(f"{p}: kind must be length or angle, got {kind!r}")
+            self.coords.append((c, kind))
+        self.names = tuple(c for c, _ in self.coords)
+        self.kinds = dict(self.coords)
+        closure = raw.get("closure", "legs")
+        if closure not in _CLOSURES:
+            raise DescriptionError(f"{path}.closure: {closure!r} is not allowed; allowed: {', '.join(_CLOSURES)} "
+                                   f"(the legs' closure equations)")
+        self.closure = closure
+        start = raw.get("start") or {}
+        if not isinstance(start, dict):
+            raise DescriptionError(f"{path}.start: give {{unknown: value with unit}}, got {start!r}")
+        for c in start:
+            if c not in self.kinds:
+                raise DescriptionError(f"{path}.start.{c}: not an unknown; unknowns: {', '.join(self.names)}")
+        zero = {"length": "0 mm", "angle": "0 deg"}
+        self.start = [_Scalar(start.get(c, zero[k]), k, f"{path}.start.{c}", pscope) for c, k in self.coords]
