@@ -95,19 +95,51 @@ _CONE_KEYS = {
 BLOCK = 4096
 #: Poses per SIMD sub-block (the scratch of one sub-block stays in the L1 cache).
 SUB = 64
-#: Batches of fewer poses run on the calling thread only: handing blocks to other threads costs
-#: more than it saves for them (and, on a machine busy with other work, far more).
-PARALLEL_MIN = 2**17
+#: Batches of fewer poses run on the calling thread only: handing work to another thread costs
+#: ~0.03-0.05 ms of CPU (a pool thread's wake-up, the kernel calls' unboxing), 10-20 % of the
+#: time of 4096 poses, 5-10 % of 8192 poses' (measured with ``benchmarks/workspace_throughput.py
+#: --figures``, see docs/performance.md).
+PARALLEL_MIN = 8192
+#: Work items per thread of a parallel batch: a batch is cut into about this many ranges per
+#: thread (of at most BLOCK poses, a multiple of SUB), taken in turn, so that a thread slowed by
+#: other work on the machine takes fewer of them.
+ITEMS_PER_THREAD = 4
+
+_THREADS = None
 
 
 def n_threads() -> int:
-    """Threads a large batch is spread over: numba's thread count (``NUMBA_NUM_THREADS``,
-    default the number of cores)."""
+    """Threads a large batch is spread over: :func:`set_threads`'s count if set, else numba's
+    thread count (``NUMBA_NUM_THREADS``, default the number of cores; a study's worker
+    processes get ``cores // workers``, see :func:`parasynth.study.workers.worker_env`)."""
+    if _THREADS is not None:
+        return _THREADS
     if not HAVE_NUMBA:
         return 1
     import numba
 
     return max(1, int(numba.config.NUMBA_NUM_THREADS))
+
+
+def set_threads(n: int | None) -> None:
+    """Spread batches over ``n`` threads from now on (``None``: numba's thread count again)."""
+    global _THREADS
+    if n is not None and (not isinstance(n, int) or isinstance(n, bool) or n < 1):
+        raise ValueError(f"threads: {n!r} is not allowed; give a whole number >= 1 or None")
+    _THREADS = n
+
+
+def blocking(n: int, threads: int | None = None) -> tuple[int, int, bool]:
+    """``(block, n_blocks, parallel)`` for a batch of ``n`` poses: on the calling thread in
+    blocks of BLOCK poses below PARALLEL_MIN (or with one thread), else in blocks small
+    enough for ITEMS_PER_THREAD work items per thread (a multiple of SUB, at most BLOCK). The
+    result does not depend on the blocking: every pose is computed alone."""
+    nt = n_threads() if threads is None else threads
+    if nt <= 1 or n < PARALLEL_MIN or getattr(_IN_POOL, "active", False):
+        return BLOCK, max(1, (n + BLOCK - 1) // BLOCK), False
+    per = -(-n // (ITEMS_PER_THREAD * nt))
+    block = min(BLOCK, max(SUB, -(-per // SUB) * SUB))
+    return block, (n + block - 1) // block, True
 
 
 _POOL = None
@@ -153,7 +185,7 @@ def over_blocks(fn, n_blocks: int, parallel: bool = True) -> None:
     if nt <= 1 or n_blocks < 2 or getattr(_IN_POOL, "active", False):
         fn(0, n_blocks)
         return
-    parts = min(n_blocks, 8 * nt)
+    parts = min(n_blocks, ITEMS_PER_THREAD * nt)
     edges = [n_blocks * i // parts for i in range(parts + 1)]
     nxt, lock, failed = [0], threading.Lock(), []
     pool = _pool(nt - 1)
@@ -607,10 +639,10 @@ def run_feasible(plan: KernelPlan, X: np.ndarray):
     """(out (N,) bool, ambiguous: bool) for contiguous float64 poses X."""
     X = _readonly(X)
     out = np.empty(X.shape[0], dtype=np.bool_)
-    nblk = (X.shape[0] + BLOCK - 1) // BLOCK
-    amb = np.zeros(max(nblk, 1), dtype=np.int64)
+    block, nblk, par = blocking(X.shape[0])
+    amb = np.zeros(nblk, dtype=np.int64)
     args = plan.args()
-    over_blocks(lambda b0, b1: _feasible_kernel(X, *args, BLOCK, out, amb, b0, b1), nblk, X.shape[0] >= PARALLEL_MIN)
+    over_blocks(lambda b0, b1: _feasible_kernel(X, *args, block, out, amb, b0, b1), nblk, par)
     return out, bool(amb.any())
 
 
@@ -618,10 +650,10 @@ def run_margins(plan: KernelPlan, X: np.ndarray):
     """(M (N, n_constraints), ambiguous: bool)."""
     X = _readonly(X)
     M = np.empty((X.shape[0], len(plan.names)))
-    nblk = (X.shape[0] + BLOCK - 1) // BLOCK
-    amb = np.zeros(max(nblk, 1), dtype=np.int64)
+    block, nblk, par = blocking(X.shape[0])
+    amb = np.zeros(nblk, dtype=np.int64)
     args = plan.args()
-    over_blocks(lambda b0, b1: _margins_kernel(X, *args, BLOCK, M, amb, b0, b1), nblk, X.shape[0] >= PARALLEL_MIN)
+    over_blocks(lambda b0, b1: _margins_kernel(X, *args, block, M, amb, b0, b1), nblk, par)
     return M, bool(amb.any())
 
 
@@ -640,10 +672,10 @@ def run_pose(prog: Program, consts, X: np.ndarray, twist: bool = False):
         tr = np.zeros((0, 0), dtype=np.int64)
         Tw = np.empty((0, 0, 0))
         n_run = prog.n_pose
-    nblk = (N + BLOCK - 1) // BLOCK
+    block, nblk, par = blocking(N)
     over_blocks(lambda b0, b1: _pose_kernel(X, prog.ins, consts, prog.const_base, prog.n_reg, n_run, prog.pose_regs,
-                                            prog.valid_regs, prog.pose_limit, tr, BLOCK, ok, P, Rm, Tw, b0, b1),
-                nblk, N >= PARALLEL_MIN)
+                                            prog.valid_regs, prog.pose_limit, tr, block, ok, P, Rm, Tw, b0, b1),
+                nblk, par)
     return ok, P, Rm.reshape(N, 3, 3), (Tw if twist else None)
 
 
