@@ -5,9 +5,8 @@ keeps them. Importing ``scipy.stats`` costs about 1.4 s on a 2-core machine, mor
 small study spends evaluating designs, and every study, ``validate`` and report asks for the
 same few point sets (its ``evaluation.samples`` and ``seed`` in its dimension). So a point set
 of at most :data:`DISK_MAX_BYTES` (16 MiB) is saved the first time it is drawn, as a ``.npy`` file under
-the cache folder (by a writer thread, off the caller's path; the interpreter waits for it at
-exit), and read back (bit for bit the same numbers) by later processes, which then never
-import ``scipy.stats``.
+the cache folder, and read back (bit for bit the same numbers) by later processes, which then
+never import ``scipy.stats``.
 
 The cache folder is ``$PARASYNTH_CACHE_DIR`` if set, else ``$XDG_CACHE_HOME/parasynth``, else
 ``~/.cache/parasynth``; ``PARASYNTH_CACHE_DIR=off`` disables it. The file name holds the SciPy
@@ -22,7 +21,6 @@ import inspect
 import os
 import tempfile
 import warnings
-from concurrent.futures import ThreadPoolExecutor
 from importlib import metadata
 from pathlib import Path
 from typing import Any
@@ -33,7 +31,7 @@ import numpy as np
 #: time, so that a very large workspace streams in bounded memory.
 DISK_MAX_BYTES = 16 * 2**20
 
-__all__ = ["sobol_engine", "sobol_points", "cache_dir", "flush", "DISK_MAX_BYTES"]
+__all__ = ["sobol_engine", "sobol_points", "cache_dir", "DISK_MAX_BYTES"]
 
 
 def cache_dir() -> Path | None:
@@ -88,9 +86,6 @@ def sobol_points(d: int, seed: int, n: int) -> np.ndarray | None:
         return None
     folder = cache_dir()
     path = _path(folder, d, seed, n) if folder is not None else None
-    pending = _PENDING.get(path) if path is not None else None
-    if pending is not None:
-        return pending
     if path is not None and path.is_file():
         try:
             u = np.load(path, mmap_mode="r", allow_pickle=False)
@@ -100,36 +95,15 @@ def sobol_points(d: int, seed: int, n: int) -> np.ndarray | None:
             pass
     u = _draw(d, seed, n)
     if path is not None:
-        u.flags.writeable = False  # shared with the writer thread
-        _PENDING[path] = u
-        _writer().submit(_save, path, u)
+        _save(path, u)
     return u
 
 
-#: Point sets drawn and not yet on disk (path -> points), given back as they are meanwhile.
-_PENDING: dict = {}
-
-
-def flush() -> None:
-    """Wait until every drawn point set is on disk."""
-    if _WRITER is not None and _WRITER[0] == os.getpid():
-        _WRITER[1].submit(lambda: None).result()
-
-
-_WRITER: tuple[int, ThreadPoolExecutor] | None = None
-
-
-def _writer() -> ThreadPoolExecutor:
-    """One thread writing drawn point sets to the disk cache, off the caller's path (saving
-    8192 points took ~0.9 ms, more than drawing them). The interpreter waits for it at exit;
-    a forked process gets its own."""
-    global _WRITER
-    if _WRITER is None or _WRITER[0] != os.getpid():
-        _WRITER = (os.getpid(), ThreadPoolExecutor(max_workers=1, thread_name_prefix="parasynth-qmc-cache"))
-    return _WRITER[1]
-
-
 def _save(path: Path, u: np.ndarray) -> None:
+    """Write ``u`` to ``path`` atomically (a temporary file renamed); a folder that cannot be
+    written is skipped. Written here, not by a thread: a writer thread woken for every new set
+    took the interpreter lock from the caller for milliseconds (the switch interval), more
+    than the ~0.2 ms the write costs."""
     tmp = None
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -140,5 +114,3 @@ def _save(path: Path, u: np.ndarray) -> None:
     except OSError:
         if tmp is not None:
             Path(tmp).unlink(missing_ok=True)
-    finally:
-        _PENDING.pop(path, None)
