@@ -109,20 +109,21 @@ _THREADS = None
 
 
 def n_threads() -> int:
-    """Threads a large batch is spread over: :func:`set_threads`'s count if set, else numba's
-    thread count (``NUMBA_NUM_THREADS``, default the number of cores; a study's worker
-    processes get ``cores // workers``, see :func:`parasynth.study.workers.worker_env`)."""
-    if _THREADS is not None:
-        return _THREADS
+    """Threads a batch is spread over: numba's thread count (``NUMBA_NUM_THREADS``, default
+    the number of cores; a study's worker processes get ``cores // workers`` of it, see
+    :func:`parasynth.study.workers.worker_env`), or fewer if :func:`set_threads` asked so."""
     if not HAVE_NUMBA:
         return 1
     import numba
 
-    return max(1, int(numba.config.NUMBA_NUM_THREADS))
+    nt = max(1, int(numba.config.NUMBA_NUM_THREADS))
+    return nt if _THREADS is None else min(nt, _THREADS)
 
 
 def set_threads(n: int | None) -> None:
-    """Spread batches over ``n`` threads from now on (``None``: numba's thread count again)."""
+    """Spread batches over at most ``n`` threads from now on (``None``: numba's thread count
+    again); numba's thread count stays the ceiling, so a worker process kept to one thread
+    stays there."""
     global _THREADS
     if n is not None and (not isinstance(n, int) or isinstance(n, bool) or n < 1):
         raise ValueError(f"threads: {n!r} is not allowed; give a whole number >= 1 or None")
