@@ -200,7 +200,6 @@ def figures(study_file: str, k: int, seed: int) -> None:
         t0 = time.perf_counter()
         qmc.sobol_points(d, base + next(it), n)
         draws.append(time.perf_counter() - t0)
-    qmc.flush()
     a2 = anchor.anchor_seconds(n, 2)
     load1 = os.getloadavg()[0]
     print(f"{study.name}: load average (1 min) {load0:.2f} before, {load1:.2f} after; anchor {n} poses "

@@ -435,15 +435,23 @@ def run_figures(opts: dict) -> dict:
     res = {"load_before": os.getloadavg(), "threads_available": int(numba.config.NUMBA_NUM_THREADS),
            "anchor_disagree": anchor.check()}
     mech = load_mechanism("5pus_upu")
+    n_max = int(numba.config.NUMBA_NUM_THREADS)
+
+    def set_threads(t):  # core.set_threads; an older engine read numba's count alone
+        if hasattr(core, "set_threads"):
+            core.set_threads(t)
+        else:
+            numba.config.NUMBA_NUM_THREADS = n_max if t is None else t
+
     rows = []
     for n in opts["sizes"]:
         X = anchor.feasible_poses(n)
         row = {"n": n}
         for t in (1, 2):
-            core.set_threads(t)
+            set_threads(t)
             row[f"engine{t}"] = _best(lambda: kernels.feasible_fast(mech, X))
             row[f"anchor{t}"] = (anchor.anchor_seconds(n, t), None)
-        core.set_threads(None)
+        set_threads(None)
         rows.append(row)
     res["threads"] = rows
     # worst-case feasibility, 2e6 poses, both threads
