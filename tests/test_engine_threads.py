@@ -45,6 +45,7 @@ def test_threaded_batches_answer_as_one_thread_and_numpy(n, monkeypatch):
     lo = np.array([-0.06, -0.06, -0.10, -0.35, -0.35])
     X = rng.uniform(lo, -lo * np.array([1, 1, 0.8, 1, 1]), size=(n, 5))
     monkeypatch.setattr(core, "ITEMS_PER_THREAD", 7)  # uneven ranges
+    monkeypatch.setattr(core, "ADAPTIVE", False)  # threads whether they pay now or not
     monkeypatch.setattr(core, "n_threads", lambda: 3)  # the pool is used even on a 1-core machine
     par = kernels.feasible_fast(mech, X)
     mpar = kernels.margins_fast(mech, X)
@@ -57,3 +58,32 @@ def test_threaded_batches_answer_as_one_thread_and_numpy(n, monkeypatch):
     for k in mone:
         assert np.array_equal(mpar[k], mone[k], equal_nan=True)
     assert np.array_equal(one, mech.is_feasible(X, engine="numpy"))
+
+
+def test_the_timing_takes_the_faster_way_and_tries_the_other():
+    t = core._Timing(explore=4, weight=0.5)
+    n = core.PARALLEL_MIN
+    assert t.threads_pay("k")  # nothing known: threads first
+    t.record("k", True, n, 2e-3)
+    assert not t.threads_pay("k")  # then one thread
+    t.record("k", False, n, 1e-3)
+    ways = [t.threads_pay("k") for _ in range(8)]
+    assert ways.count(True) == 2 and ways.count(False) == 6  # the faster way, the other every 4th
+    for _ in range(6):  # threads become faster (the machine got quiet): taken from then on
+        t.record("k", True, n, 0.2e-3)
+    ways = [t.threads_pay("k") for _ in range(8)]
+    assert ways.count(True) == 6
+    t.record("small", True, n - 1, 1.0)  # batches that never use threads are not counted
+    assert "small" not in t.stats
+
+
+def test_adaptive_blocking_gives_the_same_answers(monkeypatch):
+    mech = load_mechanism("5pus_upu")
+    X = np.random.default_rng(5).uniform(-0.05, 0.05, size=(20_000, 5))
+    monkeypatch.setattr(core, "n_threads", lambda: 2)
+    monkeypatch.setattr(core, "TIMING", core._Timing(explore=2))
+    answers = [kernels.feasible_fast(mech, X) for _ in range(5)]  # both ways, alternately
+    assert {par for _, _, par in [core.blocking(20_000, None, "feasible") for _ in range(4)]} == {True, False}
+    for a in answers[1:]:
+        assert np.array_equal(a, answers[0])
+    assert np.array_equal(answers[0], mech.is_feasible(X, engine="numpy"))

@@ -46,6 +46,7 @@ import logging
 import math
 import os
 import threading
+import time
 import warnings
 import weakref
 from concurrent.futures import ThreadPoolExecutor
@@ -130,17 +131,74 @@ def set_threads(n: int | None) -> None:
     _THREADS = n
 
 
-def blocking(n: int, threads: int | None = None) -> tuple[int, int, bool]:
+def blocking(n: int, threads: int | None = None, kind: str | None = None) -> tuple[int, int, bool]:
     """``(block, n_blocks, parallel)`` for a batch of ``n`` poses: on the calling thread in
-    blocks of BLOCK poses below PARALLEL_MIN (or with one thread), else in blocks small
-    enough for ITEMS_PER_THREAD work items per thread (a multiple of SUB, at most BLOCK). The
-    result does not depend on the blocking: every pose is computed alone."""
+    blocks of BLOCK poses below PARALLEL_MIN (or with one thread, or when :data:`TIMING` finds
+    that threads do not pay for the kernel ``kind`` now), else in blocks small enough for
+    ITEMS_PER_THREAD work items per thread (a multiple of SUB, at most BLOCK). The result does
+    not depend on the blocking: every pose is computed alone."""
     nt = n_threads() if threads is None else threads
     if nt <= 1 or n < PARALLEL_MIN or getattr(_IN_POOL, "active", False):
         return BLOCK, max(1, (n + BLOCK - 1) // BLOCK), False
+    if threads is None and kind is not None and not TIMING.threads_pay(kind):
+        return BLOCK, (n + BLOCK - 1) // BLOCK, False
     per = -(-n // (ITEMS_PER_THREAD * nt))
     block = min(BLOCK, max(SUB, -(-per // SUB) * SUB))
     return block, (n + block - 1) // block, True
+
+
+class _Timing:
+    """Whether spreading a kernel's batches over threads pays, from the batches themselves.
+
+    On an idle machine two threads nearly halve a batch of 8192 poses; on a machine whose
+    cores are busy with other work a pool thread is often descheduled while it holds a range,
+    and the batch waits for it (twice the serial time, measured at load 5-6 on 2 cores). So
+    per kernel the wall time per pose of recent batches is kept for both ways (an exponential
+    average), the faster way is taken, and every ``explore``-th batch tries the other way. The
+    way never changes an answer, only the time."""
+
+    def __init__(self, explore: int = 8, weight: float = 0.25):
+        self.explore = explore
+        self.weight = weight
+        self.stats: dict = {}  # kind -> [serial s/pose or None, parallel s/pose or None, batches]
+        self.lock = threading.Lock()
+
+    def threads_pay(self, kind: str) -> bool:
+        if not ADAPTIVE:
+            return True
+        with self.lock:
+            st = self.stats.setdefault(kind, [None, None, 0])
+            st[2] += 1
+            if st[1] is None:
+                return True
+            if st[0] is None:
+                return False
+            faster = st[1] <= st[0]
+            return (not faster) if st[2] % self.explore == 0 else faster
+
+    def record(self, kind: str, parallel: bool, n: int, seconds: float) -> None:
+        if n < PARALLEL_MIN or n_threads() <= 1:
+            return
+        with self.lock:
+            st = self.stats.setdefault(kind, [None, None, 0])
+            i = 1 if parallel else 0
+            v = seconds / n
+            st[i] = v if st[i] is None else st[i] + self.weight * (v - st[i])
+
+
+#: Threads for a kernel's batches only while they pay (see :class:`_Timing`); False: always
+#: (from PARALLEL_MIN poses up, with several threads).
+ADAPTIVE = True
+TIMING = _Timing()
+
+
+def _timed_blocks(kind: str, fn, n: int) -> None:
+    """``over_blocks`` of ``fn`` over a batch of ``n`` poses, blocked by :func:`blocking`;
+    ``fn(block, b0, b1)``. The batch's time goes to :data:`TIMING`."""
+    block, nblk, par = blocking(n, kind=kind)
+    t0 = time.perf_counter()
+    over_blocks(lambda b0, b1: fn(block, b0, b1), nblk, par)
+    TIMING.record(kind, par, n, time.perf_counter() - t0)
 
 
 _POOL = None
@@ -640,10 +698,9 @@ def run_feasible(plan: KernelPlan, X: np.ndarray):
     """(out (N,) bool, ambiguous: bool) for contiguous float64 poses X."""
     X = _readonly(X)
     out = np.empty(X.shape[0], dtype=np.bool_)
-    block, nblk, par = blocking(X.shape[0])
-    amb = np.zeros(nblk, dtype=np.int64)
+    amb = np.zeros(max(1, (X.shape[0] + SUB - 1) // SUB), dtype=np.int64)  # one per block, any blocking
     args = plan.args()
-    over_blocks(lambda b0, b1: _feasible_kernel(X, *args, block, out, amb, b0, b1), nblk, par)
+    _timed_blocks("feasible", lambda block, b0, b1: _feasible_kernel(X, *args, block, out, amb, b0, b1), X.shape[0])
     return out, bool(amb.any())
 
 
@@ -651,10 +708,9 @@ def run_margins(plan: KernelPlan, X: np.ndarray):
     """(M (N, n_constraints), ambiguous: bool)."""
     X = _readonly(X)
     M = np.empty((X.shape[0], len(plan.names)))
-    block, nblk, par = blocking(X.shape[0])
-    amb = np.zeros(nblk, dtype=np.int64)
+    amb = np.zeros(max(1, (X.shape[0] + SUB - 1) // SUB), dtype=np.int64)  # one per block, any blocking
     args = plan.args()
-    over_blocks(lambda b0, b1: _margins_kernel(X, *args, block, M, amb, b0, b1), nblk, par)
+    _timed_blocks("margins", lambda block, b0, b1: _margins_kernel(X, *args, block, M, amb, b0, b1), X.shape[0])
     return M, bool(amb.any())
 
 
@@ -673,10 +729,9 @@ def run_pose(prog: Program, consts, X: np.ndarray, twist: bool = False):
         tr = np.zeros((0, 0), dtype=np.int64)
         Tw = np.empty((0, 0, 0))
         n_run = prog.n_pose
-    block, nblk, par = blocking(N)
-    over_blocks(lambda b0, b1: _pose_kernel(X, prog.ins, consts, prog.const_base, prog.n_reg, n_run, prog.pose_regs,
-                                            prog.valid_regs, prog.pose_limit, tr, block, ok, P, Rm, Tw, b0, b1),
-                nblk, par)
+    _timed_blocks("pose", lambda block, b0, b1: _pose_kernel(X, prog.ins, consts, prog.const_base, prog.n_reg, n_run,
+                                                             prog.pose_regs, prog.valid_regs, prog.pose_limit, tr,
+                                                             block, ok, P, Rm, Tw, b0, b1), N)
     return ok, P, Rm.reshape(N, 3, 3), (Tw if twist else None)
 
 
