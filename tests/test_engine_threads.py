@@ -63,18 +63,21 @@ def test_threaded_batches_answer_as_one_thread_and_numpy(n, monkeypatch):
 def test_the_timing_takes_the_faster_way_and_tries_the_other():
     t = core._Timing(explore=4, weight=0.5)
     n = core.PARALLEL_MIN
-    assert t.threads_pay("k")  # nothing known: threads first
+    assert t.threads_pay("k", n)  # nothing known: threads first
     t.record("k", True, n, 2e-3)
-    assert not t.threads_pay("k")  # then one thread
+    assert not t.threads_pay("k", n)  # then one thread
     t.record("k", False, n, 1e-3)
-    ways = [t.threads_pay("k") for _ in range(8)]
+    ways = [t.threads_pay("k", n) for _ in range(8)]
     assert ways.count(True) == 2 and ways.count(False) == 6  # the faster way, the other every 4th
     for _ in range(6):  # threads become faster (the machine got quiet): taken from then on
         t.record("k", True, n, 0.2e-3)
-    ways = [t.threads_pay("k") for _ in range(8)]
+    ways = [t.threads_pay("k", n) for _ in range(8)]
     assert ways.count(True) == 6
+    assert t.threads_pay("k", 4 * n)  # another batch size is timed apart: nothing known, threads first
+    t.record("k", True, 4 * n, 1e-3)
+    assert not t.threads_pay("k", 4 * n)  # then one thread
     t.record("small", True, n - 1, 1.0)  # batches that never use threads are not counted
-    assert "small" not in t.stats
+    assert all(k[0] != "small" for k in t.stats)
 
 
 def test_adaptive_blocking_gives_the_same_answers(monkeypatch):

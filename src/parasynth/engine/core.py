@@ -140,7 +140,7 @@ def blocking(n: int, threads: int | None = None, kind: str | None = None) -> tup
     nt = n_threads() if threads is None else threads
     if nt <= 1 or n < PARALLEL_MIN or getattr(_IN_POOL, "active", False):
         return BLOCK, max(1, (n + BLOCK - 1) // BLOCK), False
-    if threads is None and kind is not None and not TIMING.threads_pay(kind):
+    if threads is None and kind is not None and not TIMING.threads_pay(kind, n):
         return BLOCK, (n + BLOCK - 1) // BLOCK, False
     per = -(-n // (ITEMS_PER_THREAD * nt))
     block = min(BLOCK, max(SUB, -(-per // SUB) * SUB))
@@ -153,21 +153,22 @@ class _Timing:
     On an idle machine two threads nearly halve a batch of 8192 poses; on a machine whose
     cores are busy with other work a pool thread is often descheduled while it holds a range,
     and the batch waits for it (twice the serial time, measured at load 5-6 on 2 cores). So
-    per kernel the wall time per pose of recent batches is kept for both ways (an exponential
-    average), the faster way is taken, and every ``explore``-th batch tries the other way. The
-    way never changes an answer, only the time."""
+    per kernel and batch size (to a power of 2) the wall time per pose of recent batches is
+    kept for both ways (an exponential average), the faster way is taken, and every
+    ``explore``-th batch tries the other way. The way never changes an answer, only the
+    time."""
 
     def __init__(self, explore: int = 8, weight: float = 0.25):
         self.explore = explore
         self.weight = weight
-        self.stats: dict = {}  # kind -> [serial s/pose or None, parallel s/pose or None, batches]
+        self.stats: dict = {}  # (kind, size class) -> [serial s/pose or None, parallel s/pose or None, batches]
         self.lock = threading.Lock()
 
-    def threads_pay(self, kind: str) -> bool:
+    def threads_pay(self, kind: str, n: int) -> bool:
         if not ADAPTIVE:
             return True
         with self.lock:
-            st = self.stats.setdefault(kind, [None, None, 0])
+            st = self.stats.setdefault((kind, int(n).bit_length()), [None, None, 0])
             st[2] += 1
             if st[1] is None:
                 return True
@@ -180,7 +181,7 @@ class _Timing:
         if n < PARALLEL_MIN or n_threads() <= 1:
             return
         with self.lock:
-            st = self.stats.setdefault(kind, [None, None, 0])
+            st = self.stats.setdefault((kind, int(n).bit_length()), [None, None, 0])
             i = 1 if parallel else 0
             v = seconds / n
             st[i] = v if st[i] is None else st[i] + self.weight * (v - st[i])
