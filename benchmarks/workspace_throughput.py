@@ -34,8 +34,9 @@ over the NumPy path's rate on the same all-feasible poses.
 ``--figures`` instead measures, in one process and alternately with the anchor
 (``benchmarks/anchor.py``: a fused ``prange`` kernel of a simplified 5-PUS/UPU, every pose
 feasible, f64), the engine's time on 1 and 2 threads per batch size (the ratio 1-thread /
-2-thread time of both, and the CPU time 2 threads / 1 thread: the hand-off's cost), then
-each figure of issue 29 with its ratio to the anchor::
+2-thread time of both, and the CPU time 2 threads / 1 thread: the hand-off's cost; threads
+from ``core.PARALLEL_MIN`` up whether they pay now or not, ``core.ADAPTIVE = False``), then
+each figure of issue 29 with its ratio to the anchor (threads while they pay, as in a run)::
 
     threads_ratio n=<int> engine=<float> anchor=<float>
     figure worst_case_feasibility poses_per_s=<f> anchor_poses_per_s=<f> ratio_vs_anchor=<f>
@@ -444,6 +445,9 @@ def run_figures(opts: dict) -> dict:
             numba.config.NUMBA_NUM_THREADS = n_max if t is None else t
 
     rows = []
+    adaptive = getattr(core, "ADAPTIVE", None)
+    if adaptive is not None:  # the table compares the two ways, whichever pays now
+        core.ADAPTIVE = False
     for n in opts["sizes"]:
         X = anchor.feasible_poses(n)
         row = {"n": n}
@@ -453,6 +457,8 @@ def run_figures(opts: dict) -> dict:
             row[f"anchor{t}"] = (anchor.anchor_seconds(n, t), None)
         set_threads(None)
         rows.append(row)
+    if adaptive is not None:  # the figures below as a run has them: threads while they pay
+        core.ADAPTIVE = adaptive
     res["threads"] = rows
     # worst-case feasibility, 2e6 poses, both threads
     n = 2_000_000
