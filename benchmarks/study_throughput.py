@@ -13,13 +13,23 @@ Output, one line per study::
 
     <study> ms_per_design=<float> speedup_vs_numpy=<float>
 
-plus, with ``--split``, the share of the compiled time spent in each measure and in building
-the mechanism.
+plus, with ``--split``, the share of the compiled time spent in each measure, in building
+the mechanism and in the kernels (every compiled batch, timed around ``core.over_blocks``).
+
+``--figures`` instead prints, for the quick start (or the studies given), one design's
+evaluation on the study's fixed samples (wall and CPU ms, in the kernels and outside them),
+with new samples, drawing a new sample set alone, and the anchor's time for as many poses
+(``benchmarks/anchor.py``) measured in the same run, with the ratio::
+
+    figure design_evaluation ms=<f> cpu_ms=<f> kernels_ms=<f> outside_kernels_ms=<f> anchor_ms=<f> time_vs_anchor=<f>
+    figure design_evaluation_new_samples ms=<f> cpu_ms=<f>
+    figure new_samples_<n> ms=<f> min_ms=<f>
 
 Usage::
 
     python benchmarks/study_throughput.py                  # every shipped study, 20 designs each
     python benchmarks/study_throughput.py studies/quickstart.yaml --designs 50 --split
+    python benchmarks/study_throughput.py --figures --designs 100
 
 Not part of the test suite.
 """
@@ -98,6 +108,7 @@ def _run(ev, designs, engine: str, split: bool):
                 parts["(build mechanism)"] = parts.get("(build mechanism)", 0.0) + time.perf_counter() - t0
 
         ev.build = timed_build
+        undo_kernels = _kernel_timer(parts)
     for d in designs[:2]:  # warm-up: compilation, sample generation
         ev.evaluate(d)
     parts.clear()
@@ -111,7 +122,95 @@ def _run(ev, designs, engine: str, split: bool):
 
         E.get_measure = objectives.get
         del ev.build
+        undo_kernels()
     return dt / len(designs), recs, parts
+
+
+def _kernel_timer(parts: dict):
+    """Count the time spent inside the engine's kernels (every compiled batch goes through
+    ``core.over_blocks``, the index kernels through the name imported in ``indices``) in
+    ``parts["(kernels)"]``; returns a function that undoes it."""
+    from parasynth.engine import core, indices
+
+    real = core.over_blocks
+
+    def timed(fn, n_blocks, parallel=True):
+        t0 = time.perf_counter()
+        try:
+            return real(fn, n_blocks, parallel)
+        finally:
+            parts["(kernels)"] = parts.get("(kernels)", 0.0) + time.perf_counter() - t0
+
+    core.over_blocks = timed
+    indices.over_blocks = timed
+
+    def undo():
+        core.over_blocks = real
+        indices.over_blocks = real
+
+    return undo
+
+
+def figures(study_file: str, k: int, seed: int) -> None:
+    """The quick start's figures beside the anchor (benchmarks/anchor.py) in this process: a
+    design evaluation on the study's fixed samples (wall and CPU time, the time in the
+    kernels and outside them), with new samples (a new seed each design), drawing a new set
+    of the study's samples alone, and the anchor's time for as many poses on all threads."""
+    import os
+
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    import anchor
+
+    from parasynth.common import qmc
+    from parasynth.study.evaluate import Evaluator
+    from parasynth.study.spec import load_study
+
+    study = load_study(study_file)
+    ev = Evaluator(study)
+    designs = _designs(study, k, seed)
+    n = int(study.evaluation["n"])
+    d = len(study.evaluation.get("ranges") or {}) or 3
+    load0 = os.getloadavg()[0]
+    for x in designs[:3]:
+        ev.evaluate(x)
+
+    def timed(fn, reps=5):
+        """(wall, cpu, kernels) per design of the fastest of ``reps`` passes."""
+        best = (math.inf, math.inf, math.inf)
+        parts: dict = {}
+        undo = _kernel_timer(parts)
+        try:
+            for _ in range(reps):
+                parts.clear()
+                c0, t0 = time.process_time(), time.perf_counter()
+                fn()
+                wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+                best = min(best, tuple(v / len(designs) for v in (wall, cpu, parts.get("(kernels)", 0.0))))
+        finally:
+            undo()
+        return best
+
+    fixed = timed(lambda: [ev.evaluate(x) for x in designs])
+    kern = fixed[2]
+    base = 10**6 + int(time.time()) % 10**6  # seeds not drawn before: new samples each design
+    it = iter(range(10**9))
+    new = timed(lambda: [ev.evaluate(x, seed=base + next(it)) for x in designs], reps=3)
+    draws = []
+    for _ in range(30):
+        t0 = time.perf_counter()
+        qmc.sobol_points(d, base + next(it), n)
+        draws.append(time.perf_counter() - t0)
+    a2 = anchor.anchor_seconds(n, 2)
+    load1 = os.getloadavg()[0]
+    print(f"{study.name}: load average (1 min) {load0:.2f} before, {load1:.2f} after; anchor {n} poses "
+          f"{a2 * 1e3:.3f} ms (benchmarks/anchor.py, all threads)", file=sys.stderr)
+    print(f"figure design_evaluation ms={fixed[0] * 1e3:.3f} cpu_ms={fixed[1] * 1e3:.3f} "
+          f"kernels_ms={kern * 1e3:.3f} outside_kernels_ms={(fixed[0] - kern) * 1e3:.3f} "
+          f"anchor_ms={a2 * 1e3:.3f} time_vs_anchor={fixed[0] / a2:.3g} (target <= 5)")
+    print(f"figure design_evaluation_new_samples ms={new[0] * 1e3:.3f} cpu_ms={new[1] * 1e3:.3f} "
+          f"kernels_ms={new[2] * 1e3:.3f}")
+    print(f"figure new_samples_{n} ms={float(np.median(draws)) * 1e3:.3f} min_ms={min(draws) * 1e3:.3f} "
+          f"(target <= 0.5)", flush=True)
 
 
 def main(argv=None):
@@ -120,7 +219,14 @@ def main(argv=None):
     ap.add_argument("--designs", type=int, default=20, help="designs per study (default 20)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--split", action="store_true", help="print where the compiled time goes")
+    ap.add_argument("--figures", action="store_true",
+                    help="the figures of one design evaluation beside the anchor (benchmarks/anchor.py): fixed "
+                         "samples, new samples, drawing new samples (default study: studies/quickstart.yaml)")
     args = ap.parse_args(argv)
+    if args.figures:
+        for f in args.studies or [str(ROOT / "studies" / "quickstart.yaml")]:
+            figures(f, args.designs, args.seed)
+        return
     from parasynth.study.evaluate import Evaluator
     from parasynth.study.spec import load_study
 
@@ -145,9 +251,12 @@ def main(argv=None):
               f"numpy {t_n * 1e3:.3f} ms per design; largest relative objective difference {worst:.3g}",
               file=sys.stderr)
         if args.split and parts:
-            tot = sum(parts.values())
+            kern = parts.pop("(kernels)", 0.0)
+            tot = t_c * len(designs)
             for k, v in sorted(parts.items(), key=lambda kv: -kv[1]):
                 print(f"  {k}: {v / len(designs) * 1e3:.3f} ms per design ({v / tot:.0%})", file=sys.stderr)
+            print(f"  of which in the kernels: {kern / len(designs) * 1e3:.3f} ms per design ({kern / tot:.0%}); "
+                  f"outside the kernels {(tot - kern) / len(designs) * 1e3:.3f} ms", file=sys.stderr)
         lines.append(f"{study.name} ms_per_design={t_c * 1e3:.6g} speedup_vs_numpy={t_n / t_c:.6g}")
     for line in lines:
         print(line)

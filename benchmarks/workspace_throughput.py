@@ -31,6 +31,18 @@ where ``poses_per_s`` is the rate of the fastest path, ``ratio_vs_loop`` its rat
 loop measured in the same run, and ``worst_case_ratio_vs_numpy`` the worst-case compiled rate
 over the NumPy path's rate on the same all-feasible poses.
 
+``--figures`` instead measures, in one process and alternately with the anchor
+(``benchmarks/anchor.py``: a fused ``prange`` kernel of a simplified 5-PUS/UPU, every pose
+feasible, f64), the engine's time on 1 and 2 threads per batch size (the ratio 1-thread /
+2-thread time of both, and the CPU time 2 threads / 1 thread: the hand-off's cost; threads
+from ``core.PARALLEL_MIN`` up whether they pay now or not, ``core.ADAPTIVE = False``), then
+each figure of issue 29 with its ratio to the anchor (threads while they pay, as in a run)::
+
+    threads_ratio n=<int> engine=<float> anchor=<float>
+    figure worst_case_feasibility poses_per_s=<f> anchor_poses_per_s=<f> ratio_vs_anchor=<f>
+    figure workspace_volume_1e5 ms=<f> anchor_ms=<f> time_vs_anchor=<f>
+    figure described_6pus_2^17 ms=<f> anchor_ms=<f> per_pose_time_vs_anchor=<f>
+
 ``--big-workspace 1e8`` instead runs ``parasynth.workspace`` with that many Sobol samples on
 ``5pus_upu`` in a fresh process and prints its time and peak memory
 (``workspace_samples=<n> seconds=<f> peak_rss_mb=<f>``).
@@ -41,6 +53,7 @@ Usage::
     python benchmarks/workspace_throughput.py --seconds 3        # time-boxed per path
     python benchmarks/workspace_throughput.py --n 5e6 --models 5pus_upu
     python benchmarks/workspace_throughput.py --big-workspace 1e8
+    python benchmarks/workspace_throughput.py --figures      # beside the anchor
 
 Not part of the test suite.
 """
@@ -382,6 +395,128 @@ def run_big_workspace(n: int, name: str = "5pus_upu") -> dict:
                 fraction=ws.fraction, rss_before=None)
 
 
+# ---------------------------------------------------------------------------------------------
+# The figures of the engine beside the anchor (benchmarks/anchor.py), measured in one process
+# ---------------------------------------------------------------------------------------------
+THREAD_SIZES = (4096, 8192, 16384, 100_000, 2**17, 2**20)
+
+
+def _best(fn, repeats=7, min_time=0.05):
+    """Best wall time (s) of one call of ``fn`` (each repeat ``min_time`` long at least), and
+    the CPU time (s, all threads) of that repeat's calls."""
+    t0 = time.perf_counter()
+    fn()
+    one = max(time.perf_counter() - t0, 1e-6)
+    reps = max(1, int(min_time / one))
+    best, cpu = math.inf, math.inf
+    for _ in range(repeats):
+        c0, t0 = time.process_time(), time.perf_counter()
+        for _ in range(reps):
+            fn()
+        dt = (time.perf_counter() - t0) / reps
+        if dt < best:
+            best, cpu = dt, (time.process_time() - c0) / reps
+    return best, cpu
+
+
+def run_figures(opts: dict) -> dict:
+    """The engine's figures and the anchor's, alternately in this process: the thread ratio per
+    batch size, the worst-case feasibility rate (2e6 all-feasible poses), ``workspace_volume``
+    of 1e5 Sobol samples on a new design each call and the workspace of a described 6-PUS on
+    2**17 samples."""
+    sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+    import anchor
+    import numba
+
+    from parasynth import load_mechanism
+    from parasynth.engine import core, kernels
+    from parasynth.measures import objectives
+    from parasynth.measures.workspace import workspace
+
+    res = {"load_before": os.getloadavg(), "threads_available": int(numba.config.NUMBA_NUM_THREADS),
+           "anchor_disagree": anchor.check()}
+    mech = load_mechanism("5pus_upu")
+    n_max = int(numba.config.NUMBA_NUM_THREADS)
+
+    def set_threads(t):  # core.set_threads; an older engine read numba's count alone
+        if hasattr(core, "set_threads"):
+            core.set_threads(t)
+        else:
+            numba.config.NUMBA_NUM_THREADS = n_max if t is None else t
+
+    rows = []
+    adaptive = getattr(core, "ADAPTIVE", None)
+    if adaptive is not None:  # the table compares the two ways, whichever pays now
+        core.ADAPTIVE = False
+    for n in opts["sizes"]:
+        X = anchor.feasible_poses(n)
+        row = {"n": n}
+        for t in (1, 2):
+            set_threads(t)
+            row[f"engine{t}"] = _best(lambda: kernels.feasible_fast(mech, X))
+            row[f"anchor{t}"] = (anchor.anchor_seconds(n, t), None)
+        set_threads(None)
+        rows.append(row)
+    if adaptive is not None:  # the figures below as a run has them: threads while they pay
+        core.ADAPTIVE = adaptive
+    res["threads"] = rows
+    # worst-case feasibility, 2e6 poses, both threads
+    n = 2_000_000
+    X = anchor.feasible_poses(n)
+    assert kernels.feasible_fast(mech, X).all()
+    res["worst"] = dict(n=n, engine=_best(lambda: kernels.feasible_fast(mech, X), repeats=5)[0],
+                        anchor=anchor.anchor_seconds(n, 2, repeats=5))
+    # workspace_volume of 1e5 Sobol samples, a new design (a new mechanism object) each call
+    designs = [load_mechanism("5pus_upu", link_length=0.19 + 0.0005 * i) for i in range(400)]
+    it = iter(range(10**9))
+    ranges = designs[0].default_ranges()
+
+    def one_volume():
+        m = designs[next(it) % len(designs)]
+        objectives._CACHE.clear()
+        objectives.workspace_volume(m, n=100_000, ranges=ranges)
+
+    res["volume"] = dict(engine=_best(one_volume)[0], anchor=anchor.anchor_seconds(100_000, 2))
+    # a described 6-PUS, 2**17 samples
+    hexa = load_mechanism("hexapod_6pus")
+    hx = [load_mechanism("hexapod_6pus", link_length=0.68 + 0.0005 * i) for i in range(100)]
+    it6 = iter(range(10**9))
+    workspace(hexa, n=4096, keep_points=False, progress=False)
+    res["hexapod"] = dict(engine=_best(lambda: workspace(hx[next(it6) % len(hx)], n=2**17, keep_points=False,
+                                                         progress=False), repeats=5)[0],
+                          anchor=anchor.anchor_seconds(2**17, 2, repeats=5))
+    res["load_after"] = os.getloadavg()
+    return res
+
+
+def print_figures(r: dict) -> None:
+    la, lb = r["load_before"], r["load_after"]
+    print(f"load average (1 min) {la[0]:.2f} before, {lb[0]:.2f} after; numba threads available "
+          f"{r['threads_available']}; anchor = benchmarks/anchor.py (fused, prange, every pose feasible, f64; "
+          f"{r['anchor_disagree']} disagreements with NumPy on 4096 poses)")
+    print(f"{'poses':>9s} {'engine 1 thr':>13s} {'engine 2 thr':>13s} {'2/1 thr':>8s} {'cpu 2/1':>8s} "
+          f"{'anchor 1 thr':>13s} {'anchor 2 thr':>13s} {'2/1 thr':>8s} {'engine/anchor':>14s}")
+    for row in r["threads"]:
+        e1, c1 = row["engine1"]
+        e2, c2 = row["engine2"]
+        a1, a2 = row["anchor1"][0], row["anchor2"][0]
+        print(f"{row['n']:9d} {e1 * 1e3:11.3f}ms {e2 * 1e3:11.3f}ms {e1 / e2:8.2f} {c2 / c1:8.2f} "
+              f"{a1 * 1e3:11.3f}ms {a2 * 1e3:11.3f}ms {a1 / a2:8.2f} {e2 / a2:14.2f}")
+    for row in r["threads"]:
+        print(f"threads_ratio n={row['n']} engine={row['engine1'][0] / row['engine2'][0]:.3g} "
+              f"anchor={row['anchor1'][0] / row['anchor2'][0]:.3g}")
+    w = r["worst"]
+    print(f"figure worst_case_feasibility poses_per_s={w['n'] / w['engine']:.4g} "
+          f"anchor_poses_per_s={w['n'] / w['anchor']:.4g} ratio_vs_anchor={w['anchor'] / w['engine']:.3g} "
+          f"(target >= 5e7 and >= 2.7)")
+    v = r["volume"]
+    print(f"figure workspace_volume_1e5 ms={v['engine'] * 1e3:.3f} anchor_ms={v['anchor'] * 1e3:.3f} "
+          f"time_vs_anchor={v['engine'] / v['anchor']:.3g} (target <= 1.0)")
+    h = r["hexapod"]
+    print(f"figure described_6pus_2^17 ms={h['engine'] * 1e3:.3f} anchor_ms={h['anchor'] * 1e3:.3f} "
+          f"per_pose_time_vs_anchor={h['engine'] / h['anchor']:.3g} (target <= 2)")
+
+
 def _run_isolated(name, opts):
     """Run one model in a fresh process (its own peak RSS)."""
     with cf.ProcessPoolExecutor(max_workers=1, mp_context=mp.get_context("spawn")) as ex:
@@ -403,7 +538,16 @@ def main(argv=None):
     ap.add_argument("--in-process", action="store_true", help="run all models in this process")
     ap.add_argument("--big-workspace", type=float, default=None, metavar="N",
                     help="only run parasynth.workspace on 5pus_upu with N Sobol samples (e.g. 1e8): time, memory")
+    ap.add_argument("--figures", action="store_true",
+                    help="only the figures of the engine beside the anchor (benchmarks/anchor.py) in one process: "
+                         "the 2-thread/1-thread ratio per batch size, worst-case feasibility, workspace_volume "
+                         "of 1e5 samples, a described 6-PUS on 2**17 samples")
+    ap.add_argument("--sizes", type=float, nargs="+", default=list(THREAD_SIZES),
+                    help="batch sizes of the thread table of --figures")
     args = ap.parse_args(argv)
+    if args.figures:
+        print_figures(run_figures({"sizes": [int(x) for x in args.sizes]}))
+        return
     if args.big_workspace:
         with cf.ProcessPoolExecutor(max_workers=1, mp_context=mp.get_context("spawn")) as ex:
             r = ex.submit(run_big_workspace, int(args.big_workspace)).result()

@@ -46,6 +46,7 @@ import logging
 import math
 import os
 import threading
+import time
 import warnings
 import weakref
 from concurrent.futures import ThreadPoolExecutor
@@ -95,19 +96,110 @@ _CONE_KEYS = {
 BLOCK = 4096
 #: Poses per SIMD sub-block (the scratch of one sub-block stays in the L1 cache).
 SUB = 64
-#: Batches of fewer poses run on the calling thread only: handing blocks to other threads costs
-#: more than it saves for them (and, on a machine busy with other work, far more).
-PARALLEL_MIN = 2**17
+#: Batches of fewer poses run on the calling thread only: handing work to another thread costs
+#: ~0.03-0.05 ms of CPU (a pool thread's wake-up, the kernel calls' unboxing), 10-20 % of the
+#: time of 4096 poses, 5-10 % of 8192 poses' (measured with ``benchmarks/workspace_throughput.py
+#: --figures``, see docs/performance.md).
+PARALLEL_MIN = 8192
+#: Work items per thread of a parallel batch: a batch is cut into about this many ranges per
+#: thread (of at most BLOCK poses, a multiple of SUB), taken in turn, so that a thread slowed by
+#: other work on the machine takes fewer of them.
+ITEMS_PER_THREAD = 4
+
+_THREADS = None
 
 
 def n_threads() -> int:
-    """Threads a large batch is spread over: numba's thread count (``NUMBA_NUM_THREADS``,
-    default the number of cores)."""
+    """Threads a batch is spread over: numba's thread count (``NUMBA_NUM_THREADS``, default
+    the number of cores; a study's worker processes get ``cores // workers`` of it, see
+    :func:`parasynth.study.workers.worker_env`), or fewer if :func:`set_threads` asked so."""
     if not HAVE_NUMBA:
         return 1
     import numba
 
-    return max(1, int(numba.config.NUMBA_NUM_THREADS))
+    nt = max(1, int(numba.config.NUMBA_NUM_THREADS))
+    return nt if _THREADS is None else min(nt, _THREADS)
+
+
+def set_threads(n: int | None) -> None:
+    """Spread batches over at most ``n`` threads from now on (``None``: numba's thread count
+    again); numba's thread count stays the ceiling, so a worker process kept to one thread
+    stays there."""
+    global _THREADS
+    if n is not None and (not isinstance(n, int) or isinstance(n, bool) or n < 1):
+        raise ValueError(f"threads: {n!r} is not allowed; give a whole number >= 1 or None")
+    _THREADS = n
+
+
+def blocking(n: int, threads: int | None = None, kind: str | None = None) -> tuple[int, int, bool]:
+    """``(block, n_blocks, parallel)`` for a batch of ``n`` poses: on the calling thread in
+    blocks of BLOCK poses below PARALLEL_MIN (or with one thread, or when :data:`TIMING` finds
+    that threads do not pay for the kernel ``kind`` now), else in blocks small enough for
+    ITEMS_PER_THREAD work items per thread (a multiple of SUB, at most BLOCK). The result does
+    not depend on the blocking: every pose is computed alone."""
+    nt = n_threads() if threads is None else threads
+    if nt <= 1 or n < PARALLEL_MIN or getattr(_IN_POOL, "active", False):
+        return BLOCK, max(1, (n + BLOCK - 1) // BLOCK), False
+    if threads is None and kind is not None and not TIMING.threads_pay(kind, n):
+        return BLOCK, (n + BLOCK - 1) // BLOCK, False
+    per = -(-n // (ITEMS_PER_THREAD * nt))
+    block = min(BLOCK, max(SUB, -(-per // SUB) * SUB))
+    return block, (n + block - 1) // block, True
+
+
+class _Timing:
+    """Whether spreading a kernel's batches over threads pays, from the batches themselves.
+
+    On an idle machine two threads nearly halve a batch of 8192 poses; on a machine whose
+    cores are busy with other work a pool thread is often descheduled while it holds a range,
+    and the batch waits for it (twice the serial time, measured at load 5-6 on 2 cores). So
+    per kernel and batch size (to a power of 2) the wall time per pose of recent batches is
+    kept for both ways (an exponential average), the faster way is taken, and every
+    ``explore``-th batch tries the other way. The way never changes an answer, only the
+    time."""
+
+    def __init__(self, explore: int = 8, weight: float = 0.25):
+        self.explore = explore
+        self.weight = weight
+        self.stats: dict = {}  # (kind, size class) -> [serial s/pose or None, parallel s/pose or None, batches]
+        self.lock = threading.Lock()
+
+    def threads_pay(self, kind: str, n: int) -> bool:
+        if not ADAPTIVE:
+            return True
+        with self.lock:
+            st = self.stats.setdefault((kind, int(n).bit_length()), [None, None, 0])
+            st[2] += 1
+            if st[1] is None:
+                return True
+            if st[0] is None:
+                return False
+            faster = st[1] <= st[0]
+            return (not faster) if st[2] % self.explore == 0 else faster
+
+    def record(self, kind: str, parallel: bool, n: int, seconds: float) -> None:
+        if n < PARALLEL_MIN or n_threads() <= 1:
+            return
+        with self.lock:
+            st = self.stats.setdefault((kind, int(n).bit_length()), [None, None, 0])
+            i = 1 if parallel else 0
+            v = seconds / n
+            st[i] = v if st[i] is None else st[i] + self.weight * (v - st[i])
+
+
+#: Threads for a kernel's batches only while they pay (see :class:`_Timing`); False: always
+#: (from PARALLEL_MIN poses up, with several threads).
+ADAPTIVE = True
+TIMING = _Timing()
+
+
+def _timed_blocks(kind: str, fn, n: int) -> None:
+    """``over_blocks`` of ``fn`` over a batch of ``n`` poses, blocked by :func:`blocking`;
+    ``fn(block, b0, b1)``. The batch's time goes to :data:`TIMING`."""
+    block, nblk, par = blocking(n, kind=kind)
+    t0 = time.perf_counter()
+    over_blocks(lambda b0, b1: fn(block, b0, b1), nblk, par)
+    TIMING.record(kind, par, n, time.perf_counter() - t0)
 
 
 _POOL = None
@@ -153,7 +245,7 @@ def over_blocks(fn, n_blocks: int, parallel: bool = True) -> None:
     if nt <= 1 or n_blocks < 2 or getattr(_IN_POOL, "active", False):
         fn(0, n_blocks)
         return
-    parts = min(n_blocks, 8 * nt)
+    parts = min(n_blocks, ITEMS_PER_THREAD * nt)
     edges = [n_blocks * i // parts for i in range(parts + 1)]
     nxt, lock, failed = [0], threading.Lock(), []
     pool = _pool(nt - 1)
@@ -607,10 +699,9 @@ def run_feasible(plan: KernelPlan, X: np.ndarray):
     """(out (N,) bool, ambiguous: bool) for contiguous float64 poses X."""
     X = _readonly(X)
     out = np.empty(X.shape[0], dtype=np.bool_)
-    nblk = (X.shape[0] + BLOCK - 1) // BLOCK
-    amb = np.zeros(max(nblk, 1), dtype=np.int64)
+    amb = np.zeros(max(1, (X.shape[0] + SUB - 1) // SUB), dtype=np.int64)  # one per block, any blocking
     args = plan.args()
-    over_blocks(lambda b0, b1: _feasible_kernel(X, *args, BLOCK, out, amb, b0, b1), nblk, X.shape[0] >= PARALLEL_MIN)
+    _timed_blocks("feasible", lambda block, b0, b1: _feasible_kernel(X, *args, block, out, amb, b0, b1), X.shape[0])
     return out, bool(amb.any())
 
 
@@ -618,10 +709,9 @@ def run_margins(plan: KernelPlan, X: np.ndarray):
     """(M (N, n_constraints), ambiguous: bool)."""
     X = _readonly(X)
     M = np.empty((X.shape[0], len(plan.names)))
-    nblk = (X.shape[0] + BLOCK - 1) // BLOCK
-    amb = np.zeros(max(nblk, 1), dtype=np.int64)
+    amb = np.zeros(max(1, (X.shape[0] + SUB - 1) // SUB), dtype=np.int64)  # one per block, any blocking
     args = plan.args()
-    over_blocks(lambda b0, b1: _margins_kernel(X, *args, BLOCK, M, amb, b0, b1), nblk, X.shape[0] >= PARALLEL_MIN)
+    _timed_blocks("margins", lambda block, b0, b1: _margins_kernel(X, *args, block, M, amb, b0, b1), X.shape[0])
     return M, bool(amb.any())
 
 
@@ -640,10 +730,9 @@ def run_pose(prog: Program, consts, X: np.ndarray, twist: bool = False):
         tr = np.zeros((0, 0), dtype=np.int64)
         Tw = np.empty((0, 0, 0))
         n_run = prog.n_pose
-    nblk = (N + BLOCK - 1) // BLOCK
-    over_blocks(lambda b0, b1: _pose_kernel(X, prog.ins, consts, prog.const_base, prog.n_reg, n_run, prog.pose_regs,
-                                            prog.valid_regs, prog.pose_limit, tr, BLOCK, ok, P, Rm, Tw, b0, b1),
-                nblk, N >= PARALLEL_MIN)
+    _timed_blocks("pose", lambda block, b0, b1: _pose_kernel(X, prog.ins, consts, prog.const_base, prog.n_reg, n_run,
+                                                             prog.pose_regs, prog.valid_regs, prog.pose_limit, tr,
+                                                             block, ok, P, Rm, Tw, b0, b1), N)
     return ok, P, Rm.reshape(N, 3, 3), (Tw if twist else None)
 
 

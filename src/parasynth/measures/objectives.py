@@ -60,7 +60,7 @@ from .measure_spec import Setting, SettingError, as_setting, check_settings
 from .stiffness import part_stiffness, point_deflection, stiffness_along
 from .usable import DEFAULT_FLOOR_FRACTION, usable_of
 from ..common.validation import MAX_SAMPLES, MAX_SEED, check_count, check_mechanism, check_names
-from .workspace import WorkspaceSample, freeze, workspace
+from .workspace import WorkspaceSample, freeze, params_key, workspace
 
 __all__ = [
     "Measure",
@@ -315,7 +315,7 @@ def workspace_of(mech, ranges=None, n: int = 4096, method: str = "sobol", seed: 
     ranges = dict(ranges) if ranges else mech.default_ranges()
     # the engine that evaluates ("numpy" inside engine.reference() and engine.needs()): a probe
     # on the NumPy reference never answers for a compiled evaluation of the same settings
-    key = (type(mech), freeze(dataclasses.asdict(mech.params)), freeze(ranges), int(n), method,
+    key = (type(mech), params_key(mech), freeze(ranges), int(n), method,
            int(seed), freeze(fixed), freeze(constraints), effective_engine(engine),
            tuple(repr(c) for c in getattr(mech, "added_constraints", ())), getattr(mech, "scatter_key", None))
     # a scatter draw of a robust measure keeps its own workspaces (parasynth.measures.robustness): the

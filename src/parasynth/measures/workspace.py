@@ -72,6 +72,7 @@ units: ``rad`` for ``mech.angular_coordinates``, ``m`` otherwise.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import sys
 import time
@@ -1016,6 +1017,21 @@ def box_in(occ: np.ndarray, edges, coordinates, names, over: str, units: Mapping
     highs = np.array([e[i] for e, i in zip(edges, hi_i)])
     cell = np.array([e[1] - e[0] for e in edges])
     return Box(tuple(names), lows, highs, tuple(units[c] for c in names), tuple(int(len(e) - 1) for e in edges), cell)
+
+
+def params_key(mech):
+    """``freeze(dataclasses.asdict(mech.params))``, computed once per parameter object (kept on
+    the mechanism beside the object it was computed from: ~0.15 ms a call, twice per design of
+    a study)."""
+    params = mech.params
+    own = getattr(mech, "__dict__", None)
+    hit = own.get("_params_key") if own is not None else None
+    if hit is not None and hit[0] is params:
+        return hit[1]
+    key = freeze(dataclasses.asdict(params))
+    if own is not None:
+        own["_params_key"] = (params, key)
+    return key
 
 
 def freeze(v):

@@ -1,0 +1,92 @@
+"""Batches spread over threads (engine.core.blocking / over_blocks / set_threads): the split covers
+every pose once, and the answers do not depend on it -- the same as on one thread and as the
+NumPy reference."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from parasynth import load_mechanism
+from parasynth.engine import core, kernels
+
+numba = pytest.importorskip("numba")
+pytestmark = pytest.mark.skipif(not core.HAVE_NUMBA, reason="numba not available")
+
+
+@pytest.mark.parametrize("n", [0, 1, 63, 4096, core.PARALLEL_MIN - 1, core.PARALLEL_MIN, 10_000, 100_000, 2**20 + 5])
+@pytest.mark.parametrize("threads", [1, 2, 3, 8])
+def test_blocking_covers_every_pose_once(n, threads):
+    block, nblk, par = core.blocking(n, threads)
+    assert par == (threads > 1 and n >= core.PARALLEL_MIN)
+    assert 1 <= block <= core.BLOCK and block % core.SUB == 0
+    assert (nblk - 1) * block < max(n, 1) <= nblk * block
+    if par:  # enough work items for every thread to take several
+        assert nblk >= min(core.ITEMS_PER_THREAD * threads, -(-n // core.SUB)) - 1
+
+
+def test_set_threads_refuses_bad_counts_and_keeps_the_ceiling():
+    for bad in (0, -1, 1.5, True, "2"):
+        with pytest.raises(ValueError, match="threads"):
+            core.set_threads(bad)
+    try:
+        core.set_threads(10**6)
+        assert core.n_threads() == max(1, int(numba.config.NUMBA_NUM_THREADS))
+        core.set_threads(1)
+        assert core.n_threads() == 1
+    finally:
+        core.set_threads(None)
+
+
+@pytest.mark.parametrize("n", [9000, 50_000])
+def test_threaded_batches_answer_as_one_thread_and_numpy(n, monkeypatch):
+    mech = load_mechanism("5pus_upu")
+    rng = np.random.default_rng(3)
+    lo = np.array([-0.06, -0.06, -0.10, -0.35, -0.35])
+    X = rng.uniform(lo, -lo * np.array([1, 1, 0.8, 1, 1]), size=(n, 5))
+    monkeypatch.setattr(core, "ITEMS_PER_THREAD", 7)  # uneven ranges
+    monkeypatch.setattr(core, "ADAPTIVE", False)  # threads whether they pay now or not
+    monkeypatch.setattr(core, "n_threads", lambda: 3)  # the pool is used even on a 1-core machine
+    par = kernels.feasible_fast(mech, X)
+    mpar = kernels.margins_fast(mech, X)
+    monkeypatch.setattr(core, "n_threads", lambda: 1)
+    one = kernels.feasible_fast(mech, X)
+    mone = kernels.margins_fast(mech, X)
+    assert core.blocking(n, 3)[2] and not core.blocking(n, 1)[2]
+    assert 0 < np.count_nonzero(one) < n
+    assert np.array_equal(par, one)
+    for k in mone:
+        assert np.array_equal(mpar[k], mone[k], equal_nan=True)
+    assert np.array_equal(one, mech.is_feasible(X, engine="numpy"))
+
+
+def test_the_timing_takes_the_faster_way_and_tries_the_other():
+    t = core._Timing(explore=4, weight=0.5)
+    n = core.PARALLEL_MIN
+    assert t.threads_pay("k", n)  # nothing known: threads first
+    t.record("k", True, n, 2e-3)
+    assert not t.threads_pay("k", n)  # then one thread
+    t.record("k", False, n, 1e-3)
+    ways = [t.threads_pay("k", n) for _ in range(8)]
+    assert ways.count(True) == 2 and ways.count(False) == 6  # the faster way, the other every 4th
+    for _ in range(6):  # threads become faster (the machine got quiet): taken from then on
+        t.record("k", True, n, 0.2e-3)
+    ways = [t.threads_pay("k", n) for _ in range(8)]
+    assert ways.count(True) == 6
+    assert t.threads_pay("k", 4 * n)  # another batch size is timed apart: nothing known, threads first
+    t.record("k", True, 4 * n, 1e-3)
+    assert not t.threads_pay("k", 4 * n)  # then one thread
+    t.record("small", True, n - 1, 1.0)  # batches that never use threads are not counted
+    assert all(k[0] != "small" for k in t.stats)
+
+
+def test_adaptive_blocking_gives_the_same_answers(monkeypatch):
+    mech = load_mechanism("5pus_upu")
+    X = np.random.default_rng(5).uniform(-0.05, 0.05, size=(20_000, 5))
+    monkeypatch.setattr(core, "n_threads", lambda: 2)
+    monkeypatch.setattr(core, "TIMING", core._Timing(explore=2))
+    answers = [kernels.feasible_fast(mech, X) for _ in range(5)]  # both ways, alternately
+    assert {par for _, _, par in [core.blocking(20_000, None, "feasible") for _ in range(4)]} == {True, False}
+    for a in answers[1:]:
+        assert np.array_equal(a, answers[0])
+    assert np.array_equal(answers[0], mech.is_feasible(X, engine="numpy"))
