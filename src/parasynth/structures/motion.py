@@ -37,6 +37,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..common.units import in_display
 from ..mechanisms import parse_description
 from ..model.parasitic import HOME_ITERATIONS, ParasiticError, closure_count, closure_residuals, gauss_newton
 from ..model.spatial import euler_rate_map, euler_to_matrix
@@ -71,10 +72,6 @@ class MotionRule:
     doc: str
     independent: tuple = ()
     dependent: tuple = ()
-
-
-def _quantity(v: float, kind: str) -> str:
-    return f"{v * 1000.0:.15g} mm" if kind == "length" else f"{np.degrees(v):.15g} deg"
 
 
 def _pose(V):
@@ -171,7 +168,7 @@ def motion_rule(description: dict) -> MotionRule:
     task = {
         "coordinates": {c: kinds[c] for c in ind},
         "solve": {"unknowns": {c: kinds[c] for c in dep}, "closure": "legs",
-                  "start": {c: _quantity(u, kinds[c]) for c, u in zip(dep, U[0])}},
+                  "start": {c: in_display(u, kinds[c], ".15g") for c, u in zip(dep, U[0])}},
         "position": ["x", "y", "z"],
         "orientation": {"convention": "xyz", "angles": ["alpha", "beta", "gamma"]},
         "home": {c: t["home"][c] for c in ind},

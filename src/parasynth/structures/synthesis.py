@@ -723,8 +723,30 @@ def structures(motion, *, leg_types=None, legs=None, axes=None, all_axes: bool =
         dropped[reason] += 1
         dropped_names[reason].append(c.name)
 
-    # the cheap rules first, so that the work of the checks is known before any is done
+    def too_many(n_check, at_least=""):
+        if n_check * n_poses > MAX_POSE_CHECKS:
+            raise StructureError(f"n_poses: {n_poses} poses for each of the {at_least}{n_check} candidates to check "
+                                 f"are {n_check * n_poses} mobility evaluations (about "
+                                 f"{n_check * n_poses * 0.015 / 60:.0f} min), more than the documented maximum "
+                                 f"{MAX_POSE_CHECKS}; give a smaller n_poses or fewer leg_types")
+
+    def keep(c, key, template):
+        if template is not None and want_axes is not None and template.motion == motion \
+                and not _axes_match(template, want_axes):
+            drop("other axes", c)
+        elif c.n_actuated < dof:
+            drop("under-actuated", c)
+        elif c.n_actuated > dof:
+            drop("over-actuated", c)
+        else:
+            to_check.append((c, key, template))
+
+    # the cheap rules first, so that the work of the checks is known before any is done; the
+    # motions computed from the limbs' closure equations (structures/motion.py) come second, once
+    # the candidates with a template alone are known not to exceed the budget of checks
     to_check = []
+    pending = []
+    order = {id(c): i for i, c in enumerate(cands)}
     for c in cands:
         key = _key(c.groups)
         if key in seen:
@@ -733,32 +755,22 @@ def structures(motion, *, leg_types=None, legs=None, axes=None, all_axes: bool =
         seen.add(key)
         template = c.template()
         if template is None and c.n_actuated == dof:
-            # the motion computed from the limbs' closure equations (structures/motion.py), only for
-            # a candidate with as many actuators as freedoms: the others are dropped below by count
-            template, why = candidate_rule(c.groups, lambda t, c=c: _description(c, t, "rule"))
-            if template is None:
-                drop("no task rule", c)
-                no_rule[f"{c.name} [{'; '.join(g.label() for g in c.groups)}]"] = why
-                continue
-            if template.motion != motion:
-                drop("wrong motion", c)
-                continue
-        if template is not None and want_axes is not None and template.motion == motion \
-                and not _axes_match(template, want_axes):
-            drop("other axes", c)
+            pending.append((c, key))  # only a candidate with as many actuators as freedoms gets a rule
             continue
-        if c.n_actuated < dof:
-            drop("under-actuated", c)
-            continue
-        if c.n_actuated > dof:
-            drop("over-actuated", c)
-            continue
-        to_check.append((c, key, template))
-    if len(to_check) * n_poses > MAX_POSE_CHECKS:
-        raise StructureError(f"n_poses: {n_poses} poses for each of the {len(to_check)} candidates to check are "
-                             f"{len(to_check) * n_poses} mobility evaluations (about "
-                             f"{len(to_check) * n_poses * 0.015 / 60:.0f} min), more than the documented maximum "
-                             f"{MAX_POSE_CHECKS}; give a smaller n_poses or fewer leg_types")
+        keep(c, key, template)
+    if pending:
+        too_many(len(to_check), "at least ")
+    for c, key in pending:
+        template, why = candidate_rule(c.groups, lambda t, c=c: _description(c, t, "rule"))
+        if template is None:
+            drop("no task rule", c)
+            no_rule[f"{c.name} [{'; '.join(g.label() for g in c.groups)}]"] = why
+        elif template.motion != motion:
+            drop("wrong motion", c)
+        else:
+            keep(c, key, template)
+    to_check.sort(key=lambda t: order[id(t[0])])  # enumeration order, as the candidates came
+    too_many(len(to_check))
     found = []
     for c, key, template in to_check:
         arrs = "-".join(dict.fromkeys(g.arrangement for g in c.groups if g.actuated))
