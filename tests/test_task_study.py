@@ -157,3 +157,28 @@ def test_the_naval_testbed_poses_as_transcribed():
     ang = np.rad2deg(want[:, 3:]) + [180, 0, 0]
     ang[:, 0] = np.where(ang[:, 0] > 180, ang[:, 0] - 360, ang[:, 0])
     np.testing.assert_allclose(vals[:, 3:], ang, atol=1e-6)
+
+
+def test_a_design_that_reaches_no_pose_is_recorded_as_failed():
+    """Lifted 3 m, the platform poses need legs of about 3.6 m against l_max = 2 m (closed form
+    below): no pose is reachable, so the design fails instead of holding vacuous values."""
+    d = {**STUDY, "objectives": [{"name": "task_margin_min", "label": "margin"}], "constraints": [],
+         "variables": [STUDY["variables"][0], {"name": "task.placement.z", "values": ["0 mm", "3000 mm"]}]}
+    s = load_study(yaml.safe_dump(d), is_text=True)
+    far = {"platform_radius": 0.25, "task.placement.z": 3.0}
+    mech = design_mechanism(s, far)
+    X = design_task(s, far).platform_poses(mech)
+    assert np.allclose(X[:, 2], 3.6)
+    B = np.array([leg.base for leg in mech.legs], float)
+    A = np.array([leg.platform for leg in mech.legs], float)
+    lengths = np.linalg.norm(X[0, :3] + A - B, axis=1)  # the first pose is level
+    assert lengths.min() > 3.5 > mech.params.l_max
+    rec = Evaluator(s).evaluate(far)
+    assert rec.status == "failed" and not rec.feasible
+    assert rec.error == ("RequirementError: reaches none of the task's 2 required poses (none reachable with every "
+                         "pose constraint met); its task measures would have no pose to hold on")
+    # the check off: the vacuous worst value, 0 for a margin to maximise
+    loose = Evaluator(s, require_reachable=False).evaluate(far)
+    assert loose.status == "ok" and loose.objectives["margin"] == 0.0
+    near = Evaluator(s).evaluate({"platform_radius": 0.25, "task.placement.z": 0.0})
+    assert near.status == "ok" and near.objectives["margin"] > 0

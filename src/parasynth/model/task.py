@@ -921,7 +921,35 @@ class Task:
         without one (a bare number without it is an error). Files are relative to
         ``base_dir`` (default the working directory). Raises :class:`TaskError` naming the key
         path under ``where``."""
+        if isinstance(mapping, Mapping) and set(mapping) == {"file"}:
+            return cls.from_file(mapping["file"], units=units, base_dir=base_dir, where=where)
         return _Reader(units, base_dir, where).task(mapping)
+
+    @classmethod
+    def from_file(cls, path, *, units=None, base_dir=None, where: str = "task") -> "Task":
+        """The task of a task file (YAML: a ``task:`` mapping, or the mapping itself), e.g.
+        ``studies/tasks/grinding_path.yaml``; a study names one with ``task: {file: ...}``. A
+        relative ``path`` is read from ``base_dir`` (default the working directory), the files
+        the task names from the task file's folder."""
+        if not isinstance(path, (str, os.PathLike)) or not str(path):
+            raise TaskError(f"{where}.file: give a task file name (YAML), got {path!r}")
+        import yaml  # here: `import parasynth` loads no YAML parser (tests/test_layers.py)
+
+        fn = os.fspath(path)
+        if not os.path.isabs(fn) and base_dir is not None:
+            fn = os.path.join(os.fspath(base_dir), fn)
+        try:
+            with open(fn, encoding="utf-8") as fh:
+                data = yaml.safe_load(fh)
+        except OSError as e:
+            raise TaskError(f"{where}.file: cannot read {os.fspath(path)!r} ({e.strerror or e})") from None
+        except yaml.YAMLError as e:
+            raise TaskError(f"{where}.file: {os.fspath(path)!r} is not valid YAML ({str(e).splitlines()[0]})") from None
+        if isinstance(data, Mapping) and set(data) == {"task"}:
+            data = data["task"]
+        if not isinstance(data, Mapping) or "file" in data and set(data) == {"file"}:
+            raise TaskError(f"{where}.file: {os.fspath(path)!r} must hold a task mapping (poses, trajectory, ...)")
+        return _Reader(units, os.path.dirname(os.path.abspath(fn)), where).task(data)
 
 
 class TaskPath:
@@ -1409,7 +1437,11 @@ class _Reader:
         return names, data
 
     def csv(self, f, path):
-        return self._read_csv(f, path)
+        names, data = self._read_csv(f, path)
+        if "t" in names:  # a file of timed poses: the poses without their times
+            k = names.index("t")
+            names, data = [c for c in names if c != "t"], np.delete(data, k, axis=1)
+        return names, data
 
     def placement(self, m, path):
         if m is None:
