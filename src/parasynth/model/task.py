@@ -538,34 +538,50 @@ class Task:
     MAX_REFINED = 200_000
 
     def refined(self, factor: int = 3, rate: int = 10) -> "Task":
-        """The denser task a recommended design is re-checked on (docs/verification.md): poses
-        that form a full grid (every combination of each coordinate's distinct values) refined
+        """The denser task a recommended design is re-checked on (docs/verification.md). With a
+        trajectory the required poses are **kept** (the path through them is what is followed;
+        a refined grid would be another path) and a profiled path is sampled ``rate`` times as
+        often (a file of timed poses is kept as it is). Without a trajectory, poses that form a
+        full grid (every combination of each coordinate's distinct values) are refined
         ``factor`` times per axis (``(n - 1) * factor + 1`` values between the same extremes; a
         smaller factor where the grid would exceed :attr:`MAX_REFINED` poses), other pose lists
-        kept as they are; a profiled path sampled ``rate`` times as often (a file of timed
-        poses kept)."""
-        poses = self.poses
-        grid = None
-        if len(poses) and np.all(np.isfinite(poses)):
-            vals = [np.unique(poses[:, j]) for j in range(poses.shape[1])]
-            if math.prod(len(v) for v in vals) == len(poses):
-                grid = vals
-        new_poses = poses
-        if grid is not None and factor > 1:
-            f = int(factor)
-            while f > 1 and math.prod((len(v) - 1) * f + 1 for v in grid) > self.MAX_REFINED:
-                f -= 1
-            axes = [np.linspace(v[0], v[-1], (len(v) - 1) * f + 1) if len(v) > 1 else v for v in grid]
-            new_poses = np.array(np.meshgrid(*axes, indexing="ij")).reshape(len(axes), -1).T.copy()
-            new_poses.setflags(write=False)
-        traj = self.trajectory
-        if traj is not None and traj.limits is not None and rate > 1:
-            traj = dataclasses.replace(traj, dt=traj.dt / rate)
+        kept as they are. :meth:`refinement` says which in words."""
+        new_poses, traj, _ = self._refine_plan(factor, rate)
         changes = {"poses": new_poses, "trajectory": traj}
-        if self.wrench is not None and self.wrench.ndim == 2 and new_poses is not poses:
-            changes["wrench"] = None  # a per-pose wrench has no value at the new poses
+        if self.wrench is not None and self.wrench.ndim == 2 and new_poses is not self.poses:
             raise TaskError("task: a per-pose wrench cannot be refined to new poses; give a constant wrench")
         return self._copy(**changes)
+
+    def refinement(self, factor: int = 3, rate: int = 10) -> str:
+        """What :meth:`refined` does to this task, in words (e.g. "the path at 10x the sample
+        rate, its 342 poses kept"), for the verification's messages."""
+        return self._refine_plan(factor, rate)[2]
+
+    def _refine_plan(self, factor, rate):
+        poses = self.poses
+        traj = self.trajectory
+        n = len(poses)
+        if traj is not None:
+            if traj.limits is not None and rate > 1:
+                return poses, dataclasses.replace(traj, dt=traj.dt / rate), \
+                    f"the path at {int(rate)}x the sample rate, its {n} poses kept"
+            return poses, traj, f"the timed path and its {n} poses kept as they are"
+        grid = None
+        if n and np.all(np.isfinite(poses)):
+            vals = [np.unique(poses[:, j]) for j in range(poses.shape[1])]
+            if math.prod(len(v) for v in vals) == n:
+                grid = vals
+        if grid is None or factor <= 1 or all(len(v) == 1 for v in grid):
+            return poses, traj, f"its {n} poses kept (not a full grid)" if grid is None else f"its {n} poses kept"
+        f = int(factor)
+        while f > 1 and math.prod((len(v) - 1) * f + 1 for v in grid) > self.MAX_REFINED:
+            f -= 1
+        if f <= 1:
+            return poses, traj, f"its {n} poses kept (a refined grid would exceed {self.MAX_REFINED} poses)"
+        axes = [np.linspace(v[0], v[-1], (len(v) - 1) * f + 1) if len(v) > 1 else v for v in grid]
+        new_poses = np.array(np.meshgrid(*axes, indexing="ij")).reshape(len(axes), -1).T.copy()
+        new_poses.setflags(write=False)
+        return new_poses, traj, f"grid poses {f}x per axis ({n} -> {len(new_poses)})"
 
     def __repr__(self) -> str:
         return (f"<Task {self.poses.shape[0]} poses {self.coordinates or '(mechanism order)'} frame={self.frame}"

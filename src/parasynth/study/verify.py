@@ -215,8 +215,9 @@ def _uses_task(item) -> bool:
 
 def task_checks(study, values: dict, mech, floor: float = SINGULARITY_FLOOR) -> list[Check]:
     """The dense re-check of a study with a task (docs/verification.md): the design's task
-    refined (:meth:`parasynth.Task.refined`: grid poses 3x per axis, the path at 10x the sample
-    rate); every task constraint of the study on it, within :data:`EXTREME_RTOL` of its bound (a
+    refined (:meth:`parasynth.Task.refined`: with a path its poses kept and the path at 10x the
+    sample rate, else grid poses 3x per axis; :meth:`parasynth.Task.refinement` says which);
+    every task constraint of the study on it, within :data:`EXTREME_RTOL` of its bound (a
     least or largest value over more poses only gets worse); the singularity margin at every
     feasible pose and path sample at least ``floor``; and the path followed without a
     singularity crossed or a change of assembly mode (:func:`parasynth.measures.task.path_continuity`)."""
