@@ -575,12 +575,25 @@ class TaskEvaluation:
     # geometry
     @property
     def clearance(self) -> np.ndarray:
+        """Clearance (m) of every body to the installation space at the feasible poses, then the
+        feasible path samples. SPS/UPS legs: :meth:`Task.line_clearance` on the platform poses
+        of the engine's pose batch (the legs are not solved); other legs: the legs' states
+        (:meth:`Task.space_clearance`)."""
         def f():
-            c = self.task.space_clearance(self.mech, self.Xf) if len(self.Xf) else np.zeros(0)
+            sets = [self.Xf]
             if self.task.trajectory is not None:
-                ok = self.path_feasible
-                c = np.concatenate([c, self.task.space_clearance(self.mech, self.path.X[ok])])
-            return c
+                sets.append(self.path.X[self.path_feasible])
+            lines = _line_legs(self.mech) is not None
+            out = []
+            for Y in sets:
+                if not len(Y):
+                    out.append(np.zeros(0))
+                elif lines:
+                    _, p, R, _ = engine.pose_batch(self.mech, Y, engine=self.engine)
+                    out.append(self.task.line_clearance(self.mech, p, R))
+                else:
+                    out.append(self.task.space_clearance(self.mech, Y))
+            return np.concatenate(out)
         return self._get("clearance", f)
 
     def continuity(self, floor: float = 1e-3, substeps: int | None = None) -> Continuity:

@@ -304,10 +304,14 @@ class Space:
         x = np.asarray(pts, dtype=float)
         if self.shape == "box":
             lo, hi = np.array(self.low), np.array(self.high)
-            inside = np.minimum(x - lo, hi - x)
-            d_in = inside.min(axis=-1)
-            out = np.linalg.norm(np.maximum(np.maximum(lo - x, x - hi), 0.0), axis=-1)
-            return np.where(d_in >= 0, d_in, -out)
+            # e > 0 on an axis where the point is outside; inside, -max(e) is the nearest face's distance
+            e = np.maximum(lo - x, x - hi)
+            emax = e.max(axis=-1)
+            d = -emax
+            out = emax > 0
+            if out.any():
+                d[out] = -np.linalg.norm(np.maximum(e[out], 0.0), axis=-1)
+            return d
         c = np.array(self.center)
         r = np.linalg.norm(x[..., :2] - c, axis=-1)
         zl, zh = self.z
@@ -803,6 +807,52 @@ class Task:
             moving = np.concatenate([np.stack([st.platform_point for st in states], axis=1), disc], axis=1)
             c = np.minimum(c, side * moving[..., 2].min(axis=1) if side > 0 else (-moving[..., 2]).min(axis=1))
         return np.where(reach, c, np.nan)
+
+    def line_clearance(self, mech, p, R, diameter: float | None = None) -> np.ndarray:
+        """:meth:`space_clearance` for a mechanism whose legs all run straight from a fixed base
+        joint centre (the anchor) to the platform anchor (SPS and UPS legs), from the platform
+        poses ``p`` (N, 3) and ``R`` (N, 3, 3) in ``B`` (every pose taken as reachable): the same
+        bodies and arithmetic, without solving the legs, and the fixed anchors' clearance
+        computed once. ``inf`` without a space."""
+        N = len(p)
+        if self.space is None:
+            return np.full(N, np.inf)
+        d = self._leg_diameter(mech) if diameter is None else float(diameter)
+        Rw, pw = self.placement.R, self.placement.p
+        base = np.array([np.asarray(leg.base, dtype=float) for leg in mech.legs])
+        plat = np.array([np.asarray(leg.platform, dtype=float) for leg in mech.legs])
+        rad = float(np.max(np.linalg.norm(plat[:, :2], axis=1)))
+        th = np.linspace(0, 2 * np.pi, 16, endpoint=False)
+        circ = np.stack([rad * np.cos(th), rad * np.sin(th), np.zeros_like(th)], axis=1)
+        # the platform anchors, then the rim: in B (N, 3, n + 16), then in W
+        local = np.concatenate([plat, circ], axis=0)
+        XB = R @ local.T
+        XB += p[:, :, None]
+        XW = np.matmul(Rw.T, XB - pw[:, None])
+        n = len(plat)
+        c_fixed = float(np.min(self.space.clearance((base - pw) @ Rw))) - 0.5 * d
+        c = np.minimum(self._min_clearance(XW[:, :, :n]) - 0.5 * d, self._min_clearance(XW[:, :, n:]))
+        c = np.minimum(c, c_fixed)
+        if not self.space.base_plane:
+            ph, _ = mech.pose(mech.home)
+            z = XB[:, 2, :]
+            c = np.minimum(c, z.min(axis=1) if ph[2] >= 0 else (-z).min(axis=1))
+        return c
+
+    def _min_clearance(self, X) -> np.ndarray:
+        """(N,) the smallest clearance of the points ``X`` (N, 3, k) in ``W`` of each pose. In a
+        box, when every point is inside it is the smallest distance of the points' per-axis
+        extremes to the faces; poses with a point outside (and a cylinder) take the points'
+        signed distances (:meth:`Space.clearance`)."""
+        sp = self.space
+        if sp.shape != "box":
+            return sp.clearance(np.swapaxes(X, 1, 2)).min(axis=1)
+        lo, hi = np.array(sp.low), np.array(sp.high)
+        d = np.minimum(X.min(axis=2) - lo, hi - X.max(axis=2)).min(axis=1)
+        out = d < 0
+        if out.any():
+            d[out] = sp.clearance(np.swapaxes(X[out], 1, 2)).min(axis=1)
+        return d
 
     def _leg_diameter(self, mech) -> float:
         if self.leg_diameter is not None:
