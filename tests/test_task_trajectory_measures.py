@@ -148,3 +148,13 @@ def test_a_study_names_the_grinding_task_file_and_needs_a_task_off_the_grinder()
         load_study(_study("gough_stewart_6ups"), is_text=True)
     with pytest.raises(StudyError, match=r"task\.file: cannot read"):
         load_study(_study("4ups_1rps", {"file": "/nonexistent/task.yaml"}), is_text=True)
+
+
+def test_the_interactive_report_moves_along_the_built_in_path_only_without_a_task():
+    from parasynth.report.interactive import _trajectory
+
+    built_in = _trajectory(load_study(_study("4ups_1rps"), is_text=True))
+    assert built_in is not None and built_in[1] == "max_force_trajectory"
+    t, X = built_in[0](5)
+    np.testing.assert_allclose(X[-1, :2], [0.1, 0.45], atol=1e-12)  # the circle closes at t = 50 s
+    assert _trajectory(load_study(_study("4ups_1rps", {"file": str(GRINDING)}), is_text=True)) is None

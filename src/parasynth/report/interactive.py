@@ -31,7 +31,7 @@ from markupsafe import Markup
 from plotly.offline import get_plotlyjs_version
 
 from ..measures.display import UNITS, fmt_number, fmt_quantity, reference_name, reference_short
-from ..measures.objectives import TRAJECTORIES, workspace_of
+from ..measures.objectives import TRAJECTORIES, get as get_measure, workspace_of
 from ..study.rundir import Run, design_key, design_mechanism
 from .analysis import Analysis
 from .tables import is_number_col, unit
@@ -91,9 +91,13 @@ def _pose_text(mech, x) -> str:
 
 
 def _trajectory(study):
-    """The trajectory the study's measures follow, or None: (f(n) -> (t, X), measure name)."""
+    """The trajectory the study's measures follow, or None: (f(n) -> (t, X), measure name). The
+    built-in paths of :data:`TRAJECTORIES` only where the measure follows one: a study without a
+    task on a model the measure runs on without one (with a task it follows the task's path)."""
+    if getattr(study, "task", None) is not None:
+        return None
     for m in list(study.objectives) + list(study.constraints):
-        if m.name in TRAJECTORIES:
+        if m.name in TRAJECTORIES and study.mechanism in get_measure(m.name).without_task:
             return TRAJECTORIES[m.name], m.name
     return None
 
