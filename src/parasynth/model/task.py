@@ -566,10 +566,12 @@ class Task:
         traj = self.trajectory
         n = len(poses)
         if traj is not None:
-            if traj.limits is not None and rate > 1:
-                return poses, dataclasses.replace(traj, dt=traj.dt / rate), \
-                    f"the path at {int(rate)}x the sample rate, its {n} poses kept"
-            return poses, traj, f"the timed path and its {n} poses kept as they are"
+            if traj.limits is None:
+                return poses, traj, f"the timed path and its {n} poses kept as they are"
+            if rate > 1:
+                dense = dataclasses.replace(traj, dt=traj.dt / rate)
+                return poses, dense, f"the path at {int(rate)}x the sample rate, its {n} poses kept"
+            return poses, traj, f"the path and its {n} poses kept"
         grid = None
         if n and np.all(np.isfinite(poses)):
             vals = [np.unique(poses[:, j]) for j in range(poses.shape[1])]
