@@ -158,3 +158,18 @@ def test_the_interactive_report_moves_along_the_built_in_path_only_without_a_tas
     t, X = built_in[0](5)
     np.testing.assert_allclose(X[-1, :2], [0.1, 0.45], atol=1e-12)  # the circle closes at t = 50 s
     assert _trajectory(load_study(_study("4ups_1rps", {"file": str(GRINDING)}), is_text=True)) is None
+
+
+def test_continuity_of_an_under_actuated_mechanism_skips_the_assembly_mode(grinder, grinding_task):
+    """The 4-UPS/1-RPS has 4 actuators for 5 freedoms: forward kinematics from the actuators is
+    not unique, so continuity checks feasibility and singularity only, and says so."""
+    assert grinder.n_actuators == 4 and grinder.n_task == 5
+    big = grinder.with_params(l_max=0.7656, d2_max=0.6843, base_radius=0.3458, platform_radius=0.1566,
+                              l_s0=0.03738)
+    ev = parasynth.measures.task.task_evaluation(big, grinding_task)
+    assert ev.path_feasible.all()
+    c = ev.continuity()
+    assert c.first_break is None and "assembly mode not checked" in c.rule
+    # the 6-UPS (6 actuators, 6 freedoms) keeps the check
+    gs = parasynth.load_mechanism("gough_stewart_6ups")
+    assert "assembly mode" not in parasynth.measures.task.task_evaluation(gs, _gs_task()).continuity().rule

@@ -281,7 +281,9 @@ def path_continuity(mech, X, feasible=None, floor: float = 1e-3, substeps: int |
     inverse kinematics, every transition at once) through ``substeps`` equal steps of the
     actuators (default: enough for steps of at most ``max_step`` times the length scale, or
     ``max_step`` rad, at least 1) does not return the inverse kinematics' pose within ``tol``
-    (default 1e-6 of the length scale for lengths, 1e-6 rad for angles)."""
+    (default 1e-6 of the length scale for lengths, 1e-6 rad for angles). For an under-actuated
+    mechanism (fewer actuators than task freedoms) the actuators do not determine the pose and
+    the assembly-mode check is skipped (``rule`` says so)."""
     X = np.atleast_2d(np.asarray(X, dtype=float))
     K = len(X)
     q_all = _actuators(mech, X)
@@ -316,6 +318,11 @@ def path_continuity(mech, X, feasible=None, floor: float = 1e-3, substeps: int |
         rule_txt = rule
     first = int(np.argmax(bad)) if bad.any() else K
     n = first - 1  # transitions 0 -> 1, ..., n-1 -> n are between good samples
+    if mech.n_actuators < mech.n_task:
+        # under-actuated (the 4-UPS/1-RPS): the actuators do not fix the pose, forward
+        # kinematics has a family of solutions, so there is no assembly mode to keep
+        n = 0
+        rule_txt += "; assembly mode not checked (fewer actuators than freedoms)"
     if n > 0:
         q = q_all
         L = mech.length_scale

@@ -244,8 +244,9 @@ def task_checks(study, values: dict, mech, floor: float = SINGULARITY_FLOOR) -> 
                      m - floor if math.isfinite(m) else -math.inf, 0.0, where=where))
     cont = ev.continuity(floor=floor)
     if cont.first_break is None:
+        skipped = "; " + cont.rule.split("; ", 1)[1] if "; " in cont.rule else ""
         out.append(Check("path continuity", "floor", 1.0, ">= 1.0", 0.0, 0.0,
-                         where=where + ": followed to its end"))
+                         where=where + ": followed to its end" + skipped))
     else:
         n = len(ev.path.X) if dense.trajectory is not None else len(ev.X)
         out.append(Check("path continuity", "floor", cont.first_break / n, ">= 1.0", cont.first_break / n - 1.0, 0.0,
