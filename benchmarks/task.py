@@ -41,7 +41,10 @@ Usage::
     python benchmarks/task.py --designs 400 --path-designs 100 --stages
 
 ``--stages`` also prints the median time of each stage of one evaluation (platform poses,
-feasibility, each index, the static forces, the path, its feasibility, the dynamics).
+feasibility, each index, the static forces, the path, its feasibility, the dynamics, the
+installation space's clearance). Beside the two limits it prints the time of one design of the
+naval study as a run evaluates it (``Evaluator.evaluate``: the study's objectives and
+constraints, ``envelope_clearance`` included; ``--study-designs``), with no limit asserted.
 
 Not part of the test suite.
 """
@@ -213,6 +216,21 @@ def run(args) -> int:
         c_path.append(time.process_time() - c0)
         cover_path.append(m["task_coverage"])
 
+    # one design of the naval study as a run evaluates it: every objective and constraint
+    # (force, power, coverage, condition number, envelope clearance), the record's bookkeeping
+    from parasynth.study.evaluate import Evaluator
+    evaluator = Evaluator(designs.study)
+    t_study, c_study = [], []
+    for _ in range(args.study_designs):
+        v = designs.values()
+        c0, t0 = time.process_time(), time.perf_counter()
+        rec = evaluator.evaluate(v)
+        t_study.append(time.perf_counter() - t0)
+        c_study.append(time.process_time() - c0)
+        if rec.status != "ok":
+            print(f"study design failed: {rec.error}", file=sys.stderr)
+            return 2
+
     stages = _stages(designs, args.designs) if args.stages else None
     load1 = _loadavg()
 
@@ -228,6 +246,10 @@ def run(args) -> int:
     print(f"path of {n_samples} samples, {args.path_designs} designs: task with trajectory {_quartiles(t_path)}")
     print(f"  CPU time (this process) median {np.median(c_path) * 1e3:.3f} ms")
     print(f"  baseline (bare IK of {n_samples} samples): {_quartiles(t_base_path)}; ratio {y / by:.1f}")
+    z = float(np.median(t_study)) * 1e3
+    print(f"naval study, {args.study_designs} designs (Evaluator.evaluate: objectives and constraints, "
+          f"envelope_clearance included): {_quartiles(t_study)}; CPU median {np.median(c_study) * 1e3:.3f} ms")
+    print(f"  3000 designs at this median on 2 workers: {3000 * z / 2 / 6e4:.1f} min (the issue's study limit: 10 min)")
     if stages:
         print("stages of one evaluation (median ms):")
         for k, v in stages.items():
@@ -252,7 +274,7 @@ def _stages(designs, n: int) -> dict:
     from parasynth.measures.task import task_evaluation
 
     names = ("X", "feasible", "margin", "condition", "lti", "static_forces", "path", "path_feasible",
-             "dynamic_forces")
+             "dynamic_forces", "clearance")
     acc = {k: [] for k in names}
     for _ in range(max(10, n // 4)):
         mech, task = designs(True)
@@ -270,11 +292,13 @@ def main(argv=None) -> int:
     ap.add_argument("--path-designs", type=int, default=60, help="timed designs with the path (default 60)")
     ap.add_argument("--pose-limit", type=float, default=5.0, help="limit of the task evaluation, ms (default 5)")
     ap.add_argument("--path-limit", type=float, default=50.0, help="limit with the trajectory, ms (default 50)")
+    ap.add_argument("--study-designs", type=int, default=30,
+                    help="timed designs of the naval study's whole evaluation (default 30; no limit asserted)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--stages", action="store_true", help="also print the median time of each stage")
     args = ap.parse_args(argv)
-    if args.designs < 1 or args.path_designs < 1:
-        ap.error("--designs and --path-designs must be at least 1")
+    if args.designs < 1 or args.path_designs < 1 or args.study_designs < 1:
+        ap.error("--designs, --path-designs and --study-designs must be at least 1")
     return run(args)
 
 

@@ -265,6 +265,25 @@ def test_envelope_clearance_against_brute_force_distances(gs):
     assert out == pytest.approx(-(0.5 * np.cos(np.deg2rad(10)) - 0.45), abs=1e-9)
 
 
+@pytest.mark.parametrize("space", [
+    {"shape": "box", "low": [-0.62, -0.6, -0.05], "high": [0.6, 0.63, 0.95], "base_plane": True},
+    {"shape": "box", "low": [-0.55, -0.5, 0.2], "high": [0.45, 0.63, 0.62], "base_plane": False},  # points outside
+    {"shape": "cylinder", "radius": 0.58, "z": [-0.05, 0.7], "center": [0.02, 0.0], "base_plane": False},
+])
+def test_line_legs_clearance_equals_the_legs_states(gs, space):
+    """The SPS/UPS fast path (platform poses only) against the general one (the legs solved),
+    placed and hanging, inside and outside the space."""
+    X = _poses(40, seed=7, spread=0.8)
+    for placement in ({}, {"offset": (0.0, 0.0, -0.1), "yaw": 0.4}):
+        task = Task(poses=X, space=dict(space), leg_diameter=0.03, placement=placement)
+        p, R = gs.pose(X)
+        fast = task.line_clearance(gs, p, R)
+        slow = task.space_clearance(gs, X)
+        assert np.isfinite(slow).all()
+        np.testing.assert_allclose(fast, slow, rtol=0, atol=1e-12)
+    assert (slow < 0).any() or space["shape"] != "box" or space["base_plane"]
+
+
 def test_task_measures_support_rus_legs():
     from test_engine_rus import _rus  # the 6-RUS of the engine tests
 

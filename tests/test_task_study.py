@@ -105,8 +105,19 @@ def test_the_refined_task():
     assert len(grid.refined().poses) == 7 * 4 * 4  # (3-1)*3+1, (2-1)*3+1, (2-1)*3+1
     lst = parasynth.Task(poses=np.array([[0, 0, 0.6, 0, 0, 0], [0.1, 0, 0.6, 0, 0, 0], [0, 0.1, 0.6, 0, 0, 0]]))
     assert len(lst.refined().poses) == 3  # not a grid: kept
+    assert grid.refinement() == "grid poses 3x per axis (12 -> 112)"
+    assert lst.refinement() == "its 3 poses kept (not a full grid)"
     s = _load()
     assert s.task.refined().trajectory.dt == pytest.approx(0.005)
+    # with a path the poses are kept (the path through them is the task) and only the path is denser
+    limits = dict(speed=0.5, acceleration=2.0, angular_speed=1.0, angular_acceleration=4.0, jerk_time=0.05, dt=0.05)
+    pathed = parasynth.Task(poses=grid.poses, trajectory=limits)
+    dense = pathed.refined()
+    assert dense.poses is pathed.poses and dense.trajectory.dt == pytest.approx(0.005)
+    mech = parasynth.load_mechanism("gough_stewart_6ups")
+    t0, t1 = pathed.path(mech).t, dense.path(mech).t
+    assert t1[-1] == pytest.approx(t0[-1]) and len(t1) - 1 == pytest.approx(10 * (len(t0) - 1), abs=11)
+    assert pathed.refinement() == "the path at 10x the sample rate, its 12 poses kept"
 
 
 def test_the_dense_recheck_flags_the_path_through_the_singularity():
@@ -157,3 +168,49 @@ def test_the_naval_testbed_poses_as_transcribed():
     ang = np.rad2deg(want[:, 3:]) + [180, 0, 0]
     ang[:, 0] = np.where(ang[:, 0] > 180, ang[:, 0] - 360, ang[:, 0])
     np.testing.assert_allclose(vals[:, 3:], ang, atol=1e-6)
+
+
+def test_a_design_that_reaches_no_pose_is_recorded_as_failed():
+    """Lifted 3 m, the platform poses need legs of about 3.6 m against l_max = 2 m (closed form
+    below): no pose is reachable, so the design fails instead of holding vacuous values."""
+    d = {**STUDY, "objectives": [{"name": "task_margin_min", "label": "margin"}], "constraints": [],
+         "variables": [STUDY["variables"][0], {"name": "task.placement.z", "values": ["0 mm", "3000 mm"]}]}
+    s = load_study(yaml.safe_dump(d), is_text=True)
+    far = {"platform_radius": 0.25, "task.placement.z": 3.0}
+    mech = design_mechanism(s, far)
+    X = design_task(s, far).platform_poses(mech)
+    assert np.allclose(X[:, 2], 3.6)
+    B = np.array([leg.base for leg in mech.legs], float)
+    A = np.array([leg.platform for leg in mech.legs], float)
+    lengths = np.linalg.norm(X[0, :3] + A - B, axis=1)  # the first pose is level
+    assert lengths.min() > 3.5 > mech.params.l_max
+    rec = Evaluator(s).evaluate(far)
+    assert rec.status == "failed" and not rec.feasible
+    assert rec.error == ("RequirementError: reaches none of the task's 2 required poses (none reachable with every "
+                         "pose constraint met); its task measures would have no pose to hold on")
+    # the check off: the vacuous worst value, 0 for a margin to maximise
+    loose = Evaluator(s, require_reachable=False).evaluate(far)
+    assert loose.status == "ok" and loose.objectives["margin"] == 0.0
+    near = Evaluator(s).evaluate({"platform_radius": 0.25, "task.placement.z": 0.0})
+    assert near.status == "ok" and near.objectives["margin"] > 0
+
+
+def test_the_naval_testbed_729_variant_is_the_full_grid_holding_the_342_poses():
+    s = load_study(str(ROOT / "studies" / "naval_testbed_729.yaml"))
+    base = load_study(str(ROOT / "studies" / "naval_testbed.yaml"))
+    P, P342 = s.task.poses, base.task.poses
+    assert P.shape == (729, 6)
+    # every combination, by hand: x, y, z in {-100, 0, 100} mm; the listed tilts in {-15, 0, 15} deg
+    # (alpha stored as the listed one plus the hanging rest's 180 deg)
+    ang = np.deg2rad([-15.0, 0.0, 15.0])
+    alpha = np.angle(np.exp(1j * (ang + np.pi)))
+    expected = {(x, y, z, a, b, g) for x in (-100, 0, 100) for y in (-100, 0, 100) for z in (-100, 0, 100)
+                for a in np.round(np.rad2deg(alpha), 6) for b in (-15.0, 0.0, 15.0) for g in (-15.0, 0.0, 15.0)}
+    got = {tuple(np.round(np.r_[1000 * r[:3], np.rad2deg(r[3:])], 6)) for r in P}
+    assert got == {tuple(float(v) for v in e) for e in expected}
+    assert {tuple(np.round(r, 9)) for r in P342} <= {tuple(np.round(r, 9)) for r in P}
+    # a serpentine: consecutive poses differ in one coordinate
+    assert np.all(np.sum(~np.isclose(P[1:], P[:-1], atol=1e-12), axis=1) == 1)
+    # the rest of the study is the 342-pose one's
+    assert s.objectives == base.objectives and s.constraints == base.constraints
+    assert s.task.trajectory == base.task.trajectory and s.task.payload == base.task.payload

@@ -15,7 +15,10 @@ E from that rest orientation about its own axes: ``R_WE = Rx(180 deg) Rx(alpha) 
 whose X-Y'-Z'' angles are ``(alpha + 180 deg, beta, gamma)``. So the file's alpha column is the
 listed alpha plus 180 deg (wrapped to (-180, 180] deg); beta and gamma are as listed.
 
-Run ``python studies/tasks/naval_testbed_poses.py`` to write the file again.
+The variant ``naval_testbed_729_poses.csv`` is the full grid of the same cube: the 27 positions
+each with all 27 orientations (:func:`grid_729_in_W`), in the same conventions.
+
+Run ``python studies/tasks/naval_testbed_poses.py`` to write the files again.
 """
 
 from pathlib import Path
@@ -88,9 +91,37 @@ def poses_in_W() -> np.ndarray:
     return X
 
 
-def main(path: Path = Path(__file__).with_name("naval_testbed_poses.csv")) -> Path:
-    X = poses_in_W()
-    lines = ["# the naval testbed's 342 required tool poses in W (studies/tasks/naval_testbed_poses.py)",
+def _serpentine(values_per_axis):
+    """Every combination of the axes' values, the last axis fastest, each axis reversing its
+    direction whenever a slower one steps (a boustrophedon: neighbours differ in one value)."""
+    out = [()]
+    for vals in values_per_axis:
+        nxt = []
+        for i, head in enumerate(out):
+            for v in (vals if i % 2 == 0 else vals[::-1]):
+                nxt.append(head + (v,))
+        out = nxt
+    return out
+
+
+def grid_729_in_W() -> np.ndarray:
+    """The full grid of the variant: the 27 positions of the cube (x, y, z in {-100, 0, 100} mm)
+    each with the 27 orientations (alpha, beta, gamma in {-15, 0, 15} deg), 729 poses in W. Order:
+    the positions from the top layer down in a serpentine, at each position the orientations in a
+    serpentine, so that consecutive poses differ in one coordinate."""
+    pos = _serpentine([(H_WS / 2, 0.0, -H_WS / 2),
+                       (-B_WS, 0.0, B_WS), (-B_WS, 0.0, B_WS)])
+    ori = _serpentine([(-PHI, 0.0, PHI)] * 3)
+    rows_, k = [], 0
+    for z, y, x in pos:
+        o = ori if k % 2 == 0 else ori[::-1]
+        k += 1
+        rows_ += [[x, y, z, a, b, g] for a, b, g in o]
+    return np.array(rows_)
+
+
+def _write(path: Path, X: np.ndarray, title: str) -> Path:
+    lines = [f"# {title} (studies/tasks/naval_testbed_poses.py)",
              "x [mm],y [mm],z [mm],alpha [deg],beta [deg],gamma [deg]"]
     for r in X:
         ang = np.rad2deg(r[3:]) + [REST_ALPHA_DEG, 0.0, 0.0]
@@ -103,8 +134,17 @@ def main(path: Path = Path(__file__).with_name("naval_testbed_poses.csv")) -> Pa
     return path
 
 
+def main(path: Path = Path(__file__).with_name("naval_testbed_poses.csv")) -> Path:
+    return _write(path, poses_in_W(), "the naval testbed's 342 required tool poses in W")
+
+
+def main_729(path: Path = Path(__file__).with_name("naval_testbed_729_poses.csv")) -> Path:
+    return _write(path, grid_729_in_W(), "the naval testbed's full grid: 729 required tool poses in W")
+
+
 if __name__ == "__main__":
     X = rows()
     assert len(X) == 357, len(X)
     assert len(unique_stable(X)) == 342, len(unique_stable(X))
     print(main())
+    print(main_729())

@@ -72,6 +72,8 @@ __all__ = [
     "usable_workspace_of",
     "USABLE_MEASURES",
     "TRAJECTORIES",
+    "grinding_max_force",
+    "grinding_decoupling_ratio",
     "SAMPLE_SETTINGS",
     "SAMPLE_PARAMS",
     "COMMON_PARAMS",
@@ -141,6 +143,17 @@ class Measure:
         return "statistic" if self.sample else "exact"
 
     kind_by: tuple | None = None
+    #: for a measure that takes a ``task``: the models on which it also runs without one (its
+    #: built-in path or load, e.g. the grinding path of ``max_force_trajectory`` on ``4ups_1rps``);
+    #: ``()`` when it needs a task on every model
+    without_task: tuple = ()
+
+    def runs_without_task(self, model: str) -> bool:
+        """Whether the measure gives a value on ``model`` without a task: always for a measure
+        that takes none, else when ``model`` is one of :attr:`without_task`."""
+        if not any(p.kind == "task" for p in self.params.values()):
+            return True
+        return model in self.without_task
 
     def kind_of(self, settings: Mapping | None = None) -> str | None:
         """The quantity kind of the value for these settings: :attr:`kind`, or for a measure
@@ -242,7 +255,7 @@ _WS_SETTINGS = {**SAMPLE_PARAMS, **COMMON_PARAMS}
 
 def register(name: str, unit: str, sense: str, settings: dict | None = None, kind: str | None = None,
              models: tuple | None = None, cost: str = "workspace", sample: bool | None = None, own: tuple = (),
-             estimate: str | None = None, kind_by: tuple | None = None):
+             estimate: str | None = None, kind_by: tuple | None = None, without_task: tuple = ()):
     """Decorator registering ``f(mech, **settings) -> float`` as measure ``name``.
 
     ``settings``: {name: :class:`~parasynth.measures.measure_spec.Setting` or kind name} of every
@@ -257,7 +270,9 @@ def register(name: str, unit: str, sense: str, settings: dict | None = None, kin
     passed to the function, not taken from it. ``estimate``: how the value depends on the
     points it is computed on (:data:`ESTIMATES`, see :meth:`Measure.estimate_of`; default
     derived from ``sample`` and a ``quantile`` setting). ``kind_by``: ``(setting, {choice: kind})``
-    when the quantity's kind follows a setting (:meth:`Measure.kind_of`)."""
+    when the quantity's kind follows a setting (:meth:`Measure.kind_of`). ``without_task``: for a
+    measure taking a ``task``, the models on which it also runs without one
+    (:meth:`Measure.runs_without_task`)."""
     if estimate is not None and estimate not in ESTIMATES:
         raise ValueError(f"estimate must be one of {ESTIMATES}, got {estimate!r}")
     if sense not in ("maximize", "minimize"):
@@ -277,7 +292,7 @@ def register(name: str, unit: str, sense: str, settings: dict | None = None, kin
     def deco(func):
         OBJECTIVES[name] = Measure(name, func, unit, sense, (func.__doc__ or "").strip(), kind,
                                    kinds, models, cost, bool(sample), own_settings, params, estimate=estimate,
-                                   kind_by=kind_by)
+                                   kind_by=kind_by, without_task=tuple(without_task))
         return func
 
     return deco
@@ -678,23 +693,23 @@ _DECOUPLING_SETTINGS = {
 }
 
 
-@register("max_force_trajectory", unit="N", kind="force", sense="minimize", models=("4ups_1rps",),
-          settings=_DECOUPLING_SETTINGS)
-def max_force_trajectory(mech, dt: float = 0.25, grinding_force: float = 50.0, load_point: str = "grinding_point") -> float:
+def grinding_max_force(mech, dt: float = 0.25, grinding_force: float = 50.0,
+                       load_point: str = "grinding_point") -> float:
     """Largest driving-leg force (N) along the 2022 paper's trajectory, eqs. (66)-(68), with
     the Table 3 inertias, gravity and the grinding force (N) along Z applied at the grinding
-    point (``load_point="grinding_point"``) or at the platform centre (``"centre"``)."""
+    point (``load_point="grinding_point"``) or at the platform centre (``"centre"``): the value
+    of the measure ``max_force_trajectory`` on the ``4ups_1rps`` without a task
+    (:mod:`parasynth.measures.task` registers it)."""
     r = _decoupling(mech, dt, grinding_force, load_point)
     return float(np.nanmax(np.abs(r.loaded[float(grinding_force)].actuator)))
 
 
-@register("force_decoupling_ratio", unit="1", sense="minimize", models=("4ups_1rps",),
-          settings=_DECOUPLING_SETTINGS)
-def force_decoupling_ratio(mech, dt: float = 0.25, grinding_force: float = 50.0,
-                           load_point: str = "grinding_point") -> float:
+def grinding_decoupling_ratio(mech, dt: float = 0.25, grinding_force: float = 50.0,
+                              load_point: str = "grinding_point") -> float:
     """How much of the grinding force reaches the driving legs: the largest change of a
     driving-leg force along the eqs. (66)-(68) path when the grinding force (N, along Z) is
-    applied, divided by that force. 0 = fully decoupled (the paper's claim)."""
+    applied, divided by that force (0 = fully decoupled, the paper's claim): the value of the
+    measure ``force_decoupling_ratio`` on the ``4ups_1rps`` without a task."""
     r = _decoupling(mech, dt, grinding_force, load_point)
     d = np.nanmax(np.abs(r.loaded[float(grinding_force)].actuator - r.gravity_only.actuator))
     return float(d / grinding_force)

@@ -52,7 +52,7 @@ from .dynamics import InertiaModel, PlatformInertia, _equivalent, _motion
 from .. import engine
 from .indices import WrenchSystem, _scale_wrench, leg_wrench_arrays, local_condition_number, local_transmission_index
 from .measure_spec import Setting
-from .objectives import COMMON_PARAMS, register
+from .objectives import COMMON_PARAMS, grinding_decoupling_ratio, grinding_max_force, register
 from .objectives import get as get_measure
 from .stiffness import STIFFNESS_SETTINGS, compliance, stiffness_matrix
 from .usable import _orientation, sign_rule
@@ -281,7 +281,9 @@ def path_continuity(mech, X, feasible=None, floor: float = 1e-3, substeps: int |
     inverse kinematics, every transition at once) through ``substeps`` equal steps of the
     actuators (default: enough for steps of at most ``max_step`` times the length scale, or
     ``max_step`` rad, at least 1) does not return the inverse kinematics' pose within ``tol``
-    (default 1e-6 of the length scale for lengths, 1e-6 rad for angles)."""
+    (default 1e-6 of the length scale for lengths, 1e-6 rad for angles). For an under-actuated
+    mechanism (fewer actuators than task freedoms) the actuators do not determine the pose and
+    the assembly-mode check is skipped (``rule`` says so)."""
     X = np.atleast_2d(np.asarray(X, dtype=float))
     K = len(X)
     q_all = _actuators(mech, X)
@@ -316,6 +318,11 @@ def path_continuity(mech, X, feasible=None, floor: float = 1e-3, substeps: int |
         rule_txt = rule
     first = int(np.argmax(bad)) if bad.any() else K
     n = first - 1  # transitions 0 -> 1, ..., n-1 -> n are between good samples
+    if mech.n_actuators < mech.n_task:
+        # under-actuated (the 4-UPS/1-RPS): the actuators do not fix the pose, forward
+        # kinematics has a family of solutions, so there is no assembly mode to keep
+        n = 0
+        rule_txt += "; assembly mode not checked (fewer actuators than freedoms)"
     if n > 0:
         q = q_all
         L = mech.length_scale
@@ -539,6 +546,30 @@ class TaskEvaluation:
         return self._get("dynamics", f)
 
     @property
+    def wrench_path_forces(self) -> np.ndarray:
+        """Worst |F| (K, n_act) at the path samples that the task's wrench alone causes (its sign
+        combinations with ``wrench_signs``; NaN where infeasible): by linearity, the change of
+        the actuator forces when the wrench is applied on top of the payload's dynamics."""
+        def f():
+            pa = self._need_path("the forces of the wrench along the path")
+            task, mech = self.task, self.mech
+            if task.wrench is None:
+                raise TaskError(f"{task.where}.loads.wrench: needed (the forces it causes along the path)")
+            ok = self.path_feasible
+            X = pa.X[ok]
+            out = np.full((len(pa.X), mech.n_actuators), np.nan)
+            if not len(X):
+                return out
+            ws = _wrench_system(mech, X, self.engine)
+            Tw = task._copy(payload=Payload())
+            if task.wrench.ndim == 2:  # per pose: the wrench of each segment's start pose
+                seg = pa.samples.segment[ok] if pa.samples is not None else np.zeros(len(X), int)
+                Tw = Tw._copy(wrench=task.wrench[seg])
+            out[ok] = _worst(static_task_forces(mech, X, _load_columns(Tw, mech, X, ws.R), ws=ws))
+            return out
+        return self._get("wrench_path", f)
+
+    @property
     def dynamic_forces(self) -> np.ndarray:
         """Worst |F| (K, n_act) at the path samples (NaN where infeasible)."""
         return self._dynamics()[0]
@@ -551,12 +582,25 @@ class TaskEvaluation:
     # geometry
     @property
     def clearance(self) -> np.ndarray:
+        """Clearance (m) of every body to the installation space at the feasible poses, then the
+        feasible path samples. SPS/UPS legs: :meth:`Task.line_clearance` on the platform poses
+        of the engine's pose batch (the legs are not solved); other legs: the legs' states
+        (:meth:`Task.space_clearance`)."""
         def f():
-            c = self.task.space_clearance(self.mech, self.Xf) if len(self.Xf) else np.zeros(0)
+            sets = [self.Xf]
             if self.task.trajectory is not None:
-                ok = self.path_feasible
-                c = np.concatenate([c, self.task.space_clearance(self.mech, self.path.X[ok])])
-            return c
+                sets.append(self.path.X[self.path_feasible])
+            lines = _line_legs(self.mech) is not None
+            out = []
+            for Y in sets:
+                if not len(Y):
+                    out.append(np.zeros(0))
+                elif lines:
+                    _, p, R, _ = engine.pose_batch(self.mech, Y, engine=self.engine)
+                    out.append(self.task.line_clearance(self.mech, p, R))
+                else:
+                    out.append(self.task.space_clearance(self.mech, Y))
+            return np.concatenate(out)
         return self._get("clearance", f)
 
     def continuity(self, floor: float = 1e-3, substeps: int | None = None) -> Continuity:
@@ -804,6 +848,75 @@ def task_path_followed(mech, task=None, floor: float = 1e-3, **kw) -> float:
     c = ev.continuity(floor=floor)
     n = len(ev.path.X) if task.trajectory is not None else len(ev.X)
     return 1.0 if c.first_break is None else c.first_break / n
+
+
+# -- the trajectory measures: a task's path, or the grinding path of the 2022 paper ----------------
+_GRINDING = ("dt", "grinding_force", "load_point")
+_TRAJECTORY_SETTINGS = {
+    **_BASE,
+    "dt": Setting("float", low=1e-9, doc="time step of the grinding path (s; without a task, default 0.25)"),
+    "grinding_force": Setting("force", doc="grinding force along Z (without a task, default 50 N)"),
+    "load_point": Setting("str", choices=("grinding_point", "centre"),
+                          doc="where the grinding force acts (without a task, default grinding_point)"),
+}
+
+
+def _grinding_settings(name, mech, task, dt, grinding_force, load_point) -> dict:
+    """The settings of the built-in grinding path (without a task), or a one-line error."""
+    given = [k for k, v in zip(_GRINDING, (dt, grinding_force, load_point)) if v is not None]
+    if task is not None:
+        if given:
+            raise TaskError(f"{name}: {', '.join(given)} set(s) the built-in grinding path; with a task its "
+                            "trajectory and loads give the motion and the force (leave them out)")
+        return {}
+    if mech.name not in get_measure(name).without_task:
+        raise TaskError(f"task: {name} needs a task with a trajectory on {mech.name!r} (without one it follows "
+                        f"the 2022 paper's grinding path, on {', '.join(get_measure(name).without_task)} only)")
+    return {"dt": 0.25 if dt is None else float(dt),
+            "grinding_force": 50.0 if grinding_force is None else float(grinding_force),
+            "load_point": "grinding_point" if load_point is None else load_point}
+
+
+def _wrench_force_norm(task) -> float:
+    w = np.atleast_2d(task.wrench)
+    f = float(np.max(np.linalg.norm(w[:, :3], axis=1)))
+    if not f > 0:
+        raise TaskError(f"{task.where}.loads.wrench: force_decoupling_ratio needs a wrench with a force (the "
+                        "ratio is per newton of it)")
+    return f
+
+
+@register("max_force_trajectory", unit="N", kind="force", sense="minimize", settings=_TRAJECTORY_SETTINGS,
+          without_task=("4ups_1rps",))
+def max_force_trajectory(mech, task=None, dt=None, grinding_force=None, load_point=None, **kw) -> float:
+    """Largest |actuator force| (N; N m for cranks) along a path. With a ``task`` (any
+    mechanism): at every feasible sample of its trajectory, the inverse dynamics of its payload
+    (mass and inertia on the platform, massless legs) with its wrench at the tool point and the
+    payload's weight (inf when no sample is feasible). Without a task (``4ups_1rps`` only): the
+    2022 paper's trajectory, eqs. (66)-(68), with the Table 3 inertias of platform **and legs**,
+    gravity and the grinding force (N) along Z at the grinding point (``load_point``) or the
+    platform centre; ``dt``, ``grinding_force`` and ``load_point`` belong to that case."""
+    g = _grinding_settings("max_force_trajectory", mech, task, dt, grinding_force, load_point)
+    if task is None:
+        return grinding_max_force(mech, **g)
+    return _max(_ev(mech, task, kw).dynamic_forces)
+
+
+@register("force_decoupling_ratio", unit="1", sense="minimize", settings=_TRAJECTORY_SETTINGS,
+          without_task=("4ups_1rps",))
+def force_decoupling_ratio(mech, task=None, dt=None, grinding_force=None, load_point=None, **kw) -> float:
+    """How much of a process force reaches the actuators: the largest change of an actuator force
+    along the path when the wrench is applied, divided by the magnitude of its force (0 = fully
+    decoupled). With a ``task`` (any mechanism): its trajectory's feasible samples and its wrench
+    (the worst sign combination with ``signs``; a per-pose wrench divided by its largest force);
+    by linearity the change is the forces of the wrench alone, whatever the payload. Without a
+    task (``4ups_1rps`` only): the 2022 paper's path and grinding force (eqs. (66)-(68), the
+    paper's claim: 0)."""
+    g = _grinding_settings("force_decoupling_ratio", mech, task, dt, grinding_force, load_point)
+    if task is None:
+        return grinding_decoupling_ratio(mech, **g)
+    ev = _ev(mech, task, kw)
+    return _max(ev.wrench_path_forces) / _wrench_force_norm(task)
 
 
 #: The task measures, in the order of docs/tasks.md.

@@ -304,10 +304,14 @@ class Space:
         x = np.asarray(pts, dtype=float)
         if self.shape == "box":
             lo, hi = np.array(self.low), np.array(self.high)
-            inside = np.minimum(x - lo, hi - x)
-            d_in = inside.min(axis=-1)
-            out = np.linalg.norm(np.maximum(np.maximum(lo - x, x - hi), 0.0), axis=-1)
-            return np.where(d_in >= 0, d_in, -out)
+            # e > 0 on an axis where the point is outside; inside, -max(e) is the nearest face's distance
+            e = np.maximum(lo - x, x - hi)
+            emax = e.max(axis=-1)
+            d = -emax
+            out = emax > 0
+            if out.any():
+                d[out] = -np.linalg.norm(np.maximum(e[out], 0.0), axis=-1)
+            return d
         c = np.array(self.center)
         r = np.linalg.norm(x[..., :2] - c, axis=-1)
         zl, zh = self.z
@@ -538,34 +542,52 @@ class Task:
     MAX_REFINED = 200_000
 
     def refined(self, factor: int = 3, rate: int = 10) -> "Task":
-        """The denser task a recommended design is re-checked on (docs/verification.md): poses
-        that form a full grid (every combination of each coordinate's distinct values) refined
+        """The denser task a recommended design is re-checked on (docs/verification.md). With a
+        trajectory the required poses are **kept** (the path through them is what is followed;
+        a refined grid would be another path) and a profiled path is sampled ``rate`` times as
+        often (a file of timed poses is kept as it is). Without a trajectory, poses that form a
+        full grid (every combination of each coordinate's distinct values) are refined
         ``factor`` times per axis (``(n - 1) * factor + 1`` values between the same extremes; a
         smaller factor where the grid would exceed :attr:`MAX_REFINED` poses), other pose lists
-        kept as they are; a profiled path sampled ``rate`` times as often (a file of timed
-        poses kept)."""
-        poses = self.poses
-        grid = None
-        if len(poses) and np.all(np.isfinite(poses)):
-            vals = [np.unique(poses[:, j]) for j in range(poses.shape[1])]
-            if math.prod(len(v) for v in vals) == len(poses):
-                grid = vals
-        new_poses = poses
-        if grid is not None and factor > 1:
-            f = int(factor)
-            while f > 1 and math.prod((len(v) - 1) * f + 1 for v in grid) > self.MAX_REFINED:
-                f -= 1
-            axes = [np.linspace(v[0], v[-1], (len(v) - 1) * f + 1) if len(v) > 1 else v for v in grid]
-            new_poses = np.array(np.meshgrid(*axes, indexing="ij")).reshape(len(axes), -1).T.copy()
-            new_poses.setflags(write=False)
-        traj = self.trajectory
-        if traj is not None and traj.limits is not None and rate > 1:
-            traj = dataclasses.replace(traj, dt=traj.dt / rate)
+        kept as they are. :meth:`refinement` says which in words."""
+        new_poses, traj, _ = self._refine_plan(factor, rate)
         changes = {"poses": new_poses, "trajectory": traj}
-        if self.wrench is not None and self.wrench.ndim == 2 and new_poses is not poses:
-            changes["wrench"] = None  # a per-pose wrench has no value at the new poses
+        if self.wrench is not None and self.wrench.ndim == 2 and new_poses is not self.poses:
             raise TaskError("task: a per-pose wrench cannot be refined to new poses; give a constant wrench")
         return self._copy(**changes)
+
+    def refinement(self, factor: int = 3, rate: int = 10) -> str:
+        """What :meth:`refined` does to this task, in words (e.g. "the path at 10x the sample
+        rate, its 342 poses kept"), for the verification's messages."""
+        return self._refine_plan(factor, rate)[2]
+
+    def _refine_plan(self, factor, rate):
+        poses = self.poses
+        traj = self.trajectory
+        n = len(poses)
+        if traj is not None:
+            if traj.limits is None:
+                return poses, traj, f"the timed path and its {n} poses kept as they are"
+            if rate > 1:
+                dense = dataclasses.replace(traj, dt=traj.dt / rate)
+                return poses, dense, f"the path at {int(rate)}x the sample rate, its {n} poses kept"
+            return poses, traj, f"the path and its {n} poses kept"
+        grid = None
+        if n and np.all(np.isfinite(poses)):
+            vals = [np.unique(poses[:, j]) for j in range(poses.shape[1])]
+            if math.prod(len(v) for v in vals) == n:
+                grid = vals
+        if grid is None or factor <= 1 or all(len(v) == 1 for v in grid):
+            return poses, traj, f"its {n} poses kept (not a full grid)" if grid is None else f"its {n} poses kept"
+        f = int(factor)
+        while f > 1 and math.prod((len(v) - 1) * f + 1 for v in grid) > self.MAX_REFINED:
+            f -= 1
+        if f <= 1:
+            return poses, traj, f"its {n} poses kept (a refined grid would exceed {self.MAX_REFINED} poses)"
+        axes = [np.linspace(v[0], v[-1], (len(v) - 1) * f + 1) if len(v) > 1 else v for v in grid]
+        new_poses = np.array(np.meshgrid(*axes, indexing="ij")).reshape(len(axes), -1).T.copy()
+        new_poses.setflags(write=False)
+        return new_poses, traj, f"grid poses {f}x per axis ({n} -> {len(new_poses)})"
 
     def __repr__(self) -> str:
         return (f"<Task {self.poses.shape[0]} poses {self.coordinates or '(mechanism order)'} frame={self.frame}"
@@ -788,6 +810,52 @@ class Task:
             c = np.minimum(c, side * moving[..., 2].min(axis=1) if side > 0 else (-moving[..., 2]).min(axis=1))
         return np.where(reach, c, np.nan)
 
+    def line_clearance(self, mech, p, R, diameter: float | None = None) -> np.ndarray:
+        """:meth:`space_clearance` for a mechanism whose legs all run straight from a fixed base
+        joint centre (the anchor) to the platform anchor (SPS and UPS legs), from the platform
+        poses ``p`` (N, 3) and ``R`` (N, 3, 3) in ``B`` (every pose taken as reachable): the same
+        bodies and arithmetic, without solving the legs, and the fixed anchors' clearance
+        computed once. ``inf`` without a space."""
+        N = len(p)
+        if self.space is None:
+            return np.full(N, np.inf)
+        d = self._leg_diameter(mech) if diameter is None else float(diameter)
+        Rw, pw = self.placement.R, self.placement.p
+        base = np.array([np.asarray(leg.base, dtype=float) for leg in mech.legs])
+        plat = np.array([np.asarray(leg.platform, dtype=float) for leg in mech.legs])
+        rad = float(np.max(np.linalg.norm(plat[:, :2], axis=1)))
+        th = np.linspace(0, 2 * np.pi, 16, endpoint=False)
+        circ = np.stack([rad * np.cos(th), rad * np.sin(th), np.zeros_like(th)], axis=1)
+        # the platform anchors, then the rim: in B (N, 3, n + 16), then in W
+        local = np.concatenate([plat, circ], axis=0)
+        XB = R @ local.T
+        XB += p[:, :, None]
+        XW = np.matmul(Rw.T, XB - pw[:, None])
+        n = len(plat)
+        c_fixed = float(np.min(self.space.clearance((base - pw) @ Rw))) - 0.5 * d
+        c = np.minimum(self._min_clearance(XW[:, :, :n]) - 0.5 * d, self._min_clearance(XW[:, :, n:]))
+        c = np.minimum(c, c_fixed)
+        if not self.space.base_plane:
+            ph, _ = mech.pose(mech.home)
+            z = XB[:, 2, :]
+            c = np.minimum(c, z.min(axis=1) if ph[2] >= 0 else (-z).min(axis=1))
+        return c
+
+    def _min_clearance(self, X) -> np.ndarray:
+        """(N,) the smallest clearance of the points ``X`` (N, 3, k) in ``W`` of each pose. In a
+        box, when every point is inside it is the smallest distance of the points' per-axis
+        extremes to the faces; poses with a point outside (and a cylinder) take the points'
+        signed distances (:meth:`Space.clearance`)."""
+        sp = self.space
+        if sp.shape != "box":
+            return sp.clearance(np.swapaxes(X, 1, 2)).min(axis=1)
+        lo, hi = np.array(sp.low), np.array(sp.high)
+        d = np.minimum(X.min(axis=2) - lo, hi - X.max(axis=2)).min(axis=1)
+        out = d < 0
+        if out.any():
+            d[out] = sp.clearance(np.swapaxes(X[out], 1, 2)).min(axis=1)
+        return d
+
     def _leg_diameter(self, mech) -> float:
         if self.leg_diameter is not None:
             return self.leg_diameter
@@ -921,7 +989,35 @@ class Task:
         without one (a bare number without it is an error). Files are relative to
         ``base_dir`` (default the working directory). Raises :class:`TaskError` naming the key
         path under ``where``."""
+        if isinstance(mapping, Mapping) and set(mapping) == {"file"}:
+            return cls.from_file(mapping["file"], units=units, base_dir=base_dir, where=where)
         return _Reader(units, base_dir, where).task(mapping)
+
+    @classmethod
+    def from_file(cls, path, *, units=None, base_dir=None, where: str = "task") -> "Task":
+        """The task of a task file (YAML: a ``task:`` mapping, or the mapping itself), e.g.
+        ``studies/tasks/grinding_path.yaml``; a study names one with ``task: {file: ...}``. A
+        relative ``path`` is read from ``base_dir`` (default the working directory), the files
+        the task names from the task file's folder."""
+        if not isinstance(path, (str, os.PathLike)) or not str(path):
+            raise TaskError(f"{where}.file: give a task file name (YAML), got {path!r}")
+        import yaml  # here: `import parasynth` loads no YAML parser (tests/test_layers.py)
+
+        fn = os.fspath(path)
+        if not os.path.isabs(fn) and base_dir is not None:
+            fn = os.path.join(os.fspath(base_dir), fn)
+        try:
+            with open(fn, encoding="utf-8") as fh:
+                data = yaml.safe_load(fh)
+        except OSError as e:
+            raise TaskError(f"{where}.file: cannot read {os.fspath(path)!r} ({e.strerror or e})") from None
+        except yaml.YAMLError as e:
+            raise TaskError(f"{where}.file: {os.fspath(path)!r} is not valid YAML ({str(e).splitlines()[0]})") from None
+        if isinstance(data, Mapping) and set(data) == {"task"}:
+            data = data["task"]
+        if not isinstance(data, Mapping) or "file" in data and set(data) == {"file"}:
+            raise TaskError(f"{where}.file: {os.fspath(path)!r} must hold a task mapping (poses, trajectory, ...)")
+        return _Reader(units, os.path.dirname(os.path.abspath(fn)), where).task(data)
 
 
 class TaskPath:
@@ -1409,7 +1505,11 @@ class _Reader:
         return names, data
 
     def csv(self, f, path):
-        return self._read_csv(f, path)
+        names, data = self._read_csv(f, path)
+        if "t" in names:  # a file of timed poses: the poses without their times
+            k = names.index("t")
+            names, data = [c for c in names if c != "t"], np.delete(data, k, axis=1)
+        return names, data
 
     def placement(self, m, path):
         if m is None:

@@ -180,7 +180,7 @@ def verification_text(study, fr) -> str:
         parts.append(f"singularity margin at home {fmt_number(float(hm), 3)} >= "
                      f"{fmt_number(ev.get('singularity_floor', SINGULARITY_FLOOR))}")
     if getattr(study, "task", None) is not None:
-        parts.append("the task re-checked densely (grid poses 3x per axis, the path at 10x the sample rate: "
+        parts.append(f"the task re-checked densely ({study.task.refinement()}: "
                      "margin above the floor, no singularity crossed, no change of assembly mode)")
     return "verified: " + ", ".join(parts)
 

@@ -6,7 +6,10 @@ with that measure's own validated settings (:func:`~parasynth.study.design.measu
 
 A design that cannot be built (non-physical parameters) or whose measures raise is recorded
 with ``status = "failed"`` and its error message; a design that violates a constraint is
-recorded with ``feasible = False``; neither stops a run.
+recorded with ``feasible = False``; neither stops a run. A design of a task study that reaches
+none of the task's required poses (none feasible: reachable with every pose constraint the task
+measures use) is recorded as failed too (:attr:`Evaluator.require_reachable`), not as a design
+whose task measures hold their vacuous worst values (docs/tasks.md).
 """
 
 from __future__ import annotations
@@ -17,10 +20,15 @@ import traceback
 from dataclasses import dataclass, field
 
 from ..measures.objectives import get as get_measure
+from ..measures.task import task_evaluation
 from .design import design_mechanism, design_task, evaluation_sample, measure_arguments, measure_settings
 from .spec import ResolvedStudy
 
-__all__ = ["Record", "Evaluator"]
+__all__ = ["Record", "Evaluator", "RequirementError"]
+
+
+class RequirementError(ValueError):
+    """A design that cannot be evaluated on the study's task: it reaches none of its poses."""
 
 
 @dataclass
@@ -68,8 +76,15 @@ class Evaluator:
     Design constraints are computed first, cheapest first; objectives after. With the study's
     fixed seed the same sample points serve every design (common random numbers)."""
 
-    def __init__(self, study: ResolvedStudy):
+    def __init__(self, study: ResolvedStudy, require_reachable: bool = True):
         self.study = study
+        #: a design of a task study that reaches none of the task's poses is recorded as failed
+        #: (RequirementError), its measures not computed
+        self.require_reachable = bool(require_reachable)
+        items = list(study.constraints) + list(study.objectives)
+        #: the first task measure of the study (its constraints and engine select the poses)
+        self._task_item = next((c for c in items if any(p.kind == "task" for p in get_measure(c.name).params.values())),
+                               None)
 
     def settings_for(self, measure_name: str, own: dict, n: int | None = None, seed: int | None = None) -> dict:
         """Settings of a measure for this study in the older flat call form
@@ -95,6 +110,8 @@ class Evaluator:
             sample = self.sample(n, seed)
             mech = self.build(values)
             task = design_task(self.study, values)  # one object per design: the task measures share its evaluation
+            if self.require_reachable and task is not None and self._task_item is not None:
+                self._check_reachable(mech, task, sample, pinned)
             cons = sorted(self.study.constraints, key=lambda c: get_measure(c.name).cost != "cheap")
             for c in cons:
                 args = measure_arguments(self.study, c.name, c.settings, sample, pinned, task)
@@ -115,6 +132,16 @@ class Evaluator:
             rec.error_trace = traceback.format_exc(limit=3)
         rec.time_s = time.perf_counter() - t0
         return rec
+
+    def _check_reachable(self, mech, task, sample, pinned) -> None:
+        """RequirementError when ``mech`` reaches none of ``task``'s required poses (with the pose
+        constraints and engine of the study's task measures: the evaluation they share)."""
+        item = self._task_item
+        args = measure_arguments(self.study, item.name, item.settings, sample, pinned, task)
+        ev = task_evaluation(mech, task, args.get("constraints"), args.get("engine", "compiled"))
+        if not ev.feasible.any():
+            raise RequirementError(f"reaches none of the task's {task.n_poses} required poses (none reachable with "
+                                   "every pose constraint met); its task measures would have no pose to hold on")
 
     @staticmethod
     def _value(item, mech, args, rec, bound=None, probability=None) -> float:

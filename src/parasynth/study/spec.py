@@ -650,7 +650,7 @@ def resolve_study(data: dict, source: str | None = None) -> ResolvedStudy:
             "pose": _resolve_pose,
             "task": _refuse_task_setting,
         }
-        if study_task is None and any(p.kind == "task" for p in measure.params.values()):
+        if study_task is None and not measure.runs_without_task(mech_name):
             raise StudyError(f"{path.rsplit('.', 1)[0]}.name: {measure.name!r} is a task measure: give the study a "
                              "task: section (docs/tasks.md)")
         try:

@@ -216,8 +216,9 @@ def _uses_task(item) -> bool:
 
 def task_checks(study, values: dict, mech, floor: float = SINGULARITY_FLOOR) -> list[Check]:
     """The dense re-check of a study with a task (docs/verification.md): the design's task
-    refined (:meth:`parasynth.Task.refined`: grid poses 3x per axis, the path at 10x the sample
-    rate); every task constraint of the study on it, within :data:`EXTREME_RTOL` of its bound (a
+    refined (:meth:`parasynth.Task.refined`: with a path its poses kept and the path at 10x the
+    sample rate, else grid poses 3x per axis; :meth:`parasynth.Task.refinement` says which);
+    every task constraint of the study on it, within :data:`EXTREME_RTOL` of its bound (a
     least or largest value over more poses only gets worse); the singularity margin at every
     feasible pose and path sample at least ``floor``; and the path followed without a
     singularity crossed or a change of assembly mode (:func:`parasynth.measures.task.path_continuity`)."""
@@ -244,8 +245,9 @@ def task_checks(study, values: dict, mech, floor: float = SINGULARITY_FLOOR) -> 
                      m - floor if math.isfinite(m) else -math.inf, 0.0, where=where))
     cont = ev.continuity(floor=floor)
     if cont.first_break is None:
+        skipped = "; " + cont.rule.split("; ", 1)[1] if "; " in cont.rule else ""
         out.append(Check("path continuity", "floor", 1.0, ">= 1.0", 0.0, 0.0,
-                         where=where + ": followed to its end"))
+                         where=where + ": followed to its end" + skipped))
     else:
         n = len(ev.path.X) if dense.trajectory is not None else len(ev.X)
         out.append(Check("path continuity", "floor", cont.first_break / n, ">= 1.0", cont.first_break / n - 1.0, 0.0,

@@ -24,7 +24,7 @@ import pandas as pd
 
 from ..common.units import UNITS
 from ..measures.display import fmt_number, fmt_quantity
-from ..measures.objectives import TRAJECTORIES, workspace_of
+from ..measures.objectives import TRAJECTORIES, get as get_measure, workspace_of
 from ..model.legs import require
 from .design import design_key, design_mechanism
 
@@ -74,9 +74,13 @@ def _pose_text(mech, x) -> str:
 
 
 def trajectory_of(study):
-    """The trajectory the study's measures follow, or None: (f(n) -> (t, X), measure name)."""
+    """The trajectory the study's measures follow, or None: (f(n) -> (t, X), measure name). The
+    built-in paths of :data:`TRAJECTORIES` only where the measure follows one: a study without a
+    task on a model the measure runs on without one (with a task it follows the task's path)."""
+    if getattr(study, "task", None) is not None:
+        return None
     for m in list(study.objectives) + list(study.constraints):
-        if m.name in TRAJECTORIES:
+        if m.name in TRAJECTORIES and study.mechanism in get_measure(m.name).without_task:
             return TRAJECTORIES[m.name], m.name
     return None
 
