@@ -6,7 +6,7 @@ POINT one of
 * ``evaluate``: while the design is evaluated (all its variables stored);
 * ``record``: after the design's record is stored in the trial, before the trial is told.
 
-Used by tests/test_runner_safety.py: killing at a trial number, not after a delay, makes the
+Used by tests/study/test_runner_safety.py: killing at a trial number, not after a delay, makes the
 test the same on a fast and a loaded machine."""
 
 import os

@@ -27,7 +27,7 @@ def m():
 
 
 def eq2(alpha, beta, gamma):
-    """Eq. (2), z-y-z Euler matrix (see tests/test_spatial.py for the resolved entries)."""
+    """Eq. (2), z-y-z Euler matrix (see tests/model/test_spatial.py for the resolved entries)."""
     s, c = np.sin, np.cos
     a, b, g = alpha, beta, gamma
     return np.array([

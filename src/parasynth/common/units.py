@@ -195,7 +195,7 @@ class QuantityError(ValueError):
 
 # "<number> <unit>" in the commonest units, converted without pint (importing pint and
 # building its registry takes about half a second at every start): {unit: (kind, factor to
-# SI)}. The factors reproduce pint's conversions exactly (tests/test_units.py compares them);
+# SI)}. The factors reproduce pint's conversions exactly (tests/common/test_units.py compares them);
 # anything else -- other units, prefixes, compound units, "nan", errors -- goes to pint.
 _FAST_UNITS = {**{u: v for u, v in LITERAL_UNITS.items() if u not in ("um", "µm")}, **_OTHER_PLAIN_UNITS}
 _FAST = re.compile(r"\s*(-?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*([A-Za-z]+)\s*")

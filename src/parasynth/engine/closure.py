@@ -19,7 +19,7 @@ geometry (the draws of a robust measure, :mod:`parasynth.measures.robustness`):
   and whether they converged (and every leg reaches them).
 
 A pose is composed with a twist ``t`` as ``accuracy._compose`` does: ``p + t[:3]`` and
-``exp([t[3:]]) R``. ``tests/test_robust.py`` checks both entry points against the NumPy
+``exp([t[3:]]) R``. ``tests/measures/test_robust.py`` checks both entry points against the NumPy
 residuals and iteration.
 
 Leg types: SPS, UPS, PUS, RPS, RPU, UPU, PRS (``_Unsupported`` for others, and for a leg class

@@ -29,7 +29,7 @@ squares, signs handled), ``arccos(c) <= hi`` as ``c >= cos(hi)``, a distance lim
 ``d >= D`` as ``d^2 >= D^2``; the sine and cosine of an ``atan2`` are taken algebraically; the
 vectorised sin/cos (Cephes) may differ from NumPy's by an ulp; sums may associate
 differently. The booleans therefore agree exactly except at poses within rounding of a
-boundary: the contract (``tests/test_kernels.py``) is that ``feasible`` and the NumPy
+boundary: the contract (``tests/engine/test_kernels.py``) is that ``feasible`` and the NumPy
 ``is_feasible`` disagree only at poses whose NumPy feasibility margin is within 1e-12 of zero.
 Margins agree to ~1e-15 except where rounding is amplified (``arccos`` near 0 and pi, the
 square root of a PUS discriminant at the reach limit).
@@ -1747,7 +1747,7 @@ def _array(dtype: str, ndim: int, readonly: bool = False):
 
 def signatures() -> dict:
     """{kernel name: (dispatcher, argument types)} of this module's kernels: the one
-    specialisation each is called with (``tests/test_engine_warmup.py`` checks it against
+    specialisation each is called with (``tests/engine/test_engine_warmup.py`` checks it against
     what a real evaluation compiles), so that it can be compiled ahead, in another process
     (:mod:`parasynth.engine.warmup`)."""
     if not HAVE_NUMBA:

@@ -50,7 +50,7 @@ Entry points (each ``(mech, X)`` with poses ``X`` (N, n_task), results as the Nu
   mechanism (a leg type other than the seven above, a subclass that overrides a leg's or the
   mechanism's wrench methods, or numba unavailable are not covered).
 
-Agreement with the NumPy reference (``tests/test_engine_indices.py``): within 1e-9 absolute
+Agreement with the NumPy reference (``tests/engine/test_engine_indices.py``): within 1e-9 absolute
 for the margin and the transmission indices (values in [0, 1]) and 1e-9 relative for
 condition numbers, over random poses of every shipped mechanism. Exactly as in NumPy, ranks
 use relative thresholds on singular values, so poses within rounding of a threshold (an exact

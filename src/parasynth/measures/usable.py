@@ -49,7 +49,7 @@ error (``volume_error``). A singularity or floor boundary is located within one 
 largest ball (``free_radius``) is the distance from the reference pose to the nearest centre
 of a cell outside the component, minus half a cell diagonal (error about +-half a cell
 diagonal), capped by the distance to the sampled box. Grid convergence is checked in
-``tests/test_usable.py`` and reported in docs/objectives.md.
+``tests/measures/test_usable.py`` and reported in docs/objectives.md.
 
 Cost: one feasibility and one margin evaluation per cell, the singularity function (NumPy)
 on the cells above the floor; a 32 x 32 x 32 grid of the 5-PUS/UPU takes a fraction of a

@@ -149,7 +149,7 @@ def test_the_python_examples_of_docs_export_run(tmp_path, monkeypatch):
     from pathlib import Path
 
     import_or_skip("mujoco", SIMULATORS, "mujoco")
-    text = (Path(__file__).resolve().parents[1] / "docs" / "export.md").read_text()
+    text = (Path(__file__).resolve().parents[2] / "docs" / "export.md").read_text()
     blocks = re.findall(r"```python\n(.*?)```", text, re.S)
     assert len(blocks) == 3
     monkeypatch.chdir(tmp_path)

@@ -2,7 +2,7 @@
 randomly generated descriptions, against the NumPy reference; its use by default and its
 fallback with a stated reason.
 
-The agreement contract is the one of ``tests/test_kernels.py``: feasibility booleans agree
+The agreement contract is the one of ``tests/engine/test_kernels.py``: feasibility booleans agree
 except at poses whose NumPy feasibility margin is within 1e-12 of zero; margins agree to
 rounding (amplified by arccos near 0 and pi); poses, rotations and twist maps to rounding.
 """

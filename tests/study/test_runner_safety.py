@@ -18,7 +18,7 @@ from parasynth.cli.plugins import load_plugins
 from parasynth.study import StudyError, load_study, read_journal, run_study
 from parasynth.study.journal import JournalError, RunLock, RunLockedError
 
-PLUGIN = str(Path(__file__).parent / "data" / "analytic_plugin.py")
+PLUGIN = str(Path(__file__).resolve().parents[1] / "data" / "analytic_plugin.py")
 load_plugins(PLUGIN)
 ENV = {**os.environ, "PARASYNTH_PLUGINS": PLUGIN}
 
@@ -267,7 +267,7 @@ def test_resume_after_unfinished_trial_equals_uninterrupted(tmp_path, algorithm)
     _compare_runs(tmp_path / "a", tmp_path / "b", [("test_quadratic_m2", -1), ("test_two_m", 1)])  # results.csv names: units as suffixes
 
 
-KILLER = str(Path(__file__).parent / "data" / "kill_at_trial.py")
+KILLER = str(Path(__file__).resolve().parents[1] / "data" / "kill_at_trial.py")
 
 
 @pytest.mark.parametrize("algorithm,kills", [

@@ -23,7 +23,7 @@ from parasynth.study.columns import csv_column
 from parasynth.study.magnitudes import SCALE_FACTOR, scale_warnings
 from parasynth.study.spec import check_study
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 QUICK = ROOT / "studies" / "quickstart.yaml"
 
 BASE = {

@@ -13,7 +13,7 @@ from parasynth.study import defaults
 from parasynth.study.design import box_centre, centre_value, design_key, design_params
 from parasynth.study.spec import Variable
 
-SRC = Path(__file__).resolve().parents[1] / "src" / "parasynth"
+SRC = Path(__file__).resolve().parents[2] / "src" / "parasynth"
 
 
 def _study(*variables, **kw):

@@ -19,9 +19,9 @@ from parasynth.report.summary import design_roles, terminal_summary
 from parasynth.study import StudyError, load_study, run_study
 from parasynth.study.evaluate import Record
 
-PLUGIN = str(Path(__file__).parent / "data" / "analytic_plugin.py")
+PLUGIN = str(Path(__file__).resolve().parents[1] / "data" / "analytic_plugin.py")
 load_plugins(PLUGIN)
-STUDIES = Path(__file__).resolve().parents[1] / "studies"
+STUDIES = Path(__file__).resolve().parents[2] / "studies"
 
 
 def _study(**changes):

@@ -280,8 +280,8 @@ def test_naval_studies_assemble_every_corner_of_their_geometry(study, name):
 
     here = Path(__file__).resolve()
     # the 6-RUS study is kept with the tests until its crank torques are displayed in N m
-    path = here.parents[1] / "studies" / f"{study}.yaml"
-    s = load_study(path if path.exists() else here.parent / "data" / f"{study}.yaml")
+    path = here.parents[2] / "studies" / f"{study}.yaml"
+    s = load_study(path if path.exists() else here.parents[1] / "data" / f"{study}.yaml")
     assert s.mechanism == name
     geo = [v for v in s.variables if not v.name.startswith("task.")]
     assert {v.name for v in geo} >= {"base_radius", "platform_radius", "base_separation", "platform_separation",

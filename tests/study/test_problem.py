@@ -13,7 +13,7 @@ from parasynth.study.evaluate import Record
 from parasynth.study.problem import Problem, RunContext
 from parasynth.study.optimizers import BaseOptimizer, registered
 
-DOCS = Path(__file__).resolve().parents[1] / "docs"
+DOCS = Path(__file__).resolve().parents[2] / "docs"
 
 STUDY = """
 name: de_test

@@ -19,7 +19,7 @@ from parasynth.report import ReportError, write_report
 from parasynth.report.summary import run_summary
 from parasynth.study import load_study, run_study
 
-PLUGIN = str(Path(__file__).parent / "data" / "analytic_plugin.py")
+PLUGIN = str(Path(__file__).resolve().parents[1] / "data" / "analytic_plugin.py")
 load_plugins(PLUGIN)
 
 
@@ -389,7 +389,7 @@ def test_ci_installs_and_requires_the_browser_and_the_dashboard():
     optional tools; the test extra holds their Python packages; plotly is a dependency."""
     import tomllib
 
-    root = Path(__file__).resolve().parents[1]
+    root = Path(__file__).resolve().parents[2]
     ci = (root / ".ci" / "run").read_text()
     for var in ("PARASYNTH_REQUIRE_SIMULATORS", "PARASYNTH_REQUIRE_BROWSER", "PARASYNTH_REQUIRE_DASHBOARD"):
         assert f"export {var}=1" in ci

@@ -14,7 +14,7 @@ from parasynth.study.optimizers import BaseOptimizer, optimizer_class, registere
 from parasynth.study.problem import Problem, RunContext
 from parasynth.study.spec import OptimizerSpec, StudyError
 
-SRC = Path(__file__).resolve().parents[1] / "src" / "parasynth"
+SRC = Path(__file__).resolve().parents[2] / "src" / "parasynth"
 KINDS = list(registered())
 
 STUDY = """

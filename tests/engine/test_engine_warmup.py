@@ -96,7 +96,7 @@ def test_validate_checks_never_use_the_compiled_kernels(monkeypatch):
         raise AssertionError("check_study called the compiled engine")
 
     monkeypatch.setattr(engine, "_compiled", no_compiled)
-    study = load_study(Path(__file__).resolve().parent.parent / "studies" / "quickstart.yaml")
+    study = load_study(Path(__file__).resolve().parents[2] / "studies" / "quickstart.yaml")
     stats = {}
     assert check_study(study, stats=stats) == []
     assert stats["measures"] == 3

@@ -22,7 +22,7 @@ from parasynth.study import StudyError, load_study, run_study
 from parasynth.study.problem import Problem, RunContext
 from parasynth.study.space import DesignSpace, Variable
 
-PLUGIN = str(Path(__file__).parent / "data" / "analytic_plugin.py")
+PLUGIN = str(Path(__file__).resolve().parents[1] / "data" / "analytic_plugin.py")
 load_plugins(PLUGIN)
 
 

@@ -22,7 +22,7 @@ from parasynth.model.spatial import euler_to_matrix
 from parasynth.model.task import Task, TaskError
 from parasynth.study import StudyError, load_study
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 GRINDING = ROOT / "studies" / "tasks" / "grinding_path.yaml"
 
 

@@ -13,7 +13,7 @@ from parasynth.report.checks import bound_warnings, near_bound_warnings
 from parasynth.study import load_study
 from pathlib import Path
 
-load_plugins(str(Path(__file__).parent / "data" / "analytic_plugin.py"))
+load_plugins(str(Path(__file__).resolve().parents[1] / "data" / "analytic_plugin.py"))
 
 
 def study(goal="minimize"):

@@ -30,7 +30,7 @@ from parasynth.cli import main
 from parasynth.study import load_study
 from parasynth.study.spec import RESERVED_COLUMNS
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 STUDY_FILES = sorted((ROOT / "studies").glob("*.yaml"))
 DESC_FILES = sorted((ROOT / "src" / "parasynth" / "mechanisms").glob("*.yaml"))
 assert len(STUDY_FILES) >= 5 and len(DESC_FILES) >= 5

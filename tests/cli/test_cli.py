@@ -21,7 +21,7 @@ import yaml
 import parasynth.cli as cli
 from parasynth.cli import main
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 STUDIES = sorted((ROOT / "studies").glob("*.yaml"))
 QUICK = ROOT / "studies" / "quickstart.yaml"
 

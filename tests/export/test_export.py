@@ -21,7 +21,7 @@ from _export_cases import CASES, IDS, USER_DESCRIPTION, load
 
 pytestmark = pytest.mark.filterwarnings("ignore::parasynth.model.mechanism.EngineFallbackWarning")
 
-PLUGIN = str(Path(__file__).parent / "data" / "analytic_plugin.py")
+PLUGIN = str(Path(__file__).resolve().parents[1] / "data" / "analytic_plugin.py")
 cli.load_plugins(PLUGIN)
 
 

@@ -29,7 +29,7 @@ from parasynth.measures.workspace import WorkspaceSample
 from parasynth.common.yamlio import load_yaml
 from test_kernels import numpy_margin
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 MECHS = ["5pus_upu", "gough_stewart_6ups", "3rps", "3prs", "2rpu_2sps", "4ups_1rps"]
 
 

@@ -5,8 +5,8 @@ sphere on the platform) are compiled like the other leg types: feasibility, cons
 margins (crank-angle range, joint cone limits, link length, interference), the pose-wise
 indices (singularity margin, transmission, condition number, leg directions) and the
 constraint rank. The reference is the NumPy path of ``parasynth.model.legs.RUS`` (which
-``tests/test_structures.py`` checks against finite differences and reciprocity); the
-contract is the engine's (``tests/test_engine.py``): booleans equal away from the feasibility
+``tests/structures/test_structures.py`` checks against finite differences and reciprocity); the
+contract is the engine's (``tests/engine/test_engine.py``): booleans equal away from the feasibility
 boundary, margins to rounding, indices to 1e-9.
 """
 

@@ -12,7 +12,7 @@ from parasynth.study import spec
 from parasynth.study.spec import (KEY_DOCS, REFERENCE_KEYS, ConstraintRef, EvaluationSpec, MeasureRef, OptimizerSpec,
                                   PolishSpec, RobustSpec, StructureSpec, StudySpec, VariableSpec, study_json_schema, study_keys)
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 MODELS = {"": StudySpec, "variables[].": VariableSpec, "objectives[].": MeasureRef, "constraints[].": ConstraintRef,
           "evaluation.": EvaluationSpec, "optimizer.": OptimizerSpec, "optimizer.polish.": PolishSpec,
           "structure.": StructureSpec, "objectives[].robust.": RobustSpec, "constraints[].robust.": RobustSpec}

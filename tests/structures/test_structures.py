@@ -151,7 +151,7 @@ def test_engine_agrees_with_numpy_on_every_structure(default_results, motion):
         assert np.array_equal(fc[~near], fn[~near]), s.name
         assert fn.sum() > 0, s.name
         counts.append(fn.sum())
-        # the compiled pose-wise indices too (singularity margin, to 1e-9 as tests/test_engine_indices.py)
+        # the compiled pose-wise indices too (singularity margin, to 1e-9 as tests/engine/test_engine_indices.py)
         Xr = X[m.inverse_kinematics(X).reachable][:200]
         with warnings.catch_warnings():
             warnings.simplefilter("error", EngineFallbackWarning)

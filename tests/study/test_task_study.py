@@ -22,7 +22,7 @@ from parasynth.study.design import design_mechanism, design_task
 from parasynth.study.evaluate import Evaluator
 from parasynth.study.verify import verify
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 STUDY = {
     "name": "gs_task", "mechanism": "gough_stewart_6ups",

@@ -30,7 +30,7 @@ from parasynth.study.schedule import Schedule, structure_schedule
 from parasynth.study.spec import check_study
 from parasynth.study.structure_space import labels_of
 
-KILLER = str(Path(__file__).parent / "data" / "kill_at_trial.py")
+KILLER = str(Path(__file__).resolve().parents[1] / "data" / "kill_at_trial.py")
 
 
 def study_dict(**over):

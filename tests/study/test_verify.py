@@ -31,7 +31,7 @@ from parasynth.study.tables import results_table
 from parasynth.study.verify import (EXTREME_RTOL, NOISE_Z, SINGULARITY_FLOOR, STATISTIC_RTOL, estimate_of,
                                     home_margin_check, verify)
 
-load_plugins(str(Path(__file__).parent / "data" / "analytic_plugin.py"))
+load_plugins(str(Path(__file__).resolve().parents[1] / "data" / "analytic_plugin.py"))
 
 def _drops(L) -> bool:
     return 0.185 < L < 0.2

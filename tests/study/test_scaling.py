@@ -23,7 +23,7 @@ import yaml
 from parasynth.cli.plugins import load_plugins
 from parasynth.study import StudyError, load_study, run_study
 
-PLUGIN = str(Path(__file__).parent / "data" / "analytic_plugin.py")
+PLUGIN = str(Path(__file__).resolve().parents[1] / "data" / "analytic_plugin.py")
 load_plugins(PLUGIN)
 ENV = {**os.environ, "PARASYNTH_PLUGINS": PLUGIN, "PARASYNTH_HEARTBEAT": "1"}
 
