@@ -76,7 +76,7 @@ def test_fusion_applies_to_the_paper_models():
 
 @pytest.mark.parametrize("seed", range(4))
 def test_fused_margins_and_feasibility_random(seed, monkeypatch):
-    from tests.test_engine import _random_mechanism
+    from test_engine import _random_mechanism
 
     mech = _random_mechanism(seed)
     cons = mech._select(None)

@@ -151,7 +151,7 @@ def test_a_study_names_the_grinding_task_file_and_needs_a_task_off_the_grinder()
 
 
 def test_the_interactive_report_moves_along_the_built_in_path_only_without_a_task():
-    from parasynth.report.interactive import _trajectory
+    from parasynth.study.view import trajectory_of as _trajectory
 
     built_in = _trajectory(load_study(_study("4ups_1rps"), is_text=True))
     assert built_in is not None and built_in[1] == "max_force_trajectory"
