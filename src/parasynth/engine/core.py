@@ -611,6 +611,27 @@ def program_for(mech, exprs: dict, twist: bool = False) -> Program:
     return prog
 
 
+def program_constants(mech, exprs: dict, twist: bool = False):
+    """``(program_for(mech, exprs, twist), its constants for mech._penv)``, kept in the
+    engine's record of ``mech`` while its parameter environment and description are the same
+    objects: the feasibility plan, the poses of the extents and those of the indices of one
+    design look them up once (the program's cache key and constants cost ~50 us a lookup).
+    The constants array is shared: the kernels only read it."""
+    patched = [k for k in ("_pose", "pose", "pose_valid", "_twist_map", "twist_map", "_task_env") if k in vars(mech)]
+    if patched:
+        raise Unsupported(f"a pose method replaced on the instance ({', '.join(patched)})")
+    memo = record_of(mech).setdefault("programs", {})
+    key = (tuple((n, e.text) for n, e in exprs.items()), bool(twist))
+    hit = memo.get(key)
+    penv, d = mech._penv, mech.description
+    if hit is not None and hit[0] is penv and hit[1] is d:
+        return hit[2], hit[3]
+    prog = program_for(mech, exprs, twist)
+    consts = prog.constants(penv)
+    memo[key] = (penv, d, prog, consts)
+    return prog, consts
+
+
 def _pose_limit(mech) -> np.ndarray:
     """Per task coordinate, the magnitude beyond which the NumPy path treats a pose as
     unreachable: ``parasynth.common.validation.MAX_POSE_MAGNITUDE`` for lengths (``Mechanism._poses``
@@ -675,9 +696,8 @@ def build_plan(mech, cons) -> KernelPlan:
     if not _is_described(mech):
         raise Unsupported(f"the model class {type(mech).__name__} is not a mechanism description")
     kind, act, F, tables, exprs, expr_rows = leg_tables(mech, cons)
-    prog = program_for(mech, exprs)
     try:
-        consts = prog.constants(mech._penv)
+        prog, consts = program_constants(mech, exprs)
     except (KeyError, IndexError, TypeError, ValueError) as e:
         raise Unsupported(f"a parameter of the task parametrisation ({type(e).__name__}: {e})") from None
     expr = np.array([(prog.margin_regs[n], ci) for n, ci in expr_rows], dtype=np.int64).reshape(-1, 2)
