@@ -18,7 +18,7 @@ from ...model.legs import solve_geometry
 from ...model.mechanism import Mechanism, Mobility
 from ...model.parasitic import (HOME_ITERATIONS, SOLVE_KEY, ParasiticError, closure_count, closure_geometry, closure_jacobian,
                                 closure_residuals, gauss_newton, implicit_gradient)
-from ...model.spatial import euler_rate_map, euler_to_matrix, reciprocal_basis, rot_axis, skew
+from ...model.spatial import euler_matrix_and_rate, reciprocal_basis, rot_axis, skew
 from ...common.units import UNIT_KINDS
 from .errors import DescriptionError, DescriptionWarning
 from .expressions import R_NAMES, _Dual, _grad, _val
@@ -202,12 +202,13 @@ class DescribedMechanism(Mechanism):
                 env[name] = e(env, dual)
         return env
 
-    def _rotation(self, a: np.ndarray):
-        """R (N, 3, 3) and E (N, 3, k) with omega = E @ angle rates, for angles a (N, k)."""
+    def _rotation(self, a: np.ndarray, rate: bool = True):
+        """R (N, 3, 3) and E (N, 3, k) with omega = E @ angle rates, for angles a (N, k) (E
+        may be None with ``rate=False``)."""
         t = self.description.task
         N = a.shape[0]
         if t.convention is not None:
-            return euler_to_matrix(t.convention, a), euler_rate_map(t.convention, a)
+            return euler_matrix_and_rate(t.convention, a, rate)
         if not t.rot_axes:
             return np.broadcast_to(np.eye(3), (N, 3, 3)).copy(), np.zeros((N, 3, 0))
         R = np.broadcast_to(np.eye(3), (N, 3, 3))
@@ -224,7 +225,7 @@ class DescribedMechanism(Mechanism):
         with np.errstate(all="ignore"):
             angs = [e(env, dual) for e in t.angles]
             a = np.stack([np.broadcast_to(_val(v), (N,)) for v in angs], -1) if angs else np.zeros((N, 0))
-            R, E = self._rotation(a)
+            R, E = self._rotation(a, rate=dual)
             W = None
             if dual:
                 da = (np.stack([np.broadcast_to(_grad(v), (N, n)) for v in angs], 1) if angs
