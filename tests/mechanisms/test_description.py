@@ -441,3 +441,30 @@ def test_study_with_a_user_description(tmp_path):
     path.write_text(yaml.safe_dump(bad))
     with pytest.raises(ValueError, match=r"fixed\.base_radius"):
         load_study(path)
+
+
+def test_home_pose_shared_only_by_designs_with_the_same_task_inputs():
+    """Designs that change only leg geometry reuse the checked home pose; one that changes a
+    parameter the task expressions name (upu_base_z) gets its own. Either way the legs' neutral
+    directions and the home pose are bit for bit those of a fresh build (memo emptied)."""
+    cls = mechanism_class("5pus_upu")
+    designs = [{}, {"link_length": 0.19}, {"slider_radius": 0.12}, {"upu_base_z": -0.17},
+               {"upu_base_z": -0.17, "link_length": 0.21}]
+
+    def state(m):
+        p, R = m._pose(m.home[None, :])
+        return [p, R] + [np.r_[leg.base_ref, leg.platform_ref] for leg in m.legs]
+
+    cached = []
+    cls._HOME_POSES = {}
+    for d in designs:
+        cached.append(state(cls(cls.Params(**d))))
+    hits = len(cls._HOME_POSES)
+    assert hits == 2  # the default task inputs and upu_base_z = -0.17 m
+    for d, want in zip(designs, cached):
+        cls._HOME_POSES = {}
+        got = state(cls(cls.Params(**d)))
+        assert all(np.array_equal(a, b) for a, b in zip(got, want))
+    # the key holds the task's inputs exactly: -0.0 and 0.0 differ, as atan2 tells them apart
+    m = cls(cls.Params())
+    assert m._home_pose_key(m.home) != m._home_pose_key(-0.0 * m.home + np.where(m.home == 0, -0.0, 0.0))

@@ -276,7 +276,35 @@ class DescribedMechanism(Mechanism):
         return [c.build(self) for c in self.description.constraints]
 
     # -- construction checks ---------------------------------------------------------------------
+    def _home_pose_key(self, home):
+        """The inputs of the pose expressions at ``home``: the home pose and the values of the
+        parameters the task's expressions name (exactly, as bytes); None with ``task.solve``
+        (the solved unknowns depend on the legs). Designs that change only the legs' geometry
+        share it, and with it the checked home pose."""
+        d = self.description
+        t = d.task
+        if t.solve is not None:
+            return None
+        names = d.__dict__.get("_pose_param_names")
+        if names is None:
+            used = set()
+            for e in [e for _, e in t.defines] + list(t.angles) + list(t.position) + list(t.valid):
+                used |= set(e.names)
+            names = d._pose_param_names = tuple(sorted(n for n in used if n in {q.name for q in d.params}))
+        penv = self._penv
+        return (id(d), np.asarray(home, dtype=float).tobytes(),
+                tuple(np.asarray(penv[n], dtype=float).tobytes() for n in names))
+
     def _check_pose_expressions(self, home):
+        key = self._home_pose_key(home)
+        memo = type(self).__dict__.get("_HOME_POSES")
+        if memo is None:
+            memo = {}
+            type.__setattr__(type(self), "_HOME_POSES", memo)
+        hit = memo.get(key) if key is not None else None
+        if hit is not None and hit[0] is self.description:
+            self._home_pose = (hit[1].copy(), hit[2].copy())  # checked before: finite, valid
+            return
         X = home[None, :]
         try:
             p, R, dp, W = self._pose_eval(X, True)
@@ -294,6 +322,10 @@ class DescribedMechanism(Mechanism):
             if not ok:
                 raise DescriptionError(f"{self.name}: task.home: the home pose {home.tolist()} fails task.valid")
         self._home_pose = (p, R)  # reused by _neutral_refs
+        if key is not None:
+            if len(memo) >= 64:
+                memo.clear()
+            memo[key] = (self.description, p.copy(), R.copy())
 
     def _neutral_refs(self, legs):
         """Each leg's neutral joint directions: its direction at home (as
