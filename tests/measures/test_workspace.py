@@ -598,3 +598,27 @@ def test_point_store_lazy_keys_match_eager_draws():
         alli = np.sort(np.concatenate([i for _, i in chunks]))
         assert np.array_equal(pts, allx[np.searchsorted(alli, want)])
         assert complete == (len(want) == len(alli))
+
+
+def test_params_key_is_the_frozen_asdict():
+    """The workspace cache's key of a mechanism's parameters is freeze(asdict(params)) -- taken
+    without asdict for flat parameter sets, with it otherwise."""
+    import dataclasses
+
+    from parasynth.mechanisms import load_mechanism, packaged_descriptions
+    from parasynth.measures.workspace import _flat_params_key, freeze, params_key
+
+    for name in packaged_descriptions():
+        m = load_mechanism(name)
+        want = freeze(dataclasses.asdict(m.params))
+        assert _flat_params_key(m.params) == want and params_key(m) == want
+
+    @dataclasses.dataclass
+    class Nested:
+        a: float = 1.0
+        b: dict = dataclasses.field(default_factory=lambda: {"y": 2.0, "x": [1.0, 2.0]})
+
+    assert _flat_params_key(Nested()) is None
+    m = load_mechanism("5pus_upu.yaml")
+    m.params = Nested()
+    assert params_key(m) == (("a", 1.0), ("b", (("x", (1.0, 2.0)), ("y", 2.0))))

@@ -43,6 +43,7 @@ the whole batch to NumPy.
 from __future__ import annotations
 
 import logging
+import functools
 import math
 import os
 import threading
@@ -370,8 +371,10 @@ def _table(rows, width):
     return np.ascontiguousarray(a)
 
 
+@functools.lru_cache(maxsize=256)
 def _angle_modes(lo: float, hi: float):
-    """Encode cone-angle bounds [lo, hi] (rad, angle in [0, pi]) for the boolean test."""
+    """Encode cone-angle bounds [lo, hi] (rad, angle in [0, pi]) for the boolean test (kept
+    per bounds: a study's designs share them)."""
     if np.isnan(lo) or np.isnan(hi):
         raise Unsupported("a NaN angle limit")
     if hi <= 0 or lo >= np.pi:
@@ -544,9 +547,10 @@ def leg_tables(mech, cons):
                                       _cos_limit(float(c.hi))))
         elif t is LegInterference:
             D = float(c.diameter)
-            if not c._pairs(names):
+            pairs = c._pairs(names)
+            if not pairs:
                 raise Unsupported(f"constraint {c.name}: interference without pairs (NumPy raises)")
-            for a_, b_ in c._pairs(names):
+            for a_, b_ in pairs:
                 rows["pair"].append((index[a_], index[b_], D, ci, D * D if D > 0 else -1.0))
         elif t is SingularityMarginFloor:
             continue  # not a kernel check: evaluate.py applies it with the singularity-margin kernel

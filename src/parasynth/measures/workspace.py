@@ -1028,10 +1028,37 @@ def params_key(mech):
     hit = own.get("_params_key") if own is not None else None
     if hit is not None and hit[0] is params:
         return hit[1]
-    key = freeze(dataclasses.asdict(params))
+    key = _flat_params_key(params)
+    if key is None:
+        key = freeze(dataclasses.asdict(params))
     if own is not None:
         own["_params_key"] = (params, key)
     return key
+
+
+_PLAIN = (float, int, str, bool, type(None))
+
+
+def _plain(v) -> bool:
+    """A number, string, boolean, None or a tuple (of tuples) of those: its own frozen form."""
+    t = type(v)
+    return t in _PLAIN or (t is tuple and all(_plain(x) for x in v))
+
+
+def _flat_params_key(params):
+    """``freeze(dataclasses.asdict(params))`` for a dataclass whose fields are numbers,
+    strings, booleans, None or (nested) tuples of those (a description's ``Params``): the same key
+    without asdict's deep copy; None for any other dataclass."""
+    if not dataclasses.is_dataclass(params):
+        return None
+    items = []
+    for f in dataclasses.fields(params):
+        name = f.name
+        v = getattr(params, name)
+        if not _plain(v):
+            return None
+        items.append((name, v))
+    return tuple(sorted(items))
 
 
 def freeze(v):
