@@ -468,3 +468,20 @@ def test_home_pose_shared_only_by_designs_with_the_same_task_inputs():
     # the key holds the task's inputs exactly: -0.0 and 0.0 differ, as atan2 tells them apart
     m = cls(cls.Params())
     assert m._home_pose_key(m.home) != m._home_pose_key(-0.0 * m.home + np.where(m.home == 0, -0.0, 0.0))
+
+
+def test_parameter_values_kept_per_exact_inputs():
+    """A geometry value computed before for the same float64 inputs is given again; zero inputs
+    (0.0 == -0.0, atan2 tells them apart) and other types are always computed."""
+    from parasynth.mechanisms.description.expressions import _Scope
+    from parasynth.mechanisms.description.parameters import _Scalar
+
+    s = _Scalar("atan2(a, b) * 1 rad", "angle", "t", _Scope(("parameters", ("a", "b")), kinds={"a": "length", "b": "length"}))
+    f64 = np.float64
+    assert s({"a": f64(1.0), "b": f64(2.0)}) == np.arctan2(1.0, 2.0)
+    assert len(s._memo) == 1 and s({"a": f64(1.0), "b": f64(2.0)}) == np.arctan2(1.0, 2.0)
+    assert s({"a": f64(0.0), "b": f64(-1.0)}) == np.pi and s({"a": f64(-0.0), "b": f64(-1.0)}) == -np.pi
+    assert s({"a": 1.0, "b": f64(3.0)}) == np.arctan2(1.0, 3.0)
+    assert len(s._memo) == 1  # neither the zeros nor the Python float were kept
+    with pytest.raises(DescriptionError, match="t"):
+        s({"a": f64(1.0)})
