@@ -560,3 +560,65 @@ def test_exported_from_the_package():
     assert parasynth.workspace is workspace
     assert parasynth.WorkspaceResult is WorkspaceResult
     assert {"workspace", "WorkspaceResult"} <= set(parasynth.__all__)
+
+
+def test_point_store_lazy_keys_match_eager_draws():
+    """The store draws its keys only when it cuts; the subsample is the one of drawing a key
+    for every chunk as it comes (written out here), for any chunking and cap."""
+    from parasynth.measures.workspace import _PointStore
+
+    def eager(chunks, cap, seed):
+        rng = np.random.default_rng(np.random.SeedSequence(seed).spawn(1)[0])
+        X, I, K, thr = [], [], [], np.inf
+        for x, i in chunks:
+            k = rng.random(len(x))
+            s = k < thr
+            X.append(x[s]), I.append(i[s]), K.append(k[s])
+            if sum(map(len, X)) > cap + max(cap // 4, 4096) or (x is chunks[-1][0]):
+                k = np.concatenate(K)
+                if len(k) > cap:
+                    sel = np.sort(np.argpartition(k, cap - 1)[:cap])
+                    thr = float(k[sel].max())
+                    X, I, K = [np.concatenate(X)[sel]], [np.concatenate(I)[sel]], [k[sel]]
+        return np.concatenate(I)
+
+    rng = np.random.default_rng(3)
+    for cap, sizes in ((5, [3, 4, 9]), (100, [5000, 3000, 7000, 10]), (10**6, [40, 50]), (7, [2])):
+        start, chunks = 0, []
+        for m in sizes:
+            keep = np.flatnonzero(rng.random(m) < 0.6)
+            chunks.append((rng.random((len(keep), 2)), start + keep))
+            start += m
+        st = _PointStore(cap, 11)
+        for x, i in chunks:
+            st.add(x, i)
+        pts, complete = st.result(sum(len(i) for _, i in chunks), np.zeros(2), np.array([0, 1]))
+        want = eager(chunks, cap, 11)
+        allx = np.concatenate([x for x, _ in chunks])[np.argsort(np.concatenate([i for _, i in chunks]))]
+        alli = np.sort(np.concatenate([i for _, i in chunks]))
+        assert np.array_equal(pts, allx[np.searchsorted(alli, want)])
+        assert complete == (len(want) == len(alli))
+
+
+def test_params_key_is_the_frozen_asdict():
+    """The workspace cache's key of a mechanism's parameters is freeze(asdict(params)) -- taken
+    without asdict for flat parameter sets, with it otherwise."""
+    import dataclasses
+
+    from parasynth.mechanisms import load_mechanism, packaged_descriptions
+    from parasynth.measures.workspace import _flat_params_key, freeze, params_key
+
+    for name in packaged_descriptions():
+        m = load_mechanism(name)
+        want = freeze(dataclasses.asdict(m.params))
+        assert _flat_params_key(m.params) == want and params_key(m) == want
+
+    @dataclasses.dataclass
+    class Nested:
+        a: float = 1.0
+        b: dict = dataclasses.field(default_factory=lambda: {"y": 2.0, "x": [1.0, 2.0]})
+
+    assert _flat_params_key(Nested()) is None
+    m = load_mechanism("5pus_upu.yaml")
+    m.params = Nested()
+    assert params_key(m) == (("a", 1.0), ("b", (("x", (1.0, 2.0)), ("y", 2.0))))

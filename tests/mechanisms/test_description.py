@@ -441,3 +441,47 @@ def test_study_with_a_user_description(tmp_path):
     path.write_text(yaml.safe_dump(bad))
     with pytest.raises(ValueError, match=r"fixed\.base_radius"):
         load_study(path)
+
+
+def test_home_pose_shared_only_by_designs_with_the_same_task_inputs():
+    """Designs that change only leg geometry reuse the checked home pose; one that changes a
+    parameter the task expressions name (upu_base_z) gets its own. Either way the legs' neutral
+    directions and the home pose are bit for bit those of a fresh build (memo emptied)."""
+    cls = mechanism_class("5pus_upu")
+    designs = [{}, {"link_length": 0.19}, {"slider_radius": 0.12}, {"upu_base_z": -0.17},
+               {"upu_base_z": -0.17, "link_length": 0.21}]
+
+    def state(m):
+        p, R = m._pose(m.home[None, :])
+        return [p, R] + [np.r_[leg.base_ref, leg.platform_ref] for leg in m.legs]
+
+    cached = []
+    cls._HOME_POSES = {}
+    for d in designs:
+        cached.append(state(cls(cls.Params(**d))))
+    hits = len(cls._HOME_POSES)
+    assert hits == 2  # the default task inputs and upu_base_z = -0.17 m
+    for d, want in zip(designs, cached):
+        cls._HOME_POSES = {}
+        got = state(cls(cls.Params(**d)))
+        assert all(np.array_equal(a, b) for a, b in zip(got, want))
+    # the key holds the task's inputs exactly: -0.0 and 0.0 differ, as atan2 tells them apart
+    m = cls(cls.Params())
+    assert m._home_pose_key(m.home) != m._home_pose_key(-0.0 * m.home + np.where(m.home == 0, -0.0, 0.0))
+
+
+def test_parameter_values_kept_per_exact_inputs():
+    """A geometry value computed before for the same float64 inputs is given again; zero inputs
+    (0.0 == -0.0, atan2 tells them apart) and other types are always computed."""
+    from parasynth.mechanisms.description.expressions import _Scope
+    from parasynth.mechanisms.description.parameters import _Scalar
+
+    s = _Scalar("atan2(a, b) * 1 rad", "angle", "t", _Scope(("parameters", ("a", "b")), kinds={"a": "length", "b": "length"}))
+    f64 = np.float64
+    assert s({"a": f64(1.0), "b": f64(2.0)}) == np.arctan2(1.0, 2.0)
+    assert len(s._memo) == 1 and s({"a": f64(1.0), "b": f64(2.0)}) == np.arctan2(1.0, 2.0)
+    assert s({"a": f64(0.0), "b": f64(-1.0)}) == np.pi and s({"a": f64(-0.0), "b": f64(-1.0)}) == -np.pi
+    assert s({"a": 1.0, "b": f64(3.0)}) == np.arctan2(1.0, 3.0)
+    assert len(s._memo) == 1  # neither the zeros nor the Python float were kept
+    with pytest.raises(DescriptionError, match="t"):
+        s({"a": f64(1.0)})

@@ -287,3 +287,25 @@ def test_reciprocal_basis_of_a_revolute_is_five_wrenches():
     W = reciprocal_basis(T, 1.0)[0]
     assert W.shape == (5, 6)
     np.testing.assert_allclose(W @ T[0, 0], 0.0, atol=1e-12)
+
+
+def test_euler_matrix_and_rate_is_both_functions_exactly():
+    """One pass over the per-axis rotations gives the matrices and rate maps of
+    euler_to_matrix and euler_rate_map bit for bit (and the rate map agrees with a finite
+    difference of the matrix: omega from dR R^T)."""
+    from parasynth.model.spatial import EULER_CONVENTIONS, euler_matrix_and_rate, euler_rate_map, euler_to_matrix
+
+    rng = np.random.default_rng(5)
+    for conv, seq in EULER_CONVENTIONS.items():
+        a = rng.uniform(-3, 3, size=(7, len(seq)))
+        R, E = euler_matrix_and_rate(conv, a)
+        assert np.array_equal(R, euler_to_matrix(conv, a)) and np.array_equal(E, euler_rate_map(conv, a))
+        R1, none = euler_matrix_and_rate(conv, a[0], rate=False)
+        assert none is None and np.array_equal(R1, euler_to_matrix(conv, a[0]))
+        rates, h = rng.normal(size=len(seq)), 1e-6
+        dR = (euler_to_matrix(conv, a[0] + h * rates) - euler_to_matrix(conv, a[0] - h * rates)) / (2 * h)
+        W = dR @ R[0].T
+        omega = np.array([W[2, 1], W[0, 2], W[1, 0]])
+        assert np.allclose(omega, E[0] @ rates, atol=1e-7)
+    with pytest.raises(ValueError, match="convention"):
+        euler_matrix_and_rate("abc", a)

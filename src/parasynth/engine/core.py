@@ -43,6 +43,7 @@ the whole batch to NumPy.
 from __future__ import annotations
 
 import logging
+import functools
 import math
 import os
 import threading
@@ -370,8 +371,10 @@ def _table(rows, width):
     return np.ascontiguousarray(a)
 
 
+@functools.lru_cache(maxsize=256)
 def _angle_modes(lo: float, hi: float):
-    """Encode cone-angle bounds [lo, hi] (rad, angle in [0, pi]) for the boolean test."""
+    """Encode cone-angle bounds [lo, hi] (rad, angle in [0, pi]) for the boolean test (kept
+    per bounds: a study's designs share them)."""
     if np.isnan(lo) or np.isnan(hi):
         raise Unsupported("a NaN angle limit")
     if hi <= 0 or lo >= np.pi:
@@ -544,9 +547,10 @@ def leg_tables(mech, cons):
                                       _cos_limit(float(c.hi))))
         elif t is LegInterference:
             D = float(c.diameter)
-            if not c._pairs(names):
+            pairs = c._pairs(names)
+            if not pairs:
                 raise Unsupported(f"constraint {c.name}: interference without pairs (NumPy raises)")
-            for a_, b_ in c._pairs(names):
+            for a_, b_ in pairs:
                 rows["pair"].append((index[a_], index[b_], D, ci, D * D if D > 0 else -1.0))
         elif t is SingularityMarginFloor:
             continue  # not a kernel check: evaluate.py applies it with the singularity-margin kernel
@@ -609,6 +613,27 @@ def program_for(mech, exprs: dict, twist: bool = False) -> Program:
         raise
     _PROGRAMS[key] = (mech.description, prog)
     return prog
+
+
+def program_constants(mech, exprs: dict, twist: bool = False):
+    """``(program_for(mech, exprs, twist), its constants for mech._penv)``, kept in the
+    engine's record of ``mech`` while its parameter environment and description are the same
+    objects: the feasibility plan, the poses of the extents and those of the indices of one
+    design look them up once (the program's cache key and constants cost ~50 us a lookup).
+    The constants array is shared: the kernels only read it."""
+    patched = [k for k in ("_pose", "pose", "pose_valid", "_twist_map", "twist_map", "_task_env") if k in vars(mech)]
+    if patched:
+        raise Unsupported(f"a pose method replaced on the instance ({', '.join(patched)})")
+    memo = record_of(mech).setdefault("programs", {})
+    key = (tuple((n, e.text) for n, e in exprs.items()), bool(twist))
+    hit = memo.get(key)
+    penv, d = mech._penv, mech.description
+    if hit is not None and hit[0] is penv and hit[1] is d:
+        return hit[2], hit[3]
+    prog = program_for(mech, exprs, twist)
+    consts = prog.constants(penv)
+    memo[key] = (penv, d, prog, consts)
+    return prog, consts
 
 
 def _pose_limit(mech) -> np.ndarray:
@@ -675,9 +700,8 @@ def build_plan(mech, cons) -> KernelPlan:
     if not _is_described(mech):
         raise Unsupported(f"the model class {type(mech).__name__} is not a mechanism description")
     kind, act, F, tables, exprs, expr_rows = leg_tables(mech, cons)
-    prog = program_for(mech, exprs)
     try:
-        consts = prog.constants(mech._penv)
+        prog, consts = program_constants(mech, exprs)
     except (KeyError, IndexError, TypeError, ValueError) as e:
         raise Unsupported(f"a parameter of the task parametrisation ({type(e).__name__}: {e})") from None
     expr = np.array([(prog.margin_regs[n], ci) for n, ci in expr_rows], dtype=np.int64).reshape(-1, 2)

@@ -138,8 +138,7 @@ def compiled_pose_batch(mech, Xa, twist: bool = False):
         _warn(mech, f"the model class {type(mech).__name__} (not a mechanism description)", "pose_batch")
         return None
     try:
-        prog = core.program_for(mech, {}, twist)
-        consts = prog.constants(mech._penv)
+        prog, consts = core.program_constants(mech, {}, twist)
     except (Unsupported, KeyError, IndexError, TypeError, ValueError, AttributeError) as e:
         _warn(mech, str(e), "pose_batch")
         return None

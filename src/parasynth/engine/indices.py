@@ -244,10 +244,11 @@ def _poses(mech, X, need_twist: bool):
     if compiled is not None:
         valid, p, R, T = compiled
         valid = np.asarray(valid, dtype=bool)
-        p = np.array(p, dtype=float)
-        R = np.array(R, dtype=float)
-        T = np.array(T, dtype=float) if need_twist else None
-        if not valid.all():
+        T = T if need_twist else None
+        if not valid.all():  # the home pose written into copies (the arrays stay the program's otherwise)
+            p = np.array(p, dtype=float)
+            R = np.array(R, dtype=float)
+            T = np.array(T, dtype=float) if need_twist else None
             bad = ~valid
             p0, R0 = mech._pose(mech.home[None, :])
             p[bad], R[bad] = p0[0], R0[0]

@@ -312,6 +312,7 @@ def list_objectives() -> list[str]:
 # -- workspace cache ------------------------------------------------------------------------------
 _CACHE: "OrderedDict[tuple, object]" = OrderedDict()
 _CACHE_SIZE = 8
+_SAMPLE_KEYS: dict = {}  # {WorkspaceSample: (frozen ranges, frozen fixed)}
 
 
 def workspace_of(mech, ranges=None, n: int = 4096, method: str = "sobol", seed: int = 0, fixed=None,
@@ -321,17 +322,30 @@ def workspace_of(mech, ranges=None, n: int = 4096, method: str = "sobol", seed: 
     :class:`~parasynth.measures.workspace.WorkspaceSample`, which then gives ``ranges``, ``n``,
     ``method``, ``seed`` and ``fixed`` (the same workspace, and cache entry, as those
     arguments)."""
+    frozen = None
     if sample is not None:
         if not isinstance(sample, WorkspaceSample):
             raise ValueError(f"sample must be a WorkspaceSample, got {sample!r}")
-        ranges, n, method, seed, fixed = (sample.kwargs()[k] for k in WorkspaceSample.FIELDS)
-    n = check_count("n", n, 1, MAX_SAMPLES, what="a sample count")  # no truncation of 2.5, True, "100"
-    seed = check_count("seed", seed, 0, what="an integer seed")
-    ranges = dict(ranges) if ranges else mech.default_ranges()
+        kw = sample.kwargs()
+        ranges, n, method, seed, fixed = (kw[k] for k in WorkspaceSample.FIELDS)  # validated by the sample
+        frozen = _SAMPLE_KEYS.get(sample)
+        if frozen is None:  # the sample's part of the key, once per sample (a study has one)
+            if len(_SAMPLE_KEYS) > 64:
+                _SAMPLE_KEYS.clear()
+            frozen = _SAMPLE_KEYS[sample] = (freeze(ranges) if ranges else None, freeze(fixed))
+    else:
+        n = check_count("n", n, 1, MAX_SAMPLES, what="a sample count")  # no truncation of 2.5, True, "100"
+        seed = check_count("seed", seed, 0, what="an integer seed")
+    if ranges:
+        ranges = dict(ranges)
+        franges = frozen[0] if frozen is not None else freeze(ranges)
+    else:
+        ranges = mech.default_ranges()
+        franges = freeze(ranges)
     # the engine that evaluates ("numpy" inside engine.reference() and engine.needs()): a probe
     # on the NumPy reference never answers for a compiled evaluation of the same settings
-    key = (type(mech), params_key(mech), freeze(ranges), int(n), method,
-           int(seed), freeze(fixed), freeze(constraints), effective_engine(engine),
+    key = (type(mech), params_key(mech), franges, int(n), method,
+           int(seed), frozen[1] if frozen is not None else freeze(fixed), freeze(constraints), effective_engine(engine),
            tuple(repr(c) for c in getattr(mech, "added_constraints", ())), getattr(mech, "scatter_key", None))
     # a scatter draw of a robust measure keeps its own workspaces (parasynth.measures.robustness): the
     # measures of one design share them without pushing the nominal ones out of this cache

@@ -1028,10 +1028,37 @@ def params_key(mech):
     hit = own.get("_params_key") if own is not None else None
     if hit is not None and hit[0] is params:
         return hit[1]
-    key = freeze(dataclasses.asdict(params))
+    key = _flat_params_key(params)
+    if key is None:
+        key = freeze(dataclasses.asdict(params))
     if own is not None:
         own["_params_key"] = (params, key)
     return key
+
+
+_PLAIN = (float, int, str, bool, type(None))
+
+
+def _plain(v) -> bool:
+    """A number, string, boolean, None or a tuple (of tuples) of those: its own frozen form."""
+    t = type(v)
+    return t in _PLAIN or (t is tuple and all(_plain(x) for x in v))
+
+
+def _flat_params_key(params):
+    """``freeze(dataclasses.asdict(params))`` for a dataclass whose fields are numbers,
+    strings, booleans, None or (nested) tuples of those (a description's ``Params``): the same key
+    without asdict's deep copy; None for any other dataclass."""
+    if not dataclasses.is_dataclass(params):
+        return None
+    items = []
+    for f in dataclasses.fields(params):
+        name = f.name
+        v = getattr(params, name)
+        if not _plain(v):
+            return None
+        items.append((name, v))
+    return tuple(sorted(items))
 
 
 def freeze(v):
@@ -1151,26 +1178,42 @@ class _GridBoundary:
 
 class _PointStore:
     """Feasible points, capped at ``cap`` by keeping those with the smallest random keys (a
-    uniform subsample that does not depend on the chunking)."""
+    uniform subsample that does not depend on the chunking).
+
+    The keys are drawn only when a compaction needs them: until the first cut the threshold
+    is infinite and every point is kept whatever its key, so the keys of those chunks are
+    drawn later, chunk by chunk in sampling order -- the same draws from the same generator
+    as drawing them at once -- and a workspace that never exceeds the cap draws none."""
 
     def __init__(self, cap: int | None, seed: int):
         self.cap = cap
+        self.seed = seed
         self.X: list[np.ndarray] = []
         self.idx: list[np.ndarray] = []
         self.keys: list[np.ndarray] = []
+        self.pending: list[int] = []  # sizes of the chunks whose keys are not drawn yet
         self.size = 0
         self.threshold = np.inf
-        self.rng = np.random.default_rng(np.random.SeedSequence(seed).spawn(1)[0]) if cap else None
+        self.rng = None
+
+    def _draw(self, n: int) -> np.ndarray:
+        if self.rng is None:
+            self.rng = np.random.default_rng(np.random.SeedSequence(self.seed).spawn(1)[0])
+        return self.rng.random(n)
 
     def add(self, X, idx):
         if self.cap == 0:
             return
-        if self.cap is None:
+        if self.cap is None or self.threshold == np.inf:
             self.X.append(X)
             self.idx.append(idx)
             self.size += len(X)
+            if self.cap is not None:
+                self.pending.append(len(X))
+                if self.size > self.cap + max(self.cap // 4, 4096):
+                    self._compact()
             return
-        keys = self.rng.random(len(X))
+        keys = self._draw(len(X))
         sel = keys < self.threshold
         if not sel.all():
             X, idx, keys = X[sel], idx[sel], keys[sel]
@@ -1182,13 +1225,15 @@ class _PointStore:
             self._compact()
 
     def _compact(self):
+        if self.size <= self.cap:
+            return  # nothing to cut (the keys, if any are pending, stay so)
+        if self.pending:
+            self.keys += [self._draw(n) for n in self.pending]
+            self.pending = []
         keys = np.concatenate(self.keys)
-        if len(keys) > self.cap:
-            sel = np.sort(np.argpartition(keys, self.cap - 1)[: self.cap])
-            keys = keys[sel]
-            self.threshold = float(keys.max())
-        else:
-            sel = slice(None)
+        sel = np.sort(np.argpartition(keys, self.cap - 1)[: self.cap])
+        keys = keys[sel]
+        self.threshold = float(keys.max())
         X = np.concatenate(self.X)
         self.X = []
         X = X[sel]
@@ -1202,11 +1247,15 @@ class _PointStore:
             return np.zeros((0, len(base))), n_feasible == 0
         if self.cap is not None:
             self._compact()
-        Xs, idx = np.concatenate(self.X), np.concatenate(self.idx)
-        self.X, self.idx, self.keys = [], [], []
-        order = np.argsort(idx, kind="stable")
+        if len(self.X) == 1:
+            Xs, idx = self.X[0], self.idx[0]
+        else:
+            Xs, idx = np.concatenate(self.X), np.concatenate(self.idx)
+        self.X, self.idx, self.keys, self.pending = [], [], [], []
         X = np.repeat(base[None, :], len(Xs), axis=0)
-        X[:, cols] = Xs[order]
+        if len(idx) > 1 and bool(np.any(idx[1:] < idx[:-1])):  # chunks come in order: sorted already
+            Xs = Xs[np.argsort(idx, kind="stable")]
+        X[:, cols] = Xs
         return X, len(X) == n_feasible
 
 

@@ -24,6 +24,8 @@ __all__ = ["list_mechanisms", "load_mechanism", "register", "mechanism_class", "
 
 _PACKAGE_DIR = Path(__file__).resolve().parent
 _DESCRIBED: dict = {}
+_RESOLVED: dict = {}  # {absolute path: its resolved path}
+_FIELDS: dict = {}  # {Params class: its field names}
 
 _REGISTRY: dict[str, tuple[Callable[[], type], str]] = {}
 
@@ -51,7 +53,13 @@ def _description_language():
 def _described_class(path: Path) -> type:
     """The class of the description file ``path`` (cached while the file is unchanged)."""
     st = path.stat()
-    key = (str(path.resolve()), st.st_mtime_ns, st.st_size)
+    s = str(path)
+    full = _RESOLVED.get(s)  # an absolute path's resolved form, found once (a study builds per design)
+    if full is None:
+        full = str(path.resolve())
+        if path.is_absolute():  # a relative one depends on the working directory
+            _RESOLVED[s] = full
+    key = (full, st.st_mtime_ns, st.st_size)
     if key not in _DESCRIBED:
         _DESCRIBED[key] = _description_language().load_description(path)
     return _DESCRIBED[key]
@@ -164,7 +172,9 @@ def load_mechanism(name: str, **params) -> Mechanism:
     mechanisms for an unknown name, and the valid parameters for an unknown parameter.
     """
     cls = mechanism_class(name)
-    fields = {f.name for f in dataclasses.fields(cls.Params)}
+    fields = _FIELDS.get(cls.Params)
+    if fields is None:
+        fields = _FIELDS[cls.Params] = frozenset(f.name for f in dataclasses.fields(cls.Params))
     unknown = sorted(set(params) - fields)
     if unknown:
         raise ValueError(

@@ -144,6 +144,34 @@ def euler_rate_map(convention: str, angles) -> np.ndarray:
     return np.stack(cols, axis=-1)
 
 
+def euler_matrix_and_rate(convention: str, angles, rate: bool = True):
+    """``(euler_to_matrix(convention, angles), euler_rate_map(convention, angles))`` -- the
+    same operations on the same per-axis rotations, each computed once (the rate map is None
+    with ``rate=False``)."""
+    seq = EULER_CONVENTIONS.get(convention)
+    if seq is None:
+        raise ValueError(
+            f"unknown Euler convention {convention!r}; allowed: {sorted(EULER_CONVENTIONS)}"
+        )
+    angles = np.asarray(angles, dtype=float)
+    if angles.shape[-1] != len(seq):
+        raise ValueError(
+            f"convention {convention!r} takes {len(seq)} angles, got shape {angles.shape}"
+        )
+    mats = [_ROT[ax](angles[..., k]) for k, ax in enumerate(seq)]
+    R = mats[0]
+    for M in mats[1:]:
+        R = R @ M
+    if not rate:
+        return R, None
+    cols = []
+    Q = np.broadcast_to(np.eye(3), angles.shape[:-1] + (3, 3))
+    for ax, M in zip(seq, mats):
+        cols.append(Q @ _AXIS[ax])
+        Q = Q @ M
+    return R, np.stack(cols, axis=-1)
+
+
 def skew(v) -> np.ndarray:
     """Skew-symmetric cross-product matrices, ``skew(a) @ b == cross(a, b)``."""
     v = np.asarray(v, dtype=float)

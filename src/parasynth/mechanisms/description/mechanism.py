@@ -18,7 +18,7 @@ from ...model.legs import solve_geometry
 from ...model.mechanism import Mechanism, Mobility
 from ...model.parasitic import (HOME_ITERATIONS, SOLVE_KEY, ParasiticError, closure_count, closure_geometry, closure_jacobian,
                                 closure_residuals, gauss_newton, implicit_gradient)
-from ...model.spatial import euler_rate_map, euler_to_matrix, reciprocal_basis, rot_axis, skew
+from ...model.spatial import euler_matrix_and_rate, reciprocal_basis, rot_axis, skew
 from ...common.units import UNIT_KINDS
 from .errors import DescriptionError, DescriptionWarning
 from .expressions import R_NAMES, _Dual, _grad, _val
@@ -202,12 +202,13 @@ class DescribedMechanism(Mechanism):
                 env[name] = e(env, dual)
         return env
 
-    def _rotation(self, a: np.ndarray):
-        """R (N, 3, 3) and E (N, 3, k) with omega = E @ angle rates, for angles a (N, k)."""
+    def _rotation(self, a: np.ndarray, rate: bool = True):
+        """R (N, 3, 3) and E (N, 3, k) with omega = E @ angle rates, for angles a (N, k) (E
+        may be None with ``rate=False``)."""
         t = self.description.task
         N = a.shape[0]
         if t.convention is not None:
-            return euler_to_matrix(t.convention, a), euler_rate_map(t.convention, a)
+            return euler_matrix_and_rate(t.convention, a, rate)
         if not t.rot_axes:
             return np.broadcast_to(np.eye(3), (N, 3, 3)).copy(), np.zeros((N, 3, 0))
         R = np.broadcast_to(np.eye(3), (N, 3, 3))
@@ -224,7 +225,7 @@ class DescribedMechanism(Mechanism):
         with np.errstate(all="ignore"):
             angs = [e(env, dual) for e in t.angles]
             a = np.stack([np.broadcast_to(_val(v), (N,)) for v in angs], -1) if angs else np.zeros((N, 0))
-            R, E = self._rotation(a)
+            R, E = self._rotation(a, rate=dual)
             W = None
             if dual:
                 da = (np.stack([np.broadcast_to(_grad(v), (N, n)) for v in angs], 1) if angs
@@ -275,7 +276,35 @@ class DescribedMechanism(Mechanism):
         return [c.build(self) for c in self.description.constraints]
 
     # -- construction checks ---------------------------------------------------------------------
+    def _home_pose_key(self, home):
+        """The inputs of the pose expressions at ``home``: the home pose and the values of the
+        parameters the task's expressions name (exactly, as bytes); None with ``task.solve``
+        (the solved unknowns depend on the legs). Designs that change only the legs' geometry
+        share it, and with it the checked home pose."""
+        d = self.description
+        t = d.task
+        if t.solve is not None:
+            return None
+        names = d.__dict__.get("_pose_param_names")
+        if names is None:
+            used = set()
+            for e in [e for _, e in t.defines] + list(t.angles) + list(t.position) + list(t.valid):
+                used |= set(e.names)
+            names = d._pose_param_names = tuple(sorted(n for n in used if n in {q.name for q in d.params}))
+        penv = self._penv
+        return (id(d), np.asarray(home, dtype=float).tobytes(),
+                tuple(np.asarray(penv[n], dtype=float).tobytes() for n in names))
+
     def _check_pose_expressions(self, home):
+        key = self._home_pose_key(home)
+        memo = type(self).__dict__.get("_HOME_POSES")
+        if memo is None:
+            memo = {}
+            type.__setattr__(type(self), "_HOME_POSES", memo)
+        hit = memo.get(key) if key is not None else None
+        if hit is not None and hit[0] is self.description:
+            self._home_pose = (hit[1].copy(), hit[2].copy())  # checked before: finite, valid
+            return
         X = home[None, :]
         try:
             p, R, dp, W = self._pose_eval(X, True)
@@ -293,6 +322,10 @@ class DescribedMechanism(Mechanism):
             if not ok:
                 raise DescriptionError(f"{self.name}: task.home: the home pose {home.tolist()} fails task.valid")
         self._home_pose = (p, R)  # reused by _neutral_refs
+        if key is not None:
+            if len(memo) >= 64:
+                memo.clear()
+            memo[key] = (self.description, p.copy(), R.copy())
 
     def _neutral_refs(self, legs):
         """Each leg's neutral joint directions: its direction at home (as

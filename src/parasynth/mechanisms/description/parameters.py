@@ -35,6 +35,9 @@ def _bare_number_error(path, raw, kind):
                             f"give a unit, e.g. '{raw} {_EXAMPLE_UNIT[kind]}', or an expression of parameters")
 
 
+_F64 = np.float64
+
+
 class _Scalar:
     """A scalar in the geometry: a quantity with its unit ("135 mm"), a plain number where the
     quantity is dimensionless (or 0), or an expression of parameters (SI)."""
@@ -76,6 +79,27 @@ class _Scalar:
     def __call__(self, env) -> float:
         if self.const is not None:
             return self.const
+        # The value of the same inputs is the same: kept per input values (float64 scalars, as
+        # _param_env gives them, none of them zero -- 0.0 == -0.0 would share a key, atan2 tells
+        # them apart), as a study's designs mostly repeat the parameters a value depends on.
+        key = None
+        names = self.__dict__.get("_names")
+        if names is None:
+            names = self._names = tuple(sorted(self.expr.names))
+        try:
+            key = tuple(env[n] for n in names)
+        except KeyError:
+            pass
+        if key is not None:
+            if all(type(x) is _F64 for x in key) and 0.0 not in key:
+                memo = self.__dict__.get("_memo")
+                if memo is None:
+                    memo = self._memo = {}
+                hit = memo.get(key)
+                if hit is not None:
+                    return hit
+            else:
+                key = None
         with np.errstate(all="ignore"):
             v = self.expr(env)
         if np.ndim(v) != 0:
@@ -84,6 +108,10 @@ class _Scalar:
         v = float(v)
         if not math.isfinite(v):
             raise DescriptionError(f"{self.path}: {self.expr.text!r} evaluates to {v} (not finite)")
+        if key is not None:
+            if len(memo) >= 256:
+                memo.clear()
+            memo[key] = v
         return v
 
 
