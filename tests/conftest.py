@@ -1,10 +1,16 @@
-"""Shared pytest configuration: make ``tests/_support.py`` importable from every test
-directory (including ``tests/reproduction``)."""
+"""Shared pytest configuration: make ``tests/_support.py`` and the test modules of every test
+folder importable from every test folder (including ``tests/reproduction``)."""
 
 import os
 import sys
 
-sys.path.insert(0, os.path.dirname(__file__))
+_HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, _HERE)
+# the test folders mirror the packages; a few test modules reuse another's checkers by module name
+# (``from test_engine import check_mechanism``): every folder is importable whichever is collected first
+for _d in sorted(os.listdir(_HERE)):
+    if os.path.isdir(os.path.join(_HERE, _d)) and not _d.startswith((".", "_")) and _d != "data":
+        sys.path.append(os.path.join(_HERE, _d))
 
 from hypothesis import settings  # noqa: E402
 
