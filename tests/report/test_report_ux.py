@@ -404,3 +404,18 @@ def test_progress_best_value_names_its_unit():
     for r in recs:
         r.objectives = {"test_two": r.objectives["test_two"]}
     assert Problem(study).best_str(recs) == "best test_two = 440 mm"
+
+
+def test_objective_plot_spans_the_feasible_designs_and_the_front_not_far_infeasible_ones():
+    """The interactive objective plot's initial ranges: every feasible design, front point and
+    marked design inside, padded 8 %; an infeasible design a million times off does not set the
+    scale (it stays reachable through the plot's autoscale); nothing finite -> None."""
+    from parasynth.report.interactive import _ranges
+
+    feasible = [[1.0, 2.0, 3.0], [10.0, 20.0, float("nan")]]
+    front = [[1.5], [40.0]]
+    marks = [[[0.5], [15.0]]]
+    r = _ranges(2, [feasible, front] + marks)
+    assert r[0] == pytest.approx([0.5 - 0.08 * 2.5, 3.0 + 0.08 * 2.5])
+    assert r[1] == pytest.approx([10.0 - 0.08 * 30, 40.0 + 0.08 * 30])
+    assert _ranges(1, [[[]], [[float("inf")]]]) == [None]

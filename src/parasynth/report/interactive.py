@@ -170,7 +170,26 @@ def _pareto(study, a: Analysis, front: pd.DataFrame, front_design: dict, index: 
                       "hover": _hover(study, design_values(study, row) if role == "recommended" else dict(study.reference),
                                       {lab: row[lab] for lab in labels}, name)})
     return {"axes": axes, "background": groups, "front": fr, "marks": marks,
+            "ranges": _ranges(len(cols), [groups["feasible"], fr["coords"]] + [m["coords"] for m in marks]),
             "staircase": len(labels) == 2, "goals": [o.goal for o in study.objectives]}
+
+
+def _ranges(n_axes: int, coord_sets: list, pad: float = 0.08) -> list:
+    """Each axis's initial range: the span of the feasible designs, the front and the marked
+    designs, padded by ``pad`` of it (infeasible designs near a singularity reach forces of
+    giganewtons: an autoscaled axis would squash every feasible design into one corner); None
+    where there is nothing finite to span (the plot scales itself)."""
+    out = []
+    for i in range(n_axes):
+        vals = np.concatenate([np.asarray(c[i], float) for c in coord_sets if len(c) > i and len(c[i])] or [np.zeros(0)])
+        vals = vals[np.isfinite(vals)]
+        if not len(vals):
+            out.append(None)
+            continue
+        lo, hi = float(vals.min()), float(vals.max())
+        w = hi - lo if hi > lo else max(abs(hi), 1.0)
+        out.append([lo - pad * w, hi + pad * w])
+    return out
 
 
 def viewer_json(data: dict) -> Markup:

@@ -147,11 +147,18 @@
     return t;
   }
 
+  // each axis spans the feasible designs and the front (infeasible ones may lie far off: the
+  // plot's autoscale button shows them all)
+  function axis(i) {
+    var r = P.ranges ? P.ranges[i] : null, a = { title: { text: P.axes[i].title }, zeroline: false };
+    if (r) { a.range = r; a.autorange = false; }
+    return a;
+  }
+
   function drawPareto() {
     Plotly.react(par, paretoTraces(), {
       margin: { l: 70, r: 10, t: 10, b: 60 }, hovermode: "closest", uirevision: "pareto-" + ix + "-" + iy,
-      xaxis: { title: { text: P.axes[ix].title }, zeroline: false },
-      yaxis: { title: { text: P.axes[iy].title }, zeroline: false },
+      xaxis: axis(ix), yaxis: axis(iy),
       legend: { orientation: "h", y: -0.2, font: { size: 11 } }
     }, { responsive: true, displaylogo: false });
   }
