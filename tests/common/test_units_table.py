@@ -63,7 +63,9 @@ def test_previous_tables_are_unchanged():
                  "volume": ("cm^3", 1e6), "force": ("N", 1.0), "stiffness": ("N/m", 1.0),
                  "rotational_stiffness": ("N*m/rad", 1.0), "pressure": ("GPa", 1e-9), "torque": ("N*m", 1.0),
                  "mass": ("kg", 1.0), "time": ("s", 1.0), "dimensionless": ("", 1.0)}
-    assert {k: (u.symbol, u.factor) for k, u in display.UNITS.items()} == old_units
+    # the kinds added since (actuator speeds and power, for units that follow the actuators)
+    new_units = {"speed": ("m/s", 1.0), "angular_speed": ("rad/s", 1.0), "power": ("W", 1.0)}
+    assert {k: (u.symbol, u.factor) for k, u in display.UNITS.items()} == {**old_units, **new_units}
     old_si_kind = {"m": "length", "rad": "angle", "m^2": "area", "m^3": "volume", "N": "force", "N/m": "stiffness",
                    "N*m": "torque", "N m": "torque", "Nm": "torque", "kg": "mass", "s": "time", "1": "dimensionless",
                    "": "dimensionless"}
@@ -77,7 +79,8 @@ def test_previous_tables_are_unchanged():
     assert DISPLAY_TO_SI == {"mm": "m", "cm": "m", "deg": "rad", "GPa": "Pa"}
     assert DISPLAY_UNITS == {"length": "mm", "angle": "deg", "area": "cm^2", "volume": "cm^3", "force": "N",
                              "stiffness": "N/m", "rotational_stiffness": "N*m/rad", "pressure": "GPa",
-                             "torque": "N*m", "mass": "kg", "time": "s"}
+                             "torque": "N*m", "mass": "kg", "time": "s",
+                             **{k: u for k, (u, _) in new_units.items()}}
     assert parameters._EXAMPLE_UNIT == {"length": "mm", "angle": "deg", "stiffness": "N/m",
                                         "rotational_stiffness": "N*m/rad", "pressure": "GPa"}
     assert parameters._SI_UNIT == {"length": "m", "angle": "rad", "stiffness": "N/m",

@@ -22,7 +22,8 @@ from typing import NamedTuple
 
 __all__ = ["UnitKind", "UNIT_KINDS", "DISPLAY_UNITS", "SI_UNIT_KINDS", "LITERAL_UNITS", "DISPLAY_TO_SI",
            "si_unit", "parse_quantity", "format_quantity", "QuantityError", "Unit", "NONE", "UNITS", "unit_for_kind",
-           "unit_for_si", "compound_unit", "si_compound", "column_suffix", "in_display", "format_pose"]
+           "unit_for_si", "compound_unit", "si_compound", "column_suffix", "in_display", "format_pose",
+           "ACTUATOR_KINDS", "actuator_unit_kind", "actuators_summary"]
 
 
 class UnitKind(NamedTuple):
@@ -47,7 +48,20 @@ UNIT_KINDS = {
     "torque": UnitKind("N*m", "[force] * [length]", "N*m", 1.0),
     "mass": UnitKind("kg", "[mass]", "kg", 1.0),
     "time": UnitKind("s", "[time]", "s", 1.0),
+    "speed": UnitKind("m/s", "[length] / [time]", "m/s", 1.0),
+    "angular_speed": UnitKind("rad/s", "1 / [time]", "rad/s", 1.0),
+    "power": UnitKind("W", "[power]", "W", 1.0),
     "dimensionless": UnitKind("", "", "", 1.0),
+}
+
+#: Kinds of quantities that follow what a mechanism's actuators are: {kind: {actuators: kind}}.
+#: The actuators are "length" (telescopic legs and sliders: forces in N, speeds in m/s) or
+#: "angle" (cranks, the revolute actuators of RUS legs: torques in N*m, speeds in rad/s); a
+#: mechanism with both is "mixed", and a measure of such a kind is refused on it
+#: (:func:`actuator_unit_kind`): its largest value would compare newtons with newton-metres.
+ACTUATOR_KINDS = {
+    "actuator_force": {"length": "force", "angle": "torque"},
+    "actuator_speed": {"length": "speed", "angle": "angular_speed"},
 }
 
 #: Other spellings of SI units that measures declare ("N m" for N*m, "1" for a pure number).
@@ -83,6 +97,30 @@ def si_unit(kind: str | None) -> str:
     """The SI unit of ``kind`` ('' for a pure number, ``None`` or an unknown kind)."""
     u = UNIT_KINDS.get(kind or "")
     return u.si if u else ""
+
+
+def actuators_summary(kinds) -> str | None:
+    """What actuators of the kinds ``kinds`` (a mechanism's ``actuator_kinds.values()``:
+    "length", "slider", "angle") are together: "length", "angle", "mixed", or None for none."""
+    ks = {"angle" if k == "angle" else "length" for k in kinds}
+    if not ks:
+        return None
+    return ks.pop() if len(ks) == 1 else "mixed"
+
+
+def actuator_unit_kind(kind: str | None, actuators: str | None, what: str = "measure") -> str | None:
+    """The quantity kind of ``kind`` on a mechanism whose actuators are ``actuators`` ("length",
+    "angle", "mixed" or None when unknown): an actuator kind of :data:`ACTUATOR_KINDS` resolved
+    (``actuator_force`` on cranks -> ``torque``; unknown actuators: as for linear ones), any other
+    kind as it is. ``ValueError`` naming ``what`` for an actuator kind on mixed actuators."""
+    table = ACTUATOR_KINDS.get(kind or "")
+    if table is None:
+        return kind
+    if actuators == "mixed":
+        raise ValueError(f"{what}: the mechanism's actuators are both linear (N, m/s) and cranks (N*m, rad/s), "
+                         f"so one largest value of an {kind.replace('_', ' ')} would compare different units; "
+                         f"allowed on mechanisms whose actuators are all linear or all cranks")
+    return table.get(actuators or "length", table["length"])
 
 
 # -- display units and compound units -------------------------------------------------------------

@@ -26,13 +26,63 @@ import re
 import numpy as np
 
 from ..common.columns import MARGIN, ROBUST_SE, STDERR, nominal
-from ..common.units import NONE, UNITS, Unit, compound_unit, parse_quantity, unit_for_kind, unit_for_si
+from ..common.units import (ACTUATOR_KINDS, NONE, UNITS, Unit, actuator_unit_kind, compound_unit, parse_quantity,
+                            unit_for_kind, unit_for_si)
 from ..mechanisms import mechanism_class
 from .objectives import OBJECTIVES
 
 __all__ = ["Unit", "UNITS", "unit_for_kind", "unit_for_si", "quantity_unit", "fmt_number", "fmt_quantity",
            "fmt_mean_se", "fmt_value", "column_header", "text_table", "fmt_column_value", "fmt_design",
-           "fmt_evaluation", "reference_name", "reference_short", "written_unit", "study_unit", "fmt_study_design"]
+           "fmt_evaluation", "reference_name", "reference_short", "written_unit", "study_unit", "fmt_study_design",
+           "actuators_of", "study_actuators", "measure_kind"]
+
+
+# -- what the actuators are ----------------------------------------------------------------------
+def _class_actuators(cls) -> str | None:
+    desc = getattr(cls, "description", None)
+    return getattr(desc, "actuator_kind", None)
+
+
+def actuators_of(mech_cls=None, structures=None) -> str | None:
+    """What the actuators of a study's mechanism are: "length" (telescopic legs, sliders),
+    "angle" (cranks), "mixed" or None (unknown). Over structures (``structures``: a study's
+    structure set, ``.structures`` {label: structure}) the structures together: "mixed" when
+    some are driven by cranks and others by linear actuators, as a column over them would be."""
+    if structures is not None:
+        kinds = set()
+        for s in getattr(structures, "structures", {}).values():
+            try:
+                cls = s.mechanism_class
+                kinds.add(_class_actuators(cls() if callable(cls) and not isinstance(cls, type) else cls))
+            except Exception:  # a structure whose class cannot be built: its actuators are unknown
+                kinds.add(None)
+    else:
+        kinds = {_class_actuators(mech_cls)}
+    kinds.discard(None)
+    if not kinds:
+        return None
+    return kinds.pop() if len(kinds) == 1 else "mixed"
+
+
+def study_actuators(study) -> str | None:
+    """:func:`actuators_of` a resolved study's mechanism (or structures); None when unknown."""
+    setup = getattr(study, "structures", None)
+    if setup is not None:
+        return actuators_of(structures=setup)
+    try:
+        return actuators_of(mechanism_class(study.mechanism))
+    except Exception:  # a mechanism that cannot be loaded: unknown actuators
+        return None
+
+
+def measure_kind(study, measure, settings: dict | None = None) -> str | None:
+    """The quantity kind of ``measure``'s value in ``study``: its kind for these settings, an
+    actuator kind resolved by the study's actuators (a largest actuator force on cranks is a
+    torque, N*m; ``ValueError`` on mixed actuators)."""
+    kind = measure.kind_of(settings)
+    if kind in ACTUATOR_KINDS:
+        return actuator_unit_kind(kind, study_actuators(study), measure.name)
+    return kind
 
 
 # -- which unit for a study column ---------------------------------------------------------------
@@ -103,7 +153,10 @@ def measure_unit(study, measure_name: str, settings: dict | None = None) -> Unit
     m = OBJECTIVES.get(measure_name)
     if m is None:
         return NONE
-    kind = m.kind_of(settings)  # a kind that follows a setting: stiffness_min's part
+    try:  # a kind that follows a setting (stiffness_min's part) or the actuators (N or N*m)
+        kind = measure_kind(study, m, settings)
+    except ValueError:  # an actuator kind on mixed actuators (refused when the study is loaded)
+        return NONE
     if kind:
         return unit_for_kind(kind)
     if m.unit in ("sampled units", "sampled unit"):

@@ -60,6 +60,7 @@ from .measure_spec import Setting, SettingError, as_setting, check_settings
 from .stiffness import part_stiffness, point_deflection, stiffness_along
 from .usable import DEFAULT_FLOOR_FRACTION, usable_of
 from ..common.validation import MAX_SAMPLES, MAX_SEED, check_count, check_mechanism, check_names
+from ..common.units import actuator_unit_kind, actuators_summary
 from .workspace import WorkspaceSample, freeze, params_key, workspace
 
 __all__ = [
@@ -666,13 +667,16 @@ def _load(mech, X, mass, force, com):
     return w
 
 
-@register("max_actuator_force", unit="N", kind="force", sense="minimize", estimate="extreme",
+@register("max_actuator_force", unit="N (N*m for cranks)", kind="actuator_force", sense="minimize", estimate="extreme",
           settings={**_LOAD_SETTINGS})
 def max_actuator_force(mech, mass: float = 5.0, force=None, com=None, **kw) -> float:
     """Largest static actuator force (N) over the feasible workspace samples for a payload of
     ``mass`` kg at ``com`` (platform frame, m) under gravity plus an optional external
     ``force`` [Fx, Fy, Fz] (N, base frame) at the same point. For an under-actuated model the
-    least-squares balance is used (see indices.static_forces). 0 for an empty workspace."""
+    least-squares balance is used (see indices.static_forces). 0 for an empty workspace. On cranks
+    (RUS legs) the values are torques (N m); refused on a mechanism with both linear actuators and
+    cranks."""
+    actuator_unit_kind("actuator_force", actuators_summary(mech.actuator_kinds.values()), "max_actuator_force")
     _, pts = _points(mech, kw, default_max=1024)
     if not len(pts):
         return 0.0

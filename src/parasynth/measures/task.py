@@ -47,6 +47,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..common.units import actuator_unit_kind, actuators_summary
 from .accuracy import TOLERANCE_SETTINGS, _bound, _check_tolerances, sensitivity
 from .dynamics import InertiaModel, PlatformInertia, _equivalent, _motion
 from .. import engine
@@ -659,6 +660,12 @@ def _min(v, empty=0.0):
     return float(np.min(v)) if v.size else empty
 
 
+def _one_actuator_unit(mech, name: str) -> None:
+    """Refuse measure ``name`` on a mechanism with both linear actuators and cranks: its largest
+    actuator force (speed) would compare N with N*m (m/s with rad/s)."""
+    actuator_unit_kind("actuator_force", actuators_summary(mech.actuator_kinds.values()), name)
+
+
 @register("task_coverage", unit="1", sense="maximize", settings=_BASE, cost="cheap")
 def task_coverage(mech, task=None, **kw) -> float:
     """Share of the task's required poses that are feasible and meet its floors, in [0, 1]."""
@@ -739,11 +746,13 @@ def task_position_error_max(mech, task=None, **kw) -> float:
     return _max(np.linalg.norm(b, axis=1))
 
 
-@register("task_actuator_force_max", unit="N", kind="force", sense="minimize", settings=_BASE, cost="cheap")
+@register("task_actuator_force_max", unit="N (N*m for cranks)", kind="actuator_force", sense="minimize",
+          settings=_BASE, cost="cheap")
 def task_actuator_force_max(mech, task=None, **kw) -> float:
     """Largest |actuator force| (N; N m for cranks) balancing the task's wrench at the tool
     point and the payload's weight at the feasible poses, massless legs; with a trajectory
     also the payload's inverse dynamics at every feasible path sample (inf if none)."""
+    _one_actuator_unit(mech, "task_actuator_force_max")
     ev = _ev(mech, task, kw)
     v = _max(ev.static_forces, empty=-np.inf)
     if task.trajectory is not None:
@@ -751,15 +760,19 @@ def task_actuator_force_max(mech, task=None, **kw) -> float:
     return v if v > -np.inf else np.inf
 
 
-@register("task_actuator_speed_max", unit="actuator unit/s", sense="minimize", settings=_BASE, cost="cheap")
+@register("task_actuator_speed_max", unit="m/s (rad/s for cranks)", kind="actuator_speed", sense="minimize",
+          settings=_BASE, cost="cheap")
 def task_actuator_speed_max(mech, task=None, **kw) -> float:
     """Largest |dq_i/dt| along the task's path (m/s for linear actuators, rad/s for cranks)."""
+    _one_actuator_unit(mech, "task_actuator_speed_max")
     return _max(_ev(mech, task, kw).actuator_rates)
 
 
-@register("task_actuator_power_max", unit="W", sense="minimize", settings=_BASE, cost="cheap")
+@register("task_actuator_power_max", unit="W", kind="power", sense="minimize", settings=_BASE, cost="cheap")
 def task_actuator_power_max(mech, task=None, **kw) -> float:
-    """max_i |F_i| times max_i |dq_i/dt| over the task's path: a bound on one actuator's power."""
+    """max_i |F_i| times max_i |dq_i/dt| over the task's path: a bound on one actuator's power
+    (W: N times m/s, or N m times rad/s for cranks)."""
+    _one_actuator_unit(mech, "task_actuator_power_max")
     ev = _ev(mech, task, kw)
     return _max(ev.dynamic_forces) * _max(ev.actuator_rates)
 
@@ -886,8 +899,8 @@ def _wrench_force_norm(task) -> float:
     return f
 
 
-@register("max_force_trajectory", unit="N", kind="force", sense="minimize", settings=_TRAJECTORY_SETTINGS,
-          without_task=("4ups_1rps",))
+@register("max_force_trajectory", unit="N (N*m for cranks)", kind="actuator_force", sense="minimize",
+          settings=_TRAJECTORY_SETTINGS, without_task=("4ups_1rps",))
 def max_force_trajectory(mech, task=None, dt=None, grinding_force=None, load_point=None, **kw) -> float:
     """Largest |actuator force| (N; N m for cranks) along a path. With a ``task`` (any
     mechanism): at every feasible sample of its trajectory, the inverse dynamics of its payload
@@ -896,6 +909,7 @@ def max_force_trajectory(mech, task=None, dt=None, grinding_force=None, load_poi
     2022 paper's trajectory, eqs. (66)-(68), with the Table 3 inertias of platform **and legs**,
     gravity and the grinding force (N) along Z at the grinding point (``load_point``) or the
     platform centre; ``dt``, ``grinding_force`` and ``load_point`` belong to that case."""
+    _one_actuator_unit(mech, "max_force_trajectory")
     g = _grinding_settings("max_force_trajectory", mech, task, dt, grinding_force, load_point)
     if task is None:
         return grinding_max_force(mech, **g)

@@ -43,9 +43,9 @@ from ..measures.objectives import OBJECTIVES, get as get_measure
 from ..measures.usable import SINGULARITY_FLOOR
 from ..measures.robustness import RobustError, check_robust_spec, resolve_tolerances, robust
 from ..common.validation import MAX_SAMPLES, MAX_SEED, MAX_TRIALS, is_real_number, numpy_reference
-from ..common.units import QuantityError, parse_quantity, si_unit
+from ..common.units import ACTUATOR_KINDS, QuantityError, actuator_unit_kind, parse_quantity, si_unit
 from ..common.yamlio import YamlError, load_yaml
-from ..measures.display import fmt_quantity, fmt_study_design, unit_for_kind, written_unit
+from ..measures.display import actuators_of, fmt_quantity, fmt_study_design, unit_for_kind, written_unit
 from .design import design_params, evaluation_sample, measure_arguments, with_pose_constraints
 from .errors import StudyError
 from .magnitudes import scale_warnings
@@ -693,6 +693,19 @@ def resolve_study(data: dict, source: str | None = None) -> ResolvedStudy:
                                  f"give a distinct label")
         labels.add(label)
 
+    actuators = []  # what the actuators are, computed on the first measure whose unit follows them
+
+    def measure_kind(m, settings, path):
+        kind = m.kind_of(settings)
+        if kind not in ACTUATOR_KINDS:
+            return kind
+        if not actuators:
+            actuators.append(actuators_of(mech_cls, setup))
+        try:
+            return actuator_unit_kind(kind, actuators[0], f"{path}.name: {m.name!r}")
+        except ValueError as e:
+            raise StudyError(str(e)) from None
+
     objectives, labels = [], set()
     for i, o in enumerate(spec.objectives):
         path = f"objectives[{i}]"
@@ -704,8 +717,9 @@ def resolve_study(data: dict, source: str | None = None) -> ResolvedStudy:
         label = o.label if o.label is not None else o.name
         check_label(label, path, f"{path}.label" if o.label is not None else f"{path}.name")
         rb = _resolve_robust(o.robust, o.name, mech_cls, f"{path}.robust", constraint=False)
-        objectives.append(Objective(o.name, label, o.goal or m.sense, resolve_settings(m, o.settings, f"{path}.settings"),
-                                    rb))
+        settings = resolve_settings(m, o.settings, f"{path}.settings")
+        measure_kind(m, settings, path)  # a largest actuator force over linear actuators and cranks: refused
+        objectives.append(Objective(o.name, label, o.goal or m.sense, settings, rb))
 
     constraints = []
     for i, c in enumerate(spec.constraints):
@@ -716,7 +730,7 @@ def resolve_study(data: dict, source: str | None = None) -> ResolvedStudy:
         if c.min is None and c.max is None:
             raise StudyError(f"{path}: give a bound: min and/or max")
         settings = resolve_settings(m, c.settings, f"{path}.settings")
-        kind = m.kind_of(settings)  # stiffness_min: the unit follows settings.part
+        kind = measure_kind(m, settings, path)  # stiffness_min: follows settings.part; N or N*m: the actuators
         lo = _bound(c.min, kind, f"{path}.min", m, settings) if c.min is not None else None
         hi = _bound(c.max, kind, f"{path}.max", m, settings) if c.max is not None else None
         if kind is None:
