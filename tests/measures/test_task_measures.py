@@ -456,3 +456,18 @@ def test_a_path_in_a_lower_mobility_mechanisms_own_coordinates():
     sf = parasynth.static_forces(mech, path.X[[0, -1]], parasynth.measures.indices.gravity_wrench(
         mech, path.X[[0, -1]], 3.0))
     np.testing.assert_allclose(F[[0, -1]], np.abs(sf.actuator), rtol=1e-9)
+
+
+@pytest.mark.parametrize("rb, rp, sb, sp", [(0.5, 0.3, 20.0, 20.0), (0.4175, 0.1819, 6.746, 14.51), (0.6, 0.2, 40.0, 100.0)])
+def test_joint_spacing_min_is_the_closest_pair_of_joints_by_hand(rb, rp, sb, sp):
+    """joint_spacing_min on the paired 6-UPS: joints in pairs ``s`` apart on a circle of radius
+    ``r``, the pairs 120 deg apart, so the closest two joints of a body are the nearer of a pair's
+    chord 2 r sin(s/2) and the chord between neighbouring pairs 2 r sin((120 - s)/2); the smaller
+    over base and platform (the second case is the naval design whose joints sit 46-49 mm apart)."""
+    from parasynth import load_mechanism, objectives
+
+    m = load_mechanism("gough_stewart_6ups", base_radius=rb, platform_radius=rp, base_separation=np.radians(sb),
+                       platform_separation=np.radians(sp))
+    chord = lambda r, a: 2 * r * np.sin(np.radians(a) / 2)  # noqa: E731
+    want = min(chord(rb, sb), chord(rb, 120 - sb), chord(rp, sp), chord(rp, 120 - sp))
+    assert objectives.get("joint_spacing_min")(m) == pytest.approx(want, rel=1e-12)

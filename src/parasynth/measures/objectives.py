@@ -584,6 +584,22 @@ def footprint_radius(mech) -> float:
     return float(max(np.hypot(leg.base[0], leg.base[1]) for leg in mech.legs))
 
 
+@register("joint_spacing_min", unit="m", kind="length", sense="maximize", cost="cheap")
+def joint_spacing_min(mech) -> float:
+    """Smallest distance between the centres of two legs' joints on the same body (m): between
+    any two base anchors and between any two platform anchors (the platform's own frame). Room
+    for the joints' housings: a paired layout whose pairs close up scores near 0 long before its
+    legs' centre lines meet, which the pose-wise interference check (centre lines at least a leg
+    diameter apart) does not see at the anchors' own scale. As a constraint (``min``) it keeps a
+    design buildable with joints of a given size."""
+    out = np.inf
+    for pts in (np.array([leg.base for leg in mech.legs], float), np.array([leg.platform for leg in mech.legs], float)):
+        d = np.linalg.norm(pts[:, None, :] - pts[None, :, :], axis=-1)
+        d[np.diag_indices(len(pts))] = np.inf
+        out = min(out, float(d.min()))
+    return out
+
+
 @register("max_leg_length_home", unit="m", kind="length", sense="minimize", cost="cheap")
 def max_leg_length_home(mech) -> float:
     """Longest leg (distance between end joint centres, m) at the home pose: a size measure."""
