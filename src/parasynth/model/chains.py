@@ -51,7 +51,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from .legs import JOINT_DOF, Leg, LegCapabilities, LegState, _axis, _vec3
+from .legs import JOINT_DOF, LEG_TYPES, Leg, LegCapabilities, LegState, _vec3
 from .spatial import null_space, prismatic_twist, revolute_twist, rot_axis, unit
 
 __all__ = ["ChainError", "ChainSpec", "ChainLeg", "parse_chain", "JOINT_LETTERS", "REFERENCES", "RELATIONS",
@@ -330,11 +330,16 @@ class ChainLeg(Leg):
     joints: ClassVar[str] = "chain"
     actuated: ClassVar[int | None] = None
     capabilities: ClassVar[LegCapabilities] = LegCapabilities(stiffness=True, passive=True)
+    #: What a mechanism description gives a chain limb: its anchor's directions and the height of
+    #: its home configuration (the structures give ``radial``, ``tangent`` and ``height``).
+    description_options: ClassVar[dict | None] = {"radial": "axis_base", "tangent": "axis_base",
+                                                   "home_height": "length"}
 
     def __post_init__(self):
         super().__post_init__()
+        chain = self.chain.replace("*", "") if self.passive and isinstance(self.chain, str) else self.chain
         try:
-            spec = parse_chain(self.chain, axes=None if self.axes is None else list(self.axes), passive=self.passive,
+            spec = parse_chain(chain, axes=None if self.axes is None else list(self.axes), passive=self.passive,
                                stations=None if self.stations is None else list(self.stations))
         except ChainError as e:
             raise ChainError(f"leg {self.name}: {e}") from None
@@ -403,9 +408,7 @@ class ChainLeg(Leg):
 
     @property
     def actuator_kind(self) -> str:
-        if self._spec.actuated is None:
-            return "none"
-        return "length" if self._spec.joints[self._spec.actuated] == "P" else "angle"
+        return _actuator_kind(self._spec)
 
     # -- kinematics --------------------------------------------------------------------------
     def forward(self, q: np.ndarray):
@@ -542,6 +545,16 @@ class ChainLeg(Leg):
         return out * sign[:, None], rate * sign
 
 
+def _actuator_kind(spec: ChainSpec) -> str:
+    """``slider`` (an actuated prismatic first joint), ``length`` (a prismatic joint further up
+    the chain), ``angle`` (a revolute joint) or ``none`` (a passive limb)."""
+    if spec.actuated is None:
+        return "none"
+    if spec.joints[spec.actuated] == "R":
+        return "angle"
+    return "slider" if spec.actuated == 0 else "length"
+
+
 def chain_class(spec: str, *, axes=None, passive: bool = False, stations=None, capabilities=None,
                 doc: str = "") -> type:
     """A leg type of its own (a subclass of :class:`ChainLeg`) for a joint string: its
@@ -549,9 +562,49 @@ def chain_class(spec: str, *, axes=None, passive: bool = False, stations=None, c
     declares its own ``capabilities`` (default: those of :class:`ChainLeg`)."""
     s = parse_chain(spec, axes=axes, passive=passive, stations=stations)
     caps = capabilities or ChainLeg.capabilities
-    ns = {"joints": s.joints, "actuated": s.actuated, "capabilities": caps, "__doc__": doc or f"The {s.name} limb.",
+    ns = {"joints": s.joints, "actuated": s.actuated, "capabilities": caps, "actuator_kind": _actuator_kind(s), "__doc__": doc or f"The {s.name} limb.",
           "__annotations__": {"chain": str, "axes": "tuple | None", "passive": bool, "stations": "tuple | None"}}
     ns.update(chain=spec if "*" in spec or passive else s.name, axes=None if axes is None else tuple(axes),
               passive=passive, stations=None if stations is None else tuple(stations))
-    cls = type(f"Chain{s.joints}", (ChainLeg,), ns)
-    return dataclass(frozen=True)(cls)
+    cls = type(s.joints, (ChainLeg,), ns)
+    cls.__module__ = __name__
+    cls = dataclass(frozen=True)(cls)
+    cls.constraint_rows = _constraint_kinds(cls)
+    return cls
+
+
+def _constraint_kinds(cls) -> tuple[str, ...]:
+    """The kinds of the constraint wrenches of a chain limb type at a generic anchor and pose:
+    ``angle`` for a couple, ``length`` for a force (its ``constraint_rows``)."""
+    leg = cls("generic", base=[0.3 * math.cos(0.4), 0.3 * math.sin(0.4), 0.0], platform=[0.15, 0.02, 0.0])
+    p, R = np.array([[0.0, 0.0, 0.4]]), np.eye(3)[None]
+    W = leg.constraint_wrenches(leg.solve(p, R), p)[0]
+    return tuple("angle" if np.linalg.norm(w[:3]) < 1e-9 else "length" for w in W)
+
+
+def register_chain(spec: str, **kw) -> type:
+    """:func:`chain_class` added to :data:`parasynth.model.legs.LEG_TYPES` under its joint
+    letters (a hand-written leg type of the same letters is not replaced: :class:`ChainError`)."""
+    cls = chain_class(spec, **kw)
+    old = LEG_TYPES.get(cls.joints)
+    if old is not None and not issubclass(old, ChainLeg):
+        raise ChainError(f"joint string {spec!r}: {cls.joints} is a hand-written leg type already; its chain limb "
+                         f"would replace a closed form")
+    LEG_TYPES[cls.joints] = cls
+    return cls
+
+
+#: The chain limbs of the vocabulary (docs/structures.md, "Limbs from joint strings"): their axes
+#: as in the type synthesis of 3T2R mechanisms (Masouleh, Gosselin et al.): the base-side
+#: revolute axes all along x, the platform-side ones along the platform's y, so that every limb
+#: imposes the same couple about x x (R y) and the platform turns about x and the moving y.
+_3T2R_AXES = ("x", "parallel:prev", "normal:prev&normal:base_normal", "parallel:prev")
+RPUR = register_chain("RP*UR", axes=(_3T2R_AXES[0], "limb") + _3T2R_AXES[1:], stations=(0.0, 0.8, 1.0),
+                      capabilities=LegCapabilities(stiffness=True),
+                      doc="revolute (x), actuated prismatic along the limb, universal (x, then y), revolute (the "
+                          "platform's y): one constraint couple about x x (R y) -- the limb of the 5-RPUR")
+PRUR = register_chain("P*RUR", axes=("base_normal",) + _3T2R_AXES, stations=(0.0, 0.5, 1.0),
+                      capabilities=LegCapabilities(stiffness=True),
+                      doc="actuated slider along the base normal, revolute (x), universal (x, then y), revolute "
+                          "(the platform's y): one constraint couple about x x (R y) -- the limb of the 5-PRUR")
+__all__ += ["register_chain", "RPUR", "PRUR"]

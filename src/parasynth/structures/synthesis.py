@@ -29,6 +29,7 @@ import numpy as np
 from ..common.validation import MAX_LEGS, MAX_SEED, InputError, check_count, is_real_number
 from ..mechanisms import described_class
 from ..measures.usable import SINGULARITY_FLOOR
+from ..model.legs import LEG_TYPES
 from .motion import candidate_rule
 from .vocabulary import (ARRANGEMENTS, CHECKS, HOME_TILTS, LIMB_TYPES, PARAMETERS, TEMPLATES, StructureError,
                          StructureWarning, limb_type, parse_motion)
@@ -301,9 +302,10 @@ def _description(c: _Candidate, template, key: str) -> dict:
         group_names = [f"L{index + j}" for j in range(g.count)]
         index += g.count
         if g.actuated:
-            if g.limb in ("PUS", "PRS"):
+            kind = LEG_TYPES[g.limb].actuator_kind  # the leg type says: slider, length or angle
+            if kind == "slider":
                 sliders += group_names
-            elif g.limb != "RUS":
+            elif kind == "length":
                 telescopic += group_names
     constraints = []
     if telescopic:
