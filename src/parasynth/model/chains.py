@@ -457,16 +457,19 @@ class ChainLeg(Leg):
             if np.all(res < IK_TOL):
                 break
             J = self._twists_at(axes, points, pos).transpose(0, 2, 1)  # (N, 6, n)
-            J = J.copy()
             J[:, :3, :] /= L
-            for i in range(N):
-                if res[i] < IK_TOL or not np.isfinite(res[i]):
-                    continue
-                dq = np.linalg.lstsq(J[i], e[i], rcond=None)[0]
-                step = np.max(np.abs(dq))
-                if step > 0.5:
-                    dq *= 0.5 / step
-                q[i] += dq
+            todo = (res >= IK_TOL) & np.isfinite(res)
+            if not np.any(todo):
+                break
+            Jt = J[todo]
+            # damped normal equations, batched: (J^T J + mu I) dq = J^T e (mu tiny: the least-squares
+            # step where J has full column rank, a minimum-norm-like one where it does not)
+            JTJ = np.einsum("nki,nkj->nij", Jt, Jt)
+            mu = 1e-12 * (1.0 + np.einsum("nii->n", JTJ))
+            dq = np.linalg.solve(JTJ + mu[:, None, None] * np.eye(n), np.einsum("nki,nk->ni", Jt, e[todo])[..., None])[..., 0]
+            step = np.max(np.abs(dq), axis=1, keepdims=True)
+            dq *= np.minimum(1.0, 0.5 / np.maximum(step, 1e-300))
+            q[todo] += dq
         return q, res
 
     def solve(self, p, R, joint_angles: bool = True):
@@ -603,7 +606,7 @@ RPUR = register_chain("RP*UR", axes=(_3T2R_AXES[0], "limb") + _3T2R_AXES[1:], st
                       capabilities=LegCapabilities(stiffness=True),
                       doc="revolute (x), actuated prismatic along the limb, universal (x, then y), revolute (the "
                           "platform's y): one constraint couple about x x (R y) -- the limb of the 5-RPUR")
-PRUR = register_chain("P*RUR", axes=("base_normal",) + _3T2R_AXES, stations=(0.0, 0.5, 1.0),
+PRUR = register_chain("P*RUR", axes=("base_normal",) + _3T2R_AXES, stations=(0.0, 0.3, 1.0),
                       capabilities=LegCapabilities(stiffness=True),
                       doc="actuated slider along the base normal, revolute (x), universal (x, then y), revolute "
                           "(the platform's y): one constraint couple about x x (R y) -- the limb of the 5-PRUR")
