@@ -25,12 +25,13 @@ SHIPPED = {"SPS": "2rpu_2sps", "UPS": "gough_stewart_6ups", "PUS": "hexapod_6pus
 
 
 #: The chain limbs (model/chains.py, no shipped model): a structure of the vocabulary holding each.
-CHAIN_STRUCTURES = {"RPUR": "3T2R", "PRUR": "3T2R"}
+CHAIN_STRUCTURES = {"RPUR": ("3T2R", 5), "PRUR": ("3T2R", 5), "SPU": ("3T3R", 6), "RRPS": ("3T3R", 6)}
 
 
 @functools.lru_cache(maxsize=None)
 def _chain_mechanism(joints):
-    found = parasynth.structures(CHAIN_STRUCTURES[joints], leg_types=[joints], legs=[5])
+    motion, n = CHAIN_STRUCTURES[joints]
+    found = parasynth.structures(motion, leg_types=[joints], legs=[n])
     return next(s for s in found if s.verified).mechanism()
 
 

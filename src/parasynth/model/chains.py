@@ -610,4 +610,13 @@ PRUR = register_chain("P*RUR", axes=("base_normal",) + _3T2R_AXES, stations=(0.0
                       capabilities=LegCapabilities(stiffness=True),
                       doc="actuated slider along the base normal, revolute (x), universal (x, then y), revolute "
                           "(the platform's y): one constraint couple about x x (R y) -- the limb of the 5-PRUR")
-__all__ += ["register_chain", "RPUR", "PRUR"]
+SPU = register_chain("SP*U", axes=("limb", "tangent", "normal:prev&normal:limb"),
+                     capabilities=LegCapabilities(stiffness=True),
+                     doc="spherical, actuated prismatic, universal (the platform's tangent, then normal to it and the "
+                         "limb): six freedoms -- the inversion of the UPS, the limb of the 6-SPU")
+RRPS = register_chain("RRP*S", axes=("tangent", "normal:prev&normal:limb", "limb"), stations=(0.0, 0.1, 1.0),
+                      capabilities=LegCapabilities(stiffness=True),
+                      doc="revolute (tangent) at the base anchor, revolute normal to it and the limb a tenth of the "
+                          "limb further (an offset universal joint), actuated prismatic, spherical: six freedoms -- "
+                          "the limb of a 6-RRPS")
+__all__ += ["register_chain", "RPUR", "PRUR", "SPU", "RRPS"]

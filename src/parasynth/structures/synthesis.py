@@ -700,6 +700,11 @@ def structures(motion, *, leg_types=None, legs=None, axes=None, all_axes: bool =
         raise StructureError(f"show_dropped must be True or False, got {_describe(show_dropped)}")
     all_axes = bool(all_axes)
     dof = nt + nr
+    most = max(6 - LIMB_TYPES[t].constraints for t in types)
+    if dof > most:  # every structure holds a limb of these types, and moves within that limb's freedoms
+        raise StructureError(f"motion {motion}: the limb types {', '.join(types)} leave at most {most} freedoms each (6 "
+                             f"less their constraint wrenches), so no structure of them has {dof}; allowed: a motion of "
+                             f"at most {most} freedoms, or limb types with more")
     want_axes = parse_axes(axes)
     if want_axes is not None:
         for k, n in (("translations", nt), ("rotations", nr)):

@@ -315,5 +315,11 @@ for _limb in (
              doc="actuated vertical slider, revolute (x), universal (x, then the platform's y), revolute (the "
                  "platform's y), solved numerically: one constraint couple; a ring of five gives the 5-PRUR's "
                  "xy_ring"),
+    LimbType("SPU", "P", False, 0, ("regular", "paired", "irregular"), options=dict(_CHAIN),
+             doc="spherical, actuated prismatic, universal at the platform, solved numerically: six freedoms (the "
+                 "inversion of the UPS)"),
+    LimbType("RRPS", "P", False, 0, ("regular", "paired", "irregular"), options=dict(_CHAIN),
+             doc="two revolutes (tangent, then normal to it and the limb, offset along the limb), actuated prismatic, "
+                 "spherical, solved numerically: six freedoms"),
 ):
     register_limb(_limb)
