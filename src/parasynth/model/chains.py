@@ -450,26 +450,29 @@ class ChainLeg(Leg):
         q = np.zeros((N, n)) if q0 is None else np.array(q0, float)
         L = self._L
         res = np.full(N, np.inf)
-        for _ in range(IK_ITERATIONS):
-            pos, Rc, axes, points = self.forward(q)
-            e = np.concatenate([(target - pos) / L, _log_rot(R @ np.transpose(Rc, (0, 2, 1)))], axis=1)
-            res = np.max(np.abs(e), axis=1)
-            if np.all(res < IK_TOL):
+        act = np.arange(N)  # the poses still solved: a converged or stalled pose leaves the batch
+        last = np.full(N, np.inf)
+        for it in range(IK_ITERATIONS + 1):
+            pos, Rc, axes, points = self.forward(q[act])
+            e = np.concatenate([(target[act] - pos) / L, _log_rot(R[act] @ np.transpose(Rc, (0, 2, 1)))], axis=1)
+            r = np.max(np.abs(e), axis=1)
+            res[act] = r
+            # stalled: a least-squares minimum off the limb's reach (no progress in a step)
+            keep = (r >= IK_TOL) & np.isfinite(r) & (r < last[act] * (1.0 - 1e-6))
+            last[act] = r
+            if it == IK_ITERATIONS or not np.any(keep):
                 break
-            J = self._twists_at(axes, points, pos).transpose(0, 2, 1)  # (N, 6, n)
+            J = self._twists_at(axes, points, pos).transpose(0, 2, 1)[keep]  # (k, 6, n)
             J[:, :3, :] /= L
-            todo = (res >= IK_TOL) & np.isfinite(res)
-            if not np.any(todo):
-                break
-            Jt = J[todo]
+            act, e = act[keep], e[keep]
             # damped normal equations, batched: (J^T J + mu I) dq = J^T e (mu tiny: the least-squares
             # step where J has full column rank, a minimum-norm-like one where it does not)
-            JTJ = np.einsum("nki,nkj->nij", Jt, Jt)
+            JTJ = np.einsum("nki,nkj->nij", J, J)
             mu = 1e-12 * (1.0 + np.einsum("nii->n", JTJ))
-            dq = np.linalg.solve(JTJ + mu[:, None, None] * np.eye(n), np.einsum("nki,nk->ni", Jt, e[todo])[..., None])[..., 0]
+            dq = np.linalg.solve(JTJ + mu[:, None, None] * np.eye(n), np.einsum("nki,nk->ni", J, e)[..., None])[..., 0]
             step = np.max(np.abs(dq), axis=1, keepdims=True)
             dq *= np.minimum(1.0, 0.5 / np.maximum(step, 1e-300))
-            q[todo] += dq
+            q[act] += dq
         return q, res
 
     def solve(self, p, R, joint_angles: bool = True):
