@@ -46,7 +46,7 @@ fallback warning and the other parts refuse it by name (:func:`parasynth.model.l
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
@@ -146,9 +146,6 @@ def _check_symbolic(rels: tuple, where: str) -> None:
             if frozenset((a, b)) in _SAME:
                 raise ChainError(f"{where}: parallel to {a!r} and normal to {b!r} contradict each other (the same "
                                  f"direction); {_ALLOWED}")
-    if len(par) > 1 and not all(frozenset((par[0], b)) in _SAME or b == par[0] for b in par[1:]):
-        # two parallel references that are not always the same direction: allowed only where they agree
-        pass
 
 
 def parse_chain(spec, actuated=None, axes=None, *, passive: bool = False, stations=None) -> ChainSpec:
