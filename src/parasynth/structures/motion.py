@@ -89,9 +89,13 @@ def motion_rule(description: dict) -> MotionRule:
         penv = {p.name: (np.float64(p.default) if p.shape == () else np.asarray(p.default, dtype=float))
                 for p in d.params}
         legs, home, L = d.build_geometry(penv)
-        k = sum(closure_count(leg) for leg in legs)
-    except (ValueError, ParasiticError) as e:
+    except ValueError as e:
         raise NoTaskRule(f"the limbs cannot be built ({e})") from None
+    try:
+        k = sum(closure_count(leg) for leg in legs)
+    except ParasiticError as e:  # a chain limb (model/chains.py): its motion from a template only
+        raise NoTaskRule(f"no closure equations ({e}): a limb without them moves by a motion template only, and "
+                         f"these limbs select none together") from None
     if k == 0:
         raise NoTaskRule("no limb has closure equations (use the free template)")
     scale = np.array([L, L, L, 1.0, 1.0, 1.0])

@@ -29,6 +29,7 @@ import numpy as np
 from ..common.validation import MAX_LEGS, MAX_SEED, InputError, check_count, is_real_number
 from ..mechanisms import described_class
 from ..measures.usable import SINGULARITY_FLOOR
+from ..model.legs import LEG_TYPES
 from .motion import candidate_rule
 from .vocabulary import (ARRANGEMENTS, CHECKS, HOME_TILTS, LIMB_TYPES, PARAMETERS, TEMPLATES, StructureError,
                          StructureWarning, limb_type, parse_motion)
@@ -313,9 +314,10 @@ def _description(c: _Candidate, template, key: str) -> dict:
         group_names = [f"L{index + j}" for j in range(g.count)]
         index += g.count
         if g.actuated:
-            if g.limb in ("PUS", "PRS"):
+            kind = LEG_TYPES[g.limb].actuator_kind  # the leg type says: slider, length or angle
+            if kind == "slider":
                 sliders += group_names
-            elif g.limb != "RUS":
+            elif kind == "length":
                 telescopic += group_names
     constraints = []
     if telescopic:
@@ -710,6 +712,11 @@ def structures(motion, *, leg_types=None, legs=None, axes=None, all_axes: bool =
         raise StructureError(f"show_dropped must be True or False, got {_describe(show_dropped)}")
     all_axes = bool(all_axes)
     dof = nt + nr
+    most = max(6 - LIMB_TYPES[t].constraints for t in types)
+    if dof > most:  # every structure holds a limb of these types, and moves within that limb's freedoms
+        raise StructureError(f"motion {motion}: the limb types {', '.join(types)} leave at most {most} freedoms each (6 "
+                             f"less their constraint wrenches), so no structure of them has {dof}; allowed: a motion of "
+                             f"at most {most} freedoms, or limb types with more")
     want_axes = parse_axes(axes)
     if want_axes is not None:
         for k, n in (("translations", nt), ("rotations", nr)):

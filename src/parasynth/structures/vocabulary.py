@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from ..model import chains as _chains  # noqa: F401  (the chain limbs' leg types)
 from ..model.legs import LEG_TYPES
 
 __all__ = ["Arrangement", "LimbType", "Template", "LIMB_TYPES", "ARRANGEMENTS", "TEMPLATES", "PARAMETERS",
@@ -136,6 +137,17 @@ TEMPLATES = {
         "two R-P-U limbs facing each other on the x axis, revolute axes along y (tangential) and platform "
         "universal axes along x (radial), as in the 2-RPU&2-SPS: a force along y and a couple normal to y and "
         "the platform's x: position (x, 0, z), R = Ry(theta) Rx(psi)"),
+    "xy_ring": Template(
+        "xy_ring", "3T2R",
+        {"coordinates": {"x": _LEN, "y": _LEN, "z": _LEN, "alpha": _ANG, "beta": _ANG},
+         "position": ["x", "y", "z"],
+         "orientation": {"rotations": [{"axis": "x", "angle": "alpha"}, {"axis": "y", "angle": "beta"}]},
+         "home": {"x": "0 mm", "y": "0 mm", "z": "height", "alpha": "0 deg", "beta": _HOME_TILT},
+         "ranges": {"x": _BOX_XY, "y": _BOX_XY, "z": _BOX_Z, "alpha": _TILT, "beta": _TILT}},
+        {"translations": ("x", "y", "z"), "rotations": ("x", "moving y")},
+        "a ring of R-P-U-R or P-R-U-R limbs (Masouleh, Gosselin et al.) with their base-side revolute axes along x "
+        "and their platform-side ones along the platform's y: each limb imposes the couple about x x (R y), so "
+        "R = Rx(alpha) Ry(beta)"),
 }
 
 
@@ -287,5 +299,27 @@ for _limb in (
              doc="universal, prismatic, universal (cross axes parallel): one constraint wrench; passive at the "
                  "centre (axes along y): upu_central; an actuated ring's motion is computed from its closure "
                  "(tangent axes: Tsai's translational 3-UPU; z axes: 3T1R; radial with z: 1T2R)"),
+):
+    register_limb(_limb)
+
+#: The chain limbs (:mod:`parasynth.model.chains`: joint strings solved numerically): their anchor
+#: directions and the height of their home configuration from the shared parameters.
+_CHAIN = {"radial": "radial", "tangent": "tangent", "home_height": "height"}
+for _limb in (
+    LimbType("RPUR", "P", False, 1, ("regular", "paired", "irregular"), options=dict(_CHAIN),
+             templates={a: "xy_ring" for a in ("regular", "paired", "irregular")},
+             doc="revolute (x), actuated prismatic, universal (x, then the platform's y), revolute (the platform's "
+                 "y), solved numerically: one constraint couple; a ring of five gives the 5-RPUR's xy_ring"),
+    LimbType("PRUR", "P", False, 1, ("regular", "paired", "irregular"), options=dict(_CHAIN),
+             templates={a: "xy_ring" for a in ("regular", "paired", "irregular")},
+             doc="actuated vertical slider, revolute (x), universal (x, then the platform's y), revolute (the "
+                 "platform's y), solved numerically: one constraint couple; a ring of five gives the 5-PRUR's "
+                 "xy_ring"),
+    LimbType("SPU", "P", False, 0, ("regular", "paired", "irregular"), options=dict(_CHAIN),
+             doc="spherical, actuated prismatic, universal at the platform, solved numerically: six freedoms (the "
+                 "inversion of the UPS)"),
+    LimbType("RRPS", "P", False, 0, ("regular", "paired", "irregular"), options=dict(_CHAIN),
+             doc="two revolutes (tangent, then normal to it and the limb, offset along the limb), actuated prismatic, "
+                 "spherical, solved numerically: six freedoms"),
 ):
     register_limb(_limb)

@@ -18,6 +18,16 @@ from .anchors import _Anchors, _PLANES, _directions
 LEG_OPTIONS = {name: dict(cls.description_options) for name, cls in LEG_TYPES.items()
                if cls.description_options is not None}
 _LEG_REQUIRED = {name: cls.required_options for name, cls in LEG_TYPES.items() if cls.required_options}
+
+
+def _sync_options() -> None:
+    """Add the leg types registered since import (``parasynth.model.chains.register_chain``) to
+    :data:`LEG_OPTIONS` (in place)."""
+    for name, cls in LEG_TYPES.items():
+        if name not in LEG_OPTIONS and cls.description_options is not None:
+            LEG_OPTIONS[name] = dict(cls.description_options)
+            if cls.required_options:
+                _LEG_REQUIRED[name] = cls.required_options
 #: Names of the joints the leg library actuates, for messages.
 _JOINT_WORDS = {"P": "prismatic", "R": "revolute"}
 #: Leg types the leg library can build without an actuator (a constraining limb).
@@ -146,6 +156,8 @@ class _LegGroup:
         self.label = f"{path} ({names[0]})" if self.n == 1 else f"{path} ({names[0]}..{names[-1]})"
         lab = self.label
         t = raw.get("type")
+        if len(LEG_OPTIONS) != len(LEG_TYPES):
+            _sync_options()
         if t is None:
             raise DescriptionError(f"{lab}.type: required key is missing; leg types: {', '.join(sorted(LEG_OPTIONS))}")
         if t not in LEG_TYPES or t not in LEG_OPTIONS:
