@@ -911,3 +911,21 @@ def test_html_report_escapes_the_study_text(tmp_path):
     assert "&lt;script&gt;alert(1)&lt;/script&gt; &amp; &lt;b&gt;bold&lt;/b&gt;" in text
     assert "<b>this</b> is bold" in text
     assert "Tags <script>alert(1)</script> & <b>bold</b> are text; **this** is bold." in (out / "report.md").read_text()
+
+
+def test_a_run_without_a_feasible_design_or_reference_still_reports(tmp_path):
+    """Nothing feasible and no reference design: final.csv holds its header alone (it was an
+    empty file the report refused as damaged), and the report says nothing is recommended."""
+    d = {"name": "nofeas", "mechanism": "5pus_upu",
+         "variables": [{"name": "link_length", "low": "150 mm", "high": "250 mm"}],
+         "objectives": [{"name": "test_quadratic", "goal": "maximize"}],
+         # test_link_length is the link length itself: at most 250 mm here, never 1 m
+         "constraints": [{"name": "test_link_length", "label": "L", "min": "1 m"}],
+         "evaluation": {"samples": 64}, "optimizer": {"kind": "optuna", "algorithm": "random", "n_trials": 6, "seed": 1}}
+    res = run_study(load_study(yaml.safe_dump(d), is_text=True), out_dir=tmp_path / "r", progress=False)
+    assert not res.table["feasible"].astype(bool).any()
+    final = pd.read_csv(tmp_path / "r" / "final.csv")
+    assert len(final) == 0 and "source" in final.columns
+    md = (write_report(tmp_path / "r", tmp_path / "rep") / "report.md").read_text()
+    assert "**No feasible design was found**: nothing is recommended." in md
+    assert "| L | test_link_length | min 1000 mm | 6 |" in md

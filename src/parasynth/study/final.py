@@ -363,6 +363,9 @@ def reevaluate_best(study: ResolvedStudy, evaluator: Evaluator, table: pd.DataFr
     for _, row in ref.head(1).iterrows():
         add(row, "reference")
     df = pd.DataFrame(rows)
+    if df.empty:  # nothing feasible and no reference: the header alone, so the run still reports
+        labels = [o.label for o in study.objectives]
+        df = pd.DataFrame(columns=["source", "trial"] + labels + [derived.stderr(lab) for lab in labels])
     to_csv_columns(study, df).to_csv(out_dir / "final.csv", index=False)  # unit suffixes in the names
     write_view(study, df, pareto_front(study, runs), out_dir)  # the report's drawings (view.json)
     return df
