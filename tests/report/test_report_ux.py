@@ -419,3 +419,19 @@ def test_objective_plot_spans_the_feasible_designs_and_the_front_not_far_infeasi
     assert r[0] == pytest.approx([0.5 - 0.08 * 2.5, 3.0 + 0.08 * 2.5])
     assert r[1] == pytest.approx([10.0 - 0.08 * 30, 40.0 + 0.08 * 30])
     assert _ranges(1, [[[]], [[float("inf")]]]) == [None]
+
+
+def test_design_values_leave_out_the_dimensions_a_structure_does_not_use():
+    """In a study over structures a row holds no value (NaN) for a dimension its structure does
+    not use: the report's design text leaves it out instead of printing 'link_length = ,'."""
+    import pandas as pd
+
+    from parasynth.report.sections import _design_values
+    from parasynth.study import load_study
+
+    study = load_study(str(STUDIES / "structures_3t2r.yaml"))
+    values = {v.name: float("nan") for v in study.variables}
+    values.update(structure="5-UPS/UPU (irregular)", base_radius=0.08682)
+    row = pd.Series(values, dtype=object)
+    text = _design_values(study, row)
+    assert text == "structure = 5-UPS/UPU (irregular), base_radius = 86.82 mm", text

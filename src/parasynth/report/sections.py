@@ -429,6 +429,8 @@ def _design_values(study, row) -> str:
     parts = []
     for v in study.variables:
         val = row[v.name]
+        if val is None or (not isinstance(val, str) and pd.isna(val)):
+            continue  # a dimension the design's structure does not use (or an inactive conditional variable)
         parts.append(f"{v.name} = {fmt_quantity(val, _unit(study, v.name))}" if _is_number_col(study, v.name)
                      else f"{v.name} = {val}")
     return ", ".join(parts)
