@@ -106,18 +106,25 @@ EULER_CONVENTIONS = {
 }
 
 
-def euler_to_matrix(convention: str, angles) -> np.ndarray:
-    """Rotation matrices for ``angles`` (shape (..., k)) in a named convention."""
+def _sequence(convention: str, angles, check_count: bool = True):
+    """The axis sequence of a named Euler convention and the angles as a float array; a one-line
+    error for an unknown convention or (``check_count``) a wrong number of angles."""
     seq = EULER_CONVENTIONS.get(convention)
     if seq is None:
         raise ValueError(
             f"unknown Euler convention {convention!r}; allowed: {sorted(EULER_CONVENTIONS)}"
         )
     angles = np.asarray(angles, dtype=float)
-    if angles.shape[-1] != len(seq):
+    if check_count and angles.shape[-1] != len(seq):
         raise ValueError(
             f"convention {convention!r} takes {len(seq)} angles, got shape {angles.shape}"
         )
+    return seq, angles
+
+
+def euler_to_matrix(convention: str, angles) -> np.ndarray:
+    """Rotation matrices for ``angles`` (shape (..., k)) in a named convention."""
+    seq, angles = _sequence(convention, angles)
     R = _ROT[seq[0]](angles[..., 0])
     for k, ax in enumerate(seq[1:], start=1):
         R = R @ _ROT[ax](angles[..., k])
@@ -130,12 +137,7 @@ def euler_rate_map(convention: str, angles) -> np.ndarray:
     For ``R = R1(q1) R2(q2) R3(q3)`` the angular velocity is
     ``omega = e1 q1' + R1 e2 q2' + R1 R2 e3 q3'``.
     """
-    seq = EULER_CONVENTIONS.get(convention)
-    if seq is None:
-        raise ValueError(
-            f"unknown Euler convention {convention!r}; allowed: {sorted(EULER_CONVENTIONS)}"
-        )
-    angles = np.asarray(angles, dtype=float)
+    seq, angles = _sequence(convention, angles, check_count=False)
     cols = []
     R = np.broadcast_to(np.eye(3), angles.shape[:-1] + (3, 3))
     for k, ax in enumerate(seq):
@@ -148,16 +150,7 @@ def euler_matrix_and_rate(convention: str, angles, rate: bool = True):
     """``(euler_to_matrix(convention, angles), euler_rate_map(convention, angles))`` -- the
     same operations on the same per-axis rotations, each computed once (the rate map is None
     with ``rate=False``)."""
-    seq = EULER_CONVENTIONS.get(convention)
-    if seq is None:
-        raise ValueError(
-            f"unknown Euler convention {convention!r}; allowed: {sorted(EULER_CONVENTIONS)}"
-        )
-    angles = np.asarray(angles, dtype=float)
-    if angles.shape[-1] != len(seq):
-        raise ValueError(
-            f"convention {convention!r} takes {len(seq)} angles, got shape {angles.shape}"
-        )
+    seq, angles = _sequence(convention, angles)
     mats = [_ROT[ax](angles[..., k]) for k, ax in enumerate(seq)]
     R = mats[0]
     for M in mats[1:]:
