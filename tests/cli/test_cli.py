@@ -18,6 +18,7 @@ import jsonschema
 import pytest
 import yaml
 
+import parasynth
 import parasynth.cli as cli
 from parasynth.cli import main
 
@@ -339,3 +340,14 @@ def copy_of(d, **changes):
     out = json.loads(json.dumps(d))
     out.update(changes)
     return out
+
+
+def test_python_dash_m_parasynth_is_the_command():
+    """``python -m parasynth`` runs the same command line as the ``parasynth`` script: its version
+    line names the package's version, and a wrong command exits 2 with argparse's message."""
+    ok = subprocess.run([sys.executable, "-m", "parasynth", "--version"], capture_output=True, text=True)
+    assert ok.returncode == 0, ok.stderr
+    assert ok.stdout.strip() == f"parasynth {parasynth.__version__}"
+    bad = subprocess.run([sys.executable, "-m", "parasynth", "no-such-command"], capture_output=True, text=True)
+    assert bad.returncode == 2
+    assert "invalid choice" in bad.stderr and "no-such-command" in bad.stderr
