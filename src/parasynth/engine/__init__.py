@@ -67,7 +67,7 @@ from ..common.validation import numpy_reference as reference
 from . import warmup as _warmup
 from .warmup import COMPILING, WarmUp
 
-__all__ = ["HAVE_NUMBA", "ENGINES", "EngineFallbackWarning", "feasible", "margins", "pose_batch", "available",
+__all__ = ["HAVE_NUMBA", "ENGINES", "EngineFallbackWarning", "feasible", "feasible_extents", "margins", "pose_batch", "available",
            "reason", "check_engine", "plan", "use_compiled", "warn_fallback", "coverage", "singularity_margin",
            "transmission", "local_transmission_index", "condition_number", "leg_directions", "constraint_rank",
            "closure_plan", "closure_prep", "closure_solve", "warm_up", "exercise", "needs", "effective_engine", "WarmUp", "COMPILING", "reference"]
@@ -170,6 +170,20 @@ def feasible(mech, X, names=None, engine: str = "compiled"):
         _floors_asked(mech, names)
         return mech._is_feasible_numpy(X, names)
     return _compiled()[1].feasible(mech, X, names, _floor_margin)
+
+
+def feasible_extents(mech, X, names=None, engine: str = "compiled"):
+    """``(ok (N,) bool, lo (3,), hi (3,))``: :func:`feasible` of the poses ``X`` (N, n_task)
+    and the least and greatest platform position (x, y, z) over the feasible ones (as
+    :func:`pose_batch` gives them; +inf / -inf when none is feasible), from one pass of the
+    feasibility kernel; or None when that pass does not answer for ``mech`` (the NumPy
+    engine, no compiled plan, a view of another mechanism's parametrisation, a
+    singularity-margin floor): the caller then asks :func:`feasible` and :func:`pose_batch`."""
+    if getattr(mech, "pose_mechanism", None) is not None or "is_feasible" in vars(mech):
+        return None
+    if _engine_for("feasible", engine) == "numpy":
+        return None
+    return _compiled()[1].feasible_extents(mech, X, names)
 
 
 def margins(mech, X, names=None, engine: str = "compiled") -> dict:

@@ -719,14 +719,30 @@ def _readonly(X: np.ndarray) -> np.ndarray:
     return X
 
 
-def run_feasible(plan: KernelPlan, X: np.ndarray):
-    """(out (N,) bool, ambiguous: bool) for contiguous float64 poses X."""
+_NO_EXT = np.empty((0, 6))
+
+
+def run_feasible(plan: KernelPlan, X: np.ndarray, extents: bool = False):
+    """(out (N,) bool, ambiguous: bool) for contiguous float64 poses X; with ``extents``
+    (out, ambiguous, lo (3,), hi (3,)): also the least and greatest platform position
+    (x, y, z) over the feasible poses, taken in the kernel from the pose it computed (the
+    values ``run_pose`` gives; +inf / -inf when no pose is feasible)."""
     X = _readonly(X)
     out = np.empty(X.shape[0], dtype=np.bool_)
-    amb = np.zeros(max(1, (X.shape[0] + SUB - 1) // SUB), dtype=np.int64)  # one per block, any blocking
+    nmax = max(1, (X.shape[0] + SUB - 1) // SUB)
+    amb = np.zeros(nmax, dtype=np.int64)  # one per block, any blocking
+    if extents:  # per block (lo x, y, z, hi x, y, z), any blocking
+        ext = np.empty((nmax, 6))
+        ext[:, :3] = np.inf
+        ext[:, 3:] = -np.inf
+    else:
+        ext = _NO_EXT
     args = plan.args()
-    _timed_blocks("feasible", lambda block, b0, b1: _feasible_kernel(X, *args, block, out, amb, b0, b1), X.shape[0])
-    return out, bool(amb.any())
+    _timed_blocks("feasible", lambda block, b0, b1: _feasible_kernel(X, *args, block, out, amb, ext, b0, b1),
+                  X.shape[0])
+    if not extents:
+        return out, bool(amb.any())
+    return out, bool(amb.any()), ext[:, :3].min(axis=0), ext[:, 3:].max(axis=0)
 
 
 def run_margins(plan: KernelPlan, X: np.ndarray):
@@ -1286,9 +1302,10 @@ if HAVE_NUMBA:
 
     @njit(**_jit)
     def _feasible_kernel(X, ins, consts, cbase, n_reg, n_pose, pose_regs, valid_regs, plim, expr, tol, leg_kind, leg_act,
-                         leg_f, coord, actr, lenr, cone, rang, axang, pair, offs, block, out, amb, b0, b1):
+                         leg_f, coord, actr, lenr, cone, rang, axang, pair, offs, block, out, amb, ext, b0, b1):
         """Boolean feasibility of poses X (N, n_task) -> out (N,), amb[block] = number of
-        poses whose RPS/RPU reachability NumPy decides batch-dependently.
+        poses whose RPS/RPU reachability NumPy decides batch-dependently; if ``ext`` has rows,
+        ext[block] = (least x, y, z, greatest x, y, z) of the feasible poses' platform position.
 
         Work items (prange) are blocks of ``block`` poses, processed in sub-blocks of SUB
         poses laid out structure-of-arrays: the pose (_pose_block), then leg by leg and check
@@ -1638,6 +1655,17 @@ if HAVE_NUMBA:
                 for ii in range(nb):
                     out[j0 + ii] = okm[ii] != 0
                     n_amb += okm[ii] & und[ii]
+                if ext.shape[0] > 0:
+                    for c in range(3):
+                        lo = ext[blk, c]
+                        hi = ext[blk, 3 + c]
+                        for ii in range(nb):
+                            v = Tm[c, ii]
+                            f = okm[ii] != 0
+                            lo = v if (f and v < lo) else lo
+                            hi = v if (f and v > hi) else hi
+                        ext[blk, c] = lo
+                        ext[blk, 3 + c] = hi
             amb[blk] = n_amb
 
     @njit(**_jit_inline)
@@ -1784,6 +1812,6 @@ def signatures() -> dict:
     plan = (i2, f8, i1, i1) + (f2,) * 8 + (i2,)  # expr, tol, leg_kind, leg_act, leg_f .. pair, offs
     return {
         "_pose_kernel": (_pose_kernel, prog + (i2, i8, b1, f2, f2, f3, i8, i8)),
-        "_feasible_kernel": (_feasible_kernel, prog + plan + (i8, b1, i1, i8, i8)),
+        "_feasible_kernel": (_feasible_kernel, prog + plan + (i8, b1, i1, f2, i8, i8)),
         "_margins_kernel": (_margins_kernel, prog + plan + (i8, f2, i1, i8, i8)),
     }
