@@ -1322,6 +1322,7 @@ if HAVE_NUMBA:
             Sc = np.empty((2, SUB))
             okm = np.empty(SUB, dtype=np.uint8)
             und = np.empty(SUB, dtype=np.uint8)
+            pend = np.empty(SUB, dtype=np.uint8)
             Sg = np.empty((nl, 6, SUB))
             Q = np.empty((nl, SUB))
             n_amb = 0
@@ -1584,7 +1585,37 @@ if HAVE_NUMBA:
                             g2 = a_lo - b_hi
                             g = g1 if g1 > g2 else g2
                             gap = g if g > gap else gap
-                        need |= okm[ii] & (gap < Dq)
+                        pend[ii] = okm[ii] & (gap < Dq)
+                        need |= pend[ii]
+                    if not need:
+                        continue
+                    # The distance of the two lines bounds the segments' from below too: a
+                    # pose whose lines are clearly (by a relative 1e-9) at least D apart, and
+                    # not nearly parallel (|d1 x d2|^2 > 1e-6 |d1|^2 |d2|^2, so that the cross
+                    # product is accurate), is settled without the segment distance. Where
+                    # the boxes overlap, the legs are often skew and far apart along their
+                    # common normal (a third of the work of the segment distance, no division).
+                    need = 0
+                    for ii in range(nb):
+                        d1x = Sg[ka, 3, ii] - Sg[ka, 0, ii]
+                        d1y = Sg[ka, 4, ii] - Sg[ka, 1, ii]
+                        d1z = Sg[ka, 5, ii] - Sg[ka, 2, ii]
+                        d2x = Sg[kb, 3, ii] - Sg[kb, 0, ii]
+                        d2y = Sg[kb, 4, ii] - Sg[kb, 1, ii]
+                        d2z = Sg[kb, 5, ii] - Sg[kb, 2, ii]
+                        rx = Sg[ka, 0, ii] - Sg[kb, 0, ii]
+                        ry = Sg[ka, 1, ii] - Sg[kb, 1, ii]
+                        rz = Sg[ka, 2, ii] - Sg[kb, 2, ii]
+                        cx = d1y * d2z - d1z * d2y
+                        cy = d1z * d2x - d1x * d2z
+                        cz = d1x * d2y - d1y * d2x
+                        cc = cx * cx + cy * cy + cz * cz
+                        aa = d1x * d1x + d1y * d1y + d1z * d1z
+                        ee = d2x * d2x + d2y * d2y + d2z * d2z
+                        rc = rx * cx + ry * cy + rz * cz
+                        apart = (cc > 1e-6 * (aa * ee)) & (rc * rc > D2 * cc * (1.0 + 1e-9))
+                        pend[ii] = pend[ii] & (not apart)
+                        need |= pend[ii]
                     if not need:
                         continue
                     # two passes: the general case branch-free for the whole sub-block (SIMD;
