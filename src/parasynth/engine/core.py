@@ -95,8 +95,11 @@ _CONE_KEYS = {
 
 #: Poses per parallel work item (one scratch allocation per work item).
 BLOCK = 4096
-#: Poses per SIMD sub-block (the scratch of one sub-block stays in the L1 cache).
-SUB = 64
+#: Poses per SIMD sub-block: the interpreter's per-instruction cost and each loop's set-up are
+#: shared by SUB poses. 128 measured 3-6 % faster than 64 (5-PUS/UPU worst case, the quick
+#: start's designs, a 6-PUS workspace; one core, docs/performance.md) although the scratch of a
+#: six-leg sub-block (~70 KiB) then exceeds a 32 KiB L1 cache; 256 gains little more.
+SUB = 128
 #: Batches of fewer poses run on the calling thread only: handing work to another thread costs
 #: ~0.03-0.05 ms of CPU (a pool thread's wake-up, the kernel calls' unboxing), 10-20 % of the
 #: time of 4096 poses, 5-10 % of 8192 poses' (measured with ``benchmarks/workspace_throughput.py
