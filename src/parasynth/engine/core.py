@@ -147,7 +147,7 @@ def blocking(n: int, threads: int | None = None, kind: str | None = None) -> tup
     if threads is None and kind is not None and not TIMING.threads_pay(kind, n):
         return BLOCK, (n + BLOCK - 1) // BLOCK, False
     per = -(-n // (ITEMS_PER_THREAD * nt))
-    block = min(BLOCK, max(SUB, -(-per // SUB) * SUB))
+    block = min(BLOCK, max(SUB, per // SUB * SUB))  # rounded down: at least ITEMS_PER_THREAD items a thread
     return block, (n + block - 1) // block, True
 
 
