@@ -1326,20 +1326,49 @@ if HAVE_NUMBA:
             okm = np.empty(SUB, dtype=np.uint8)
             und = np.empty(SUB, dtype=np.uint8)
             pend = np.empty(SUB, dtype=np.uint8)
+            lane = np.empty(SUB, dtype=np.int64)
             Sg = np.empty((nl, 6, SUB))
             Q = np.empty((nl, SUB))
             n_amb = 0
             i1 = min(N, (blk + 1) * block)
             for j0 in range(blk * block, i1, SUB):
                 nb = min(SUB, i1 - j0)
+                nb0 = nb
                 # 1. task-coordinate ranges and the pose (the program's pose part)
                 _pose_prog(X, j0, nb, coord, okm, Rg, Sc, Tm, ins, n_pose, pose_regs, valid_regs, plim)
                 for ii in range(nb):
                     und[ii] = 0
+                    lane[ii] = ii
                 # 2. leg by leg: inverse kinematics, then that leg's checks
                 for k in range(nl):
-                    if not _any(okm, nb):
+                    # Compaction: when at most half of the lanes are still feasible, the
+                    # feasible ones are moved to the front (their pose, the legs solved so
+                    # far, the registers if expression margins follow) and the next stages
+                    # run on them alone; lane[] keeps each one's pose. Every lane is
+                    # computed alone, so the answers do not change.
+                    cnt = 0
+                    for ii in range(nb):
+                        cnt += okm[ii]
+                    if cnt == 0:
                         break
+                    if 2 * cnt <= nb:
+                        w = 0
+                        for ii in range(nb):
+                            if okm[ii] != 0:
+                                lane[w] = lane[ii]
+                                und[w] = und[ii]
+                                okm[w] = 1
+                                for r in range(12):
+                                    Tm[r, w] = Tm[r, ii]
+                                for kk in range(k):
+                                    Q[kk, w] = Q[kk, ii]
+                                    for r in range(6):
+                                        Sg[kk, r, w] = Sg[kk, r, ii]
+                                if expr.shape[0] > 0:
+                                    for r in range(Rg.shape[0]):
+                                        Rg[r, w] = Rg[r, ii]
+                                w += 1
+                        nb = w
                     kind = leg_kind[k]
                     a0 = leg_f[k, 3]
                     a1 = leg_f[k, 4]
@@ -1686,8 +1715,11 @@ if HAVE_NUMBA:
                                 dist2 = _parallel_seg2(p1x, p1y, p1z, d1x, d1y, d1z, a, p2x, p2y, p2z, d2x, d2y,
                                                        d2z, e)
                                 okm[ii] = okm[ii] & (dist2 >= D2)
+                if nb < nb0:  # compacted: lanes not listed are infeasible
+                    for ii in range(nb0):
+                        out[j0 + ii] = False
                 for ii in range(nb):
-                    out[j0 + ii] = okm[ii] != 0
+                    out[j0 + lane[ii]] = okm[ii] != 0
                     n_amb += okm[ii] & und[ii]
                 if ext.shape[0] > 0:
                     for c in range(3):
