@@ -10,15 +10,18 @@ then leg by leg its inverse kinematics and that leg's checks (actuator range, pa
 joint cone angles, leg-axis angles, revolute angle), each a straight loop over the sub-block
 with the leg's geometry and limits as loop invariants (SIMD across poses), then the
 expression margins and, last and most expensive, leg interference (a bounding-box test
-settles most pairs; the segment distance is computed only for a sub-block with an unsettled
-feasible pose). A sub-block stops at the first stage after which none of its poses is
-feasible. Nothing of size N is allocated but the result.
+settles most pairs, the distance of the two lines most of the rest; the segment distance is
+computed only for a sub-block with a feasible pose neither settles). A sub-block stops at the
+first stage after which none of its poses is feasible, and before each leg a sub-block whose
+feasible poses are at most half is compacted (the later stages run on those alone). Nothing
+of size N is allocated but the result (and, for a workspace, the per-block extents of the
+feasible poses' positions).
 
-Costs per pose (5pus_upu, every pose feasible, one core): the program's pose part (after
-fusing products into their sums, :func:`parasynth.engine.program._fuse`) ~14 ns, the six legs'
-inverse kinematics ~10 ns, the ten cone limits ~11 ns, the ten interference pairs ~19 ns (two
-of them need the segment distance in every sub-block), the rest (coordinates in, pose out,
-actuator ranges) ~9 ns. Coordinate magnitudes are tested in the kernel (``Program.pose_limit``
+Costs per pose (5pus_upu, every pose feasible, one core, ~52 ns in all): the coordinates in
+and the program's pose part (after fusing products into their sums,
+:func:`parasynth.engine.program._fuse`) ~20 ns, the six legs' inverse kinematics ~12 ns, the
+ten cone limits ~9 ns, the ten interference pairs ~11 ns (bounding boxes and, for two pairs,
+the line distance), the rest (actuator ranges, the result) ~1 ns. Coordinate magnitudes are tested in the kernel (``Program.pose_limit``
 per coordinate), so the entry points make no NumPy pass over a float batch.
 
 Agreement with the NumPy path
