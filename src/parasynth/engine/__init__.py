@@ -6,6 +6,10 @@ Entry points (``engine="compiled"`` is the default everywhere; ``"numpy"`` the r
 
 * :func:`feasible` ``(mech, X, names=None, engine=...)`` -> (N,) bool, as
   ``Mechanism.is_feasible``;
+* :func:`feasible_extents` ``(mech, X, names=None, engine=...)`` -> ``(ok (N,), lo (3,),
+  hi (3,))``: :func:`feasible` and the least / greatest platform position over the feasible
+  poses from one kernel pass (what ``workspace`` records), or None where that pass is not
+  the whole answer (the caller then asks :func:`feasible` and :func:`pose_batch`);
 * :func:`margins` ``(mech, X, names=None, engine=...)`` -> {name: (N,)}, as
   ``Mechanism.constraint_margins``;
 * :func:`pose_batch` ``(mech, X, twist=False)`` -> ``(valid (N,), p (N, 3), R (N, 3, 3), T)``
