@@ -78,3 +78,21 @@ def test_workspace_extents_match_the_numpy_engine():
     for ax in "xyz":
         np.testing.assert_allclose(a.extents[ax], b.extents[ax], rtol=0, atol=1e-12)
     np.testing.assert_array_equal(a._raster.feasible, b._raster.feasible)
+
+
+def test_declines_for_a_class_whose_is_feasible_checks_more():
+    base = parasynth.load_mechanism("5pus_upu")
+
+    class Stricter(type(base)):
+        def is_feasible(self, X, names=None, engine="compiled"):
+            return super().is_feasible(X, names, engine) & (np.asarray(X)[..., 0] > 0)
+
+    mech = Stricter(base.params)
+    X = _poses(mech, 500)
+    assert engine.feasible_extents(mech, X) is None
+    assert engine.feasible_extents(base, X) is not None
+    ws = workspace(mech, n=2**12, keep_points=False, progress=False)
+    ref = workspace(mech, n=2**12, keep_points=False, progress=False, engine="numpy")
+    full = workspace(base, n=2**12, keep_points=False, progress=False)
+    assert ws.n_feasible == ref.n_feasible < full.n_feasible  # the subclass's own check counted
+    assert ws.extents["x"][0] >= 0.0

@@ -59,6 +59,7 @@ from __future__ import annotations
 
 import contextlib
 import contextvars
+import functools
 import os
 import warnings
 
@@ -185,9 +186,25 @@ def feasible_extents(mech, X, names=None, engine: str = "compiled"):
     singularity-margin floor): the caller then asks :func:`feasible` and :func:`pose_batch`."""
     if getattr(mech, "pose_mechanism", None) is not None or "is_feasible" in vars(mech):
         return None
-    if _engine_for("feasible", engine) == "numpy":
+    if _engine_for("feasible", engine) == "numpy" or not _feasible_is_engines(type(mech)):
         return None
     return _compiled()[1].feasible_extents(mech, X, names)
+
+
+#: The module whose ``is_feasible`` is this engine's :func:`feasible` (a mechanism description's).
+_ENGINE_FEASIBLE_MODULE = "parasynth.mechanisms.description.mechanism"
+
+
+@functools.lru_cache(maxsize=64)
+def _feasible_is_engines(cls) -> bool:
+    """Whether ``cls.is_feasible`` is a mechanism description's (which answers with
+    :func:`feasible`), not one a subclass replaced with other checks: only then may one
+    feasibility pass stand for it."""
+    for c in cls.__mro__:
+        f = c.__dict__.get("is_feasible")
+        if f is not None:
+            return getattr(f, "__module__", None) == _ENGINE_FEASIBLE_MODULE
+    return False
 
 
 def margins(mech, X, names=None, engine: str = "compiled") -> dict:
