@@ -93,3 +93,27 @@ def test_a_warm_workspace_does_not_import_scipy_stats(tmp_path):
     assert first["stats"] and off["stats"]
     assert not second["stats"]
     assert first["volume"] == second["volume"] == off["volume"] > 0
+
+
+def test_a_folder_removed_after_a_write_is_made_again(cache):
+    import shutil
+
+    u = pqmc.sobol_points(2, 11, 32)
+    assert list(cache.rglob("*.npy"))
+    shutil.rmtree(cache)  # the process remembers the folder; the next write fails once
+    v = pqmc.sobol_points(2, 12, 32)
+    assert np.array_equal(v, _scipy_points(2, 12, 32))
+    w = pqmc.sobol_points(2, 13, 32)  # ... and then the folder is made again
+    assert np.array_equal(w, _scipy_points(2, 13, 32))
+    assert [f.name for f in cache.rglob("*.npy")] == ["d2-seed13-n32.npy"]
+    assert np.array_equal(pqmc.sobol_points(2, 11, 32), u)
+
+
+def test_cache_dir_follows_the_environment(tmp_path, monkeypatch):
+    monkeypatch.setenv("PARASYNTH_CACHE_DIR", str(tmp_path / "a"))
+    assert pqmc.cache_dir() == tmp_path / "a"
+    monkeypatch.setenv("PARASYNTH_CACHE_DIR", str(tmp_path / "b"))
+    assert pqmc.cache_dir() == tmp_path / "b"
+    monkeypatch.delenv("PARASYNTH_CACHE_DIR")
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "x"))
+    assert pqmc.cache_dir() == tmp_path / "x" / "parasynth"

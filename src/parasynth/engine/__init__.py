@@ -6,6 +6,10 @@ Entry points (``engine="compiled"`` is the default everywhere; ``"numpy"`` the r
 
 * :func:`feasible` ``(mech, X, names=None, engine=...)`` -> (N,) bool, as
   ``Mechanism.is_feasible``;
+* :func:`feasible_extents` ``(mech, X, names=None, engine=...)`` -> ``(ok (N,), lo (3,),
+  hi (3,))``: :func:`feasible` and the least / greatest platform position over the feasible
+  poses from one kernel pass (what ``workspace`` records), or None where that pass is not
+  the whole answer (the caller then asks :func:`feasible` and :func:`pose_batch`);
 * :func:`margins` ``(mech, X, names=None, engine=...)`` -> {name: (N,)}, as
   ``Mechanism.constraint_margins``;
 * :func:`pose_batch` ``(mech, X, twist=False)`` -> ``(valid (N,), p (N, 3), R (N, 3, 3), T)``
@@ -55,6 +59,7 @@ from __future__ import annotations
 
 import contextlib
 import contextvars
+import functools
 import os
 import warnings
 
@@ -67,7 +72,7 @@ from ..common.validation import numpy_reference as reference
 from . import warmup as _warmup
 from .warmup import COMPILING, WarmUp
 
-__all__ = ["HAVE_NUMBA", "ENGINES", "EngineFallbackWarning", "feasible", "margins", "pose_batch", "available",
+__all__ = ["HAVE_NUMBA", "ENGINES", "EngineFallbackWarning", "feasible", "feasible_extents", "margins", "pose_batch", "available",
            "reason", "check_engine", "plan", "use_compiled", "warn_fallback", "coverage", "singularity_margin",
            "transmission", "local_transmission_index", "condition_number", "leg_directions", "constraint_rank",
            "closure_plan", "closure_prep", "closure_solve", "warm_up", "exercise", "needs", "effective_engine", "WarmUp", "COMPILING", "reference"]
@@ -170,6 +175,36 @@ def feasible(mech, X, names=None, engine: str = "compiled"):
         _floors_asked(mech, names)
         return mech._is_feasible_numpy(X, names)
     return _compiled()[1].feasible(mech, X, names, _floor_margin)
+
+
+def feasible_extents(mech, X, names=None, engine: str = "compiled"):
+    """``(ok (N,) bool, lo (3,), hi (3,))``: :func:`feasible` of the poses ``X`` (N, n_task)
+    and the least and greatest platform position (x, y, z) over the feasible ones (as
+    :func:`pose_batch` gives them; +inf / -inf when none is feasible), from one pass of the
+    feasibility kernel; or None when that pass does not answer for ``mech`` (the NumPy
+    engine, no compiled plan, a view of another mechanism's parametrisation, a
+    singularity-margin floor): the caller then asks :func:`feasible` and :func:`pose_batch`."""
+    if getattr(mech, "pose_mechanism", None) is not None or "is_feasible" in vars(mech):
+        return None
+    if _engine_for("feasible", engine) == "numpy" or not _feasible_is_engines(type(mech)):
+        return None
+    return _compiled()[1].feasible_extents(mech, X, names)
+
+
+#: The module whose ``is_feasible`` is this engine's :func:`feasible` (a mechanism description's).
+_ENGINE_FEASIBLE_MODULE = "parasynth.mechanisms.description.mechanism"
+
+
+@functools.lru_cache(maxsize=64)
+def _feasible_is_engines(cls) -> bool:
+    """Whether ``cls.is_feasible`` is a mechanism description's (which answers with
+    :func:`feasible`), not one a subclass replaced with other checks: only then may one
+    feasibility pass stand for it."""
+    for c in cls.__mro__:
+        f = c.__dict__.get("is_feasible")
+        if f is not None:
+            return getattr(f, "__module__", None) == _ENGINE_FEASIBLE_MODULE
+    return False
 
 
 def margins(mech, X, names=None, engine: str = "compiled") -> dict:

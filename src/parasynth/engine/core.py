@@ -10,15 +10,18 @@ then leg by leg its inverse kinematics and that leg's checks (actuator range, pa
 joint cone angles, leg-axis angles, revolute angle), each a straight loop over the sub-block
 with the leg's geometry and limits as loop invariants (SIMD across poses), then the
 expression margins and, last and most expensive, leg interference (a bounding-box test
-settles most pairs; the segment distance is computed only for a sub-block with an unsettled
-feasible pose). A sub-block stops at the first stage after which none of its poses is
-feasible. Nothing of size N is allocated but the result.
+settles most pairs, the distance of the two lines most of the rest; the segment distance is
+computed only for a sub-block with a feasible pose neither settles). A sub-block stops at the
+first stage after which none of its poses is feasible, and before each leg a sub-block whose
+feasible poses are at most half is compacted (the later stages run on those alone). Nothing
+of size N is allocated but the result (and, for a workspace, the per-block extents of the
+feasible poses' positions).
 
-Costs per pose (5pus_upu, every pose feasible, one core): the program's pose part (after
-fusing products into their sums, :func:`parasynth.engine.program._fuse`) ~14 ns, the six legs'
-inverse kinematics ~10 ns, the ten cone limits ~11 ns, the ten interference pairs ~19 ns (two
-of them need the segment distance in every sub-block), the rest (coordinates in, pose out,
-actuator ranges) ~9 ns. Coordinate magnitudes are tested in the kernel (``Program.pose_limit``
+Costs per pose (5pus_upu, every pose feasible, one core, ~52 ns in all): the coordinates in
+and the program's pose part (after fusing products into their sums,
+:func:`parasynth.engine.program._fuse`) ~20 ns, the six legs' inverse kinematics ~12 ns, the
+ten cone limits ~9 ns, the ten interference pairs ~11 ns (bounding boxes and, for two pairs,
+the line distance), the rest (actuator ranges, the result) ~1 ns. Coordinate magnitudes are tested in the kernel (``Program.pose_limit``
 per coordinate), so the entry points make no NumPy pass over a float batch.
 
 Agreement with the NumPy path
@@ -95,8 +98,11 @@ _CONE_KEYS = {
 
 #: Poses per parallel work item (one scratch allocation per work item).
 BLOCK = 4096
-#: Poses per SIMD sub-block (the scratch of one sub-block stays in the L1 cache).
-SUB = 64
+#: Poses per SIMD sub-block: the interpreter's per-instruction cost and each loop's set-up are
+#: shared by SUB poses. 128 measured 3-6 % faster than 64 (5-PUS/UPU worst case, the quick
+#: start's designs, a 6-PUS workspace; one core, docs/performance.md) although the scratch of a
+#: six-leg sub-block (~70 KiB) then exceeds a 32 KiB L1 cache; 256 gains little more.
+SUB = 128
 #: Batches of fewer poses run on the calling thread only: handing work to another thread costs
 #: ~0.03-0.05 ms of CPU (a pool thread's wake-up, the kernel calls' unboxing), 10-20 % of the
 #: time of 4096 poses, 5-10 % of 8192 poses' (measured with ``benchmarks/workspace_throughput.py
@@ -144,7 +150,7 @@ def blocking(n: int, threads: int | None = None, kind: str | None = None) -> tup
     if threads is None and kind is not None and not TIMING.threads_pay(kind, n):
         return BLOCK, (n + BLOCK - 1) // BLOCK, False
     per = -(-n // (ITEMS_PER_THREAD * nt))
-    block = min(BLOCK, max(SUB, -(-per // SUB) * SUB))
+    block = min(BLOCK, max(SUB, per // SUB * SUB))  # rounded down: at least ITEMS_PER_THREAD items a thread
     return block, (n + block - 1) // block, True
 
 
@@ -719,14 +725,30 @@ def _readonly(X: np.ndarray) -> np.ndarray:
     return X
 
 
-def run_feasible(plan: KernelPlan, X: np.ndarray):
-    """(out (N,) bool, ambiguous: bool) for contiguous float64 poses X."""
+_NO_EXT = np.empty((0, 6))
+
+
+def run_feasible(plan: KernelPlan, X: np.ndarray, extents: bool = False):
+    """(out (N,) bool, ambiguous: bool) for contiguous float64 poses X; with ``extents``
+    (out, ambiguous, lo (3,), hi (3,)): also the least and greatest platform position
+    (x, y, z) over the feasible poses, taken in the kernel from the pose it computed (the
+    values ``run_pose`` gives; +inf / -inf when no pose is feasible)."""
     X = _readonly(X)
     out = np.empty(X.shape[0], dtype=np.bool_)
-    amb = np.zeros(max(1, (X.shape[0] + SUB - 1) // SUB), dtype=np.int64)  # one per block, any blocking
+    nmax = max(1, (X.shape[0] + SUB - 1) // SUB)
+    amb = np.zeros(nmax, dtype=np.int64)  # one per block, any blocking
+    if extents:  # per block (lo x, y, z, hi x, y, z), any blocking
+        ext = np.empty((nmax, 6))
+        ext[:, :3] = np.inf
+        ext[:, 3:] = -np.inf
+    else:
+        ext = _NO_EXT
     args = plan.args()
-    _timed_blocks("feasible", lambda block, b0, b1: _feasible_kernel(X, *args, block, out, amb, b0, b1), X.shape[0])
-    return out, bool(amb.any())
+    _timed_blocks("feasible", lambda block, b0, b1: _feasible_kernel(X, *args, block, out, amb, ext, b0, b1),
+                  X.shape[0])
+    if not extents:
+        return out, bool(amb.any())
+    return out, bool(amb.any()), ext[:, :3].min(axis=0), ext[:, 3:].max(axis=0)
 
 
 def run_margins(plan: KernelPlan, X: np.ndarray):
@@ -1286,9 +1308,10 @@ if HAVE_NUMBA:
 
     @njit(**_jit)
     def _feasible_kernel(X, ins, consts, cbase, n_reg, n_pose, pose_regs, valid_regs, plim, expr, tol, leg_kind, leg_act,
-                         leg_f, coord, actr, lenr, cone, rang, axang, pair, offs, block, out, amb, b0, b1):
+                         leg_f, coord, actr, lenr, cone, rang, axang, pair, offs, block, out, amb, ext, b0, b1):
         """Boolean feasibility of poses X (N, n_task) -> out (N,), amb[block] = number of
-        poses whose RPS/RPU reachability NumPy decides batch-dependently.
+        poses whose RPS/RPU reachability NumPy decides batch-dependently; if ``ext`` has rows,
+        ext[block] = (least x, y, z, greatest x, y, z) of the feasible poses' platform position.
 
         Work items (prange) are blocks of ``block`` poses, processed in sub-blocks of SUB
         poses laid out structure-of-arrays: the pose (_pose_block), then leg by leg and check
@@ -1305,20 +1328,50 @@ if HAVE_NUMBA:
             Sc = np.empty((2, SUB))
             okm = np.empty(SUB, dtype=np.uint8)
             und = np.empty(SUB, dtype=np.uint8)
+            pend = np.empty(SUB, dtype=np.uint8)
+            lane = np.empty(SUB, dtype=np.int64)
             Sg = np.empty((nl, 6, SUB))
             Q = np.empty((nl, SUB))
             n_amb = 0
             i1 = min(N, (blk + 1) * block)
             for j0 in range(blk * block, i1, SUB):
                 nb = min(SUB, i1 - j0)
+                nb0 = nb
                 # 1. task-coordinate ranges and the pose (the program's pose part)
                 _pose_prog(X, j0, nb, coord, okm, Rg, Sc, Tm, ins, n_pose, pose_regs, valid_regs, plim)
                 for ii in range(nb):
                     und[ii] = 0
+                    lane[ii] = ii
                 # 2. leg by leg: inverse kinematics, then that leg's checks
                 for k in range(nl):
-                    if not _any(okm, nb):
+                    # Compaction: when at most half of the lanes are still feasible, the
+                    # feasible ones are moved to the front (their pose, the legs solved so
+                    # far, the registers if expression margins follow) and the next stages
+                    # run on them alone; lane[] keeps each one's pose. Every lane is
+                    # computed alone, so the answers do not change.
+                    cnt = 0
+                    for ii in range(nb):
+                        cnt += okm[ii]
+                    if cnt == 0:
                         break
+                    if 2 * cnt <= nb:
+                        w = 0
+                        for ii in range(nb):
+                            if okm[ii] != 0:
+                                lane[w] = lane[ii]
+                                und[w] = und[ii]
+                                okm[w] = 1
+                                for r in range(12):
+                                    Tm[r, w] = Tm[r, ii]
+                                for kk in range(k):
+                                    Q[kk, w] = Q[kk, ii]
+                                    for r in range(6):
+                                        Sg[kk, r, w] = Sg[kk, r, ii]
+                                if expr.shape[0] > 0:
+                                    for r in range(Rg.shape[0]):
+                                        Rg[r, w] = Rg[r, ii]
+                                w += 1
+                        nb = w
                     kind = leg_kind[k]
                     a0 = leg_f[k, 3]
                     a1 = leg_f[k, 4]
@@ -1567,7 +1620,37 @@ if HAVE_NUMBA:
                             g2 = a_lo - b_hi
                             g = g1 if g1 > g2 else g2
                             gap = g if g > gap else gap
-                        need |= okm[ii] & (gap < Dq)
+                        pend[ii] = okm[ii] & (gap < Dq)
+                        need |= pend[ii]
+                    if not need:
+                        continue
+                    # The distance of the two lines bounds the segments' from below too: a
+                    # pose whose lines are clearly (by a relative 1e-9) at least D apart, and
+                    # not nearly parallel (|d1 x d2|^2 > 1e-6 |d1|^2 |d2|^2, so that the cross
+                    # product is accurate), is settled without the segment distance. Where
+                    # the boxes overlap, the legs are often skew and far apart along their
+                    # common normal (a third of the work of the segment distance, no division).
+                    need = 0
+                    for ii in range(nb):
+                        d1x = Sg[ka, 3, ii] - Sg[ka, 0, ii]
+                        d1y = Sg[ka, 4, ii] - Sg[ka, 1, ii]
+                        d1z = Sg[ka, 5, ii] - Sg[ka, 2, ii]
+                        d2x = Sg[kb, 3, ii] - Sg[kb, 0, ii]
+                        d2y = Sg[kb, 4, ii] - Sg[kb, 1, ii]
+                        d2z = Sg[kb, 5, ii] - Sg[kb, 2, ii]
+                        rx = Sg[ka, 0, ii] - Sg[kb, 0, ii]
+                        ry = Sg[ka, 1, ii] - Sg[kb, 1, ii]
+                        rz = Sg[ka, 2, ii] - Sg[kb, 2, ii]
+                        cx = d1y * d2z - d1z * d2y
+                        cy = d1z * d2x - d1x * d2z
+                        cz = d1x * d2y - d1y * d2x
+                        cc = cx * cx + cy * cy + cz * cz
+                        aa = d1x * d1x + d1y * d1y + d1z * d1z
+                        ee = d2x * d2x + d2y * d2y + d2z * d2z
+                        rc = rx * cx + ry * cy + rz * cz
+                        apart = (cc > 1e-6 * (aa * ee)) & (rc * rc > D2 * cc * (1.0 + 1e-9))
+                        pend[ii] = pend[ii] & (not apart)
+                        need |= pend[ii]
                     if not need:
                         continue
                     # two passes: the general case branch-free for the whole sub-block (SIMD;
@@ -1635,9 +1718,23 @@ if HAVE_NUMBA:
                                 dist2 = _parallel_seg2(p1x, p1y, p1z, d1x, d1y, d1z, a, p2x, p2y, p2z, d2x, d2y,
                                                        d2z, e)
                                 okm[ii] = okm[ii] & (dist2 >= D2)
+                if nb < nb0:  # compacted: lanes not listed are infeasible
+                    for ii in range(nb0):
+                        out[j0 + ii] = False
                 for ii in range(nb):
-                    out[j0 + ii] = okm[ii] != 0
+                    out[j0 + lane[ii]] = okm[ii] != 0
                     n_amb += okm[ii] & und[ii]
+                if ext.shape[0] > 0:
+                    for c in range(3):
+                        lo = ext[blk, c]
+                        hi = ext[blk, 3 + c]
+                        for ii in range(nb):
+                            v = Tm[c, ii]
+                            f = okm[ii] != 0
+                            lo = v if (f and v < lo) else lo
+                            hi = v if (f and v > hi) else hi
+                        ext[blk, c] = lo
+                        ext[blk, 3 + c] = hi
             amb[blk] = n_amb
 
     @njit(**_jit_inline)
@@ -1784,6 +1881,6 @@ def signatures() -> dict:
     plan = (i2, f8, i1, i1) + (f2,) * 8 + (i2,)  # expr, tol, leg_kind, leg_act, leg_f .. pair, offs
     return {
         "_pose_kernel": (_pose_kernel, prog + (i2, i8, b1, f2, f2, f3, i8, i8)),
-        "_feasible_kernel": (_feasible_kernel, prog + plan + (i8, b1, i1, i8, i8)),
+        "_feasible_kernel": (_feasible_kernel, prog + plan + (i8, b1, i1, f2, i8, i8)),
         "_margins_kernel": (_margins_kernel, prog + plan + (i8, f2, i1, i8, i8)),
     }

@@ -16,7 +16,7 @@ import numpy as np
 from . import core
 from .core import HAVE_NUMBA, Unsupported, warn_fallback
 
-__all__ = ["feasible", "margins", "compiled_pose_batch", "available", "reason", "plan"]
+__all__ = ["feasible", "feasible_extents", "margins", "compiled_pose_batch", "available", "reason", "plan"]
 
 # ---------------------------------------------------------------------------------------------
 # plans: one record per mechanism object (core.record_of), one plan per constraint selection
@@ -104,6 +104,23 @@ def feasible(mech, X, names=None, floor_margin=None):
             with np.errstate(invalid="ignore"):
                 out[sel] = np.asarray(floor_margin(mech, Xc[sel])) >= floor  # NaN: not feasible
     return out[0] if single else out
+
+
+def feasible_extents(mech, X, names=None):
+    """``(ok (N,) bool, lo (3,), hi (3,))``: :func:`feasible` of poses ``X`` (N, n_task) and the
+    least and greatest platform position over the feasible ones, from one kernel pass (the
+    positions ``compiled_pose_batch`` gives; +inf / -inf when none is feasible). None -- the
+    caller then asks :func:`feasible` and the poses apart -- where that pass does not give the
+    whole answer: no plan, a singularity-margin floor (applied after the kernel), or
+    reachability NumPy decides for the batch."""
+    p, _ = plan(mech, names)
+    if p is None or p.floors or not (isinstance(X, np.ndarray) and X.ndim == 2):
+        return None
+    Xc, _ = _kernel_poses(mech, X)
+    out, amb, lo, hi = core.run_feasible(p, Xc, extents=True)
+    if amb:
+        return None
+    return out, lo, hi
 
 
 def margins(mech, X, names=None, floor_margin=None) -> dict:

@@ -29,8 +29,10 @@ then have rank 5 at the NumPy path's 1e-9 threshold, so the NumPy path finds the
 one-dimensional set); otherwise each leg gets the SVD of its other rows, as in NumPy.
 
 Batches of at least :data:`PARALLEL_MIN` poses are spread over threads (ranges of chunks on a
-thread pool, :func:`parasynth.engine.core.over_blocks`); smaller ones
-(one design's feasible poses) serially, where starting threads would cost more than it saves.
+thread pool, :func:`parasynth.engine.core.over_blocks`); smaller ones serially, where starting
+threads would cost more than it saves -- except for the singularity margin, whose ~3 us a pose
+make a design's few hundred feasible poses worth two threads (ranges of poses, while
+``core.TIMING`` finds that threads pay; see :func:`_kernel`).
 
 Every function is generic over the leg types ``SPS, UPS, PUS, RPS, RPU, UPU, PRS, RUS``; nothing is
 written per model class. The platform pose and the twist map come from the model's own
@@ -60,6 +62,7 @@ singularity) may fall on either side.
 from __future__ import annotations
 
 import math
+import time
 
 import numpy as np
 
@@ -83,6 +86,7 @@ __all__ = [
 # One decision (PARASYNTH_NO_NUMBA, a broken install), one fallback policy and warning
 # (warn_fallback, said once per what, model class and reason) and one per-mechanism record of
 # plans (record_of) for the whole engine.
+from . import core
 from .core import _WARNED, HAVE_NUMBA, _array, over_blocks, record_of, warn_fallback  # noqa: F401
 
 if HAVE_NUMBA:
@@ -1152,14 +1156,63 @@ if HAVE_NUMBA:
 PARALLEL_MIN = 16384
 
 
+#: Per kernel, the positions of its per-pose arguments (poses, validity, outputs: sliced
+#: along the first axis for a range of poses) and its CPU time per pose (ns, one core,
+#: 5-PUS/UPU, measured): a smaller batch whose work passes :data:`WORK_MIN_NS` is cut into ranges
+#: of poses spread over threads while that pays (``core.TIMING``, as the feasibility batches).
+#: One design's singularity margin (~3 us a pose, the SVDs of the wrench system) is worth it for
+#: a few hundred feasible poses.
+_SPLIT = {"_margin_kernel": ((0, 1, 2, 12), 3000.0)}
+#: Work (ns of one core) from which a batch below PARALLEL_MIN is spread over threads: about
+#: what 8192 poses of the feasibility kernel take (``core.PARALLEL_MIN``).
+WORK_MIN_NS = 4.0e5
+#: Fewest poses per range of such a split.
+MIN_RANGE = 16
+
+
 def _kernel(name: str, n: int):
     """``kernel(*args)`` for ``n`` poses: the compiled kernel over all chunks of CHUNK poses,
-    spread over threads when ``n >= PARALLEL_MIN``."""
+    spread over threads when ``n >= PARALLEL_MIN``, or, for a kernel of :data:`_SPLIT` whose
+    batch is smaller but worth :data:`WORK_MIN_NS`, over ranges of poses (slices) while
+    threads pay. Every pose is computed alone: the split never changes a result."""
     k = _KERNELS[name]
     nchunk = (n + CHUNK - 1) // CHUNK
+    split = _SPLIT.get(name)
+    if n < PARALLEL_MIN and split is not None and n * split[1] >= WORK_MIN_NS and n >= 2 * MIN_RANGE:
+        nt = core.n_threads()
+        # the work in poses of the feasibility kernel (~60 ns): the size class core.TIMING keeps
+        n_eq = max(core.PARALLEL_MIN, int(n * split[1] / 60.0))
+        if nt > 1:
+            return _ranges(k, n, nchunk, split[0], nt, name, n_eq, core.TIMING.threads_pay(name, n_eq))
 
     def run(*args):
         over_blocks(lambda c0, c1: k(*args, c0, c1), nchunk, n >= PARALLEL_MIN)
+
+    return run
+
+
+def _ranges(k, n: int, nchunk: int, pose_args, nt: int, name: str, n_eq: int, parallel: bool):
+    """``kernel(*args)``: with ``parallel``, over about ``ITEMS_PER_THREAD`` ranges of poses per
+    thread (the arguments at ``pose_args`` sliced, each range's chunks from 0), else over all
+    chunks on the calling thread; either way timed for ``core.TIMING`` (as ``n_eq`` poses)."""
+    parts = max(2, min(core.ITEMS_PER_THREAD * nt, n // MIN_RANGE))
+    edges = [n * i // parts for i in range(parts + 1)]
+
+    def run(*args):
+        def item(b0, b1):
+            for j in range(b0, b1):
+                a, b = edges[j], edges[j + 1]
+                sl = list(args)
+                for q in pose_args:
+                    sl[q] = args[q][a:b]
+                k(*sl, 0, (b - a + CHUNK - 1) // CHUNK)
+
+        t0 = time.perf_counter()
+        if parallel:
+            over_blocks(item, parts, True)
+        else:
+            over_blocks(lambda c0, c1: k(*args, c0, c1), nchunk, False)
+        core.TIMING.record(name, parallel, n_eq, time.perf_counter() - t0)
 
     return run
 

@@ -84,7 +84,7 @@ from typing import Any, Callable, ClassVar
 
 import numpy as np
 
-from ..engine import check_engine, pose_batch
+from ..engine import check_engine, feasible_extents, pose_batch
 from ..common.qmc import sobol_engine, sobol_points
 from ..common.units import UNIT_KINDS, in_display, si_compound
 from ..common.validation import MAX_SAMPLES, check_count, check_mechanism, check_names
@@ -307,8 +307,12 @@ def _prepared_chunks(sampler, chunk, base, cols, rshape):
     cells = int(np.prod(rshape))
     key = None
     if sampler.n <= SAMPLE_CACHE_MAX_POINTS:
+        # the fixed coordinates only: the sampled columns of ``base`` are overwritten (a
+        # design's home pose, which moves with its dimensions, does not split the cache when
+        # every coordinate is sampled)
+        fixed = np.delete(base, cols)
         key = (sampler.method, sampler.n, tuple(sampler.lows.tolist()), tuple(sampler.highs.tolist()), sampler.seed,
-               sampler.shape, int(chunk), tuple(base.tolist()), tuple(cols.tolist()), tuple(rshape))
+               sampler.shape, int(chunk), base.size, tuple(fixed.tolist()), tuple(cols.tolist()), tuple(rshape))
         hit = _SAMPLES.get(key)
         if hit is not None:
             yield from hit
@@ -784,17 +788,25 @@ def workspace(mech, ranges=None, n: int = 2**16, method: str = "sobol", seed: in
     report = _Progress(progress, n_samples, getattr(mech, "name", "mechanism"))
     for start, X, Xs, gidx, flat, counts in _prepared_chunks(sampler, chunk_size, base, cols, rshape):
         m = len(Xs)
-        ok = np.asarray(mech.is_feasible(X, names=names, engine=engine), dtype=bool)
+        # feasibility and the platform positions' extents from one kernel pass where the
+        # compiled engine answers so, else the feasibility and then the feasible poses
+        fe = feasible_extents(mech, X, names, engine)
+        if fe is not None:
+            ok, p_lo, p_hi = fe
+        else:
+            ok = np.asarray(mech.is_feasible(X, names=names, engine=engine), dtype=bool)
         k = int(np.count_nonzero(ok))
         n_feasible += k
         r_total += counts
         if k:
             r_feas += np.bincount(flat[ok], minlength=cells)
-            Xf = X[ok]
-            p = np.asarray(pose_batch(mech, Xf, engine=engine)[1], dtype=float)
-            ext_lo = np.minimum(ext_lo, p.min(axis=0))
-            ext_hi = np.maximum(ext_hi, p.max(axis=0))
-            store.add(Xs[ok], start + np.flatnonzero(ok))
+            if fe is None:
+                p = np.asarray(pose_batch(mech, X[ok], engine=engine)[1], dtype=float)
+                p_lo, p_hi = p.min(axis=0), p.max(axis=0)
+            ext_lo = np.minimum(ext_lo, p_lo)
+            ext_hi = np.maximum(ext_hi, p_hi)
+            if cap != 0:
+                store.add(Xs[ok], start + np.flatnonzero(ok))
         if boundary is not None:
             boundary.add(start, ok, gidx)
         report.update(start + m, n_feasible)
