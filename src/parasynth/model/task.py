@@ -349,7 +349,8 @@ class TrajectorySpec:
             if self.limits is None:
                 raise TaskError("trajectory.waypoints: a file of timed poses takes no waypoints")
             W = np.array(self.waypoints, dtype=float)
-            if W.ndim != 2 or len(W) < 2 or W.shape[1] != len(self.waypoint_coordinates) or np.any(np.isinf(W)):
+            if W.ndim != 2 or len(W) < 2 or (self.waypoint_coordinates and W.shape[1] != len(self.waypoint_coordinates)) \
+                    or np.any(np.isinf(W)):
                 raise TaskError("trajectory.waypoints: give at least 2 poses, one finite value per named coordinate")
             W.setflags(write=False)
             object.__setattr__(self, "waypoints", W)
@@ -363,23 +364,31 @@ class TrajectorySpec:
                 raise TaskError("trajectory.file: the time column must hold at least 3 increasing finite times (s)")
 
 
-def _as_trajectory(where, v):
+def _as_trajectory(where, v, coordinates=None):
     if v is None or isinstance(v, TrajectorySpec):
         return v
     if isinstance(v, Mapping):
-        keys = {"speed", "acceleration", "angular_speed", "angular_acceleration", "jerk_time", "limits", "timing"}
-        unknown = sorted(set(v) - keys - {"dt"})
+        keys = {"speed", "acceleration", "angular_speed", "angular_acceleration", "jerk_time", "limits", "timing",
+                "step"}
+        unknown = sorted(set(v) - keys - {"dt", "waypoints"})
         if unknown:
-            raise TaskError(f"{where}.{unknown[0]}: unknown key; allowed: {', '.join(sorted(keys | {'dt'}))}")
+            raise TaskError(f"{where}.{unknown[0]}: unknown key; allowed: "
+                            f"{', '.join(sorted(keys | {'dt', 'waypoints'}))}")
         kw = {k: v[k] for k in keys if k in v}
-        if kw.get("timing") == "sampled":  # phases rounded to the sample step
-            kw["step"] = v.get("dt", 0.01)
+        if kw.get("timing") == "sampled":  # phases rounded to the sample step unless another is given
+            kw.setdefault("step", v.get("dt", 0.01))
         try:
             lim = MotionLimits(**kw)
         except TypeError as e:
             raise TaskError(f"{where}: give speed and acceleration (SI) ({e})") from None
         except ValueError as e:
             raise TaskError(f"{where}.{e}") from None
+        if v.get("waypoints") is not None:  # columns as the poses'
+            try:
+                W = np.array(v["waypoints"], dtype=float)
+            except (TypeError, ValueError):
+                raise TaskError(f"{where}.waypoints: give an (M, k) array of poses like the poses") from None
+            return TrajectorySpec(lim, v.get("dt", 0.01), waypoints=W, waypoint_coordinates=tuple(coordinates or ()))
         return TrajectorySpec(lim, v.get("dt", 0.01))
     raise TaskError(f"{where}: give a mapping of motion limits or a TrajectorySpec, got {v!r}")
 
@@ -498,7 +507,11 @@ class Task:
             self.gravity = np.array(_vec("task.loads.gravity", gravity, 3, "m/s^2"))
         else:
             self.gravity = _num("task.loads.gravity", gravity, "a gravity >= 0 (m/s^2) or a vector in W", low=0.0)
-        self.trajectory = _as_trajectory("task.trajectory", trajectory)
+        self.trajectory = _as_trajectory("task.trajectory", trajectory, coordinates)
+        tr = self.trajectory
+        if tr is not None and tr.waypoints is not None and tr.waypoints.shape[1] != P.shape[1] \
+                and not tr.waypoint_coordinates:
+            raise TaskError(f"task.trajectory.waypoints: {tr.waypoints.shape[1]} columns; the poses have {P.shape[1]}")
         if space is None or isinstance(space, Space):
             self.space = space
         elif isinstance(space, Mapping):
