@@ -61,7 +61,8 @@ from ..model.legs import PUS, RUS, SPS, UPS, LegState
 from ..model.mechanism import ForwardKinematicsError
 from ..model.task import Payload, Task, TaskError, _cross
 
-__all__ = ["TaskEvaluation", "task_evaluation", "Continuity", "path_continuity", "static_task_forces",
+__all__ = ["TaskEvaluation", "task_evaluation", "Continuity", "path_continuity", "assembly_mode_checked",
+           "ASSEMBLY_MODE_SKIPPED", "static_task_forces",
            "task_measures", "TASK_MEASURES"]
 
 
@@ -269,6 +270,18 @@ class Continuity:
         return self.first_break is None
 
 
+#: Why :func:`path_continuity` skips the assembly-mode check of an under-actuated mechanism.
+ASSEMBLY_MODE_SKIPPED = "assembly mode not checked (fewer actuators than freedoms)"
+
+
+def assembly_mode_checked(mech) -> bool:
+    """Whether :func:`path_continuity` checks the assembly mode on ``mech``: not for an
+    under-actuated mechanism (fewer actuators than task freedoms, e.g. the 4-UPS/1-RPS with 4
+    actuators and 5 freedoms), whose actuators do not fix the pose (forward kinematics has a
+    family of solutions, so there is no assembly mode to keep)."""
+    return mech.n_actuators >= mech.n_task
+
+
 def path_continuity(mech, X, feasible=None, floor: float = 1e-3, substeps: int | None = None,
                     tol: float | None = None, margin=None, floors_ok=None, max_step: float = 0.05) -> Continuity:
     """The first sample of the ordered path ``X`` (K, d) that the robot cannot reach from the
@@ -319,11 +332,9 @@ def path_continuity(mech, X, feasible=None, floor: float = 1e-3, substeps: int |
         rule_txt = rule
     first = int(np.argmax(bad)) if bad.any() else K
     n = first - 1  # transitions 0 -> 1, ..., n-1 -> n are between good samples
-    if mech.n_actuators < mech.n_task:
-        # under-actuated (the 4-UPS/1-RPS): the actuators do not fix the pose, forward
-        # kinematics has a family of solutions, so there is no assembly mode to keep
+    if not assembly_mode_checked(mech):
         n = 0
-        rule_txt += "; assembly mode not checked (fewer actuators than freedoms)"
+        rule_txt += "; " + ASSEMBLY_MODE_SKIPPED
     if n > 0:
         q = q_all
         L = mech.length_scale
