@@ -412,6 +412,9 @@ class Task:
     ``dt``. ``space``: a :class:`Space` or a mapping. ``floors``: {"condition": {"max": 500},
     "singularity_margin": {"min": 0.05}, "lti": {"min": 0.5}} that hold at every pose and path
     sample. ``order``: "given" or "nearest" (greedy nearest neighbour from the first pose).
+    ``leg_density`` (kg/m^3, default 0: massless legs): the legs' own masses in the inverse
+    dynamics and the static forces, every leg a solid rod of the leg diameter
+    (:func:`parasynth.measures.task.leg_inertia`).
     ``pose_tolerance``: the largest residual (fraction of the length scale) of a platform pose
     the mechanism reaches only in the least-squares sense (default 1e-6; a mechanism whose
     orientation is coupled to its position, e.g. the 5-PUS/UPU, reaches a placed pose only
@@ -422,7 +425,7 @@ class Task:
                  payload=None, placement=None, convention: str = "xyz", frame: str | None = None,
                  wrench_frame: str = "task", wrench_signs: bool = False, gravity: float = G0, trajectory=None,
                  space=None, floors=None, order: str = "given", leg_diameter: float | None = None,
-                 coordinate_kinds=None, where: str = "task", pose_tolerance: float = 1e-6):
+                 coordinate_kinds=None, where: str = "task", pose_tolerance: float = 1e-6, leg_density: float = 0.0):
         if poses is None:
             raise TaskError("task.poses: give the required poses (an (N, k) array)")
         try:
@@ -535,6 +538,8 @@ class Task:
                 self.wrench.setflags(write=False)
         self.leg_diameter = None if leg_diameter is None else _num("task.space.leg_diameter", leg_diameter,
                                                                    "a diameter >= 0 (m)", low=0.0)
+        #: Density (kg/m^3) of the legs as solid rods in the inverse dynamics; 0: massless legs.
+        self.leg_density = _num("task.loads.leg_density", leg_density, "a density >= 0 (kg/m^3)", low=0.0)
         #: Mechanism-independent work (the poses in ``W``, the path's samples in ``W``), shared
         #: by the task's copies (:meth:`with_settings` of a study's designs): see :meth:`_shared`.
         self._cache = {}
@@ -1356,7 +1361,8 @@ _KIND_DIM = {"speed": ("[length] / [time]", "m/s", "m/s"), "acceleration": ("[le
              "angular_speed": ("1 / [time]", "rad/s", "deg/s"), "angular_acceleration": ("1 / [time] ** 2", "rad/s^2",
                                                                                           "deg/s^2"),
              "inertia": ("[mass] * [length] ** 2", "kg*m^2", "kg*m^2"), "gravity": ("[length] / [time] ** 2", "m/s^2",
-                                                                                     "m/s^2")}
+                                                                                     "m/s^2"),
+             "density": ("[mass] / [length] ** 3", "kg/m^3", "kg/m^3")}
 
 
 class _Reader:
@@ -1640,8 +1646,13 @@ class _Reader:
     def loads(self, m, path, n_poses):
         if m is None:
             return {}
-        self.keys(m, {"payload", "wrench", "signs", "frame", "gravity"}, path)
+        self.keys(m, {"payload", "wrench", "signs", "frame", "gravity", "leg_density"}, path)
         out = {}
+        if "leg_density" in m:
+            rho = self.q(m["leg_density"], "density", f"{path}.leg_density")
+            if rho < 0:
+                raise TaskError(f"{path}.leg_density: must be >= 0, got {m['leg_density']!r}")
+            out["leg_density"] = rho
         if "payload" in m:
             pl = m["payload"]
             self.keys(pl, {"mass", "com", "inertia"}, f"{path}.payload")
