@@ -218,3 +218,15 @@ def test_a_waypoint_outside_the_freedoms_is_named(gs):
                                                     waypoint_coordinates=("q",)))
     with pytest.raises(TaskError, match=r"task.trajectory.waypoints.q: not a pose coordinate"):
         bad.path(gs)
+
+
+def test_the_dense_recheck_samples_the_same_sampled_profile(gs):
+    P = np.array([[0.0, 0.0, 0.6, 0, 0, 0], [0.1, 0.03, 0.62, 0.1, 0, 0.2], [0.0, 0.05, 0.6, 0, 0.05, 0]])
+    t = Task(poses=P, coordinates=NAMES, frame="platform",
+             trajectory=dict(speed=1.0, acceleration=3.0, angular_speed=1.0, angular_acceleration=3.0,
+                             jerk_time=0.1, dt=0.05, limits="per_coordinate", timing="sampled"))
+    dense = t.refined()
+    assert dense.trajectory.dt == pytest.approx(0.005) and dense.trajectory.limits.step == 0.05
+    a, b = t.path(gs), dense.path(gs)
+    assert len(b.t) == (len(a.t) - 1) * 10 + 1
+    np.testing.assert_allclose(b.X[::10], a.X, atol=1e-12)  # the same profile, ten times as dense
