@@ -15,6 +15,12 @@ E from that rest orientation about its own axes: ``R_WE = Rx(180 deg) Rx(alpha) 
 whose X-Y'-Z'' angles are ``(alpha + 180 deg, beta, gamma)``. So the file's alpha column is the
 listed alpha plus 180 deg (wrapped to (-180, 180] deg); beta and gamma are as listed.
 
+``naval_testbed_path.csv`` holds all 357 rows in their order, duplicates included: the
+path of ``lufi_synth_traj.m`` runs through every row of ``XE`` (``traj_trapez2_multipoint(XE,
+...)``; only the pose checks use the unique rows), so it returns to poses it has visited (the
+working height ``X1`` at the end of each motion group, the top centre ``X0``). The studies give
+it as the trajectory's ``waypoints``.
+
 The variant ``naval_testbed_729_poses.csv`` is the full grid of the same cube: the 27 positions
 each with all 27 orientations (:func:`grid_729_in_W`), in the same conventions.
 
@@ -138,6 +144,12 @@ def main(path: Path = Path(__file__).with_name("naval_testbed_poses.csv")) -> Pa
     return _write(path, poses_in_W(), "the naval testbed's 342 required tool poses in W")
 
 
+def main_path(path: Path = Path(__file__).with_name("naval_testbed_path.csv")) -> Path:
+    X = rows()
+    X[:, 2] -= 1.0
+    return _write(path, X, "the naval testbed's path: all 357 rows of XE in order, duplicates included")
+
+
 def main_729(path: Path = Path(__file__).with_name("naval_testbed_729_poses.csv")) -> Path:
     return _write(path, grid_729_in_W(), "the naval testbed's full grid: 729 required tool poses in W")
 
@@ -147,4 +159,5 @@ if __name__ == "__main__":
     assert len(X) == 357, len(X)
     assert len(unique_stable(X)) == 342, len(unique_stable(X))
     print(main())
+    print(main_path())
     print(main_729())

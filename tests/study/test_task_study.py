@@ -213,4 +213,8 @@ def test_the_naval_testbed_729_variant_is_the_full_grid_holding_the_342_poses():
     assert np.all(np.sum(~np.isclose(P[1:], P[:-1], atol=1e-12), axis=1) == 1)
     # the rest of the study is the 342-pose one's
     assert s.objectives == base.objectives and s.constraints == base.constraints
-    assert s.task.trajectory == base.task.trajectory and s.task.payload == base.task.payload
+    # the same profile; the 342-pose study's path runs through the 357 rows of lufi_synth_traj.m,
+    # the grid's through its own poses
+    assert s.task.trajectory.limits == base.task.trajectory.limits and s.task.trajectory.dt == base.task.trajectory.dt
+    assert s.task.trajectory.waypoints is None and base.task.trajectory.waypoints.shape == (357, 6)
+    assert s.task.payload == base.task.payload

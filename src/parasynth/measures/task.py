@@ -49,7 +49,7 @@ import numpy as np
 
 from ..common.units import actuator_unit_kind, actuators_summary
 from .accuracy import TOLERANCE_SETTINGS, _bound, _check_tolerances, sensitivity
-from .dynamics import InertiaModel, PlatformInertia, _equivalent, _motion
+from .dynamics import InertiaModel, LegInertia, PlatformInertia, RigidBody, _equivalent, _leg_bodies, _motion
 from .. import engine
 from .indices import WrenchSystem, _scale_wrench, leg_wrench_arrays, local_condition_number, local_transmission_index
 from .measure_spec import Setting
@@ -61,7 +61,8 @@ from ..model.legs import PUS, RUS, SPS, UPS, LegState
 from ..model.mechanism import ForwardKinematicsError
 from ..model.task import Payload, Task, TaskError, _cross
 
-__all__ = ["TaskEvaluation", "task_evaluation", "Continuity", "path_continuity", "static_task_forces",
+__all__ = ["TaskEvaluation", "task_evaluation", "Continuity", "path_continuity", "assembly_mode_checked",
+           "ASSEMBLY_MODE_SKIPPED", "static_task_forces", "leg_inertia",
            "task_measures", "TASK_MEASURES"]
 
 
@@ -269,6 +270,18 @@ class Continuity:
         return self.first_break is None
 
 
+#: Why :func:`path_continuity` skips the assembly-mode check of an under-actuated mechanism.
+ASSEMBLY_MODE_SKIPPED = "assembly mode not checked (fewer actuators than freedoms)"
+
+
+def assembly_mode_checked(mech) -> bool:
+    """Whether :func:`path_continuity` checks the assembly mode on ``mech``: not for an
+    under-actuated mechanism (fewer actuators than task freedoms, e.g. the 4-UPS/1-RPS with 4
+    actuators and 5 freedoms), whose actuators do not fix the pose (forward kinematics has a
+    family of solutions, so there is no assembly mode to keep)."""
+    return mech.n_actuators >= mech.n_task
+
+
 def path_continuity(mech, X, feasible=None, floor: float = 1e-3, substeps: int | None = None,
                     tol: float | None = None, margin=None, floors_ok=None, max_step: float = 0.05) -> Continuity:
     """The first sample of the ordered path ``X`` (K, d) that the robot cannot reach from the
@@ -319,11 +332,9 @@ def path_continuity(mech, X, feasible=None, floor: float = 1e-3, substeps: int |
         rule_txt = rule
     first = int(np.argmax(bad)) if bad.any() else K
     n = first - 1  # transitions 0 -> 1, ..., n-1 -> n are between good samples
-    if mech.n_actuators < mech.n_task:
-        # under-actuated (the 4-UPS/1-RPS): the actuators do not fix the pose, forward
-        # kinematics has a family of solutions, so there is no assembly mode to keep
+    if not assembly_mode_checked(mech):
         n = 0
-        rule_txt += "; assembly mode not checked (fewer actuators than freedoms)"
+        rule_txt += "; " + ASSEMBLY_MODE_SKIPPED
     if n > 0:
         q = q_all
         L = mech.length_scale
@@ -396,6 +407,70 @@ def _continue(mech, X0, q0, q1, substeps: int, qs, steps: int = 1, final: int = 
 # the evaluation of one design on one task
 # ---------------------------------------------------------------------------------------------
 _EVALS: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+
+
+def _rod(mass: float, length: float, radius: float, offset: float) -> RigidBody:
+    """A solid round rod: principal moments about its centre of mass, transverse
+    ``m (3 r^2 + L^2) / 12`` twice and axial ``m r^2 / 2``."""
+    t = mass * (3.0 * radius * radius + length * length) / 12.0
+    return RigidBody(mass, (t, t, 0.5 * mass * radius * radius), offset)
+
+
+def leg_inertia(mech, task: Task, lengths=None) -> InertiaModel:
+    """The payload on the platform and the legs as solid rods of the task's ``leg_density``
+    and leg diameter (``task.space.leg_diameter``, else the mechanism's ``leg_diameter``), as
+    ``moving_mass`` models them: a telescopic (SPS, UPS) leg its longest length over the task
+    (``lengths`` {leg name: m}; default the longest over the required poses it reaches) in two
+    halves, a cylinder hinged at the base joint and a rod hinged at the platform joint, each
+    half as long with its centre of mass at its middle (a quarter of the longest length from
+    its joint); a PUS leg its link, a rod hinged at the platform joint (the carriage
+    massless). The joints and actuators themselves are massless (an assumption: their masses
+    depend on the hardware). Other legs (RUS cranks) are refused naming the key."""
+    pl = task.payload
+    platform = PlatformInertia(pl.mass, pl.com, pl.tensor)
+    rho = float(task.leg_density)
+    if rho <= 0:
+        return InertiaModel(platform)
+    d = task._leg_diameter(mech)
+    if not d > 0:
+        raise TaskError(f"{task.where}.loads.leg_density: the legs need a diameter (task.space.leg_diameter or the "
+                        f"mechanism's leg_diameter parameter)")
+    area, r = np.pi * d * d / 4.0, 0.5 * d
+    if lengths is None and any(type(leg) in (SPS, UPS) for leg in mech.legs):
+        ev = task_evaluation(mech, task._copy(trajectory=None))
+        Y = ev.Xf if len(ev.Xf) else mech.home[None, :]
+        _, states, _ = mech.leg_states(Y)
+        lengths = {leg.name: float(np.nanmax(st.length)) for leg, st in zip(mech.legs, states)}
+    legs = {}
+    for leg in mech.legs:
+        if type(leg) in (SPS, UPS):
+            half = 0.5 * lengths[leg.name]
+            body = _rod(rho * area * half, half, r, 0.5 * half)
+            legs[leg.name] = LegInertia(cylinder=body, rod=body)
+        elif type(leg) is PUS:
+            Lk = float(leg.link_length)
+            legs[leg.name] = LegInertia(rod=_rod(rho * area * Lk, Lk, r, 0.5 * Lk))
+        else:
+            raise TaskError(f"{task.where}.loads.leg_density: leg masses are modelled for SPS, UPS and PUS legs; "
+                            f"{mech.name} has {type(leg).__name__} legs (give 0: massless legs)")
+    return InertiaModel(platform, legs)
+
+
+def _leg_loads(mech, inertia: InertiaModel, states, p, twist, accel) -> list:
+    """The leg bodies of :func:`parasynth.measures.dynamics._equivalent` from the platform's
+    twist and acceleration (N, 6) and the legs' states (as ``_motion`` builds them)."""
+    v, w = twist[:, :3], twist[:, 3:]
+    a, al = accel[:, :3], accel[:, 3:]
+    out = []
+    for leg, st in zip(mech.legs, states):
+        li = inertia.legs.get(leg.name)
+        if li is None:
+            continue
+        r = st.platform_point - p
+        vA = v + _cross(w, r)
+        aA = a + _cross(al, r) + _cross(w, _cross(w, r))
+        out.append((leg, st, r, _leg_bodies(leg, st, vA, aA, li)))
+    return out
 
 
 def task_evaluation(mech, task: Task, constraints=None, engine: str = "compiled") -> "TaskEvaluation":
@@ -488,8 +563,29 @@ class TaskEvaluation:
             if task.wrench is not None and task.wrench.ndim == 2:  # per pose: those of the feasible poses
                 task = task._copy(wrench=task.wrench[self.feasible])
             ws = _wrench_system(self.mech, Y, self.engine)
-            return _worst(static_task_forces(self.mech, Y, _load_columns(task, self.mech, Y, ws.R), ws=ws))
+            loads = _load_columns(task, self.mech, Y, ws.R)
+            if task.leg_density > 0:  # the legs' weight, at rest
+                inertia = self.inertia
+                z = np.zeros((len(Y), 6))
+                legs = _leg_loads(self.mech, inertia, ws.states, ws.p, z, z)
+                g = task.gravity_vector()
+                loads = loads.copy()
+                loads[:, 0] += _equivalent(self.mech, Y, ws.reachable, ws.p, ws.R, z, z, legs,
+                                           InertiaModel(PlatformInertia(), inertia.legs), g, None)
+            return _worst(static_task_forces(self.mech, Y, loads, ws=ws))
         return self._get("static", f)
+
+    @property
+    def inertia(self) -> InertiaModel:
+        """The payload and the legs' rods (:func:`leg_inertia`; massless legs by default)."""
+        def f():
+            lengths = None
+            if self.task.leg_density > 0 and any(type(leg) in (SPS, UPS) for leg in self.mech.legs):
+                Y = self.Xf if len(self.Xf) else self.mech.home[None, :]
+                _, states, _ = self.mech.leg_states(Y)
+                lengths = {leg.name: float(np.nanmax(st.length)) for leg, st in zip(self.mech.legs, states)}
+            return leg_inertia(self.mech, self.task, lengths)
+        return self._get("inertia", f)
 
     @property
     def path(self):
@@ -521,10 +617,11 @@ class TaskEvaluation:
             if not len(X):
                 return F_out, q_out
             pl = task.payload
-            inertia = InertiaModel(PlatformInertia(pl.mass, pl.com, pl.tensor))
-            if pa.twist is not None:  # the platform's motion from the path; massless legs
+            inertia = self.inertia
+            if pa.twist is not None:  # the platform's motion from the path
                 ws = _wrench_system(mech, X, self.engine)
-                Xa, okr, p, R, t, acc, legs = X, ws.reachable, ws.p, ws.R, pa.twist[ok], pa.accel[ok], []
+                Xa, okr, p, R, t, acc = X, ws.reachable, ws.p, ws.R, pa.twist[ok], pa.accel[ok]
+                legs = _leg_loads(mech, inertia, ws.states, p, t, acc) if inertia.legs else []
             else:
                 Xa, _, okr, ws, p, R, t, acc, legs = _motion(mech, X, pa.Xd[ok], pa.Xdd[ok], inertia)
             if legs:

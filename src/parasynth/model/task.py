@@ -66,8 +66,8 @@ from functools import cached_property
 
 import numpy as np
 
-from .spatial import EULER_CONVENTIONS, euler_to_matrix, rot_x, rot_z
-from .trajectory import MotionLimits, PathSamples, sample_path
+from .spatial import EULER_CONVENTIONS, euler_rate_map, euler_to_matrix, rot_x, rot_z
+from .trajectory import LIMIT_MODES, TIMINGS, MotionLimits, PathSamples, sample_path
 from ..common.units import UNIT_KINDS, QuantityError, _ureg, format_quantity, parse_quantity
 
 __all__ = ["Task", "TaskError", "Payload", "Placement", "Tool", "Space", "TrajectorySpec", "STANDARD_NAMES", "G0",
@@ -325,13 +325,18 @@ class Space:
 class TrajectorySpec:
     """The path through the required poses: a jerk-limited point-to-point profile
     (``limits``, sampled every ``dt`` seconds) or timed samples (``times`` (K,) s and
-    ``values`` (K, k) in the task's pose coordinates)."""
+    ``values`` (K, k) in the task's pose coordinates). ``waypoints`` (W, k) with their
+    ``waypoint_coordinates``: the poses the profiled path runs through, in order, instead of
+    the required poses (e.g. a path that returns to poses it has visited; NaN leaves a
+    coordinate at home, as in the poses)."""
 
     limits: MotionLimits | None = None
     dt: float = 0.01
     times: np.ndarray | None = field(default=None, compare=False)
     values: np.ndarray | None = field(default=None, compare=False)
     coordinates: tuple = ()
+    waypoints: np.ndarray | None = field(default=None, compare=False)
+    waypoint_coordinates: tuple = ()
 
     def __post_init__(self):
         if self.limits is None and self.times is None:
@@ -339,26 +344,51 @@ class TrajectorySpec:
         if self.limits is not None:
             object.__setattr__(self, "dt", _num("trajectory.dt", self.dt, "a time step > 0 (s)", low=0.0,
                                                 strict=True))
+        key = None
+        if self.waypoints is not None:
+            if self.limits is None:
+                raise TaskError("trajectory.waypoints: a file of timed poses takes no waypoints")
+            W = np.array(self.waypoints, dtype=float)
+            if W.ndim != 2 or len(W) < 2 or (self.waypoint_coordinates and W.shape[1] != len(self.waypoint_coordinates)) \
+                    or np.any(np.isinf(W)):
+                raise TaskError("trajectory.waypoints: give at least 2 poses, one finite value per named coordinate")
+            W.setflags(write=False)
+            object.__setattr__(self, "waypoints", W)
+            object.__setattr__(self, "waypoint_coordinates", tuple(self.waypoint_coordinates))
+            key = (self.waypoint_coordinates, W.tobytes())
+        #: What identifies the waypoints in a cache key (None: the path runs through the poses).
+        object.__setattr__(self, "_waypoints_key", key)
         if self.times is not None:
             t = np.asarray(self.times, dtype=float)
             if t.ndim != 1 or len(t) < 3 or not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0):
                 raise TaskError("trajectory.file: the time column must hold at least 3 increasing finite times (s)")
 
 
-def _as_trajectory(where, v):
+def _as_trajectory(where, v, coordinates=None):
     if v is None or isinstance(v, TrajectorySpec):
         return v
     if isinstance(v, Mapping):
-        keys = {"speed", "acceleration", "angular_speed", "angular_acceleration", "jerk_time"}
-        unknown = sorted(set(v) - keys - {"dt"})
+        keys = {"speed", "acceleration", "angular_speed", "angular_acceleration", "jerk_time", "limits", "timing",
+                "step"}
+        unknown = sorted(set(v) - keys - {"dt", "waypoints"})
         if unknown:
-            raise TaskError(f"{where}.{unknown[0]}: unknown key; allowed: {', '.join(sorted(keys | {'dt'}))}")
+            raise TaskError(f"{where}.{unknown[0]}: unknown key; allowed: "
+                            f"{', '.join(sorted(keys | {'dt', 'waypoints'}))}")
+        kw = {k: v[k] for k in keys if k in v}
+        if kw.get("timing") == "sampled":  # phases rounded to the sample step unless another is given
+            kw.setdefault("step", v.get("dt", 0.01))
         try:
-            lim = MotionLimits(**{k: v[k] for k in keys if k in v})
+            lim = MotionLimits(**kw)
         except TypeError as e:
             raise TaskError(f"{where}: give speed and acceleration (SI) ({e})") from None
         except ValueError as e:
             raise TaskError(f"{where}.{e}") from None
+        if v.get("waypoints") is not None:  # columns as the poses'
+            try:
+                W = np.array(v["waypoints"], dtype=float)
+            except (TypeError, ValueError):
+                raise TaskError(f"{where}.waypoints: give an (M, k) array of poses like the poses") from None
+            return TrajectorySpec(lim, v.get("dt", 0.01), waypoints=W, waypoint_coordinates=tuple(coordinates or ()))
         return TrajectorySpec(lim, v.get("dt", 0.01))
     raise TaskError(f"{where}: give a mapping of motion limits or a TrajectorySpec, got {v!r}")
 
@@ -382,6 +412,9 @@ class Task:
     ``dt``. ``space``: a :class:`Space` or a mapping. ``floors``: {"condition": {"max": 500},
     "singularity_margin": {"min": 0.05}, "lti": {"min": 0.5}} that hold at every pose and path
     sample. ``order``: "given" or "nearest" (greedy nearest neighbour from the first pose).
+    ``leg_density`` (kg/m^3, default 0: massless legs): the legs' own masses in the inverse
+    dynamics and the static forces, every leg a solid rod of the leg diameter
+    (:func:`parasynth.measures.task.leg_inertia`).
     ``pose_tolerance``: the largest residual (fraction of the length scale) of a platform pose
     the mechanism reaches only in the least-squares sense (default 1e-6; a mechanism whose
     orientation is coupled to its position, e.g. the 5-PUS/UPU, reaches a placed pose only
@@ -392,7 +425,7 @@ class Task:
                  payload=None, placement=None, convention: str = "xyz", frame: str | None = None,
                  wrench_frame: str = "task", wrench_signs: bool = False, gravity: float = G0, trajectory=None,
                  space=None, floors=None, order: str = "given", leg_diameter: float | None = None,
-                 coordinate_kinds=None, where: str = "task", pose_tolerance: float = 1e-6):
+                 coordinate_kinds=None, where: str = "task", pose_tolerance: float = 1e-6, leg_density: float = 0.0):
         if poses is None:
             raise TaskError("task.poses: give the required poses (an (N, k) array)")
         try:
@@ -477,7 +510,11 @@ class Task:
             self.gravity = np.array(_vec("task.loads.gravity", gravity, 3, "m/s^2"))
         else:
             self.gravity = _num("task.loads.gravity", gravity, "a gravity >= 0 (m/s^2) or a vector in W", low=0.0)
-        self.trajectory = _as_trajectory("task.trajectory", trajectory)
+        self.trajectory = _as_trajectory("task.trajectory", trajectory, coordinates)
+        tr = self.trajectory
+        if tr is not None and tr.waypoints is not None and tr.waypoints.shape[1] != P.shape[1] \
+                and not tr.waypoint_coordinates:
+            raise TaskError(f"task.trajectory.waypoints: {tr.waypoints.shape[1]} columns; the poses have {P.shape[1]}")
         if space is None or isinstance(space, Space):
             self.space = space
         elif isinstance(space, Mapping):
@@ -501,6 +538,8 @@ class Task:
                 self.wrench.setflags(write=False)
         self.leg_diameter = None if leg_diameter is None else _num("task.space.leg_diameter", leg_diameter,
                                                                    "a diameter >= 0 (m)", low=0.0)
+        #: Density (kg/m^3) of the legs as solid rods in the inverse dynamics; 0: massless legs.
+        self.leg_density = _num("task.loads.leg_density", leg_density, "a density >= 0 (kg/m^3)", low=0.0)
         #: Mechanism-independent work (the poses in ``W``, the path's samples in ``W``), shared
         #: by the task's copies (:meth:`with_settings` of a study's designs): see :meth:`_shared`.
         self._cache = {}
@@ -669,13 +708,27 @@ class Task:
         cache[key] = (self.poses, val)
         return val
 
-    def _own_coordinates(self, mech) -> np.ndarray:
-        X = np.tile(mech.home, (self.n_poses, 1))
-        names = self.coordinates or mech.task_coordinates
+    def _own_coordinates(self, mech, P=None, names=None) -> np.ndarray:
+        """The mechanism's coordinates of the poses (or of ``P`` with columns ``names``)."""
+        if P is None:
+            P, names = self.poses, self.coordinates
+        X = np.tile(mech.home, (len(P), 1))
+        names = names or mech.task_coordinates
         for j, c in enumerate(names):
+            if c not in mech.task_coordinates:
+                raise TaskError(f"{self.where}.trajectory.waypoints.{c}: {mech.name} has no freedom {c!r} (it has "
+                                f"{', '.join(mech.task_coordinates)})")
             k = mech.task_coordinates.index(c)
-            X[:, k] = np.where(np.isnan(self.poses[:, j]), X[:, k], self.poses[:, j])
+            X[:, k] = np.where(np.isnan(P[:, j]), X[:, k], P[:, j])
         return X
+
+    def _path_poses(self):
+        """(poses, their coordinate names) the profiled path runs through: the trajectory's
+        waypoints, else the required poses."""
+        tr = self.trajectory
+        if tr is not None and tr.waypoints is not None:
+            return tr.waypoints, tr.waypoint_coordinates
+        return self.poses, self.coordinates
 
     def _home_standard(self, mech) -> np.ndarray:
         """The home pose of the task's frame in ``W`` as x, y, z, alpha, beta, gamma."""
@@ -902,10 +955,12 @@ class Task:
             return self._timed_path(mech, mode)
         if mode == "full":
             return self._full_path(mech)
-        X = self._own_coordinates(mech)
+        X = self._own_coordinates(mech, *self._path_poses())
         lin = np.array([c not in mech.angular_coordinates for c in mech.task_coordinates])
         dX = np.diff(X, axis=0)
-        ps = sample_path(np.linalg.norm(dX[:, lin], axis=1), np.linalg.norm(dX[:, ~lin], axis=1), tr.limits, tr.dt)
+        size = (lambda d: np.abs(d).max(axis=1, initial=0.0)) if tr.limits.limits == "per_coordinate" else \
+            (lambda d: np.linalg.norm(d, axis=1))
+        ps = sample_path(size(dX[:, lin]), size(dX[:, ~lin]), tr.limits, tr.dt)
         seg, s = ps.segment, ps.s
         dX = X[seg + 1] - X[seg]
         own = self._as_platform()
@@ -924,14 +979,19 @@ class Task:
         coordinates not named), cached on the task."""
         home = None if self._all_named() else tuple(np.round(self._home_standard(mech), 12))
         tr = self.trajectory
-        key = ("path", home, self.convention, self.coordinates, tr.limits, tr.dt)
+        key = ("path", home, self.convention, self.coordinates, tr.limits, tr.dt, tr._waypoints_key)
         return self._shared(key, lambda: self._sample_full(mech))
 
     def _sample_full(self, mech):
-        pW, RW = self._frame_pose_W(mech, "full")
+        """(samples, poses in W at s and s +- _H, and the frame's velocity, angular velocity,
+        acceleration and angular acceleration in W at every sample)."""
+        lim = self.trajectory.limits
+        if lim.limits == "per_coordinate":
+            return self._sample_full_coordinates(mech)
+        pW, RW = self._path_pose_W(mech)
         dist = np.linalg.norm(np.diff(pW, axis=0), axis=1)
         rv_all = rotation_log(np.swapaxes(RW[:-1], 1, 2) @ RW[1:])
-        ps = sample_path(dist, np.linalg.norm(rv_all, axis=1), self.trajectory.limits, self.trajectory.dt)
+        ps = sample_path(dist, np.linalg.norm(rv_all, axis=1), lim, self.trajectory.dt)
         seg, s = ps.segment, ps.s
         dp, rv, Ra = pW[seg + 1] - pW[seg], rv_all[seg], RW[seg]
         at = {k: (pW[seg] + sv[:, None] * dp, Ra @ rotation_exp(sv[:, None] * rv))
@@ -939,10 +999,63 @@ class Task:
         axis = np.einsum("njk,nk->nj", Ra, rv)  # rotation axis times angle, in W
         for v in at.values():
             _read_only(v)
-        return ps, at, _read_only(dp), _read_only(axis)
+        sd, sdd = ps.sd[:, None], ps.sdd[:, None]
+        return ps, at, _read_only((dp * sd, axis * sd, dp * sdd, axis * sdd))
+
+    def _sample_full_coordinates(self, mech):
+        """:meth:`_sample_full` with the limits on each coordinate: every coordinate (x, y, z
+        and the convention's three angles, read in W) moves on a straight line between two
+        poses (an angle by its change wrapped to (-pi, pi]), all on the progress of the
+        coordinate that needs the longest time."""
+        pW, RW = self._path_pose_W(mech)
+        P, names = self._path_poses()
+        if names and all(a in names for a in _ANGLES) and not np.isnan(P).any():
+            # the angles as given (the same rotations, on the given branch)
+            E = np.stack([P[:, names.index(a)] for a in _ANGLES], axis=1)
+        else:
+            E = matrix_to_euler(self.convention, RW)
+        dp_all = np.diff(pW, axis=0)
+        dE_all = np.diff(E, axis=0)
+        dE_all = (dE_all + np.pi) % (2 * np.pi) - np.pi
+        dE_all = np.where(np.isclose(dE_all, -np.pi), np.pi, dE_all)
+        ps = sample_path(np.abs(dp_all).max(axis=1) if len(dp_all) else np.zeros(0),
+                         np.abs(dE_all).max(axis=1) if len(dE_all) else np.zeros(0),
+                         self.trajectory.limits, self.trajectory.dt)
+        seg, s = ps.segment, ps.s
+        dp, dE = dp_all[seg], dE_all[seg]
+        at = {}
+        for k, sv in (("0", s), ("+", s + _H), ("-", s - _H)):
+            at[k] = _read_only((pW[seg] + sv[:, None] * dp, euler_to_matrix(self.convention, E[seg] + sv[:, None] * dE)))
+        sd, sdd = ps.sd[:, None], ps.sdd[:, None]
+        Ed, Edd = dE * sd, dE * sdd
+        # omega = sum_i q_i' u_i (u_i: the i-th axis of the sequence, turned by the angles before
+        # it); alpha = sum_i q_i'' u_i + sum_i q_i' (omega_<i x u_i)
+        U = euler_rate_map(self.convention, E[seg] + s[:, None] * dE)
+        w = np.einsum("nij,nj->ni", U, Ed)
+        al = np.einsum("nij,nj->ni", U, Edd)
+        w_before = np.zeros_like(w)
+        for i in range(3):
+            ui = U[:, :, i]
+            al += Ed[:, i:i + 1] * _cross(w_before, ui)
+            w_before = w_before + Ed[:, i:i + 1] * ui
+        return ps, at, _read_only((dp * sd, w, dp * sdd, al))
+
+    def _path_pose_W(self, mech):
+        """Poses (p, R) in ``W`` of the task's frame at the poses the path runs through."""
+        tr = self.trajectory
+        if tr.waypoints is None:
+            return self._frame_pose_W(mech, "full")
+        names = tr.waypoint_coordinates
+        bad = [c for c in names if c not in STANDARD_NAMES]
+        if bad:
+            raise TaskError(f"{self.where}.trajectory.waypoints.{bad[0]}: not a pose coordinate of a 6-freedom "
+                            f"mechanism; allowed: {', '.join(STANDARD_NAMES)}")
+        sub = self._copy(poses=tr.waypoints, coordinates=names, _cache={})
+        home = None if sub._all_named() else self._home_standard(mech)
+        return sub._standard_pose_W(home)
 
     def _full_path(self, mech):
-        ps, at, dp, axis = self._full_samples(mech)
+        ps, at, (vW, wW, aW, alW) = self._full_samples(mech)
         where = f"{self.where}.trajectory"
         std = standard_parametrisation(mech)
         if std is not None:  # closed form: the coordinates of the samples' platform poses
@@ -961,8 +1074,7 @@ class Task:
             Rb = self.frame_to_platform(*at["0"])[1] if self.frame == "tool" else None
         # the platform's twist and acceleration in B, exactly
         Rw = self.placement.R
-        w, al = (axis @ Rw.T) * ps.sd[:, None], (axis @ Rw.T) * ps.sdd[:, None]
-        v, a = (dp @ Rw.T) * ps.sd[:, None], (dp @ Rw.T) * ps.sdd[:, None]
+        w, al, v, a = wW @ Rw.T, alW @ Rw.T, vW @ Rw.T, aW @ Rw.T
         if self.frame == "tool":  # from the tool point to the platform point
             d = -Rb @ np.array(self.tool.offset)
             v = v + _cross(w, d)
@@ -1249,7 +1361,8 @@ _KIND_DIM = {"speed": ("[length] / [time]", "m/s", "m/s"), "acceleration": ("[le
              "angular_speed": ("1 / [time]", "rad/s", "deg/s"), "angular_acceleration": ("1 / [time] ** 2", "rad/s^2",
                                                                                           "deg/s^2"),
              "inertia": ("[mass] * [length] ** 2", "kg*m^2", "kg*m^2"), "gravity": ("[length] / [time] ** 2", "m/s^2",
-                                                                                     "m/s^2")}
+                                                                                     "m/s^2"),
+             "density": ("[mass] / [length] ** 3", "kg/m^3", "kg/m^3")}
 
 
 class _Reader:
@@ -1533,8 +1646,13 @@ class _Reader:
     def loads(self, m, path, n_poses):
         if m is None:
             return {}
-        self.keys(m, {"payload", "wrench", "signs", "frame", "gravity"}, path)
+        self.keys(m, {"payload", "wrench", "signs", "frame", "gravity", "leg_density"}, path)
         out = {}
+        if "leg_density" in m:
+            rho = self.q(m["leg_density"], "density", f"{path}.leg_density")
+            if rho < 0:
+                raise TaskError(f"{path}.leg_density: must be >= 0, got {m['leg_density']!r}")
+            out["leg_density"] = rho
         if "payload" in m:
             pl = m["payload"]
             self.keys(pl, {"mass", "com", "inertia"}, f"{path}.payload")
@@ -1644,8 +1762,8 @@ class _Reader:
     def trajectory(self, m, path):
         if m is None:
             return None
-        self.keys(m, {"speed", "acceleration", "angular_speed", "angular_acceleration", "jerk_time", "dt", "file"},
-                  path)
+        self.keys(m, {"speed", "acceleration", "angular_speed", "angular_acceleration", "jerk_time", "dt", "file",
+                      "limits", "timing", "waypoints"}, path)
         if "file" in m:
             if set(m) != {"file"}:
                 raise TaskError(f"{path}: a file of timed poses takes no motion limits")
@@ -1675,4 +1793,23 @@ class _Reader:
         dt = self.q(m["dt"], "time", f"{path}.dt") if "dt" in m else 0.01
         if not dt > 0:
             raise TaskError(f"{path}.dt: must be positive, got {m.get('dt')!r}")
-        return TrajectorySpec(MotionLimits(**kw), dt)
+        for k, allowed in (("limits", LIMIT_MODES), ("timing", TIMINGS)):
+            if k in m:
+                if m[k] not in allowed:
+                    raise TaskError(f"{path}.{k}: must be one of {', '.join(allowed)}, got {m[k]!r}")
+                kw[k] = m[k]
+        if kw.get("timing") == "sampled":
+            kw["step"] = dt
+        try:
+            lim = MotionLimits(**kw)
+        except ValueError as e:
+            raise TaskError(f"{path}.{e}") from None
+        if "waypoints" in m:
+            wp = m["waypoints"]
+            if isinstance(wp, Mapping) and "order" in wp:
+                raise TaskError(f"{path}.waypoints.order: the path runs through its waypoints in the given order")
+            names, P, _ = self.poses(wp, f"{path}.waypoints")
+            if len(P) < 2:
+                raise TaskError(f"{path}.waypoints: give at least 2 poses")
+            return TrajectorySpec(lim, dt, waypoints=P, waypoint_coordinates=tuple(names))
+        return TrajectorySpec(lim, dt)

@@ -10,10 +10,13 @@ name the study gives it, and the warnings of :mod:`parasynth.report.checks`.
 
 from __future__ import annotations
 
+import functools
 from pathlib import Path
 
 import pandas as pd
 
+from ..mechanisms import load_mechanism
+from ..measures.task import ASSEMBLY_MODE_SKIPPED, assembly_mode_checked
 from ..measures.display import fmt_mean_se, fmt_number, fmt_quantity, quantity_unit, reference_name, text_table
 from ..study.rundir import SINGULARITY_FLOOR, Run, best_designs, design_key, estimate_of, read_final
 from .checks import design_roles
@@ -180,9 +183,25 @@ def verification_text(study, fr) -> str:
         parts.append(f"singularity margin at home {fmt_number(float(hm), 3)} >= "
                      f"{fmt_number(ev.get('singularity_floor', SINGULARITY_FLOOR))}")
     if getattr(study, "task", None) is not None:
+        mode = "no change of assembly mode" if _assembly_mode_checked(study) else ASSEMBLY_MODE_SKIPPED
         parts.append(f"the task re-checked densely ({study.task.refinement()}: "
-                     "margin above the floor, no singularity crossed, no change of assembly mode)")
+                     f"margin above the floor, no singularity crossed, {mode})")
     return "verified: " + ", ".join(parts)
+
+
+def _assembly_mode_checked(study) -> bool:
+    """Whether the dense re-check checks the assembly mode on the study's mechanism
+    (:func:`parasynth.measures.task.assembly_mode_checked`: the counts of actuators and
+    freedoms, the same for every design of the mechanism)."""
+    try:
+        return assembly_mode_checked(_counts_mechanism(study.mechanism))
+    except Exception:  # a structure study or a description that needs its design's values
+        return True
+
+
+@functools.lru_cache(maxsize=16)
+def _counts_mechanism(name):
+    return load_mechanism(name)
 
 
 def run_summary(study, res) -> str:
