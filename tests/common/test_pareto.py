@@ -9,7 +9,7 @@ import parasynth.report as report_pkg
 import parasynth.report.pareto as report_pareto
 import parasynth.study.final as final_mod
 from _support import brute_crowding, brute_force_front, brute_spread
-from parasynth.common.pareto import (crowding_distance, dominates, dominators_of, hypervolume, knee_index,
+from parasynth.common.pareto import (crowding_distance, default_reference_point, inliers, view_range, dominates, dominators_of, hypervolume, knee_index,
                                      non_dominated_ranks, pareto_mask, reference_standing, spread_by_crowding)
 
 
@@ -173,3 +173,19 @@ def test_public_names_are_the_one_definition():
         assert getattr(report_pkg, name) is getattr(report_pareto, name)
     assert report_pkg.hypervolume is hypervolume and report_pareto.dominates is dominates
     assert final_mod.crowding_distance is crowding_distance and final_mod.spread_by_crowding is spread_by_crowding
+
+
+def test_far_outliers_leave_the_reference_point_and_the_view():
+    """Tukey's far fences by hand: 1..10 (kN) and one design near a singularity at 3.8e8. The
+    quartiles (linear) are 3.5 and 8.5, the fences -11.5 and 23.5: the outlier is left out of
+    the nadir of the reference point and of a view range, a front point beyond stays in."""
+    v = [float(k) for k in range(1, 11)] + [3.8e8]
+    assert sorted(inliers(v)) == [float(k) for k in range(1, 11)]
+    assert list(inliers(v, fence=None)) == v
+    assert list(inliers([1.0, 2.0, 1e9])) == [1.0, 2.0, 1e9]  # fewer than four: nothing to fence
+    F = np.column_stack([v, [2.0 * x for x in v]])
+    np.testing.assert_allclose(default_reference_point(F, fence=3.0), [10 + 0.1 * 9, 20 + 0.1 * 18])
+    np.testing.assert_allclose(default_reference_point(F), [3.8e8 + 0.1 * (3.8e8 - 1), 7.6e8 + 0.1 * (7.6e8 - 2)])
+    assert view_range(v, [], pad=0.0) == [1.0, 10.0]
+    assert view_range(v, [30.0], pad=0.1) == pytest.approx([1.0 - 2.9, 30.0 + 2.9])
+    assert view_range([np.nan], [np.inf]) is None

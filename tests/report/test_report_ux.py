@@ -415,10 +415,24 @@ def test_objective_plot_spans_the_feasible_designs_and_the_front_not_far_infeasi
     feasible = [[1.0, 2.0, 3.0], [10.0, 20.0, float("nan")]]
     front = [[1.5], [40.0]]
     marks = [[[0.5], [15.0]]]
-    r = _ranges(2, [feasible, front] + marks)
+    r = _ranges(2, feasible, [front] + marks)
     assert r[0] == pytest.approx([0.5 - 0.08 * 2.5, 3.0 + 0.08 * 2.5])
     assert r[1] == pytest.approx([10.0 - 0.08 * 30, 40.0 + 0.08 * 30])
-    assert _ranges(1, [[[]], [[float("inf")]]]) == [None]
+    assert _ranges(1, [[]], [[[float("inf")]]]) == [None]
+
+
+def test_objective_plot_leaves_far_feasible_outliers_out_of_its_initial_range():
+    """Feasible designs far beyond Tukey's far fences (3 interquartile ranges outside the
+    quartiles; here quartiles 3.5 and 8.5 kN, fences -11.5 and 23.5 kN) do not set the
+    scale, a front point beyond them does."""
+    from parasynth.report.interactive import _ranges
+
+    forces = [1e3 * k for k in range(1, 11)] + [3.8e8]  # 1..10 kN and one design near a singularity
+    q1, q3 = 3.5e3, 8.5e3  # numpy's linear percentiles of the eleven values
+    assert _ranges(1, [forces], [[[2.9e3]]])[0] == pytest.approx([1e3 - 0.08 * 9e3, 1e4 + 0.08 * 9e3])
+    assert q3 + 3 * (q3 - q1) < 3.8e8
+    r = _ranges(1, [forces], [[[5e4]]])  # a front point outside the fences stays in view
+    assert r[0] == pytest.approx([1e3 - 0.08 * 4.9e4, 5e4 + 0.08 * 4.9e4])
 
 
 def test_design_values_leave_out_the_dimensions_a_structure_does_not_use():

@@ -27,7 +27,7 @@ import moocore
 import numpy as np
 
 __all__ = ["to_min", "dominates", "dominators_of", "non_dominated_ranks", "pareto_mask", "hypervolume",
-           "default_reference_point", "knee_index", "knee_order", "crowding_distance", "spread_by_crowding", "ReferenceStanding",
+           "FAR_FENCE", "inliers", "view_range", "default_reference_point", "knee_index", "knee_order", "crowding_distance", "spread_by_crowding", "ReferenceStanding",
            "reference_standing", "NoisyComparison", "compare_with_noise"]
 
 
@@ -103,11 +103,45 @@ def non_dominated_ranks(Fmin, violation=None) -> np.ndarray:
 
 
 # -- hypervolume -----------------------------------------------------------------------------------
-def default_reference_point(Fmin, margin: float = 0.1) -> np.ndarray:
+#: Tukey's far fences: values more than this many interquartile ranges outside the quartiles are
+#: far outliers (designs near a singularity reach forces of giganewtons; an axis or a reference
+#: point spanning them says nothing about the designs that matter).
+FAR_FENCE = 3.0
+
+
+def inliers(values, fence: float | None = FAR_FENCE) -> np.ndarray:
+    """The finite ``values`` inside Tukey's fences ``fence`` interquartile ranges outside the
+    quartiles (all finite values with fewer than four of them, or with ``fence`` None)."""
+    v = np.asarray(values, dtype=float).ravel()
+    v = v[np.isfinite(v)]
+    if fence is None or len(v) < 4:
+        return v
+    q1, q3 = np.percentile(v, [25, 75])
+    return v[(v >= q1 - fence * (q3 - q1)) & (v <= q3 + fence * (q3 - q1))]
+
+
+def view_range(background, keep=(), pad: float = 0.08, fence: float | None = FAR_FENCE):
+    """An axis's range for a plot: the span of the ``background`` values without their far
+    outliers (:func:`inliers`) and of every finite value of ``keep`` (the front, marked designs),
+    padded by ``pad`` of it; None where nothing is finite."""
+    kept = np.asarray(keep, dtype=float).ravel()
+    vals = np.concatenate([inliers(background, fence), kept[np.isfinite(kept)]])
+    if not len(vals):
+        return None
+    lo, hi = float(vals.min()), float(vals.max())
+    w = hi - lo if hi > lo else max(abs(hi), 1.0)
+    return [lo - pad * w, hi + pad * w]
+
+
+def default_reference_point(Fmin, margin: float = 0.1, fence: float | None = None) -> np.ndarray:
     """Nadir of the given (minimisation) points plus ``margin`` of their range per objective
-    (a unit margin where the range is zero)."""
+    (a unit margin where the range is zero). With ``fence``, the nadir and the range of each
+    objective leave out its far outliers (:func:`inliers`): a point beyond the reference point
+    then adds nothing to a hypervolume."""
     F = np.asarray(Fmin, dtype=float)
-    lo, hi = F.min(axis=0), F.max(axis=0)
+    cols = [inliers(F[:, j], fence) for j in range(F.shape[1])] if fence is not None else None
+    lo = np.array([c.min() for c in cols]) if cols else F.min(axis=0)
+    hi = np.array([c.max() for c in cols]) if cols else F.max(axis=0)
     span = np.where(hi > lo, hi - lo, np.maximum(np.abs(hi), 1.0))
     return hi + margin * span
 

@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from ..common.pareto import (NoisyComparison, ReferenceStanding, compare_with_noise, default_reference_point, hypervolume,
+from ..common.pareto import (FAR_FENCE, NoisyComparison, ReferenceStanding, compare_with_noise, default_reference_point, hypervolume,
                              reference_standing, to_min)
 from ..study.rundir import (Run, design_key, knee_of, pareto_front, recommendation_order, screening_dominators,
                             sorted_front)
@@ -139,7 +139,7 @@ def analyse(run: Run, noise_z: float = NOISE_Z) -> Analysis:
     if len(front) and len(objs) > 1:
         Fm = to_min(front[labels].to_numpy(float), senses)
         Ffeas = to_min(F[feas], senses)
-        refpt = default_reference_point(Ffeas)
+        refpt = default_reference_point(Ffeas, fence=FAR_FENCE)
         a.hv_ref = refpt
         a.hv = hypervolume(Fm, refpt)
         box = float(np.prod(refpt - Ffeas.min(axis=0)))

@@ -11,7 +11,7 @@ import pandas as pd
 
 from ..measures.display import UNITS, Unit, fmt_number, fmt_value, reference_name, reference_short
 from ..measures.objectives import USABLE_MEASURES, usable_workspace_of, workspace_of
-from ..common.pareto import default_reference_point, hypervolume, to_min
+from ..common.pareto import FAR_FENCE, default_reference_point, hypervolume, to_min, view_range
 from ..study.rundir import Run, design_mechanism, measure_settings
 
 #: Lengths in the sketches: the display unit of lengths (the tables' unit).
@@ -100,6 +100,7 @@ def plot_pareto(figs, study, run_df, front, ref_row, knee_row):
     pairs = [(i, j) for i in range(len(objs)) for j in range(i + 1, len(objs))]
     fig, axes = _grid(len(pairs), width=5.2 if len(pairs) == 1 else 4.6, height=3.8)
     ok = run_df["status"] == "ok"
+    outside = 0
     for ax, (i, j) in zip(axes, pairs):
         a, b = objs[i].label, objs[j].label
         la, fa = _label(study, a)
@@ -125,13 +126,27 @@ def plot_pareto(figs, study, run_df, front, ref_row, knee_row):
                        label=reference_short(study), zorder=6)
         ax.set_xlabel(f"{la} ({objs[i].goal})", fontsize=9)
         ax.set_ylabel(f"{lb} ({objs[j].goal})", fontsize=9)
+        # The axes span the feasible designs without their far outliers, the front and the marked
+        # designs (as the interactive plot's): a few designs near a singularity would squash the rest.
+        marked = [r for r in (knee_row, ref_row) if r is not None]
+        for col, f, setlim in ((a, fa, ax.set_xlim), (b, fb, ax.set_ylim)):
+            keep = np.concatenate([np.asarray(f(fr[col]), float)] + [np.atleast_1d(np.asarray(f(r[col]), float)) for r in marked])
+            rng = view_range(np.asarray(f(fea[col]), float), keep)
+            if rng is not None:
+                setlim(*rng)
+        xs, ys = (np.asarray(fa(run_df.loc[ok, a]), float), np.asarray(fb(run_df.loc[ok, b]), float))
+        x0, x1 = ax.get_xlim()
+        y0, y1 = ax.get_ylim()
+        outside += int(np.sum(np.isfinite(xs) & np.isfinite(ys) & ((xs < x0) | (xs > x1) | (ys < y0) | (ys > y1))))
         ax.grid(alpha=0.3)
         _tidy(ax)
     handles, names = axes[0].get_legend_handles_labels()
     fig.legend(handles, names, loc="outside lower center", ncols=3 if len(pairs) == 1 else 5, fontsize=8)
     fig.suptitle(f"Pareto front: {study.name}")
+    cut = (f" The axes span the feasible designs, the front and the marked designs; {outside} designs lie "
+           "beyond them (far outliers, or infeasible)." if outside else "")
     figs.add(fig, "pareto", "Objective space: every evaluated design, the non-dominated feasible set, the "
-             f"recommended design and {reference_name(study)}.")
+             f"recommended design and {reference_name(study)}.{cut}")
 
 
 def plot_parallel(figs, study, run_df, front):
@@ -142,13 +157,19 @@ def plot_parallel(figs, study, run_df, front):
 
     d = run_df[run_df["status"] == "ok"][cols + ["feasible"]].copy()
     d[cols] = d[cols].astype(float)
-    lo, hi = d[cols].min(), d[cols].max()
-    Z = (d[cols] - lo) / (hi - lo).replace(0, 1)
-    fig, ax = _subplots(figsize=(max(6.0, 2.2 * len(cols)), 4.4))
-    x = np.arange(len(cols))
     on_front = set(front["trial"]) if "trial" in front else set()
     trials = run_df.loc[d.index, "trial"] if "trial" in run_df else pd.Series(-1, index=d.index)
     on = trials.isin(on_front).to_numpy()
+    # A design variable's axis spans its designs (bounded by the design space); an objective's
+    # spans the designs without their far outliers and every front design (a design near a
+    # singularity would flatten it), lines beyond drawn at its ends.
+    objective = {o.label for o in study.objectives}
+    spans = {c: view_range(d[c].to_numpy(float), d[c].to_numpy(float)[on], pad=0.0,
+                           fence=FAR_FENCE if c in objective else None) or [0.0, 1.0] for c in cols}
+    lo, hi = pd.Series({c: spans[c][0] for c in cols}), pd.Series({c: spans[c][1] for c in cols})
+    Z = ((d[cols] - lo) / (hi - lo).replace(0, 1)).clip(-0.04, 1.04)
+    fig, ax = _subplots(figsize=(max(6.0, 2.2 * len(cols)), 4.4))
+    x = np.arange(len(cols))
     feas = d["feasible"].astype(bool).to_numpy()
     Y = Z.to_numpy(float)
     # One collection of polylines per kind of design (vectorised: one artist, not one per design).
@@ -168,7 +189,8 @@ def plot_parallel(figs, study, run_df, front):
     ax.set_xlim(-0.3, len(cols) - 0.7)
     ax.set_yticks([])
     ax.set_title("Parallel coordinates (blue: non-dominated feasible; grey: feasible; red: infeasible)", fontsize=10)
-    figs.add(fig, "parallel", "Design variables and objectives of every design, scaled to their ranges.")
+    figs.add(fig, "parallel", "Design variables and objectives of every design, scaled to their ranges (an "
+             "objective's far outliers, beyond 3 interquartile ranges outside the quartiles, drawn at its axis's ends).")
 
 
 def plot_convergence(figs, study, run_df):
@@ -191,7 +213,7 @@ def plot_convergence(figs, study, run_df):
         feas = ok.to_numpy()
         if not feas.any():
             return
-        ref = default_reference_point(Fm[feas])
+        ref = default_reference_point(Fm[feas], fence=FAR_FENCE)
         hv = []
         for k in range(1, len(d) + 1):
             m = feas[:k]

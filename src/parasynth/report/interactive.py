@@ -34,6 +34,7 @@ import pandas as pd
 from markupsafe import Markup
 from plotly.offline import get_plotlyjs_version
 
+from ..common.pareto import view_range
 from ..measures.display import UNITS, fmt_quantity, reference_name, reference_short
 from ..study.rundir import (MAX_FRONT_DESIGNS, N_CLOUD, N_POSES, Run, design_key, design_mechanism, design_values,
                             design_view, front_choice, read_view, rounded, trajectory_of, view_key)
@@ -170,26 +171,23 @@ def _pareto(study, a: Analysis, front: pd.DataFrame, front_design: dict, index: 
                       "hover": _hover(study, design_values(study, row) if role == "recommended" else dict(study.reference),
                                       {lab: row[lab] for lab in labels}, name)})
     return {"axes": axes, "background": groups, "front": fr, "marks": marks,
-            "ranges": _ranges(len(cols), [groups["feasible"], fr["coords"]] + [m["coords"] for m in marks]),
+            "ranges": _ranges(len(cols), groups["feasible"], [fr["coords"]] + [m["coords"] for m in marks]),
             "staircase": len(labels) == 2, "goals": [o.goal for o in study.objectives]}
 
 
-def _ranges(n_axes: int, coord_sets: list, pad: float = 0.08) -> list:
-    """Each axis's initial range: the span of the feasible designs, the front and the marked
-    designs, padded by ``pad`` of it (infeasible designs near a singularity reach forces of
-    giganewtons: an autoscaled axis would squash every feasible design into one corner); None
-    where there is nothing finite to span (the plot scales itself)."""
-    out = []
-    for i in range(n_axes):
-        vals = np.concatenate([np.asarray(c[i], float) for c in coord_sets if len(c) > i and len(c[i])] or [np.zeros(0)])
-        vals = vals[np.isfinite(vals)]
-        if not len(vals):
-            out.append(None)
-            continue
-        lo, hi = float(vals.min()), float(vals.max())
-        w = hi - lo if hi > lo else max(abs(hi), 1.0)
-        out.append([lo - pad * w, hi + pad * w])
-    return out
+def _ranges(n_axes: int, background: list, keep: list, pad: float = 0.08) -> list:
+    """Each axis's initial range (:func:`parasynth.common.pareto.view_range`): the span of the
+    ``background`` designs (the feasible ones) without their far outliers, and of every design
+    of ``keep`` (the front and the marked designs), padded by ``pad`` of it; None where there is
+    nothing finite to span (the plot scales itself). Designs near a singularity reach forces of
+    giganewtons, infeasible ones and, where no constraint bounds the force along a path, feasible
+    ones too: an axis spanning them would squash the front into one corner. They stay reachable
+    through the plot's autoscale."""
+    def axis(sets, i):
+        vals = [np.asarray(c[i], float) for c in sets if len(c) > i and len(c[i])]
+        return np.concatenate(vals) if vals else np.zeros(0)
+
+    return [view_range(axis([background], i), axis(keep, i), pad) for i in range(n_axes)]
 
 
 def viewer_json(data: dict) -> Markup:

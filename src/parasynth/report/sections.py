@@ -162,7 +162,8 @@ def _sections(run: Run, a: Analysis) -> list[tuple[str, str, pd.DataFrame | None
         sec.append(("Hypervolume", f"Hypervolume of the feasible non-dominated set: {fmt_number(a.hv_fraction, 3)} "
                     f"of the box between the ideal point and the reference point (normalised: 1 would be a front "
                     f"at the ideal point; {fmt_number(hv_disp)}{' ' + sym if sym else ''} in display units). "
-                    f"Reference point: the worst feasible value of each objective plus 10 % of its range: "
+                    f"Reference point: the worst feasible value of each objective plus 10 % of its range, far outliers "
+                    f"left out (beyond 3 interquartile ranges outside the quartiles): "
                     + ", ".join(refs) + ". It measures how much of the objective space the front covers; "
                     "compare it between runs of this study only.", None))
     if len(front):
