@@ -407,6 +407,22 @@ class ChainLeg(Leg):
     def actuator_kind(self) -> str:
         return _actuator_kind(self._spec)
 
+    def chain_arrays(self) -> dict:
+        """The chain as data, for a compiled solve (:mod:`parasynth.engine.chains`): ``kinds``
+        (n,) int64 per freedom (0 revolute, 1 prismatic), ``axes`` (n, 3) and ``points`` (n, 3,
+        zeros for a prismatic freedom) at home, ``home`` and ``platform`` (the anchor at home,
+        base frame; the platform anchor, platform frame), ``length`` (the scale of the solve's
+        position residual), ``actuated`` (the actuated freedom, -1 for none), ``act_home`` and
+        ``joint_of`` (n,) the joint of each freedom."""
+        n = len(self._free)
+        kinds = np.array([1 if k == "P" else 0 for k, _, _ in self._free], dtype=np.int64)
+        axes = np.array([a for _, a, _ in self._free], dtype=float).reshape(n, 3)
+        points = np.array([np.zeros(3) if c is None else c for _, _, c in self._free], dtype=float).reshape(n, 3)
+        return {"kinds": kinds, "axes": axes, "points": points, "home": np.array(self._home, float),
+                "platform": np.array(self.platform, float), "length": float(self._L),
+                "actuated": -1 if self._act is None else int(self._act), "act_home": float(self._act_home),
+                "joint_of": np.array(self._joint_of, dtype=np.int64)}
+
     # -- kinematics --------------------------------------------------------------------------
     def forward(self, q: np.ndarray):
         """The anchor frame (position (N, 3), orientation (N, 3, 3)) and the freedoms' current
