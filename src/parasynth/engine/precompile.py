@@ -60,11 +60,12 @@ _RUNNING: list = []
 #: the helper process compiling it.
 _EARLY: dict = {}
 
-#: The entry points every shipped structure study asks for (``engine.needs`` of the warm-up
-#: design of structures_1t2r, structures_2t2r and structures_3t2r: the workspace's feasibility
-#: and the singularity margin of the home floor and the margin quantile), compiled from the
-#: start of such a run by :func:`start_early` while the structures are enumerated.
-STRUCTURE_STUDY = ("feasible", "singularity_margin")
+#: The entry points the shipped structure studies ask for (``engine.needs`` of the warm-up
+#: design, the same for structures_1t2r, structures_2t2r and structures_3t2r: the workspace's
+#: feasibility, the singularity margin of the home floor and the margin quantile, the
+#: constraint rank of the structure's mobility), compiled from the start of such a run by
+#: :func:`start_early` while the structures are enumerated.
+STRUCTURE_STUDY = ("feasible", "singularity_margin", "constraint_rank")
 
 #: CPU seconds a helper process spends starting (Python, numba, parasynth).
 _START = 1.5
