@@ -16,6 +16,11 @@ kernels. Only kernels not yet in the cache are compiled; with the pose kernel in
 (an installation that compiled before) nothing of this runs and the work compiles what it
 still needs itself, as it would without this module. A helper that fails costs nothing but
 time: the work then compiles the kernel itself.
+
+Work with something else to do first (a structure study enumerates its structures, several
+seconds on one core) can start the helpers earlier, :func:`start_early` with the entry points
+it will need (:data:`STRUCTURE_STUDY`); :func:`compile_ahead` then waits for the kernels they
+compile instead of compiling them again.
 """
 
 from __future__ import annotations

@@ -38,9 +38,11 @@ between two joint centres adds their home distance, so that it reads as the limb
 
 The chain's constraint wrenches are the wrenches reciprocal to its joint twists at the solved
 configuration (an SVD), so the mobility of a structure follows from them as for the hand-written
-leg types. No compiled kernel exists for a chain limb: it declares ``compiled=False`` and every
-capability but ``stiffness`` and ``passive`` off, so the engine falls back to NumPy with its
-fallback warning and the other parts refuse it by name (:func:`parasynth.model.legs.require`).
+leg types. The engine solves chain limbs with a compiled kernel of the same solve
+(:mod:`parasynth.engine.chains`, from :meth:`ChainLeg.chain_arrays`) for feasibility and
+constraint margins; a chain limb declares ``compiled=False`` (no compiled pose-wise index kernels:
+those fall back to NumPy with the fallback warning) and every capability but ``stiffness`` and
+``passive`` off, so the other parts refuse it by name (:func:`parasynth.model.legs.require`).
 """
 
 from __future__ import annotations
