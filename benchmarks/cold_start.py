@@ -3,8 +3,9 @@
 Three fresh processes (``python -m parasynth.cli ...``), each with this benchmark's own
 temporary ``NUMBA_CACHE_DIR`` and output directories:
 
-1. **cold**: ``parasynth run STUDY --quiet`` with the cache empty (everything the run uses is
-   compiled, then the run);
+1. **cold**: ``parasynth run STUDY`` with the cache empty (everything the run uses is
+   compiled, then the run), timing the first line it writes on stderr (the compile notice:
+   on a terminal a user sees it then);
 2. **warm**: the same run again, the cache now filled;
 3. **compile**: in a fresh process on another empty cache, ``parasynth.engine.warm_up`` of one
    design of the study (what the runner does before its timed loop): every kernel the study
@@ -16,12 +17,14 @@ excepted): they must be identical. Times are wall clock; the CPU time (user + sy
 process and its children) follows each, and the load average of the machine is printed,
 since on a shared machine wall time depends on it. The last line::
 
-    cold_s=<float> warm_s=<float> compile_s=<float> validate_s=<float> identical=<bool>
+    cold_s=<float> warm_s=<float> compile_s=<float> validate_s=<float> cold_cpu_s=<float>
+    warm_cpu_s=<float> first_line_s=<float or none> identical=<bool>
 
 Usage::
 
     python benchmarks/cold_start.py                      # studies/quickstart.yaml
     python benchmarks/cold_start.py studies/quickstart.yaml --n-trials 80
+    python benchmarks/cold_start.py studies/structures_1t2r.yaml   # a structure study
 
 Not part of the test suite.
 """
@@ -34,6 +37,7 @@ import shutil
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from pathlib import Path
 
@@ -59,18 +63,38 @@ print(f"import_s={t1 - t0:.3f} warm_up_s={w.seconds:.3f} compiled={w.compiled} k
 """
 
 
-def _run(cmd, cache: str, cwd=ROOT) -> tuple[float, float, str]:
-    env = dict(os.environ, NUMBA_CACHE_DIR=cache)
+def _run(cmd, cache: str, cwd=ROOT, first: list | None = None) -> tuple[float, float, str]:
+    """Wall and CPU seconds (the process and its children) and the output of ``cmd``; with
+    ``first`` a list, the seconds until the first line on stderr are appended to it (None if
+    there was none)."""
+    env = dict(os.environ, NUMBA_CACHE_DIR=cache, PYTHONUNBUFFERED="1")
     t0 = time.perf_counter()
     r0 = os.times()
-    p = subprocess.run(cmd, cwd=cwd, env=env, capture_output=True, text=True)
+    p = subprocess.Popen(cmd, cwd=cwd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    out: list = []
+    err: list = []
+    seen: list = []
+
+    def read_err():
+        for line in p.stderr:
+            if not seen:
+                seen.append(time.perf_counter() - t0)
+            err.append(line)
+
+    reader = threading.Thread(target=read_err, daemon=True)
+    reader.start()
+    out.append(p.stdout.read())
+    p.wait()
+    reader.join()
     r1 = os.times()
     dt = time.perf_counter() - t0
     cpu = (r1.children_user - r0.children_user) + (r1.children_system - r0.children_system)
+    if first is not None:
+        first.append(seen[0] if seen else None)
     if p.returncode != 0:
-        sys.stderr.write(p.stdout + p.stderr)
+        sys.stderr.write("".join(out) + "".join(err))
         raise SystemExit(f"{' '.join(map(str, cmd))}: exit status {p.returncode}")
-    return dt, cpu, p.stdout + p.stderr
+    return dt, cpu, "".join(out) + "".join(err)
 
 
 def _identical(a: Path, b: Path) -> bool:
@@ -93,12 +117,15 @@ def main(argv=None) -> int:
     try:
         load = os.getloadavg()[0]
         cache = str(tmp / "cache")
-        cold_s, cold_cpu, out = _run(py + ["run", args.study, "--quiet", "--no-report", "--out", str(tmp / "cold")]
-                                     + extra, cache)
-        print(f"cold run: {cold_s:.1f} s wall, {cold_cpu:.1f} s CPU", file=sys.stderr)
+        first: list = []
+        cold_s, cold_cpu, out = _run(py + ["run", args.study, "--no-report", "--out", str(tmp / "cold")] + extra,
+                                     cache, first=first)
+        line = "no line on stderr" if first[0] is None else f"first line on stderr after {first[0]:.1f} s"
+        print(f"cold run: {cold_s:.1f} s wall, {cold_cpu:.1f} s CPU; {line}", file=sys.stderr)
         warm_s, warm_cpu, _ = _run(py + ["run", args.study, "--quiet", "--no-report", "--out", str(tmp / "warm")]
                                    + extra, cache)
-        print(f"warm run: {warm_s:.1f} s wall, {warm_cpu:.1f} s CPU", file=sys.stderr)
+        print(f"warm run: {warm_s:.1f} s wall, {warm_cpu:.1f} s CPU; the cold run's extra: "
+              f"{cold_s - warm_s:.1f} s wall, {cold_cpu - warm_cpu:.1f} s CPU", file=sys.stderr)
         comp_s, comp_cpu, comp_out = _run([sys.executable, "-c", COMPILE_ONLY, args.study], str(tmp / "cache2"))
         print(f"compile (fresh process, empty cache): {comp_s:.1f} s wall, {comp_cpu:.1f} s CPU; "
               f"{comp_out.strip()}", file=sys.stderr)
@@ -107,8 +134,9 @@ def main(argv=None) -> int:
         same = _identical(tmp / "cold" / "results.csv", tmp / "warm" / "results.csv")
         print(f"load average: {load:.2f} before, {os.getloadavg()[0]:.2f} after ({os.cpu_count()} cores)",
               file=sys.stderr)
+        fl = "none" if first[0] is None else f"{first[0]:.2f}"
         print(f"cold_s={cold_s:.2f} warm_s={warm_s:.2f} compile_s={comp_s:.2f} validate_s={val_s:.2f} "
-              f"identical={same}")
+              f"cold_cpu_s={cold_cpu:.2f} warm_cpu_s={warm_cpu:.2f} first_line_s={fl} identical={same}")
         return 0 if same else 1
     finally:
         if args.keep:

@@ -13,11 +13,15 @@ Per motion (3T3R, 3T2R, 2T2R, the default vocabulary):
   median of 5 evaluations (CPU time).
 
 The chain limbs (``model/chains.py``: joint strings solved numerically) against closed forms:
-``us/pose`` of the inverse kinematics of one limb, NumPy, 4096 random poses, median of 5: the
-chain ``UP*S`` against the hand-written ``UPS`` (the same limb), and the chain limbs of the
-vocabulary (RPUR, PRUR) on poses of their motion; the enumeration of 3T2R above includes them
-(the default vocabulary), their structures run on NumPy (no compiled kernel: the fallback
-warnings are counted, and any fallback of a structure of hand-written limbs is an error).
+``us/pose`` of the inverse kinematics of one limb, 4096 random poses, one thread, median of 5:
+the NumPy reference (``ChainLeg.solve``) and the compiled kernel (``engine/chains.py``) of the
+chain ``UP*S`` (the hand-written ``UPS``'s limb) and of the chain limbs of the vocabulary
+(RPUR, PRUR on poses of their motion), each against the closed-form ``UPS`` (NumPy) and the
+compiled against the NumPy chain; then the feasibility of a whole mechanism per pose, a 6-UPS
+(closed form, the fused kernels) against a 6-SPU (chain limbs: compiled inverse kinematics,
+the constraints on NumPy). The enumeration of 3T2R above includes the chain limbs (the default
+vocabulary); their pose-wise indices run on NumPy (the fallback warnings are counted, and any
+fallback of a structure of hand-written limbs is an error).
 
 Then the full 3T2R study ``studies/structures_3t2r.yaml`` (every 3T2R structure of the default
 vocabulary, 50 designs each in the screening, 200 for each survivor) is run from scratch in a
@@ -99,7 +103,11 @@ def _median_us(f, n, repeat=5) -> float:
 
 
 def chain_cost(n: int = 4096):
-    """us per pose of the inverse kinematics: numeric chain limbs against a closed form."""
+    """us per pose of the inverse kinematics: numeric chain limbs (NumPy reference and the
+    compiled kernel, engine/chains.py) against a closed form; then per pose of a mechanism's
+    feasibility, a 6-UPS on the kernels against a 6-SPU of chain limbs."""
+    from parasynth.engine import chains as compiled_chains
+
     rng = np.random.default_rng(0)
     base, plat = np.array([0.3, 0.05, 0.0]), np.array([0.12, -0.06, 0.0])
     p = np.array([0.0, 0.0, 0.4]) + rng.uniform(-0.05, 0.05, (n, 3))
@@ -107,16 +115,39 @@ def chain_cost(n: int = 4096):
     ups = UPS("L1", base=base, platform=plat)
     chain = ChainLeg("L1", base=base, platform=plat, chain="UP*S", axes=("tangent", "normal:prev", "limb"))
     Rxy = rot_x(rng.uniform(-0.2, 0.2, n)) @ rot_y(rng.uniform(-0.2, 0.2, n))
-    rows = [("UPS (closed form)", lambda: ups.solve(p, R)), ("UP*S (chain, numeric)", lambda: chain.solve(p, R))]
+    rows = [("UP*S", chain, R)]
     for t in CHAIN_TYPES:
-        leg = LEG_TYPES[t]("L1", base=base, platform=plat)
-        rows.append((f"{t} (chain, numeric)", lambda leg=leg: leg.solve(p, Rxy)))
-    print(f"\ninverse kinematics of one limb, us per pose (NumPy, {n} poses, CPU, median of 5):")
-    ref = None
-    for name, f in rows:
-        us = _median_us(f, n)
-        ref = ref or us
-        print(f"  {name:24s} {us:8.2f}  ({us / ref:5.0f} x the closed form)")
+        rows.append((t, LEG_TYPES[t]("L1", base=base, platform=plat), Rxy if t in ("RPUR", "PRUR") else R))
+    compiled_chains.solve(chain, p[:2], R[:2])  # compiled (or loaded) once, not timed
+    ref = _median_us(lambda: ups.solve(p, R), n)
+    print(f"\ninverse kinematics of one limb, us per pose ({n} poses, one thread, CPU, median of 5); "
+          f"closed-form UPS (NumPy): {ref:.3f} us")
+    print(f"  {'limb':6s} {'NumPy chain':>12s} {'compiled chain':>15s} {'compiled / UPS':>15s} "
+          f"{'NumPy / compiled':>17s}")
+    for name, leg, Rr in rows:
+        us_np = _median_us(lambda: leg.solve(p, Rr), n)
+        us_c = _median_us(lambda: compiled_chains.solve(leg, p, Rr), n)
+        print(f"  {name:6s} {us_np:12.2f} {us_c:15.3f} {us_c / ref:14.1f}x {us_np / us_c:16.1f}x")
+    # a mechanism: feasibility per pose, 6-UPS (closed form, the kernels) against 6-SPU (chain limbs)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", EngineFallbackWarning)
+        found = parasynth.structures("3T3R", leg_types=["UPS", "SPU"], legs=[6])
+    mechs = {}
+    for s in found:
+        mechs.setdefault(s.name, s.mechanism())
+    X = None
+    out = {}
+    for name, m in mechs.items():
+        lo, hi = (np.array(v) for v in zip(*[m.default_ranges()[k] for k in m.task_coordinates]))
+        X = lo + (hi - lo) * np.random.default_rng(1).uniform(0, 1, (n, len(lo)))
+        m.is_feasible(X[:8])  # compiled or loaded once
+        out[name] = (_median_us(lambda: m.is_feasible(X), n), _median_us(lambda: m.is_feasible(X, engine="numpy"), n))
+    if "6-UPS" in out and "6-SPU" in out:
+        (u_c, u_n), (s_c, s_n) = out["6-UPS"], out["6-SPU"]
+        print(f"\nfeasibility of a mechanism, us per pose ({n} poses in its task box, CPU, median of 5):")
+        print(f"  6-UPS (closed form): compiled {u_c:.3f}, NumPy {u_n:.2f}")
+        print(f"  6-SPU (chain limbs): compiled {s_c:.3f} ({s_c / u_c:.0f}x the 6-UPS), NumPy {s_n:.2f} "
+              f"({s_n / s_c:.1f}x the compiled)")
 
 
 def design_ms(s) -> float:
@@ -181,7 +212,7 @@ def main(argv=None) -> int:
         rows.append((motion, found))
     chain_cost()
     print("\nms per design (workspace volume + singularity margin q05, 8192 samples, CPU, median of 5; chain "
-          "limbs on NumPy):")
+          "limbs: compiled inverse kinematics for the volume, NumPy for the margin):")
     for motion, found in rows:
         for s in found:
             print(f"  {motion:5s} {s.name:14s} {s.arrangement[:60]:60s} {design_ms(s):7.1f}")

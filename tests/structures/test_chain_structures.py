@@ -67,8 +67,11 @@ def test_parts_refuse_a_chain_limb_by_name(found_3t2r):
     for cap in ("compiled", "closure", "dynamics", "accuracy", "export", "view"):
         with pytest.raises(LegCapabilityError, match=rf"leg L1: leg type RPUR does not support '{cap}'"):
             require(m.legs[0], cap)
-    with pytest.warns(EngineFallbackWarning, match="RPUR"):
-        m.is_feasible(np.atleast_2d(m.home))
+    with warnings.catch_warnings():  # feasibility: the compiled chain solve (engine/chains.py), no fallback
+        warnings.simplefilter("error", EngineFallbackWarning)
+        assert m.is_feasible(np.atleast_2d(m.home))[0]
+    with pytest.warns(EngineFallbackWarning, match="RPUR"):  # no compiled index kernel for a chain limb
+        m.singularity_margin(np.atleast_2d(m.home))
 
 
 def test_register_chain_keeps_the_closed_forms():

@@ -311,9 +311,34 @@ def _run_hint(args) -> str:
     return f"parasynth run {args.study} --resume{out}"
 
 
+def _compile_early(path, quiet: bool) -> None:
+    """On an empty compile cache, start compiling what a structure study needs in helper
+    processes while its structures are enumerated (parasynth.engine.precompile.start_early),
+    and say so. Anything unusual (an unreadable file, the NumPy engine asked for, no numba)
+    starts nothing: the study's loading reports what is wrong, the run compiles as usual."""
+    if os.environ.get("PARASYNTH_COMPILE_AHEAD", "").strip() == "0":
+        return
+    try:
+        import yaml
+
+        with open(path, encoding="utf-8") as f:
+            doc = yaml.safe_load(f)
+        if not isinstance(doc, dict) or not isinstance(doc.get("structure"), dict):
+            return
+        if (doc.get("evaluation") or {}).get("engine", "compiled") != "compiled":
+            return
+    except Exception:  # noqa: BLE001 - loading the study says what is wrong
+        return
+    from ..engine import COMPILING, core, precompile
+
+    if core.HAVE_NUMBA and precompile.start_early(precompile.STRUCTURE_STUDY) and not quiet:
+        print(COMPILING, file=sys.stderr, flush=True)
+
+
 def cmd_run(args) -> int:
     from ..study import run_study
 
+    _compile_early(args.study, args.quiet)
     study = _checked_study(args.study)
     if args.resume:
         target = Path(args.out or study.spec.output or Path("runs") / study.name)

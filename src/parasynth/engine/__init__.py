@@ -61,6 +61,7 @@ import contextlib
 import contextvars
 import functools
 import os
+import sys
 import warnings
 
 import numpy as np
@@ -403,7 +404,7 @@ def _ahead(work):
     that compiled before: ``work`` compiles what it still needs itself). Off with
     ``PARASYNTH_COMPILE_AHEAD=0``."""
     pre = _compiled()[3]
-    if pre.in_cache("_pose_kernel"):
+    if pre.in_cache("_pose_kernel") and not any(pre.early().values()):
         return []
     return pre.missing(needs(work))
 
@@ -422,6 +423,12 @@ def warm_up(work, processes: int | None = None, **options) -> WarmUp:
     if os.environ.get("PARASYNTH_COMPILE_AHEAD", "").strip() == "0":
         return _warmup.warm_up(work, **options)
     loaded = []
+    # helpers started ahead of the work (precompile.start_early) still compiling: the wait for
+    # them is a compile too (progress is said); nothing to ask when none were started
+    pre_mod = sys.modules.get(__name__ + ".precompile")  # loaded if start_early ran
+    if pre_mod is not None and pre_mod.early():
+        options.setdefault("busy", lambda: any(pre_mod.early().values()))
+        options.setdefault("announced", True)  # said when they were started
 
     def compile_then_work():
         # on the compiling thread: importing numba (about a second) included

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import core
+from . import chains, core
 from .core import HAVE_NUMBA, Unsupported, warn_fallback
 
 __all__ = ["feasible", "feasible_extents", "margins", "compiled_pose_batch", "available", "reason", "plan"]
@@ -62,7 +62,7 @@ def reason(mech, names=None) -> str | None:
 
 def _compiled_plan(mech, names):
     p, why = plan(mech, names)
-    if p is None:
+    if p is None and not chains.covers(mech):
         _warn(mech, why)
     return p
 
@@ -91,8 +91,8 @@ def feasible(mech, X, names=None, floor_margin=None):
     ``floor_margin(mech, X)``: the singularity margin (the compiled index kernel), with which
     the plan's singularity-margin floors are applied to the poses the kernel accepts."""
     p = _compiled_plan(mech, names)
-    if p is None:
-        return mech._is_feasible_numpy(X, names)
+    if p is None:  # chain limbs: their compiled inverse kinematics, the rest as the reference
+        return chains.feasible(mech, X, names) if chains.covers(mech) else mech._is_feasible_numpy(X, names)
     Xc, single = _kernel_poses(mech, X)
     out, amb = core.run_feasible(p, Xc)
     if amb:  # batch-dependent RPS/RPU reachability: NumPy decides
@@ -129,7 +129,7 @@ def margins(mech, X, names=None, floor_margin=None) -> dict:
     floors' columns from ``floor_margin`` (see :func:`feasible`)."""
     p = _compiled_plan(mech, names)
     if p is None:
-        return mech._constraint_margins_numpy(X, names)
+        return chains.margins(mech, X, names) if chains.covers(mech) else mech._constraint_margins_numpy(X, names)
     Xc, single = _kernel_poses(mech, X)
     M, amb = core.run_margins(p, Xc)
     if amb:

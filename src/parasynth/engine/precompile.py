@@ -16,10 +16,16 @@ kernels. Only kernels not yet in the cache are compiled; with the pose kernel in
 (an installation that compiled before) nothing of this runs and the work compiles what it
 still needs itself, as it would without this module. A helper that fails costs nothing but
 time: the work then compiles the kernel itself.
+
+Work with something else to do first (a structure study enumerates its structures, several
+seconds on one core) can start the helpers earlier, :func:`start_early` with the entry points
+it will need (:data:`STRUCTURE_STUDY`); :func:`compile_ahead` then waits for the kernels they
+compile instead of compiling them again.
 """
 
 from __future__ import annotations
 
+import atexit
 import os
 import subprocess
 import sys
@@ -28,7 +34,8 @@ from pathlib import Path
 
 from . import closure, core, indices
 
-__all__ = ["KERNELS_OF", "LOCAL", "signatures", "in_cache", "missing", "compile_ahead", "stop_helpers", "main"]
+__all__ = ["KERNELS_OF", "LOCAL", "STRUCTURE_STUDY", "signatures", "in_cache", "missing", "compile_ahead", "start_early",
+           "early", "stop_helpers", "main"]
 
 #: Kernels behind each compiled entry point (the names of :data:`parasynth.engine.EXERCISES`).
 KERNELS_OF = {
@@ -54,6 +61,16 @@ _COST = {"_pose_kernel": 6.5, "_feasible_kernel": 10.0, "_margins_kernel": 10.0,
          "_dir_kernel": 2.0, "_prep_kernel": 2.0, "_solve_kernel": 2.0}
 #: Helper processes running (see :func:`stop_helpers`).
 _RUNNING: list = []
+#: Kernels being compiled by helpers started ahead of the work (:func:`start_early`): name ->
+#: the helper process compiling it.
+_EARLY: dict = {}
+
+#: The entry points the shipped structure studies ask for (``engine.needs`` of the warm-up
+#: design, the same for structures_1t2r, structures_2t2r and structures_3t2r: the workspace's
+#: feasibility, the singularity margin of the home floor and the margin quantile, the
+#: constraint rank of the structure's mobility), compiled from the start of such a run by
+#: :func:`start_early` while the structures are enumerated.
+STRUCTURE_STUDY = ("feasible", "singularity_margin", "constraint_rank")
 
 #: CPU seconds a helper process spends starting (Python, numba, parasynth).
 _START = 1.5
@@ -120,6 +137,9 @@ def compile_ahead(names, processes: int | None = None, poll: float = 0.05) -> di
     names = list(names)
     if processes is None:
         processes = os.cpu_count() or 1
+    # kernels an early helper (start_early) is compiling: waited for below, not compiled twice
+    pending = {n: _EARLY[n] for n in names if n in _EARLY and _EARLY[n].poll() is None}
+    names = [n for n in names if n not in pending and not (n in _EARLY and in_cache(n))]
     local = [n for n in names if n in LOCAL]
     rest = [n for n in names if n not in LOCAL]
     if processes < 2:
@@ -141,9 +161,56 @@ def compile_ahead(names, processes: int | None = None, poll: float = 0.05) -> di
                 time.sleep(poll)
             if p.returncode != 0:
                 failed += share
-        return {"local": local, "helpers": shares, "failed": failed}
+        waited = []
+        for n, p in pending.items():
+            while p.poll() is None:
+                time.sleep(poll)
+            waited.append(n)
+            if p.returncode != 0:
+                failed.append(n)
+        return {"local": local, "helpers": shares, "failed": failed, "waited": waited}
     finally:
         _stop([p for _, p in procs])
+
+
+def start_early(kinds, processes: int | None = None) -> list[list[str]]:
+    """Start compiling, in helper processes, the kernels of the entry points ``kinds`` (names
+    of :data:`KERNELS_OF`) that are neither compiled nor cached, and return at once: for work
+    that has something else to do first (a structure study enumerates its structures, several
+    seconds of Python on one core, before its first design). The interpreter kernels go to one
+    helper (they share the expression interpreter), the others to a second one (with at least
+    two cores; one helper on one core). :func:`compile_ahead` later waits for the kernels they
+    compile instead of compiling them again. Returns the kernels of each helper started ([]
+    when everything is cached). Helpers still running at the end of the process are
+    terminated (what they finished is in the cache)."""
+    names = [n for n in missing(kinds) if n not in _EARLY]
+    if not names:
+        return []
+    if processes is None:
+        processes = os.cpu_count() or 1
+    interp = [n for n in names if n in LOCAL]
+    rest = [n for n in names if n not in LOCAL]
+    shares = [s for s in ((interp, rest) if processes >= 2 else (interp + rest,)) if s]
+    env = _helper_env()
+    for share in shares:
+        p = subprocess.Popen([sys.executable, "-m", "parasynth.engine.precompile", *share], env=env,
+                             stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        _RUNNING.append(p)
+        for n in share:
+            _EARLY[n] = p
+    if not _ATEXIT:
+        atexit.register(stop_helpers)
+        _ATEXIT.append(True)
+    return shares
+
+
+_ATEXIT: list = []
+
+
+def early() -> dict:
+    """{kernel: running} of the kernels :func:`start_early` handed to helpers (running: its
+    helper has not finished)."""
+    return {n: p.poll() is None for n, p in _EARLY.items()}
 
 
 def _stop(procs) -> None:
@@ -162,8 +229,10 @@ def _stop(procs) -> None:
 
 def stop_helpers() -> None:
     """Terminate the helper processes still compiling (the caller was interrupted while
-    :func:`compile_ahead` waited for them on another thread)."""
+    :func:`compile_ahead` waited for them on another thread, or exits)."""
     _stop(list(_RUNNING))
+    for n in [n for n, p in _EARLY.items() if p.returncode is not None and p.returncode != 0]:
+        del _EARLY[n]  # a terminated or failed helper: its kernels compile where they are needed
 
 
 def main(argv=None) -> int:

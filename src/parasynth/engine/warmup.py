@@ -47,6 +47,7 @@ _NAMES = {
     "_kappa_kernel": "condition-number kernel",
     "_dir_kernel": "leg-direction kernel",
     "_constraint_rank_kernel": "constraint-rank kernel",
+    "helper processes": "kernels compiled in helper processes",
 }
 
 
@@ -107,7 +108,8 @@ def _stderr(msg: str) -> None:
     print(msg, file=sys.stderr, flush=True)
 
 
-def warm_up(work, *, progress=_stderr, stop=None, poll: float = 0.1, every: float = 5.0) -> WarmUp:
+def warm_up(work, *, progress=_stderr, stop=None, poll: float = 0.1, every: float = 5.0, busy=None,
+            announced: bool = False) -> WarmUp:
     """Run ``work()`` on a compiling thread and wait for it interruptibly (see the module
     docstring); returns a :class:`WarmUp` (true when the work finished).
 
@@ -117,7 +119,11 @@ def warm_up(work, *, progress=_stderr, stop=None, poll: float = 0.1, every: floa
     (default: printed on stderr), or None for silence; it is called only when numba
     compiles. ``stop``: a callable polled every ``poll`` seconds; when it returns true the
     wait ends (``done`` False). A ``KeyboardInterrupt`` in the calling thread propagates at
-    once. Calls from a thread other than the main one run ``work`` directly (nothing to keep
+    once. ``busy``: a callable, true while other processes compile kernels the work waits for
+    (:func:`parasynth.engine.precompile.start_early`): that wait is reported as a compile.
+    ``announced``: :data:`COMPILING` was said already (when those processes were started), so
+    the progress goes on with the elapsed time.
+    Calls from a thread other than the main one run ``work`` directly (nothing to keep
     interruptible there)."""
     state = WarmUp()
     t0 = time.perf_counter()
@@ -143,10 +149,14 @@ def warm_up(work, *, progress=_stderr, stop=None, poll: float = 0.1, every: floa
         else:
             body_thread = threading.Thread(target=body, name="parasynth-engine-compile", daemon=True)
             body_thread.start()
-        said = False
-        last = 0.0
+        said = announced
+        last = time.perf_counter()
         while body_thread is not None and body_thread.is_alive():
             body_thread.join(poll)
+            if busy is not None and not state.compiled and busy():
+                state.compiled = True
+                state._first = time.perf_counter()
+                state._current = "helper processes"
             if state.compiled and progress is not None:
                 now = time.perf_counter()
                 if not said:

@@ -38,9 +38,11 @@ between two joint centres adds their home distance, so that it reads as the limb
 
 The chain's constraint wrenches are the wrenches reciprocal to its joint twists at the solved
 configuration (an SVD), so the mobility of a structure follows from them as for the hand-written
-leg types. No compiled kernel exists for a chain limb: it declares ``compiled=False`` and every
-capability but ``stiffness`` and ``passive`` off, so the engine falls back to NumPy with its
-fallback warning and the other parts refuse it by name (:func:`parasynth.model.legs.require`).
+leg types. The engine solves chain limbs with a compiled kernel of the same solve
+(:mod:`parasynth.engine.chains`, from :meth:`ChainLeg.chain_arrays`) for feasibility and
+constraint margins; a chain limb declares ``compiled=False`` (no compiled pose-wise index kernels:
+those fall back to NumPy with the fallback warning) and every capability but ``stiffness`` and
+``passive`` off, so the other parts refuse it by name (:func:`parasynth.model.legs.require`).
 """
 
 from __future__ import annotations
@@ -406,6 +408,22 @@ class ChainLeg(Leg):
     @property
     def actuator_kind(self) -> str:
         return _actuator_kind(self._spec)
+
+    def chain_arrays(self) -> dict:
+        """The chain as data, for a compiled solve (:mod:`parasynth.engine.chains`): ``kinds``
+        (n,) int64 per freedom (0 revolute, 1 prismatic), ``axes`` (n, 3) and ``points`` (n, 3,
+        zeros for a prismatic freedom) at home, ``home`` and ``platform`` (the anchor at home,
+        base frame; the platform anchor, platform frame), ``length`` (the scale of the solve's
+        position residual), ``actuated`` (the actuated freedom, -1 for none), ``act_home`` and
+        ``joint_of`` (n,) the joint of each freedom."""
+        n = len(self._free)
+        kinds = np.array([1 if k == "P" else 0 for k, _, _ in self._free], dtype=np.int64)
+        axes = np.array([a for _, a, _ in self._free], dtype=float).reshape(n, 3)
+        points = np.array([np.zeros(3) if c is None else c for _, _, c in self._free], dtype=float).reshape(n, 3)
+        return {"kinds": kinds, "axes": axes, "points": points, "home": np.array(self._home, float),
+                "platform": np.array(self.platform, float), "length": float(self._L),
+                "actuated": -1 if self._act is None else int(self._act), "act_home": float(self._act_home),
+                "joint_of": np.array(self._joint_of, dtype=np.int64)}
 
     # -- kinematics --------------------------------------------------------------------------
     def forward(self, q: np.ndarray):

@@ -33,6 +33,7 @@ import re
 from dataclasses import dataclass
 
 from .. import structures as synthesis
+from ..common.validation import numpy_reference
 from ..mechanisms import described_class, register
 from .errors import StudyError
 from .optimizers.base import optimizer_class
@@ -144,8 +145,13 @@ def resolve_structures(sec) -> StructureSetup:
             raise StudyError(f"structure.{k}: an empty list would keep no structure; name at least one, or leave "
                              f"the key out for all")
     try:
-        found = synthesis.structures(sec.motion, leg_types=sec.leg_types, legs=sec.legs, axes=axes,
-                                     all_axes=sec.all_axes)
+        # on the NumPy reference: the enumeration evaluates a few poses per candidate, and a
+        # compile here (pose and constraint-rank kernels, ~8 s CPU on an empty cache, the latter
+        # used by nothing else of a study) would stand alone before the run's own side-by-side
+        # compile (docs/performance.md, "Cold start of the structure studies")
+        with numpy_reference():
+            found = synthesis.structures(sec.motion, leg_types=sec.leg_types, legs=sec.legs, axes=axes,
+                                         all_axes=sec.all_axes)
     except ValueError as e:
         msg = str(e)
         if msg.startswith(("leg_types", "legs", "axes", "all_axes")):  # the message names its field

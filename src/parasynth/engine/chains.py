@@ -1,0 +1,398 @@
+"""The compiled inverse kinematics of chain limbs (:class:`parasynth.model.chains.ChainLeg`):
+the same damped Gauss-Newton solve as the NumPy reference (``ChainLeg.inverse``), one pose at
+a time in a numba kernel, for a chain given as data (``ChainLeg.chain_arrays``: per freedom its
+kind, home axis and home point; the anchor's home position, the platform anchor, the length
+scale, the actuated freedom). One specialisation serves every chain limb: a new joint string,
+new axes or a new design is new data, not a new compile.
+
+Per pose: from the home configuration (q = 0), the anchor frame by the product of
+exponentials, the residual ``((target - position) / L, log(R Rc^T))``, its largest component
+``r``; stop when ``r < IK_TOL``, when it is not finite, when a step gained less than a relative
+1e-6 (a least-squares minimum off the limb's reach) or after ``IK_ITERATIONS`` steps; else the
+step ``(J^T J + mu I) dq = J^T e`` with ``mu = 1e-12 (1 + trace J^T J)`` (J: the joint twists
+at the anchor, position rows divided by L), scaled to at most 0.5 per coordinate. The
+reference solves the normal equations by LU (``np.linalg.solve``), this kernel by Cholesky
+(they are symmetric positive definite with the damping): the iterates agree to rounding, the
+converged coordinates to ~1e-12, and a pose whose residual ends within rounding of the
+reachability threshold (``1e3 * IK_TOL``) may be told apart differently (the agreement test
+allows those only).
+
+Where it is used: :func:`solve` gives the :class:`~parasynth.model.legs.LegState` that
+``ChainLeg.solve`` gives, with the joint coordinates, current axes, points and the residual in
+``extra`` (so the constraint wrenches and joint twists of the NumPy reference apply unchanged);
+:func:`feasible` and :func:`margins` evaluate a mechanism with chain limbs as
+``Mechanism.is_feasible`` / ``constraint_margins`` do, with every chain limb solved here
+(the closed-form legs by their own ``solve``, the constraints by their NumPy margins). The
+kernel is compiled at its first call only (a study without chain limbs never compiles it), and
+cached on disk like the others.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..model.chains import IK_ITERATIONS, IK_TOL, ChainLeg
+from ..model.constraints import PoseContext
+from ..model.legs import LegState
+from ..model.spatial import unit
+from . import core
+from .core import HAVE_NUMBA, Unsupported, blocking, over_blocks
+
+__all__ = ["covers", "chain_legs", "context", "solve", "solve_arrays", "feasible", "margins", "signatures",
+           "REACH_FACTOR"]
+
+#: A pose is reachable when the solve's residual is below ``REACH_FACTOR * IK_TOL`` (as
+#: ``ChainLeg.solve``).
+REACH_FACTOR = 1e3
+
+if HAVE_NUMBA:  # pragma: no branch
+    from numba import njit
+
+    _jit = dict(cache=True, nogil=True, error_model="numpy", boundscheck=False)
+
+    @njit(**_jit)
+    def _forward(q, kinds, axes, points, home, Rg, tg, axw, ptw, pos):
+        """The anchor frame (``pos``, ``Rg``) and the freedoms' current axes and points at the
+        joint coordinates ``q`` (product of exponentials, as ``ChainLeg.forward``)."""
+        n = kinds.shape[0]
+        for a in range(3):
+            tg[a] = 0.0
+            for b in range(3):
+                Rg[a, b] = 1.0 if a == b else 0.0
+        for m in range(n):
+            ax = Rg[0, 0] * axes[m, 0] + Rg[0, 1] * axes[m, 1] + Rg[0, 2] * axes[m, 2]
+            ay = Rg[1, 0] * axes[m, 0] + Rg[1, 1] * axes[m, 1] + Rg[1, 2] * axes[m, 2]
+            az = Rg[2, 0] * axes[m, 0] + Rg[2, 1] * axes[m, 1] + Rg[2, 2] * axes[m, 2]
+            axw[m, 0] = ax
+            axw[m, 1] = ay
+            axw[m, 2] = az
+            if kinds[m] == 1:
+                ptw[m, 0] = np.nan
+                ptw[m, 1] = np.nan
+                ptw[m, 2] = np.nan
+                tg[0] += ax * q[m]
+                tg[1] += ay * q[m]
+                tg[2] += az * q[m]
+                continue
+            cx = Rg[0, 0] * points[m, 0] + Rg[0, 1] * points[m, 1] + Rg[0, 2] * points[m, 2] + tg[0]
+            cy = Rg[1, 0] * points[m, 0] + Rg[1, 1] * points[m, 1] + Rg[1, 2] * points[m, 2] + tg[1]
+            cz = Rg[2, 0] * points[m, 0] + Rg[2, 1] * points[m, 1] + Rg[2, 2] * points[m, 2] + tg[2]
+            ptw[m, 0] = cx
+            ptw[m, 1] = cy
+            ptw[m, 2] = cz
+            # Rodrigues about the unit axis (spatial.rot_axis normalises it again)
+            nn = math.sqrt(ax * ax + ay * ay + az * az)
+            ux = ax / nn
+            uy = ay / nn
+            uz = az / nn
+            s = math.sin(q[m])
+            c1 = 1.0 - math.cos(q[m])
+            # R = I + s K + (1 - c) K K, K = skew(u)
+            r00 = 1.0 + c1 * (-uz * uz - uy * uy)
+            r01 = -s * uz + c1 * (uy * ux)
+            r02 = s * uy + c1 * (uz * ux)
+            r10 = s * uz + c1 * (ux * uy)
+            r11 = 1.0 + c1 * (-uz * uz - ux * ux)
+            r12 = -s * ux + c1 * (uz * uy)
+            r20 = -s * uy + c1 * (ux * uz)
+            r21 = s * ux + c1 * (uy * uz)
+            r22 = 1.0 + c1 * (-uy * uy - ux * ux)
+            dx = tg[0] - cx
+            dy = tg[1] - cy
+            dz = tg[2] - cz
+            tg[0] = r00 * dx + r01 * dy + r02 * dz + cx
+            tg[1] = r10 * dx + r11 * dy + r12 * dz + cy
+            tg[2] = r20 * dx + r21 * dy + r22 * dz + cz
+            for b in range(3):
+                g0 = Rg[0, b]
+                g1 = Rg[1, b]
+                g2 = Rg[2, b]
+                Rg[0, b] = r00 * g0 + r01 * g1 + r02 * g2
+                Rg[1, b] = r10 * g0 + r11 * g1 + r12 * g2
+                Rg[2, b] = r20 * g0 + r21 * g1 + r22 * g2
+        for a in range(3):
+            pos[a] = Rg[a, 0] * home[0] + Rg[a, 1] * home[1] + Rg[a, 2] * home[2] + tg[a]
+
+    @njit(**_jit)
+    def _chain_kernel(P, Rm, kinds, axes, points, home, plat, L, n_iter, tol, Q, res, POS, AXW, PTW, i0, i1):
+        """Poses ``i0 .. i1 - 1``: joint coordinates ``Q``, residual ``res``, anchor position
+        ``POS`` and the freedoms' axes ``AXW`` and points ``PTW`` at the solution."""
+        n = kinds.shape[0]
+        q = np.zeros(n)
+        Rg = np.empty((3, 3))
+        tg = np.empty(3)
+        pos = np.empty(3)
+        axw = np.empty((n, 3))
+        ptw = np.empty((n, 3))
+        e = np.empty(6)
+        J = np.empty((6, n))
+        A = np.empty((n, n))
+        b = np.empty(n)
+        dq = np.empty(n)
+        Lc = np.empty((n, n))
+        for i in range(i0, i1):
+            R = Rm[i]
+            tx = P[i, 0] + R[0, 0] * plat[0] + R[0, 1] * plat[1] + R[0, 2] * plat[2]
+            ty = P[i, 1] + R[1, 0] * plat[0] + R[1, 1] * plat[1] + R[1, 2] * plat[2]
+            tz = P[i, 2] + R[2, 0] * plat[0] + R[2, 1] * plat[1] + R[2, 2] * plat[2]
+            for m in range(n):
+                q[m] = 0.0
+            last = np.inf
+            r = np.inf
+            for it in range(n_iter + 1):
+                _forward(q, kinds, axes, points, home, Rg, tg, axw, ptw, pos)
+                e[0] = (tx - pos[0]) / L
+                e[1] = (ty - pos[1]) / L
+                e[2] = (tz - pos[2]) / L
+                # log of R Rc^T
+                m00 = R[0, 0] * Rg[0, 0] + R[0, 1] * Rg[0, 1] + R[0, 2] * Rg[0, 2]
+                m11 = R[1, 0] * Rg[1, 0] + R[1, 1] * Rg[1, 1] + R[1, 2] * Rg[1, 2]
+                m22 = R[2, 0] * Rg[2, 0] + R[2, 1] * Rg[2, 1] + R[2, 2] * Rg[2, 2]
+                m21 = R[2, 0] * Rg[1, 0] + R[2, 1] * Rg[1, 1] + R[2, 2] * Rg[1, 2]
+                m12 = R[1, 0] * Rg[2, 0] + R[1, 1] * Rg[2, 1] + R[1, 2] * Rg[2, 2]
+                m02 = R[0, 0] * Rg[2, 0] + R[0, 1] * Rg[2, 1] + R[0, 2] * Rg[2, 2]
+                m20 = R[2, 0] * Rg[0, 0] + R[2, 1] * Rg[0, 1] + R[2, 2] * Rg[0, 2]
+                m10 = R[1, 0] * Rg[0, 0] + R[1, 1] * Rg[0, 1] + R[1, 2] * Rg[0, 2]
+                m01 = R[0, 0] * Rg[1, 0] + R[0, 1] * Rg[1, 1] + R[0, 2] * Rg[1, 2]
+                vx = 0.5 * (m21 - m12)
+                vy = 0.5 * (m02 - m20)
+                vz = 0.5 * (m10 - m01)
+                sn = math.sqrt(vx * vx + vy * vy + vz * vz)
+                cs = 0.5 * (m00 + m11 + m22 - 1.0)
+                th = math.atan2(sn, cs)
+                f = th / (sn if sn > 1e-300 else 1e-300) if sn > 1e-12 else 1.0
+                e[3] = vx * f
+                e[4] = vy * f
+                e[5] = vz * f
+                r = 0.0
+                bad = False
+                for k in range(6):
+                    a = abs(e[k])
+                    if a != a:
+                        bad = True
+                    elif a > r:
+                        r = a
+                if bad:
+                    r = np.nan
+                keep = (r >= tol) and (r == r) and (r < np.inf) and (r < last * (1.0 - 1e-6))
+                last = r
+                if it == n_iter or not keep:
+                    break
+                # joint twists at the anchor: P (a, 0), R (a x (pos - c), a); position rows / L
+                for m in range(n):
+                    ax = axw[m, 0]
+                    ay = axw[m, 1]
+                    az = axw[m, 2]
+                    if kinds[m] == 1:
+                        J[0, m] = ax / L
+                        J[1, m] = ay / L
+                        J[2, m] = az / L
+                        J[3, m] = 0.0
+                        J[4, m] = 0.0
+                        J[5, m] = 0.0
+                    else:
+                        rx = pos[0] - ptw[m, 0]
+                        ry = pos[1] - ptw[m, 1]
+                        rz = pos[2] - ptw[m, 2]
+                        J[0, m] = (ay * rz - az * ry) / L
+                        J[1, m] = (az * rx - ax * rz) / L
+                        J[2, m] = (ax * ry - ay * rx) / L
+                        J[3, m] = ax
+                        J[4, m] = ay
+                        J[5, m] = az
+                tr = 0.0
+                for a in range(n):
+                    for c in range(n):
+                        s = 0.0
+                        for k in range(6):
+                            s += J[k, a] * J[k, c]
+                        A[a, c] = s
+                    tr += A[a, a]
+                    s = 0.0
+                    for k in range(6):
+                        s += J[k, a] * e[k]
+                    b[a] = s
+                mu = 1e-12 * (1.0 + tr)
+                for a in range(n):
+                    A[a, a] += mu
+                # Cholesky A = Lc Lc^T, then the two triangular solves
+                for a in range(n):
+                    for c in range(a + 1):
+                        s = A[a, c]
+                        for k in range(c):
+                            s -= Lc[a, k] * Lc[c, k]
+                        if a == c:
+                            Lc[a, a] = math.sqrt(s) if s > 0.0 else 1e-300
+                        else:
+                            Lc[a, c] = s / Lc[c, c]
+                for a in range(n):
+                    s = b[a]
+                    for k in range(a):
+                        s -= Lc[a, k] * dq[k]
+                    dq[a] = s / Lc[a, a]
+                for a in range(n - 1, -1, -1):
+                    s = dq[a]
+                    for k in range(a + 1, n):
+                        s -= Lc[k, a] * dq[k]
+                    dq[a] = s / Lc[a, a]
+                step = 0.0
+                for a in range(n):
+                    if abs(dq[a]) > step:
+                        step = abs(dq[a])
+                fac = 0.5 / (step if step > 1e-300 else 1e-300)
+                fac = fac if fac < 1.0 else 1.0
+                for a in range(n):
+                    q[a] += dq[a] * fac
+            res[i] = r
+            for m in range(n):
+                Q[i, m] = q[m]
+                for a in range(3):
+                    AXW[i, m, a] = axw[m, a]
+                    PTW[i, m, a] = ptw[m, a]
+            for a in range(3):
+                POS[i, a] = pos[a]
+
+
+def _array(dtype, ndim):
+    from numba import types as nbt
+
+    return nbt.Array({"f8": nbt.float64, "i8": nbt.int64}[dtype], ndim, "C")
+
+
+def signatures() -> dict:
+    """{kernel name: (dispatcher, argument types)}: the one specialisation of the chain kernel."""
+    if not HAVE_NUMBA:
+        return {}
+    from numba import types as nbt
+
+    f1, f2, f3, i1 = _array("f8", 1), _array("f8", 2), _array("f8", 3), _array("i8", 1)
+    sig = (f2, f3, i1, f2, f2, f1, f1, nbt.float64, nbt.int64, nbt.float64, f2, f1, f2, f3, f3, nbt.int64, nbt.int64)
+    return {"_chain_kernel": (_chain_kernel, sig)}
+
+
+def _c(a, dtype=np.float64):
+    return np.require(a, dtype=dtype, requirements=["C", "W"])
+
+
+def solve_arrays(leg: ChainLeg, p, R) -> dict:
+    """The compiled solve of ``leg`` at platform poses ``p`` (N, 3), ``R`` (N, 3, 3):
+    ``{"q" (N, n), "residual" (N,), "position" (N, 3), "axes" (N, n, 3), "points" (N, n, 3; NaN
+    for a prismatic freedom)}``."""
+    d = leg.chain_arrays()
+    P = _c(np.atleast_2d(np.asarray(p, float)))
+    Rm = _c(np.asarray(R, float).reshape(-1, 3, 3))
+    N, n = P.shape[0], d["kinds"].shape[0]
+    Q = np.empty((N, n))
+    res = np.empty(N)
+    POS = np.empty((N, 3))
+    AXW = np.empty((N, n, 3))
+    PTW = np.empty((N, n, 3))
+    args = (P, Rm, _c(d["kinds"], np.int64), _c(d["axes"]), _c(d["points"]), _c(d["home"]), _c(d["platform"]),
+            float(d["length"]), int(IK_ITERATIONS), float(IK_TOL), Q, res, POS, AXW, PTW)
+    block, nblk, par = blocking(N)
+    over_blocks(lambda b0, b1: _chain_kernel(*args, b0 * block, min(N, b1 * block)), nblk, par)
+    return {"q": Q, "residual": res, "position": POS, "axes": AXW, "points": PTW}
+
+
+def solve(leg: ChainLeg, p, R, joint_angles: bool = True):
+    """``leg.solve(p, R)`` with the compiled inverse kinematics: the same
+    :class:`~parasynth.model.legs.LegState` (actuator, reachability, end points, direction,
+    length, joint angles; ``extra`` q, axes, points, residual as lists per freedom)."""
+    out = solve_arrays(leg, p, R)
+    d = leg.chain_arrays()
+    q, res = out["q"], out["residual"]
+    reachable = res < REACH_FACTOR * IK_TOL
+    kinds = d["kinds"]
+    axes = [out["axes"][:, m, :] for m in range(len(kinds))]
+    points = [None if kinds[m] == 1 else out["points"][:, m, :] for m in range(len(kinds))]
+    first = next((c for c in points if c is not None), None)
+    A = out["position"]
+    B = np.broadcast_to(leg.base, A.shape).copy() if first is None else first
+    nvec = unit(A - B)
+    length = np.linalg.norm(A - B, axis=-1)
+    act = np.full(len(q), np.nan) if d["actuated"] < 0 else q[:, d["actuated"]] + d["act_home"]
+    act = np.where(reachable, act, np.nan)
+    angles = {}
+    if joint_angles:
+        joints = leg.spec.joints
+        for m, j in enumerate(d["joint_of"]):
+            angles[f"{joints[j]}{j}_{m}"] = q[:, m]
+    st = LegState(act, reachable, B, A, nvec, length, angles)
+    st.extra.update({"q": q, "axes": axes, "points": points, "residual": res})
+    return st
+
+
+# ---------------------------------------------------------------------------------------------
+# mechanisms with chain limbs: Mechanism.is_feasible / constraint_margins, chain limbs compiled
+# ---------------------------------------------------------------------------------------------
+def chain_legs(mech) -> list:
+    """The chain limbs of ``mech``."""
+    return [leg for leg in getattr(mech, "legs", ()) if isinstance(leg, ChainLeg)]
+
+
+def covers(mech) -> bool:
+    """Whether :func:`feasible` and :func:`margins` apply: numba is there and ``mech`` has a
+    chain limb (its other legs are solved by their own ``solve``)."""
+    return HAVE_NUMBA and bool(chain_legs(mech))
+
+
+def _poses(mech, Xa):
+    """(valid, p, R) of task poses ``Xa``: the description's compiled pose program where it
+    covers ``mech``, else the NumPy methods on home-substituted poses (as ``pose_context``)."""
+    if core._is_described(mech):
+        try:
+            prog, consts = core.program_constants(mech, {}, False)
+            valid, p, R, _ = core.run_pose(prog, consts, Xa, False)
+            return valid, np.asarray(p, float), np.asarray(R, float)
+        except (Unsupported, KeyError, IndexError, TypeError, ValueError, AttributeError):
+            pass
+    with np.errstate(all="ignore"):
+        valid = mech.pose_valid(Xa)
+        p, R = mech._pose(np.where(valid[:, None], Xa, mech.home))
+    return valid, np.asarray(p, float), np.asarray(R, float)
+
+
+def context(mech, X) -> PoseContext:
+    """``mech.pose_context(X)`` with the chain limbs solved by the compiled kernel."""
+    Xa, _ = mech._poses(X)
+    Xa = np.ascontiguousarray(Xa, dtype=np.float64)
+    valid, p, R = _poses(mech, Xa)
+    # the pose of an invalid parametrisation is the home pose's (as the NumPy path)
+    if not valid.all():
+        _, ph, Rh = _poses(mech, np.ascontiguousarray(mech.home[None, :], dtype=np.float64))
+        p = np.where(valid[:, None], p, ph)
+        R = np.where(valid[:, None, None], R, Rh)
+    states = [solve(leg, p, R) if isinstance(leg, ChainLeg) else leg.solve(p, R) for leg in mech.legs]
+    reachable = valid & np.logical_and.reduce([st.reachable for st in states])
+    act = np.stack([st.actuator for leg, st in zip(mech.legs, states) if leg.is_actuated], axis=-1)
+    return PoseContext(Xa, p, R, list(mech.legs), states, reachable, act, mech)
+
+
+def feasible(mech, X, names=None):
+    """``mech._is_feasible_numpy(X, names)`` with the chain limbs solved by the kernel."""
+    _, single = mech._poses(X)
+    cons = mech._select(names)
+    ctx = context(mech, X)
+    ok = ctx.reachable.copy()
+    with np.errstate(invalid="ignore"):
+        for c in cons:
+            if not ok.any():
+                break
+            ok &= np.asarray(c.margin(ctx)) >= 0
+    return ok[0] if single else ok
+
+
+def margins(mech, X, names=None) -> dict:
+    """``mech._constraint_margins_numpy(X, names)`` with the chain limbs solved by the kernel."""
+    _, single = mech._poses(X)
+    cons = mech._select(names)
+    ctx = context(mech, X)
+    out = {}
+    with np.errstate(invalid="ignore"):
+        for c in cons:
+            m = np.asarray(c.margin(ctx), dtype=float)
+            m = np.where(ctx.reachable & ~np.isnan(m), m, -np.inf)
+            out[c.name] = m[0] if single else m
+    return out

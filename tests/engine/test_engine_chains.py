@@ -1,0 +1,182 @@
+"""The compiled inverse kinematics of chain limbs (engine/chains.py) against the NumPy reference
+(ChainLeg.solve) and against closed forms: the chain UP*S against the hand-written UPS, the
+constraint couple of the RPUR against x x (R y); a mechanism of chain limbs evaluated compiled
+without a fallback; the kernel compiled only where a chain limb is evaluated."""
+
+import os
+import subprocess
+import sys
+import warnings
+
+import numpy as np
+import pytest
+
+import parasynth
+from parasynth import engine
+from parasynth.model.chains import IK_TOL, PRUR, RPUR, RRPS, SPU, chain_class
+from parasynth.model.legs import UPS, LegState
+from parasynth.model.mechanism import EngineFallbackWarning
+from parasynth.model.spatial import rot_axis, rot_x, rot_y
+
+pytestmark = pytest.mark.skipif(not engine.HAVE_NUMBA, reason="numba not available")
+
+BASE = [0.3 * np.cos(0.4), 0.3 * np.sin(0.4), 0.0]
+PLAT = [0.15 * np.cos(0.5), 0.15 * np.sin(0.5), 0.0]
+
+
+def _chains():
+    from parasynth.engine import chains
+
+    return chains
+
+
+def _general_poses(n, seed):
+    """Positions around the limb's home and rotations about random axes."""
+    rng = np.random.default_rng(seed)
+    p = np.array([0.0, 0.0, 0.4]) + rng.uniform(-0.12, 0.12, (n, 3))
+    axes = rng.normal(size=(n, 3))
+    R = rot_axis(axes / np.linalg.norm(axes, axis=1, keepdims=True), rng.uniform(-0.6, 0.6, n))
+    return p, R
+
+
+def _3t2r_poses(n, seed):
+    """Half the poses of the 3T2R motion (R = Rx(a) Ry(b), reachable by RPUR and PRUR), half
+    turned about the moving z as well (forbidden by their constraint couple)."""
+    rng = np.random.default_rng(seed)
+    p = np.array([0.0, 0.0, 0.4]) + rng.uniform(-0.08, 0.08, (n, 3))
+    R = rot_x(rng.uniform(-0.4, 0.4, n)) @ rot_y(rng.uniform(-0.4, 0.4, n))
+    R[n // 2:] = R[n // 2:] @ rot_axis(np.array([0.0, 0.0, 1.0]), rng.uniform(0.05, 0.3, n - n // 2))
+    return p, R
+
+
+def _span(W):
+    """The orthogonal projector onto the span of the wrenches W (k, 6)."""
+    if W.shape[0] == 0:
+        return np.zeros((6, 6))
+    Q, _ = np.linalg.qr(W.T)
+    return Q @ Q.T
+
+
+@pytest.mark.parametrize("cls, poses", [(RPUR, _3t2r_poses), (PRUR, _3t2r_poses), (SPU, _general_poses),
+                                        (RRPS, _general_poses)], ids=["RPUR", "PRUR", "SPU", "RRPS"])
+def test_compiled_chain_solve_agrees_with_numpy(cls, poses):
+    leg = cls("L", base=BASE, platform=PLAT)
+    p, R = poses(400, 3)
+    ref = leg.solve(p, R)
+    got = _chains().solve(leg, p, R)
+    # reachability: the same, but for a residual within rounding of the threshold
+    res = ref.extra["residual"]
+    edge = np.abs(np.log10(np.maximum(res, 1e-300) / (1e3 * IK_TOL))) < 0.3
+    assert np.array_equal(ref.reachable[~edge], got.reachable[~edge])
+    ok = ref.reachable & got.reachable
+    assert ok.sum() >= 100
+    if poses is _3t2r_poses:  # the turned half is unreachable on both paths
+        assert not ref.reachable[200:].any() and not got.reachable[200:].any()
+        assert ref.reachable[:200].mean() > 0.5  # the solve from home reaches most of the motion
+    np.testing.assert_allclose(got.actuator[ok], ref.actuator[ok], rtol=0, atol=1e-9)
+    assert np.all(np.isnan(got.actuator[~got.reachable]))
+    for f in ("base_point", "platform_point", "direction", "length"):
+        np.testing.assert_allclose(getattr(got, f)[ok], getattr(ref, f)[ok], rtol=0, atol=1e-9, err_msg=f)
+    assert set(got.angles) == set(ref.angles)
+    for k in ref.angles:
+        np.testing.assert_allclose(got.angles[k][ok], ref.angles[k][ok], rtol=0, atol=1e-9, err_msg=k)
+    # the constraint wrenches (NumPy's null space of the joint twists at either solution) span the same space
+    Pc = np.asarray(p)[ok]
+    Wr = leg.constraint_wrenches(_take(ref, ok), Pc)
+    Wg = leg.constraint_wrenches(_take(got, ok), Pc)
+    assert Wr.shape == Wg.shape
+    for a, b in zip(Wr, Wg):
+        np.testing.assert_allclose(_span(b), _span(a), rtol=0, atol=1e-8)
+
+
+def _take(st, sel):
+    """The leg state of the poses ``sel``."""
+    out = LegState(st.actuator[sel], st.reachable[sel], st.base_point[sel], st.platform_point[sel],
+                   st.direction[sel], st.length[sel], {k: v[sel] for k, v in st.angles.items()})
+    out.extra.update({"q": st.extra["q"][sel], "residual": st.extra["residual"][sel],
+                      "axes": [a[sel] for a in st.extra["axes"]],
+                      "points": [None if c is None else c[sel] for c in st.extra["points"]]})
+    return out
+
+
+def test_chain_up_s_matches_the_closed_form_ups():
+    """The chain "UP*S" (universal at the base anchor, actuated prismatic along the limb,
+    spherical at the platform anchor) is the UPS: its compiled actuator value is the closed
+    form's leg length |A - B|, every pose reachable."""
+    UPS_chain = chain_class("UP*S")
+    chain = UPS_chain("L", base=BASE, platform=PLAT)
+    ups = UPS("L", base=BASE, platform=PLAT)
+    p, R = _general_poses(500, 11)
+    got = _chains().solve(chain, p, R)
+    ref = ups.solve(p, R)
+    assert got.reachable.all() and ref.reachable.all()
+    length = np.linalg.norm(p + np.einsum("nij,j->ni", R, PLAT) - np.array(BASE), axis=1)  # by hand
+    np.testing.assert_allclose(ref.actuator, length, rtol=0, atol=1e-12)
+    # the numerical solve stops once its residual is below IK_TOL (1e-9 of the limb's length
+    # and rad): against a closed form it agrees to a few times that
+    tol = 10 * IK_TOL
+    np.testing.assert_allclose(got.actuator, ref.actuator, rtol=0, atol=tol)
+    np.testing.assert_allclose(got.platform_point, ref.platform_point, rtol=0, atol=tol)
+    np.testing.assert_allclose(got.base_point, np.broadcast_to(BASE, got.base_point.shape), rtol=0, atol=1e-12)
+    np.testing.assert_allclose(got.direction, ref.direction, rtol=0, atol=tol)
+
+
+def test_rpur_constraint_couple_is_x_cross_moving_y():
+    """The RPUR's one constraint wrench at the compiled solution is a pure couple along
+    x x (R y) (its base-side axes along x, platform-side ones along the platform's y)."""
+    leg = RPUR("L", base=BASE, platform=PLAT)
+    p, R = _3t2r_poses(200, 5)
+    p, R = p[:100], R[:100]
+    st = _chains().solve(leg, p, R)
+    ok = st.reachable
+    assert ok.sum() >= 60
+    p, R, st = p[ok], R[ok], _take(st, ok)
+    W = leg.constraint_wrenches(st, p)
+    assert W.shape == (len(p), 1, 6)
+    c = np.cross(np.array([1.0, 0.0, 0.0]), R[:, :, 1])
+    c /= np.linalg.norm(c, axis=1, keepdims=True)
+    np.testing.assert_allclose(W[:, 0, :3], 0.0, atol=1e-9)
+    np.testing.assert_allclose(np.abs(np.einsum("ni,ni->n", W[:, 0, 3:], c)), 1.0, atol=1e-9)
+
+
+def test_mechanism_of_chain_limbs_is_compiled_and_agrees():
+    """A 6-SPU (structures("3T3R")): feasibility and margins on the compiled path (no
+    fallback warning), equal to the NumPy reference's."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", EngineFallbackWarning)
+        m = parasynth.structures("3T3R", leg_types=["SPU"], legs=[6])[0].mechanism()
+    lo, hi = (np.array(v) for v in zip(*[m.default_ranges()[k] for k in m.task_coordinates]))
+    X = lo + (hi - lo) * np.random.default_rng(2).uniform(0, 1, (600, len(lo)))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", EngineFallbackWarning)
+        fc = engine.feasible(m, X)
+        mc = engine.margins(m, X)
+    fn = m.is_feasible(X, engine="numpy")
+    mn = m.constraint_margins(X, engine="numpy")
+    near = np.zeros(len(X), bool)
+    for k in mn:
+        fin = np.isfinite(mn[k])
+        assert np.array_equal(fin, np.isfinite(mc[k])), k
+        np.testing.assert_allclose(mc[k][fin], mn[k][fin], rtol=0, atol=1e-9, err_msg=k)
+        near |= fin & (np.abs(mn[k]) < 1e-9)
+    assert np.array_equal(fc[~near], fn[~near])
+    assert 0 < fn.sum() < len(X)
+
+
+def test_chain_kernel_one_signature_and_compiled_only_for_chain_limbs():
+    """A mechanism without chain limbs never loads the chain kernel; a chain limb's solve uses
+    the one specialisation of chains.signatures()."""
+    code = ("import numpy as np, warnings; warnings.simplefilter('ignore')\n"
+            "from parasynth import engine\n"
+            "from parasynth.mechanisms import load_mechanism\n"
+            "from parasynth.engine import chains\n"
+            "m = load_mechanism('5pus_upu'); engine.exercise(m)\n"
+            "print(len(chains._chain_kernel.signatures))\n"
+            "from parasynth.model.chains import SPU\n"
+            "leg = SPU('L', base=[0.3, 0.0, 0.0], platform=[0.1, 0.0, 0.0])\n"
+            "chains.solve(leg, np.array([[0.0, 0.0, 0.4]]), np.eye(3)[None])\n"
+            "disp, sig = chains.signatures()['_chain_kernel']\n"
+            "print([tuple(s) for s in disp.signatures] == [tuple(sig)])\n")
+    r = subprocess.run([sys.executable, "-c", code], env=dict(os.environ), capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.split() == ["0", "True"], r.stdout + r.stderr
