@@ -321,5 +321,23 @@ for _limb in (
     LimbType("RRPS", "P", False, 0, ("regular", "paired", "irregular"), options=dict(_CHAIN),
              doc="two revolutes (tangent, then normal to it and the limb, offset along the limb), actuated prismatic, "
                  "spherical, solved numerically: six freedoms"),
+    LimbType("RRUR", "R", False, 1, ("regular", "paired", "irregular"), options=dict(_CHAIN),
+             templates={a: "xy_ring" for a in ("regular", "paired", "irregular")},
+             doc="actuated revolute (x), revolute (x) at an elbow off the limb's line, universal (x, then the "
+                 "platform's y), revolute (the platform's y), solved numerically: one constraint couple about "
+                 "x x (R y), as the RPUR (Masouleh, Gosselin et al.); a ring of five gives the 5-RRUR's xy_ring"),
+    LimbType("RUU", "R", False, 1, ("regular", "paired", "irregular"), options=dict(_CHAIN),
+             doc="actuated crank (revolute, tangent), universal at the crank's end (tangent, then the intermediate "
+                 "axis normal to it and the limb), universal at the platform (the intermediate axis, then tangent), "
+                 "solved numerically: one constraint couple normal to the tangent and the intermediate axis; a ring "
+                 "of three is the translational 3-RUU (Kong and Gosselin 2007), its motion computed from the limbs' "
+                 "closure"),
+    LimbType("URPU", "P", False, 0, ("regular", "paired", "irregular"), options=dict(_CHAIN),
+             doc="universal (tangent, then normal to it and the limb), revolute parallel to the universal joint's "
+                 "second axis four fifths of the limb up, actuated prismatic, universal (radial, then normal to it and the limb), solved "
+                 "numerically: six freedoms, the limb of the 6-URPU"),
+    LimbType("PRRS", "P", False, 0, ("regular", "paired", "irregular"), options=dict(_CHAIN),
+             doc="actuated vertical slider, two revolutes (tangent, then normal to it and the limb, offset along the "
+                 "limb), link, spherical, solved numerically: six freedoms, the limb of the 6-PRRS"),
 ):
     register_limb(_limb)
