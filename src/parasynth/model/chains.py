@@ -52,7 +52,7 @@ from typing import ClassVar
 import numpy as np
 
 from .legs import JOINT_DOF, LEG_TYPES, Leg, LegCapabilities, LegState, _vec3
-from .spatial import null_space, prismatic_twist, revolute_twist, rot_axis, unit
+from .spatial import null_space, unit
 
 __all__ = ["ChainError", "ChainSpec", "ChainLeg", "parse_chain", "JOINT_LETTERS", "REFERENCES", "RELATIONS",
            "IK_TOL", "IK_ITERATIONS", "CLOSURE_ITERATIONS", "chain_class"]
@@ -68,7 +68,7 @@ IK_TOL = 1e-9
 #: Gauss-Newton iterations of the inverse kinematics.
 IK_ITERATIONS = 60
 #: Gauss-Newton iterations of the least-squares reach of the closure equations.
-CLOSURE_ITERATIONS = 60
+CLOSURE_ITERATIONS = 40
 #: The axes of each joint letter that take a relation (S: none).
 _AXES_PER_JOINT = {"R": 1, "P": 1, "U": 2, "S": 0}
 #: References always normal to each other (at every anchor), and always the same direction.
@@ -318,6 +318,11 @@ def _log_rot(R: np.ndarray) -> np.ndarray:
     return v * f[:, None]
 
 
+def _skew3(a) -> np.ndarray:
+    """The cross-product matrix of a 3-vector."""
+    return np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
+
+
 def _elbow_direction(axis, limb, radial) -> np.ndarray:
     """The direction of a joint centre's offset off the anchor line: normal to the joint's
     first axis and to the limb (``axis x limb``; the base normal stands for a spherical joint's
@@ -393,6 +398,9 @@ class ChainLeg(Leg):
     joints: ClassVar[str] = "chain"
     actuated: ClassVar[int | None] = None
     capabilities: ClassVar[LegCapabilities] = LegCapabilities(stiffness=True, passive=True)
+    #: The joint-angle keys of the universal or spherical joint at the base and at the platform
+    #: anchor (None: a revolute or prismatic end joint), set per joint string by :func:`chain_class`.
+    cone_keys: ClassVar[tuple] = (None, None)
     #: What a mechanism description gives a chain limb: its anchor's directions and the height of
     #: its home configuration (the structures give ``radial``, ``tangent`` and ``height``).
     description_options: ClassVar[dict | None] = {"radial": "axis_base", "tangent": "axis_base",
@@ -453,6 +461,9 @@ class ChainLeg(Leg):
                 act_home = float(abs((after[0] - before[-1]) @ free[act_free][1]))
         object.__setattr__(self, "_spec", spec)
         object.__setattr__(self, "_free", tuple(free))
+        # each revolute freedom's cross-product matrix K and K @ K (Rodrigues, :meth:`_forward`)
+        object.__setattr__(self, "_skews", tuple(None if kind == "P" else (_skew3(a), _skew3(a) @ _skew3(a))
+                                                 for kind, a, _ in free))
         object.__setattr__(self, "_joint_of", tuple(joint_of))
         object.__setattr__(self, "_act", act_free)
         object.__setattr__(self, "_act_home", act_home)
@@ -467,6 +478,7 @@ class ChainLeg(Leg):
         U, sv, _ = np.linalg.svd(J)
         rank = int(np.sum(sv > 1e-9 * max(sv[0], 1e-300))) if len(sv) else 0
         object.__setattr__(self, "_closure_dirs", U[:, rank:].copy())
+        object.__setattr__(self, "_closure_cache", {})  # {rows: (targets, orientations, q)}: closure_solve
 
     # -- structure ---------------------------------------------------------------------------
     @property
@@ -492,34 +504,50 @@ class ChainLeg(Leg):
         return self._forward(q)[:4]
 
     def _forward(self, q: np.ndarray):
-        """:meth:`forward` and the orientation (N, 3, 3) of the body before each freedom."""
+        """:meth:`forward` and the orientation (N, 3, 3) of the body before each freedom (and
+        after the last). The product of exponentials of the home joint twists: each revolute
+        freedom turns what follows it about its home axis through its home point (Rodrigues with
+        the axis' constant cross-product matrix), each prismatic one shifts it along its home
+        direction, composed from the base."""
         q = np.atleast_2d(np.asarray(q, float))
         N = q.shape[0]
         Rg = np.broadcast_to(np.eye(3), (N, 3, 3)).copy()
         tg = np.zeros((N, 3))
         axes, points, frames = [], [], []
+        eye = np.eye(3)
         for m, (kind, a, c) in enumerate(self._free):
             frames.append(Rg)
             aw = Rg @ a
             axes.append(aw)
+            qm = q[:, m]
             if kind == "P":
                 points.append(None)
-                tg = tg + aw * q[:, m:m + 1]
-            else:
-                cw = np.einsum("nij,j->ni", Rg, c) + tg
-                points.append(cw)
-                Rj = rot_axis(aw, q[:, m])
-                tg = np.einsum("nij,nj->ni", Rj, tg - cw) + cw
-                Rg = Rj @ Rg
-        pos = np.einsum("nij,j->ni", Rg, self._home) + tg
+                tg = tg + aw * qm[:, None]
+                continue
+            points.append(Rg @ c + tg)
+            K, K2 = self._skews[m]
+            Rm = eye + np.sin(qm)[:, None, None] * K + (1.0 - np.cos(qm))[:, None, None] * K2
+            tg = tg + np.einsum("nij,nj->ni", Rg, c - Rm @ c)
+            Rg = Rg @ Rm
+        pos = Rg @ self._home + tg
         frames.append(Rg)
         return pos, Rg, axes, points, frames
 
     def _twists_at(self, axes, points, ref):
-        cols = []
-        for (kind, _, _), a, c in zip(self._free, axes, points):
-            cols.append(prismatic_twist(a) if kind == "P" else revolute_twist(a, c, ref))
-        return np.stack(cols, axis=1)  # (N, n, 6): (v_ref, w)
+        """The joint twists (N, n, 6), (v at ``ref``, w), of the freedoms with the current
+        ``axes`` and ``points``."""
+        N = np.shape(axes[0])[0] if axes else np.shape(ref)[0]
+        T = np.zeros((N, len(self._free), 6))
+        for m, ((kind, _, _), a, c) in enumerate(zip(self._free, axes, points)):
+            if kind == "P":
+                T[:, m, :3] = a
+            else:
+                d = ref - c
+                T[:, m, 0] = a[:, 1] * d[:, 2] - a[:, 2] * d[:, 1]
+                T[:, m, 1] = a[:, 2] * d[:, 0] - a[:, 0] * d[:, 2]
+                T[:, m, 2] = a[:, 0] * d[:, 1] - a[:, 1] * d[:, 0]
+                T[:, m, 3:] = a
+        return T
 
     def _error(self, q, target, R):
         """The frame at ``q`` and its error against ``(target, R)`` (position / home length, rotation
@@ -614,12 +642,26 @@ class ChainLeg(Leg):
         """The joint coordinates (N, n) of the chain's least-squares reach of the platform poses
         ``(p, R)`` (Gauss-Newton from home, to the rounding floor) and the remaining error (N, 6):
         the anchor position (divided by the limb's home length) and the rotation vector of the
-        platform orientation against the chain's end orientation."""
+        platform orientation against the chain's end orientation.
+
+        A row starts from the last solution of a batch of the same size or of a size that divides
+        it (rows in the same order, as the perturbed poses of a finite-difference Jacobian) when
+        its pose is within 0.05 (position / home length, rotation in rad) of that row's, else from
+        home: the solve follows the branch of the nearby poses it came from."""
         p = np.atleast_2d(np.asarray(p, float))
         R = np.asarray(R, float).reshape(-1, 3, 3)
         N, n = p.shape[0], len(self._free)
         target = p + np.einsum("nij,j->ni", R, self.platform)
         q = np.zeros((N, n))
+        cache = self._closure_cache
+        M = next((M for M in sorted(cache, reverse=True) if N % M == 0), None)
+        if M is not None:
+            t0, R0, q0 = (np.tile(v, (N // M,) + (1,) * (v.ndim - 1)) for v in cache[M])
+            with np.errstate(invalid="ignore"):
+                near = (np.max(np.abs(target - t0), axis=1) / self._L < 0.05) & \
+                    (np.linalg.norm(_log_rot(R @ np.transpose(R0, (0, 2, 1))), axis=1) < 0.05) & \
+                    np.all(np.isfinite(q0), axis=1)
+            q[near] = q0[near]
         err = np.full((N, 6), np.nan)
         act = np.flatnonzero(np.all(np.isfinite(target), axis=1) & np.all(np.isfinite(R), axis=(1, 2)))
         L = self._L
@@ -639,14 +681,18 @@ class ChainLeg(Leg):
             step = np.max(np.abs(dq), axis=1)
             dq *= np.minimum(1.0, 0.5 / np.maximum(step, 1e-300))[:, None]
             q[act] += dq
-            # a row whose step reached the rounding floor takes its error once more, then leaves
-            keep = np.isfinite(step) & (step > 1e-15)
+            # a row whose step fell below 1e-10 (the next, quadratically convergent, one would be at the
+            # rounding floor) takes its error once more, then leaves
+            keep = np.isfinite(step) & (step > 1e-10)
             done = act[~keep]
             if done.size:
                 pos, Rc, _, _ = self.forward(q[done])
                 err[done] = np.concatenate([(target[done] - pos) / L,
                                             _log_rot(R[done] @ np.transpose(Rc, (0, 2, 1)))], axis=1)
             act = act[keep]
+        if len(cache) >= 4 and N not in cache:
+            cache.pop(next(iter(cache)))
+        cache[N] = (target, R, q.copy())
         return q, err
 
     def closure_residuals(self, p, R, L: float | None = None) -> list[np.ndarray]:
@@ -743,17 +789,23 @@ def chain_class(spec: str, *, axes=None, passive: bool = False, stations=None, o
     cls = type(s.joints, (ChainLeg,), ns)
     cls.__module__ = __name__
     cls = dataclass(frozen=True)(cls)
-    cls.constraint_rows = _constraint_kinds(cls)
+    cls.constraint_rows, cls.cone_keys = _constraint_kinds(cls)
     return cls
 
 
-def _constraint_kinds(cls) -> tuple[str, ...]:
-    """The kinds of the constraint wrenches of a chain limb type at a generic anchor and pose:
-    ``angle`` for a couple, ``length`` for a force (its ``constraint_rows``)."""
+def _constraint_kinds(cls) -> tuple[tuple[str, ...], tuple]:
+    """The kinds of the constraint wrenches of a chain limb type at a generic anchor and pose
+    (``angle`` for a couple, ``length`` for a force: its ``constraint_rows``) and its
+    ``cone_keys``: the angle keys of its universal or spherical joint at the base anchor and at
+    the platform anchor (``U_base_cone``, ``S_platform_cone``, ...; None where the end joint is
+    a revolute or a prismatic joint, or sits off the anchor)."""
     leg = cls("generic", base=[0.3 * math.cos(0.4), 0.3 * math.sin(0.4), 0.0], platform=[0.15, 0.02, 0.0])
     p, R = np.array([[0.0, 0.0, 0.4]]), np.eye(3)[None]
     W = leg.constraint_wrenches(leg.solve(p, R), p)[0]
-    return tuple("angle" if np.linalg.norm(w[:3]) < 1e-9 else "length" for w in W)
+    keys = [k for ks, _, _, _ in leg._cones for k in ks]
+    ends = (next((k for k in keys if k.endswith("_base_cone")), None),
+            next((k for k in keys if k.endswith("_platform_cone")), None))
+    return tuple("angle" if np.linalg.norm(w[:3]) < 1e-9 else "length" for w in W), ends
 
 
 def register_chain(spec: str, **kw) -> type:

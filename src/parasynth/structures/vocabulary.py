@@ -163,7 +163,10 @@ class LimbType:
     parameters by name); ``axes``: joint-axis options with the values allowed, the first the
     default (``radial``, ``tangent``, ``normal`` of the limb's own anchor, or x, y, z);
     ``central``: the options of its central placement (passive limbs only); ``templates``:
-    {arrangement: template name} for a constraining limb."""
+    {arrangement: template name} for a constraining limb; ``variants``: further joint-axis
+    choices (tuples of (option, value) pairs) enumerated besides the first of each option, with
+    or without ``all_axes`` (a choice whose axes are tied to each other, as ``centre`` at both
+    universal joints of the spherical UPU)."""
 
     name: str
     actuated_joint: str | None
@@ -175,6 +178,7 @@ class LimbType:
     central: dict | None = None
     templates: dict = field(default_factory=dict)
     doc: str = ""
+    variants: tuple = ()
 
     @property
     def joints(self) -> str:
@@ -296,9 +300,13 @@ for _limb in (
     LimbType("UPU", "P", True, 1, ("regular",),
              axes={"u_axis": ("tangent", "radial", "z"), "u_platform_axis": ("tangent", "radial", "z")},
              central={"u_axis": "y", "u_platform_axis": "y"}, templates={"central": "upu_central"},
+             variants=((("u_axis", "centre"), ("u_platform_axis", "centre")),),
              doc="universal, prismatic, universal (cross axes parallel): one constraint wrench; passive at the "
                  "centre (axes along y): upu_central; an actuated ring's motion is computed from its closure "
-                 "(tangent axes: Tsai's translational 3-UPU; z axes: 3T1R; radial with z: 1T2R)"),
+                 "(tangent axes: Tsai's translational 3-UPU, 3T0R; z axes: 3T1R; radial with z: 1T2R; centre at "
+                 "both ends, the variant always enumerated: the base joint's first axis and the platform joint's "
+                 "last axis through the platform centre at home, the spherical 3-UPU of Karouia and Herve, 0T3R, "
+                 "its constraint a force through that centre normal to the plane of the centre and the limb)"),
 ):
     register_limb(_limb)
 
