@@ -15,7 +15,8 @@ Per motion (3T3R, 3T2R, 2T2R, the default vocabulary):
 The chain limbs (``model/chains.py``: joint strings solved numerically) against closed forms:
 ``us/pose`` of the inverse kinematics of one limb, NumPy, 4096 random poses, median of 5: the
 chain ``UP*S`` against the hand-written ``UPS`` (the same limb), and the chain limbs of the
-vocabulary (RPUR, PRUR) on poses of their motion; the enumeration of 3T2R above includes them
+vocabulary on poses of their motion (x-y rotations; translations for RUU), with the fraction
+reached; the enumeration of 3T2R above includes them
 (the default vocabulary), their structures run on NumPy (no compiled kernel: the fallback
 warnings are counted, and any fallback of a structure of hand-written limbs is an error).
 
@@ -108,15 +109,19 @@ def chain_cost(n: int = 4096):
     chain = ChainLeg("L1", base=base, platform=plat, chain="UP*S", axes=("tangent", "normal:prev", "limb"))
     Rxy = rot_x(rng.uniform(-0.2, 0.2, n)) @ rot_y(rng.uniform(-0.2, 0.2, n))
     rows = [("UPS (closed form)", lambda: ups.solve(p, R)), ("UP*S (chain, numeric)", lambda: chain.solve(p, R))]
+    I = np.broadcast_to(np.eye(3), (n, 3, 3))
     for t in CHAIN_TYPES:
         leg = LEG_TYPES[t]("L1", base=base, platform=plat)
-        rows.append((f"{t} (chain, numeric)", lambda leg=leg: leg.solve(p, Rxy)))
-    print(f"\ninverse kinematics of one limb, us per pose (NumPy, {n} poses, CPU, median of 5):")
+        # poses of the limb's motion: x-y rotations, or none for a translational limb (RUU)
+        Rt = I if t == "RUU" else Rxy
+        rows.append((f"{t} (chain, numeric)", lambda leg=leg, Rt=Rt: leg.solve(p, Rt)))
+    print(f"\ninverse kinematics of one limb, us per pose (NumPy, {n} poses, CPU, median of 5; reached: the "
+          f"fraction of the poses solved):")
     ref = None
     for name, f in rows:
         us = _median_us(f, n)
         ref = ref or us
-        print(f"  {name:24s} {us:8.2f}  ({us / ref:5.0f} x the closed form)")
+        print(f"  {name:24s} {us:8.2f}  ({us / ref:5.0f} x the closed form)  reached {f().reachable.mean():.2f}")
 
 
 def design_ms(s) -> float:
