@@ -180,7 +180,8 @@ def _joint_graph(desc: dict) -> nx.MultiGraph:
         if isinstance(ref, list):
             where, count = "centre", 1
         else:
-            pat = desc["base"][ref]
+            name, _, idx = ref.partition("[")  # "B1" (the whole set) or "B1[2]" (one limb of it)
+            pat = desc["base"][name]
             where = pat["pattern"]
             if where == "circle":  # explicit angles: which shared parameters space them
                 words = str(pat["angles"])
@@ -188,6 +189,8 @@ def _joint_graph(desc: dict) -> nx.MultiGraph:
                 count = len(pat["angles"])
             else:
                 count = pat["n"] * (2 if where == "paired" else 1)
+            if idx:
+                count = len(idx.rstrip("]").split(","))
         opts = tuple(sorted((k, str(v)) for k, v in leg.items() if k not in ("type", "base", "platform", "actuated")))
         act = leg.get("actuated", "none")
         for k in range(count):  # one chain of bodies per limb of the entry

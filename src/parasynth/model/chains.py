@@ -464,6 +464,10 @@ class ChainLeg(Leg):
         # each revolute freedom's cross-product matrix K and K @ K (Rodrigues, :meth:`_forward`)
         object.__setattr__(self, "_skews", tuple(None if kind == "P" else (_skew3(a), _skew3(a) @ _skew3(a))
                                                  for kind, a, _ in free))
+        Z = np.zeros((3, 3))
+        object.__setattr__(self, "_poe", (np.stack([Z if sk is None else sk[0] for sk in self._skews]),
+                                          np.stack([Z if sk is None else sk[1] for sk in self._skews]),
+                                          np.stack([np.zeros(3) if c is None else c for _, _, c in free])))
         object.__setattr__(self, "_joint_of", tuple(joint_of))
         object.__setattr__(self, "_act", act_free)
         object.__setattr__(self, "_act_home", act_home)
@@ -514,21 +518,22 @@ class ChainLeg(Leg):
         Rg = np.broadcast_to(np.eye(3), (N, 3, 3)).copy()
         tg = np.zeros((N, 3))
         axes, points, frames = [], [], []
-        eye = np.eye(3)
+        # every freedom's exponential at once: Rodrigues rotations (N, n, 3, 3) about the home axes,
+        # and their shifts (I - Rm) c (N, n, 3) (a prismatic freedom's rows unused)
+        K, K2, C = self._poe
+        Rm_all = np.eye(3) + np.sin(q)[..., None, None] * K + (1.0 - np.cos(q))[..., None, None] * K2
+        tm_all = C - (Rm_all @ C[..., None])[..., 0]
         for m, (kind, a, c) in enumerate(self._free):
             frames.append(Rg)
             aw = Rg @ a
             axes.append(aw)
-            qm = q[:, m]
             if kind == "P":
                 points.append(None)
-                tg = tg + aw * qm[:, None]
+                tg = tg + aw * q[:, m:m + 1]
                 continue
             points.append(Rg @ c + tg)
-            K, K2 = self._skews[m]
-            Rm = eye + np.sin(qm)[:, None, None] * K + (1.0 - np.cos(qm))[:, None, None] * K2
-            tg = tg + np.einsum("nij,nj->ni", Rg, c - Rm @ c)
-            Rg = Rg @ Rm
+            tg = tg + (Rg @ tm_all[:, m, :, None])[..., 0]
+            Rg = Rg @ Rm_all[:, m]
         pos = Rg @ self._home + tg
         frames.append(Rg)
         return pos, Rg, axes, points, frames
