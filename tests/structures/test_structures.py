@@ -191,7 +191,11 @@ def _joint_graph(desc: dict) -> nx.MultiGraph:
                 count = pat["n"] * (2 if where == "paired" else 1)
             if idx:
                 count = len(idx.rstrip("]").split(","))
-        opts = tuple(sorted((k, str(v)) for k, v in leg.items() if k not in ("type", "base", "platform", "actuated")))
+        # an explicit direction written per limb (a universal joint's axis through the centre, set by
+        # the limb's anchor angle) is a property of the anchor, not a label of its own: a ring turned
+        # by a phase writes other numbers for the same joint
+        opts = tuple(sorted((k, "per-limb direction" if isinstance(v, list) else str(v)) for k, v in leg.items()
+                            if k not in ("type", "base", "platform", "actuated")))
         act = leg.get("actuated", "none")
         for k in range(count):  # one chain of bodies per limb of the entry
             bodies = ["base"] + [f"{i}.{k}.{j}" for j in range(len(t) - 1)] + ["platform"]
