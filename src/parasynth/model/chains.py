@@ -27,20 +27,41 @@ references that are never parallel, ...) are refused with one line naming the ax
 Geometry (an assumption, stated here and as parameters): at the home pose the joint centres of
 the rotational joints (R, U, S) lie on the line from the base anchor to the platform anchor, at
 the fractions ``stations`` of its length (default: evenly spread from 0 to 1 over the rotational
-joints; a prismatic joint has no centre, it moves everything after it along its direction). The
-chain's forward kinematics is the product of exponentials of its joint twists from this home
-configuration; its inverse kinematics at a platform pose is a damped Gauss-Newton solve of the
-anchor frame's position and orientation over the joint coordinates, started at the home
-configuration (the branch of the home pose). A pose is reachable when the solve's residual is
-below :data:`IK_TOL`; a limb of fewer than six freedoms reaches only the poses its constraints
-allow. The actuator value is the actuated joint's coordinate from home (a prismatic joint
-between two joint centres adds their home distance, so that it reads as the limb's length).
+joints; a prismatic joint has no centre, it moves everything after it along its direction), each
+moved off that line by its entry of ``offsets`` (a fraction of the line's length, in [-1, 1],
+default 0: the *elbow*), along the direction normal to the joint's first axis and to the line
+(``axis x limb``; the base normal stands for a spherical joint's axis; the anchor's radial
+direction where that cross product vanishes). Without an elbow, parallel revolute axes through
+points of one line are a stretched planar chain, singular (the RRUR's three x axes, the RUU's
+crank along its link). The chain's forward kinematics is the product of exponentials of its
+joint twists from this home configuration; its inverse kinematics at a platform pose is a
+Levenberg-Marquardt solve of the anchor frame's position and orientation over the joint
+coordinates, started at the home configuration (the branch of the home pose). A pose is
+reachable when the solve's residual is below 1000 :data:`IK_TOL`; a limb of fewer than six
+freedoms reaches only the poses its constraints allow. The actuator value is the actuated
+joint's coordinate from home (a prismatic joint between two joint centres adds their home
+distance, so that it reads as the limb's length).
+
+Each universal or spherical joint has a cone angle, ``<letter><joint index>_cone``: the angle
+between its link as the body after it carries it and as the body before it carries it (the link
+to the next joint centre or to the platform anchor; for the joint at the platform anchor, the
+link arriving from the previous centre or the base anchor), also named ``U_base_cone`` /
+``S_base_cone`` for the joint at the base anchor and ``U_platform_cone`` / ``S_platform_cone``
+for the one at the platform anchor -- the rule of the hand-written legs' cone angles.
+
+Closure equations (:mod:`parasynth.model.parasitic`): a limb with ``c`` constraint wrenches at
+its home pose states ``c`` equations, the error of the chain's least-squares reach of the
+platform anchor frame (:meth:`ChainLeg.closure_solve`) on those home constraint directions
+(:meth:`ChainLeg.closure_residuals`): zero exactly where the chain assembles, smooth near home.
+Out of the limb's reach (a stretched chain) the error is positional and its projection may
+vanish; such a pose is refused by the inverse kinematics, not by the closure.
 
 The chain's constraint wrenches are the wrenches reciprocal to its joint twists at the solved
 configuration (an SVD), so the mobility of a structure follows from them as for the hand-written
-leg types. No compiled kernel exists for a chain limb: it declares ``compiled=False`` and every
-capability but ``stiffness`` and ``passive`` off, so the engine falls back to NumPy with its
-fallback warning and the other parts refuse it by name (:func:`parasynth.model.legs.require`).
+leg types. No compiled kernel exists for a chain limb (nor a compiled closure): it declares
+``compiled=False`` and every capability but ``stiffness`` and ``passive`` off, so the engine falls
+back to NumPy with its fallback warning and the other parts refuse it by name
+(:func:`parasynth.model.legs.require`).
 """
 
 from __future__ import annotations
