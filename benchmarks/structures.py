@@ -15,13 +15,14 @@ Per motion (3T3R, 3T2R, 2T2R, the default vocabulary):
 The chain limbs (``model/chains.py``: joint strings solved numerically) against closed forms:
 ``us/pose`` of the inverse kinematics of one limb, 4096 random poses, one thread, median of 5:
 the NumPy reference (``ChainLeg.solve``) and the compiled kernel (``engine/chains.py``) of the
-chain ``UP*S`` (the hand-written ``UPS``'s limb) and of the chain limbs of the vocabulary
-(RPUR, PRUR on poses of their motion), each against the closed-form ``UPS`` (NumPy) and the
-compiled against the NumPy chain; then the feasibility of a whole mechanism per pose, a 6-UPS
-(closed form, the fused kernels) against a 6-SPU (chain limbs: compiled inverse kinematics,
-the constraints on NumPy). The enumeration of 3T2R above includes the chain limbs (the default
-vocabulary); their pose-wise indices run on NumPy (the fallback warnings are counted, and any
-fallback of a structure of hand-written limbs is an error).
+chain ``UP*S`` (the hand-written ``UPS``'s limb) and of the chain limbs of the vocabulary on
+poses of their motion (x-y rotations; translations for RUU), with the fraction reached, each
+against the closed-form ``UPS`` (NumPy) and the compiled against the NumPy chain; then the
+feasibility of a whole mechanism per pose, a 6-UPS (closed form, the fused kernels) against a
+6-SPU (chain limbs: compiled inverse kinematics, the constraints on NumPy). The enumeration of
+3T2R above includes the chain limbs (the default vocabulary); their pose-wise indices run on
+NumPy (the fallback warnings are counted, and any fallback of a structure of hand-written limbs
+is an error).
 
 Then the full 3T2R study ``studies/structures_3t2r.yaml`` (every 3T2R structure of the default
 vocabulary, 50 designs each in the screening, 200 for each survivor) is run from scratch in a
@@ -116,18 +117,21 @@ def chain_cost(n: int = 4096):
     chain = ChainLeg("L1", base=base, platform=plat, chain="UP*S", axes=("tangent", "normal:prev", "limb"))
     Rxy = rot_x(rng.uniform(-0.2, 0.2, n)) @ rot_y(rng.uniform(-0.2, 0.2, n))
     rows = [("UP*S", chain, R)]
+    I = np.broadcast_to(np.eye(3), (n, 3, 3))
     for t in CHAIN_TYPES:
-        rows.append((t, LEG_TYPES[t]("L1", base=base, platform=plat), Rxy if t in ("RPUR", "PRUR") else R))
+        # poses of the limb's motion: x-y rotations, or none for a translational limb (RUU)
+        rows.append((t, LEG_TYPES[t]("L1", base=base, platform=plat), I if t == "RUU" else Rxy))
     compiled_chains.solve(chain, p[:2], R[:2])  # compiled (or loaded) once, not timed
     ref = _median_us(lambda: ups.solve(p, R), n)
     print(f"\ninverse kinematics of one limb, us per pose ({n} poses, one thread, CPU, median of 5); "
           f"closed-form UPS (NumPy): {ref:.3f} us")
     print(f"  {'limb':6s} {'NumPy chain':>12s} {'compiled chain':>15s} {'compiled / UPS':>15s} "
-          f"{'NumPy / compiled':>17s}")
+          f"{'NumPy / compiled':>17s} {'reached':>8s}")
     for name, leg, Rr in rows:
         us_np = _median_us(lambda: leg.solve(p, Rr), n)
         us_c = _median_us(lambda: compiled_chains.solve(leg, p, Rr), n)
-        print(f"  {name:6s} {us_np:12.2f} {us_c:15.3f} {us_c / ref:14.1f}x {us_np / us_c:16.1f}x")
+        print(f"  {name:6s} {us_np:12.2f} {us_c:15.3f} {us_c / ref:14.1f}x {us_np / us_c:16.1f}x "
+              f"{leg.solve(p, Rr).reachable.mean():8.2f}")
     # a mechanism: feasibility per pose, 6-UPS (closed form, the kernels) against 6-SPU (chain limbs)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", EngineFallbackWarning)

@@ -13,7 +13,7 @@ import pytest
 
 import parasynth
 from parasynth import engine
-from parasynth.model.chains import IK_TOL, PRUR, RPUR, RRPS, SPU, chain_class
+from parasynth.model.chains import IK_TOL, PRRS, PRUR, RPUR, RRPS, RRUR, RUU, SPU, URPU, chain_class
 from parasynth.model.legs import UPS, LegState
 from parasynth.model.mechanism import EngineFallbackWarning
 from parasynth.model.spatial import rot_axis, rot_x, rot_y
@@ -57,8 +57,16 @@ def _span(W):
     return Q @ Q.T
 
 
+def _translations(n, seed):
+    """Positions around the limb's home, the platform level (the motion of a translational RUU)."""
+    p, _ = _general_poses(n, seed)
+    return p, np.broadcast_to(np.eye(3), (n, 3, 3)).copy()
+
+
 @pytest.mark.parametrize("cls, poses", [(RPUR, _3t2r_poses), (PRUR, _3t2r_poses), (SPU, _general_poses),
-                                        (RRPS, _general_poses)], ids=["RPUR", "PRUR", "SPU", "RRPS"])
+                                        (RRPS, _general_poses), (RRUR, _3t2r_poses), (URPU, _general_poses),
+                                        (PRRS, _general_poses), (RUU, _translations)],
+                         ids=["RPUR", "PRUR", "SPU", "RRPS", "RRUR", "URPU", "PRRS", "RUU"])
 def test_compiled_chain_solve_agrees_with_numpy(cls, poses):
     leg = cls("L", base=BASE, platform=PLAT)
     p, R = poses(400, 3)

@@ -25,7 +25,8 @@ SHIPPED = {"SPS": "2rpu_2sps", "UPS": "gough_stewart_6ups", "PUS": "hexapod_6pus
 
 
 #: The chain limbs (model/chains.py, no shipped model): a structure of the vocabulary holding each.
-CHAIN_STRUCTURES = {"RPUR": ("3T2R", 5), "PRUR": ("3T2R", 5), "SPU": ("3T3R", 6), "RRPS": ("3T3R", 6)}
+CHAIN_STRUCTURES = {"RPUR": ("3T2R", 5), "PRUR": ("3T2R", 5), "SPU": ("3T3R", 6), "RRPS": ("3T3R", 6),
+                    "RRUR": ("3T2R", 5), "RUU": ("3T0R", 3), "URPU": ("3T3R", 6), "PRRS": ("3T3R", 6)}
 
 
 @functools.lru_cache(maxsize=None)

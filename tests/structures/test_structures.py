@@ -183,7 +183,8 @@ def _joint_graph(desc: dict) -> nx.MultiGraph:
         if isinstance(ref, list):
             where, count = "centre", 1
         else:
-            pat = desc["base"][ref]
+            name, _, idx = ref.partition("[")  # "B1" (the whole set) or "B1[2]" (one limb of it)
+            pat = desc["base"][name]
             where = pat["pattern"]
             if where == "circle":  # explicit angles: which shared parameters space them
                 words = str(pat["angles"])
@@ -191,7 +192,13 @@ def _joint_graph(desc: dict) -> nx.MultiGraph:
                 count = len(pat["angles"])
             else:
                 count = pat["n"] * (2 if where == "paired" else 1)
-        opts = tuple(sorted((k, str(v)) for k, v in leg.items() if k not in ("type", "base", "platform", "actuated")))
+            if idx:
+                count = len(idx.rstrip("]").split(","))
+        # an explicit direction written per limb (a universal joint's axis through the centre, set by
+        # the limb's anchor angle) is a property of the anchor, not a label of its own: a ring turned
+        # by a phase writes other numbers for the same joint
+        opts = tuple(sorted((k, "per-limb direction" if isinstance(v, list) else str(v)) for k, v in leg.items()
+                            if k not in ("type", "base", "platform", "actuated")))
         act = leg.get("actuated", "none")
         for k in range(count):  # one chain of bodies per limb of the entry
             bodies = ["base"] + [f"{i}.{k}.{j}" for j in range(len(t) - 1)] + ["platform"]

@@ -43,15 +43,25 @@ def test_no_kept_structure_is_singular_at_home(every_motion):
     """Over every motion type and every joint-axis choice: each kept structure is controlled at
     its home pose at the default dimensions, with margin >= SINGULARITY_FLOOR, and the regular
     rings of four or more limbs that are singular there are listed under "singular at home"."""
-    kept = 0
+    kept, low = 0, []
     for motion, found in every_motion.items():
         for s in found:
             m = _home_margin_of_yaml(s)
             assert m >= SINGULARITY_FLOOR, (motion, s.label, s.arrangement, m)
             assert m == pytest.approx(s.home_margin, rel=1e-9, abs=1e-12)
-            assert s.verified and verdict_text(s).startswith("verified: ")
+            if s.checked_margin >= SINGULARITY_FLOOR and s.controlled_poses == s.checked_poses:
+                assert s.verified and verdict_text(s).startswith("verified: ")
+            else:  # controlled at home, but near a singularity at a checked pose: kept, and said so
+                assert not s.verified and verdict_text(s).startswith("NOT VERIFIED: ")
+                low.append((motion, s.name, s.arrangement))
             kept += 1
     assert kept >= 40
+    # the kept structures of the default vocabulary (all axis choices) below the floor at a checked pose
+    # (seed 0): five 1T3R 2-UPU&2-x (the 2-UPU&2-UPS with both UPS axis choices) with the spherical
+    # UPU's axes (two forces through the platform centre) and the 3T3R 3-RRPS&3-PRRS; none of the
+    # motions of the shipped studies
+    assert len(low) <= 6 and {m for m, _, _ in low} <= {"1T3R", "3T3R"}, low
+    assert not {n for m, n, _ in low if m == "3T3R"} - {"3-RRPS&3-PRRS"}, low
     singular = every_motion["3T2R"].dropped_names["singular at home"]
     assert {"5-PUS/UPU", "5-UPS/UPU", "5-RUS/UPU"} <= set(singular)
     assert {"6-PUS", "6-RUS"} <= set(every_motion["3T3R"].dropped_names["singular at home"])

@@ -1,21 +1,24 @@
 """The compiled inverse kinematics of chain limbs (:class:`parasynth.model.chains.ChainLeg`):
-the same damped Gauss-Newton solve as the NumPy reference (``ChainLeg.inverse``), one pose at
+the same Levenberg-Marquardt solve as the NumPy reference (``ChainLeg.inverse``), one pose at
 a time in a numba kernel, for a chain given as data (``ChainLeg.chain_arrays``: per freedom its
 kind, home axis and home point; the anchor's home position, the platform anchor, the length
 scale, the actuated freedom). One specialisation serves every chain limb: a new joint string,
 new axes or a new design is new data, not a new compile.
 
 Per pose: from the home configuration (q = 0), the anchor frame by the product of
-exponentials, the residual ``((target - position) / L, log(R Rc^T))``, its largest component
-``r``; stop when ``r < IK_TOL``, when it is not finite, when a step gained less than a relative
-1e-6 (a least-squares minimum off the limb's reach) or after ``IK_ITERATIONS`` steps; else the
-step ``(J^T J + mu I) dq = J^T e`` with ``mu = 1e-12 (1 + trace J^T J)`` (J: the joint twists
-at the anchor, position rows divided by L), scaled to at most 0.5 per coordinate. The
-reference solves the normal equations by LU (``np.linalg.solve``), this kernel by Cholesky
-(they are symmetric positive definite with the damping): the iterates agree to rounding, the
-converged coordinates to ~1e-12, and a pose whose residual ends within rounding of the
-reachability threshold (``1e3 * IK_TOL``) may be told apart differently (the agreement test
-allows those only).
+exponentials, the error ``e = ((target - position) / L, log(R Rc^T))``, its largest component
+``r``; while ``r >= IK_TOL`` (and finite), at most ``IK_ITERATIONS`` trials: the step
+``(J^T J + mu I) dq = J^T e`` with ``mu = lam (1 + trace(J^T J) / n)`` (J: the joint twists at
+the anchor, position rows divided by L), scaled to at most 0.5 per coordinate, taken only where
+it lowers ``|e|^2``; ``lam`` starts at 1e-12, shrinks tenfold (not below 1e-12) after a taken
+step and grows tenfold after a refused one; the pose stops stalled (a least-squares minimum off
+the limb's reach) when a taken step gained no more than 1e-12 of the error or ``lam`` exceeds
+1e6. The reference solves the normal equations by LU (``np.linalg.solve``), this kernel by
+Cholesky (they are symmetric positive definite with the damping): the iterates agree to
+rounding, the converged coordinates to ~1e-12, and a pose whose residual ends within rounding
+of the reachability threshold (``1e3 * IK_TOL``) may be told apart differently (the agreement
+test allows those only). The joint angles (coordinates and cone angles) come from
+``ChainLeg.joint_angles`` at the solved coordinates, as in the reference.
 
 Where it is used: :func:`solve` gives the :class:`~parasynth.model.legs.LegState` that
 ``ChainLeg.solve`` gives, with the joint coordinates, current axes, points and the residual in
@@ -116,17 +119,67 @@ if HAVE_NUMBA:  # pragma: no branch
             pos[a] = Rg[a, 0] * home[0] + Rg[a, 1] * home[1] + Rg[a, 2] * home[2] + tg[a]
 
     @njit(**_jit)
+    def _error(R, tx, ty, tz, Rg, pos, L, e):
+        """The solve's error ``e`` (6,): ((target - position) / L, log(R Rc^T)); returns the
+        squared error and its largest component (NaN when not finite)."""
+        e[0] = (tx - pos[0]) / L
+        e[1] = (ty - pos[1]) / L
+        e[2] = (tz - pos[2]) / L
+        m00 = R[0, 0] * Rg[0, 0] + R[0, 1] * Rg[0, 1] + R[0, 2] * Rg[0, 2]
+        m11 = R[1, 0] * Rg[1, 0] + R[1, 1] * Rg[1, 1] + R[1, 2] * Rg[1, 2]
+        m22 = R[2, 0] * Rg[2, 0] + R[2, 1] * Rg[2, 1] + R[2, 2] * Rg[2, 2]
+        m21 = R[2, 0] * Rg[1, 0] + R[2, 1] * Rg[1, 1] + R[2, 2] * Rg[1, 2]
+        m12 = R[1, 0] * Rg[2, 0] + R[1, 1] * Rg[2, 1] + R[1, 2] * Rg[2, 2]
+        m02 = R[0, 0] * Rg[2, 0] + R[0, 1] * Rg[2, 1] + R[0, 2] * Rg[2, 2]
+        m20 = R[2, 0] * Rg[0, 0] + R[2, 1] * Rg[0, 1] + R[2, 2] * Rg[0, 2]
+        m10 = R[1, 0] * Rg[0, 0] + R[1, 1] * Rg[0, 1] + R[1, 2] * Rg[0, 2]
+        m01 = R[0, 0] * Rg[1, 0] + R[0, 1] * Rg[1, 1] + R[0, 2] * Rg[1, 2]
+        vx = 0.5 * (m21 - m12)
+        vy = 0.5 * (m02 - m20)
+        vz = 0.5 * (m10 - m01)
+        sn = math.sqrt(vx * vx + vy * vy + vz * vz)
+        cs = 0.5 * (m00 + m11 + m22 - 1.0)
+        th = math.atan2(sn, cs)
+        f = th / (sn if sn > 1e-300 else 1e-300) if sn > 1e-12 else 1.0
+        e[3] = vx * f
+        e[4] = vy * f
+        e[5] = vz * f
+        r = 0.0
+        c = 0.0
+        bad = False
+        for k in range(6):
+            a = abs(e[k])
+            c += e[k] * e[k]
+            if a != a:
+                bad = True
+            elif a > r:
+                r = a
+        if bad:
+            return np.nan, np.nan
+        return c, r
+
+    @njit(**_jit)
     def _chain_kernel(P, Rm, kinds, axes, points, home, plat, L, n_iter, tol, Q, res, POS, AXW, PTW, i0, i1):
         """Poses ``i0 .. i1 - 1``: joint coordinates ``Q``, residual ``res``, anchor position
-        ``POS`` and the freedoms' axes ``AXW`` and points ``PTW`` at the solution."""
+        ``POS`` and the freedoms' axes ``AXW`` and points ``PTW`` at the solution. The
+        reference's Levenberg-Marquardt: a trial step is taken only where it lowers the squared
+        error; the damping shrinks tenfold (not below 1e-12) after a taken step and grows tenfold
+        after a refused one; a pose stops when reached, stalled (a taken step gained no more than
+        1e-12 of the error, or the damping exceeds 1e6) or after ``n_iter`` trials."""
         n = kinds.shape[0]
         q = np.zeros(n)
+        qt = np.zeros(n)
         Rg = np.empty((3, 3))
         tg = np.empty(3)
         pos = np.empty(3)
         axw = np.empty((n, 3))
         ptw = np.empty((n, 3))
+        Rgt = np.empty((3, 3))
+        post = np.empty(3)
+        axt = np.empty((n, 3))
+        ptt = np.empty((n, 3))
         e = np.empty(6)
+        et = np.empty(6)
         J = np.empty((6, n))
         A = np.empty((n, n))
         b = np.empty(n)
@@ -139,46 +192,11 @@ if HAVE_NUMBA:  # pragma: no branch
             tz = P[i, 2] + R[2, 0] * plat[0] + R[2, 1] * plat[1] + R[2, 2] * plat[2]
             for m in range(n):
                 q[m] = 0.0
-            last = np.inf
-            r = np.inf
-            for it in range(n_iter + 1):
-                _forward(q, kinds, axes, points, home, Rg, tg, axw, ptw, pos)
-                e[0] = (tx - pos[0]) / L
-                e[1] = (ty - pos[1]) / L
-                e[2] = (tz - pos[2]) / L
-                # log of R Rc^T
-                m00 = R[0, 0] * Rg[0, 0] + R[0, 1] * Rg[0, 1] + R[0, 2] * Rg[0, 2]
-                m11 = R[1, 0] * Rg[1, 0] + R[1, 1] * Rg[1, 1] + R[1, 2] * Rg[1, 2]
-                m22 = R[2, 0] * Rg[2, 0] + R[2, 1] * Rg[2, 1] + R[2, 2] * Rg[2, 2]
-                m21 = R[2, 0] * Rg[1, 0] + R[2, 1] * Rg[1, 1] + R[2, 2] * Rg[1, 2]
-                m12 = R[1, 0] * Rg[2, 0] + R[1, 1] * Rg[2, 1] + R[1, 2] * Rg[2, 2]
-                m02 = R[0, 0] * Rg[2, 0] + R[0, 1] * Rg[2, 1] + R[0, 2] * Rg[2, 2]
-                m20 = R[2, 0] * Rg[0, 0] + R[2, 1] * Rg[0, 1] + R[2, 2] * Rg[0, 2]
-                m10 = R[1, 0] * Rg[0, 0] + R[1, 1] * Rg[0, 1] + R[1, 2] * Rg[0, 2]
-                m01 = R[0, 0] * Rg[1, 0] + R[0, 1] * Rg[1, 1] + R[0, 2] * Rg[1, 2]
-                vx = 0.5 * (m21 - m12)
-                vy = 0.5 * (m02 - m20)
-                vz = 0.5 * (m10 - m01)
-                sn = math.sqrt(vx * vx + vy * vy + vz * vz)
-                cs = 0.5 * (m00 + m11 + m22 - 1.0)
-                th = math.atan2(sn, cs)
-                f = th / (sn if sn > 1e-300 else 1e-300) if sn > 1e-12 else 1.0
-                e[3] = vx * f
-                e[4] = vy * f
-                e[5] = vz * f
-                r = 0.0
-                bad = False
-                for k in range(6):
-                    a = abs(e[k])
-                    if a != a:
-                        bad = True
-                    elif a > r:
-                        r = a
-                if bad:
-                    r = np.nan
-                keep = (r >= tol) and (r == r) and (r < np.inf) and (r < last * (1.0 - 1e-6))
-                last = r
-                if it == n_iter or not keep:
+            _forward(q, kinds, axes, points, home, Rg, tg, axw, ptw, pos)
+            cost, r = _error(R, tx, ty, tz, Rg, pos, L, e)
+            lam = 1e-12
+            for it in range(n_iter):
+                if not (r >= tol):  # reached, or not finite
                     break
                 # joint twists at the anchor: P (a, 0), R (a x (pos - c), a); position rows / L
                 for m in range(n):
@@ -214,7 +232,7 @@ if HAVE_NUMBA:  # pragma: no branch
                     for k in range(6):
                         s += J[k, a] * e[k]
                     b[a] = s
-                mu = 1e-12 * (1.0 + tr)
+                mu = lam * (1.0 + tr / n)
                 for a in range(n):
                     A[a, a] += mu
                 # Cholesky A = Lc Lc^T, then the two triangular solves
@@ -244,7 +262,28 @@ if HAVE_NUMBA:  # pragma: no branch
                 fac = 0.5 / (step if step > 1e-300 else 1e-300)
                 fac = fac if fac < 1.0 else 1.0
                 for a in range(n):
-                    q[a] += dq[a] * fac
+                    qt[a] = q[a] + dq[a] * fac
+                _forward(qt, kinds, axes, points, home, Rgt, tg, axt, ptt, post)
+                ct, rt = _error(R, tx, ty, tz, Rgt, post, L, et)
+                ok = (ct == ct) and ct < cost
+                gain = cost - ct if ok else 0.0
+                if ok:
+                    cost = ct
+                    r = rt
+                    for a in range(n):
+                        q[a] = qt[a]
+                        for k in range(3):
+                            axw[a, k] = axt[a, k]
+                            ptw[a, k] = ptt[a, k]
+                    for k in range(6):
+                        e[k] = et[k]
+                    for k in range(3):
+                        pos[k] = post[k]
+                    lam = lam * 0.1 if lam * 0.1 > 1e-12 else 1e-12
+                else:
+                    lam = lam * 10.0
+                if (ok and gain <= 1e-12 * (cost + gain)) or lam > 1e6:
+                    break
             res[i] = r
             for m in range(n):
                 Q[i, m] = q[m]
@@ -314,11 +353,7 @@ def solve(leg: ChainLeg, p, R, joint_angles: bool = True):
     length = np.linalg.norm(A - B, axis=-1)
     act = np.full(len(q), np.nan) if d["actuated"] < 0 else q[:, d["actuated"]] + d["act_home"]
     act = np.where(reachable, act, np.nan)
-    angles = {}
-    if joint_angles:
-        joints = leg.spec.joints
-        for m, j in enumerate(d["joint_of"]):
-            angles[f"{joints[j]}{j}_{m}"] = q[:, m]
+    angles = leg.joint_angles(q, reachable) if joint_angles else {}
     st = LegState(act, reachable, B, A, nvec, length, angles)
     st.extra.update({"q": q, "axes": axes, "points": points, "residual": res})
     return st

@@ -27,22 +27,43 @@ references that are never parallel, ...) are refused with one line naming the ax
 Geometry (an assumption, stated here and as parameters): at the home pose the joint centres of
 the rotational joints (R, U, S) lie on the line from the base anchor to the platform anchor, at
 the fractions ``stations`` of its length (default: evenly spread from 0 to 1 over the rotational
-joints; a prismatic joint has no centre, it moves everything after it along its direction). The
-chain's forward kinematics is the product of exponentials of its joint twists from this home
-configuration; its inverse kinematics at a platform pose is a damped Gauss-Newton solve of the
-anchor frame's position and orientation over the joint coordinates, started at the home
-configuration (the branch of the home pose). A pose is reachable when the solve's residual is
-below :data:`IK_TOL`; a limb of fewer than six freedoms reaches only the poses its constraints
-allow. The actuator value is the actuated joint's coordinate from home (a prismatic joint
-between two joint centres adds their home distance, so that it reads as the limb's length).
+joints; a prismatic joint has no centre, it moves everything after it along its direction), each
+moved off that line by its entry of ``offsets`` (a fraction of the line's length, in [-1, 1],
+default 0: the *elbow*), along the direction normal to the joint's first axis and to the line
+(``axis x limb``; the base normal stands for a spherical joint's axis; the anchor's radial
+direction where that cross product vanishes). Without an elbow, parallel revolute axes through
+points of one line are a stretched planar chain, singular (the RRUR's three x axes, the RUU's
+crank along its link). The chain's forward kinematics is the product of exponentials of its
+joint twists from this home configuration; its inverse kinematics at a platform pose is a
+Levenberg-Marquardt solve of the anchor frame's position and orientation over the joint
+coordinates, started at the home configuration (the branch of the home pose). A pose is
+reachable when the solve's residual is below 1000 :data:`IK_TOL`; a limb of fewer than six
+freedoms reaches only the poses its constraints allow. The actuator value is the actuated
+joint's coordinate from home (a prismatic joint between two joint centres adds their home
+distance, so that it reads as the limb's length).
+
+Each universal or spherical joint has a cone angle, ``<letter><joint index>_cone``: the angle
+between its link as the body after it carries it and as the body before it carries it (the link
+to the next joint centre or to the platform anchor; for the joint at the platform anchor, the
+link arriving from the previous centre or the base anchor), also named ``U_base_cone`` /
+``S_base_cone`` for the joint at the base anchor and ``U_platform_cone`` / ``S_platform_cone``
+for the one at the platform anchor -- the rule of the hand-written legs' cone angles.
+
+Closure equations (:mod:`parasynth.model.parasitic`): a limb with ``c`` constraint wrenches at
+its home pose states ``c`` equations, the error of the chain's least-squares reach of the
+platform anchor frame (:meth:`ChainLeg.closure_solve`) on those home constraint directions
+(:meth:`ChainLeg.closure_residuals`): zero exactly where the chain assembles, smooth near home.
+Out of the limb's reach (a stretched chain) the error is positional and its projection may
+vanish; such a pose is refused by the inverse kinematics, not by the closure.
 
 The chain's constraint wrenches are the wrenches reciprocal to its joint twists at the solved
 configuration (an SVD), so the mobility of a structure follows from them as for the hand-written
 leg types. The engine solves chain limbs with a compiled kernel of the same solve
 (:mod:`parasynth.engine.chains`, from :meth:`ChainLeg.chain_arrays`) for feasibility and
-constraint margins; a chain limb declares ``compiled=False`` (no compiled pose-wise index kernels:
-those fall back to NumPy with the fallback warning) and every capability but ``stiffness`` and
-``passive`` off, so the other parts refuse it by name (:func:`parasynth.model.legs.require`).
+constraint margins; a chain limb declares ``compiled=False`` (no compiled pose-wise index kernels
+and no compiled closure: those fall back to NumPy with the fallback warning) and every capability
+but ``stiffness`` and ``passive`` off, so the other parts refuse it by name
+(:func:`parasynth.model.legs.require`).
 """
 
 from __future__ import annotations
@@ -54,10 +75,10 @@ from typing import ClassVar
 import numpy as np
 
 from .legs import JOINT_DOF, LEG_TYPES, Leg, LegCapabilities, LegState, _vec3
-from .spatial import null_space, prismatic_twist, revolute_twist, rot_axis, unit
+from .spatial import null_space, unit
 
 __all__ = ["ChainError", "ChainSpec", "ChainLeg", "parse_chain", "JOINT_LETTERS", "REFERENCES", "RELATIONS",
-           "IK_TOL", "IK_ITERATIONS", "chain_class"]
+           "IK_TOL", "IK_ITERATIONS", "CLOSURE_ITERATIONS", "chain_class"]
 
 #: The joint letters a joint string may hold, with their freedoms.
 JOINT_LETTERS = {"R": "revolute", "P": "prismatic", "U": "universal", "S": "spherical"}
@@ -69,6 +90,8 @@ RELATIONS = ("parallel", "normal")
 IK_TOL = 1e-9
 #: Gauss-Newton iterations of the inverse kinematics.
 IK_ITERATIONS = 60
+#: Gauss-Newton iterations of the least-squares reach of the closure equations.
+CLOSURE_ITERATIONS = 40
 #: The axes of each joint letter that take a relation (S: none).
 _AXES_PER_JOINT = {"R": 1, "P": 1, "U": 2, "S": 0}
 #: References always normal to each other (at every anchor), and always the same direction.
@@ -92,14 +115,17 @@ def _fmt(x) -> str:
 class ChainSpec:
     """A parsed limb: ``joints`` (the letters, base to platform), ``actuated`` (index of the
     actuated joint, None for a passive limb), ``relations`` (per axis of the chain, a tuple of
-    (relation, reference) pairs) and ``stations`` (home fractions of the rotational joints'
-    centres along the limb, None: evenly spread)."""
+    (relation, reference) pairs), ``stations`` (home fractions of the rotational joints'
+    centres along the limb, None: evenly spread), ``kinds`` (the joint letter of each axis) and
+    ``offsets`` (home offsets of the rotational joints' centres off the anchor line, fractions
+    of its length, None: all on the line)."""
 
     joints: str
     actuated: int | None
     relations: tuple
     stations: tuple | None = None
     kinds: tuple = ()
+    offsets: tuple | None = None
 
     @property
     def name(self) -> str:
@@ -150,14 +176,16 @@ def _check_symbolic(rels: tuple, where: str) -> None:
                                  f"direction); {_ALLOWED}")
 
 
-def parse_chain(spec, actuated=None, axes=None, *, passive: bool = False, stations=None) -> ChainSpec:
+def parse_chain(spec, actuated=None, axes=None, *, passive: bool = False, stations=None, offsets=None) -> ChainSpec:
     """Parse a limb: ``spec`` its joint string (``"RP*UR"``, or ``"RPUR"`` with ``actuated``, the
     index of the actuated joint), ``axes`` the relations of its axes in chain order (a list of
     strings, one per axis: R and P one each, U two, S none; None: the defaults, first rotational
     axis ``tangent``, a prismatic joint ``limb``, every later rotational axis ``parallel:prev``
     except a universal joint's second axis ``normal:prev``), ``passive`` True for a limb without
     an actuator, ``stations`` the home fractions of the rotational joints' centres along the
-    limb. :class:`ChainError` (one line: what is wrong, what is allowed) otherwise."""
+    limb, ``offsets`` the home offsets of the rotational joints' centres off the anchor line
+    (fractions of its length, each in [-1, 1]; the elbow of an R-R or R-U link, see the module
+    docstring). :class:`ChainError` (one line: what is wrong, what is allowed) otherwise."""
     if not isinstance(spec, str) or not spec.strip():
         raise ChainError(f"joint string must be a non-empty string of {', '.join(JOINT_LETTERS)} (the actuated joint "
                          f"followed by '*', e.g. 'RP*UR'), got {_fmt(spec)}")
@@ -248,7 +276,14 @@ def parse_chain(spec, actuated=None, axes=None, *, passive: bool = False, statio
             raise ChainError(f"stations must be non-decreasing (joint centres in chain order along the limb), got "
                              f"{list(stations)}")
         stations = tuple(float(v) for v in stations)
-    spec_ = ChainSpec(joints, act, tuple(rels), stations, tuple(kinds))
+    if offsets is not None:
+        if not isinstance(offsets, (list, tuple)) or len(offsets) != n_rot or not all(
+                isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and -1.0 <= v <= 1.0
+                for v in offsets):
+            raise ChainError(f"offsets must be {n_rot} numbers in [-1, 1] (the home offsets of its rotational joints' "
+                             f"centres off the anchor line, as fractions of the limb's length), got {_fmt(offsets)}")
+        offsets = tuple(float(v) for v in offsets) if any(offsets) else None
+    spec_ = ChainSpec(joints, act, tuple(rels), stations, tuple(kinds), offsets)
     # the relations at a generic anchor: contradictions that depend on the previous axes
     _resolve_axes(spec_, np.array([math.cos(0.7), math.sin(0.7), 0.0]), np.array([-math.sin(0.7), math.cos(0.7), 0.0]),
                   unit(np.array([-0.31, 0.17, 0.93])))
@@ -306,6 +341,60 @@ def _log_rot(R: np.ndarray) -> np.ndarray:
     return v * f[:, None]
 
 
+def _skew3(a) -> np.ndarray:
+    """The cross-product matrix of a 3-vector."""
+    return np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
+
+
+def _elbow_direction(axis, limb, radial) -> np.ndarray:
+    """The direction of a joint centre's offset off the anchor line: normal to the joint's
+    first axis and to the limb (``axis x limb``; the base normal stands for a spherical joint's
+    axis), else the radial direction, else x."""
+    for v in (np.cross(axis, limb), np.asarray(radial, float), np.eye(3)[0]):
+        if np.linalg.norm(v) > 1e-6:
+            return unit(np.asarray(v, float))
+    return np.eye(3)[0]  # pragma: no cover
+
+
+def _angle_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Angle (rad) between the rows of ``a`` and ``b`` (N, 3)."""
+    return np.arctan2(np.linalg.norm(np.cross(a, b), axis=-1), np.einsum("ij,ij->i", a, b))
+
+
+def _cone_links(spec: ChainSpec, centres, joint_of, base, A0, L) -> tuple:
+    """Per universal or spherical joint: its angle keys, the indices of the freedoms before and
+    after it (:meth:`ChainLeg._forward`'s frames) and the home direction of the link that its
+    cone angle follows: the link to the next joint centre (or to the platform anchor), or, for
+    the joint at the platform anchor, the link arriving from the previous joint centre (or the
+    base anchor)."""
+    out = []
+    rot = [i for i, j in enumerate(spec.joints) if j in "RUS"]
+    tol = 1e-9 * L
+    for i, j in enumerate(spec.joints):
+        if j not in "US":
+            continue
+        c = centres[i]
+        later = [centres[k] for k in rot if k > i and np.linalg.norm(centres[k] - c) > tol]
+        if later:
+            link = later[0] - c
+        elif np.linalg.norm(A0 - c) > tol:
+            link = A0 - c
+        else:
+            earlier = [centres[k] for k in rot if k < i and np.linalg.norm(centres[k] - c) > tol]
+            link = c - (earlier[-1] if earlier else base)
+        if np.linalg.norm(link) <= tol:  # pragma: no cover (a limb of one joint at its own base)
+            continue
+        keys = [f"{j}{i}_cone"]
+        if i == rot[0] and np.linalg.norm(c - base) <= tol:
+            keys.append(f"{j}_base_cone")
+        if i == rot[-1] and np.linalg.norm(c - A0) <= tol:
+            keys.append(f"{j}_platform_cone")
+        m0 = joint_of.index(i)
+        m1 = len(joint_of) - joint_of[::-1].index(i)
+        out.append((tuple(keys), m0, m1, unit(link)))
+    return tuple(out)
+
+
 @dataclass(frozen=True)
 class ChainLeg(Leg):
     """A limb of any joint string (:func:`parse_chain`), solved numerically.
@@ -315,7 +404,9 @@ class ChainLeg(Leg):
     no actuator; ``stations``: home fractions of the rotational joints' centres; ``home_point``:
     the platform anchor's position (base frame) at the home pose, level platform (None: the
     platform anchor raised by ``home_height`` above the base plane); ``radial`` and ``tangent``:
-    the base anchor's directions (None: from the anchor's angle about z)."""
+    the base anchor's directions (None: from the anchor's angle about z); ``offsets``: home
+    offsets of the rotational joints' centres off the anchor line (fractions of its length, the
+    elbows; None: on the line)."""
 
     chain: str = "RP*UR"
     axes: tuple | None = None
@@ -325,10 +416,14 @@ class ChainLeg(Leg):
     home_height: float = 0.4
     radial: np.ndarray | None = None
     tangent: np.ndarray | None = None
+    offsets: tuple | None = None
 
     joints: ClassVar[str] = "chain"
     actuated: ClassVar[int | None] = None
     capabilities: ClassVar[LegCapabilities] = LegCapabilities(stiffness=True, passive=True)
+    #: The joint-angle keys of the universal or spherical joint at the base and at the platform
+    #: anchor (None: a revolute or prismatic end joint), set per joint string by :func:`chain_class`.
+    cone_keys: ClassVar[tuple] = (None, None)
     #: What a mechanism description gives a chain limb: its anchor's directions and the height of
     #: its home configuration (the structures give ``radial``, ``tangent`` and ``height``).
     description_options: ClassVar[dict | None] = {"radial": "axis_base", "tangent": "axis_base",
@@ -339,7 +434,8 @@ class ChainLeg(Leg):
         chain = self.chain.replace("*", "") if self.passive and isinstance(self.chain, str) else self.chain
         try:
             spec = parse_chain(chain, axes=None if self.axes is None else list(self.axes), passive=self.passive,
-                               stations=None if self.stations is None else list(self.stations))
+                               stations=None if self.stations is None else list(self.stations),
+                               offsets=None if self.offsets is None else list(self.offsets))
         except ChainError as e:
             raise ChainError(f"leg {self.name}: {e}") from None
         A0 = (self.platform + np.array([0.0, 0.0, float(self.home_height)]) if self.home_point is None
@@ -367,13 +463,15 @@ class ChainLeg(Leg):
                 centres.append(None)
                 continue
             c = self.base + st[r] * d
-            r += 1
-            centres.append(c)
             if j == "S":
                 dirs = list(np.eye(3))
             else:
                 dirs = axes[k:k + _AXES_PER_JOINT[j]]
                 k += _AXES_PER_JOINT[j]
+            if spec.offsets is not None and spec.offsets[r]:
+                c = c + spec.offsets[r] * L * _elbow_direction(dirs[0] if j != "S" else np.eye(3)[2], d / L, rad)
+            r += 1
+            centres.append(c)
             for a in dirs:
                 free.append(("R", np.asarray(a, float), c))
                 joint_of.append(i)
@@ -386,11 +484,28 @@ class ChainLeg(Leg):
                 act_home = float(abs((after[0] - before[-1]) @ free[act_free][1]))
         object.__setattr__(self, "_spec", spec)
         object.__setattr__(self, "_free", tuple(free))
+        # each revolute freedom's cross-product matrix K and K @ K (Rodrigues, :meth:`_forward`)
+        object.__setattr__(self, "_skews", tuple(None if kind == "P" else (_skew3(a), _skew3(a) @ _skew3(a))
+                                                 for kind, a, _ in free))
+        Z = np.zeros((3, 3))
+        object.__setattr__(self, "_poe", (np.stack([Z if sk is None else sk[0] for sk in self._skews]),
+                                          np.stack([Z if sk is None else sk[1] for sk in self._skews]),
+                                          np.stack([np.zeros(3) if c is None else c for _, _, c in free])))
         object.__setattr__(self, "_joint_of", tuple(joint_of))
         object.__setattr__(self, "_act", act_free)
         object.__setattr__(self, "_act_home", act_home)
         object.__setattr__(self, "_home", A0)
         object.__setattr__(self, "_L", L)
+        object.__setattr__(self, "_cones", _cone_links(spec, centres, joint_of, self.base, A0, L))
+        # the closure directions: the left null space of the scaled joint twists at home (the
+        # constraint wrenches' directions there), onto which the closure residual is projected
+        pos, _, ax0, pt0 = self.forward(np.zeros((1, len(free))))
+        J = self._twists_at(ax0, pt0, pos)[0].T.copy()
+        J[:3] /= L
+        U, sv, _ = np.linalg.svd(J)
+        rank = int(np.sum(sv > 1e-9 * max(sv[0], 1e-300))) if len(sv) else 0
+        object.__setattr__(self, "_closure_dirs", U[:, rank:].copy())
+        object.__setattr__(self, "_closure_cache", {})  # {rows: (targets, orientations, q)}: closure_solve
 
     # -- structure ---------------------------------------------------------------------------
     @property
@@ -429,72 +544,116 @@ class ChainLeg(Leg):
     def forward(self, q: np.ndarray):
         """The anchor frame (position (N, 3), orientation (N, 3, 3)) and the freedoms' current
         axes and points at joint coordinates ``q`` (N, n) from home (product of exponentials)."""
+        return self._forward(q)[:4]
+
+    def _forward(self, q: np.ndarray):
+        """:meth:`forward` and the orientation (N, 3, 3) of the body before each freedom (and
+        after the last). The product of exponentials of the home joint twists: each revolute
+        freedom turns what follows it about its home axis through its home point (Rodrigues with
+        the axis' constant cross-product matrix), each prismatic one shifts it along its home
+        direction, composed from the base."""
         q = np.atleast_2d(np.asarray(q, float))
         N = q.shape[0]
         Rg = np.broadcast_to(np.eye(3), (N, 3, 3)).copy()
         tg = np.zeros((N, 3))
-        axes, points = [], []
+        axes, points, frames = [], [], []
+        # every freedom's exponential at once: Rodrigues rotations (N, n, 3, 3) about the home axes,
+        # and their shifts (I - Rm) c (N, n, 3) (a prismatic freedom's rows unused)
+        K, K2, C = self._poe
+        Rm_all = np.eye(3) + np.sin(q)[..., None, None] * K + (1.0 - np.cos(q))[..., None, None] * K2
+        tm_all = C - (Rm_all @ C[..., None])[..., 0]
         for m, (kind, a, c) in enumerate(self._free):
+            frames.append(Rg)
             aw = Rg @ a
             axes.append(aw)
             if kind == "P":
                 points.append(None)
                 tg = tg + aw * q[:, m:m + 1]
-            else:
-                cw = np.einsum("nij,j->ni", Rg, c) + tg
-                points.append(cw)
-                Rj = rot_axis(aw, q[:, m])
-                tg = np.einsum("nij,nj->ni", Rj, tg - cw) + cw
-                Rg = Rj @ Rg
-        pos = np.einsum("nij,j->ni", Rg, self._home) + tg
-        return pos, Rg, axes, points
+                continue
+            points.append(Rg @ c + tg)
+            tg = tg + (Rg @ tm_all[:, m, :, None])[..., 0]
+            Rg = Rg @ Rm_all[:, m]
+        pos = Rg @ self._home + tg
+        frames.append(Rg)
+        return pos, Rg, axes, points, frames
 
     def _twists_at(self, axes, points, ref):
-        cols = []
-        for (kind, _, _), a, c in zip(self._free, axes, points):
-            cols.append(prismatic_twist(a) if kind == "P" else revolute_twist(a, c, ref))
-        return np.stack(cols, axis=1)  # (N, n, 6): (v_ref, w)
+        """The joint twists (N, n, 6), (v at ``ref``, w), of the freedoms with the current
+        ``axes`` and ``points``."""
+        N = np.shape(axes[0])[0] if axes else np.shape(ref)[0]
+        T = np.zeros((N, len(self._free), 6))
+        for m, ((kind, _, _), a, c) in enumerate(zip(self._free, axes, points)):
+            if kind == "P":
+                T[:, m, :3] = a
+            else:
+                d = ref - c
+                T[:, m, 0] = a[:, 1] * d[:, 2] - a[:, 2] * d[:, 1]
+                T[:, m, 1] = a[:, 2] * d[:, 0] - a[:, 0] * d[:, 2]
+                T[:, m, 2] = a[:, 0] * d[:, 1] - a[:, 1] * d[:, 0]
+                T[:, m, 3:] = a
+        return T
+
+    def _error(self, q, target, R):
+        """The frame at ``q`` and its error against ``(target, R)`` (position / home length, rotation
+        vector)."""
+        pos, Rc, axes, points = self.forward(q)
+        e = np.concatenate([(target - pos) / self._L, _log_rot(R @ np.transpose(Rc, (0, 2, 1)))], axis=1)
+        return e, pos, axes, points
 
     def inverse(self, p, R, q0=None):
         """Joint coordinates (N, n) reaching the platform poses ``(p, R)`` and the residual (N,)
-        of the damped Gauss-Newton solve (position / length scale, orientation in rad)."""
+        of the solve (position / length scale, orientation in rad): Levenberg-Marquardt on the
+        anchor frame's error from the home configuration (a step is taken only where it lowers
+        the squared error, the damping grows tenfold where it does not and shrinks tenfold where
+        it does); a pose leaves the batch when reached (residual below :data:`IK_TOL`) or stalled
+        (a least-squares minimum off the limb's reach: no step lowers the error by more than
+        1e-12 of it, or the damping exceeds 1e6)."""
         p = np.atleast_2d(np.asarray(p, float))
         R = np.asarray(R, float).reshape(-1, 3, 3)
         N, n = p.shape[0], len(self._free)
         target = p + np.einsum("nij,j->ni", R, self.platform)
         q = np.zeros((N, n)) if q0 is None else np.array(q0, float)
         L = self._L
-        res = np.full(N, np.inf)
-        act = np.arange(N)  # the poses still solved: a converged or stalled pose leaves the batch
-        last = np.full(N, np.inf)
-        for it in range(IK_ITERATIONS + 1):
-            pos, Rc, axes, points = self.forward(q[act])
-            e = np.concatenate([(target[act] - pos) / L, _log_rot(R[act] @ np.transpose(Rc, (0, 2, 1)))], axis=1)
-            r = np.max(np.abs(e), axis=1)
-            res[act] = r
-            # stalled: a least-squares minimum off the limb's reach (no progress in a step)
-            keep = (r >= IK_TOL) & np.isfinite(r) & (r < last[act] * (1.0 - 1e-6))
-            last[act] = r
-            if it == IK_ITERATIONS or not np.any(keep):
+        e, pos, axes, points = self._error(q, target, R)
+        res = np.max(np.abs(e), axis=1)
+        cost = np.einsum("ij,ij->i", e, e)
+        lam = np.full(N, 1e-12)
+        act = np.flatnonzero((res >= IK_TOL) & np.isfinite(res))
+        for _ in range(IK_ITERATIONS):
+            if not act.size:
                 break
-            J = self._twists_at(axes, points, pos).transpose(0, 2, 1)[keep]  # (k, 6, n)
+            J = self._twists_at([a[act] for a in axes], [None if c is None else c[act] for c in points],
+                                pos[act]).transpose(0, 2, 1)  # (k, 6, n)
             J[:, :3, :] /= L
-            act, e = act[keep], e[keep]
-            # damped normal equations, batched: (J^T J + mu I) dq = J^T e (mu tiny: the least-squares
-            # step where J has full column rank, a minimum-norm-like one where it does not)
             JTJ = np.einsum("nki,nkj->nij", J, J)
-            mu = 1e-12 * (1.0 + np.einsum("nii->n", JTJ))
-            dq = np.linalg.solve(JTJ + mu[:, None, None] * np.eye(n), np.einsum("nki,nk->ni", J, e)[..., None])[..., 0]
+            mu = lam[act] * (1.0 + np.einsum("nii->n", JTJ) / n)
+            dq = np.linalg.solve(JTJ + mu[:, None, None] * np.eye(n),
+                                 np.einsum("nki,nk->ni", J, e[act])[..., None])[..., 0]
             step = np.max(np.abs(dq), axis=1, keepdims=True)
             dq *= np.minimum(1.0, 0.5 / np.maximum(step, 1e-300))
-            q[act] += dq
+            qt = q[act] + dq
+            et, post, axt, ptt = self._error(qt, target[act], R[act])
+            ct = np.einsum("ij,ij->i", et, et)
+            ok = np.isfinite(ct) & (ct < cost[act])
+            gain = np.where(ok, cost[act] - ct, 0.0)
+            acc = act[ok]
+            q[acc], e[acc], pos[acc], cost[acc] = qt[ok], et[ok], post[ok], ct[ok]
+            for a, b in zip(axes, axt):
+                a[acc] = b[ok]
+            for a, b in zip(points, ptt):
+                if a is not None:
+                    a[acc] = b[ok]
+            lam[act] = np.where(ok, np.maximum(lam[act] * 0.1, 1e-12), lam[act] * 10.0)
+            res[act] = np.max(np.abs(e[act]), axis=1)
+            stalled = (ok & (gain <= 1e-12 * (cost[act] + gain))) | (lam[act] > 1e6)
+            act = act[(res[act] >= IK_TOL) & ~stalled]
         return q, res
 
     def solve(self, p, R, joint_angles: bool = True):
         p = np.atleast_2d(np.asarray(p, float))
         R = np.asarray(R, float).reshape(-1, 3, 3)
         q, res = self.inverse(p, R)
-        pos, Rc, axes, points = self.forward(q)
+        pos, Rc, axes, points, frames = self._forward(q)
         reachable = res < 1e3 * IK_TOL
         first = next((c for c in points if c is not None), None)
         B = np.broadcast_to(self.base, pos.shape).copy() if first is None else first
@@ -503,13 +662,101 @@ class ChainLeg(Leg):
         length = np.linalg.norm(A - B, axis=-1)
         act = np.full(len(q), np.nan) if self._act is None else q[:, self._act] + self._act_home
         act = np.where(reachable, act, np.nan)
-        angles = {}
-        if joint_angles:
-            for m, j in enumerate(self._joint_of):
-                angles[f"{self._spec.joints[j]}{j}_{m}"] = q[:, m]
+        angles = self.joint_angles(q, reachable, frames) if joint_angles else {}
         st = LegState(act, reachable, B, A, n, length, angles)
         st.extra.update({"q": q, "axes": axes, "points": points, "residual": res})
         return st
+
+    def joint_angles(self, q, reachable, frames=None) -> dict:
+        """The passive angles at joint coordinates ``q`` (N, n): each freedom's coordinate from
+        home (``<letter><joint>_<freedom>``) and the cone angle of every universal or spherical
+        joint whose links are given (``_cones``: the link's direction carried by the body after
+        the joint against the body before it), NaN where not ``reachable``. ``frames``: the
+        bodies' orientations of :meth:`_forward` at ``q`` when already computed."""
+        q = np.atleast_2d(np.asarray(q, float))
+        angles = {f"{self._spec.joints[j]}{j}_{m}": q[:, m] for m, j in enumerate(self._joint_of)}
+        if self._cones and frames is None:
+            frames = self._forward(q)[4]
+        for keys, m0, m1, link in self._cones:
+            cone = np.where(reachable, _angle_rows(frames[m1] @ link, frames[m0] @ link), np.nan)
+            for key in keys:
+                angles[key] = cone
+        return angles
+
+    # -- closure equations (model/parasitic.py) ------------------------------------------------
+    @property
+    def n_closure(self) -> int:
+        """Number of closure equations: the constraint wrenches of the limb at its home pose."""
+        return int(self._closure_dirs.shape[1])
+
+    def closure_solve(self, p, R, iterations: int = CLOSURE_ITERATIONS):
+        """The joint coordinates (N, n) of the chain's least-squares reach of the platform poses
+        ``(p, R)`` (Gauss-Newton from home, to the rounding floor) and the remaining error (N, 6):
+        the anchor position (divided by the limb's home length) and the rotation vector of the
+        platform orientation against the chain's end orientation.
+
+        A row starts from the last solution of a batch of the same size or of a size that divides
+        it (rows in the same order, as the perturbed poses of a finite-difference Jacobian) when
+        its pose is within 0.05 (position / home length, rotation in rad) of that row's, else from
+        home: the solve follows the branch of the nearby poses it came from."""
+        p = np.atleast_2d(np.asarray(p, float))
+        R = np.asarray(R, float).reshape(-1, 3, 3)
+        N, n = p.shape[0], len(self._free)
+        target = p + np.einsum("nij,j->ni", R, self.platform)
+        q = np.zeros((N, n))
+        cache = self._closure_cache
+        M = next((M for M in sorted(cache, reverse=True) if N % M == 0), None)
+        if M is not None:
+            t0, R0, q0 = (np.tile(v, (N // M,) + (1,) * (v.ndim - 1)) for v in cache[M])
+            with np.errstate(invalid="ignore"):
+                near = (np.max(np.abs(target - t0), axis=1) / self._L < 0.05) & \
+                    (np.linalg.norm(_log_rot(R @ np.transpose(R0, (0, 2, 1))), axis=1) < 0.05) & \
+                    np.all(np.isfinite(q0), axis=1)
+            q[near] = q0[near]
+        err = np.full((N, 6), np.nan)
+        act = np.flatnonzero(np.all(np.isfinite(target), axis=1) & np.all(np.isfinite(R), axis=(1, 2)))
+        L = self._L
+        for it in range(iterations + 1):
+            if not act.size:
+                break
+            pos, Rc, axes, points = self.forward(q[act])
+            e = np.concatenate([(target[act] - pos) / L, _log_rot(R[act] @ np.transpose(Rc, (0, 2, 1)))], axis=1)
+            err[act] = e
+            if it == iterations:
+                break
+            J = self._twists_at(axes, points, pos).transpose(0, 2, 1)  # (k, 6, n)
+            J[:, :3, :] /= L
+            JTJ = np.einsum("nki,nkj->nij", J, J)
+            mu = 1e-14 * (1.0 + np.einsum("nii->n", JTJ))
+            dq = np.linalg.solve(JTJ + mu[:, None, None] * np.eye(n), np.einsum("nki,nk->ni", J, e)[..., None])[..., 0]
+            step = np.max(np.abs(dq), axis=1)
+            dq *= np.minimum(1.0, 0.5 / np.maximum(step, 1e-300))[:, None]
+            q[act] += dq
+            # a row whose step fell below 1e-10 (the next, quadratically convergent, one would be at the
+            # rounding floor) takes its error once more, then leaves
+            keep = np.isfinite(step) & (step > 1e-10)
+            done = act[~keep]
+            if done.size:
+                pos, Rc, _, _ = self.forward(q[done])
+                err[done] = np.concatenate([(target[done] - pos) / L,
+                                            _log_rot(R[done] @ np.transpose(Rc, (0, 2, 1)))], axis=1)
+            act = act[keep]
+        if len(cache) >= 4 and N not in cache:
+            cache.pop(next(iter(cache)))
+        cache[N] = (target, R, q.copy())
+        return q, err
+
+    def closure_residuals(self, p, R, L: float | None = None) -> list[np.ndarray]:
+        """The closure equations (:attr:`n_closure` arrays (N,)) at platform poses ``(p, R)``:
+        the error of the chain's least-squares reach (:meth:`closure_solve`) on the directions of
+        its constraint wrenches at home. Zero exactly where the chain assembles (its error
+        vanishes), smooth in the pose near home; dimensionless (positions by the limb's home
+        length: ``L`` is not used, it is the signature of the closure equations)."""
+        if not self.n_closure:
+            return []
+        _, e = self.closure_solve(p, R)
+        r = e @ self._closure_dirs
+        return [r[:, k] for k in range(r.shape[1])]
 
     def joint_twists(self, st, P):
         return self._twists_at(st.extra["axes"], st.extra["points"], np.broadcast_to(P, st.platform_point.shape))
@@ -576,31 +823,40 @@ def _actuator_kind(spec: ChainSpec) -> str:
     return "slider" if spec.actuated == 0 else "length"
 
 
-def chain_class(spec: str, *, axes=None, passive: bool = False, stations=None, capabilities=None,
+def chain_class(spec: str, *, axes=None, passive: bool = False, stations=None, offsets=None, capabilities=None,
                 doc: str = "") -> type:
     """A leg type of its own (a subclass of :class:`ChainLeg`) for a joint string: its
-    ``joints`` are the plain letters (``"RPUR"``), its defaults the given axis relations, and it
-    declares its own ``capabilities`` (default: those of :class:`ChainLeg`)."""
-    s = parse_chain(spec, axes=axes, passive=passive, stations=stations)
+    ``joints`` are the plain letters (``"RPUR"``), its defaults the given axis relations,
+    stations and offsets, and it declares its own ``capabilities`` (default: those of
+    :class:`ChainLeg`)."""
+    s = parse_chain(spec, axes=axes, passive=passive, stations=stations, offsets=offsets)
     caps = capabilities or ChainLeg.capabilities
     ns = {"joints": s.joints, "actuated": s.actuated, "capabilities": caps, "actuator_kind": _actuator_kind(s), "__doc__": doc or f"The {s.name} limb.",
-          "__annotations__": {"chain": str, "axes": "tuple | None", "passive": bool, "stations": "tuple | None"}}
+          "__annotations__": {"chain": str, "axes": "tuple | None", "passive": bool, "stations": "tuple | None",
+                              "offsets": "tuple | None"}}
     ns.update(chain=spec if "*" in spec or passive else s.name, axes=None if axes is None else tuple(axes),
-              passive=passive, stations=None if stations is None else tuple(stations))
+              passive=passive, stations=None if stations is None else tuple(stations),
+              offsets=None if offsets is None else tuple(offsets))
     cls = type(s.joints, (ChainLeg,), ns)
     cls.__module__ = __name__
     cls = dataclass(frozen=True)(cls)
-    cls.constraint_rows = _constraint_kinds(cls)
+    cls.constraint_rows, cls.cone_keys = _constraint_kinds(cls)
     return cls
 
 
-def _constraint_kinds(cls) -> tuple[str, ...]:
-    """The kinds of the constraint wrenches of a chain limb type at a generic anchor and pose:
-    ``angle`` for a couple, ``length`` for a force (its ``constraint_rows``)."""
+def _constraint_kinds(cls) -> tuple[tuple[str, ...], tuple]:
+    """The kinds of the constraint wrenches of a chain limb type at a generic anchor and pose
+    (``angle`` for a couple, ``length`` for a force: its ``constraint_rows``) and its
+    ``cone_keys``: the angle keys of its universal or spherical joint at the base anchor and at
+    the platform anchor (``U_base_cone``, ``S_platform_cone``, ...; None where the end joint is
+    a revolute or a prismatic joint, or sits off the anchor)."""
     leg = cls("generic", base=[0.3 * math.cos(0.4), 0.3 * math.sin(0.4), 0.0], platform=[0.15, 0.02, 0.0])
     p, R = np.array([[0.0, 0.0, 0.4]]), np.eye(3)[None]
     W = leg.constraint_wrenches(leg.solve(p, R), p)[0]
-    return tuple("angle" if np.linalg.norm(w[:3]) < 1e-9 else "length" for w in W)
+    keys = [k for ks, _, _, _ in leg._cones for k in ks]
+    ends = (next((k for k in keys if k.endswith("_base_cone")), None),
+            next((k for k in keys if k.endswith("_platform_cone")), None))
+    return tuple("angle" if np.linalg.norm(w[:3]) < 1e-9 else "length" for w in W), ends
 
 
 def register_chain(spec: str, **kw) -> type:
@@ -637,4 +893,37 @@ RRPS = register_chain("RRP*S", axes=("tangent", "normal:prev&normal:limb", "limb
                       doc="revolute (tangent) at the base anchor, revolute normal to it and the limb a tenth of the "
                           "limb further (an offset universal joint), actuated prismatic, spherical: six freedoms -- "
                           "the limb of a 6-RRPS")
-__all__ += ["register_chain", "RPUR", "PRUR", "SPU", "RRPS"]
+RRUR = register_chain("R*RUR", axes=("x",) + _3T2R_AXES, stations=(0.0, 0.4, 0.8, 1.0), offsets=(0.0, 0.3, 0.0, 0.0),
+                      capabilities=LegCapabilities(stiffness=True),
+                      doc="actuated revolute (x) at the base anchor, revolute (x) at an elbow (station 0.4, offset 0.3 "
+                          "of the limb's length normal to x and the limb), universal (x, then the platform's y), "
+                          "revolute (the platform's y): one constraint couple about x x (R y) -- the limb of the "
+                          "5-RRUR (Masouleh, Gosselin et al.); without the elbow its three parallel x axes would meet "
+                          "the limb's line in a row, a singular planar R-R-R")
+RUU = register_chain("R*UU", axes=("tangent", "parallel:prev", "normal:prev&normal:limb", "parallel:prev", "axis0"),
+                     stations=(0.0, 0.3, 1.0), offsets=(0.0, 0.25, 0.0), capabilities=LegCapabilities(stiffness=True),
+                     doc="actuated crank (revolute, tangent) at the base anchor, universal at the crank's end (station "
+                         "0.3, offset 0.25 of the limb's length normal to the tangent and the limb; its first axis "
+                         "tangent, its second normal to it and the limb), universal at the platform anchor (its first "
+                         "axis parallel to that second axis, its second tangent): one constraint couple normal to the "
+                         "tangent and the intermediate axis -- the limb of the translational 3-RUU (Kong and Gosselin, "
+                         "Type Synthesis of Parallel Mechanisms, 2007; the Delta-like R-U-U)")
+URPU = register_chain("URP*U", axes=("tangent", "normal:prev&normal:limb", "parallel:prev", "limb", "radial",
+                                     "normal:prev&normal:limb"), stations=(0.0, 0.8, 1.0),
+                      capabilities=LegCapabilities(stiffness=True),
+                      doc="universal (tangent, then normal to it and the limb) at the base anchor, revolute parallel "
+                          "to the universal joint's second axis four fifths of the limb up, actuated prismatic along "
+                          "the limb (from the revolute to the platform), universal (radial, then normal to it and the limb) at the platform anchor: six "
+                          "independent freedoms at every platform twist -- the limb of the 6-URPU (3T3R). Two axis "
+                          "choices fail: with the platform's first axis tangent, the rotation axes span two directions "
+                          "only (one constraint couple, five freedoms); with the revolute parallel to the tangent "
+                          "instead, the limb loses a freedom when its platform anchor faces its base anchor (no "
+                          "platform twist); with the revolute a fifth of the limb up, it is near a singularity (the "
+                          "smallest singular value of its scaled twists 0.02 of the largest, against 0.09) and "
+                          "reaches about half of the poses within 50 mm and 10 deg of home")
+PRRS = register_chain("P*RRS", axes=("base_normal", "tangent", "normal:prev&normal:limb"), stations=(0.0, 0.1, 1.0),
+                      capabilities=LegCapabilities(stiffness=True),
+                      doc="actuated slider along the base normal, revolute (tangent) on the slider, revolute normal to "
+                          "it and the limb a tenth of the limb further (an offset universal joint), link, spherical: "
+                          "six freedoms -- the limb of the 6-PRRS (3T3R)")
+__all__ += ["register_chain", "RPUR", "PRUR", "SPU", "RRPS", "RRUR", "RUU", "URPU", "PRRS"]

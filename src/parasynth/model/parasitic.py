@@ -17,7 +17,11 @@ Closure equations of the leg models of :mod:`parasynth.model.legs` (``A`` the pl
 * UPU: the two cross axes of the universal joints (normal to the leg) are parallel, i.e. the
   base axis, the leg and the platform axis are coplanar, ``det(u_axis, n, R u_platform_axis) =
   0`` (the assumption of Tsai's 3-UPU: both intermediate axes fixed parallel on the leg);
-* SPS, UPS, PUS, RUS: none (six-freedom chains).
+* SPS, UPS, PUS, RUS: none (six-freedom chains);
+* a limb from a joint string (:class:`parasynth.model.chains.ChainLeg`): one per constraint
+  wrench of the limb at its home pose, the error of the chain's least-squares reach of the
+  platform anchor frame (its forward kinematics against the anchor's position and the platform's
+  orientation) on the directions of those wrenches (``ChainLeg.closure_residuals``; NumPy only).
 
 :func:`closure_residuals` evaluates them; :func:`gauss_newton` solves a batch of square or
 over-determined systems with a numerical Jacobian; :func:`implicit_gradient` gives the
@@ -53,8 +57,15 @@ class ParasiticError(ValueError):
     """A leg whose closure equations are not known, or a system that cannot be solved."""
 
 
+def _is_chain(leg) -> bool:
+    """A limb that states its own closure equations (a chain limb of :mod:`parasynth.model.chains`)."""
+    return callable(getattr(leg, "closure_residuals", None)) and hasattr(leg, "n_closure")
+
+
 def closure_count(leg) -> int:
-    """Number of closure equations of ``leg`` (by its joint string)."""
+    """Number of closure equations of ``leg`` (by its joint string; a chain limb says)."""
+    if _is_chain(leg):
+        return int(leg.n_closure)
     try:
         return CLOSURE_COUNTS[leg.joints]
     except KeyError:
@@ -70,10 +81,14 @@ def closure_geometry(legs) -> np.ndarray:
     """The legs' closure geometry as one flat array, per leg (in order) its base anchor, platform
     anchor (platform frame), first axis and second axis (12 numbers; the axes are ``r_axis`` and
     ``u_platform_axis`` of RPS, PRS and RPU, ``u_axis`` and ``u_platform_axis`` of UPU, zeros
-    where a leg has none): what the compiled solve reads (:mod:`parasynth.engine.parasitic`)."""
+    where a leg has none, and for a chain limb, whose closure the compiled solve reads from the
+    limb itself): what the compiled solve reads (:mod:`parasynth.engine.parasitic`)."""
     rows = []
     for leg in legs:
         closure_count(leg)
+        if _is_chain(leg):
+            rows.append(np.concatenate([leg.base, leg.platform, np.zeros(6)]))
+            continue
         a1 = getattr(leg, "u_axis" if leg.joints == "UPU" else "r_axis", None)
         a2 = getattr(leg, "u_platform_axis", None)
         z = np.zeros(3)
@@ -82,6 +97,8 @@ def closure_geometry(legs) -> np.ndarray:
 
 
 def _leg_residuals(leg, p, R, L):
+    if _is_chain(leg):
+        return leg.closure_residuals(p, R, L)
     A = leg.platform_points(p, R)
     j = leg.joints
     if j in ("RPS", "RPU"):

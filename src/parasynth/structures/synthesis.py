@@ -59,10 +59,14 @@ DROP_REASONS = {
     "equivalent": "kinematically equivalent to a kept structure, reported with it (Structure.equivalents)",
 }
 
-#: Limb types that are another's kinematic equivalent in a structure: the first differs from the
-#: second only by an idle spin of the limb about its own axis (an SPS is a UPS whose universal
-#: joint is a sphere: the extra freedom moves no other body and changes no constraint).
-EQUIVALENT_LIMBS = {"SPS": ("UPS", "idle spin")}
+#: Limb types that are another's kinematic equivalent in a structure, with the reason: an SPS
+#: differs from a UPS only by an idle spin of the limb about its own axis (a UPS whose universal
+#: joint is a sphere: the extra freedom moves no other body and changes no constraint); an SPU is
+#: a UPS inverted (the spherical joint at the base, the universal joint at the platform): both
+#: have six freedoms and actuate a force along the same line through their two anchors, so their
+#: mobility, actuation and singularities are the same (their joint-angle limits sit at the other
+#: end).
+EQUIVALENT_LIMBS = {"SPS": ("UPS", "idle spin"), "SPU": ("UPS", "inverted")}
 
 
 @dataclass(frozen=True)
@@ -151,10 +155,19 @@ class _Candidate:
 
 
 def _axis_choices(lt, all_axes: bool):
+    """The joint-axis choices of a limb type: the first value of each option (every combination
+    with ``all_axes``), then its ``variants``."""
     keys = list(lt.axes)
     values = [lt.axes[k] if all_axes else lt.axes[k][:1] for k in keys]
+    seen = set()
     for combo in itertools.product(*values):
+        seen.add(tuple(zip(keys, combo)))
         yield tuple(zip(keys, combo))
+    for v in lt.variants:
+        v = tuple(sorted(v, key=lambda kv: keys.index(kv[0]) if kv[0] in keys else len(keys)))
+        if v not in seen:
+            seen.add(v)
+            yield v
 
 
 def candidates(types, legs=None, all_axes: bool = False) -> list[_Candidate]:
@@ -207,6 +220,38 @@ def _deg(x: float) -> str:
     return f"{x:g} deg"
 
 
+#: The joint-axis value of a universal joint whose axis passes through the centre of rotation, the
+#: platform centre at the home pose (0, 0, height): at the base, the direction from the base anchor
+#: to it; at the platform, from the platform anchor to the platform centre (-radial).
+CENTRE = "centre"
+
+
+def _through_centre(entry: dict, g: Group, base: dict, second: bool) -> list[dict]:
+    """The legs of a ring group whose axis options say ``centre``, one entry per limb: a base axis
+    ``centre`` is the direction from that limb's base anchor to (0, 0, height) (written per limb:
+    -cos, -sin of its anchor angle and height / base radius), a platform axis ``centre`` is
+    ``-radial`` (towards the platform centre). Only a regular ring has anchor angles known here."""
+    if g.arrangement != "regular" or base.get("pattern") != "polygon":
+        raise StructureError(f"axes: {CENTRE!r} is defined for a regular ring only, not {g.arrangement!r} "
+                             f"({g.label()})")
+    rb = "base_radius*second_base_scale" if second else "base_radius"
+    out = []
+    for k in range(g.count):
+        e = dict(entry)
+        e["base"] = f"{entry['base']}[{k}]"
+        e["platform"] = f"{entry['platform']}[{k}]"
+        ang = g.phase + 360.0 * k / g.count
+        for opt, val in g.axes:
+            if val != CENTRE:
+                continue
+            if LEG_TYPES[g.limb].description_options.get(opt) == "axis_base":
+                e[opt] = [f"-cos({ang:g} deg)", f"-sin({ang:g} deg)", f"height/({rb})"]
+            else:
+                e[opt] = "-radial"
+        out.append(e)
+    return out
+
+
 def _anchor_sets(g: Group, twist: bool, second: bool = False):
     """Base and platform anchor sets of a ring group and its platform index list (None: in order).
     ``second``: the second group of a two-kind structure, on circles scaled by
@@ -243,7 +288,8 @@ def _anchor_sets(g: Group, twist: bool, second: bool = False):
 
 
 #: The cone-angle key of the base-side and the platform joint of each limb type (None: a revolute
-#: joint, whose axis the limb's constraints already fix).
+#: joint, whose axis the limb's constraints already fix); a chain limb declares its own
+#: (``cone_keys``: the universal or spherical joint at its base or platform anchor).
 _CONES = {"SPS": ("S_base_cone", "S_platform_cone"), "UPS": ("U_base_cone", "S_platform_cone"),
           "PUS": ("U_base_cone", "S_platform_cone"), "RUS": ("U_base_cone", "S_platform_cone"),
           "RPS": (None, "S_platform_cone"), "PRS": (None, "S_platform_cone"), "RPU": (None, "U_platform_cone"),
@@ -264,7 +310,7 @@ def _joint_limits(c: _Candidate) -> list:
     for end, limit in ((0, "base_joint_max"), (1, "platform_joint_max")):
         by_key = {}
         for limb, names in ring.items():
-            key = (_CONES.get(limb) or (None, None))[end]
+            key = (_CONES.get(limb) or getattr(LEG_TYPES[limb], "cone_keys", None) or (None, None))[end]
             if key is not None:
                 by_key.setdefault(key, []).extend(names)
         for key, names in by_key.items():
@@ -310,7 +356,10 @@ def _description(c: _Candidate, template, key: str) -> dict:
         entry.update(lt.options)
         entry.update(dict(g.axes))
         entry["actuated"] = lt.actuated_joint if g.actuated else "none"
-        legs.append(entry)
+        if CENTRE in dict(g.axes).values():
+            legs += _through_centre(entry, g, b, second=len(ring_groups) > 1 and g is ring_groups[1])
+        else:
+            legs.append(entry)
         group_names = [f"L{index + j}" for j in range(g.count)]
         index += g.count
         if g.actuated:
@@ -824,9 +873,9 @@ def _signature(s: Structure, mapping: dict) -> tuple:
 
 def _fold_equivalents(found: list, drop) -> list:
     """Report kinematically equivalent structures as one (:data:`EQUIVALENT_LIMBS`): a structure
-    with an SPS group is folded into the kept structure with a UPS group in its place (the same
-    arrangement), which lists it in ``equivalents``; the folded one is counted as dropped,
-    reason ``equivalent``."""
+    with an SPS or SPU group is folded into the kept structure with a UPS group in its place (the
+    same arrangement), which lists it in ``equivalents`` with the reason (``idle spin``,
+    ``inverted``); the folded one is counted as dropped, reason ``equivalent``."""
     rename = {a: b for a, (b, _) in EQUIVALENT_LIMBS.items()}
     why = {a: r for a, (_, r) in EQUIVALENT_LIMBS.items()}
     by_sig = {}

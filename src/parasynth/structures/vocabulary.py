@@ -163,7 +163,10 @@ class LimbType:
     parameters by name); ``axes``: joint-axis options with the values allowed, the first the
     default (``radial``, ``tangent``, ``normal`` of the limb's own anchor, or x, y, z);
     ``central``: the options of its central placement (passive limbs only); ``templates``:
-    {arrangement: template name} for a constraining limb."""
+    {arrangement: template name} for a constraining limb; ``variants``: further joint-axis
+    choices (tuples of (option, value) pairs) enumerated besides the first of each option, with
+    or without ``all_axes`` (a choice whose axes are tied to each other, as ``centre`` at both
+    universal joints of the spherical UPU)."""
 
     name: str
     actuated_joint: str | None
@@ -175,6 +178,7 @@ class LimbType:
     central: dict | None = None
     templates: dict = field(default_factory=dict)
     doc: str = ""
+    variants: tuple = ()
 
     @property
     def joints(self) -> str:
@@ -296,9 +300,13 @@ for _limb in (
     LimbType("UPU", "P", True, 1, ("regular",),
              axes={"u_axis": ("tangent", "radial", "z"), "u_platform_axis": ("tangent", "radial", "z")},
              central={"u_axis": "y", "u_platform_axis": "y"}, templates={"central": "upu_central"},
+             variants=((("u_axis", "centre"), ("u_platform_axis", "centre")),),
              doc="universal, prismatic, universal (cross axes parallel): one constraint wrench; passive at the "
                  "centre (axes along y): upu_central; an actuated ring's motion is computed from its closure "
-                 "(tangent axes: Tsai's translational 3-UPU; z axes: 3T1R; radial with z: 1T2R)"),
+                 "(tangent axes: Tsai's translational 3-UPU, 3T0R; z axes: 3T1R; radial with z: 1T2R; centre at "
+                 "both ends, the variant always enumerated: the base joint's first axis and the platform joint's "
+                 "last axis through the platform centre at home, the spherical 3-UPU of Karouia and Herve, 0T3R, "
+                 "its constraint a force through that centre normal to the plane of the centre and the limb)"),
 ):
     register_limb(_limb)
 
@@ -321,5 +329,23 @@ for _limb in (
     LimbType("RRPS", "P", False, 0, ("regular", "paired", "irregular"), options=dict(_CHAIN),
              doc="two revolutes (tangent, then normal to it and the limb, offset along the limb), actuated prismatic, "
                  "spherical, solved numerically: six freedoms"),
+    LimbType("RRUR", "R", False, 1, ("regular", "paired", "irregular"), options=dict(_CHAIN),
+             templates={a: "xy_ring" for a in ("regular", "paired", "irregular")},
+             doc="actuated revolute (x), revolute (x) at an elbow off the limb's line, universal (x, then the "
+                 "platform's y), revolute (the platform's y), solved numerically: one constraint couple about "
+                 "x x (R y), as the RPUR (Masouleh, Gosselin et al.); a ring of five gives the 5-RRUR's xy_ring"),
+    LimbType("RUU", "R", False, 1, ("regular", "paired", "irregular"), options=dict(_CHAIN),
+             doc="actuated crank (revolute, tangent), universal at the crank's end (tangent, then the intermediate "
+                 "axis normal to it and the limb), universal at the platform (the intermediate axis, then tangent), "
+                 "solved numerically: one constraint couple normal to the tangent and the intermediate axis; a ring "
+                 "of three is the translational 3-RUU (Kong and Gosselin 2007), its motion computed from the limbs' "
+                 "closure"),
+    LimbType("URPU", "P", False, 0, ("regular", "paired", "irregular"), options=dict(_CHAIN),
+             doc="universal (tangent, then normal to it and the limb), revolute parallel to the universal joint's "
+                 "second axis four fifths of the limb up, actuated prismatic, universal (radial, then normal to it and the limb), solved "
+                 "numerically: six freedoms, the limb of the 6-URPU"),
+    LimbType("PRRS", "P", False, 0, ("regular", "paired", "irregular"), options=dict(_CHAIN),
+             doc="actuated vertical slider, two revolutes (tangent, then normal to it and the limb, offset along the "
+                 "limb), link, spherical, solved numerically: six freedoms, the limb of the 6-PRRS"),
 ):
     register_limb(_limb)
