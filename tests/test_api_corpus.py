@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import re
 import signal
 import time
 import tracemalloc
@@ -59,8 +60,8 @@ MEMORY_LIMIT = 200 * 2**20
 
 
 def _r(v) -> str:
-    """repr with sets sorted: test ids must not depend on hash randomisation (pytest-xdist
-    collects them in every worker)."""
+    """repr with sets sorted and memory addresses left out: test ids must not depend on hash
+    randomisation or where an object sits (pytest-xdist collects them in every worker)."""
     if isinstance(v, (set, frozenset)):
         return "{" + ", ".join(sorted(_r(x) for x in v)) + "}" if v else repr(v)
     if isinstance(v, dict):
@@ -69,7 +70,7 @@ def _r(v) -> str:
         return "[" + ", ".join(_r(x) for x in v) + "]"
     if isinstance(v, tuple):
         return "(" + ", ".join(_r(x) for x in v) + ("," if len(v) == 1 else "") + ")"
-    return repr(v)
+    return re.sub(r" at 0x[0-9a-fA-F]+", "", repr(v))
 
 
 class CaseTimeout(BaseException):
