@@ -133,7 +133,10 @@ def test_engine_agrees_with_numpy_on_every_structure(default_results, motion):
     for s in default_results[motion]:
         m = s.mechanism()
         lo, hi = (np.array(v) for v in zip(*[m.default_ranges()[k] for k in m.task_coordinates]))
-        X = (lo + hi) / 2 + 1.5 * (hi - lo) * np.random.default_rng(1).uniform(-0.5, 0.5, size=(2000, len(lo)))
+        # 2000 poses; 250 for a structure of chain limbs (their NumPy reference, with a parasitic
+        # motion solved on the chains' closure equations, costs ~25 ms a pose)
+        n = 250 if any(not supports(lg, "compiled") for lg in m.legs) else 2000
+        X = (lo + hi) / 2 + 1.5 * (hi - lo) * np.random.default_rng(1).uniform(-0.5, 0.5, size=(n, len(lo)))
         with warnings.catch_warnings(record=True) as w:
             warnings.simplefilter("always")
             fc = m.is_feasible(X)
@@ -157,7 +160,7 @@ def test_engine_agrees_with_numpy_on_every_structure(default_results, motion):
             near |= fin & (np.abs(mn[k]) < 1e-12)
         assert np.array_equal(fc[~near], fn[~near]), s.name
         assert fn.sum() > 0, s.name
-        counts.append(fn.sum())
+        counts.append(fn.mean())
         if chain:  # no compiled pose-wise indices for a chain limb (it declares no 'compiled')
             continue
         # the compiled pose-wise indices too (singularity margin, to 1e-9 as tests/engine/test_engine_indices.py)
@@ -166,7 +169,7 @@ def test_engine_agrees_with_numpy_on_every_structure(default_results, motion):
             warnings.simplefilter("error", EngineFallbackWarning)
             sm = m.singularity_margin(Xr)
         np.testing.assert_allclose(sm, m.singularity_margin(Xr, engine="numpy"), rtol=0, atol=1e-9, err_msg=s.name)
-    assert min(counts) < 2000  # the comparison saw infeasible poses too
+    assert min(counts) < 1.0  # the comparison saw infeasible poses too
 
 
 # -- duplicates: an independent isomorphism test ---------------------------------------------------------
