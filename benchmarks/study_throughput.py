@@ -173,6 +173,8 @@ def figures(study_file: str, k: int, seed: int) -> None:
     kernels and outside them), with new samples (a new seed each design), drawing a new set
     of the study's samples alone, and the anchor's time for as many poses on all threads."""
     import os
+    import shutil
+    import tempfile
 
     sys.path.insert(0, str(ROOT / "benchmarks"))
     import anchor
@@ -208,14 +210,26 @@ def figures(study_file: str, k: int, seed: int) -> None:
 
     fixed = timed(lambda: [ev.evaluate(x) for x in designs])
     kern = fixed[2]
-    base = 10**6 + int(time.time()) % 10**6  # seeds not drawn before: new samples each design
+    # seeds not drawn before (new samples each design), their points kept in a folder of this run
+    # (as a run keeps them, written to disk) removed afterwards
+    base = 10**9 + int.from_bytes(os.urandom(4), "little") * 10**4
     it = iter(range(10**9))
-    new = timed(lambda: [ev.evaluate(x, seed=base + next(it)) for x in designs], reps=3)
-    draws = []
-    for _ in range(30):
-        t0 = time.perf_counter()
-        qmc.sobol_points(d, base + next(it), n)
-        draws.append(time.perf_counter() - t0)
+    tmp = tempfile.mkdtemp(prefix="parasynth-new-samples-")
+    prev = os.environ.get("PARASYNTH_CACHE_DIR")
+    os.environ["PARASYNTH_CACHE_DIR"] = tmp
+    try:
+        new = timed(lambda: [ev.evaluate(x, seed=base + next(it)) for x in designs], reps=3)
+        draws = []
+        for _ in range(30):
+            t0 = time.perf_counter()
+            qmc.sobol_points(d, base + next(it), n)
+            draws.append(time.perf_counter() - t0)
+    finally:
+        if prev is None:
+            os.environ.pop("PARASYNTH_CACHE_DIR", None)
+        else:
+            os.environ["PARASYNTH_CACHE_DIR"] = prev
+        shutil.rmtree(tmp, ignore_errors=True)
     a2 = anchor.anchor_seconds(n, 2)
     load1 = os.getloadavg()[0]
     print(f"{study.name}: load average (1 min) {load0:.2f} before, {load1:.2f} after; anchor {n} poses "

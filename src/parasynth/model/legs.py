@@ -487,7 +487,11 @@ class PUS(Leg):
             angles.update(_u_angles(self.u_axis, self.base_ref, n, "U_base"))
             # Angle between link and slider axis: transmission degrades as it nears 90 deg.
             angles["link_slider"] = _angle_between(-n, np.broadcast_to(e, n.shape))
-        length = np.broadcast_to(np.asarray(self.link_length, dtype=float), s.shape).copy()
+        L = self.link_length
+        if np.ndim(L) == 0:  # one geometry: a filled array (broadcast_to and a copy cost ~10 us a leg)
+            length = np.full(s.shape, float(L))
+        else:
+            length = np.broadcast_to(np.asarray(L, dtype=float), s.shape).copy()
         return LegState(s, reachable, U, S, n, length, angles)
 
     def joint_twists(self, st, P):
