@@ -26,11 +26,24 @@ with new samples, drawing a new sample set alone, and the anchor's time for as m
     figure design_evaluation_new_samples ms=<f> cpu_ms=<f>
     figure new_samples_<n> ms=<f> min_ms=<f>
 
+``--samplers`` prints what each of Optuna's samplers (``optimizer.algorithm``, as the study's
+run makes it: :func:`parasynth.study.workers.make_sampler`, seeded per trial) costs per trial on
+top of the design's evaluation: ask (the sampler's choice and the study's variables suggested)
+and tell (the objectives and the constraint values) on an in-memory Optuna study with the
+study's objectives, over the study's ``n_trials`` trials, with a cheap stand-in for the
+evaluation, beside one design's evaluation on the fixed samples::
+
+    sampler <name> ms_per_trial=<f> cpu_ms_per_trial=<f> bare_sampler_ms_per_trial=<f> bare_cpu_ms_per_trial=<f> evaluation_ms=<f> evaluation_cpu_ms=<f> sampler_vs_evaluation=<f>
+
+(``bare``: Optuna's sampler alone, not made anew for every trial as the run's per-trial seeding
+does.)
+
 Usage::
 
     python benchmarks/study_throughput.py                  # every shipped study, 20 designs each
     python benchmarks/study_throughput.py studies/quickstart.yaml --designs 50 --split
     python benchmarks/study_throughput.py --figures --designs 100
+    python benchmarks/study_throughput.py --samplers        # the quick start's trials, per sampler
 
 Not part of the test suite.
 """
@@ -160,6 +173,8 @@ def figures(study_file: str, k: int, seed: int) -> None:
     kernels and outside them), with new samples (a new seed each design), drawing a new set
     of the study's samples alone, and the anchor's time for as many poses on all threads."""
     import os
+    import shutil
+    import tempfile
 
     sys.path.insert(0, str(ROOT / "benchmarks"))
     import anchor
@@ -195,14 +210,26 @@ def figures(study_file: str, k: int, seed: int) -> None:
 
     fixed = timed(lambda: [ev.evaluate(x) for x in designs])
     kern = fixed[2]
-    base = 10**6 + int(time.time()) % 10**6  # seeds not drawn before: new samples each design
+    # seeds not drawn before (new samples each design), their points kept in a folder of this run
+    # (as a run keeps them, written to disk) removed afterwards
+    base = 10**9 + int.from_bytes(os.urandom(4), "little") * 10**4
     it = iter(range(10**9))
-    new = timed(lambda: [ev.evaluate(x, seed=base + next(it)) for x in designs], reps=3)
-    draws = []
-    for _ in range(30):
-        t0 = time.perf_counter()
-        qmc.sobol_points(d, base + next(it), n)
-        draws.append(time.perf_counter() - t0)
+    tmp = tempfile.mkdtemp(prefix="parasynth-new-samples-")
+    prev = os.environ.get("PARASYNTH_CACHE_DIR")
+    os.environ["PARASYNTH_CACHE_DIR"] = tmp
+    try:
+        new = timed(lambda: [ev.evaluate(x, seed=base + next(it)) for x in designs], reps=3)
+        draws = []
+        for _ in range(30):
+            t0 = time.perf_counter()
+            qmc.sobol_points(d, base + next(it), n)
+            draws.append(time.perf_counter() - t0)
+    finally:
+        if prev is None:
+            os.environ.pop("PARASYNTH_CACHE_DIR", None)
+        else:
+            os.environ["PARASYNTH_CACHE_DIR"] = prev
+        shutil.rmtree(tmp, ignore_errors=True)
     a2 = anchor.anchor_seconds(n, 2)
     load1 = os.getloadavg()[0]
     print(f"{study.name}: load average (1 min) {load0:.2f} before, {load1:.2f} after; anchor {n} poses "
@@ -217,6 +244,77 @@ def figures(study_file: str, k: int, seed: int) -> None:
           f"(target <= 0.5)", flush=True)
 
 
+def samplers(study_file: str, k: int, seed: int) -> None:
+    """Per Optuna sampler, the time of a trial's ask and tell (the sampler's own work) on an
+    in-memory study shaped as ``study_file``'s, over its ``n_trials`` trials; beside it one
+    design's evaluation on the fixed samples (the mean of ``k`` designs)."""
+    import os
+
+    import optuna
+
+    from parasynth.study.evaluate import Evaluator
+    from parasynth.study.spec import load_study
+    from parasynth.study.workers import SAMPLERS, SINGLE_OBJECTIVE_SAMPLERS, make_sampler
+
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    study = load_study(study_file)
+    ev = Evaluator(study)
+    designs = _designs(study, k, seed)
+    for x in designs[:3]:
+        ev.evaluate(x)
+    warnings.simplefilter("ignore")  # the samplers' experimental-feature warnings
+    c0, t0 = time.process_time(), time.perf_counter()
+    recs = [ev.evaluate(x) for x in designs]
+    eval_s = (time.perf_counter() - t0) / len(designs)
+    eval_cpu = (time.process_time() - c0) / len(designs)
+    n_trials = int(getattr(study.optimizer, "n_trials", None) or 80)
+    dirs = [o.goal for o in study.objectives]
+    load0 = os.getloadavg()[0]
+    rows = []
+    for alg in SAMPLERS:
+        if alg in SINGLE_OBJECTIVE_SAMPLERS and len(dirs) > 1:
+            continue
+        prev = study.optimizer.algorithm
+        study.optimizer.algorithm = alg  # read by the sampler made for each trial
+        try:
+            seed0 = int(study.optimizer.seed or 0)
+            bare = SAMPLERS[alg](optuna, seed0, None, study.optimizer.population_size)
+            _trials(optuna, make_sampler(study, seed0), dirs, 3, study, recs)  # untimed: imports (QMC: scipy.stats)
+            times = [_trials(optuna, make_sampler(study, seed0), dirs, n_trials, study, recs),
+                     _trials(optuna, bare, dirs, n_trials, study, recs)]
+        finally:
+            study.optimizer.algorithm = prev
+        rows.append((alg, *times[0], *times[1]))
+    load1 = os.getloadavg()[0]
+    print(f"{study.name}: {n_trials} trials per sampler, {len(dirs)} objective(s), {len(study.constraints)} "
+          f"constraint(s); load average (1 min) {load0:.2f} before, {load1:.2f} after", file=sys.stderr)
+    for alg, wall, cpu, bwall, bcpu in rows:
+        print(f"sampler {alg} ms_per_trial={wall * 1e3:.3f} cpu_ms_per_trial={cpu * 1e3:.3f} "
+              f"bare_sampler_ms_per_trial={bwall * 1e3:.3f} bare_cpu_ms_per_trial={bcpu * 1e3:.3f} "
+              f"evaluation_ms={eval_s * 1e3:.3f} evaluation_cpu_ms={eval_cpu * 1e3:.3f} "
+              f"sampler_vs_evaluation={cpu / eval_cpu:.3g} (CPU)", flush=True)
+
+
+def _trials(optuna, sampler, dirs, n_trials, study, recs):
+    """(wall s, CPU s) per trial of ``n_trials`` asks and tells with ``sampler``; the stored
+    records ``recs`` stand in for the evaluations (their objectives and margins, in turn)."""
+    from parasynth.study.workers import _set_optuna_constraints
+
+    ostudy = optuna.create_study(directions=dirs, sampler=sampler)
+    c0, t0 = time.process_time(), time.perf_counter()
+    for i in range(n_trials):
+        trial = ostudy.ask()
+        study.space.suggest(trial)
+        rec = recs[i % len(recs)]
+        _set_optuna_constraints(trial, study, rec)
+        ostudy.tell(trial, [rec.objectives.get(o.label, 0.0) for o in study.objectives])
+    wall, cpu = (time.perf_counter() - t0) / n_trials, (time.process_time() - c0) / n_trials
+    bad = [t.number for t in ostudy.trials if t.state.name != "COMPLETE"]
+    if bad:
+        raise RuntimeError(f"trials {bad} did not complete")
+    return wall, cpu
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("studies", nargs="*", help="study files (default: every studies/*.yaml)")
@@ -226,7 +324,14 @@ def main(argv=None):
     ap.add_argument("--figures", action="store_true",
                     help="the figures of one design evaluation beside the anchor (benchmarks/anchor.py): fixed "
                          "samples, new samples, drawing new samples (default study: studies/quickstart.yaml)")
+    ap.add_argument("--samplers", action="store_true",
+                    help="what each Optuna sampler costs per trial on top of a design's evaluation (default study: "
+                         "studies/quickstart.yaml)")
     args = ap.parse_args(argv)
+    if args.samplers:
+        for f in args.studies or [str(ROOT / "studies" / "quickstart.yaml")]:
+            samplers(f, args.designs, args.seed)
+        return
     if args.figures:
         for f in args.studies or [str(ROOT / "studies" / "quickstart.yaml")]:
             figures(f, args.designs, args.seed)

@@ -117,3 +117,17 @@ def test_cache_dir_follows_the_environment(tmp_path, monkeypatch):
     monkeypatch.delenv("PARASYNTH_CACHE_DIR")
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "x"))
     assert pqmc.cache_dir() == tmp_path / "x" / "parasynth"
+
+
+@pytest.mark.parametrize("shape", [(8192, 3), (1, 1), (1000, 5)])
+def test_saved_file_is_the_file_np_save_writes(tmp_path, shape):
+    """The cache writes the header and the data itself: the same bytes as ``np.save``, no
+    temporary file left behind, and an existing file replaced."""
+    u = np.random.default_rng(3).random(shape)
+    target = tmp_path / "sub" / "points.npy"
+    pqmc._save(target, np.zeros(shape))
+    pqmc._save(target, u)
+    np.save(tmp_path / "ref.npy", u)
+    assert target.read_bytes() == (tmp_path / "ref.npy").read_bytes()
+    assert [f.name for f in target.parent.iterdir()] == ["points.npy"]
+    assert np.array_equal(np.load(target), u)

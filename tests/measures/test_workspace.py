@@ -622,3 +622,21 @@ def test_params_key_is_the_frozen_asdict():
     m = load_mechanism("5pus_upu.yaml")
     m.params = Nested()
     assert params_key(m) == (("a", 1.0), ("b", (("x", (1.0, 2.0)), ("y", 2.0))))
+
+
+def test_raster_edges_are_linspace_and_each_rasters_own():
+    """The cell edges kept per box and raster: bit for bit ``np.linspace``, and each raster's
+    own copies (changing one raster's edges changes no other's)."""
+    from parasynth.measures import workspace as W
+
+    rng = np.random.default_rng(1)
+    for _ in range(50):
+        d = int(rng.integers(1, 5))
+        lows = rng.uniform(-1, 0, d)
+        highs = lows + rng.uniform(1e-6, 3, d)
+        shape = tuple(int(x) for x in rng.integers(1, 40, d))
+        r = W._new_raster(lows, highs, shape)
+        for e, lo, hi, n in zip(r.edges, lows, highs, shape):
+            assert e.tobytes() == np.linspace(lo, hi, n + 1).tobytes()
+        r.edges[0][0] = 99.0
+        assert W._new_raster(lows, highs, shape).edges[0][0] == lows[0]

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import math
 import shutil
 import warnings
 from pathlib import Path
@@ -485,3 +486,27 @@ def test_parameter_values_kept_per_exact_inputs():
     assert len(s._memo) == 1  # neither the zeros nor the Python float were kept
     with pytest.raises(DescriptionError, match="t"):
         s({"a": f64(1.0)})
+
+
+def test_anchor_directions_kept_per_points_are_each_calls_own():
+    """The radial and tangent directions of anchor points in their set's plane (the unit
+    in-plane vector, turned a quarter about the plane's normal; zero on the axis), kept per
+    exact points: a second call gives the same values in arrays of its own."""
+    from parasynth.mechanisms.description.anchors import _PLANES, _directions
+
+    rng = np.random.default_rng(4)
+    for plane, (i1, i2, i3) in _PLANES.items():
+        P = rng.uniform(-1, 1, (5, 3))
+        P[4, [i1, i2]] = 0.0  # on the plane's axis
+        for _ in range(2):
+            a = _directions(P, (i1, i2, i3))
+            assert np.array_equal(a.points, P)
+            for k in range(4):
+                u = P[k, [i1, i2]] / math.hypot(P[k, i1], P[k, i2])
+                assert np.allclose(a.radial[k, [i1, i2]], u, rtol=0, atol=1e-15) and a.radial[k, i3] == 0
+                assert np.allclose(a.tangent[k, [i1, i2]], [-u[1], u[0]], rtol=0, atol=1e-15)
+            assert not a.radial[4].any() and not a.tangent[4].any()
+            assert a.normal.tolist() == np.eye(3)[i3].tolist()
+            a.points[:] = 7.0  # the caller's arrays: the next call is not changed
+            a.radial[:] = 7.0
+            a.normal[:] = 7.0

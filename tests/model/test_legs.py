@@ -268,3 +268,28 @@ def test_planar_legs_mask_out_of_plane_poses(kind):
     p_off = p + 1e-3 * leg.r_axis  # 1 mm out of the leg's plane
     assert np.all(leg.solve(p, R).reachable)
     assert not np.any(leg.solve(p_off, R).reachable)
+
+
+def test_pus_state_length_one_link_length_or_one_per_pose():
+    """The state's link lengths: the leg's one link length at every pose (a writable array of
+    its own), or with one link length per pose (a stacked geometry) each pose's, its state
+    equal to that of a leg with that link length alone."""
+    import copy
+
+    leg = PUS("L", base=[0.1, 0.0, 0.0], platform=[0.05, 0.01, 0.0], link_length=0.3)
+    p = np.array([[0.0, 0.0, 0.25], [0.01, 0.02, 0.26], [0.02, -0.01, 0.24]])
+    R = np.stack([random_rotation(np.random.default_rng(k)) for k in range(3)])
+    st = leg.solve(p, R, joint_angles=False)
+    assert st.length.tolist() == [0.3, 0.3, 0.3] and st.length.flags.writeable
+    st.length[0] = 1.0  # its own array: the leg is unchanged
+    assert leg.link_length == 0.3
+    lengths = np.array([0.3, 0.31, 0.29])
+    stacked = copy.copy(leg)
+    object.__setattr__(stacked, "link_length", lengths)
+    sk = stacked.solve(p, R, joint_angles=False)
+    assert np.array_equal(sk.length, lengths)
+    for i, L in enumerate(lengths):
+        one = PUS("L", base=leg.base, platform=leg.platform, link_length=float(L))
+        s1 = one.solve(p[i:i + 1], R[i:i + 1], joint_angles=False)
+        assert np.array_equal(sk.actuator[i:i + 1], s1.actuator)
+        assert np.array_equal(sk.direction[i:i + 1], s1.direction)

@@ -18,8 +18,9 @@ from __future__ import annotations
 
 import functools
 import inspect
+import io
+import itertools
 import os
-import tempfile
 import warnings
 from importlib import metadata
 from pathlib import Path
@@ -88,8 +89,15 @@ def _scipy_version() -> str:
     return metadata.version("scipy")
 
 
-def _path(folder: Path, d: int, seed: int, n: int) -> Path:
-    return folder / "sobol" / f"scipy-{_scipy_version()}" / f"d{d}-seed{seed}-n{n}.npy"
+def _path(folder: Path, d: int, seed: int, n: int) -> str:
+    return os.path.join(_version_dir(folder), f"d{d}-seed{seed}-n{n}.npy")
+
+
+@functools.lru_cache(maxsize=8)
+def _version_dir(folder: Path) -> str:
+    """The folder of this SciPy version's point sets (a string: joining ``Path`` objects for
+    every new set cost ~0.02 ms)."""
+    return os.path.join(os.fspath(folder), "sobol", f"scipy-{_scipy_version()}")
 
 
 def sobol_points(d: int, seed: int, n: int) -> np.ndarray | None:
@@ -100,7 +108,7 @@ def sobol_points(d: int, seed: int, n: int) -> np.ndarray | None:
         return None
     folder = cache_dir()
     path = _path(folder, d, seed, n) if folder is not None else None
-    if path is not None and path.is_file():
+    if path is not None and os.path.isfile(path):
         try:
             u = np.load(path, mmap_mode="r", allow_pickle=False)
             if u.shape == (n, d) and u.dtype == np.float64:
@@ -116,23 +124,48 @@ def sobol_points(d: int, seed: int, n: int) -> np.ndarray | None:
 #: Folders of the cache this process has made sure exist (a folder removed meanwhile makes the
 #: write fail with OSError: it is then made again at the next write).
 _MADE: set = set()
+_TMP = itertools.count()
 
 
-def _save(path: Path, u: np.ndarray) -> None:
-    """Write ``u`` to ``path`` atomically (a temporary file renamed); a folder that cannot be
-    written is skipped. Written here, not by a thread: a writer thread woken for every new set
-    took the interpreter lock from the caller for milliseconds (the switch interval), more
-    than the ~0.2 ms the write costs."""
-    tmp = None
+@functools.lru_cache(maxsize=16)
+def _npy_header(shape: tuple, descr: str) -> bytes:
+    """The ``.npy`` header (format 1.0) of a C-ordered array of ``shape`` and dtype ``descr``,
+    the bytes ``np.save`` writes before the data."""
+    buf = io.BytesIO()
+    np.lib.format.write_array_header_1_0(buf, {"descr": descr, "fortran_order": False, "shape": shape})
+    return buf.getvalue()
+
+
+def _save(path, u: np.ndarray) -> None:
+    """Write ``u`` to ``path`` atomically (a temporary file of this process renamed); a folder
+    that cannot be written is skipped. The header is made once per shape and the data written
+    as one block: the file ``np.save`` would write, in ~0.05 ms for 8192 points in 3-D against
+    ~0.14 ms by ``np.save`` into a ``tempfile.mkstemp`` file. Written here, not by a thread: a
+    writer thread woken for every new set took the interpreter lock from the caller for
+    milliseconds (the switch interval), more than the write costs."""
+    path = os.fspath(path)
+    folder = os.path.dirname(path)
+    tmp = f"{path}.{os.getpid()}-{next(_TMP)}.tmp"
+    fd = None
     try:
-        if path.parent not in _MADE:
-            path.parent.mkdir(parents=True, exist_ok=True)
-            _MADE.add(path.parent)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
-        with os.fdopen(fd, "wb") as f:
-            np.save(f, u, allow_pickle=False)
+        if folder not in _MADE:
+            os.makedirs(folder, exist_ok=True)
+            _MADE.add(folder)
+        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
+        a = np.ascontiguousarray(u)
+        head = _npy_header(a.shape, np.lib.format.dtype_to_descr(a.dtype))
+        for part in (head, memoryview(a).cast("B")):
+            view = memoryview(part)
+            while view.nbytes:
+                view = view[os.write(fd, view):]
+        os.close(fd)
+        fd = None
         os.replace(tmp, path)
     except OSError:
-        _MADE.discard(path.parent)
-        if tmp is not None:
-            Path(tmp).unlink(missing_ok=True)
+        _MADE.discard(folder)
+        if fd is not None:
+            os.close(fd)
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass

@@ -480,14 +480,20 @@ class PUS(Leg):
         reachable = disc >= 0
         s = de + self.branch * np.sqrt(np.where(reachable, disc, np.nan))
         U = self.base + s[:, None] * e
-        n = (S - U) / np.reshape(self.link_length, (-1, 1) if np.ndim(self.link_length) else ())
+        L = self.link_length
+        one = isinstance(L, float) or np.ndim(L) == 0  # one geometry, or one link length per pose
+        # a float64 divisor as np.reshape(L, ()) gave (np.ndim and np.reshape cost ~3 us each)
+        n = (S - U) / (np.float64(L) if isinstance(L, float) else np.reshape(L, () if one else (-1, 1)))
         angles = {}
         if joint_angles:
             angles = self._cone_angles(n, R, "U_base", "S_platform")
             angles.update(_u_angles(self.u_axis, self.base_ref, n, "U_base"))
             # Angle between link and slider axis: transmission degrades as it nears 90 deg.
             angles["link_slider"] = _angle_between(-n, np.broadcast_to(e, n.shape))
-        length = np.broadcast_to(np.asarray(self.link_length, dtype=float), s.shape).copy()
+        if one:  # a filled array (broadcast_to and a copy cost ~10 us a leg)
+            length = np.full(s.shape, float(L))
+        else:
+            length = np.broadcast_to(np.asarray(L, dtype=float), s.shape).copy()
         return LegState(s, reachable, U, S, n, length, angles)
 
     def joint_twists(self, st, P):

@@ -172,7 +172,27 @@ class _AnchorSet:
         return _directions(P, self.axes)
 
 
+#: The directions of anchor points already computed, per exact points (as bytes) and plane: a
+#: study's designs that leave an anchor set unchanged (the platform's while the legs vary, a
+#: leg's inline anchor points) share them.
+_DIRECTIONS: dict = {}
+
+
 def _directions(P: np.ndarray, axes) -> _Anchors:
+    """The anchors ``P`` (n, 3) with the radial and tangent directions of their set's plane
+    ``axes`` and its normal; each call gets arrays of its own."""
+    P = np.asarray(P)
+    key = (tuple(axes), P.shape, P.dtype.str, P.tobytes())
+    hit = _DIRECTIONS.get(key)
+    if hit is None:
+        hit = _compute_directions(P.copy(), axes)
+        if len(_DIRECTIONS) >= 256:
+            _DIRECTIONS.clear()
+        _DIRECTIONS[key] = hit
+    return _Anchors(hit.points.copy(), hit.radial.copy(), hit.tangent.copy(), hit.normal.copy())
+
+
+def _compute_directions(P: np.ndarray, axes) -> _Anchors:
     i1, i2, i3 = axes
     e = np.eye(3)
     ab = P[:, [i1, i2]]

@@ -194,7 +194,7 @@ def _make_params_class(desc: Description, cls_name: str, resolve=None):
         for chk in checks:
             with np.errstate(all="ignore"):
                 ok = chk(env)
-            if not bool(np.all(ok)):
+            if not (bool(ok) if isinstance(ok, (bool, np.bool_)) else bool(np.all(ok))):
                 vals = ", ".join(f"{n}={env[n]!r}" for n in sorted(chk.names))
                 raise ValueError(f"{mname}: the parameters fail the check {chk.text!r} ({vals}, SI)")
 
