@@ -8,6 +8,7 @@ import itertools
 
 import numpy as np
 import pytest
+from scipy.spatial import cKDTree
 
 import parasynth
 from parasynth import objectives
@@ -246,13 +247,13 @@ def test_envelope_clearance_against_brute_force_distances(gs):
             F = np.zeros((g1.size, 3))
             F[:, ax], F[:, o[0]], F[:, o[1]] = side, g1.ravel(), g2.ravel()
             faces.append(F)
-    surf = np.concatenate(faces)
+    surf = cKDTree(np.concatenate(faces))  # the nearest sampled surface point of each point
     worst = np.inf
     for k in range(len(X)):
         pts_leg = B[:, None, :] + s[None, :, None] * legs[k][:, None, :]
-        d_leg = np.min(np.linalg.norm(pts_leg.reshape(-1, 1, 3) - surf[None], axis=2), axis=1) - 0.02
+        d_leg = surf.query(pts_leg.reshape(-1, 3))[0] - 0.02
         pts_disc = X[k, :3] + disc @ R[k].T
-        d_disc = np.min(np.linalg.norm(pts_disc[:, None, :] - surf[None], axis=2), axis=1)
+        d_disc = surf.query(pts_disc)[0]
         worst = min(worst, d_leg.min(), d_disc.min())
     assert np.all((pts_leg >= box_lo) & (pts_leg <= box_hi))
     step = (box_hi - box_lo).max() / 120

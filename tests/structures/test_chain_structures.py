@@ -14,14 +14,17 @@ from parasynth.model.mechanism import EngineFallbackWarning
 from parasynth.model.spatial import euler_to_matrix, rot_x, rot_y
 from parasynth.structures import StructureError
 
+from _enumerated import enumerated, motion_group
+
 
 @pytest.fixture(scope="module")
 def found_3t2r():
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", EngineFallbackWarning)
-        return parasynth.structures("3T2R")
+        return enumerated("3T2R")
 
 
+@motion_group("3T2R")
 def test_default_3t2r_holds_5_rpur_and_5_prur(found_3t2r):
     names = {s.name for s in found_3t2r}
     assert {"5-RPUR", "5-PRUR"} <= names
@@ -33,6 +36,7 @@ def test_default_3t2r_holds_5_rpur_and_5_prur(found_3t2r):
     assert {"5-RPUR", "5-PRUR"} <= set(found_3t2r.dropped_names["singular at home"])
 
 
+@motion_group("3T2R")
 @pytest.mark.parametrize("name", ["5-RPUR", "5-PRUR"])
 def test_finite_motion_is_x_y_z_and_rotations_about_x_and_moving_y(found_3t2r, name):
     """On the limbs' numerical inverse kinematics (not the template): every limb reaches poses
@@ -62,6 +66,7 @@ def test_3t3r_holds_6_spu_and_6_rrps():
     assert all(s.verified for s in found)
 
 
+@motion_group("3T2R")
 def test_parts_refuse_a_chain_limb_by_name(found_3t2r):
     m = next(s for s in found_3t2r if s.name == "5-RPUR").mechanism()
     for cap in ("compiled", "closure", "dynamics", "accuracy", "export", "view"):

@@ -32,14 +32,13 @@ from parasynth.mechanisms import load_mechanism
 from parasynth.mechanisms.description import DescriptionError, description_class
 from parasynth.model.spatial import reciprocal_basis
 from parasynth.structures import LIMB_TYPES, candidates, structures
-from parasynth.structures.synthesis import _description, _key
+from parasynth.structures.synthesis import _description, _key, _leg_types
+
+from _enumerated import enumerated, per_motion
 
 MOTIONS = ("3T3R", "3T2R", "2T2R")
 
 
-@pytest.fixture(scope="module")
-def default_results():
-    return {m: structures(m) for m in MOTIONS}
 
 
 def _names(found):
@@ -108,9 +107,9 @@ def test_2t2r_with_rpu_and_sps_includes_2_rpu_2_sps():
 
 
 # -- every structure of the default vocabulary ---------------------------------------------------------
-@pytest.mark.parametrize("motion", MOTIONS)
-def test_default_vocabulary_structures_are_verified_and_load_from_yaml(default_results, motion, tmp_path):
-    found = default_results[motion]
+@pytest.mark.parametrize("motion", per_motion(MOTIONS))
+def test_default_vocabulary_structures_are_verified_and_load_from_yaml(motion, tmp_path):
+    found = enumerated(motion)
     assert len(found) >= 3
     assert found.enumerated == len(candidates(list(LIMB_TYPES)))
     assert sum(found.dropped.values()) + len(found) == found.enumerated
@@ -127,10 +126,10 @@ def test_default_vocabulary_structures_are_verified_and_load_from_yaml(default_r
         assert yaml.safe_load(path.read_text()) == s.description
 
 
-@pytest.mark.parametrize("motion", MOTIONS)
-def test_engine_agrees_with_numpy_on_every_structure(default_results, motion):
+@pytest.mark.parametrize("motion", per_motion(MOTIONS))
+def test_engine_agrees_with_numpy_on_every_structure(motion):
     counts = []
-    for s in default_results[motion]:
+    for s in enumerated(motion):
         m = s.mechanism()
         lo, hi = (np.array(v) for v in zip(*[m.default_ranges()[k] for k in m.task_coordinates]))
         # 2000 poses over 1.5 times the task box; for a structure of chain limbs (their NumPy
@@ -251,8 +250,9 @@ def test_duplicate_removal_agrees_with_graph_isomorphism():
     assert n_dup >= 10 and n_apart >= 10
 
 
-def test_no_two_kept_structures_are_isomorphic(default_results):
-    for motion, found in default_results.items():
+@pytest.mark.parametrize("motion", per_motion(MOTIONS))
+def test_no_two_kept_structures_are_isomorphic(motion):
+    for found in (enumerated(motion),):
         graphs = [_joint_graph(s.description) for s in found]
         for (a, ga), (b, gb) in itertools.combinations(zip(found, graphs), 2):
             assert not _iso(ga, gb), (motion, a.key, b.key)
@@ -276,16 +276,20 @@ def test_registering_a_limb_type_extends_synthesis(monkeypatch):
     monkeypatch.setattr(parasynth.structures.vocabulary, "LIMB_TYPES", without)
     with pytest.raises(ValueError, match="unknown limb type 'RUS'"):
         structures("3T3R", leg_types=["UPS", "RUS"])
-    before = structures("3T3R", legs=[6])
+    assert "RUS" not in _leg_types(None)
+    closed = ["UPS", "PUS"]  # closed-form limbs besides it: a short enumeration
+    before = structures("3T3R", leg_types=closed, legs=[6])
     assert not any("RUS" in s.leg_counts for s in before)
     parasynth.structures.register_limb(rus)
-    after = structures("3T3R", legs=[6])
+    assert "RUS" in _leg_types(None)  # the default vocabulary holds it
+    after = structures("3T3R", leg_types=closed + ["RUS"], legs=[6])
     assert {"6-RUS", "3-UPS&3-RUS"} <= _names(after) - _names(before)
     assert _names(before) <= _names(after)
 
 
-def test_structure_names_and_counts_follow_the_limbs(default_results):
-    for found in default_results.values():
+@pytest.mark.parametrize("motion", per_motion(MOTIONS))
+def test_structure_names_and_counts_follow_the_limbs(motion):
+    for found in (enumerated(motion),):
         for s in found:
             legs = s.mechanism().legs
             assert sum(s.leg_counts.values()) == len(legs)

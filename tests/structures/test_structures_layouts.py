@@ -24,6 +24,8 @@ from parasynth.mechanisms import described_class
 from parasynth.structures import DROP_REASONS, structures, verdict_text
 from parasynth.study import verify
 
+from _enumerated import enumerated, motion_group, per_motion
+
 MOTIONS = [f"{t}T{r}R" for t in range(4) for r in range(4) if t + r > 0]
 
 
@@ -35,10 +37,9 @@ def _home_margin_of_yaml(s) -> float:
     return float(np.asarray(mech.singularity_margin(np.atleast_2d(mech.home), engine="numpy")).ravel()[0])
 
 
-@functools.lru_cache(maxsize=None)
 def _every_axis(motion: str):
     """``structures(motion, all_axes=True)``, once per test process."""
-    return structures(motion, all_axes=True)
+    return enumerated(motion, True)
 
 
 #: Motions whose kept structures include some below the floor at a checked pose (seed 0), and
@@ -48,7 +49,7 @@ def _every_axis(motion: str):
 LOW_AT_A_CHECKED_POSE = {"1T3R": 5, "3T3R": 1}
 
 
-@pytest.mark.parametrize("motion", MOTIONS)
+@pytest.mark.parametrize("motion", per_motion(MOTIONS))
 def test_no_kept_structure_is_singular_at_home(motion):
     """Over every motion type and every joint-axis choice: each kept structure is controlled at
     its home pose at the default dimensions, with margin >= SINGULARITY_FLOOR, and the regular
@@ -74,6 +75,7 @@ def test_no_kept_structure_is_singular_at_home(motion):
         assert len(found) >= 1, motion
 
 
+@motion_group("3T2R")
 def test_regular_pentagon_is_singular_and_its_paired_and_irregular_rings_are_not():
     """The regular 5-PUS/UPU is the 2021 paper's first scheme (its pentagonal platform):
     singular at the symmetric pose; the structure is kept in its paired and irregular rings."""
@@ -150,7 +152,8 @@ def test_equivalent_structures_are_reported_as_one():
 
 
 def test_show_dropped_lists_every_drop_with_its_reason(capsys):
-    found = structures("2T3R", show_dropped=True)
+    types = ["UPS", "RPS", "PUS", "UPU"]  # closed-form limbs: a short enumeration
+    found = structures("2T3R", leg_types=types, show_dropped=True)
     text = found.summary()
     # the 2022 paper's 4-UPS/1-RPS is under-actuated for 2T3R (four actuators, five freedoms)
     assert "4-UPS/RPS" in found.dropped_names["under-actuated"]
@@ -158,7 +161,7 @@ def test_show_dropped_lists_every_drop_with_its_reason(capsys):
     assert "4-UPS/RPS" in text and "over-actuated (" in text
     listed = sum(len(v) for k, v in found.dropped_names.items() if k != "duplicate")
     assert listed == sum(v for k, v in found.dropped.items() if k != "duplicate")
-    assert "under-actuated (" not in structures("2T3R").summary()  # counts only, unless asked
+    assert "under-actuated (" not in structures("2T3R", leg_types=types).summary()  # counts only, unless asked
     assert cli.main(["structures", "2T3R", "--types", "UPS,RPS", "--show-dropped"]) == 0
     out = capsys.readouterr().out
     assert "  under-actuated (" in out and "4-UPS/RPS" in out and "verified:" in out and "floor 0.001" in out

@@ -237,6 +237,7 @@ class QuantityError(ValueError):
 # anything else -- other units, prefixes, compound units, "nan", errors -- goes to pint.
 _FAST_UNITS = {**{u: v for u, v in LITERAL_UNITS.items() if u not in ("um", "µm")}, **_OTHER_PLAIN_UNITS}
 _FAST = re.compile(r"\s*(-?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*([A-Za-z]+)\s*")
+_PLAIN = re.compile(r"\s*[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?\s*")
 
 
 def _fast_quantity(value: str, kind: str, field: str = "value"):
@@ -245,7 +246,14 @@ def _fast_quantity(value: str, kind: str, field: str = "value"):
     dimension), else None (pint decides)."""
     m = _FAST.fullmatch(value)
     if m is None:
-        return None
+        if _PLAIN.fullmatch(value) is None:
+            return None
+        # a plain number (pint reads it unitless): dimensionless, else the error of a missing unit
+        if kind == "dimensionless":
+            return float(value)
+        if kind == "angle":
+            raise QuantityError(f"{field}: {value!r} has no unit; give an angle such as '15 deg' or '0.2 rad'")
+        raise QuantityError(f"{field}: {value!r} has no unit; give a {kind} such as '10 {DISPLAY_UNITS[kind]}'")
     unit = _FAST_UNITS.get(m.group(2))
     if unit is None or (unit[0] != kind and kind == "dimensionless"):  # pint takes angles as dimensionless
         return None

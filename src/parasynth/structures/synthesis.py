@@ -49,7 +49,8 @@ DROP_REASONS = {
     "over-actuated": "more actuators than the requested freedoms (redundant actuation)",
     "not assemblable": "the description cannot be built: its home pose is out of reach of a limb",
     "wrong motion": "the screw-theory mobility at the checked poses is not the requested motion (or the task "
-                    "coordinates do not follow the limbs)",
+                    "coordinates do not follow the limbs, or one of its limbs has fewer joint freedoms than the "
+                    "motion, which no arrangement can give more)",
     "unreachable": "no checked pose of the task box is reachable",
     "singular everywhere": "the actuators do not control the freedoms at any checked pose",
     "singular at home": "at the default dimensions the singularity margin at the home pose is below "
@@ -58,6 +59,16 @@ DROP_REASONS = {
                         "paired and irregular rings are the structure's layouts)",
     "equivalent": "kinematically equivalent to a kept structure, reported with it (Structure.equivalents)",
 }
+
+#: Freedoms of each joint letter.
+_JOINT_FREEDOMS = {"R": 1, "P": 1, "U": 2, "S": 3}
+
+
+def _fewest_freedoms(groups) -> int:
+    """The fewest joint freedoms of a limb of ``groups``: a bound on the freedoms of any
+    structure holding it (the platform moves within each limb's twists, whatever the axes)."""
+    return min(sum(_JOINT_FREEDOMS[j] for j in limb_type(g.limb).joints) for g in groups)
+
 
 #: Limb types that are another's kinematic equivalent in a structure, with the reason: an SPS
 #: differs from a UPS only by an idle spin of the limb about its own axis (a UPS whose universal
@@ -823,6 +834,9 @@ def structures(motion, *, leg_types=None, legs=None, axes=None, all_axes: bool =
         seen.add(key)
         template = c.template()
         if template is None and c.n_actuated == dof:
+            if _fewest_freedoms(c.groups) < dof:  # no closure solve needed: a limb's freedoms bound the motion's
+                drop("wrong motion", c)
+                continue
             pending.append((c, key))  # only a candidate with as many actuators as freedoms gets a rule
             continue
         keep(c, key, template)
