@@ -67,6 +67,7 @@ import warnings
 import numpy as np
 
 from ..model.constraints import SingularityMarginFloor
+from ..model import parasitic as _parasitic
 from ..model.mechanism import EngineFallbackWarning
 from ..common.validation import ENGINES, check_engine
 from ..common.validation import numpy_reference as reference
@@ -83,11 +84,11 @@ _CORE_NAMES = ("HAVE_NUMBA", "BLOCK", "SUB", "KernelPlan", "Unsupported")
 
 
 def _compiled():
-    """The modules of the compiled path, ``(core, evaluate, indices, precompile, closure)``."""
+    """The modules of the compiled path, ``(core, evaluate, indices, precompile, closure, chains)``."""
     # lazy: they import numba (about a second) and define its kernels: loaded at the first compiled evaluation
-    from . import closure, core, evaluate, indices, precompile
+    from . import chains, closure, core, evaluate, indices, precompile
 
-    return core, evaluate, indices, precompile, closure
+    return core, evaluate, indices, precompile, closure, chains
 
 
 def _closure():
@@ -281,6 +282,18 @@ def singularity_margin_at(legs, p, R, n_actuators: int, constraint_rank: int, le
         return ei.singularity_margin_at(legs, p, R, n_actuators, constraint_rank, length_scale)
     except ei._Unsupported:
         return None
+
+
+def closure_residuals(legs, p, R, length_scale: float, engine: str = "compiled"):
+    """:func:`parasynth.model.parasitic.closure_residuals` (N, k) of ``legs`` at platform poses
+    (p, R), the closure equations of chain limbs (:class:`parasynth.model.chains.ChainLeg`) by
+    the compiled solve of :func:`parasynth.engine.chains.closure_residuals` (the same
+    branch-following warm start; NumPy without numba, with ``engine="numpy"`` and inside
+    :func:`reference`)."""
+    if _engine_for("chain_closure", engine) == "compiled" and any(callable(getattr(leg, "chain_arrays", None))
+                                                                  for leg in legs):
+        return _compiled()[5].closure_residuals(legs, p, R, length_scale)
+    return _parasitic.closure_residuals(legs, p, R, length_scale)
 
 
 def closure_plan(leg_sets, fields=None):
