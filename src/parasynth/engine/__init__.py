@@ -155,6 +155,14 @@ def _floor_margin(mech, X) -> np.ndarray:
     return mech.singularity_margin(X, engine="numpy")
 
 
+def _chains_asked(mech) -> None:
+    """Inside :func:`needs`: a mechanism with chain limbs also asks for their kernels (the
+    compiled inverse kinematics and index rows, ``"chains"``)."""
+    wanted = _WANTED.get()
+    if wanted is not None and any(callable(getattr(leg, "chain_arrays", None)) for leg in getattr(mech, "legs", ())):
+        wanted.add("chains")
+
+
 def _floors_asked(mech, names) -> None:
     """Inside :func:`needs`: a selection with a singularity-margin floor also asks for the
     singularity-margin kernel (the compiled path applies the floor with it)."""
@@ -175,6 +183,7 @@ def feasible(mech, X, names=None, engine: str = "compiled"):
     kernel, with the compiled singularity margin of the poses it accepts."""
     if _engine_for("feasible", engine) == "numpy":
         _floors_asked(mech, names)
+        _chains_asked(mech)
         return mech._is_feasible_numpy(X, names)
     return _compiled()[1].feasible(mech, X, names, _floor_margin)
 
@@ -214,6 +223,7 @@ def margins(mech, X, names=None, engine: str = "compiled") -> dict:
     (-inf where a leg cannot reach the pose or a margin is undefined)."""
     if _engine_for("margins", engine) == "numpy":
         _floors_asked(mech, names)
+        _chains_asked(mech)
         return mech._constraint_margins_numpy(X, names)
     return _compiled()[1].margins(mech, X, names, _floor_margin)
 
@@ -258,6 +268,7 @@ def use_compiled(mech, engine, what: str) -> bool:
     "compiled" or "numpy" (``ValueError`` otherwise); "compiled" falls back to NumPy, saying
     why once, when the kernels do not cover the mechanism."""
     if _engine_for(_WHAT_KIND.get(what, what), engine) == "numpy":
+        _chains_asked(mech)
         return False
     ei = _compiled()[2]
     ok, why = ei.coverage(mech)
@@ -445,7 +456,7 @@ def warm_up(work, processes: int | None = None, **options) -> WarmUp:
 
     def compile_then_work():
         # on the compiling thread: importing numba (about a second) included
-        core, _, _, pre, _ = _compiled()
+        core, _, _, pre = _compiled()[:4]
         loaded.append(pre)
         ahead = _ahead(work) if core.HAVE_NUMBA else []
         if ahead:
