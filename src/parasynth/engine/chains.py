@@ -20,14 +20,27 @@ of the reachability threshold (``1e3 * IK_TOL``) may be told apart differently (
 test allows those only). The joint angles (coordinates and cone angles) come from
 ``ChainLeg.joint_angles`` at the solved coordinates, as in the reference.
 
+The closure (``ChainLeg.closure_solve``, the least-squares reach whose error on the home
+constraint directions is the limb's closure equations): :func:`closure_solve` runs the
+reference's Gauss-Newton (``mu = 1e-14 (1 + trace)``, steps scaled to 0.5, a pose leaving once
+its step falls to 1e-10) one pose at a time in ``_closure_kernel``, from the reference's
+branch-following warm start (``ChainLeg.closure_start``, stored back with ``closure_store`` on
+the same limb, so that compiled and NumPy solves continue each other's branch); Cholesky
+instead of LU for the normal equations, so the errors agree to rounding (1e-12 in the tests,
+near home where the solve converges). :func:`closure_residuals` is
+:func:`parasynth.model.parasitic.closure_residuals` with it (the structures' motion rule calls
+it through :func:`parasynth.engine.closure_residuals`).
+
 Where it is used: :func:`solve` gives the :class:`~parasynth.model.legs.LegState` that
 ``ChainLeg.solve`` gives, with the joint coordinates, current axes, points and the residual in
 ``extra`` (so the constraint wrenches and joint twists of the NumPy reference apply unchanged);
 :func:`feasible` and :func:`margins` evaluate a mechanism with chain limbs as
 ``Mechanism.is_feasible`` / ``constraint_margins`` do, with every chain limb solved here
-(the closed-form legs by their own ``solve``, the constraints by their NumPy margins). The
-kernel is compiled at its first call only (a study without chain limbs never compiles it), and
-cached on disk like the others.
+(the closed-form legs by their own ``solve``, the constraints by their NumPy margins); :func:`solve_arrays` gives the
+index kernels their configurations (:mod:`parasynth.engine.indices`, ``_chain_rows_kernel``).
+The kernels are compiled at their first call only (a study without chain limbs never compiles
+them), and cached on disk like the others (``precompile`` kinds ``chains`` and
+``chain_closure``).
 """
 
 from __future__ import annotations
@@ -563,10 +576,47 @@ def context(mech, X) -> PoseContext:
         _, ph, Rh = _poses(mech, np.ascontiguousarray(mech.home[None, :], dtype=np.float64))
         p = np.where(valid[:, None], p, ph)
         R = np.where(valid[:, None, None], R, Rh)
-    states = [solve(leg, p, R) if isinstance(leg, ChainLeg) else leg.solve(p, R) for leg in mech.legs]
+    # the closed-form legs at every pose, then each chain limb only at the poses every leg before
+    # it reaches (a pose another leg misses is infeasible whatever the chain's state there: the
+    # solve of a pose out of reach, up to its stall, is the costly one)
+    N = p.shape[0]
+    states = [None if isinstance(leg, ChainLeg) else leg.solve(p, R) for leg in mech.legs]
+    alive = valid.copy()
+    for st in states:
+        if st is not None:
+            alive &= st.reachable
+    for k, leg in enumerate(mech.legs):
+        if states[k] is None:
+            idx = np.flatnonzero(alive)
+            st = solve(leg, p[idx], R[idx]) if idx.size < N else solve(leg, p, R)
+            states[k] = st if idx.size == N else _expand(leg, st, idx, p, R)
+            alive &= states[k].reachable
     reachable = valid & np.logical_and.reduce([st.reachable for st in states])
     act = np.stack([st.actuator for leg, st in zip(mech.legs, states) if leg.is_actuated], axis=-1)
     return PoseContext(Xa, p, R, list(mech.legs), states, reachable, act, mech)
+
+
+def _expand(leg: ChainLeg, st: LegState, idx, p, R) -> LegState:
+    """The state ``st`` of a chain limb solved at the poses ``idx`` of (p, R), as a state of all
+    N poses: the others unreachable (actuator, angles, joint coordinates NaN; the platform
+    anchor where the platform puts it)."""
+    N = p.shape[0]
+
+    def full(a, fill=np.nan):
+        out = np.full((N,) + np.shape(a)[1:], fill, dtype=np.asarray(a).dtype if fill is not np.nan else float)
+        out[idx] = a
+        return out
+
+    reach = np.zeros(N, bool)
+    reach[idx] = st.reachable
+    A = p + np.einsum("nij,j->ni", R, leg.platform)
+    A[idx] = st.platform_point
+    out = LegState(full(st.actuator), reach, full(st.base_point), A, full(st.direction), full(st.length),
+                   {k: full(v) for k, v in st.angles.items()})
+    out.extra.update({"q": full(st.extra["q"]), "residual": full(st.extra["residual"]),
+                      "axes": [full(a) for a in st.extra["axes"]],
+                      "points": [None if c is None else full(c) for c in st.extra["points"]]})
+    return out
 
 
 def feasible(mech, X, names=None):

@@ -34,8 +34,17 @@ threads would cost more than it saves -- except for the singularity margin, whos
 make a design's few hundred feasible poses worth two threads (ranges of poses, while
 ``core.TIMING`` finds that threads pay; see :func:`_kernel`).
 
-Every function is generic over the leg types ``SPS, UPS, PUS, RPS, RPU, UPU, PRS, RUS``; nothing is
-written per model class. The platform pose and the twist map come from the model's own
+Every function is generic over the leg types ``SPS, UPS, PUS, RPS, RPU, UPU, PRS, RUS`` and
+chain limbs (:class:`parasynth.model.chains.ChainLeg`); nothing is written per model class. A
+chain limb's rows come from its compiled inverse kinematics (:mod:`parasynth.engine.chains`):
+``_chain_rows_kernel`` writes, per pose, its joint twists about the platform reference point,
+its constraint wrenches (the right singular vectors of the smallest singular values of the
+twists, moments scaled by the limb's length: one-sided Jacobi), its actuation wrench
+(reciprocal to the passive twists, out of the constraint span, signed by its power on the
+actuated twist) and direction into an array ``ext`` that every kernel reads at the limb's
+offset, as ``ChainLeg.constraint_wrenches`` / ``actuation_wrench`` compute them (the basis of
+several constraint wrenches is the SVD's, unique for the vocabulary's limbs, which have at most
+one). The platform pose and the twist map come from the model's own
 ``pose``/``twist_map`` (vectorised NumPy), or, for a described mechanism, from its compiled
 program (:func:`parasynth.engine.evaluate.compiled_pose_batch`).
 

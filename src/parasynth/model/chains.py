@@ -58,11 +58,13 @@ vanish; such a pose is refused by the inverse kinematics, not by the closure.
 
 The chain's constraint wrenches are the wrenches reciprocal to its joint twists at the solved
 configuration (an SVD), so the mobility of a structure follows from them as for the hand-written
-leg types. The engine solves chain limbs with a compiled kernel of the same solve
-(:mod:`parasynth.engine.chains`, from :meth:`ChainLeg.chain_arrays`) for feasibility and
-constraint margins; a chain limb declares ``compiled=False`` (no compiled pose-wise index kernels
-and no compiled closure: those fall back to NumPy with the fallback warning) and every capability
-but ``stiffness`` and ``passive`` off, so the other parts refuse it by name
+leg types. The engine solves chain limbs with compiled kernels of the same solves
+(:mod:`parasynth.engine.chains`, from :meth:`ChainLeg.chain_arrays`): the inverse kinematics
+for feasibility and constraint margins, the closure's least-squares reach (with the warm start
+of :meth:`ChainLeg.closure_start`) for the structures' motion rule, and, from the solved
+configuration, the joint twists, constraint wrenches and actuation wrench of the pose-wise index
+kernels (:mod:`parasynth.engine.indices`); so a chain limb declares ``compiled=True``. Every
+other capability but ``stiffness`` and ``passive`` is off, so the other parts refuse it by name
 (:func:`parasynth.model.legs.require`).
 """
 
