@@ -602,8 +602,8 @@ def _expand(leg: ChainLeg, st: LegState, idx, p, R) -> LegState:
     anchor where the platform puts it)."""
     N = p.shape[0]
 
-    def full(a, fill=np.nan):
-        out = np.full((N,) + np.shape(a)[1:], fill, dtype=np.asarray(a).dtype if fill is not np.nan else float)
+    def full(a):
+        out = np.full((N,) + np.shape(a)[1:], np.nan)
         out[idx] = a
         return out
 
