@@ -188,3 +188,193 @@ def test_chain_kernel_one_signature_and_compiled_only_for_chain_limbs():
     r = subprocess.run([sys.executable, "-c", code], env=dict(os.environ), capture_output=True, text=True, timeout=600)
     assert r.returncode == 0, r.stderr
     assert r.stdout.split() == ["0", "True"], r.stdout + r.stderr
+
+
+# -- the compiled closure (ChainLeg.closure_solve / closure_residuals) ---------------------------------
+def _near_home(n, seed, amp=0.04, turn=0.1):
+    """Poses near the limb's home (positions within ``amp``, rotations up to ``turn`` rad about
+    random axes): the closure's least-squares reach converges there for every limb type, on or
+    off its motion."""
+    rng = np.random.default_rng(seed)
+    p = np.array([0.0, 0.0, 0.4]) + rng.uniform(-amp, amp, (n, 3))
+    axes = rng.normal(size=(n, 3))
+    R = rot_axis(axes / np.linalg.norm(axes, axis=1, keepdims=True), rng.uniform(-turn, turn, n))
+    return p, R
+
+
+CHAIN_TYPES = [RPUR, PRUR, SPU, RRPS, RRUR, URPU, PRRS, RUU]
+
+
+@pytest.mark.parametrize("cls", CHAIN_TYPES, ids=[c.__name__ for c in CHAIN_TYPES])
+def test_compiled_closure_agrees_with_numpy(cls):
+    """The compiled closure solve equals ChainLeg.closure_solve (two limbs of the same geometry,
+    each with its own warm-start cache) on poses near home: the closure residuals to 1e-12 (they
+    are dimensionless: position / limb length and rad), the joint coordinates to 1e-9; the same
+    over a path of small steps (each solve warm-started from the last: the branch followed), and
+    for a batch of a multiple of the size (the finite-difference Jacobian's perturbed poses)."""
+    ref = cls("L", base=BASE, platform=PLAT)
+    got = cls("L", base=BASE, platform=PLAT)
+    p, R = _near_home(300, 7)
+    for k in range(3):  # the first call from home, the others warm-started
+        pk = p + 1e-3 * k
+        qr, er = ref.closure_solve(pk, R)
+        qg, eg = _chains().closure_solve(got, pk, R)
+        np.testing.assert_allclose(eg, er, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(qg, qr, rtol=0, atol=1e-9)
+        rr = ref.closure_residuals(pk, R)
+        rg = _chains()._closure_of(got, pk, R)
+        assert len(rg) == len(rr) == ref.n_closure
+        for a, b in zip(rg, rr):
+            np.testing.assert_allclose(a, b, rtol=0, atol=1e-12)
+    # six perturbations of every pose: the warm start from the batch of 300 tiled
+    E = np.repeat(np.eye(3)[None], 2, axis=0).reshape(6, 3) * np.array([1, 1, 1, -1, -1, -1])[:, None] * 1e-6
+    pp = (p[None] + E[:, None, :]).reshape(-1, 3)
+    RR = np.broadcast_to(R[None], (6,) + R.shape).reshape(-1, 3, 3)
+    qr, er = ref.closure_solve(pp, RR)
+    qg, eg = _chains().closure_solve(got, pp, RR)
+    np.testing.assert_allclose(eg, er, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(qg, qr, rtol=0, atol=1e-9)
+    # non-finite poses: NaN error on both
+    pn = p[:4].copy()
+    pn[1] = np.nan
+    _, er = ref.closure_solve(pn, R[:4])
+    _, eg = _chains().closure_solve(got, pn, R[:4])
+    assert np.isnan(er[1]).all() and np.isnan(eg[1]).all()
+    np.testing.assert_allclose(eg[[0, 2, 3]], er[[0, 2, 3]], rtol=0, atol=1e-12)
+
+
+def test_compiled_closure_follows_the_branch_of_the_reference():
+    """Along a path from home to 0.15 rad about x and back, each solve warm-started from the
+    last: the compiled and the NumPy closure stay on the same branch (equal joint coordinates),
+    and a compiled solve continues the cache the NumPy one left on the same limb (closure_start
+    gives the compiled solution as the next start)."""
+    ref = RPUR("L", base=BASE, platform=PLAT)
+    got = RPUR("L", base=BASE, platform=PLAT)
+    angles = np.r_[np.linspace(0.0, 0.15, 16), np.linspace(0.15, 0.0, 16)]
+    p = np.array([[0.01, -0.02, 0.4]])
+    for a in angles:
+        R = rot_x(np.array([a])) @ rot_y(np.array([0.5 * a]))
+        qr, er = ref.closure_solve(p, R)
+        qg, eg = _chains().closure_solve(got, p, R)
+        np.testing.assert_allclose(qg, qr, rtol=0, atol=1e-9)
+        assert abs(float(er[0] @ ref._closure_dirs[:, 0])) < 1e-12  # on the 3T2R motion: assembles
+    _, _, q0 = got.closure_start(p, R)
+    np.testing.assert_array_equal(q0, qg)
+    q1, _ = got.closure_solve(p, R)  # the NumPy solve from the compiled solution: already there
+    np.testing.assert_allclose(q1, qg, rtol=0, atol=1e-12)
+
+
+def test_closure_residuals_entry_point_uses_the_compiled_solve():
+    """engine.closure_residuals: the compiled chain closure beside the closed-form legs' closure
+    equations, equal to model.parasitic.closure_residuals; NumPy inside engine.reference()."""
+    from parasynth.model import parasitic
+    from parasynth.model.legs import RPS
+
+    legs = [RPUR("L1", base=BASE, platform=PLAT), RPS("L2", base=[-0.3, 0.0, 0.0], platform=[-0.15, 0.0, 0.0],
+                                                      r_axis=[0.0, 1.0, 0.0])]
+    p, R = _near_home(50, 3)
+    ref = parasitic.closure_residuals(legs, p, R, 0.4)
+    legs[0]._closure_cache.clear()
+    calls = []
+    orig = _chains()._closure_kernel
+
+    class Spy:
+        def __call__(self, *a):
+            calls.append(1)
+            return orig(*a)
+
+    _chains()._closure_kernel = Spy()
+    try:
+        got = engine.closure_residuals(legs, p, R, 0.4)
+        assert calls
+        n = len(calls)
+        legs[0]._closure_cache.clear()
+        with engine.reference():
+            again = engine.closure_residuals(legs, p, R, 0.4)
+        assert len(calls) == n
+    finally:
+        _chains()._closure_kernel = orig
+    assert got.shape == ref.shape == (50, 2)
+    np.testing.assert_allclose(got, ref, rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(again, ref)
+
+
+# -- the compiled indices of mechanisms with chain limbs -------------------------------------------
+@pytest.fixture(scope="module")
+def chain_mechanisms():
+    out = []
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", EngineFallbackWarning)
+        for motion, types, legs in (("3T2R", ["RPUR", "PRUR", "RRUR"], [5]),
+                                    ("3T3R", ["SPU", "RRPS", "URPU", "PRRS"], [6]), ("3T0R", ["RUU"], [3])):
+            out += [s.mechanism() for s in parasynth.structures(motion, leg_types=types, legs=legs)]
+    return out
+
+
+def test_compiled_indices_of_chain_limbs_agree_with_numpy(chain_mechanisms):
+    """Every chain limb type of the vocabulary (the 5-RPUR, 5-PRUR, 5-RRUR, 6-SPU, 6-RRPS,
+    6-URPU, 6-PRRS, 3-RUU and the 3T3R mixes): the singularity margin, the transmission
+    indices, the condition number, the leg directions and the constraint rank run compiled (no
+    fallback warning) and equal the NumPy reference (ChainLeg.constraint_wrenches,
+    actuation_wrench) on poses near home: margin and LTI to 1e-9, condition number to 1e-9
+    relative, directions to 1e-12."""
+    from parasynth.measures import indices as mi
+    from parasynth.model.mechanism import Mechanism
+
+    types = set()
+    for m in chain_mechanisms:
+        types |= {type(leg).__name__ for leg in m.legs}
+        rng = np.random.default_rng(0)
+        ang = np.isin(m.task_coordinates, m.angular_coordinates)
+        X = m.home + rng.uniform(-1, 1, (120, len(m.home))) * np.where(ang, 0.1, 0.02)
+        X[-1] = np.nan  # an invalid pose: NaN on both
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", EngineFallbackWarning)
+            assert engine.coverage(m) == (True, "")
+            a = m.singularity_margin(X)
+            la = mi.local_transmission_index(m, X)
+            ka = mi.local_condition_number(m, X)
+            da, ra = engine.leg_directions(m, X)
+            rank = m.structural_constraint_rank()
+        b = m.singularity_margin(X, engine="numpy")
+        fin = np.isfinite(b)
+        assert fin.sum() >= 100, m.name
+        assert np.array_equal(fin, np.isfinite(a)), m.name
+        np.testing.assert_allclose(a[fin], b[fin], rtol=0, atol=1e-9, err_msg=m.name)
+        lb = mi.local_transmission_index(m, X, engine="numpy")
+        np.testing.assert_allclose(la[fin], lb[fin], rtol=0, atol=1e-9, err_msg=m.name)
+        kb = mi.local_condition_number(m, X, engine="numpy")
+        np.testing.assert_allclose(ka[fin], kb[fin], rtol=1e-9, atol=0, err_msg=m.name)
+        _, st, _ = m.leg_states(X)
+        db = np.stack([s.direction for s in st], 1)
+        np.testing.assert_allclose(da[fin], db[fin], rtol=0, atol=1e-12, err_msg=m.name)
+        assert rank == Mechanism.structural_constraint_rank(m, engine="numpy"), m.name
+    assert {"RPUR", "PRUR", "RRUR", "SPU", "RRPS", "URPU", "PRRS", "RUU"} <= types
+
+
+def test_compiled_margin_of_a_mixed_mechanism_at_explicit_poses(chain_mechanisms):
+    """Chain limbs beside a closed-form leg (the 3-RUU/UPU of 3T0R: three RUU limbs and a
+    central UPU, its motion solved on their closure equations): the compiled margin, also at
+    explicit poses (engine.singularity_margin_at), equal to the NumPy margin of the states."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", EngineFallbackWarning)
+        m = next(s for s in parasynth.structures("3T0R", leg_types=["RUU", "UPU"])
+                 if s.name == "3-RUU/UPU").mechanism()
+    assert {type(leg).__name__ for leg in m.legs} == {"RUU", "UPU"}
+    rng = np.random.default_rng(4)
+    ang = np.isin(m.task_coordinates, m.angular_coordinates)
+    X = m.home + rng.uniform(-1, 1, (80, len(m.home))) * np.where(ang, 0.1, 0.02)
+    _, states, p = m.leg_states(X)
+    R = m._pose(X)[1]
+    reach = np.logical_and.reduce([s.reachable for s in states])
+    ref = m.singularity_margin_of_states(states, p, reach)
+    got = engine.singularity_margin_at(m.legs, p, R, m.n_actuators, m.constraint_rank, m.length_scale)
+    assert got is not None and reach.sum() >= 60
+    np.testing.assert_allclose(got[reach], ref[reach], rtol=0, atol=1e-9)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", EngineFallbackWarning)
+        a = m.singularity_margin(X)
+    b = m.singularity_margin(X, engine="numpy")
+    fin = np.isfinite(b)
+    assert np.array_equal(fin, np.isfinite(a)) and fin.sum() >= 60
+    np.testing.assert_allclose(a[fin], b[fin], rtol=0, atol=1e-9)

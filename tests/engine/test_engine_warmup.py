@@ -137,8 +137,20 @@ def test_kernel_signatures_are_the_ones_compiled():
     """Each kernel is called with exactly the one signature the compile helpers compile."""
     from parasynth.engine import precompile
 
+    import warnings
+
+    import parasynth
+    from parasynth.model.chains import RPUR
+
     mech = load_mechanism("5pus_upu")
     engine.exercise(mech)
+    # the chain limbs' kernels: a mechanism of chain limbs, and a chain limb's closure
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        chain_mech = parasynth.structures("3T3R", leg_types=["SPU"], legs=[6])[0].mechanism()
+    engine.exercise(chain_mech, ("feasible", "singularity_margin", "constraint_rank"))
+    leg = RPUR("L", base=[0.3, 0.0, 0.0], platform=[0.15, 0.0, 0.0])
+    engine.closure_residuals([leg], np.array([[0.0, 0.0, 0.4]]), np.eye(3)[None], 0.4)
     sigs = precompile.signatures()
     assert set(sigs) == {n for names in precompile.KERNELS_OF.values() for n in names}
     for name, (disp, sig) in sigs.items():

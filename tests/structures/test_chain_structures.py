@@ -69,14 +69,15 @@ def test_3t3r_holds_6_spu_and_6_rrps():
 @motion_group("3T2R")
 def test_parts_refuse_a_chain_limb_by_name(found_3t2r):
     m = next(s for s in found_3t2r if s.name == "5-RPUR").mechanism()
-    for cap in ("compiled", "closure", "dynamics", "accuracy", "export", "view"):
+    for cap in ("closure", "dynamics", "accuracy", "export", "view"):
         with pytest.raises(LegCapabilityError, match=rf"leg L1: leg type RPUR does not support '{cap}'"):
             require(m.legs[0], cap)
-    with warnings.catch_warnings():  # feasibility: the compiled chain solve (engine/chains.py), no fallback
+    require(m.legs[0], "compiled")
+    with warnings.catch_warnings():  # feasibility and the indices: compiled (engine/chains.py, engine/indices.py)
         warnings.simplefilter("error", EngineFallbackWarning)
         assert m.is_feasible(np.atleast_2d(m.home))[0]
-    with pytest.warns(EngineFallbackWarning, match="RPUR"):  # no compiled index kernel for a chain limb
-        m.singularity_margin(np.atleast_2d(m.home))
+        got = m.singularity_margin(np.atleast_2d(m.home))
+    np.testing.assert_allclose(got, m.singularity_margin(np.atleast_2d(m.home), engine="numpy"), rtol=0, atol=1e-9)
 
 
 def test_register_chain_keeps_the_closed_forms():

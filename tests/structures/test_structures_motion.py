@@ -292,15 +292,18 @@ def test_solved_structures_run_compiled_and_agree_with_numpy(motion):
         lo, hi = (np.array(v) for v in zip(*[m.default_ranges()[k] for k in m.task_coordinates]))
         X = lo + (hi - lo) * np.random.default_rng(5).uniform(0, 1, (400, len(lo)))
         if any(g.limb in CHAIN_TYPES for g in s.groups):
-            # chain limbs: feasibility by the compiled chain solve (engine/chains.py, no fallback),
-            # equal to NumPy; the singularity margin has no compiled kernel: NumPy, with the warning
+            # chain limbs: feasibility by the compiled chain solve (engine/chains.py) and the
+            # singularity margin by the index kernels (their rows from that solve), no fallback,
+            # equal to NumPy
             X = X[:60]
             with warnings.catch_warnings():
                 warnings.simplefilter("error", EngineFallbackWarning)
                 fc = m.is_feasible(X)
+                sc = m.singularity_margin(X)
             assert np.array_equal(fc, m.is_feasible(X, engine="numpy")), s.name
-            with pytest.warns(EngineFallbackWarning):
-                m.singularity_margin(np.atleast_2d(m.home))
+            sn = m.singularity_margin(X, engine="numpy")
+            both = np.isfinite(sn)
+            assert np.array_equal(both, np.isfinite(sc)) and np.allclose(sc[both], sn[both], atol=1e-9), s.name
             continue
         with warnings.catch_warnings():
             warnings.simplefilter("error", EngineFallbackWarning)

@@ -331,7 +331,8 @@ def _compile_early(path, quiet: bool) -> None:
         return
     from ..engine import COMPILING, core, precompile
 
-    if core.HAVE_NUMBA and precompile.start_early(precompile.STRUCTURE_STUDY) and not quiet:
+    kinds = precompile.structure_kinds(doc["structure"].get("leg_types"))
+    if core.HAVE_NUMBA and precompile.start_early(kinds) and not quiet:
         print(COMPILING, file=sys.stderr, flush=True)
 
 

@@ -67,6 +67,7 @@ import warnings
 import numpy as np
 
 from ..model.constraints import SingularityMarginFloor
+from ..model import parasitic as _parasitic
 from ..model.mechanism import EngineFallbackWarning
 from ..common.validation import ENGINES, check_engine
 from ..common.validation import numpy_reference as reference
@@ -83,11 +84,11 @@ _CORE_NAMES = ("HAVE_NUMBA", "BLOCK", "SUB", "KernelPlan", "Unsupported")
 
 
 def _compiled():
-    """The modules of the compiled path, ``(core, evaluate, indices, precompile, closure)``."""
+    """The modules of the compiled path, ``(core, evaluate, indices, precompile, closure, chains)``."""
     # lazy: they import numba (about a second) and define its kernels: loaded at the first compiled evaluation
-    from . import closure, core, evaluate, indices, precompile
+    from . import chains, closure, core, evaluate, indices, precompile
 
-    return core, evaluate, indices, precompile, closure
+    return core, evaluate, indices, precompile, closure, chains
 
 
 def _closure():
@@ -154,6 +155,14 @@ def _floor_margin(mech, X) -> np.ndarray:
     return mech.singularity_margin(X, engine="numpy")
 
 
+def _chains_asked(mech) -> None:
+    """Inside :func:`needs`: a mechanism with chain limbs also asks for their kernels (the
+    compiled inverse kinematics and index rows, ``"chains"``)."""
+    wanted = _WANTED.get()
+    if wanted is not None and any(callable(getattr(leg, "chain_arrays", None)) for leg in getattr(mech, "legs", ())):
+        wanted.add("chains")
+
+
 def _floors_asked(mech, names) -> None:
     """Inside :func:`needs`: a selection with a singularity-margin floor also asks for the
     singularity-margin kernel (the compiled path applies the floor with it)."""
@@ -174,6 +183,7 @@ def feasible(mech, X, names=None, engine: str = "compiled"):
     kernel, with the compiled singularity margin of the poses it accepts."""
     if _engine_for("feasible", engine) == "numpy":
         _floors_asked(mech, names)
+        _chains_asked(mech)
         return mech._is_feasible_numpy(X, names)
     return _compiled()[1].feasible(mech, X, names, _floor_margin)
 
@@ -213,6 +223,7 @@ def margins(mech, X, names=None, engine: str = "compiled") -> dict:
     (-inf where a leg cannot reach the pose or a margin is undefined)."""
     if _engine_for("margins", engine) == "numpy":
         _floors_asked(mech, names)
+        _chains_asked(mech)
         return mech._constraint_margins_numpy(X, names)
     return _compiled()[1].margins(mech, X, names, _floor_margin)
 
@@ -257,6 +268,7 @@ def use_compiled(mech, engine, what: str) -> bool:
     "compiled" or "numpy" (``ValueError`` otherwise); "compiled" falls back to NumPy, saying
     why once, when the kernels do not cover the mechanism."""
     if _engine_for(_WHAT_KIND.get(what, what), engine) == "numpy":
+        _chains_asked(mech)
         return False
     ei = _compiled()[2]
     ok, why = ei.coverage(mech)
@@ -281,6 +293,18 @@ def singularity_margin_at(legs, p, R, n_actuators: int, constraint_rank: int, le
         return ei.singularity_margin_at(legs, p, R, n_actuators, constraint_rank, length_scale)
     except ei._Unsupported:
         return None
+
+
+def closure_residuals(legs, p, R, length_scale: float, engine: str = "compiled"):
+    """:func:`parasynth.model.parasitic.closure_residuals` (N, k) of ``legs`` at platform poses
+    (p, R), the closure equations of chain limbs (:class:`parasynth.model.chains.ChainLeg`) by
+    the compiled solve of :func:`parasynth.engine.chains.closure_residuals` (the same
+    branch-following warm start; NumPy without numba, with ``engine="numpy"`` and inside
+    :func:`reference`)."""
+    if _engine_for("chain_closure", engine) == "compiled" and any(callable(getattr(leg, "chain_arrays", None))
+                                                                  for leg in legs):
+        return _compiled()[5].closure_residuals(legs, p, R, length_scale)
+    return _parasitic.closure_residuals(legs, p, R, length_scale)
 
 
 def closure_plan(leg_sets, fields=None):
@@ -432,7 +456,7 @@ def warm_up(work, processes: int | None = None, **options) -> WarmUp:
 
     def compile_then_work():
         # on the compiling thread: importing numba (about a second) included
-        core, _, _, pre, _ = _compiled()
+        core, _, _, pre = _compiled()[:4]
         loaded.append(pre)
         ahead = _ahead(work) if core.HAVE_NUMBA else []
         if ahead:

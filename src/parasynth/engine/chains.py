@@ -20,14 +20,27 @@ of the reachability threshold (``1e3 * IK_TOL``) may be told apart differently (
 test allows those only). The joint angles (coordinates and cone angles) come from
 ``ChainLeg.joint_angles`` at the solved coordinates, as in the reference.
 
+The closure (``ChainLeg.closure_solve``, the least-squares reach whose error on the home
+constraint directions is the limb's closure equations): :func:`closure_solve` runs the
+reference's Gauss-Newton (``mu = 1e-14 (1 + trace)``, steps scaled to 0.5, a pose leaving once
+its step falls to 1e-10) one pose at a time in ``_closure_kernel``, from the reference's
+branch-following warm start (``ChainLeg.closure_start``, stored back with ``closure_store`` on
+the same limb, so that compiled and NumPy solves continue each other's branch); Cholesky
+instead of LU for the normal equations, so the errors agree to rounding (1e-12 in the tests,
+near home where the solve converges). :func:`closure_residuals` is
+:func:`parasynth.model.parasitic.closure_residuals` with it (the structures' motion rule calls
+it through :func:`parasynth.engine.closure_residuals`).
+
 Where it is used: :func:`solve` gives the :class:`~parasynth.model.legs.LegState` that
 ``ChainLeg.solve`` gives, with the joint coordinates, current axes, points and the residual in
 ``extra`` (so the constraint wrenches and joint twists of the NumPy reference apply unchanged);
 :func:`feasible` and :func:`margins` evaluate a mechanism with chain limbs as
 ``Mechanism.is_feasible`` / ``constraint_margins`` do, with every chain limb solved here
-(the closed-form legs by their own ``solve``, the constraints by their NumPy margins). The
-kernel is compiled at its first call only (a study without chain limbs never compiles it), and
-cached on disk like the others.
+(the closed-form legs by their own ``solve``, the constraints by their NumPy margins); :func:`solve_arrays` gives the
+index kernels their configurations (:mod:`parasynth.engine.indices`, ``_chain_rows_kernel``).
+The kernels are compiled at their first call only (a study without chain limbs never compiles
+them), and cached on disk like the others (``precompile`` kinds ``chains`` and
+``chain_closure``).
 """
 
 from __future__ import annotations
@@ -36,7 +49,8 @@ import math
 
 import numpy as np
 
-from ..model.chains import IK_ITERATIONS, IK_TOL, ChainLeg
+from ..model import parasitic
+from ..model.chains import CLOSURE_ITERATIONS, IK_ITERATIONS, IK_TOL, ChainLeg
 from ..model.constraints import PoseContext
 from ..model.legs import LegState
 from ..model.spatial import unit
@@ -44,7 +58,7 @@ from . import core
 from .core import HAVE_NUMBA, Unsupported, blocking, over_blocks
 
 __all__ = ["covers", "chain_legs", "context", "solve", "solve_arrays", "feasible", "margins", "signatures",
-           "REACH_FACTOR"]
+           "closure_solve", "closure_residuals", "REACH_FACTOR"]
 
 #: A pose is reachable when the solve's residual is below ``REACH_FACTOR * IK_TOL`` (as
 #: ``ChainLeg.solve``).
@@ -294,6 +308,130 @@ if HAVE_NUMBA:  # pragma: no branch
                 POS[i, a] = pos[a]
 
 
+    @njit(**_jit)
+    def _closure_kernel(T, Rm, kinds, axes, points, home, L, n_iter, Q, E, i0, i1):
+        """Poses ``i0 .. i1 - 1`` of the closure's least-squares reach (``ChainLeg.closure_solve``):
+        from the joint coordinates ``Q`` (the warm start, overwritten by the solution), at most
+        ``n_iter`` Gauss-Newton steps ``(J^T J + mu I) dq = J^T e``, ``mu = 1e-14 (1 + trace(J^T
+        J))``, each scaled to at most 0.5 per coordinate; a pose whose step fell to 1e-10 or below
+        (or is not finite) stops after it. ``E`` (N, 6): the error at the last coordinates (the
+        anchor's position / L and the rotation vector of ``R Rc^T``), NaN for a pose that is not
+        finite."""
+        n = kinds.shape[0]
+        q = np.empty(n)
+        Rg = np.empty((3, 3))
+        tg = np.empty(3)
+        pos = np.empty(3)
+        axw = np.empty((n, 3))
+        ptw = np.empty((n, 3))
+        e = np.empty(6)
+        J = np.empty((6, n))
+        A = np.empty((n, n))
+        b = np.empty(n)
+        dq = np.empty(n)
+        Lc = np.empty((n, n))
+        for i in range(i0, i1):
+            R = Rm[i]
+            tx = T[i, 0]
+            ty = T[i, 1]
+            tz = T[i, 2]
+            finite = math.isfinite(tx) and math.isfinite(ty) and math.isfinite(tz)
+            for a in range(3):
+                for c in range(3):
+                    if not math.isfinite(R[a, c]):
+                        finite = False
+            if not finite:
+                for k in range(6):
+                    E[i, k] = np.nan
+                continue
+            for m in range(n):
+                q[m] = Q[i, m]
+            for it in range(n_iter + 1):
+                _forward(q, kinds, axes, points, home, Rg, tg, axw, ptw, pos)
+                _error(R, tx, ty, tz, Rg, pos, L, e)
+                if it == n_iter:
+                    break
+                for m in range(n):
+                    ax = axw[m, 0]
+                    ay = axw[m, 1]
+                    az = axw[m, 2]
+                    if kinds[m] == 1:
+                        J[0, m] = ax / L
+                        J[1, m] = ay / L
+                        J[2, m] = az / L
+                        J[3, m] = 0.0
+                        J[4, m] = 0.0
+                        J[5, m] = 0.0
+                    else:
+                        rx = pos[0] - ptw[m, 0]
+                        ry = pos[1] - ptw[m, 1]
+                        rz = pos[2] - ptw[m, 2]
+                        J[0, m] = (ay * rz - az * ry) / L
+                        J[1, m] = (az * rx - ax * rz) / L
+                        J[2, m] = (ax * ry - ay * rx) / L
+                        J[3, m] = ax
+                        J[4, m] = ay
+                        J[5, m] = az
+                tr = 0.0
+                for a in range(n):
+                    for c in range(n):
+                        s = 0.0
+                        for k in range(6):
+                            s += J[k, a] * J[k, c]
+                        A[a, c] = s
+                    tr += A[a, a]
+                    s = 0.0
+                    for k in range(6):
+                        s += J[k, a] * e[k]
+                    b[a] = s
+                mu = 1e-14 * (1.0 + tr)
+                for a in range(n):
+                    A[a, a] += mu
+                for a in range(n):
+                    for c in range(a + 1):
+                        s = A[a, c]
+                        for k in range(c):
+                            s -= Lc[a, k] * Lc[c, k]
+                        if a == c:
+                            Lc[a, a] = math.sqrt(s) if s > 0.0 else 1e-300
+                        else:
+                            Lc[a, c] = s / Lc[c, c]
+                for a in range(n):
+                    s = b[a]
+                    for k in range(a):
+                        s -= Lc[a, k] * dq[k]
+                    dq[a] = s / Lc[a, a]
+                for a in range(n - 1, -1, -1):
+                    s = dq[a]
+                    for k in range(a + 1, n):
+                        s -= Lc[k, a] * dq[k]
+                    dq[a] = s / Lc[a, a]
+                step = 0.0
+                for a in range(n):
+                    d = abs(dq[a])
+                    if d != d:
+                        step = np.nan
+                        break
+                    if d > step:
+                        step = d
+                if step != step:
+                    for a in range(n):
+                        q[a] = np.nan
+                else:
+                    fac = 0.5 / (step if step > 1e-300 else 1e-300)
+                    fac = fac if fac < 1.0 else 1.0
+                    for a in range(n):
+                        q[a] += dq[a] * fac
+                if not (step > 1e-10):  # converged (or not finite): the error at the last step, then stop
+                    _forward(q, kinds, axes, points, home, Rg, tg, axw, ptw, pos)
+                    _error(R, tx, ty, tz, Rg, pos, L, e)
+                    break
+            for m in range(n):
+                Q[i, m] = q[m]
+            for k in range(6):
+                E[i, k] = e[k]
+
+
 def _array(dtype, ndim):
     from numba import types as nbt
 
@@ -308,7 +446,8 @@ def signatures() -> dict:
 
     f1, f2, f3, i1 = _array("f8", 1), _array("f8", 2), _array("f8", 3), _array("i8", 1)
     sig = (f2, f3, i1, f2, f2, f1, f1, nbt.float64, nbt.int64, nbt.float64, f2, f1, f2, f3, f3, nbt.int64, nbt.int64)
-    return {"_chain_kernel": (_chain_kernel, sig)}
+    csig = (f2, f3, i1, f2, f2, f1, nbt.float64, nbt.int64, f2, f2, nbt.int64, nbt.int64)
+    return {"_chain_kernel": (_chain_kernel, sig), "_closure_kernel": (_closure_kernel, csig)}
 
 
 def _c(a, dtype=np.float64):
@@ -359,6 +498,44 @@ def solve(leg: ChainLeg, p, R, joint_angles: bool = True):
     return st
 
 
+def closure_solve(leg: ChainLeg, p, R, iterations: int = CLOSURE_ITERATIONS):
+    """``leg.closure_solve(p, R, iterations)`` by the compiled kernel: the joint coordinates (N,
+    n) of the chain's least-squares reach of the platform poses and the remaining error (N, 6),
+    with the reference's branch-following warm start (``ChainLeg.closure_start`` and
+    ``closure_store``: the same cache on the limb, so both solves continue each other's
+    branch)."""
+    target, Rm, q = leg.closure_start(p, R)
+    d = leg.chain_arrays()
+    N = q.shape[0]
+    Q = _c(q)
+    E = np.empty((N, 6))
+    T = _c(target)
+    Rm = _c(Rm)
+    args = (T, Rm, _c(d["kinds"], np.int64), _c(d["axes"]), _c(d["points"]), _c(d["home"]), float(d["length"]),
+            int(iterations), Q, E)
+    block, nblk, par = blocking(N)
+    over_blocks(lambda b0, b1: _closure_kernel(*args, b0 * block, min(N, b1 * block)), nblk, par)
+    leg.closure_store(target, Rm, Q)
+    return Q, E
+
+
+def _closure_of(leg, p, R) -> list:
+    """A chain limb's closure equations (``ChainLeg.closure_residuals``) by :func:`closure_solve`."""
+    if not leg.n_closure:
+        return []
+    _, e = closure_solve(leg, p, R)
+    r = e @ leg._closure_dirs
+    return [r[:, k] for k in range(r.shape[1])]
+
+
+def closure_residuals(legs, p, R, L: float) -> np.ndarray:
+    """:func:`parasynth.model.parasitic.closure_residuals` (N, k) with the chain limbs' closure
+    equations by the compiled solve (the NumPy reference without numba)."""
+    if not HAVE_NUMBA:
+        return parasitic.closure_residuals(legs, p, R, L)
+    return parasitic.closure_residuals(legs, p, R, L, chain=_closure_of)
+
+
 # ---------------------------------------------------------------------------------------------
 # mechanisms with chain limbs: Mechanism.is_feasible / constraint_margins, chain limbs compiled
 # ---------------------------------------------------------------------------------------------
@@ -399,10 +576,47 @@ def context(mech, X) -> PoseContext:
         _, ph, Rh = _poses(mech, np.ascontiguousarray(mech.home[None, :], dtype=np.float64))
         p = np.where(valid[:, None], p, ph)
         R = np.where(valid[:, None, None], R, Rh)
-    states = [solve(leg, p, R) if isinstance(leg, ChainLeg) else leg.solve(p, R) for leg in mech.legs]
+    # the closed-form legs at every pose, then each chain limb only at the poses every leg before
+    # it reaches (a pose another leg misses is infeasible whatever the chain's state there: the
+    # solve of a pose out of reach, up to its stall, is the costly one)
+    N = p.shape[0]
+    states = [None if isinstance(leg, ChainLeg) else leg.solve(p, R) for leg in mech.legs]
+    alive = valid.copy()
+    for st in states:
+        if st is not None:
+            alive &= st.reachable
+    for k, leg in enumerate(mech.legs):
+        if states[k] is None:
+            idx = np.flatnonzero(alive)
+            st = solve(leg, p[idx], R[idx]) if idx.size < N else solve(leg, p, R)
+            states[k] = st if idx.size == N else _expand(leg, st, idx, p, R)
+            alive &= states[k].reachable
     reachable = valid & np.logical_and.reduce([st.reachable for st in states])
     act = np.stack([st.actuator for leg, st in zip(mech.legs, states) if leg.is_actuated], axis=-1)
     return PoseContext(Xa, p, R, list(mech.legs), states, reachable, act, mech)
+
+
+def _expand(leg: ChainLeg, st: LegState, idx, p, R) -> LegState:
+    """The state ``st`` of a chain limb solved at the poses ``idx`` of (p, R), as a state of all
+    N poses: the others unreachable (actuator, angles, joint coordinates NaN; the platform
+    anchor where the platform puts it)."""
+    N = p.shape[0]
+
+    def full(a):
+        out = np.full((N,) + np.shape(a)[1:], np.nan)
+        out[idx] = a
+        return out
+
+    reach = np.zeros(N, bool)
+    reach[idx] = st.reachable
+    A = p + np.einsum("nij,j->ni", R, leg.platform)
+    A[idx] = st.platform_point
+    out = LegState(full(st.actuator), reach, full(st.base_point), A, full(st.direction), full(st.length),
+                   {k: full(v) for k, v in st.angles.items()})
+    out.extra.update({"q": full(st.extra["q"]), "residual": full(st.extra["residual"]),
+                      "axes": [full(a) for a in st.extra["axes"]],
+                      "points": [None if c is None else full(c) for c in st.extra["points"]]})
+    return out
 
 
 def feasible(mech, X, names=None):

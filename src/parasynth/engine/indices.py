@@ -34,8 +34,17 @@ threads would cost more than it saves -- except for the singularity margin, whos
 make a design's few hundred feasible poses worth two threads (ranges of poses, while
 ``core.TIMING`` finds that threads pay; see :func:`_kernel`).
 
-Every function is generic over the leg types ``SPS, UPS, PUS, RPS, RPU, UPU, PRS, RUS``; nothing is
-written per model class. The platform pose and the twist map come from the model's own
+Every function is generic over the leg types ``SPS, UPS, PUS, RPS, RPU, UPU, PRS, RUS`` and
+chain limbs (:class:`parasynth.model.chains.ChainLeg`); nothing is written per model class. A
+chain limb's rows come from its compiled inverse kinematics (:mod:`parasynth.engine.chains`):
+``_chain_rows_kernel`` writes, per pose, its joint twists about the platform reference point,
+its constraint wrenches (the right singular vectors of the smallest singular values of the
+twists, moments scaled by the limb's length: one-sided Jacobi), its actuation wrench
+(reciprocal to the passive twists, out of the constraint span, signed by its power on the
+actuated twist) and direction into an array ``ext`` that every kernel reads at the limb's
+offset, as ``ChainLeg.constraint_wrenches`` / ``actuation_wrench`` compute them (the basis of
+several constraint wrenches is the SVD's, unique for the vocabulary's limbs, which have at most
+one). The platform pose and the twist map come from the model's own
 ``pose``/``twist_map`` (vectorised NumPy), or, for a described mechanism, from its compiled
 program (:func:`parasynth.engine.evaluate.compiled_pose_batch`).
 
@@ -66,8 +75,11 @@ import time
 
 import numpy as np
 
+from ..model.chains import IK_TOL, ChainLeg
 from ..model.legs import GEOM_TOL, PRS, PUS, RPS, RPU, RUS, SPS, UPS, UPU, Leg, require
 from ..model.mechanism import Mechanism
+from .chains import REACH_FACTOR
+from .chains import solve_arrays as chain_solve_arrays
 from .evaluate import compiled_pose_batch
 
 __all__ = [
@@ -96,8 +108,13 @@ if HAVE_NUMBA:
     from numba import njit
     from numba import types as _nbt
 
-# Leg type codes in the kernels.
-_SPS, _UPS, _PUS, _RPS, _RPU, _UPU, _PRS, _RUS = 0, 1, 2, 3, 4, 5, 6, 7
+# Leg type codes in the kernels (_CHAIN: a chain limb of model/chains.py, its rows computed per
+# pose by _chain_rows_kernel into the array ``ext``).
+_SPS, _UPS, _PUS, _RPS, _RPU, _UPU, _PRS, _RUS, _CHAIN = 0, 1, 2, 3, 4, 5, 6, 7, 8
+#: A chain limb's entries in ``ext`` from its offset: reachable (1/0), the unit actuation wrench
+#: (6), its rate scale, the unit direction (3), the number of joint twists, the joint twists
+#: (at most 7 x 6, about the platform reference point, SI), then its constraint wrenches (c x 6).
+_EXT_A, _EXT_S, _EXT_D, _EXT_K, _EXT_T, _EXT_C = 1, 7, 8, 11, 12, 54
 _CODES = {SPS: _SPS, UPS: _UPS, PUS: _PUS, RPS: _RPS, RPU: _RPU, UPU: _UPU, PRS: _PRS, RUS: _RUS}
 #: Constraint rows of each leg type (as the leg type declares them: ``constraint_rows``).
 _NC = {code: len(cls.constraint_rows) for cls, code in _CODES.items()}
@@ -127,6 +144,9 @@ def _check_covered(mech) -> None:
     for leg in mech.legs:
         require(leg, "compiled", _Unsupported)
         cls = type(leg)
+        if isinstance(leg, ChainLeg):
+            _check_chain(leg)
+            continue
         if cls not in _CODES:
             base = next((b for b in cls.__mro__[1:] if b in _CODES), None)
             if base is None:
@@ -137,6 +157,16 @@ def _check_covered(mech) -> None:
                     raise _Unsupported(f"leg {leg.name}: {cls.__name__} overrides {base.__name__}.{m}")
     if mech.n_actuators == 0:
         raise _Unsupported("the mechanism has no actuated leg")
+
+
+def _check_chain(leg) -> None:
+    """``_Unsupported`` unless the chain limb ``leg`` is solved as :class:`ChainLeg` solves it
+    (no overridden method) with at most seven freedoms (the kernels' scratch)."""
+    for m in _LEG_METHODS + ("closure_solve", "inverse", "forward"):
+        if getattr(type(leg), m) is not getattr(ChainLeg, m):
+            raise _Unsupported(f"leg {leg.name}: {type(leg).__name__} overrides ChainLeg.{m}")
+    if leg.n_joint_dof > 7:  # pragma: no cover (parse_chain allows at most seven)
+        raise _Unsupported(f"leg {leg.name}: {leg.n_joint_dof} joint freedoms (the kernels take at most 7)")
 
 
 #: Coverage by (mechanism class, (leg class, actuated) per leg): what decides it is structural.
@@ -160,6 +190,8 @@ def coverage(mech) -> tuple[bool, str]:
 
 
 def _leg_code(leg: Leg) -> int:
+    if isinstance(leg, ChainLeg):
+        return _CHAIN
     for cls in type(leg).__mro__:
         if cls in _CODES:
             return _CODES[cls]
@@ -188,6 +220,9 @@ def _check_legs(legs) -> None:
     for leg in legs:
         require(leg, "compiled", _Unsupported)
         cls = type(leg)
+        if isinstance(leg, ChainLeg):
+            _check_chain(leg)
+            continue
         base = next((b for b in cls.__mro__ if b in _CODES), None)
         if base is None:
             raise _Unsupported(f"leg {leg.name}: leg type {cls.__name__} has no compiled form")
@@ -201,13 +236,22 @@ def _legs_plan(legs):
     code = np.zeros(nl, np.int64)
     act = np.zeros(nl, np.int64)
     geo = np.zeros((nl, 5, 3))  # base, platform, axis 1, axis 2, axis 3
-    sc = np.zeros((nl, 3))  # link length, branch, crank length
+    sc = np.zeros((nl, 3))  # link length, branch, crank length (a chain limb: its offset in ext, c)
+    nc = 0
+    off = 0
     for j, leg in enumerate(legs):
         c = _leg_code(leg)
         code[j] = c
         act[j] = 1 if leg.is_actuated else 0
         geo[j, 0] = leg.base
         geo[j, 1] = leg.platform
+        if c == _CHAIN:
+            k = int(leg.n_closure)
+            sc[j] = (off, k, 0.0)
+            off += _EXT_C + 6 * k
+            nc += k
+            continue
+        nc += _NC[c]
         if c == _UPS:
             geo[j, 2] = leg.u_axis
         elif c == _PUS:
@@ -230,8 +274,32 @@ def _legs_plan(legs):
             geo[j, 4] = np.cross(leg.r_axis, leg.crank_direction)
         if c in (_PUS, _PRS, _RUS):
             sc[j] = (float(leg.link_length), float(leg.branch), float(getattr(leg, "crank_length", 0.0)))
-    nc = int(sum(_NC[c] for c in code))
-    return code, act, geo, sc, nc
+    return code, act, geo, sc, int(nc)
+
+
+def _chain_ext(legs, plan, p, R) -> np.ndarray:
+    """The per-pose rows of the chain limbs among ``legs`` (N, width; (N, 0) without one): each
+    chain limb solved by the compiled inverse kinematics (:func:`parasynth.engine.chains.solve_arrays`),
+    its joint twists, constraint wrenches, actuation wrench and direction by
+    ``_chain_rows_kernel`` at its offset (``sc[j, 0]``)."""
+    code, _, _, sc, _ = plan
+    N = p.shape[0]
+    ch = np.flatnonzero(code == _CHAIN)
+    if not ch.size:
+        return np.empty((N, 0))
+    width = int(max(sc[j, 0] + _EXT_C + 6 * sc[j, 1] for j in ch))
+    ext = np.empty((N, width))
+    for j in ch:
+        leg = legs[j]
+        out = chain_solve_arrays(leg, p, R)
+        d = leg.chain_arrays()
+        kinds = np.ascontiguousarray(d["kinds"], dtype=np.int64)
+        rot = np.flatnonzero(kinds == 0)
+        _chain_rows_kernel(p, out["axes"], out["points"], out["position"], out["residual"], REACH_FACTOR * IK_TOL,
+                           kinds, int(d["actuated"]), int(rot[0]) if rot.size else -1,
+                           np.ascontiguousarray(leg.base, dtype=float), int(sc[j, 1]), float(d["length"]), ext,
+                           int(sc[j, 0]))
+    return ext
 
 
 def _poses(mech, X, need_twist: bool):
@@ -534,7 +602,7 @@ if HAVE_NUMBA:
                 h * (ct * geo[j, 3, 2] + st * geo[j, 4, 2]), ok)
 
     @njit(**_jit)
-    def _legs(p, R, i, code, act, geo, sc, upuL, A, scale, anchor, C, Tw, w):
+    def _legs(p, R, i, code, act, geo, sc, upuL, ext, A, scale, anchor, C, Tw, w):
         """The wrench system of pose ``i``: actuation rows ``A`` (n_act, 6), ``scale``
         (n_act,), platform anchors of the actuated legs ``anchor`` (n_act, 3) and constraint
         rows ``C`` (n_c, 6), all in SI about the platform reference point. Returns whether
@@ -549,6 +617,21 @@ if HAVE_NUMBA:
             ax = px + R[i, 0, 0] * qx + R[i, 0, 1] * qy + R[i, 0, 2] * qz
             ay = py + R[i, 1, 0] * qx + R[i, 1, 1] * qy + R[i, 1, 2] * qz
             az = pz + R[i, 2, 0] * qx + R[i, 2, 1] * qy + R[i, 2, 2] * qz
+            if t == _CHAIN:  # a chain limb: its rows at this pose from _chain_rows_kernel (ext)
+                o = np.int64(sc[j, 0])
+                if not ext[i, o] > 0.5:
+                    reach = False
+                if act[j]:
+                    for q in range(6):
+                        A[ia, q] = ext[i, o + 1 + q]
+                    scale[ia] = ext[i, o + 7]
+                    anchor[ia, 0], anchor[ia, 1], anchor[ia, 2] = ax, ay, az
+                    ia += 1
+                for r in range(np.int64(sc[j, 1])):
+                    for q in range(6):
+                        C[ic, q] = ext[i, o + _EXT_C + 6 * r + q]
+                    ic += 1
+                continue
             bx, by, bz = geo[j, 0, 0], geo[j, 0, 1], geo[j, 0, 2]
             dx, dy, dz = ax - bx, ay - by, az - bz
             e0, e1, e2 = geo[j, 2, 0], geo[j, 2, 1], geo[j, 2, 2]
@@ -675,12 +758,22 @@ if HAVE_NUMBA:
         Tw[k, 3], Tw[k, 4], Tw[k, 5] = 0.0, 0.0, 0.0
 
     @njit(**_jit)
-    def _joint_twists(p, R, i, j, code, geo, sc, L, Tw):
+    def _joint_twists(p, R, i, j, code, geo, sc, ext, L, Tw):
         """The joint twists of leg ``j`` at pose ``i`` as rows of ``Tw`` (up to 7, about the
         platform reference point, angular parts multiplied by ``L``), in the order of the
         legs' ``joint_twists``; returns their number (0 when the leg cannot reach the pose)."""
         px, py, pz = p[i, 0], p[i, 1], p[i, 2]
         t = code[j]
+        if t == _CHAIN:  # the chain's joint twists about p at the solved configuration (ext)
+            o = np.int64(sc[j, 0])
+            if not ext[i, o] > 0.5:
+                return 0
+            k = np.int64(ext[i, o + _EXT_K])
+            for a in range(k):
+                for q in range(6):
+                    v = ext[i, o + _EXT_T + 6 * a + q]
+                    Tw[a, q] = v * L if q >= 3 else v
+            return k
         qx, qy, qz = geo[j, 1, 0], geo[j, 1, 1], geo[j, 1, 2]
         ax = px + R[i, 0, 0] * qx + R[i, 0, 1] * qy + R[i, 0, 2] * qz
         ay = py + R[i, 1, 0] * qx + R[i, 1, 1] * qy + R[i, 1, 2] * qz
@@ -768,7 +861,7 @@ if HAVE_NUMBA:
         return k
 
     @njit(**_jit)
-    def _constraint_rank_kernel(p, R, code, geo, sc, L):
+    def _constraint_rank_kernel(p, R, code, geo, sc, ext, L):
         """Rank of the union of the legs' reciprocal wrench spaces at pose 0 (scaled
         coordinates; per-leg rank tolerance 1e-9, union tolerance 1e-8, as ``mobility``).
         -1 when a leg cannot reach the pose."""
@@ -780,7 +873,7 @@ if HAVE_NUMBA:
         U = np.empty((6, 6 * nl))
         nu = 0
         for j in range(nl):
-            k = _joint_twists(p, R, 0, j, code, geo, sc, L, Tw)
+            k = _joint_twists(p, R, 0, j, code, geo, sc, ext, L, Tw)
             if k == 0:
                 return -1
             for a in range(k):
@@ -813,7 +906,164 @@ if HAVE_NUMBA:
                 r += 1
         return r
 
-    def _margin_kernel(p, R, valid, code, act, geo, sc, upuL, na, nc, rc, L, out, c0, c1):
+    @njit(**_jit)
+    def _chain_rows_kernel(p, AXW, PTW, POS, res, tol, kinds, act, first, base, nc, Ll, ext, off):
+        """A chain limb's rows at every pose, into ``ext[:, off:]`` (see ``_EXT_*``), from its
+        solved configuration (``engine.chains.solve_arrays``: axes ``AXW``, points ``PTW``,
+        anchor ``POS``, residual ``res``, reachable below ``tol``), as the NumPy reference
+        (``ChainLeg.joint_twists``, ``constraint_wrenches``, ``actuation_wrench``): the joint
+        twists about ``p``; the ``nc`` constraint wrenches, the right singular vectors of the
+        smallest singular values of the twists with moments scaled by the limb's length ``Ll``
+        (one-sided Jacobi), a unit force or (when the force vanishes) a unit couple; the unit
+        actuation wrench reciprocal to the passive twists, out of the span of the constraint
+        wrenches, its power on the actuated twist (``rate``) made positive; the direction from
+        the first rotational joint centre (``first``, or ``base``) to the anchor."""
+        N = p.shape[0]
+        n = kinds.shape[0]
+        T = np.empty((max(n, 1), 6))
+        Mt = np.empty((6, max(n, 1)))
+        V = np.empty((6, 6))
+        sv = np.empty(6)
+        W = np.empty((max(nc, 1), 6))
+        Qc = np.empty((max(nc, 1), 6))
+        ns = np.empty((6, 6))
+        order = np.empty(6, np.int64)
+        for i in range(N):
+            ok = res[i] < tol
+            ext[i, off] = 1.0 if ok else 0.0
+            px, py, pz = p[i, 0], p[i, 1], p[i, 2]
+            for m in range(n):
+                ax, ay, az = AXW[i, m, 0], AXW[i, m, 1], AXW[i, m, 2]
+                if kinds[m] == 1:
+                    T[m, 0], T[m, 1], T[m, 2] = ax, ay, az
+                    T[m, 3], T[m, 4], T[m, 5] = 0.0, 0.0, 0.0
+                else:
+                    v0, v1, v2 = _cross(ax, ay, az, px - PTW[i, m, 0], py - PTW[i, m, 1], pz - PTW[i, m, 2])
+                    T[m, 0], T[m, 1], T[m, 2] = v0, v1, v2
+                    T[m, 3], T[m, 4], T[m, 5] = ax, ay, az
+            ext[i, off + _EXT_K] = n
+            for m in range(n):
+                for q in range(6):
+                    ext[i, off + _EXT_T + 6 * m + q] = T[m, q]
+            # direction
+            if first >= 0:
+                bx, by, bz = PTW[i, first, 0], PTW[i, first, 1], PTW[i, first, 2]
+            else:
+                bx, by, bz = base[0], base[1], base[2]
+            d0, d1, d2 = _unit3(POS[i, 0] - bx, POS[i, 1] - by, POS[i, 2] - bz)
+            ext[i, off + _EXT_D], ext[i, off + _EXT_D + 1], ext[i, off + _EXT_D + 2] = d0, d1, d2
+            # constraint wrenches: null space of the scaled twists (columns: the six coordinates)
+            for m in range(n):
+                for q in range(6):
+                    Mt[q, m] = T[m, q] * Ll if q >= 3 else T[m, q]
+            _jacobi_sv(Mt, n, np.int64(6), V, np.int64(1), sv)
+            # the six singular values in increasing order (insertion sort)
+            for q in range(6):
+                order[q] = q
+            for a in range(1, 6):
+                b = a
+                while b > 0 and sv[order[b]] < sv[order[b - 1]]:
+                    tmp = order[b]
+                    order[b] = order[b - 1]
+                    order[b - 1] = tmp
+                    b -= 1
+            for r in range(nc):
+                q0 = order[r]
+                for q in range(6):
+                    W[r, q] = V[q0, q] * Ll if q >= 3 else V[q0, q]
+                f = math.sqrt(W[r, 0] ** 2 + W[r, 1] ** 2 + W[r, 2] ** 2)
+                mm = math.sqrt(W[r, 3] ** 2 + W[r, 4] ** 2 + W[r, 5] ** 2)
+                couple = f <= 1e-9 * max(mm / Ll, 1e-300)
+                if couple:
+                    W[r, 0], W[r, 1], W[r, 2] = 0.0, 0.0, 0.0
+                nrm = mm if couple else f
+                for q in range(6):
+                    W[r, q] /= nrm
+                    ext[i, off + _EXT_C + 6 * r + q] = W[r, q]
+            if act < 0:
+                for q in range(7):
+                    ext[i, off + _EXT_A + q] = np.nan
+                continue
+            # actuation wrench: reciprocal to the passive twists (scaled), less the constraint span
+            npas = n - 1
+            c = 0
+            for m in range(n):
+                if m == act:
+                    continue
+                for q in range(6):
+                    Mt[q, c] = T[m, q] * Ll if q >= 3 else T[m, q]
+                c += 1
+            if npas > 0:
+                _jacobi_sv(Mt, npas, np.int64(6), V, np.int64(1), sv)
+                smax = 0.0
+                for q in range(6):
+                    smax = max(smax, sv[q])
+            else:
+                for a in range(6):
+                    sv[a] = 0.0
+                    for q in range(6):
+                        V[a, q] = 1.0 if a == q else 0.0
+                smax = 0.0
+            # orthonormal basis of the constraint wrenches, scaled as the twists' dual (Gram-Schmidt)
+            nq = 0
+            for r in range(nc):
+                for q in range(6):
+                    Qc[nq, q] = W[r, q] / Ll if q >= 3 else W[r, q]
+                for r2 in range(nq):
+                    dd = 0.0
+                    for q in range(6):
+                        dd += Qc[nq, q] * Qc[r2, q]
+                    for q in range(6):
+                        Qc[nq, q] -= dd * Qc[r2, q]
+                nrm = 0.0
+                for q in range(6):
+                    nrm += Qc[nq, q] * Qc[nq, q]
+                nrm = math.sqrt(nrm)
+                if nrm > 1e-12:
+                    for q in range(6):
+                        Qc[nq, q] /= nrm
+                    nq += 1
+            best = -1
+            bestn = -1.0
+            nn = 0
+            for a in range(6):
+                if sv[a] > 1e-9 * max(smax, 1e-300):
+                    continue
+                for q in range(6):
+                    ns[nn, q] = V[a, q]
+                for r2 in range(nq):
+                    dd = 0.0
+                    for q in range(6):
+                        dd += ns[nn, q] * Qc[r2, q]
+                    for q in range(6):
+                        ns[nn, q] -= dd * Qc[r2, q]
+                nrm = 0.0
+                for q in range(6):
+                    nrm += ns[nn, q] * ns[nn, q]
+                if nrm > bestn:
+                    bestn = nrm
+                    best = nn
+                nn += 1
+            if best < 0:
+                for q in range(7):
+                    ext[i, off + _EXT_A + q] = np.nan
+                continue
+            w0 = np.empty(6)
+            for q in range(6):
+                w0[q] = ns[best, q] * Ll if q >= 3 else ns[best, q]
+            f = math.sqrt(w0[0] ** 2 + w0[1] ** 2 + w0[2] ** 2)
+            mm = math.sqrt(w0[3] ** 2 + w0[4] ** 2 + w0[5] ** 2)
+            nrm = f if f > 1e-9 * mm / Ll else mm
+            rate = 0.0
+            for q in range(6):
+                w0[q] /= nrm
+                rate += w0[q] * T[act, q]
+            sgn = -1.0 if rate < 0.0 else 1.0
+            for q in range(6):
+                ext[i, off + _EXT_A + q] = w0[q] * sgn
+            ext[i, off + _EXT_S] = rate * sgn
+
+    def _margin_kernel(p, R, valid, code, act, geo, sc, upuL, ext, na, nc, rc, L, out, c0, c1):
         N = p.shape[0]
         rcu = min(rc, nc, 6) if nc > 0 else 0
         k = na + rcu
@@ -835,7 +1085,7 @@ if HAVE_NUMBA:
                 if not valid[i]:
                     out[i] = np.nan
                     continue
-                if not _legs(p, R, i, code, act, geo, sc, upuL, A, scale, anchor, C, Tw, w):
+                if not _legs(p, R, i, code, act, geo, sc, upuL, ext, A, scale, anchor, C, Tw, w):
                     out[i] = np.nan
                     continue
                 finite = True
@@ -902,7 +1152,7 @@ if HAVE_NUMBA:
                     smin = min(smin, sv[q])
                 out[i] = smin
 
-    def _lti_kernel(p, R, valid, code, act, geo, sc, upuL, na, nc, L, rtol, inp, outp, lti, c0, c1):
+    def _lti_kernel(p, R, valid, code, act, geo, sc, upuL, ext, na, nc, L, rtol, inp, outp, lti, c0, c1):
         N = p.shape[0]
         m = na - 1 + nc
         for c in range(c0, c1):
@@ -922,7 +1172,7 @@ if HAVE_NUMBA:
             bb = np.empty(6)
             WV = np.empty((6, 6))
             for i in range(c * CHUNK, min(N, (c + 1) * CHUNK)):
-                ok = valid[i] and _legs(p, R, i, code, act, geo, sc, upuL, A, scale, anchor, C, Tw, w)
+                ok = valid[i] and _legs(p, R, i, code, act, geo, sc, upuL, ext, A, scale, anchor, C, Tw, w)
                 if ok:
                     for a in range(na):
                         for q in range(6):
@@ -1055,7 +1305,7 @@ if HAVE_NUMBA:
                     low = min(low, o, ii)
                 lti[i] = low
 
-    def _kappa_kernel(p, R, valid, T, angcol, code, act, geo, sc, upuL, na, nc, L, out, c0, c1):
+    def _kappa_kernel(p, R, valid, T, angcol, code, act, geo, sc, upuL, ext, na, nc, L, out, c0, c1):
         N = p.shape[0]
         nt = T.shape[2]
         mn = min(na, nt)
@@ -1070,7 +1320,7 @@ if HAVE_NUMBA:
             sv = np.empty(max(na, nt))
             Vd = np.empty((1, 1))
             for i in range(c * CHUNK, min(N, (c + 1) * CHUNK)):
-                if not (valid[i] and _legs(p, R, i, code, act, geo, sc, upuL, A, scale, anchor, C, Tw, w)):
+                if not (valid[i] and _legs(p, R, i, code, act, geo, sc, upuL, ext, A, scale, anchor, C, Tw, w)):
                     out[i] = np.nan
                     continue
                 finite = True
@@ -1104,7 +1354,7 @@ if HAVE_NUMBA:
                 else:
                     out[i] = np.inf
 
-    def _dir_kernel(p, R, valid, code, act, geo, sc, upuL, na, nc, dirs, reach, c0, c1):
+    def _dir_kernel(p, R, valid, code, act, geo, sc, upuL, ext, na, nc, dirs, reach, c0, c1):
         """Unit leg directions (N, n_legs, 3) base -> platform and reachability."""
         N = p.shape[0]
         nl = code.shape[0]
@@ -1116,7 +1366,7 @@ if HAVE_NUMBA:
             Tw = np.empty((5, 6))
             w = np.empty(6)
             for i in range(c * CHUNK, min(N, (c + 1) * CHUNK)):
-                reach[i] = valid[i] and _legs(p, R, i, code, act, geo, sc, upuL, A, scale, anchor, C, Tw, w)
+                reach[i] = valid[i] and _legs(p, R, i, code, act, geo, sc, upuL, ext, A, scale, anchor, C, Tw, w)
                 for j in range(nl):
                     qx, qy, qz = geo[j, 1, 0], geo[j, 1, 1], geo[j, 1, 2]
                     ax = p[i, 0] + R[i, 0, 0] * qx + R[i, 0, 1] * qy + R[i, 0, 2] * qz
@@ -1124,7 +1374,12 @@ if HAVE_NUMBA:
                     az = p[i, 2] + R[i, 2, 0] * qx + R[i, 2, 1] * qy + R[i, 2, 2] * qz
                     bx, by, bz = geo[j, 0, 0], geo[j, 0, 1], geo[j, 0, 2]
                     t = code[j]
-                    if t == _PUS or t == _PRS:
+                    if t == _CHAIN:
+                        o = np.int64(sc[j, 0])
+                        dirs[i, j, 0] = ext[i, o + _EXT_D]
+                        dirs[i, j, 1] = ext[i, o + _EXT_D + 1]
+                        dirs[i, j, 2] = ext[i, o + _EXT_D + 2]
+                    elif t == _PUS or t == _PRS:
                         e0, e1, e2 = geo[j, 2, 0], geo[j, 2, 1], geo[j, 2, 2]
                         Ll = sc[j, 0]
                         dx, dy, dz = ax - bx, ay - by, az - bz
@@ -1162,7 +1417,7 @@ PARALLEL_MIN = 16384
 #: of poses spread over threads while that pays (``core.TIMING``, as the feasibility batches).
 #: One design's singularity margin (~3 us a pose, the SVDs of the wrench system) is worth it for
 #: a few hundred feasible poses.
-_SPLIT = {"_margin_kernel": ((0, 1, 2, 12), 3000.0)}
+_SPLIT = {"_margin_kernel": ((0, 1, 2, 8, 13), 3000.0)}
 #: Work (ns of one core) from which a batch below PARALLEL_MIN is spread over threads: about
 #: what 8192 poses of the feasibility kernel take (``core.PARALLEL_MIN``).
 WORK_MIN_NS = 4.0e5
@@ -1233,7 +1488,8 @@ def singularity_margin(mech, X) -> np.ndarray:
     upuL = _upu_lengths(plan, p, R)
     out = np.empty(Xa.shape[0])
     kernel = _kernel("_margin_kernel", Xa.shape[0])
-    kernel(p, R, valid, code, act, geo, sc, upuL, int(mech.n_actuators), nc, int(mech.constraint_rank),
+    kernel(p, R, valid, code, act, geo, sc, upuL, _chain_ext(mech.legs, plan, p, R), int(mech.n_actuators), nc,
+           int(mech.constraint_rank),
            float(mech.length_scale), out)
     return _out(out, single)
 
@@ -1257,7 +1513,8 @@ def singularity_margin_at(legs, p, R, n_actuators: int, constraint_rank: int, le
         return out
     upuL = _upu_lengths(plan, p, R)
     kernel = _kernel("_margin_kernel", n)
-    kernel(p, R, np.ones(n, np.bool_), code, act, geo, sc, upuL, int(n_actuators), nc, int(constraint_rank),
+    kernel(p, R, np.ones(n, np.bool_), code, act, geo, sc, upuL, _chain_ext(legs, plan, p, R), int(n_actuators), nc,
+           int(constraint_rank),
            float(length_scale), out)
     return out
 
@@ -1272,7 +1529,8 @@ def transmission(mech, X, rtol: float = 1e-9):
     N, na = Xa.shape[0], int(mech.n_actuators)
     inp, outp, lti = np.empty((N, na)), np.empty((N, na)), np.empty(N)
     kernel = _kernel("_lti_kernel", N)
-    kernel(p, R, valid, code, act, geo, sc, upuL, na, nc, float(mech.length_scale), float(rtol), inp, outp, lti)
+    kernel(p, R, valid, code, act, geo, sc, upuL, _chain_ext(mech.legs, plan, p, R), na, nc, float(mech.length_scale),
+           float(rtol), inp, outp, lti)
     return _out(inp, single), _out(outp, single), _out(lti, single)
 
 
@@ -1293,7 +1551,8 @@ def condition_number(mech, X, length: float | None = None) -> np.ndarray:
     angcol = np.array([c in mech.angular_coordinates for c in mech.task_coordinates], dtype=np.bool_)
     out = np.empty(Xa.shape[0])
     kernel = _kernel("_kappa_kernel", Xa.shape[0])
-    kernel(p, R, valid, T, angcol, code, act, geo, sc, upuL, int(mech.n_actuators), nc, L, out)
+    kernel(p, R, valid, T, angcol, code, act, geo, sc, upuL, _chain_ext(mech.legs, plan, p, R), int(mech.n_actuators),
+           nc, L, out)
     return _out(out, single)
 
 
@@ -1301,12 +1560,14 @@ def constraint_rank(mech, X=None) -> int:
     """Compiled :meth:`Mechanism.structural_constraint_rank` at pose ``X`` (default ``home``):
     the rank of the union of the legs' reciprocal wrench spaces (null spaces of their joint
     twists). Raises ``ValueError`` when a leg cannot reach the pose."""
-    code, act, geo, sc, nc = _plan(mech)
+    plan = _plan(mech)
+    code, act, geo, sc, nc = plan
     X0 = mech.home if X is None else np.asarray(X, dtype=float)
     Xa, _, valid, p, R, _ = _poses(mech, X0[None, :], False)
     r = -1
     if valid[0]:
-        r = int(_constraint_rank_kernel(p, R, code, geo, sc, float(mech.length_scale)))
+        r = int(_constraint_rank_kernel(p, R, code, geo, sc, _chain_ext(mech.legs, plan, p, R),
+                                        float(mech.length_scale)))
     if r < 0:
         raise ValueError(f"{mech.name}: pose {X0.tolist()} is not reachable")
     return r
@@ -1321,7 +1582,8 @@ def leg_directions(mech, X) -> tuple[np.ndarray, np.ndarray]:
     upuL = np.ones(len(code))
     N = Xa.shape[0]
     dirs, reach = np.empty((N, len(code), 3)), np.empty(N, np.bool_)
-    _kernel("_dir_kernel", N)(p, R, valid, code, act, geo, sc, upuL, int(mech.n_actuators), nc, dirs, reach)
+    _kernel("_dir_kernel", N)(p, R, valid, code, act, geo, sc, upuL, _chain_ext(mech.legs, plan, p, R),
+                              int(mech.n_actuators), nc, dirs, reach)
     return _out(dirs, single), _out(reach, single)
 
 
@@ -1333,10 +1595,11 @@ def signatures() -> dict:
     f1, f2, f3 = _array("f8", 1), _array("f8", 2), _array("f8", 3)
     i1, b1 = _array("i8", 1), _array("b1", 1)
     i8, f8 = _nbt.int64, _nbt.float64
-    legs = (i1, i1, f3, f2, f1, i8, i8)  # code, act, geo, sc, upuL, na, nc
+    legs = (i1, i1, f3, f2, f1, f2, i8, i8)  # code, act, geo, sc, upuL, ext, na, nc
     return {
         "_upu_mean_lengths": (_upu_mean_lengths, (f2, f3, i1, f3)),
-        "_constraint_rank_kernel": (_constraint_rank_kernel, (f2, f3, i1, f3, f2, f8)),
+        "_constraint_rank_kernel": (_constraint_rank_kernel, (f2, f3, i1, f3, f2, f2, f8)),
+        "_chain_rows_kernel": (_chain_rows_kernel, (f2, f3, f3, f2, f1, f8, i1, i8, i8, f1, i8, f8, f2, i8)),
         "_margin_kernel": (_KERNELS["_margin_kernel"], (f2, f3, b1) + legs + (i8, f8, f1, i8, i8)),
         "_lti_kernel": (_KERNELS["_lti_kernel"], (f2, f3, b1) + legs + (f8, f8, f2, f2, f1, i8, i8)),
         "_kappa_kernel": (_KERNELS["_kappa_kernel"], (f2, f3, b1, f3, b1) + legs + (f8, f1, i8, i8)),

@@ -32,9 +32,11 @@ import sys
 import time
 from pathlib import Path
 
-from . import closure, core, indices
+from ..model.chains import ChainLeg
+from ..model.legs import LEG_TYPES
+from . import chains, closure, core, indices
 
-__all__ = ["KERNELS_OF", "LOCAL", "STRUCTURE_STUDY", "signatures", "in_cache", "missing", "compile_ahead", "start_early",
+__all__ = ["KERNELS_OF", "LOCAL", "STRUCTURE_STUDY", "STRUCTURE_CHAINS", "structure_kinds", "signatures", "in_cache", "missing", "compile_ahead", "start_early",
            "early", "stop_helpers", "main"]
 
 #: Kernels behind each compiled entry point (the names of :data:`parasynth.engine.EXERCISES`).
@@ -49,6 +51,8 @@ KERNELS_OF = {
     "leg_directions": ("_pose_kernel", "_dir_kernel"),
     "constraint_rank": ("_pose_kernel", "_constraint_rank_kernel"),
     "closure": ("_pose_kernel", "_prep_kernel", "_solve_kernel"),
+    "chains": ("_chain_kernel", "_chain_rows_kernel"),
+    "chain_closure": ("_closure_kernel",),
 }
 
 #: Kernels compiled in the calling process: they run the expression interpreter, which each
@@ -58,7 +62,8 @@ LOCAL = ("_pose_kernel", "_feasible_kernel", "_margins_kernel")
 # Rough cold-compile CPU seconds (5pus_upu, 2-core development machine), to share the work.
 _COST = {"_pose_kernel": 6.5, "_feasible_kernel": 10.0, "_margins_kernel": 10.0, "_upu_mean_lengths": 0.5,
          "_margin_kernel": 5.0, "_constraint_rank_kernel": 4.5, "_lti_kernel": 6.0, "_kappa_kernel": 5.0,
-         "_dir_kernel": 2.0, "_prep_kernel": 2.0, "_solve_kernel": 2.0}
+         "_dir_kernel": 2.0, "_prep_kernel": 2.0, "_solve_kernel": 2.0, "_chain_kernel": 3.0,
+         "_chain_rows_kernel": 3.0, "_closure_kernel": 2.5}
 #: Helper processes running (see :func:`stop_helpers`).
 _RUNNING: list = []
 #: Kernels being compiled by helpers started ahead of the work (:func:`start_early`): name ->
@@ -71,6 +76,19 @@ _EARLY: dict = {}
 #: constraint rank of the structure's mobility), compiled from the start of such a run by
 #: :func:`start_early` while the structures are enumerated.
 STRUCTURE_STUDY = ("feasible", "singularity_margin", "constraint_rank")
+#: What a structure study with chain limbs (model/chains.py) asks for besides: their compiled
+#: inverse kinematics and index rows, and their closure (the motion rule of the enumeration).
+STRUCTURE_CHAINS = ("chains", "chain_closure")
+
+
+def structure_kinds(leg_types=None) -> tuple[str, ...]:
+    """The entry points a structure study of the limb types ``leg_types`` (None: the default
+    vocabulary) asks for: :data:`STRUCTURE_STUDY`, and :data:`STRUCTURE_CHAINS` when a chain
+    limb type is among them."""
+    chain = {k for k, v in LEG_TYPES.items() if issubclass(v, ChainLeg)}
+    if leg_types is None or any(str(t) in chain for t in leg_types):
+        return STRUCTURE_STUDY + STRUCTURE_CHAINS
+    return STRUCTURE_STUDY
 
 #: CPU seconds a helper process spends starting (Python, numba, parasynth).
 _START = 1.5
@@ -78,7 +96,7 @@ _START = 1.5
 
 def signatures() -> dict:
     """{kernel name: (dispatcher, argument types)} of every kernel of the engine."""
-    return {**core.signatures(), **indices.signatures(), **closure.signatures()}
+    return {**core.signatures(), **indices.signatures(), **closure.signatures(), **chains.signatures()}
 
 
 def in_cache(name: str) -> bool:

@@ -58,11 +58,13 @@ vanish; such a pose is refused by the inverse kinematics, not by the closure.
 
 The chain's constraint wrenches are the wrenches reciprocal to its joint twists at the solved
 configuration (an SVD), so the mobility of a structure follows from them as for the hand-written
-leg types. The engine solves chain limbs with a compiled kernel of the same solve
-(:mod:`parasynth.engine.chains`, from :meth:`ChainLeg.chain_arrays`) for feasibility and
-constraint margins; a chain limb declares ``compiled=False`` (no compiled pose-wise index kernels
-and no compiled closure: those fall back to NumPy with the fallback warning) and every capability
-but ``stiffness`` and ``passive`` off, so the other parts refuse it by name
+leg types. The engine solves chain limbs with compiled kernels of the same solves
+(:mod:`parasynth.engine.chains`, from :meth:`ChainLeg.chain_arrays`): the inverse kinematics
+for feasibility and constraint margins, the closure's least-squares reach (with the warm start
+of :meth:`ChainLeg.closure_start`) for the structures' motion rule, and, from the solved
+configuration, the joint twists, constraint wrenches and actuation wrench of the pose-wise index
+kernels (:mod:`parasynth.engine.indices`); so a chain limb declares ``compiled=True``. Every
+other capability but ``stiffness`` and ``passive`` is off, so the other parts refuse it by name
 (:func:`parasynth.model.legs.require`).
 """
 
@@ -420,7 +422,7 @@ class ChainLeg(Leg):
 
     joints: ClassVar[str] = "chain"
     actuated: ClassVar[int | None] = None
-    capabilities: ClassVar[LegCapabilities] = LegCapabilities(stiffness=True, passive=True)
+    capabilities: ClassVar[LegCapabilities] = LegCapabilities(compiled=True, stiffness=True, passive=True)
     #: The joint-angle keys of the universal or spherical joint at the base and at the platform
     #: anchor (None: a revolute or prismatic end joint), set per joint string by :func:`chain_class`.
     cone_keys: ClassVar[tuple] = (None, None)
@@ -699,20 +701,8 @@ class ChainLeg(Leg):
         it (rows in the same order, as the perturbed poses of a finite-difference Jacobian) when
         its pose is within 0.05 (position / home length, rotation in rad) of that row's, else from
         home: the solve follows the branch of the nearby poses it came from."""
-        p = np.atleast_2d(np.asarray(p, float))
-        R = np.asarray(R, float).reshape(-1, 3, 3)
-        N, n = p.shape[0], len(self._free)
-        target = p + np.einsum("nij,j->ni", R, self.platform)
-        q = np.zeros((N, n))
-        cache = self._closure_cache
-        M = next((M for M in sorted(cache, reverse=True) if N % M == 0), None)
-        if M is not None:
-            t0, R0, q0 = (np.tile(v, (N // M,) + (1,) * (v.ndim - 1)) for v in cache[M])
-            with np.errstate(invalid="ignore"):
-                near = (np.max(np.abs(target - t0), axis=1) / self._L < 0.05) & \
-                    (np.linalg.norm(_log_rot(R @ np.transpose(R0, (0, 2, 1))), axis=1) < 0.05) & \
-                    np.all(np.isfinite(q0), axis=1)
-            q[near] = q0[near]
+        target, R, q = self.closure_start(p, R)
+        N, n = q.shape
         err = np.full((N, 6), np.nan)
         act = np.flatnonzero(np.all(np.isfinite(target), axis=1) & np.all(np.isfinite(R), axis=(1, 2)))
         L = self._L
@@ -741,10 +731,39 @@ class ChainLeg(Leg):
                 err[done] = np.concatenate([(target[done] - pos) / L,
                                             _log_rot(R[done] @ np.transpose(Rc, (0, 2, 1)))], axis=1)
             act = act[keep]
+        self.closure_store(target, R, q)
+        return q, err
+
+    def closure_start(self, p, R):
+        """``(target, R, q0)`` of :meth:`closure_solve` at platform poses ``(p, R)``: the anchor
+        targets (N, 3), the orientations (N, 3, 3) and the starting joint coordinates (N, n),
+        the last solution of a batch of the same size or of a size that divides it where its
+        pose is within 0.05 of this row's (the branch-following warm start), else home (zeros).
+        Shared with the compiled solve (:func:`parasynth.engine.chains.closure_solve`)."""
+        p = np.atleast_2d(np.asarray(p, float))
+        R = np.asarray(R, float).reshape(-1, 3, 3)
+        N, n = p.shape[0], len(self._free)
+        target = p + np.einsum("nij,j->ni", R, self.platform)
+        q = np.zeros((N, n))
+        cache = self._closure_cache
+        M = next((M for M in sorted(cache, reverse=True) if N % M == 0), None)
+        if M is not None:
+            t0, R0, q0 = (np.tile(v, (N // M,) + (1,) * (v.ndim - 1)) for v in cache[M])
+            with np.errstate(invalid="ignore"):
+                near = (np.max(np.abs(target - t0), axis=1) / self._L < 0.05) & \
+                    (np.linalg.norm(_log_rot(R @ np.transpose(R0, (0, 2, 1))), axis=1) < 0.05) & \
+                    np.all(np.isfinite(q0), axis=1)
+            q[near] = q0[near]
+        return target, R, q
+
+    def closure_store(self, target, R, q) -> None:
+        """Keep the solution ``q`` of a batch (the warm start of the next batch of its size or a
+        multiple of it; at most four batch sizes kept)."""
+        cache = self._closure_cache
+        N = q.shape[0]
         if len(cache) >= 4 and N not in cache:
             cache.pop(next(iter(cache)))
         cache[N] = (target, R, q.copy())
-        return q, err
 
     def closure_residuals(self, p, R, L: float | None = None) -> list[np.ndarray]:
         """The closure equations (:attr:`n_closure` arrays (N,)) at platform poses ``(p, R)``:
@@ -877,31 +896,31 @@ def register_chain(spec: str, **kw) -> type:
 #: imposes the same couple about x x (R y) and the platform turns about x and the moving y.
 _3T2R_AXES = ("x", "parallel:prev", "normal:prev&normal:base_normal", "parallel:prev")
 RPUR = register_chain("RP*UR", axes=(_3T2R_AXES[0], "limb") + _3T2R_AXES[1:], stations=(0.0, 0.8, 1.0),
-                      capabilities=LegCapabilities(stiffness=True),
+                      capabilities=LegCapabilities(compiled=True, stiffness=True),
                       doc="revolute (x), actuated prismatic along the limb, universal (x, then y), revolute (the "
                           "platform's y): one constraint couple about x x (R y) -- the limb of the 5-RPUR")
 PRUR = register_chain("P*RUR", axes=("base_normal",) + _3T2R_AXES, stations=(0.0, 0.3, 1.0),
-                      capabilities=LegCapabilities(stiffness=True),
+                      capabilities=LegCapabilities(compiled=True, stiffness=True),
                       doc="actuated slider along the base normal, revolute (x), universal (x, then y), revolute "
                           "(the platform's y): one constraint couple about x x (R y) -- the limb of the 5-PRUR")
 SPU = register_chain("SP*U", axes=("limb", "tangent", "normal:prev&normal:limb"),
-                     capabilities=LegCapabilities(stiffness=True),
+                     capabilities=LegCapabilities(compiled=True, stiffness=True),
                      doc="spherical, actuated prismatic, universal (the platform's tangent, then normal to it and the "
                          "limb): six freedoms -- the inversion of the UPS, the limb of the 6-SPU")
 RRPS = register_chain("RRP*S", axes=("tangent", "normal:prev&normal:limb", "limb"), stations=(0.0, 0.1, 1.0),
-                      capabilities=LegCapabilities(stiffness=True),
+                      capabilities=LegCapabilities(compiled=True, stiffness=True),
                       doc="revolute (tangent) at the base anchor, revolute normal to it and the limb a tenth of the "
                           "limb further (an offset universal joint), actuated prismatic, spherical: six freedoms -- "
                           "the limb of a 6-RRPS")
 RRUR = register_chain("R*RUR", axes=("x",) + _3T2R_AXES, stations=(0.0, 0.4, 0.8, 1.0), offsets=(0.0, 0.3, 0.0, 0.0),
-                      capabilities=LegCapabilities(stiffness=True),
+                      capabilities=LegCapabilities(compiled=True, stiffness=True),
                       doc="actuated revolute (x) at the base anchor, revolute (x) at an elbow (station 0.4, offset 0.3 "
                           "of the limb's length normal to x and the limb), universal (x, then the platform's y), "
                           "revolute (the platform's y): one constraint couple about x x (R y) -- the limb of the "
                           "5-RRUR (Masouleh, Gosselin et al.); without the elbow its three parallel x axes would meet "
                           "the limb's line in a row, a singular planar R-R-R")
 RUU = register_chain("R*UU", axes=("tangent", "parallel:prev", "normal:prev&normal:limb", "parallel:prev", "axis0"),
-                     stations=(0.0, 0.3, 1.0), offsets=(0.0, 0.25, 0.0), capabilities=LegCapabilities(stiffness=True),
+                     stations=(0.0, 0.3, 1.0), offsets=(0.0, 0.25, 0.0), capabilities=LegCapabilities(compiled=True, stiffness=True),
                      doc="actuated crank (revolute, tangent) at the base anchor, universal at the crank's end (station "
                          "0.3, offset 0.25 of the limb's length normal to the tangent and the limb; its first axis "
                          "tangent, its second normal to it and the limb), universal at the platform anchor (its first "
@@ -910,7 +929,7 @@ RUU = register_chain("R*UU", axes=("tangent", "parallel:prev", "normal:prev&norm
                          "Type Synthesis of Parallel Mechanisms, 2007; the Delta-like R-U-U)")
 URPU = register_chain("URP*U", axes=("tangent", "normal:prev&normal:limb", "parallel:prev", "limb", "radial",
                                      "normal:prev&normal:limb"), stations=(0.0, 0.8, 1.0),
-                      capabilities=LegCapabilities(stiffness=True),
+                      capabilities=LegCapabilities(compiled=True, stiffness=True),
                       doc="universal (tangent, then normal to it and the limb) at the base anchor, revolute parallel "
                           "to the universal joint's second axis four fifths of the limb up, actuated prismatic along "
                           "the limb (from the revolute to the platform), universal (radial, then normal to it and the limb) at the platform anchor: six "
@@ -922,7 +941,7 @@ URPU = register_chain("URP*U", axes=("tangent", "normal:prev&normal:limb", "para
                           "smallest singular value of its scaled twists 0.02 of the largest, against 0.09) and "
                           "reaches about half of the poses within 50 mm and 10 deg of home")
 PRRS = register_chain("P*RRS", axes=("base_normal", "tangent", "normal:prev&normal:limb"), stations=(0.0, 0.1, 1.0),
-                      capabilities=LegCapabilities(stiffness=True),
+                      capabilities=LegCapabilities(compiled=True, stiffness=True),
                       doc="actuated slider along the base normal, revolute (tangent) on the slider, revolute normal to "
                           "it and the limb a tenth of the limb further (an offset universal joint), link, spherical: "
                           "six freedoms -- the limb of the 6-PRRS (3T3R)")

@@ -21,7 +21,8 @@ Closure equations of the leg models of :mod:`parasynth.model.legs` (``A`` the pl
 * a limb from a joint string (:class:`parasynth.model.chains.ChainLeg`): one per constraint
   wrench of the limb at its home pose, the error of the chain's least-squares reach of the
   platform anchor frame (its forward kinematics against the anchor's position and the platform's
-  orientation) on the directions of those wrenches (``ChainLeg.closure_residuals``; NumPy only).
+  orientation) on the directions of those wrenches (``ChainLeg.closure_residuals``; compiled in
+  :func:`parasynth.engine.chains.closure_residuals`).
 
 :func:`closure_residuals` evaluates them; :func:`gauss_newton` solves a batch of square or
 over-determined systems with a numerical Jacobian; :func:`implicit_gradient` gives the
@@ -96,9 +97,9 @@ def closure_geometry(legs) -> np.ndarray:
     return np.concatenate(rows) if rows else np.zeros(0)
 
 
-def _leg_residuals(leg, p, R, L):
+def _leg_residuals(leg, p, R, L, chain=None):
     if _is_chain(leg):
-        return leg.closure_residuals(p, R, L)
+        return leg.closure_residuals(p, R, L) if chain is None else chain(leg, p, R)
     A = leg.platform_points(p, R)
     j = leg.joints
     if j in ("RPS", "RPU"):
@@ -118,13 +119,15 @@ def _leg_residuals(leg, p, R, L):
     raise ParasiticError(f"leg {leg.name}: closure equations of {j!r} are not implemented")  # pragma: no cover
 
 
-def closure_residuals(legs, p, R, L: float) -> np.ndarray:
+def closure_residuals(legs, p, R, L: float, chain=None) -> np.ndarray:
     """The closure equations of every leg at poses ``p`` (N, 3), ``R`` (N, 3, 3): (N, k),
-    dimensionless (lengths divided by ``L``)."""
+    dimensionless (lengths divided by ``L``). ``chain(leg, p, R)``: the closure equations of a
+    chain limb (a list of (N,) arrays) by another solve than the limb's own
+    (``parasynth.engine.chains.closure_residuals`` passes the compiled one)."""
     p = np.asarray(p, dtype=float)
     cols = []
     for leg in legs:
-        cols += _leg_residuals(leg, p, R, float(L))
+        cols += _leg_residuals(leg, p, R, float(L), chain)
     if not cols:
         return np.zeros((p.shape[0], 0))
     return np.stack(cols, axis=-1)

@@ -22,7 +22,9 @@ pose (each closure equation's gradient is the work of a constraint wrench). So:
    the ``free`` template) and ``task.solve`` with the dependent ones, started from their values
    at the home pose.
 
-The rule is computed at the default shared dimensions; its home values of the dependent
+The closure equations of chain limbs are evaluated by the compiled solve where numba is there
+(:func:`parasynth.engine.closure_residuals`, equal to the NumPy reference to rounding near
+home), else by the reference. The rule is computed at the default shared dimensions; its home values of the dependent
 coordinates only start the solve, so that other dimensions solve their own. Limits: a
 structure whose closure Jacobian changes rank near home (a constraint singularity at home), or
 whose limbs do not assemble near the nominal home, gets no rule (:class:`NoTaskRule` with the
@@ -37,9 +39,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import engine
 from ..common.units import in_display
 from ..mechanisms import parse_description
-from ..model.parasitic import HOME_ITERATIONS, ParasiticError, closure_count, closure_residuals, gauss_newton
+from ..model.parasitic import HOME_ITERATIONS, ParasiticError, closure_count, gauss_newton
 from ..model.spatial import euler_rate_map, euler_to_matrix
 from .vocabulary import TEMPLATES
 
@@ -102,7 +105,7 @@ def motion_rule(description: dict) -> MotionRule:
 
     def fun(X, U):
         p, R = _pose(U)
-        return closure_residuals(legs, p, R, L)
+        return engine.closure_residuals(legs, p, R, L)
 
     V0 = np.asarray(home, dtype=float)  # the free template's nominal home: x, y, z, alpha, beta, gamma
     # assemble with z at the nominal height first (a minimum-norm step may otherwise trade the
