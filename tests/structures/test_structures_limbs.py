@@ -124,6 +124,17 @@ def test_6_spu_is_reported_with_the_6_ups_as_inverted():
     assert np.allclose(a, UPS("L1", base=base, platform=plat).solve(p, R).actuator, atol=1e-9)
 
 
+def test_without_ups_the_6_spu_is_reported_with_the_6_sps():
+    """Without the UPS among the limb types, the 6-SPS and the 6-SPU (each a UPS up to an idle spin
+    or an inversion) are still one structure per layout: the first, the 6-SPS, with the 6-SPU as
+    its equivalent, both reasons said."""
+    found = _found("3T3R", ("SPS", "SPU"), (6,))
+    assert not [s for s in found if s.name == "6-SPU"]
+    sps = _named(found, "6-SPS")
+    assert sps and all(("6-SPU", "inverted, idle spin") in s.equivalents for s in sps)
+    assert found.dropped_names["equivalent"].count("6-SPU") == len(sps)
+
+
 def _angle(a, b):
     return float(np.arccos(np.clip(a @ b / np.linalg.norm(a) / np.linalg.norm(b), -1.0, 1.0)))
 

@@ -889,22 +889,31 @@ def _fold_equivalents(found: list, drop) -> list:
     """Report kinematically equivalent structures as one (:data:`EQUIVALENT_LIMBS`): a structure
     with an SPS or SPU group is folded into the kept structure with a UPS group in its place (the
     same arrangement), which lists it in ``equivalents`` with the reason (``idle spin``,
-    ``inverted``); the folded one is counted as dropped, reason ``equivalent``."""
+    ``inverted``); without such a UPS structure (UPS not among the limb types), into the first
+    of its equivalents (an SPU structure into the SPS one: ``inverted, idle spin``, the reasons
+    of both against the UPS). A folded structure is counted as dropped, reason ``equivalent``."""
     rename = {a: b for a, (b, _) in EQUIVALENT_LIMBS.items()}
     why = {a: r for a, (_, r) in EQUIVALENT_LIMBS.items()}
+
+    def renamed(s):
+        return any(g.limb in rename for g in s.groups)
+
+    def reasons(s):
+        return [why[g.limb] for g in s.groups if g.limb in rename]
+
     by_sig = {}
-    for i, s in enumerate(found):
-        if not any(g.limb in rename for g in s.groups):
-            by_sig.setdefault(_signature(s, {}), i)
+    for i, s in enumerate(found):  # the representative: a structure without SPS or SPU, else the first
+        sig = _signature(s, rename)
+        j = by_sig.get(sig)
+        if j is None or (renamed(found[j]) and not renamed(s)):
+            by_sig[sig] = i
     extra: dict = {}
     folded = set()
     for i, s in enumerate(found):
-        if not any(g.limb in rename for g in s.groups):
+        j = by_sig[_signature(s, rename)]
+        if j == i or not renamed(s):
             continue
-        j = by_sig.get(_signature(s, rename))
-        if j is None:
-            continue
-        reason = ", ".join(dict.fromkeys(why[g.limb] for g in s.groups if g.limb in rename))
+        reason = ", ".join(dict.fromkeys(reasons(s) + reasons(found[j])))
         if (s.name, reason) not in extra.get(j, []):
             extra.setdefault(j, []).append((s.name, reason))
         folded.add(i)
