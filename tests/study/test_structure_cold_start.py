@@ -90,3 +90,31 @@ def test_ready_follows_the_kernels_compiled_in_this_process():
     assert mech.structural_constraint_rank() == Mechanism.structural_constraint_rank(mech, engine="numpy") == 3
     with pytest.raises(ValueError, match="engine"):
         mech.structural_constraint_rank(engine="fast")
+
+
+_FRESH = r"""
+import warnings
+warnings.simplefilter("ignore")
+from parasynth import engine
+from parasynth.engine import indices
+from parasynth.mechanisms import load_mechanism
+from parasynth.model.mechanism import Mechanism
+print(engine.ready("constraint_rank"))
+mech = load_mechanism("5pus_upu")
+print(mech.constraint_rank, Mechanism.structural_constraint_rank(mech, engine="numpy"))
+print(len(indices._constraint_rank_kernel.signatures))
+"""
+
+
+@pytest.mark.skipif(not engine.HAVE_NUMBA, reason="numba's cache")
+def test_on_an_empty_cache_the_rank_runs_on_numpy_and_compiles_nothing(tmp_path):
+    import os
+    import subprocess
+    import sys
+
+    src = str(Path(engine.__file__).resolve().parents[2])
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"),
+               PYTHONPATH=src + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    out = subprocess.run([sys.executable, "-c", _FRESH], env=env, capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split() == ["False", "1", "1", "0"]  # not ready; the same rank; no kernel compiled
