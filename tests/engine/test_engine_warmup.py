@@ -122,7 +122,8 @@ def test_needs_records_the_compiled_entry_points_without_compiling():
     X = np.repeat(mech.home[None, :], 3, axis=0)
     assert engine.needs(lambda: engine.feasible(mech, X)) == {"feasible"}
     got = engine.needs(lambda: (mech.singularity_margin(X), engine.pose_batch(mech, X, twist=True)))
-    assert got == {"singularity_margin", "constraint_rank", "twist"}  # the margin scales by the constraint rank
+    # the margin scales by the constraint rank, which runs on NumPy until its kernel is compiled
+    assert got == {"singularity_margin", "twist"}
     assert engine.needs(lambda: engine.feasible(mech, X, engine="numpy")) == set()
     assert engine.needs(lambda: 1 / 0) == set()  # errors are swallowed
 

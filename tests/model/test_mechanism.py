@@ -358,3 +358,40 @@ def test_margin_invariant_under_change_of_base_frame_of_wrench_rows(config):
     k = min(M.shape[1], 6)
     s = np.linalg.svd(Mr, compute_uv=False)[:, k - 1]
     np.testing.assert_allclose(m.singularity_margin(X), s, atol=1e-12)
+
+
+def _controlled_near_one_at_a_time(mech, X0):
+    """The check of ``Mechanism._controlled_near`` done pose by pose (one wrench matrix each)."""
+    rng = np.random.default_rng(12345)
+    step = np.where([c in mech.angular_coordinates for c in mech.task_coordinates], 0.05, 0.02 * mech.length_scale)
+    for _ in range(5):
+        W = mech.wrench_matrix((X0 + step * rng.uniform(-1, 1, size=X0.shape))[None, :])[0]
+        if np.all(np.isfinite(W)):
+            W = W.copy()
+            W[:, 3:] /= mech.length_scale
+            s = np.linalg.svd(W, compute_uv=False)
+            if int(np.sum(s > 1e-8 * max(s[0], 1e-300))) == 6:
+                return True
+    return False
+
+
+@pytest.mark.parametrize("name", ["3rps", "3prs", "4ups_1rps", "5pus_upu", "2rpu_2sps"])
+def test_controlled_near_batched_equals_pose_by_pose(name):
+    """The five perturbed poses of the controllability check evaluated in one batch answer as
+    one at a time, at home and at poses off home (under-actuated 4ups_1rps: never controlled)."""
+    import warnings
+
+    from parasynth.mechanisms import load_mechanism
+
+    mech = load_mechanism(name)
+    rng = np.random.default_rng(7)
+    span = np.where([c in mech.angular_coordinates for c in mech.task_coordinates], 0.1, 0.03 * mech.length_scale)
+    answers = []
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for k in range(4):
+            X0 = mech.home + (0 if k == 0 else span * rng.uniform(-1, 1, size=mech.home.shape))
+            got = mech._controlled_near(X0)
+            assert got == _controlled_near_one_at_a_time(mech, X0), (name, X0)
+            answers.append(got)
+    assert all(answers) == (name != "4ups_1rps") and any(answers) == (name != "4ups_1rps")

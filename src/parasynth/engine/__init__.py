@@ -76,7 +76,7 @@ from .warmup import COMPILING, WarmUp
 
 __all__ = ["HAVE_NUMBA", "ENGINES", "EngineFallbackWarning", "feasible", "feasible_extents", "margins", "pose_batch", "available",
            "reason", "check_engine", "plan", "use_compiled", "warn_fallback", "coverage", "singularity_margin",
-           "transmission", "local_transmission_index", "condition_number", "leg_directions", "constraint_rank",
+           "transmission", "local_transmission_index", "condition_number", "leg_directions", "constraint_rank", "ready",
            "closure_plan", "closure_prep", "closure_solve", "warm_up", "exercise", "needs", "effective_engine", "WarmUp", "COMPILING", "reference"]
 
 #: Names looked up in :mod:`parasynth.engine.core` when first asked for.
@@ -274,6 +274,35 @@ def use_compiled(mech, engine, what: str) -> bool:
     ok, why = ei.coverage(mech)
     if not ok:
         ei.warn_fallback(what, mech, why)
+    return ok
+
+
+#: Entry points found ready (:func:`ready`): their kernels compiled here or in numba's cache.
+_READY: set = set()
+#: Entry points found not ready in numba's cache on disk (read once per process).
+_NOT_CACHED: set = set()
+
+
+def ready(kind: str) -> bool:
+    """Whether every kernel of the compiled entry point ``kind`` (a name of :data:`EXERCISES`)
+    is compiled in this process or in numba's cache, so that calling it compiles nothing. The
+    cache on disk is read once per process for each ``kind``; a kernel compiled later in this
+    process counts from then on."""
+    if kind in _READY:
+        return True
+    core, _, _, pre, _ = _compiled()
+    if not core.HAVE_NUMBA:
+        return False
+    names = pre.KERNELS_OF.get(kind, ())
+    sigs = pre.signatures()
+    if kind in _NOT_CACHED:
+        ok = all(n in sigs and sigs[n][0].signatures for n in names)
+    else:
+        ok = not pre.missing([kind])
+        if not ok:
+            _NOT_CACHED.add(kind)
+    if ok:
+        _READY.add(kind)
     return ok
 
 

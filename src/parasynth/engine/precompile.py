@@ -72,10 +72,11 @@ _EARLY: dict = {}
 
 #: The entry points the shipped structure studies ask for (``engine.needs`` of the warm-up
 #: design, the same for structures_1t2r, structures_2t2r and structures_3t2r: the workspace's
-#: feasibility, the singularity margin of the home floor and the margin quantile, the
-#: constraint rank of the structure's mobility), compiled from the start of such a run by
-#: :func:`start_early` while the structures are enumerated.
-STRUCTURE_STUDY = ("feasible", "singularity_margin", "constraint_rank")
+#: feasibility, the singularity margin of the home floor and the margin quantile; the
+#: structural constraint rank, one pose per design, runs on NumPy unless its kernel is
+#: compiled already), compiled from the start of such a run by :func:`start_early` while the
+#: structures are enumerated.
+STRUCTURE_STUDY = ("feasible", "singularity_margin")
 #: What a structure study with chain limbs (model/chains.py) asks for besides: their compiled
 #: inverse kinematics and index rows, and their closure (the motion rule of the enumeration).
 STRUCTURE_CHAINS = ("chains", "chain_closure")
@@ -89,6 +90,7 @@ def structure_kinds(leg_types=None) -> tuple[str, ...]:
     if leg_types is None or any(str(t) in chain for t in leg_types):
         return STRUCTURE_STUDY + STRUCTURE_CHAINS
     return STRUCTURE_STUDY
+
 
 #: CPU seconds a helper process spends starting (Python, numba, parasynth).
 _START = 1.5

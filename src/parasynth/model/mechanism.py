@@ -655,11 +655,11 @@ class Mechanism:
         """Whether the wrench system has rank 6 at a few deterministic perturbations of X0
         (distinguishes a singular reference pose from structural under-actuation)."""
         rng = np.random.default_rng(12345)
-        for _ in range(5):
-            step = np.where([c in self.angular_coordinates for c in self.task_coordinates], 0.05,
-                            0.02 * self.length_scale)
-            X = X0 + step * rng.uniform(-1, 1, size=X0.shape)
-            W = self.wrench_matrix(X[None, :])[0]
+        step = np.where([c in self.angular_coordinates for c in self.task_coordinates], 0.05,
+                        0.02 * self.length_scale)
+        # the five poses in one batch (the same draws as five in turn: one double each)
+        X = X0 + step * rng.uniform(-1, 1, size=(5,) + X0.shape)
+        for W in self.wrench_matrix(X):
             if not np.all(np.isfinite(W)):
                 continue
             W = W.copy()

@@ -386,7 +386,11 @@ class DescribedMechanism(Mechanism):
         return super().singularity_margin(X, engine="numpy")
 
     def structural_constraint_rank(self, X=None, engine: str = "compiled") -> int:
-        if _engine.use_compiled(self, engine, "constraint rank"):
+        # One pose: the NumPy reference costs a few milliseconds, compiling the constraint-rank
+        # kernel seconds. It runs compiled only once compiled (or in numba's cache), and is never
+        # a reason to compile: the same integer either way.
+        if (_engine.effective_engine(engine) == "compiled" and _engine.ready("constraint_rank")
+                and _engine.use_compiled(self, engine, "constraint rank")):
             return _engine.constraint_rank(self, X)
         return super().structural_constraint_rank(X, engine="numpy")
 
