@@ -290,7 +290,7 @@ def ready(kind: str) -> bool:
     process counts from then on."""
     if kind in _READY:
         return True
-    core, _, _, pre, _ = _compiled()
+    core, pre = _compiled()[0], _compiled()[3]
     if not core.HAVE_NUMBA:
         return False
     names = pre.KERNELS_OF.get(kind, ())
