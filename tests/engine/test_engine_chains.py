@@ -300,6 +300,17 @@ def test_closure_residuals_entry_point_uses_the_compiled_solve():
 
 
 # -- the compiled indices of mechanisms with chain limbs -------------------------------------------
+def _fallbacks_but_the_solved_pose(m, caught) -> list:
+    """The engine's fallback warnings among ``caught`` other than the one a structure whose motion
+    is solved on chain limbs' closure equations may give: its pose (the compiled pose program
+    does not hold the chains' nested solve) from NumPy, its indices still compiled. (The engine
+    says each fallback once per process: whether it is among ``caught`` depends on what ran
+    before, so it is allowed, not required.)"""
+    solved = m.description.task.solve is not None
+    return [str(x.message) for x in caught if issubclass(x.category, EngineFallbackWarning)
+            and not (solved and "pose_batch runs on NumPy" in str(x.message))]
+
+
 @pytest.fixture(scope="module")
 def chain_mechanisms():
     out = []
@@ -328,14 +339,15 @@ def test_compiled_indices_of_chain_limbs_agree_with_numpy(chain_mechanisms):
         ang = np.isin(m.task_coordinates, m.angular_coordinates)
         X = m.home + rng.uniform(-1, 1, (120, len(m.home))) * np.where(ang, 0.1, 0.02)
         X[-1] = np.nan  # an invalid pose: NaN on both
-        with warnings.catch_warnings():
-            warnings.simplefilter("error", EngineFallbackWarning)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", EngineFallbackWarning)
             assert engine.coverage(m) == (True, "")
             a = m.singularity_margin(X)
             la = mi.local_transmission_index(m, X)
             ka = mi.local_condition_number(m, X)
             da, ra = engine.leg_directions(m, X)
             rank = m.structural_constraint_rank()
+        assert not _fallbacks_but_the_solved_pose(m, caught), m.name
         b = m.singularity_margin(X, engine="numpy")
         fin = np.isfinite(b)
         assert fin.sum() >= 100, m.name
@@ -371,9 +383,10 @@ def test_compiled_margin_of_a_mixed_mechanism_at_explicit_poses(chain_mechanisms
     got = engine.singularity_margin_at(m.legs, p, R, m.n_actuators, m.constraint_rank, m.length_scale)
     assert got is not None and reach.sum() >= 60
     np.testing.assert_allclose(got[reach], ref[reach], rtol=0, atol=1e-9)
-    with warnings.catch_warnings():
-        warnings.simplefilter("error", EngineFallbackWarning)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", EngineFallbackWarning)
         a = m.singularity_margin(X)
+    assert not _fallbacks_but_the_solved_pose(m, caught)
     b = m.singularity_margin(X, engine="numpy")
     fin = np.isfinite(b)
     assert np.array_equal(fin, np.isfinite(a)) and fin.sum() >= 60
