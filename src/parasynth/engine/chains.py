@@ -173,6 +173,70 @@ if HAVE_NUMBA:  # pragma: no branch
         return c, r
 
     @njit(**_jit)
+    def _normal_equations(n, kinds, axw, ptw, pos, L, e, J, A, b):
+        """The joint twists at the anchor as the columns of J (6, n) (a prismatic freedom (a, 0),
+        a revolute one (a x (pos - c), a); position rows divided by L), A = J^T J and b = J^T e;
+        returns the trace of A."""
+        for m in range(n):
+            ax = axw[m, 0]
+            ay = axw[m, 1]
+            az = axw[m, 2]
+            if kinds[m] == 1:
+                J[0, m] = ax / L
+                J[1, m] = ay / L
+                J[2, m] = az / L
+                J[3, m] = 0.0
+                J[4, m] = 0.0
+                J[5, m] = 0.0
+            else:
+                rx = pos[0] - ptw[m, 0]
+                ry = pos[1] - ptw[m, 1]
+                rz = pos[2] - ptw[m, 2]
+                J[0, m] = (ay * rz - az * ry) / L
+                J[1, m] = (az * rx - ax * rz) / L
+                J[2, m] = (ax * ry - ay * rx) / L
+                J[3, m] = ax
+                J[4, m] = ay
+                J[5, m] = az
+        tr = 0.0
+        for a in range(n):
+            for c in range(n):
+                s = 0.0
+                for k in range(6):
+                    s += J[k, a] * J[k, c]
+                A[a, c] = s
+            tr += A[a, a]
+            s = 0.0
+            for k in range(6):
+                s += J[k, a] * e[k]
+            b[a] = s
+        return tr
+
+    @njit(**_jit)
+    def _cholesky_solve(n, A, b, Lc, dq):
+        """dq solving A dq = b (A symmetric positive definite, damped by the caller): Cholesky
+        A = Lc Lc^T, then the two triangular solves."""
+        for a in range(n):
+            for c in range(a + 1):
+                s = A[a, c]
+                for k in range(c):
+                    s -= Lc[a, k] * Lc[c, k]
+                if a == c:
+                    Lc[a, a] = math.sqrt(s) if s > 0.0 else 1e-300
+                else:
+                    Lc[a, c] = s / Lc[c, c]
+        for a in range(n):
+            s = b[a]
+            for k in range(a):
+                s -= Lc[a, k] * dq[k]
+            dq[a] = s / Lc[a, a]
+        for a in range(n - 1, -1, -1):
+            s = dq[a]
+            for k in range(a + 1, n):
+                s -= Lc[k, a] * dq[k]
+            dq[a] = s / Lc[a, a]
+
+    @njit(**_jit)
     def _chain_kernel(P, Rm, kinds, axes, points, home, plat, L, n_iter, tol, Q, res, POS, AXW, PTW, i0, i1):
         """Poses ``i0 .. i1 - 1``: joint coordinates ``Q``, residual ``res``, anchor position
         ``POS`` and the freedoms' axes ``AXW`` and points ``PTW`` at the solution. The
@@ -213,62 +277,11 @@ if HAVE_NUMBA:  # pragma: no branch
                 if not (r >= tol):  # reached, or not finite
                     break
                 # joint twists at the anchor: P (a, 0), R (a x (pos - c), a); position rows / L
-                for m in range(n):
-                    ax = axw[m, 0]
-                    ay = axw[m, 1]
-                    az = axw[m, 2]
-                    if kinds[m] == 1:
-                        J[0, m] = ax / L
-                        J[1, m] = ay / L
-                        J[2, m] = az / L
-                        J[3, m] = 0.0
-                        J[4, m] = 0.0
-                        J[5, m] = 0.0
-                    else:
-                        rx = pos[0] - ptw[m, 0]
-                        ry = pos[1] - ptw[m, 1]
-                        rz = pos[2] - ptw[m, 2]
-                        J[0, m] = (ay * rz - az * ry) / L
-                        J[1, m] = (az * rx - ax * rz) / L
-                        J[2, m] = (ax * ry - ay * rx) / L
-                        J[3, m] = ax
-                        J[4, m] = ay
-                        J[5, m] = az
-                tr = 0.0
-                for a in range(n):
-                    for c in range(n):
-                        s = 0.0
-                        for k in range(6):
-                            s += J[k, a] * J[k, c]
-                        A[a, c] = s
-                    tr += A[a, a]
-                    s = 0.0
-                    for k in range(6):
-                        s += J[k, a] * e[k]
-                    b[a] = s
+                tr = _normal_equations(n, kinds, axw, ptw, pos, L, e, J, A, b)
                 mu = lam * (1.0 + tr / n)
                 for a in range(n):
                     A[a, a] += mu
-                # Cholesky A = Lc Lc^T, then the two triangular solves
-                for a in range(n):
-                    for c in range(a + 1):
-                        s = A[a, c]
-                        for k in range(c):
-                            s -= Lc[a, k] * Lc[c, k]
-                        if a == c:
-                            Lc[a, a] = math.sqrt(s) if s > 0.0 else 1e-300
-                        else:
-                            Lc[a, c] = s / Lc[c, c]
-                for a in range(n):
-                    s = b[a]
-                    for k in range(a):
-                        s -= Lc[a, k] * dq[k]
-                    dq[a] = s / Lc[a, a]
-                for a in range(n - 1, -1, -1):
-                    s = dq[a]
-                    for k in range(a + 1, n):
-                        s -= Lc[k, a] * dq[k]
-                    dq[a] = s / Lc[a, a]
+                _cholesky_solve(n, A, b, Lc, dq)
                 step = 0.0
                 for a in range(n):
                     if abs(dq[a]) > step:
@@ -351,61 +364,11 @@ if HAVE_NUMBA:  # pragma: no branch
                 _error(R, tx, ty, tz, Rg, pos, L, e)
                 if it == n_iter:
                     break
-                for m in range(n):
-                    ax = axw[m, 0]
-                    ay = axw[m, 1]
-                    az = axw[m, 2]
-                    if kinds[m] == 1:
-                        J[0, m] = ax / L
-                        J[1, m] = ay / L
-                        J[2, m] = az / L
-                        J[3, m] = 0.0
-                        J[4, m] = 0.0
-                        J[5, m] = 0.0
-                    else:
-                        rx = pos[0] - ptw[m, 0]
-                        ry = pos[1] - ptw[m, 1]
-                        rz = pos[2] - ptw[m, 2]
-                        J[0, m] = (ay * rz - az * ry) / L
-                        J[1, m] = (az * rx - ax * rz) / L
-                        J[2, m] = (ax * ry - ay * rx) / L
-                        J[3, m] = ax
-                        J[4, m] = ay
-                        J[5, m] = az
-                tr = 0.0
-                for a in range(n):
-                    for c in range(n):
-                        s = 0.0
-                        for k in range(6):
-                            s += J[k, a] * J[k, c]
-                        A[a, c] = s
-                    tr += A[a, a]
-                    s = 0.0
-                    for k in range(6):
-                        s += J[k, a] * e[k]
-                    b[a] = s
+                tr = _normal_equations(n, kinds, axw, ptw, pos, L, e, J, A, b)
                 mu = 1e-14 * (1.0 + tr)
                 for a in range(n):
                     A[a, a] += mu
-                for a in range(n):
-                    for c in range(a + 1):
-                        s = A[a, c]
-                        for k in range(c):
-                            s -= Lc[a, k] * Lc[c, k]
-                        if a == c:
-                            Lc[a, a] = math.sqrt(s) if s > 0.0 else 1e-300
-                        else:
-                            Lc[a, c] = s / Lc[c, c]
-                for a in range(n):
-                    s = b[a]
-                    for k in range(a):
-                        s -= Lc[a, k] * dq[k]
-                    dq[a] = s / Lc[a, a]
-                for a in range(n - 1, -1, -1):
-                    s = dq[a]
-                    for k in range(a + 1, n):
-                        s -= Lc[k, a] * dq[k]
-                    dq[a] = s / Lc[a, a]
+                _cholesky_solve(n, A, b, Lc, dq)
                 step = 0.0
                 for a in range(n):
                     d = abs(dq[a])
