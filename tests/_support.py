@@ -155,3 +155,20 @@ def brute_spread(F, k):
         worst = max(i for i in range(len(keep)) if d[i] == smallest)  # the later one on a tie
         keep.pop(worst)
     return keep
+
+
+def engine_fallbacks(mech, caught) -> list:
+    """The messages of the engine's fallback warnings among ``caught`` (``warnings.catch_warnings
+    (record=True)``) other than the one a structure whose motion is solved on chain limbs'
+    closure equations may give: its pose from NumPy (the compiled pose program does not hold the
+    chains' nested solve), its feasibility and indices still compiled. The engine says each
+    fallback once per process, so whether that one is among ``caught`` depends on what ran
+    before (on an empty compile cache it comes later): allowed, not required."""
+    from parasynth.model.chains import ChainLeg
+    from parasynth.model.mechanism import EngineFallbackWarning
+
+    d = getattr(mech, "description", None)
+    solved_on_chains = (d is not None and d.task.solve is not None
+                        and any(isinstance(leg, ChainLeg) for leg in getattr(mech, "legs", ())))
+    return [str(x.message) for x in caught if issubclass(x.category, EngineFallbackWarning)
+            and not (solved_on_chains and "pose_batch runs on NumPy" in str(x.message))]

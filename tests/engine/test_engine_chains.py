@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 import parasynth
+from _support import engine_fallbacks
 from parasynth import engine
 from parasynth.model.chains import IK_TOL, PRRS, PRUR, RPUR, RRPS, RRUR, RUU, SPU, URPU, chain_class
 from parasynth.model.legs import UPS, LegState
@@ -300,17 +301,6 @@ def test_closure_residuals_entry_point_uses_the_compiled_solve():
 
 
 # -- the compiled indices of mechanisms with chain limbs -------------------------------------------
-def _fallbacks_but_the_solved_pose(m, caught) -> list:
-    """The engine's fallback warnings among ``caught`` other than the one a structure whose motion
-    is solved on chain limbs' closure equations may give: its pose (the compiled pose program
-    does not hold the chains' nested solve) from NumPy, its indices still compiled. (The engine
-    says each fallback once per process: whether it is among ``caught`` depends on what ran
-    before, so it is allowed, not required.)"""
-    solved = m.description.task.solve is not None
-    return [str(x.message) for x in caught if issubclass(x.category, EngineFallbackWarning)
-            and not (solved and "pose_batch runs on NumPy" in str(x.message))]
-
-
 @pytest.fixture(scope="module")
 def chain_mechanisms():
     out = []
@@ -347,7 +337,7 @@ def test_compiled_indices_of_chain_limbs_agree_with_numpy(chain_mechanisms):
             ka = mi.local_condition_number(m, X)
             da, ra = engine.leg_directions(m, X)
             rank = m.structural_constraint_rank()
-        assert not _fallbacks_but_the_solved_pose(m, caught), m.name
+        assert not engine_fallbacks(m, caught), m.name
         b = m.singularity_margin(X, engine="numpy")
         fin = np.isfinite(b)
         assert fin.sum() >= 100, m.name
@@ -386,7 +376,7 @@ def test_compiled_margin_of_a_mixed_mechanism_at_explicit_poses(chain_mechanisms
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", EngineFallbackWarning)
         a = m.singularity_margin(X)
-    assert not _fallbacks_but_the_solved_pose(m, caught)
+    assert not engine_fallbacks(m, caught)
     b = m.singularity_margin(X, engine="numpy")
     fin = np.isfinite(b)
     assert np.array_equal(fin, np.isfinite(a)) and fin.sum() >= 60
