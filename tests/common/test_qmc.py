@@ -131,3 +131,24 @@ def test_saved_file_is_the_file_np_save_writes(tmp_path, shape):
     assert target.read_bytes() == (tmp_path / "ref.npy").read_bytes()
     assert [f.name for f in target.parent.iterdir()] == ["points.npy"]
     assert np.array_equal(np.load(target), u)
+
+
+@pytest.mark.parametrize("d", [1, 2, 3, 5, 6, 12])
+def test_the_fast_draw_gives_scipys_points_bit_for_bit(d):
+    assert pqmc._fast_sobol_ok(d)
+    for seed in (0, 1, 99, 2**40 + 3, 2**63 + 5):
+        for n in (0, 1, 2, 7, 8192, 10_000):
+            u = pqmc._fast_sobol(d, seed, n)
+            assert u.shape == (n, d) and u.dtype == np.float64
+            assert u.tobytes() == _scipy_points(d, seed, n).tobytes(), (d, seed, n)
+
+
+def test_a_fast_draw_that_disagrees_with_scipy_is_not_used(monkeypatch):
+    pqmc._fast_sobol_ok.cache_clear()
+    real = pqmc._fast_sobol
+    monkeypatch.setattr(pqmc, "_fast_sobol", lambda d, seed, n: real(d, seed + 1, n))  # SciPy changed its ways
+    try:
+        assert not pqmc._fast_sobol_ok(4)
+        assert np.array_equal(pqmc._draw(4, 5, 64), _scipy_points(4, 5, 64))
+    finally:
+        pqmc._fast_sobol_ok.cache_clear()

@@ -19,10 +19,13 @@ pytestmark = pytest.mark.skipif(not core.HAVE_NUMBA, reason="numba not available
 def test_blocking_covers_every_pose_once(n, threads):
     block, nblk, par = core.blocking(n, threads)
     assert par == (threads > 1 and n >= core.PARALLEL_MIN)
-    assert 1 <= block <= core.BLOCK and block % core.SUB == 0
+    assert block >= 1 and block % core.SUB == 0
     assert (nblk - 1) * block < max(n, 1) <= nblk * block
-    if par:  # enough work items for every thread to take several
-        assert nblk >= min(core.ITEMS_PER_THREAD * threads, -(-n // core.SUB)) - 1
+    if par:  # ITEMS_PER_THREAD items a thread, as even as whole sub-blocks allow
+        assert nblk == core.ITEMS_PER_THREAD * threads
+        assert block - core.SUB < n / nblk <= block
+    else:
+        assert block <= core.BLOCK
 
 
 def test_set_threads_refuses_bad_counts_and_keeps_the_ceiling():

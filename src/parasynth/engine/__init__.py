@@ -405,6 +405,8 @@ def exercise(mech, what=EXERCISES) -> None:
         warnings.simplefilter("ignore")
         if "feasible" in what:
             feasible(mech, X)
+            if effective_engine("compiled") == "compiled":
+                _compiled()[0].spin_warm()  # the threads' wait (core._spin_done), used by large batches
         if "margins" in what:
             margins(mech, X)
         if "pose" in what:

@@ -47,13 +47,13 @@ from __future__ import annotations
 
 import logging
 import functools
+import itertools
 import math
 import os
 import threading
 import time
 import warnings
 import weakref
-from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
@@ -96,7 +96,7 @@ _CONE_KEYS = {
     RUS: ("U_base_cone", "S_platform_cone"),
 }
 
-#: Poses per parallel work item (one scratch allocation per work item).
+#: Poses per work item of a batch on one thread (one scratch allocation of SUB poses per item).
 BLOCK = 4096
 #: Poses per SIMD sub-block: the interpreter's per-instruction cost and each loop's set-up are
 #: shared by SUB poses. 128 measured 3-6 % faster than 64 (5-PUS/UPU worst case, the quick
@@ -104,14 +104,17 @@ BLOCK = 4096
 #: six-leg sub-block (~70 KiB) then exceeds a 32 KiB L1 cache; 256 gains little more.
 SUB = 128
 #: Batches of fewer poses run on the calling thread only: handing work to another thread costs
-#: ~0.03-0.05 ms of CPU (a pool thread's wake-up, the kernel calls' unboxing), 10-20 % of the
-#: time of 4096 poses, 5-10 % of 8192 poses' (measured with ``benchmarks/workspace_throughput.py
-#: --figures``, see docs/performance.md).
+#: ~0.02-0.05 ms (a sleeping crew thread's wake-up on this kind of virtual machine), 10-20 % of
+#: the time of 4096 poses (measured with ``benchmarks/workspace_throughput.py --figures``, see
+#: docs/performance.md).
 PARALLEL_MIN = 8192
 #: Work items per thread of a parallel batch: a batch is cut into about this many ranges per
-#: thread (of at most BLOCK poses, a multiple of SUB), taken in turn, so that a thread slowed by
-#: other work on the machine takes fewer of them.
-ITEMS_PER_THREAD = 4
+#: thread (of at most BLOCK poses, a multiple of SUB), claimed in turn. One range per thread
+#: measured fastest (2 threads / 1 thread at 8192 poses: 1.34 with one range a thread, 1.13-1.29
+#: with two to eight): each range a thread claims costs it the interpreter lock, and a thread
+#: that has to wait for that lock sleeps, and wakes ~50 us later. A thread that falls behind
+#: has its range taken by another only if it has not started it (see :func:`over_blocks`).
+ITEMS_PER_THREAD = 1
 
 _THREADS = None
 
@@ -141,16 +144,16 @@ def set_threads(n: int | None) -> None:
 def blocking(n: int, threads: int | None = None, kind: str | None = None) -> tuple[int, int, bool]:
     """``(block, n_blocks, parallel)`` for a batch of ``n`` poses: on the calling thread in
     blocks of BLOCK poses below PARALLEL_MIN (or with one thread, or when :data:`TIMING` finds
-    that threads do not pay for the kernel ``kind`` now), else in blocks small enough for
-    ITEMS_PER_THREAD work items per thread (a multiple of SUB, at most BLOCK). The result does
-    not depend on the blocking: every pose is computed alone."""
+    that threads do not pay for the kernel ``kind`` now), else in ITEMS_PER_THREAD blocks per
+    thread (a multiple of SUB; a block's scratch is of SUB poses, so its size costs nothing).
+    The result does not depend on the blocking: every pose is computed alone."""
     nt = n_threads() if threads is None else threads
     if nt <= 1 or n < PARALLEL_MIN or getattr(_IN_POOL, "active", False):
         return BLOCK, max(1, (n + BLOCK - 1) // BLOCK), False
     if threads is None and kind is not None and not TIMING.threads_pay(kind, n):
         return BLOCK, (n + BLOCK - 1) // BLOCK, False
     per = -(-n // (ITEMS_PER_THREAD * nt))
-    block = min(BLOCK, max(SUB, per // SUB * SUB))  # rounded down: at least ITEMS_PER_THREAD items a thread
+    block = max(SUB, -(-per // SUB) * SUB)  # rounded up: at most ITEMS_PER_THREAD items a thread
     return block, (n + block - 1) // block, True
 
 
@@ -209,67 +212,156 @@ def _timed_blocks(kind: str, fn, n: int) -> None:
     TIMING.record(kind, par, n, time.perf_counter() - t0)
 
 
-_POOL = None
-_POOL_LOCK = threading.Lock()
 _IN_POOL = threading.local()
 
 
-def _pool(n: int):
-    global _POOL
-    with _POOL_LOCK:
-        if _POOL is None or _POOL._max_workers < n:
-            _POOL = ThreadPoolExecutor(max_workers=n, thread_name_prefix="parasynth-engine")
-        return _POOL
+class _Batch:
+    """One parallel batch: ``fn(edges[i], edges[i + 1])`` for each range i, each claimed once
+    (``next`` of an :func:`itertools.count` is one call under the interpreter lock) by the
+    calling thread or a crew thread; ``fin[i]`` set to 1 once range i is done (or skipped
+    after another range failed)."""
 
+    __slots__ = ("fn", "edges", "claim", "fin", "err")
 
-def _drain(fn, edges, nxt, lock, failed):
-    """Take the next range of ``edges`` until none is left (or one failed)."""
-    _IN_POOL.active = True
-    try:
-        while not failed:
-            with lock:
-                i = nxt[0]
-                nxt[0] += 1
-            if i >= len(edges) - 1:
+    def __init__(self, fn, edges):
+        self.fn = fn
+        self.edges = edges
+        self.claim = itertools.count()
+        self.fin = np.zeros(len(edges) - 1, dtype=np.int64)
+        self.err = None
+
+    def drain(self) -> None:
+        edges, fin, n = self.edges, self.fin, len(self.edges) - 1
+        for i in self.claim:
+            if i >= n:
                 return
             try:
-                fn(edges[i], edges[i + 1])
-            except BaseException:
-                failed.append(True)
-                raise
-    finally:
-        _IN_POOL.active = False
+                if self.err is None:
+                    self.fn(edges[i], edges[i + 1])
+            except BaseException as e:  # noqa: BLE001 - handed to the calling thread
+                if self.err is None:
+                    self.err = e
+            finally:
+                fin[i] = 1
+
+
+class _Crew:
+    """Threads kept for the engine's batches, each asleep on a raw lock of its own until a
+    batch wakes it (no futures, no queue: the fewest hand-offs of the interpreter lock). The
+    calling thread takes ranges too and then waits for the ranges the crew took, spinning in
+    compiled code (:func:`_spin_done`, the lock released) rather than sleeping: a sleeping
+    thread woke ~50 us after the last range ended on the development machine (a third of a
+    batch of 8192 poses on two threads)."""
+
+    def __init__(self):
+        self.lock = threading.Lock()
+        self.members: list = []  # (thread, wake lock)
+        self.batch = None
+
+    def _loop(self, wake) -> None:
+        _IN_POOL.active = True
+        while True:
+            wake.acquire()
+            b = self.batch
+            if b is not None:
+                b.drain()
+
+    def wake(self, n: int) -> None:
+        """Wake ``n`` crew threads (started at the first need)."""
+        with self.lock:
+            while len(self.members) < n:
+                wake = threading.Lock()
+                wake.acquire()
+                t = threading.Thread(target=self._loop, args=(wake,), daemon=True,
+                                     name=f"parasynth-engine-{len(self.members)}")
+                t.start()
+                self.members.append((t, wake))
+            for _, wake in self.members[:n]:
+                if wake.locked():  # else it has not taken the last wake-up yet: it will see this batch
+                    wake.release()
+
+
+_CREW = _Crew()
+
+
+def _after_fork() -> None:  # a forked process has none of the crew's threads
+    global _CREW
+    _CREW = _Crew()
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_after_fork)
+
+#: Iterations of the calling thread's spin while the crew finishes (~0.5-1 ms); then it polls
+#: with short sleeps (a crew thread descheduled by other work on the machine).
+SPIN_ITERATIONS = 200_000
+
+
+def _wait(fin: np.ndarray) -> None:
+    """Until every ``fin`` is set: spinning in compiled code while that is compiled (in this
+    process or numba's cache), then sleeping 20 us at a time."""
+    if _spin_ready() and _spin_done(fin, SPIN_ITERATIONS):
+        return
+    while not fin.all():
+        time.sleep(2e-5)
+
+
+_SPIN_READY = False
+
+
+def _spin_ready() -> bool:
+    """Whether the spin kernel can run without compiling now (a batch never waits for a compile;
+    it is compiled ahead with the feasibility kernel, see :mod:`parasynth.engine.precompile`)."""
+    global _SPIN_READY
+    if _SPIN_READY or not HAVE_NUMBA:
+        return _SPIN_READY
+    disp = _spin_done
+    try:
+        if not disp.signatures:
+            sig = signatures()["_spin_done"][1]
+            key = disp._cache._index_key(tuple(sig), disp.targetctx.codegen())
+            if key not in disp._cache._cache_file._load_index():
+                return False
+    except Exception:  # noqa: BLE001 - numba internals: compile on first use
+        pass
+    _SPIN_READY = True
+    return True
+
+
+def spin_warm() -> None:
+    """Compile (or load from the cache) the spin kernel of the threads' wait."""
+    global _SPIN_READY
+    if HAVE_NUMBA:
+        _spin_done(np.ones(1, dtype=np.int64), 1)
+        _SPIN_READY = True
 
 
 def over_blocks(fn, n_blocks: int, parallel: bool = True) -> None:
     """Run ``fn(b0, b1)`` over the work items ``0 .. n_blocks - 1``: on the calling thread, or,
-    when ``parallel`` and there are several items and threads, as contiguous ranges taken in
-    turn by the calling thread and ``n_threads() - 1`` pool threads (a thread slowed by other
-    work on the machine takes fewer). The kernels are compiled ``nogil`` and write disjoint
-    parts of their outputs, so the threads run in parallel and the result does not depend on
-    the split."""
+    when ``parallel`` and there are several items and threads, as contiguous ranges (about
+    ITEMS_PER_THREAD a thread) claimed in turn by the calling thread and ``n_threads() - 1``
+    crew threads (a range not yet claimed by a thread that wakes late is taken by another).
+    The kernels are compiled ``nogil`` and write disjoint parts of their outputs, so the
+    threads run in parallel and the result does not depend on the split."""
     nt = n_threads() if parallel else 1
     if nt <= 1 or n_blocks < 2 or getattr(_IN_POOL, "active", False):
         fn(0, n_blocks)
         return
     parts = min(n_blocks, ITEMS_PER_THREAD * nt)
-    edges = [n_blocks * i // parts for i in range(parts + 1)]
-    nxt, lock, failed = [0], threading.Lock(), []
-    pool = _pool(nt - 1)
-    futs = [pool.submit(_drain, fn, edges, nxt, lock, failed) for _ in range(min(nt, parts) - 1)]
-    err = None
+    batch = _Batch(fn, [n_blocks * i // parts for i in range(parts + 1)])
+    crew = _CREW
+    crew.batch = batch
+    crew.wake(min(nt, parts) - 1)
+    _IN_POOL.active = True  # a range's own batches run on its thread
     try:
-        _drain(fn, edges, nxt, lock, failed)
-    except BaseException as e:  # noqa: BLE001 - re-raised once the pool threads stopped
-        err = e
-        failed.append(True)
-    for f in futs:
-        try:
-            f.result()
-        except BaseException as e:  # noqa: BLE001
-            err = err or e
-    if err is not None:
-        raise err
+        batch.drain()
+    finally:
+        _IN_POOL.active = False
+    _wait(batch.fin)
+    if crew.batch is batch:
+        crew.batch = None
+    if batch.err is not None:
+        raise batch.err
 
 
 _log = logging.getLogger("parasynth.engine")
@@ -794,6 +886,37 @@ if HAVE_NUMBA:
     # inline (see docs/architecture.md).
     _jit_inline = _jit
     _jit_ir_inline = dict(_jit, inline="always")
+
+    from numba.core import cgutils as _cgutils
+    from numba.core.extending import intrinsic as _intrinsic
+
+    @_intrinsic
+    def _load_acquire(typingctx, arr, idx):
+        """``arr[idx]`` read with acquire ordering: read again at every call (a plain load in
+        a loop would be hoisted out of it), and what the writing thread wrote before it is
+        visible after it."""
+        sig = _nbt.int64(arr, idx)
+
+        def codegen(context, builder, signature, args):
+            aryty = signature.args[0]
+            ary = context.make_array(aryty)(context, builder, args[0])
+            ptr = _cgutils.get_item_pointer(context, builder, aryty, ary, [args[1]])
+            return builder.load_atomic(ptr, "acquire", align=8)
+
+        return sig, codegen
+
+    @njit(**_jit)
+    def _spin_done(fin, max_iter):
+        """Whether every ``fin`` became non-zero within ``max_iter`` rounds (the interpreter
+        lock released meanwhile)."""
+        n = fin.shape[0]
+        i = 0
+        for _ in range(max_iter):
+            while i < n and _load_acquire(fin, i) != 0:
+                i += 1
+            if i == n:
+                return True
+        return False
 
     # Opcodes: the one table, parasynth.engine.program.OPS (module constants, which numba
     # folds into the interpreter)
@@ -1883,4 +2006,5 @@ def signatures() -> dict:
         "_pose_kernel": (_pose_kernel, prog + (i2, i8, b1, f2, f2, f3, i8, i8)),
         "_feasible_kernel": (_feasible_kernel, prog + plan + (i8, b1, i1, f2, i8, i8)),
         "_margins_kernel": (_margins_kernel, prog + plan + (i8, f2, i1, i8, i8)),
+        "_spin_done": (_spin_done, (i1, i8)),
     }

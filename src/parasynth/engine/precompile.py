@@ -43,7 +43,7 @@ __all__ = ["KERNELS_OF", "LOCAL", "STRUCTURE_STUDY", "STRUCTURE_CHAINS", "struct
 KERNELS_OF = {
     "pose": ("_pose_kernel",),
     "twist": ("_pose_kernel",),
-    "feasible": ("_pose_kernel", "_feasible_kernel"),
+    "feasible": ("_pose_kernel", "_feasible_kernel", "_spin_done"),
     "margins": ("_pose_kernel", "_margins_kernel"),
     "singularity_margin": ("_pose_kernel", "_upu_mean_lengths", "_margin_kernel"),
     "transmission": ("_pose_kernel", "_upu_mean_lengths", "_lti_kernel"),
@@ -60,7 +60,7 @@ KERNELS_OF = {
 LOCAL = ("_pose_kernel", "_feasible_kernel", "_margins_kernel")
 
 # Rough cold-compile CPU seconds (5pus_upu, 2-core development machine), to share the work.
-_COST = {"_pose_kernel": 6.5, "_feasible_kernel": 10.0, "_margins_kernel": 10.0, "_upu_mean_lengths": 0.5,
+_COST = {"_spin_done": 0.3, "_pose_kernel": 6.5, "_feasible_kernel": 10.0, "_margins_kernel": 10.0, "_upu_mean_lengths": 0.5,
          "_margin_kernel": 5.0, "_constraint_rank_kernel": 4.5, "_lti_kernel": 6.0, "_kappa_kernel": 5.0,
          "_dir_kernel": 2.0, "_prep_kernel": 2.0, "_solve_kernel": 2.0, "_chain_kernel": 3.0,
          "_chain_rows_kernel": 3.0, "_closure_kernel": 2.5}
