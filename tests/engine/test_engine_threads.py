@@ -93,3 +93,69 @@ def test_adaptive_blocking_gives_the_same_answers(monkeypatch):
     for a in answers[1:]:
         assert np.array_equal(a, answers[0])
     assert np.array_equal(answers[0], mech.is_feasible(X, engine="numpy"))
+
+
+def _ranges_run(monkeypatch, nt, n_blocks, fn):
+    monkeypatch.setattr(core, "n_threads", lambda: nt)
+    core.over_blocks(fn, n_blocks, True)
+
+
+@pytest.mark.parametrize("nt,n_blocks,per", [(2, 2, 1), (3, 7, 1), (2, 9, 4), (4, 3, 2)])
+def test_the_crew_runs_every_range_once_and_the_caller_waits_for_it(monkeypatch, nt, n_blocks, per):
+    import threading
+    import time
+
+    monkeypatch.setattr(core, "ITEMS_PER_THREAD", per)
+    caller = threading.get_ident()
+    seen, lock, done = [], threading.Lock(), np.zeros(n_blocks)
+
+    def fn(b0, b1):
+        if threading.get_ident() != caller:
+            time.sleep(0.02)  # a slow crew thread: the caller must wait for its range
+        for b in range(b0, b1):
+            done[b] += 1
+        with lock:
+            seen.append((b0, b1))
+
+    for _ in range(3):
+        seen.clear()
+        done[:] = 0
+        _ranges_run(monkeypatch, nt, n_blocks, fn)
+        assert np.array_equal(done, np.ones(n_blocks))  # every item once, finished before the return
+        assert sorted(seen)[0][0] == 0 and sorted(seen)[-1][1] == n_blocks
+
+
+def test_an_error_in_a_crew_thread_reaches_the_caller(monkeypatch):
+    import threading
+
+    caller = threading.get_ident()
+
+    def fn(b0, b1):
+        if threading.get_ident() != caller or b0 > 0:
+            raise ValueError(f"range {b0}-{b1} failed")
+
+    for _ in range(3):
+        with pytest.raises(ValueError, match="failed"):
+            _ranges_run(monkeypatch, 2, 4, fn)
+    hits = []
+    _ranges_run(monkeypatch, 2, 4, lambda b0, b1: hits.append((b0, b1)))  # the crew works on after an error
+    assert sorted(hits) == [(0, 2), (2, 4)]
+
+
+def test_the_waits_spin_kernel_sees_another_threads_write():
+    import threading
+    import time
+
+    core.spin_warm()
+    fin = np.zeros(3, dtype=np.int64)
+    assert not core._spin_done(fin, 1000)  # nothing set: gives up after its rounds
+
+    def later():
+        time.sleep(0.01)
+        fin[:] = 1
+
+    t = threading.Thread(target=later)
+    t.start()
+    core._wait(fin)  # returns once the other thread wrote (spinning, then sleeping)
+    t.join()
+    assert fin.all() and core._spin_done(fin, 1)

@@ -161,7 +161,7 @@ class _Timing:
     """Whether spreading a kernel's batches over threads pays, from the batches themselves.
 
     On an idle machine two threads nearly halve a batch of 8192 poses; on a machine whose
-    cores are busy with other work a pool thread is often descheduled while it holds a range,
+    cores are busy with other work a crew thread is often descheduled while it holds a range,
     and the batch waits for it (twice the serial time, measured at load 5-6 on 2 cores). So
     per kernel and batch size (to a power of 2) the wall time per pose of recent batches is
     kept for both ways (an exponential average), the faster way is taken, and every

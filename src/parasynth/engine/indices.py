@@ -28,8 +28,8 @@ twist is the leg's column of the inverse, ``V S^-1 U^T e_i`` (by interlacing the
 then have rank 5 at the NumPy path's 1e-9 threshold, so the NumPy path finds the same
 one-dimensional set); otherwise each leg gets the SVD of its other rows, as in NumPy.
 
-Batches of at least :data:`PARALLEL_MIN` poses are spread over threads (ranges of chunks on a
-thread pool, :func:`parasynth.engine.core.over_blocks`); smaller ones serially, where starting
+Batches of at least :data:`PARALLEL_MIN` poses are spread over threads (ranges of chunks taken
+by the calling thread and the engine's crew, :func:`parasynth.engine.core.over_blocks`); smaller ones serially, where starting
 threads would cost more than it saves -- except for the singularity margin, whose ~3 us a pose
 make a design's few hundred feasible poses worth two threads (ranges of poses, while
 ``core.TIMING`` finds that threads pay; see :func:`_kernel`).

@@ -541,7 +541,7 @@ def _env_threads(env: dict) -> int:
 def can_fork_workers(url: str, n_workers: int) -> bool:
     """Are local workers forked from the run (see the module docstring)? On Linux, with a file
     storage (a server storage's connections are not shared with a child) and one evaluation
-    thread per worker (the engine's thread pool does not survive a fork: a forked worker
+    thread per worker (the engine's crew of threads does not survive a fork: a forked worker
     evaluates on its own thread)."""
     return (sys.platform.startswith("linux") and hasattr(os, "fork") and not is_shared_server(url)
             and _env_threads(worker_env(n_workers)) == 1
