@@ -109,7 +109,7 @@ SUB = 128
 #: docs/performance.md).
 PARALLEL_MIN = 8192
 #: Work items per thread of a parallel batch: a batch is cut into about this many ranges per
-#: thread (of at most BLOCK poses, a multiple of SUB), claimed in turn. One range per thread
+#: thread (a multiple of SUB poses each), claimed in turn. One range per thread
 #: measured fastest (2 threads / 1 thread at 8192 poses: 1.34 with one range a thread, 1.13-1.29
 #: with two to eight): each range a thread claims costs it the interpreter lock, and a thread
 #: that has to wait for that lock sleeps, and wakes ~50 us later. A thread that falls behind
@@ -309,23 +309,26 @@ def _wait(fin: np.ndarray) -> None:
 _SPIN_READY = False
 
 
+def compiled_or_cached(disp, sig) -> bool:
+    """Whether the kernel ``disp`` is compiled for ``sig`` in this process or in numba's cache
+    on disk (read from the cache index without loading anything). True when that cannot be
+    told (a numba whose cache internals differ)."""
+    try:
+        if disp.signatures:
+            return True
+        key = disp._cache._index_key(tuple(sig), disp.targetctx.codegen())
+        return key in disp._cache._cache_file._load_index()
+    except Exception:  # noqa: BLE001 - numba internals: assume cached, compile on demand
+        return True
+
+
 def _spin_ready() -> bool:
     """Whether the spin kernel can run without compiling now (a batch never waits for a compile;
     it is compiled ahead with the feasibility kernel, see :mod:`parasynth.engine.precompile`)."""
     global _SPIN_READY
-    if _SPIN_READY or not HAVE_NUMBA:
-        return _SPIN_READY
-    disp = _spin_done
-    try:
-        if not disp.signatures:
-            sig = signatures()["_spin_done"][1]
-            key = disp._cache._index_key(tuple(sig), disp.targetctx.codegen())
-            if key not in disp._cache._cache_file._load_index():
-                return False
-    except Exception:  # noqa: BLE001 - numba internals: compile on first use
-        pass
-    _SPIN_READY = True
-    return True
+    if not _SPIN_READY and HAVE_NUMBA:
+        _SPIN_READY = compiled_or_cached(*signatures()["_spin_done"])
+    return _SPIN_READY
 
 
 def spin_warm() -> None:

@@ -105,15 +105,7 @@ def in_cache(name: str) -> bool:
     """Whether kernel ``name`` is compiled in this process or in numba's cache on disk (read
     from the cache index without loading anything). True when that cannot be told (a numba
     whose cache internals differ): then nothing is compiled ahead."""
-    disp, sig = signatures()[name]
-    try:
-        if disp.signatures:
-            return True
-        cache = disp._cache
-        key = cache._index_key(tuple(sig), disp.targetctx.codegen())
-        return key in cache._cache_file._load_index()
-    except Exception:  # noqa: BLE001 - numba internals: assume cached, compile on demand
-        return True
+    return core.compiled_or_cached(*signatures()[name])
 
 
 def missing(kinds) -> list[str]:
