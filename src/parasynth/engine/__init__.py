@@ -74,7 +74,8 @@ from ..common.validation import numpy_reference as reference
 from . import warmup as _warmup
 from .warmup import COMPILING, WarmUp
 
-__all__ = ["HAVE_NUMBA", "ENGINES", "EngineFallbackWarning", "feasible", "feasible_extents", "margins", "pose_batch", "available",
+__all__ = ["HAVE_NUMBA", "ENGINES", "EngineFallbackWarning", "feasible", "feasible_extents", "margins", "pose_batch",
+           "solved_unknowns", "available",
            "reason", "check_engine", "plan", "use_compiled", "warn_fallback", "coverage", "singularity_margin",
            "transmission", "local_transmission_index", "condition_number", "leg_directions", "constraint_rank", "ready",
            "closure_plan", "closure_prep", "closure_solve", "warm_up", "exercise", "needs", "effective_engine", "WarmUp", "COMPILING", "reference"]
@@ -248,6 +249,21 @@ def pose_batch(mech, X, twist: bool = False, engine: str = "compiled"):
         P, R = mech.pose(Xs)
         T = mech.twist_map(Xs) if twist else None
     return valid, np.asarray(P, dtype=float), np.asarray(R, dtype=float), T
+
+
+def solved_unknowns(mech, X, engine: str = "compiled"):
+    """``(valid (N,), U (N, m))``: the unknowns of a description's ``task.solve`` (its
+    dependent, parasitic coordinates) at poses X (N, n_task) by the compiled solve -- the
+    values ``mech.solved_unknowns`` gives to the solve's tolerance (both iterate Gauss-Newton
+    from the home solution; the compiled one takes its fixed number of steps) -- or None when
+    the compiled path does not answer (the NumPy engine, no ``task.solve``, a program the
+    engine does not cover). Entries of invalid poses are unspecified."""
+    if getattr(mech, "pose_mechanism", None) is not None:
+        return None
+    Xa, _ = mech._poses(X)
+    if _engine_for("pose", engine) != "compiled":
+        return None
+    return _compiled()[1].compiled_unknowns(mech, Xa)
 
 
 # ---------------------------------------------------------------------------------------------

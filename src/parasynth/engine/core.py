@@ -681,20 +681,21 @@ def leg_tables(mech, cons):
 _PROGRAMS: dict = {}
 
 
-def _program_key(mech, exprs, twist):
+def _program_key(mech, exprs, twist, unknowns=False):
     d = mech.description
     shapes = tuple(sorted((k, np.shape(v)) for k, v in mech._penv.items()))
-    return (type(mech), id(d), tuple((n, e.text) for n, e in exprs.items()), bool(twist), shapes)
+    return (type(mech), id(d), tuple((n, e.text) for n, e in exprs.items()), bool(twist), shapes, bool(unknowns))
 
 
-def program_for(mech, exprs: dict, twist: bool = False) -> Program:
-    """The (cached) program of a described ``mech`` with the margins ``exprs``; checked
-    against ``mech.pose``/``mech.pose_valid`` (and ``mech.twist_map``) when first built.
-    Raises :class:`Unsupported`."""
+def program_for(mech, exprs: dict, twist: bool = False, unknowns: bool = False) -> Program:
+    """The (cached) program of a described ``mech`` with the margins ``exprs`` (and, with
+    ``unknowns``, the solved unknowns of ``task.solve`` kept); checked against
+    ``mech.pose``/``mech.pose_valid`` (and ``mech.twist_map``) when first built. Raises
+    :class:`Unsupported`."""
     patched = [k for k in ("_pose", "pose", "pose_valid", "_twist_map", "twist_map", "_task_env") if k in vars(mech)]
     if patched:
         raise Unsupported(f"a pose method replaced on the instance ({', '.join(patched)})")
-    key = _program_key(mech, exprs, twist)
+    key = _program_key(mech, exprs, twist, unknowns)
     hit = _PROGRAMS.get(key)
     if hit is not None and hit[0] is mech.description:
         if isinstance(hit[1], Exception):
@@ -702,7 +703,7 @@ def program_for(mech, exprs: dict, twist: bool = False) -> Program:
         return hit[1]
     try:
         try:
-            prog = build_program(mech, exprs, twist)
+            prog = build_program(mech, exprs, twist, unknowns)
         except Untranslatable as e:
             raise Unsupported(str(e)) from None
         except (KeyError, IndexError, TypeError, ValueError, RecursionError) as e:
@@ -716,7 +717,7 @@ def program_for(mech, exprs: dict, twist: bool = False) -> Program:
     return prog
 
 
-def program_constants(mech, exprs: dict, twist: bool = False):
+def program_constants(mech, exprs: dict, twist: bool = False, unknowns: bool = False):
     """``(program_for(mech, exprs, twist), its constants for mech._penv)``, kept in the
     engine's record of ``mech`` while its parameter environment and description are the same
     objects: the feasibility plan, the poses of the extents and those of the indices of one
@@ -726,12 +727,12 @@ def program_constants(mech, exprs: dict, twist: bool = False):
     if patched:
         raise Unsupported(f"a pose method replaced on the instance ({', '.join(patched)})")
     memo = record_of(mech).setdefault("programs", {})
-    key = (tuple((n, e.text) for n, e in exprs.items()), bool(twist))
+    key = (tuple((n, e.text) for n, e in exprs.items()), bool(twist), bool(unknowns))
     hit = memo.get(key)
     penv, d = mech._penv, mech.description
     if hit is not None and hit[0] is penv and hit[1] is d:
         return hit[2], hit[3]
-    prog = program_for(mech, exprs, twist)
+    prog = program_for(mech, exprs, twist, unknowns)
     consts = prog.constants(penv)
     memo[key] = (penv, d, prog, consts)
     return prog, consts
@@ -854,6 +855,27 @@ def run_margins(plan: KernelPlan, X: np.ndarray):
     args = plan.args()
     _timed_blocks("margins", lambda block, b0, b1: _margins_kernel(X, *args, block, M, amb, b0, b1), X.shape[0])
     return M, bool(amb.any())
+
+
+def run_unknowns(prog: Program, consts, X: np.ndarray):
+    """(valid (N,), U (N, m)): the solved unknowns of ``task.solve`` at poses X, by the pose
+    kernel reading the registers of a program built with ``unknowns=True`` in place of its
+    outputs (no kernel of its own)."""
+    m = len(prog.unknown_regs)
+    regs = np.concatenate([prog.unknown_regs, prog.pose_regs])[:12]
+    if m > 12:  # pragma: no cover - task.solve has at most 6 unknowns
+        raise Unsupported(f"{m} unknowns")
+    X = _readonly(np.ascontiguousarray(X, dtype=np.float64))
+    N = X.shape[0]
+    ok = np.empty(N, dtype=np.bool_)
+    P = np.empty((N, 3))
+    Rm = np.empty((N, 9))
+    tr = np.zeros((0, 0), dtype=np.int64)
+    Tw = np.empty((0, 0, 0))
+    _timed_blocks("pose", lambda block, b0, b1: _pose_kernel(X, prog.ins, consts, prog.const_base, prog.n_reg,
+                                                             prog.n_pose, regs, prog.valid_regs, prog.pose_limit, tr,
+                                                             block, ok, P, Rm, Tw, b0, b1), N)
+    return ok, np.concatenate([P, Rm], axis=1)[:, :m].copy()
 
 
 def run_pose(prog: Program, consts, X: np.ndarray, twist: bool = False):

@@ -16,7 +16,8 @@ import numpy as np
 from . import chains, core
 from .core import HAVE_NUMBA, Unsupported, warn_fallback
 
-__all__ = ["feasible", "feasible_extents", "margins", "compiled_pose_batch", "available", "reason", "plan"]
+__all__ = ["feasible", "feasible_extents", "margins", "compiled_pose_batch", "compiled_unknowns", "available", "reason",
+           "plan"]
 
 # ---------------------------------------------------------------------------------------------
 # plans: one record per mechanism object (core.record_of), one plan per constraint selection
@@ -142,6 +143,21 @@ def margins(mech, X, names=None, floor_margin=None) -> dict:
             for ci, floor in p.floors:
                 M[reach, ci] = np.where(np.isnan(sm), -np.inf, sm - floor)
     return {n: (M[0, j] if single else M[:, j]) for j, n in enumerate(p.names)}
+
+
+def compiled_unknowns(mech, Xa):
+    """``(valid, U)`` of poses ``Xa``: the solved unknowns of the description's ``task.solve``
+    from its compiled program (as ``mech.solved_unknowns``), or None when the program does not
+    cover ``mech`` or it solves nothing."""
+    if not HAVE_NUMBA or not core._is_described(mech) or getattr(mech.description.task, "solve", None) is None:
+        return None
+    try:
+        prog, consts = core.program_constants(mech, {}, False, unknowns=True)
+    except (Unsupported, KeyError, IndexError, TypeError, ValueError, AttributeError):
+        return None
+    if prog.unknown_regs is None:
+        return None
+    return core.run_unknowns(prog, consts, Xa)
 
 
 def compiled_pose_batch(mech, Xa, twist: bool = False):

@@ -395,7 +395,7 @@ class Program:
     """
 
     def __init__(self, ins, n_task, n_reg, const_base, literals, param_keys, const_param, n_pose, pose_regs,
-                 valid_regs, margin_regs, twist_regs):
+                 valid_regs, margin_regs, twist_regs, unknown_regs=None):
         self.ins = ins
         self.n_task = n_task
         self.n_reg = n_reg
@@ -408,6 +408,7 @@ class Program:
         self.valid_regs = valid_regs
         self.margin_regs = margin_regs  # {constraint name: register}
         self.twist_regs = twist_regs  # (6, n_task) or None
+        self.unknown_regs = unknown_regs  # (m,): the solved unknowns of task.solve, or None
         #: Poses with a coordinate beyond this magnitude are invalid (as in the NumPy path).
         self.pose_limit = np.full(n_task, np.inf)  # per coordinate (core._pose_limit)
 
@@ -724,10 +725,11 @@ def _elementary(g, ax, s, c):
     return out
 
 
-def build_program(mech, margin_exprs: dict, twist: bool = False) -> Program:
+def build_program(mech, margin_exprs: dict, twist: bool = False, unknowns: bool = False) -> Program:
     """The program of a described mechanism ``mech``: pose, validity, the margins of
-    ``margin_exprs`` ({constraint name: Expression}) and, with ``twist``, the twist map.
-    Raises :class:`Untranslatable`."""
+    ``margin_exprs`` ({constraint name: Expression}) and, with ``twist``, the twist map; with
+    ``unknowns``, the solved unknowns of ``task.solve`` kept in registers too
+    (``Program.unknown_regs``). Raises :class:`Untranslatable`."""
     task = mech.description.task
     penv = mech._penv
     g = Graph()
@@ -788,16 +790,18 @@ def build_program(mech, margin_exprs: dict, twist: bool = False) -> Program:
             em.emit(u)
     pose_out = [em.emit(x) for x in pos] + [em.emit(R[i][j]) for i in range(3) for j in range(3)]
     valid_out = [em.emit(v) for v in valid]
+    unknown_out = [em.emit(u) for u in unknowns] if unknowns and solve is not None else []
     n_pose_virt = len(em.code)
     margin_out = {name: em.emit(m) for name, m in margins.items()}
     twist_out = None
     if twist_nodes is not None:
         twist_out = [[em.emit(twist_nodes[i][j]) for j in range(n)] for i in range(6)]
-    keep = pose_out + valid_out + list(margin_out.values()) + [r for row in (twist_out or []) for r in row]
+    keep = (pose_out + valid_out + unknown_out + list(margin_out.values())
+            + [r for row in (twist_out or []) for r in row])
     # pose part and the rest pruned separately so that the pose prefix stays a prefix
     rest = _prune(em.code[n_pose_virt:], keep)
     rest_srcs = [r for row in rest for r in _operands(row)[0]]
-    pose_code = _prune(em.code[:n_pose_virt], pose_out + valid_out + rest_srcs)
+    pose_code = _prune(em.code[:n_pose_virt], pose_out + valid_out + unknown_out + rest_srcs)
     uses = _uses(pose_code + rest, keep)
     pose_code = _fuse(pose_code, uses)
     rest = _fuse(rest, uses)
@@ -812,4 +816,5 @@ def build_program(mech, margin_exprs: dict, twist: bool = False) -> Program:
                    valid_regs=np.array([loc(r) for r in valid_out], dtype=np.int64),
                    margin_regs={k: loc(r) for k, r in margin_out.items()},
                    twist_regs=None if twist_out is None else np.array([[loc(r) for r in row] for row in twist_out],
-                                                                      dtype=np.int64))
+                                                                      dtype=np.int64),
+                   unknown_regs=np.array([loc(r) for r in unknown_out], dtype=np.int64) if unknown_out else None)

@@ -169,10 +169,37 @@ class DescribedMechanism(Mechanism):
             return np.zeros((X.shape[0], 0))
         c = self._solve_cache
         if c is not None and c[0].shape == X.shape and np.array_equal(c[0], X, equal_nan=True):
-            return c[1]
+            if not callable(c[1]):
+                return c[1]
+            U = c[1]()  # unknowns offered by use_solved_unknowns, computed at their first use
+            if U is not None and U.shape == (X.shape[0], len(self._solve_uscale)) and np.all(np.isfinite(U)):
+                self._solve_cache = (c[0], U)
+                return U
         U, _ = gauss_newton(self._closure, X, self._solve_U0, self._solve_uscale)
         self._solve_cache = (X.copy(), U)
         return U
+
+    def use_solved_unknowns(self, X, U) -> None:
+        """Take ``U`` (N, m) as the unknowns of ``task.solve`` at poses X (N, n_task) from now
+        until other poses are asked for (``solved_unknowns`` keeps one set): a measure that
+        evaluates the NumPy model at poses whose unknowns the compiled engine solved
+        (:func:`parasynth.engine.solved_unknowns`) spares the NumPy solve. ``U`` must be a
+        solution of the closure equations at X (finite, every row), or a function giving it
+        (or None), called when the NumPy model first asks for the unknowns at X: where it
+        gives none, or not finite ones, the NumPy solve runs as without it."""
+        X = np.atleast_2d(np.asarray(X, dtype=float))
+        if callable(U):
+            if self.description.task.solve is None:
+                raise ValueError(f"{self.name}: no task.solve, no unknowns")
+            self._solve_cache = (X.copy(), U)
+            return
+        U = np.asarray(U, dtype=float)
+        if self.description.task.solve is None or U.shape != (X.shape[0], len(self._solve_uscale)):
+            raise ValueError(f"{self.name}: unknowns of shape {U.shape} for {X.shape[0]} poses and "
+                             f"{len(getattr(self, '_solve_uscale', ()))} unknowns")
+        if not np.all(np.isfinite(U)):
+            raise ValueError(f"{self.name}: unknowns that are not finite")
+        self._solve_cache = (X.copy(), U.copy())
 
     # -- pose ------------------------------------------------------------------------------------
     def _task_env(self, X, dual: bool = False, U=None) -> dict:
