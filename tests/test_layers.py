@@ -36,6 +36,17 @@ def test_import_parasynth_loads_neither_numba_nor_the_descriptions():
     assert out.strip() == "[]"
 
 
+def test_reading_a_study_imports_no_optimiser_library_it_does_not_use():
+    """The optimiser registry imports every optimiser module; the SciPy optimiser's library
+    (~0.3 s to import) is imported only when a study runs it."""
+    root = os.path.dirname(SRC)
+    out = _run("import sys\nfrom parasynth.study.spec import load_study\n"
+               f"load_study({os.path.join(root, 'studies', 'quickstart.yaml')!r})\n"
+               "from parasynth.study.optimizers import base\n"
+               "print('scipy' in base.kinds(), 'scipy.optimize' in sys.modules)")
+    assert out.split() == ["True", "False"]
+
+
 def test_engine_names_are_the_models_and_load_the_kernels_on_use():
     assert engine.EngineFallbackWarning is EngineFallbackWarning
     out = _run("import sys\nfrom parasynth import engine\nprint('numba' in sys.modules)\n"

@@ -103,7 +103,9 @@ def test_scipy_gets_one_constraint_integrality_no_polish_and_deferred_updating(m
         func(x)
         kw["constraints"][0].fun(x)
 
-    monkeypatch.setattr(de, "differential_evolution", fake)
+    import scipy.optimize
+
+    monkeypatch.setattr(scipy.optimize, "differential_evolution", fake)  # the optimiser imports it when it runs
     s = load_study(yaml.safe_dump(study_dict(n=10)), is_text=True)
     calls = []
 

@@ -28,7 +28,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.optimize import NonlinearConstraint, differential_evolution
 
 from ..errors import StudyError
 from ..problem import Problem, RunContext
@@ -115,6 +114,10 @@ def population(n_vars: int, budget: int, given: int | None) -> int:
 
 
 def run_scipy(problem: Problem, ctx: RunContext) -> None:
+    # lazy: scipy.optimize takes ~0.3 s to import, and every study's parse imports this module
+    # (the optimiser registry) whatever its optimiser
+    from scipy.optimize import NonlinearConstraint, differential_evolution
+
     study, space, guard = problem.study, problem.space, ctx.guard
     o = problem.objectives[0]
     sign = -1.0 if o.goal == "maximize" else 1.0  # SciPy minimises sign * f
