@@ -89,6 +89,11 @@ def test_compiled_chain_solve_agrees_with_numpy(cls, poses):
     assert set(got.angles) == set(ref.angles)
     for k in ref.angles:
         np.testing.assert_allclose(got.angles[k][ok], ref.angles[k][ok], rtol=0, atol=1e-9, err_msg=k)
+    if leg.has_cones:  # the cone angles from the kernel's frames: the bodies' orientations of the NumPy forward
+        frames = _chains().solve_arrays(leg, p, R, frames=True)["frames"]
+        ref_frames = leg._forward(got.extra["q"])[4]
+        for m, F in enumerate(ref_frames):
+            np.testing.assert_allclose(frames[ok, m], F[ok], rtol=0, atol=1e-12, err_msg=f"frame {m}")
     # the constraint wrenches (NumPy's null space of the joint twists at either solution) span the same space
     Pc = np.asarray(p)[ok]
     Wr = leg.constraint_wrenches(_take(ref, ok), Pc)

@@ -133,6 +133,47 @@ if HAVE_NUMBA:  # pragma: no branch
             pos[a] = Rg[a, 0] * home[0] + Rg[a, 1] * home[1] + Rg[a, 2] * home[2] + tg[a]
 
     @njit(**_jit)
+    def _frames(q, kinds, axes, FR, i):
+        """``FR[i, m]``: the orientation of the body before freedom m at the joint coordinates
+        ``q`` (and ``FR[i, n]`` after the last), the rotations of :func:`_forward` (as
+        ``ChainLeg._forward``'s frames, which the joint cones read)."""
+        n = kinds.shape[0]
+        for a in range(3):
+            for b in range(3):
+                FR[i, 0, a, b] = 1.0 if a == b else 0.0
+        for m in range(n):
+            if kinds[m] == 1:
+                for a in range(3):
+                    for b in range(3):
+                        FR[i, m + 1, a, b] = FR[i, m, a, b]
+                continue
+            ax = FR[i, m, 0, 0] * axes[m, 0] + FR[i, m, 0, 1] * axes[m, 1] + FR[i, m, 0, 2] * axes[m, 2]
+            ay = FR[i, m, 1, 0] * axes[m, 0] + FR[i, m, 1, 1] * axes[m, 1] + FR[i, m, 1, 2] * axes[m, 2]
+            az = FR[i, m, 2, 0] * axes[m, 0] + FR[i, m, 2, 1] * axes[m, 1] + FR[i, m, 2, 2] * axes[m, 2]
+            nn = math.sqrt(ax * ax + ay * ay + az * az)
+            ux = ax / nn
+            uy = ay / nn
+            uz = az / nn
+            s = math.sin(q[m])
+            c1 = 1.0 - math.cos(q[m])
+            r00 = 1.0 + c1 * (-uz * uz - uy * uy)
+            r01 = -s * uz + c1 * (uy * ux)
+            r02 = s * uy + c1 * (uz * ux)
+            r10 = s * uz + c1 * (ux * uy)
+            r11 = 1.0 + c1 * (-uz * uz - ux * ux)
+            r12 = -s * ux + c1 * (uz * uy)
+            r20 = -s * uy + c1 * (ux * uz)
+            r21 = s * ux + c1 * (uy * uz)
+            r22 = 1.0 + c1 * (-uy * uy - ux * ux)
+            for b in range(3):
+                g0 = FR[i, m, 0, b]
+                g1 = FR[i, m, 1, b]
+                g2 = FR[i, m, 2, b]
+                FR[i, m + 1, 0, b] = r00 * g0 + r01 * g1 + r02 * g2
+                FR[i, m + 1, 1, b] = r10 * g0 + r11 * g1 + r12 * g2
+                FR[i, m + 1, 2, b] = r20 * g0 + r21 * g1 + r22 * g2
+
+    @njit(**_jit)
     def _error(R, tx, ty, tz, Rg, pos, L, e):
         """The solve's error ``e`` (6,): ((target - position) / L, log(R Rc^T)); returns the
         squared error and its largest component (NaN when not finite)."""
@@ -237,9 +278,10 @@ if HAVE_NUMBA:  # pragma: no branch
             dq[a] = s / Lc[a, a]
 
     @njit(**_jit)
-    def _chain_kernel(P, Rm, kinds, axes, points, home, plat, L, n_iter, tol, Q, res, POS, AXW, PTW, i0, i1):
+    def _chain_kernel(P, Rm, kinds, axes, points, home, plat, L, n_iter, tol, Q, res, POS, AXW, PTW, FR, i0, i1):
         """Poses ``i0 .. i1 - 1``: joint coordinates ``Q``, residual ``res``, anchor position
-        ``POS`` and the freedoms' axes ``AXW`` and points ``PTW`` at the solution. The
+        ``POS``, the freedoms' axes ``AXW`` and points ``PTW`` at the solution and, if ``FR`` has
+        rows (N, n + 1, 3, 3), the orientation of the body before each freedom (:func:`_frames`). The
         reference's Levenberg-Marquardt: a trial step is taken only where it lowers the squared
         error; the damping shrinks tenfold (not below 1e-12) after a taken step and grows tenfold
         after a refused one; a pose stops when reached, stalled (a taken step gained no more than
@@ -319,6 +361,8 @@ if HAVE_NUMBA:  # pragma: no branch
                     PTW[i, m, a] = ptw[m, a]
             for a in range(3):
                 POS[i, a] = pos[a]
+            if FR.shape[0] > 0:
+                _frames(q, kinds, axes, FR, i)
 
 
     @njit(**_jit)
@@ -407,8 +451,9 @@ def signatures() -> dict:
         return {}
     from numba import types as nbt
 
-    f1, f2, f3, i1 = _array("f8", 1), _array("f8", 2), _array("f8", 3), _array("i8", 1)
-    sig = (f2, f3, i1, f2, f2, f1, f1, nbt.float64, nbt.int64, nbt.float64, f2, f1, f2, f3, f3, nbt.int64, nbt.int64)
+    f1, f2, f3, f4, i1 = _array("f8", 1), _array("f8", 2), _array("f8", 3), _array("f8", 4), _array("i8", 1)
+    sig = (f2, f3, i1, f2, f2, f1, f1, nbt.float64, nbt.int64, nbt.float64, f2, f1, f2, f3, f3, f4, nbt.int64,
+           nbt.int64)
     csig = (f2, f3, i1, f2, f2, f1, nbt.float64, nbt.int64, f2, f2, nbt.int64, nbt.int64)
     return {"_chain_kernel": (_chain_kernel, sig), "_closure_kernel": (_closure_kernel, csig)}
 
@@ -417,10 +462,11 @@ def _c(a, dtype=np.float64):
     return np.require(a, dtype=dtype, requirements=["C", "W"])
 
 
-def solve_arrays(leg: ChainLeg, p, R) -> dict:
+def solve_arrays(leg: ChainLeg, p, R, frames: bool = False) -> dict:
     """The compiled solve of ``leg`` at platform poses ``p`` (N, 3), ``R`` (N, 3, 3):
     ``{"q" (N, n), "residual" (N,), "position" (N, 3), "axes" (N, n, 3), "points" (N, n, 3; NaN
-    for a prismatic freedom)}``."""
+    for a prismatic freedom)}``, with ``frames`` also ``"frames"`` (N, n + 1, 3, 3): the
+    orientation of the body before each freedom and after the last."""
     d = leg.chain_arrays()
     P = _c(np.atleast_2d(np.asarray(p, float)))
     Rm = _c(np.asarray(R, float).reshape(-1, 3, 3))
@@ -430,18 +476,22 @@ def solve_arrays(leg: ChainLeg, p, R) -> dict:
     POS = np.empty((N, 3))
     AXW = np.empty((N, n, 3))
     PTW = np.empty((N, n, 3))
+    FR = np.empty((N if frames else 0, n + 1, 3, 3))
     args = (P, Rm, _c(d["kinds"], np.int64), _c(d["axes"]), _c(d["points"]), _c(d["home"]), _c(d["platform"]),
-            float(d["length"]), int(IK_ITERATIONS), float(IK_TOL), Q, res, POS, AXW, PTW)
+            float(d["length"]), int(IK_ITERATIONS), float(IK_TOL), Q, res, POS, AXW, PTW, FR)
     block, nblk, par = blocking(N)
     over_blocks(lambda b0, b1: _chain_kernel(*args, b0 * block, min(N, b1 * block)), nblk, par)
-    return {"q": Q, "residual": res, "position": POS, "axes": AXW, "points": PTW}
+    out = {"q": Q, "residual": res, "position": POS, "axes": AXW, "points": PTW}
+    if frames:
+        out["frames"] = FR
+    return out
 
 
 def solve(leg: ChainLeg, p, R, joint_angles: bool = True):
     """``leg.solve(p, R)`` with the compiled inverse kinematics: the same
     :class:`~parasynth.model.legs.LegState` (actuator, reachability, end points, direction,
     length, joint angles; ``extra`` q, axes, points, residual as lists per freedom)."""
-    out = solve_arrays(leg, p, R)
+    out = solve_arrays(leg, p, R, frames=joint_angles and leg.has_cones)
     d = leg.chain_arrays()
     q, res = out["q"], out["residual"]
     reachable = res < REACH_FACTOR * IK_TOL
@@ -455,7 +505,8 @@ def solve(leg: ChainLeg, p, R, joint_angles: bool = True):
     length = np.linalg.norm(A - B, axis=-1)
     act = np.full(len(q), np.nan) if d["actuated"] < 0 else q[:, d["actuated"]] + d["act_home"]
     act = np.where(reachable, act, np.nan)
-    angles = leg.joint_angles(q, reachable) if joint_angles else {}
+    frames = [out["frames"][:, m] for m in range(len(kinds) + 1)] if "frames" in out else None
+    angles = leg.joint_angles(q, reachable, frames) if joint_angles else {}
     st = LegState(act, reachable, B, A, nvec, length, angles)
     st.extra.update({"q": q, "axes": axes, "points": points, "residual": res})
     return st

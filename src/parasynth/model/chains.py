@@ -669,6 +669,12 @@ class ChainLeg(Leg):
         st.extra.update({"q": q, "axes": axes, "points": points, "residual": res})
         return st
 
+    @property
+    def has_cones(self) -> bool:
+        """Whether :meth:`joint_angles` gives the cone angle of a universal or spherical joint
+        (which needs the bodies' orientations, ``frames``)."""
+        return bool(self._cones)
+
     def joint_angles(self, q, reachable, frames=None) -> dict:
         """The passive angles at joint coordinates ``q`` (N, n): each freedom's coordinate from
         home (``<letter><joint>_<freedom>``) and the cone angle of every universal or spherical
