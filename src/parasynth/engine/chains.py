@@ -70,6 +70,21 @@ if HAVE_NUMBA:  # pragma: no branch
     _jit = dict(cache=True, nogil=True, error_model="numpy", boundscheck=False)
 
     @njit(**_jit)
+    def _rotation(ax, ay, az, angle):
+        """The rotation (row-major 9-tuple) through ``angle`` about the axis (ax, ay, az):
+        Rodrigues about the unit axis, R = I + s K + (1 - c) K K, K = skew(u)
+        (spatial.rot_axis normalises it again)."""
+        nn = math.sqrt(ax * ax + ay * ay + az * az)
+        ux = ax / nn
+        uy = ay / nn
+        uz = az / nn
+        s = math.sin(angle)
+        c1 = 1.0 - math.cos(angle)
+        return (1.0 + c1 * (-uz * uz - uy * uy), -s * uz + c1 * (uy * ux), s * uy + c1 * (uz * ux),
+                s * uz + c1 * (ux * uy), 1.0 + c1 * (-uz * uz - ux * ux), -s * ux + c1 * (uz * uy),
+                -s * uy + c1 * (ux * uz), s * ux + c1 * (uy * uz), 1.0 + c1 * (-uy * uy - ux * ux))
+
+    @njit(**_jit)
     def _forward(q, kinds, axes, points, home, Rg, tg, axw, ptw, pos):
         """The anchor frame (``pos``, ``Rg``) and the freedoms' current axes and points at the
         joint coordinates ``q`` (product of exponentials, as ``ChainLeg.forward``)."""
@@ -99,23 +114,7 @@ if HAVE_NUMBA:  # pragma: no branch
             ptw[m, 0] = cx
             ptw[m, 1] = cy
             ptw[m, 2] = cz
-            # Rodrigues about the unit axis (spatial.rot_axis normalises it again)
-            nn = math.sqrt(ax * ax + ay * ay + az * az)
-            ux = ax / nn
-            uy = ay / nn
-            uz = az / nn
-            s = math.sin(q[m])
-            c1 = 1.0 - math.cos(q[m])
-            # R = I + s K + (1 - c) K K, K = skew(u)
-            r00 = 1.0 + c1 * (-uz * uz - uy * uy)
-            r01 = -s * uz + c1 * (uy * ux)
-            r02 = s * uy + c1 * (uz * ux)
-            r10 = s * uz + c1 * (ux * uy)
-            r11 = 1.0 + c1 * (-uz * uz - ux * ux)
-            r12 = -s * ux + c1 * (uz * uy)
-            r20 = -s * uy + c1 * (ux * uz)
-            r21 = s * ux + c1 * (uy * uz)
-            r22 = 1.0 + c1 * (-uy * uy - ux * ux)
+            r00, r01, r02, r10, r11, r12, r20, r21, r22 = _rotation(ax, ay, az, q[m])
             dx = tg[0] - cx
             dy = tg[1] - cy
             dz = tg[2] - cz
@@ -150,21 +149,7 @@ if HAVE_NUMBA:  # pragma: no branch
             ax = FR[i, m, 0, 0] * axes[m, 0] + FR[i, m, 0, 1] * axes[m, 1] + FR[i, m, 0, 2] * axes[m, 2]
             ay = FR[i, m, 1, 0] * axes[m, 0] + FR[i, m, 1, 1] * axes[m, 1] + FR[i, m, 1, 2] * axes[m, 2]
             az = FR[i, m, 2, 0] * axes[m, 0] + FR[i, m, 2, 1] * axes[m, 1] + FR[i, m, 2, 2] * axes[m, 2]
-            nn = math.sqrt(ax * ax + ay * ay + az * az)
-            ux = ax / nn
-            uy = ay / nn
-            uz = az / nn
-            s = math.sin(q[m])
-            c1 = 1.0 - math.cos(q[m])
-            r00 = 1.0 + c1 * (-uz * uz - uy * uy)
-            r01 = -s * uz + c1 * (uy * ux)
-            r02 = s * uy + c1 * (uz * ux)
-            r10 = s * uz + c1 * (ux * uy)
-            r11 = 1.0 + c1 * (-uz * uz - ux * ux)
-            r12 = -s * ux + c1 * (uz * uy)
-            r20 = -s * uy + c1 * (ux * uz)
-            r21 = s * ux + c1 * (uy * uz)
-            r22 = 1.0 + c1 * (-uy * uy - ux * ux)
+            r00, r01, r02, r10, r11, r12, r20, r21, r22 = _rotation(ax, ay, az, q[m])
             for b in range(3):
                 g0 = FR[i, m, 0, b]
                 g1 = FR[i, m, 1, b]
