@@ -1,6 +1,8 @@
-"""Compiling ahead from the start of a run (precompile.start_early): helpers start at once with
-the interpreter kernels apart from the others, compile_ahead waits for them instead of
-compiling the same kernels again, and afterwards every kernel is in the cache."""
+"""Compiling ahead from the start of a run (precompile.start_early): a helper starts at once with
+the interpreter kernels, the other kernels go to the helper or are left to the work by their
+cost (no more compiling processes than cores), compile_ahead waits for the helper instead of
+compiling the same kernels again and compiles the work's share in its own process, and
+afterwards every kernel is in the cache."""
 
 import os
 import subprocess
@@ -24,14 +26,16 @@ class L(event.Listener):
         pass
 event.register("numba:compile", L())
 t0 = time.perf_counter()
-shares = pre.start_early(["constraint_rank"])
+shares = pre.start_early(["constraint_rank"], processes=2)
 started = time.perf_counter() - t0
 print("shares", shares)
 print("running", sorted(n for n, r in pre.early().items() if r))
 print("again", pre.start_early(["constraint_rank"]))  # nothing twice
-out = pre.compile_ahead(pre.missing(["constraint_rank"]))
+print("left", pre.left())
+out = pre.compile_ahead(pre.missing(["constraint_rank"]), processes=2)
 print("waited", sorted(out["waited"]), "local", out["local"], "helpers", out["helpers"], "failed", out["failed"])
 print("cached", pre.in_cache("_pose_kernel"), pre.in_cache("_constraint_rank_kernel"))
+print("left_after", pre.left())
 print("compiled_here", compiled)
 print("started_s", started)
 """
@@ -42,10 +46,66 @@ def test_start_early_then_compile_ahead_waits(tmp_path):
     r = subprocess.run([sys.executable, "-c", CODE], env=env, capture_output=True, text=True, timeout=900)
     assert r.returncode == 0, r.stderr
     lines = dict(line.split(" ", 1) for line in r.stdout.strip().splitlines())
-    assert lines["shares"] == "[['_pose_kernel'], ['_constraint_rank_kernel']]"
-    assert lines["running"] == "['_constraint_rank_kernel', '_pose_kernel']"
+    # one helper (two cores: the work itself is the second compiling process), with the
+    # interpreter kernel; the constraint-rank kernel (cost 4.5 against the pose kernel's 6.5,
+    # the work's own 5 s of other work counted first) is left to the work
+    assert lines["shares"] == "[['_pose_kernel']]"
+    assert lines["running"] == "['_pose_kernel']"
     assert lines["again"] == "[]"
-    assert lines["waited"].startswith("['_constraint_rank_kernel', '_pose_kernel'] local [] helpers [] failed []")
+    assert lines["left"] == "['_constraint_rank_kernel']"  # the warm-up's compile_ahead takes it
+    # compile_ahead compiled the rank kernel here (no free core for a new helper) and waited
+    # for the pose kernel's helper
+    assert lines["waited"].startswith("['_pose_kernel'] local ['_constraint_rank_kernel'] helpers [] failed []")
     assert lines["cached"] == "True True"
-    assert lines["compiled_here"] == "[]"  # compiled by the helpers only
+    assert lines["left_after"] == "[]"
+    here = eval(lines["compiled_here"])  # the rank kernel and its callees, here
+    assert here[0] == "_constraint_rank_kernel"
+    assert "_pose_kernel" not in here and "_run" not in here  # the pose kernel by the helper only
     assert float(lines["started_s"]) < 10.0  # returns at once (imports of the engine included)
+
+
+SHARES = r"""
+from parasynth.engine import precompile as pre
+started = []
+class P:  # a helper that is not started: the shares are what is asked
+    def __init__(self, args, **kw):
+        started.append(args[3:])
+    def poll(self):
+        return None
+pre.subprocess.Popen = P
+pre.missing = lambda kinds: list(dict.fromkeys(n for k in kinds for n in pre.KERNELS_OF[k] if n != "_spin_done"))
+print(pre.start_early(["feasible", "singularity_margin"], processes=2, busy=5.0))
+pre._EARLY.clear(); pre._LEFT.clear()
+print(pre.start_early(["feasible", "singularity_margin"], processes=2, busy=30.0))
+pre._EARLY.clear(); pre._LEFT.clear()
+print(pre.start_early(["feasible", "singularity_margin"], processes=1))
+pre._EARLY.clear(); pre._LEFT.clear()
+print(pre.start_early(["chains", "chain_closure"], processes=1))
+"""
+
+
+def test_start_early_shares_by_cost():
+    """The helper takes the interpreter kernels and, by their cost, what the work (busy with its
+    own ``busy`` seconds) would finish later; on one core it takes everything."""
+    r = subprocess.run([sys.executable, "-c", SHARES], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    out = r.stdout.strip().splitlines()
+    # work 5 + margin 5 + lengths 0.5 = 10.5 < interpreter kernels 16.5: all three left to the work
+    assert out[0] == "[['_pose_kernel', '_feasible_kernel']]"
+    # a work busy for 30 s: the helper takes them
+    assert out[1] == "[['_pose_kernel', '_feasible_kernel', '_margin_kernel', '_upu_mean_lengths']]"
+    assert out[2] == "[['_pose_kernel', '_feasible_kernel', '_upu_mean_lengths', '_margin_kernel']]"  # one core
+    assert out[3] == "[['_chain_kernel', '_chain_rows_kernel', '_closure_kernel']]"
+
+
+def test_structure_kinds_and_chain_kinds():
+    from parasynth.engine import precompile as pre
+    from parasynth.structures import structures
+
+    assert pre.structure_kinds(None) == pre.STRUCTURE_STUDY  # known only once enumerated
+    assert pre.structure_kinds(["UPS", "RPS"]) == pre.STRUCTURE_STUDY
+    assert pre.structure_kinds(["UPS", "RPUR"]) == pre.STRUCTURE_STUDY + pre.STRUCTURE_CHAINS
+    found = structures("3T2R", leg_types=["UPU", "RPUR"])
+    assert any("RPUR" in s.leg_counts for s in found)
+    assert pre.chain_kinds(list(found)) == pre.STRUCTURE_CHAINS
+    assert pre.chain_kinds([s for s in found if "RPUR" not in s.leg_counts]) == ()

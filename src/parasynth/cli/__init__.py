@@ -336,11 +336,28 @@ def _compile_early(path, quiet: bool) -> None:
         print(COMPILING, file=sys.stderr, flush=True)
 
 
+def _compile_chains_early(study) -> None:
+    """Once a structure study's structures are enumerated: when one of them has a chain limb and
+    the kernels of chain limbs were not started with the others (``leg_types`` not given, see
+    :func:`parasynth.engine.precompile.structure_kinds`), start them now, before the first
+    design asks for them."""
+    setup = getattr(study, "structures", None)
+    if setup is None or os.environ.get("PARASYNTH_COMPILE_AHEAD", "").strip() == "0":
+        return
+    from ..engine import core, precompile
+
+    if core.HAVE_NUMBA and precompile.early():  # an empty cache: the early helpers were started
+        kinds = precompile.chain_kinds(setup.structures.values())
+        if kinds:
+            precompile.start_early(kinds, processes=1)  # one helper for all of them
+
+
 def cmd_run(args) -> int:
     from ..study import run_study
 
     _compile_early(args.study, args.quiet)
     study = _checked_study(args.study)
+    _compile_chains_early(study)
     if args.resume:
         target = Path(args.out or study.spec.output or Path("runs") / study.name)
         shared = study.optimizer.plugin.uses_storage and (args.storage or study.optimizer.storage)

@@ -472,12 +472,14 @@ def _ahead(work):
     """The kernels to compile ahead of ``work`` (:mod:`parasynth.engine.precompile`): none
     when the pose
     kernel, which every compiled evaluation uses, is already in the cache (an installation
-    that compiled before: ``work`` compiles what it still needs itself). Off with
+    that compiled before: ``work`` compiles what it still needs itself); with the kernels
+    :func:`parasynth.engine.precompile.start_early` left to the work. Off with
     ``PARASYNTH_COMPILE_AHEAD=0``."""
     pre = _compiled()[3]
     if pre.in_cache("_pose_kernel") and not any(pre.early().values()):
         return []
-    return pre.missing(needs(work))
+    wanted = pre.missing(needs(work))
+    return wanted + [n for n in pre.left() if n not in wanted]  # and the work's share of start_early
 
 
 def warm_up(work, processes: int | None = None, **options) -> WarmUp:

@@ -36,8 +36,8 @@ from ..model.chains import ChainLeg
 from ..model.legs import LEG_TYPES
 from . import chains, closure, core, indices
 
-__all__ = ["KERNELS_OF", "LOCAL", "STRUCTURE_STUDY", "STRUCTURE_CHAINS", "structure_kinds", "signatures", "in_cache", "missing", "compile_ahead", "start_early",
-           "early", "stop_helpers", "main"]
+__all__ = ["KERNELS_OF", "LOCAL", "STRUCTURE_STUDY", "STRUCTURE_CHAINS", "structure_kinds", "chain_kinds", "signatures", "in_cache", "missing", "compile_ahead", "start_early",
+           "early", "left", "stop_helpers", "main"]
 
 #: Kernels behind each compiled entry point (the names of :data:`parasynth.engine.EXERCISES`).
 KERNELS_OF = {
@@ -69,6 +69,9 @@ _RUNNING: list = []
 #: Kernels being compiled by helpers started ahead of the work (:func:`start_early`): name ->
 #: the helper process compiling it.
 _EARLY: dict = {}
+#: Kernels :func:`start_early` left to the work (its :func:`compile_ahead` compiles them): not
+#: handed to a helper by a later call.
+_LEFT: set = set()
 
 #: The entry points the shipped structure studies ask for (``engine.needs`` of the warm-up
 #: design, the same for structures_1t2r, structures_2t2r and structures_3t2r: the workspace's
@@ -83,13 +86,25 @@ STRUCTURE_CHAINS = ("chains", "chain_closure")
 
 
 def structure_kinds(leg_types=None) -> tuple[str, ...]:
-    """The entry points a structure study of the limb types ``leg_types`` (None: the default
-    vocabulary) asks for: :data:`STRUCTURE_STUDY`, and :data:`STRUCTURE_CHAINS` when a chain
-    limb type is among them."""
+    """The entry points a structure study of the limb types ``leg_types`` asks for:
+    :data:`STRUCTURE_STUDY`, and :data:`STRUCTURE_CHAINS` when a chain limb type is among them.
+    None (the default vocabulary, chain limbs included) gives :data:`STRUCTURE_STUDY` alone:
+    whether a chain limb is among the structures kept is known only once they are enumerated
+    (:func:`chain_kinds` then; structures_1t2r keeps none, and its chain kernels would cost ~8 s
+    of compile on the core its interpreter kernels need)."""
     chain = {k for k, v in LEG_TYPES.items() if issubclass(v, ChainLeg)}
-    if leg_types is None or any(str(t) in chain for t in leg_types):
+    if leg_types is not None and any(str(t) in chain for t in leg_types):
         return STRUCTURE_STUDY + STRUCTURE_CHAINS
     return STRUCTURE_STUDY
+
+
+def chain_kinds(structures) -> tuple[str, ...]:
+    """:data:`STRUCTURE_CHAINS` when one of ``structures`` (enumerated structures,
+    :class:`parasynth.structures.Structure`) has a chain limb, else ()."""
+    chain = {k for k, v in LEG_TYPES.items() if issubclass(v, ChainLeg)}
+    if any(str(t) in chain for s in structures for t in s.leg_counts):
+        return STRUCTURE_CHAINS
+    return ()
 
 
 #: CPU seconds a helper process spends starting (Python, numba, parasynth).
@@ -143,7 +158,8 @@ def _helper_env() -> dict:
 def compile_ahead(names, processes: int | None = None, poll: float = 0.05) -> dict:
     """Compile kernels ``names`` (not yet cached) into numba's cache: those of :data:`LOCAL`
     here, the others in up to ``processes - 1`` helper processes (default: one fewer than the
-    cores, at least one; none on a single core) at the same time. Returns ``{"local": [...],
+    cores, at least one; none on a single core) at the same time, fewer by the helpers of
+    :func:`start_early` still running (it compiles them here when no core is left). Returns ``{"local": [...],
     "helpers": [[...], ...], "failed": [...]}`` (kernels of helpers that did not finish).
     Helpers still running when this returns or raises (an interrupt) are terminated."""
     names = list(names)
@@ -154,9 +170,11 @@ def compile_ahead(names, processes: int | None = None, poll: float = 0.05) -> di
     names = [n for n in names if n not in pending and not (n in _EARLY and in_cache(n))]
     local = [n for n in names if n in LOCAL]
     rest = [n for n in names if n not in LOCAL]
-    if processes < 2:
+    # cores left for new helpers: one for this process, one for each early helper still running
+    free = processes - 1 - len({id(p) for p in pending.values()})
+    if free < 1:
         local, rest = local + rest, []
-    shares = _shares(rest, min(max(1, processes - 1), len(rest))) if rest else []
+    shares = _shares(rest, min(free, len(rest))) if rest else []
     procs = []
     try:
         env = _helper_env()
@@ -185,24 +203,40 @@ def compile_ahead(names, processes: int | None = None, poll: float = 0.05) -> di
         _stop([p for _, p in procs])
 
 
-def start_early(kinds, processes: int | None = None) -> list[list[str]]:
-    """Start compiling, in helper processes, the kernels of the entry points ``kinds`` (names
+def start_early(kinds, processes: int | None = None, busy: float = 5.0) -> list[list[str]]:
+    """Start compiling, in a helper process, the kernels of the entry points ``kinds`` (names
     of :data:`KERNELS_OF`) that are neither compiled nor cached, and return at once: for work
     that has something else to do first (a structure study enumerates its structures, several
-    seconds of Python on one core, before its first design). The interpreter kernels go to one
-    helper (they share the expression interpreter), the others to a second one (with at least
-    two cores; one helper on one core). :func:`compile_ahead` later waits for the kernels they
-    compile instead of compiling them again. Returns the kernels of each helper started ([]
-    when everything is cached). Helpers still running at the end of the process are
+    seconds of Python on one core, before its first design). The work and the helper then
+    share the cores: the interpreter kernels go to the helper (they share the expression
+    interpreter, compiled once there), the other kernels, longest first, to whichever of the
+    helper and the work has less to do, the work counted as ``busy`` seconds of its own first
+    (:data:`_COST`); the work's share is not started here but left to :func:`compile_ahead`,
+    which compiles it in the calling process while the helper runs. So no more processes
+    compile than there are cores: a third process on two cores would slow the helper, whose
+    interpreter kernels are the longest compile (docs/performance.md). On one core the helper
+    takes every kernel. :func:`compile_ahead` later waits for the helper's kernels instead of
+    compiling them again. Returns the kernels of each helper started ([] when everything is
+    cached or left to the work). Helpers still running at the end of the process are
     terminated (what they finished is in the cache)."""
-    names = [n for n in missing(kinds) if n not in _EARLY]
+    names = [n for n in missing(kinds) if n not in _EARLY and n not in _LEFT]
     if not names:
         return []
     if processes is None:
         processes = os.cpu_count() or 1
     interp = [n for n in names if n in LOCAL]
     rest = [n for n in names if n not in LOCAL]
-    shares = [s for s in ((interp, rest) if processes >= 2 else (interp + rest,)) if s]
+    if processes < 2:
+        shares = [interp + rest]
+    else:
+        helper = [sum(_COST.get(n, 5.0) for n in interp), list(interp)]
+        work = [float(busy), []]
+        for name in sorted(rest, key=lambda k: -_COST.get(k, 5.0)):
+            b = min((helper, work), key=lambda b: b[0])  # the helper on a tie: the work has its own first
+            b[0] += _COST.get(name, 5.0)
+            b[1].append(name)
+        shares = [helper[1]] if helper[1] else []
+        _LEFT.update(work[1])
     env = _helper_env()
     for share in shares:
         p = subprocess.Popen([sys.executable, "-m", "parasynth.engine.precompile", *share], env=env,
@@ -223,6 +257,13 @@ def early() -> dict:
     """{kernel: running} of the kernels :func:`start_early` handed to helpers (running: its
     helper has not finished)."""
     return {n: p.poll() is None for n, p in _EARLY.items()}
+
+
+def left() -> list[str]:
+    """The kernels :func:`start_early` left to the work that are not compiled yet: the work's
+    :func:`compile_ahead` compiles them with what its first design needs (a structure study's
+    later structures may need them, its first design not)."""
+    return [n for n in sorted(_LEFT) if not in_cache(n)]
 
 
 def _stop(procs) -> None:
