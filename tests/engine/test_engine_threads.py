@@ -159,3 +159,51 @@ def test_the_waits_spin_kernel_sees_another_threads_write():
     core._wait(fin)  # returns once the other thread wrote (spinning, then sleeping)
     t.join()
     assert fin.all() and core._spin_done(fin, 1)
+
+
+def test_blocking_by_work():
+    """A batch's work, not its count of poses, decides the threads: a few thousand poses of a
+    program kernel of many instructions (a 1T2R structure's solved parasitic coordinates) are
+    spread over threads; the cheapest programs keep the threshold of PARALLEL_MIN poses; a
+    batch of one sub-block never is."""
+    assert core.program_work(1000, 23) == 1000  # the reference's programs: the poses themselves
+    assert core.program_work(2048, 1667) > 25 * 2048  # ~1 us a pose
+    assert not core.blocking(2048, 2)[2]
+    assert core.blocking(2048, 2, work=core.program_work(2048, 1667))[2]
+    assert not core.blocking(2048, 1, work=core.program_work(2048, 1667))[2]  # one thread
+    assert not core.blocking(core.SUB, 2, work=1e9)[2]  # nothing to split
+    block, nblk, par = core.blocking(core.SUB + 1, 2, work=1e9)
+    assert par and nblk == 2 and block == core.SUB
+    assert not core.blocking(core.PARALLEL_MIN - 1, 2, work=core.program_work(core.PARALLEL_MIN - 1, 8))[2]
+
+
+def test_small_batches_of_costly_kernels_answer_as_one_thread(monkeypatch):
+    """A 3-RPS of structures("1T2R") (its pose program solves x, y, gamma) and a 6-SPU of chain
+    limbs at 1,500 poses: on three threads (the work-based split) the same answers as on one."""
+    import warnings
+
+    import parasynth
+    from parasynth import engine
+    from parasynth.model.mechanism import EngineFallbackWarning
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", EngineFallbackWarning)
+        rps = next(s for s in parasynth.structures("1T2R") if s.name == "3-RPS").mechanism()
+        spu = parasynth.structures("3T3R", leg_types=["SPU"], legs=[6])[0].mechanism()
+    monkeypatch.setattr(core, "ADAPTIVE", False)  # threads whether they pay now or not
+    for m in (rps, spu):
+        lo, hi = (np.array(v) for v in zip(*[m.default_ranges()[k] for k in m.task_coordinates]))
+        X = lo + (hi - lo) * np.random.default_rng(4).uniform(0, 1, (1500, len(lo)))
+        monkeypatch.setattr(core, "n_threads", lambda: 3)
+        split = []
+        over = core.over_blocks
+        monkeypatch.setattr(core, "over_blocks", lambda fn, nb, par=True: (split.append(par and nb > 1), over(fn, nb, par))[1])
+        f3, m3 = engine.feasible(m, X), engine.margins(m, X)
+        monkeypatch.setattr(core, "over_blocks", over)
+        assert any(split), m.name  # some batch was spread over threads
+        monkeypatch.setattr(core, "n_threads", lambda: 1)
+        f1, m1 = engine.feasible(m, X), engine.margins(m, X)
+        assert 0 < f1.sum() < len(X), m.name
+        assert np.array_equal(f3, f1)
+        for k in m1:
+            assert np.array_equal(m3[k], m1[k], equal_nan=True), k

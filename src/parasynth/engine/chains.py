@@ -55,7 +55,7 @@ from ..model.constraints import PoseContext
 from ..model.legs import LegState
 from ..model.spatial import unit
 from . import core
-from .core import HAVE_NUMBA, Unsupported, blocking, over_blocks
+from .core import HAVE_NUMBA, Unsupported
 
 __all__ = ["covers", "chain_legs", "context", "solve", "solve_arrays", "feasible", "margins", "signatures",
            "closure_solve", "closure_residuals", "REACH_FACTOR"]
@@ -63,6 +63,11 @@ __all__ = ["covers", "chain_legs", "context", "solve", "solve_arrays", "feasible
 #: A pose is reachable when the solve's residual is below ``REACH_FACTOR * IK_TOL`` (as
 #: ``ChainLeg.solve``).
 REACH_FACTOR = 1e3
+#: A chain limb's solve costs ~2 us a pose on one core (1.8-2.4 us measured for the eight chain
+#: limb types, ``benchmarks/structures.py --chains``): ~60 poses of the cheapest program kernel
+#: (:func:`parasynth.engine.core.program_work`), so a batch is spread over threads from ~140
+#: poses up.
+CHAIN_WORK = 2000.0 / core.REFERENCE_NS
 
 if HAVE_NUMBA:  # pragma: no branch
     from numba import njit
@@ -464,8 +469,8 @@ def solve_arrays(leg: ChainLeg, p, R, frames: bool = False) -> dict:
     FR = np.empty((N if frames else 0, n + 1, 3, 3))
     args = (P, Rm, _c(d["kinds"], np.int64), _c(d["axes"]), _c(d["points"]), _c(d["home"]), _c(d["platform"]),
             float(d["length"]), int(IK_ITERATIONS), float(IK_TOL), Q, res, POS, AXW, PTW, FR)
-    block, nblk, par = blocking(N)
-    over_blocks(lambda b0, b1: _chain_kernel(*args, b0 * block, min(N, b1 * block)), nblk, par)
+    core._timed_blocks("chain", lambda block, b0, b1: _chain_kernel(*args, b0 * block, min(N, b1 * block)), N,
+                       N * CHAIN_WORK)
     out = {"q": Q, "residual": res, "position": POS, "axes": AXW, "points": PTW}
     if frames:
         out["frames"] = FR
@@ -512,8 +517,8 @@ def closure_solve(leg: ChainLeg, p, R, iterations: int = CLOSURE_ITERATIONS):
     Rm = _c(Rm)
     args = (T, Rm, _c(d["kinds"], np.int64), _c(d["axes"]), _c(d["points"]), _c(d["home"]), float(d["length"]),
             int(iterations), Q, E)
-    block, nblk, par = blocking(N)
-    over_blocks(lambda b0, b1: _closure_kernel(*args, b0 * block, min(N, b1 * block)), nblk, par)
+    core._timed_blocks("chain_closure", lambda block, b0, b1: _closure_kernel(*args, b0 * block, min(N, b1 * block)),
+                       N, N * CHAIN_WORK)
     leg.closure_store(target, Rm, Q)
     return Q, E
 

@@ -141,16 +141,39 @@ def set_threads(n: int | None) -> None:
     _THREADS = n
 
 
-def blocking(n: int, threads: int | None = None, kind: str | None = None) -> tuple[int, int, bool]:
+#: What a pose costs the program kernels (feasibility, margins, pose) on one core, ~``POSE_NS +
+#: INSTRUCTION_NS * instructions`` ns, against ``REFERENCE_NS`` for the cheapest described
+#: mechanism (the quick start's 5-PUS/UPU, 23 instructions): measured 26-37 ns a pose for
+#: programs of 8-23 instructions (closed-form legs) and 1,040-1,960 ns for the 1,667-3,511 of
+#: the 1T2R structures, whose parasitic coordinates the program solves by an unrolled
+#: Gauss-Newton (0.55-0.63 ns an instruction; docs/performance.md). A batch's work in
+#: reference poses (:func:`program_work`) decides whether threads pay for it, not its count of
+#: poses: 2048 poses of a 3-RPS are ~60,000 of the quick start's.
+POSE_NS = 20.0
+INSTRUCTION_NS = 0.6
+REFERENCE_NS = 34.0
+
+
+def program_work(n: int, n_instructions: int) -> float:
+    """The work of ``n`` poses of a program of ``n_instructions``, in poses of the reference
+    mechanism (never fewer than ``n``)."""
+    return n * max(1.0, (POSE_NS + INSTRUCTION_NS * n_instructions) / REFERENCE_NS)
+
+
+def blocking(n: int, threads: int | None = None, kind: str | None = None,
+             work: float | None = None) -> tuple[int, int, bool]:
     """``(block, n_blocks, parallel)`` for a batch of ``n`` poses: on the calling thread in
-    blocks of BLOCK poses below PARALLEL_MIN (or with one thread, or when :data:`TIMING` finds
-    that threads do not pay for the kernel ``kind`` now), else in ITEMS_PER_THREAD blocks per
-    thread (a multiple of SUB; a block's scratch is of SUB poses, so its size costs nothing).
-    The result does not depend on the blocking: every pose is computed alone."""
+    blocks of BLOCK poses below PARALLEL_MIN poses' work (``work``: the batch's work in poses
+    of the cheapest kernel, :func:`program_work`; default ``n``), or for SUB poses or fewer, or
+    with one thread, or when :data:`TIMING` finds that threads do not pay for the kernel
+    ``kind`` now; else in ITEMS_PER_THREAD blocks per thread (a multiple of SUB; a block's
+    scratch is of SUB poses, so its size costs nothing). The result does not depend on the
+    blocking: every pose is computed alone."""
     nt = n_threads() if threads is None else threads
-    if nt <= 1 or n < PARALLEL_MIN or getattr(_IN_POOL, "active", False):
+    w = n if work is None else max(float(n), float(work))
+    if nt <= 1 or w < PARALLEL_MIN or n <= SUB or getattr(_IN_POOL, "active", False):
         return BLOCK, max(1, (n + BLOCK - 1) // BLOCK), False
-    if threads is None and kind is not None and not TIMING.threads_pay(kind, n):
+    if threads is None and kind is not None and not TIMING.threads_pay(kind, int(w)):
         return BLOCK, (n + BLOCK - 1) // BLOCK, False
     per = -(-n // (ITEMS_PER_THREAD * nt))
     block = max(SUB, -(-per // SUB) * SUB)  # rounded up: at most ITEMS_PER_THREAD items a thread
@@ -203,13 +226,14 @@ ADAPTIVE = True
 TIMING = _Timing()
 
 
-def _timed_blocks(kind: str, fn, n: int) -> None:
-    """``over_blocks`` of ``fn`` over a batch of ``n`` poses, blocked by :func:`blocking`;
-    ``fn(block, b0, b1)``. The batch's time goes to :data:`TIMING`."""
-    block, nblk, par = blocking(n, kind=kind)
+def _timed_blocks(kind: str, fn, n: int, work: float | None = None) -> None:
+    """``over_blocks`` of ``fn`` over a batch of ``n`` poses (``work``: in poses of the cheapest
+    kernel, see :func:`blocking`), blocked by :func:`blocking`; ``fn(block, b0, b1)``. The
+    batch's time goes to :data:`TIMING` (by its work)."""
+    block, nblk, par = blocking(n, kind=kind, work=work)
     t0 = time.perf_counter()
     over_blocks(lambda b0, b1: fn(block, b0, b1), nblk, par)
-    TIMING.record(kind, par, n, time.perf_counter() - t0)
+    TIMING.record(kind, par, int(max(n, work or 0)), time.perf_counter() - t0)
 
 
 _IN_POOL = threading.local()
@@ -841,7 +865,7 @@ def run_feasible(plan: KernelPlan, X: np.ndarray, extents: bool = False):
         ext = _NO_EXT
     args = plan.args()
     _timed_blocks("feasible", lambda block, b0, b1: _feasible_kernel(X, *args, block, out, amb, ext, b0, b1),
-                  X.shape[0])
+                  X.shape[0], program_work(X.shape[0], plan.program.ins.shape[0]))
     if not extents:
         return out, bool(amb.any())
     return out, bool(amb.any()), ext[:, :3].min(axis=0), ext[:, 3:].max(axis=0)
@@ -853,7 +877,8 @@ def run_margins(plan: KernelPlan, X: np.ndarray):
     M = np.empty((X.shape[0], len(plan.names)))
     amb = np.zeros(max(1, (X.shape[0] + SUB - 1) // SUB), dtype=np.int64)  # one per block, any blocking
     args = plan.args()
-    _timed_blocks("margins", lambda block, b0, b1: _margins_kernel(X, *args, block, M, amb, b0, b1), X.shape[0])
+    _timed_blocks("margins", lambda block, b0, b1: _margins_kernel(X, *args, block, M, amb, b0, b1), X.shape[0],
+                  program_work(X.shape[0], plan.program.ins.shape[0]))
     return M, bool(amb.any())
 
 
@@ -874,7 +899,7 @@ def run_unknowns(prog: Program, consts, X: np.ndarray):
     Tw = np.empty((0, 0, 0))
     _timed_blocks("pose", lambda block, b0, b1: _pose_kernel(X, prog.ins, consts, prog.const_base, prog.n_reg,
                                                              prog.n_pose, regs, prog.valid_regs, prog.pose_limit, tr,
-                                                             block, ok, P, Rm, Tw, b0, b1), N)
+                                                             block, ok, P, Rm, Tw, b0, b1), N, program_work(N, prog.n_pose))
     return ok, np.concatenate([P, Rm], axis=1)[:, :m].copy()
 
 
@@ -895,7 +920,8 @@ def run_pose(prog: Program, consts, X: np.ndarray, twist: bool = False):
         n_run = prog.n_pose
     _timed_blocks("pose", lambda block, b0, b1: _pose_kernel(X, prog.ins, consts, prog.const_base, prog.n_reg, n_run,
                                                              prog.pose_regs, prog.valid_regs, prog.pose_limit, tr,
-                                                             block, ok, P, Rm, Tw, b0, b1), N)
+                                                             block, ok, P, Rm, Tw, b0, b1), N,
+                  program_work(N, prog.ins.shape[0] if twist else prog.n_pose))
     return ok, P, Rm.reshape(N, 3, 3), (Tw if twist else None)
 
 
