@@ -94,3 +94,56 @@ def test_de_runner_improves_on_the_centre_of_a_real_study():
     assert len(records) == 24 and all(r.status == "ok" for r in records)
     best = max(r.objectives["volume"] for r in records)
     assert best > centre.objectives["volume"]
+
+
+SHARED = """
+name: shared_measure
+mechanism: 5pus_upu
+variables:
+  - {name: link_length, low: 160 mm, high: 240 mm}
+objectives:
+  - {name: singularity_margin_min, label: margin_q05, goal: maximize, settings: {quantile: 0.05}}
+  - {name: singularity_margin_min, label: margin_q10, goal: maximize, settings: {quantile: 0.10}}
+constraints:
+  - {name: singularity_margin_min, label: margin_min, min: 0.001, settings: {quantile: 0.05}}
+  - {name: singularity_margin_min, label: margin_small, min: 0.001, settings: {quantile: 0.05, n: 256}}
+evaluation:
+  samples: 512
+  seed: 0
+  ranges: {x: [-200 mm, 200 mm], y: [-200 mm, 200 mm], z: [-450 mm, 300 mm]}
+optimizer: {kind: optuna, n_trials: 4, seed: 3}
+"""
+
+
+def test_a_measure_asked_twice_with_the_same_arguments_is_computed_once(tmp_path, monkeypatch):
+    """A constraint and an objective of the same measure and settings share one computation;
+    other settings (a quantile, a sample size) are computed apart; and every value is the one
+    the measure gives alone."""
+    from parasynth.measures import objectives as obj
+    from parasynth.study.evaluate import Evaluator
+
+    f = tmp_path / "s.yaml"
+    f.write_text(SHARED)
+    problem = Problem(load_study(f))
+    values = {"link_length": 0.2}
+    m = obj.get("singularity_margin_min")
+    calls = []
+    value = Evaluator._value
+
+    def counted(item, mech, args, rec, bound=None, probability=None):
+        calls.append(item.label)
+        return value(item, mech, args, rec, bound=bound, probability=probability)
+
+    monkeypatch.setattr(Evaluator, "_value", staticmethod(counted))
+    rec = problem.evaluate(values)
+    assert rec.status == "ok", rec.error
+    # margin_min and margin_q05 once; margin_q10 (another quantile) and margin_small (another sample) apart
+    assert sorted(calls) == ["margin_min", "margin_q10", "margin_small"]
+    assert rec.objectives["margin_q05"] == rec.constraint_values["margin_min"]
+    monkeypatch.setattr(Evaluator, "_value", staticmethod(value))
+    mech = problem.evaluator.build(values)
+    sample = problem.evaluator.sample()
+    alone = m(mech, sample=sample, quantile=0.05)
+    assert rec.objectives["margin_q05"] == alone
+    assert rec.objectives["margin_q10"] == m(mech, sample=sample, quantile=0.10)
+    assert rec.objectives["margin_q10"] > rec.objectives["margin_q05"]

@@ -70,6 +70,20 @@ class Record:
                    trial=d.get("trial", -1), source=d.get("source", "run"), robust=d.get("robust", {}))
 
 
+def _frozen(v):
+    """A hashable stand-in for a measure's argument ``v``: plain values by type and value,
+    containers item by item, any other object by identity."""
+    if isinstance(v, float):
+        return ("float", v.hex())  # exactly: -0.0 is not 0.0, and a NaN is itself
+    if v is None or isinstance(v, (bool, int, str)):
+        return (type(v).__name__, v)
+    if isinstance(v, (list, tuple)):
+        return (type(v).__name__,) + tuple(_frozen(x) for x in v)
+    if isinstance(v, dict):
+        return ("dict",) + tuple(sorted((str(k), _frozen(x)) for k, x in v.items()))
+    return ("id", id(v))
+
+
 class Evaluator:
     """Evaluates designs of a resolved study with its evaluation settings.
 
@@ -113,14 +127,15 @@ class Evaluator:
             if self.require_reachable and task is not None and self._task_item is not None:
                 self._check_reachable(mech, task, sample, pinned)
             cons = sorted(self.study.constraints, key=lambda c: get_measure(c.name).cost != "cheap")
+            memo = {}  # a measure asked twice with the same arguments (a constraint and an objective)
             for c in cons:
                 args = measure_arguments(self.study, c.name, c.settings, sample, pinned, task)
-                v = self._value(c, mech, args, rec, bound=c.bound, probability=c.probability)
+                v = self._once(memo, c, mech, args, rec, bound=c.bound, probability=c.probability)
                 rec.constraint_values[c.label] = v
                 rec.margins[c.label] = c.margin(v) if math.isfinite(v) else -math.inf
             for o in self.study.objectives:
                 args = measure_arguments(self.study, o.name, o.settings, sample, pinned, task)
-                v = self._value(o, mech, args, rec)
+                v = self._once(memo, o, mech, args, rec)
                 if not math.isfinite(v):
                     raise FloatingPointError(f"objective {o.label!r} is not finite ({v})")
                 rec.objectives[o.label] = v
@@ -142,6 +157,26 @@ class Evaluator:
         if not ev.feasible.any():
             raise RequirementError(f"reaches none of the task's {task.n_poses} required poses (none reachable with "
                                    "every pose constraint met); its task measures would have no pose to hold on")
+
+    @classmethod
+    def _once(cls, memo: dict, item, mech, args, rec, bound=None, probability=None) -> float:
+        """:meth:`_value`, computed once per design for a measure without a ``robust`` block
+        asked again with the same arguments (the structure studies' margin quantile is both an
+        objective and a constraint): measures are functions of the design and their
+        arguments, so the value is the same. Arguments other than plain values (the workspace
+        sample, the task) are compared by identity, and kept alive in ``memo`` meanwhile."""
+        key = None
+        if getattr(item, "robust", None) is None:
+            try:
+                key = (item.name, _frozen(args))
+            except TypeError:
+                key = None
+        if key is not None and key in memo:
+            return memo[key][0]
+        v = cls._value(item, mech, args, rec, bound=bound, probability=probability)
+        if key is not None:
+            memo[key] = (v, args)
+        return v
 
     @staticmethod
     def _value(item, mech, args, rec, bound=None, probability=None) -> float:
