@@ -309,3 +309,30 @@ def test_euler_matrix_and_rate_is_both_functions_exactly():
         assert np.allclose(omega, E[0] @ rates, atol=1e-7)
     with pytest.raises(ValueError, match="convention"):
         euler_matrix_and_rate("abc", a)
+
+
+def test_cross_and_axis_rotations_are_bit_for_bit_numpys():
+    """spatial.cross against np.cross and rot_x/y/z against the matrices written out with
+    np.stack (their earlier form): the same bits, broadcast shapes and signed zeros included."""
+    from parasynth.model.spatial import cross, rot_x, rot_y, rot_z
+
+    rng = np.random.default_rng(8)
+    for sa, sb in [((3,), (3,)), ((5, 3), (3,)), ((3,), (4, 3)), ((2, 5, 3), (5, 3)), ((1, 3), (7, 3))]:
+        a = rng.normal(size=sa) * 10.0 ** rng.integers(-8, 8, size=sa)
+        b = rng.normal(size=sb)
+        assert np.array_equal(cross(a, b), np.cross(a, b))
+        assert cross(a, b).tobytes() == np.cross(a, b).tobytes()
+    z = np.array([0.0, -0.0, 1.0])
+    assert cross(z, [1.0, 0.0, 0.0]).tobytes() == np.cross(z, [1.0, 0.0, 0.0]).tobytes()  # signed zeros
+    a = np.concatenate([rng.uniform(-7, 7, 40), [0.0, -0.0, np.pi, -np.pi / 2]])
+    c, s = np.cos(a), np.sin(a)
+    o, n = np.ones_like(a), np.zeros_like(a)
+    old = {
+        rot_x: np.stack([np.stack([o, n, n], -1), np.stack([n, c, -s], -1), np.stack([n, s, c], -1)], -2),
+        rot_y: np.stack([np.stack([c, n, s], -1), np.stack([n, o, n], -1), np.stack([-s, n, c], -1)], -2),
+        rot_z: np.stack([np.stack([c, -s, n], -1), np.stack([s, c, n], -1), np.stack([n, n, o], -1)], -2),
+    }
+    for f, M in old.items():
+        assert f(a).tobytes() == M.tobytes()
+        assert f(a[3]).shape == (3, 3) and f(a[3]).tobytes() == M[3].tobytes()
+        assert f(a.reshape(4, 11)).shape == (4, 11, 3, 3)

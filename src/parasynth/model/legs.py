@@ -27,7 +27,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from .spatial import couple_wrench, dot_rows, force_wrench, null_space, prismatic_twist, revolute_twist, rotate_rows, unit
+from .spatial import couple_wrench, cross, dot_rows, force_wrench, null_space, prismatic_twist, revolute_twist, rotate_rows, unit
 
 __all__ = [
     "Leg",
@@ -80,15 +80,15 @@ def _axis(name: str, v) -> np.ndarray:
 
 def _angle_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Angle (rad) between unit vectors along the last axis, robust near 0 and pi."""
-    cross = np.linalg.norm(np.cross(a, b), axis=-1)
+    sin = np.linalg.norm(cross(a, b), axis=-1)
     dot = np.sum(a * b, axis=-1)
-    return np.arctan2(cross, dot)
+    return np.arctan2(sin, dot)
 
 
 def _perp_unit(a: np.ndarray, n: np.ndarray) -> np.ndarray:
     """Unit vector along ``a x n`` (the cross axis of a U joint with fixed axis ``a`` whose
     link lies along ``n``)."""
-    return unit(np.cross(a, n))
+    return unit(cross(a, n))
 
 
 #: The parts of parasynth that may support a leg type, with what each one means. A leg type
@@ -417,15 +417,15 @@ def _u_angles(a1: np.ndarray, ref: np.ndarray, n: np.ndarray, prefix: str) -> di
     ``n == ref``."""
     if np.ndim(a1) == 2:  # one axis per pose (scatter draws stacked, parasynth.measures.robustness)
         r0 = unit(ref - dot_rows(a1, ref)[:, None] * a1)
-        b = np.cross(a1, r0)
+        b = cross(a1, r0)
         ang1 = np.arctan2(dot_rows(n, b), dot_rows(n, r0))
         ang2 = (np.arcsin(np.clip(dot_rows(n, a1), -1.0, 1.0))
                 - np.arcsin(np.clip(dot_rows(a1, unit(ref)), -1.0, 1.0)))
         return {f"{prefix}_1": ang1, f"{prefix}_2": ang2}
     r0 = unit(ref - np.dot(ref, a1) * a1)
     if not np.any(r0):
-        r0 = unit(np.cross(a1, [1.0, 0, 0]) if abs(a1[0]) < 0.9 else np.cross(a1, [0, 1.0, 0]))
-    b = np.cross(a1, r0)
+        r0 = unit(cross(a1, [1.0, 0, 0]) if abs(a1[0]) < 0.9 else cross(a1, [0, 1.0, 0]))
+    b = cross(a1, r0)
     ang1 = np.arctan2(n @ b, n @ r0)
     ang2 = np.arcsin(np.clip(n @ a1, -1.0, 1.0)) - np.arcsin(np.clip(unit(ref) @ a1, -1.0, 1.0))
     return {f"{prefix}_1": ang1, f"{prefix}_2": ang2}
@@ -620,7 +620,7 @@ class RPU(Leg):
             angles["R_base"] = _u_angles(self.r_axis, self.base_ref, n, "R")["R_1"]
             # Platform universal joint: rotation about the leg-side axis (parallel to r_axis)
             # between the leg and the platform axis, minus 90 deg at the perpendicular neutral.
-            angles["U_platform_1"] = np.arctan2(dot_rows(np.cross(n, a4), self.r_axis), np.sum(n * a4, -1)) - np.pi / 2
+            angles["U_platform_1"] = np.arctan2(dot_rows(cross(n, a4), self.r_axis), np.sum(n * a4, -1)) - np.pi / 2
         return LegState(length, reachable, B, A, n, length, angles, {"off_plane": off_plane, "a4": a4})
 
     def joint_twists(self, st, P):
@@ -640,7 +640,7 @@ class RPU(Leg):
         N = st.length.shape[0]
         a = np.broadcast_to(self.r_axis, (N, 3))
         f = force_wrench(a, st.platform_point, P)
-        c = couple_wrench(unit(np.cross(a, st.extra["a4"])))
+        c = couple_wrench(unit(cross(a, st.extra["a4"])))
         return np.stack([f, c], axis=1)
 
 
@@ -703,9 +703,9 @@ class UPU(Leg):
     def constraint_residuals(self, A, R):
         """The twist (rad) about the leg line between the cross axes of the two U joints."""
         n = unit(A - self.base)
-        cb = unit(np.cross(self.u_axis, n))
-        cp = unit(np.cross(rotate_rows(R, self.u_platform_axis), n))
-        return [np.arctan2(np.sum(np.cross(cb, cp) * n, -1), np.sum(cb * cp, -1))]
+        cb = unit(cross(self.u_axis, n))
+        cp = unit(cross(rotate_rows(R, self.u_platform_axis), n))
+        return [np.arctan2(np.sum(cross(cb, cp) * n, -1), np.sum(cb * cp, -1))]
 
     def constraint_wrenches(self, st, P, length_scale: float | None = None):
         T = self.joint_twists(st, P)
@@ -865,9 +865,9 @@ class RUS(Leg):
         object.__setattr__(self, "r_axis", a)
         c = self.crank_direction
         if c is None:
-            c = np.cross(a, [0.0, 0.0, 1.0])
+            c = cross(a, [0.0, 0.0, 1.0])
             if np.linalg.norm(c) < 1e-9:
-                c = np.cross(a, [0.0, 1.0, 0.0])
+                c = cross(a, [0.0, 1.0, 0.0])
         c = _vec3(f"leg {self.name}: crank_direction", c)
         c = c - (c @ a) * a
         if np.linalg.norm(c) < 1e-9:
@@ -884,14 +884,14 @@ class RUS(Leg):
     def _crank(self, t: np.ndarray) -> np.ndarray:
         """Unit crank directions (N, 3) at crank angles ``t``."""
         c0 = self.crank_direction
-        c1 = np.cross(self.r_axis, c0)
+        c1 = cross(self.r_axis, c0)
         return np.cos(t)[:, None] * c0 + np.sin(t)[:, None] * c1
 
     def solve(self, p, R, joint_angles: bool = True):
         S = self.platform_points(p, R)
         h, L = float(self.crank_length), float(self.link_length)
         c0 = self.crank_direction
-        c1 = np.cross(self.r_axis, c0)
+        c1 = cross(self.r_axis, c0)
         d = S - self.base
         # |d - h c(t)|^2 = L^2  <=>  P cos t + Q sin t = K
         P, Q = d @ c0, d @ c1
@@ -907,7 +907,7 @@ class RUS(Leg):
         angles = {}
         if joint_angles:
             angles = self._cone_angles(n, R, "U_base", "S_platform")
-            tangent = np.cross(np.broadcast_to(self.r_axis, C.shape), C - self.base)
+            tangent = cross(np.broadcast_to(self.r_axis, C.shape), C - self.base)
             angles["link_crank"] = _angle_between(n, unit(tangent))
         return LegState(t, reachable, C, S, n, np.full(t.shape, L), angles)
 
@@ -925,7 +925,7 @@ class RUS(Leg):
         # t' r_axis x (C - base), so n.(v_S - t' r_axis x (C - base)) = 0 gives
         # t' = (n . v_S) / (n . (r_axis x (C - base))).
         w = force_wrench(st.direction, st.platform_point, P)
-        tangent = np.cross(np.broadcast_to(self.r_axis, st.base_point.shape), st.base_point - self.base)
+        tangent = cross(np.broadcast_to(self.r_axis, st.base_point.shape), st.base_point - self.base)
         return w, np.einsum("ij,ij->i", st.direction, tangent)
 
 

@@ -34,7 +34,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .spatial import dot_rows, rotate_rows
+from .spatial import cross, dot_rows, rotate_rows
 
 __all__ = ["CLOSURE_COUNTS", "closure_count", "closure_residuals", "closure_geometry", "closure_jacobian", "GEOMETRY_WIDTH", "gauss_newton", "implicit_gradient",
            "ParasiticError", "SOLVE_KEY", "SOLVE_TOL", "SOLVE_ITERATIONS", "HOME_ITERATIONS"]
@@ -113,7 +113,7 @@ def _leg_residuals(leg, p, R, L, chain=None):
         d = A - leg.base
         n = d / np.maximum(np.linalg.norm(d, axis=-1, keepdims=True), 1e-300)
         a4 = rotate_rows(R, leg.u_platform_axis)
-        return [np.einsum("ij,ij->i", np.cross(np.broadcast_to(leg.u_axis, n.shape), n), a4)]
+        return [np.einsum("ij,ij->i", cross(np.broadcast_to(leg.u_axis, n.shape), n), a4)]
     if closure_count(leg) == 0:
         return []
     raise ParasiticError(f"leg {leg.name}: closure equations of {j!r} are not implemented")  # pragma: no cover
