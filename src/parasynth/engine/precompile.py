@@ -59,8 +59,13 @@ KERNELS_OF = {
 #: process compiling one of them compiles too (compiled once here for all three).
 LOCAL = ("_pose_kernel", "_feasible_kernel", "_margins_kernel")
 
-# Rough cold-compile CPU seconds (5pus_upu, 2-core development machine), to share the work.
-_COST = {"_spin_done": 0.3, "_pose_kernel": 6.5, "_feasible_kernel": 10.0, "_margins_kernel": 10.0, "_upu_mean_lengths": 0.5,
+# Rough cold-compile CPU seconds (5pus_upu, 2-core development machine), to share the work;
+# those of the interpreter kernels (LOCAL) without the expression interpreter they share, which
+# the first of them compiled in a process compiles (~2.8 s; numba caches it on the way, so a
+# later one in another process loads it): pose 5.1 s and feasibility 11.7 s each alone,
+# feasibility 8.9 s once the interpreter is cached.
+_INTERPRETER = 2.8
+_COST = {"_spin_done": 0.3, "_pose_kernel": 2.3, "_feasible_kernel": 8.9, "_margins_kernel": 8.9, "_upu_mean_lengths": 0.8,
          "_margin_kernel": 5.0, "_constraint_rank_kernel": 4.5, "_lti_kernel": 6.0, "_kappa_kernel": 5.0,
          "_dir_kernel": 2.0, "_prep_kernel": 2.0, "_solve_kernel": 2.0, "_chain_kernel": 3.0,
          "_chain_rows_kernel": 3.0, "_closure_kernel": 2.5}
@@ -172,8 +177,8 @@ def compile_ahead(names, processes: int | None = None, poll: float = 0.05) -> di
     rest = [n for n in names if n not in LOCAL]
     # cores left for new helpers: one for this process, one for each early helper still running
     free = processes - 1 - len({id(p) for p in pending.values()})
-    if free < 1:
-        local, rest = local + rest, []
+    if free < 1:  # the interpreter kernels last: an early helper may have cached the interpreter by then
+        local, rest = rest + local, []
     shares = _shares(rest, min(free, len(rest))) if rest else []
     procs = []
     try:
@@ -208,14 +213,15 @@ def start_early(kinds, processes: int | None = None, busy: float = 5.0) -> list[
     of :data:`KERNELS_OF`) that are neither compiled nor cached, and return at once: for work
     that has something else to do first (a structure study enumerates its structures, several
     seconds of Python on one core, before its first design). The work and the helper then
-    share the cores: the interpreter kernels go to the helper (they share the expression
-    interpreter, compiled once there), the other kernels, longest first, to whichever of the
-    helper and the work has less to do, the work counted as ``busy`` seconds of its own first
-    (:data:`_COST`); the work's share is not started here but left to :func:`compile_ahead`,
-    which compiles it in the calling process while the helper runs. So no more processes
-    compile than there are cores: a third process on two cores would slow the helper, whose
-    interpreter kernels are the longest compile (docs/performance.md). On one core the helper
-    takes every kernel. :func:`compile_ahead` later waits for the helper's kernels instead of
+    share the cores: the longest interpreter kernel (the feasibility kernel) goes to the
+    helper, which compiles the expression interpreter with it (numba caches it there for the
+    others), the other kernels, longest first, to whichever of the helper and the work has
+    less to do, the work counted as ``busy`` seconds of its own first (:data:`_COST`); the
+    work's share is not started here but left to :func:`compile_ahead`, which compiles it in
+    the calling process while the helper runs (its interpreter kernels last, the interpreter
+    then loaded from the cache). So no more processes compile than there are cores: a third
+    process on two cores would slow the helper, whose kernel is the longest compile
+    (docs/performance.md). On one core the helper takes every kernel. :func:`compile_ahead` later waits for the helper's kernels instead of
     compiling them again. Returns the kernels of each helper started ([] when everything is
     cached or left to the work). Helpers still running at the end of the process are
     terminated (what they finished is in the cache)."""
@@ -229,9 +235,12 @@ def start_early(kinds, processes: int | None = None, busy: float = 5.0) -> list[
     if processes < 2:
         shares = [interp + rest]
     else:
-        helper = [sum(_COST.get(n, 5.0) for n in interp), list(interp)]
+        helper = [0.0, []]
         work = [float(busy), []]
-        for name in sorted(rest, key=lambda k: -_COST.get(k, 5.0)):
+        if interp:  # the longest interpreter kernel, and with it the interpreter, to the helper
+            first = max(interp, key=lambda k: _COST.get(k, 5.0))
+            helper = [_INTERPRETER + _COST.get(first, 5.0), [first]]
+        for name in sorted((n for n in names if n not in helper[1]), key=lambda k: -_COST.get(k, 5.0)):
             b = min((helper, work), key=lambda b: b[0])  # the helper on a tie: the work has its own first
             b[0] += _COST.get(name, 5.0)
             b[1].append(name)
