@@ -111,3 +111,28 @@ def test_structure_kinds_and_chain_kinds():
     assert any("RPUR" in s.leg_counts for s in found)
     assert pre.chain_kinds(list(found)) == pre.STRUCTURE_CHAINS
     assert pre.chain_kinds([s for s in found if "RPUR" not in s.leg_counts]) == ()
+
+
+def test_a_run_compiling_on_its_own_compiles_the_rank_kernel_with_the_margin(monkeypatch):
+    """On an empty cache a run that asks for the singularity margin compiles the structural
+    constraint rank's kernel too (precompile.WITH: the margin asks for the rank, which runs on
+    NumPy until its kernel is compiled); a structure study, whose early helpers are running, does
+    not (its compile has no room for it)."""
+    from parasynth.engine import precompile as pre
+
+    monkeypatch.setattr(engine, "needs", lambda work: {"feasible", "singularity_margin"})
+    monkeypatch.setattr(pre, "in_cache", lambda name: False)
+    monkeypatch.setattr(pre, "_EARLY", {})
+    monkeypatch.setattr(pre, "_LEFT", set())
+    alone = engine._ahead(lambda: None)
+    assert "_constraint_rank_kernel" in alone
+    assert {"_pose_kernel", "_feasible_kernel", "_margin_kernel"} <= set(alone)
+
+    class Running:
+        def poll(self):
+            return None
+
+    monkeypatch.setattr(pre, "_EARLY", {"_feasible_kernel": Running()})
+    early = engine._ahead(lambda: None)
+    assert "_constraint_rank_kernel" not in early
+    assert "_margin_kernel" in early

@@ -473,12 +473,16 @@ def _ahead(work):
     when the pose
     kernel, which every compiled evaluation uses, is already in the cache (an installation
     that compiled before: ``work`` compiles what it still needs itself); with the kernels
-    :func:`parasynth.engine.precompile.start_early` left to the work. Off with
+    :func:`parasynth.engine.precompile.start_early` left to the work, or, without such early
+    helpers, those its entry points use besides (``precompile.WITH``). Off with
     ``PARASYNTH_COMPILE_AHEAD=0``."""
     pre = _compiled()[3]
     if pre.in_cache("_pose_kernel") and not any(pre.early().values()):
         return []
-    wanted = pre.missing(needs(work))
+    kinds = needs(work)
+    wanted = pre.missing(kinds)
+    if not pre.early():  # a run compiling on its own: what its entry points use besides (precompile.WITH)
+        wanted += [n for n in pre.with_kernels(kinds) if n not in wanted]
     return wanted + [n for n in pre.left() if n not in wanted]  # and the work's share of start_early
 
 
@@ -510,6 +514,7 @@ def warm_up(work, processes: int | None = None, **options) -> WarmUp:
         ahead = _ahead(work) if core.HAVE_NUMBA else []
         if ahead:
             pre.compile_ahead(ahead, processes)
+            _NOT_CACHED.clear()  # ready() reads the cache again: those kernels are in it now
         return work()
 
     try:

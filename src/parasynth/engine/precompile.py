@@ -37,7 +37,7 @@ from ..model.legs import LEG_TYPES
 from . import chains, closure, core, indices
 
 __all__ = ["KERNELS_OF", "LOCAL", "STRUCTURE_STUDY", "STRUCTURE_CHAINS", "structure_kinds", "chain_kinds", "signatures", "in_cache", "missing", "compile_ahead", "start_early",
-           "early", "left", "stop_helpers", "main"]
+           "early", "left", "with_kernels", "stop_helpers", "main"]
 
 #: Kernels behind each compiled entry point (the names of :data:`parasynth.engine.EXERCISES`).
 KERNELS_OF = {
@@ -54,6 +54,14 @@ KERNELS_OF = {
     "chains": ("_chain_kernel", "_chain_rows_kernel"),
     "chain_closure": ("_closure_kernel",),
 }
+
+#: Kernels worth compiling with an entry point's own when a run compiles ahead on its own (no
+#: helpers of :func:`start_early`): the singularity margin asks for the design's structural
+#: constraint rank (one pose), which runs on NumPy until its kernel is compiled -- ~2 ms of a
+#: quick-start design's ~4 ms, against ~2.4 s of compile in the helper that compiles the
+#: margin kernel (its callees then cached), which has room beside the interpreter kernels of
+#: the calling process. A structure study's early compile has none (docs/performance.md).
+WITH = {"singularity_margin": ("_constraint_rank_kernel",)}
 
 #: Kernels compiled in the calling process: they run the expression interpreter, which each
 #: process compiling one of them compiles too (compiled once here for all three).
@@ -266,6 +274,13 @@ def early() -> dict:
     """{kernel: running} of the kernels :func:`start_early` handed to helpers (running: its
     helper has not finished)."""
     return {n: p.poll() is None for n, p in _EARLY.items()}
+
+
+def with_kernels(kinds) -> list[str]:
+    """The kernels of :data:`WITH` for the entry points ``kinds`` that are neither compiled nor
+    cached."""
+    names = list(dict.fromkeys(n for k in kinds for n in WITH.get(k, ())))
+    return [n for n in names if not in_cache(n)]
 
 
 def left() -> list[str]:
