@@ -65,6 +65,7 @@ from ..common.units import actuator_unit_kind, actuators_summary
 from .workspace import WorkspaceSample, freeze, params_key, workspace
 
 __all__ = [
+    "solve_compiled",
     "Measure",
     "register",
     "get",
@@ -618,17 +619,17 @@ _IDX_SETTINGS = _SUB_SETTINGS
 def _points(mech, kw, default_max=4096):
     """Feasible workspace points, evenly subsampled to at most ``max_points``. A description
     with ``task.solve`` (parasitic coordinates) gets their unknowns from the compiled solve
-    when the engine is the compiled one (:func:`_solve_compiled`)."""
+    when the engine is the compiled one (:func:`solve_compiled`)."""
     ws = _ws(mech, kw)
     pts = ws.points
     m = int(kw.get("max_points", default_max))
     if len(pts) > m:
         pts = pts[np.linspace(0, len(pts) - 1, m).astype(int)]
-    _solve_compiled(mech, pts, kw.get("engine", "compiled"))
+    solve_compiled(mech, pts, kw.get("engine", "compiled"))
     return ws, pts
 
 
-def _solve_compiled(mech, pts, engine) -> None:
+def solve_compiled(mech, pts, engine: str = "compiled") -> None:
     """Let the NumPy model of ``mech`` take the compiled solve's unknowns at ``pts`` (see
     ``DescribedMechanism.use_solved_unknowns``), solved when it first asks for them: the
     measures that evaluate it there (static forces, stiffness, ...) then skip its NumPy
