@@ -386,3 +386,60 @@ def test_compiled_margin_of_a_mixed_mechanism_at_explicit_poses(chain_mechanisms
     fin = np.isfinite(b)
     assert np.array_equal(fin, np.isfinite(a)) and fin.sum() >= 60
     np.testing.assert_allclose(a[fin], b[fin], rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("motion,types", [("3T0R", ["RUU"]), ("2T2R", ["RPUR", "RPS"])])
+def test_motion_solved_on_chain_limbs_poses_with_the_compiled_closure(motion, types):
+    """A structure whose task.solve closes on chain limbs (the 3-RUU, the 4-RPUR/RPS): the
+    compiled engine solves its dependent coordinates by the model's Gauss-Newton with the chain
+    limbs' closure by the compiled solve; feasibility and margins agree with the NumPy engine,
+    the unknowns with the NumPy solve to 1e-12, and the NumPy model keeps its own solve (the
+    reference never sees the compiled closure's unknowns)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", EngineFallbackWarning)
+        s = next(s for s in parasynth.structures(motion, leg_types=types)
+                 if any(hasattr(leg, "chain_arrays") for leg in s.mechanism()._solve_legs))
+        m, ref = s.mechanism(), s.mechanism()
+    lo, hi = (np.array(v) for v in zip(*[m.default_ranges()[k] for k in m.task_coordinates]))
+    X = lo + (hi - lo) * np.random.default_rng(6).uniform(0, 1, (150, len(lo)))
+    chains = _chains()
+    asked = []
+    real = m.solve_unknowns
+    m.solve_unknowns = lambda Xq, chain=None: asked.append(chain) or real(Xq, chain=chain)
+    fc, mc = engine.feasible(m, X), engine.margins(m, X)
+    assert asked and all(c is chains._closure_of for c in asked)  # the compiled closure was used
+    fn, mn = ref.is_feasible(X, engine="numpy"), ref.constraint_margins(X, engine="numpy")
+    assert 0 < fn.sum() < len(X)
+    assert np.array_equal(fc, fn)
+    for k in mn:
+        fin = np.isfinite(mn[k])
+        assert np.array_equal(fin, np.isfinite(mc[k])), k
+        np.testing.assert_allclose(mc[k][fin], mn[k][fin], rtol=0, atol=1e-9, err_msg=k)
+    Uc = real(X, chain=chains._closure_of)
+    Un = ref.solve_unknowns(X)
+    ok = np.isfinite(Un).all(axis=1)
+    assert ok.sum() > 0 and np.array_equal(ok, np.isfinite(Uc).all(axis=1))
+    np.testing.assert_allclose(Uc[ok], Un[ok], rtol=0, atol=1e-12)
+    # the compiled path left the model's own cache alone: asked again, it solves with the NumPy closure
+    before = m._solve_cache
+    engine.feasible(m, X)
+    assert m._solve_cache is before
+
+
+def test_partial_unknowns_take_unsolved_rows_as_unsolved():
+    """use_solved_unknowns(..., partial=True): NaN rows of the function's unknowns are taken as
+    poses whose solve did not converge (as the NumPy solve marks them); a full set refuses them,
+    and partial unknowns come from a function only."""
+    m = next(s for s in parasynth.structures("1T2R") if s.name == "3-RPS").mechanism()
+    X = np.array([m.home, m.home + np.array([0.01, 0.05, -0.05])])
+    U = m.solved_unknowns(X).copy()
+    m._solve_cache = None
+    V = U.copy()
+    V[1] = np.nan
+    m.use_solved_unknowns(X, lambda: V, partial=True)
+    assert np.array_equal(m.solved_unknowns(X), V, equal_nan=True)
+    m._solve_cache = None
+    m.use_solved_unknowns(X, lambda: V)  # not partial: the NumPy solve runs instead
+    np.testing.assert_array_equal(m.solved_unknowns(X), U)
+    with pytest.raises(ValueError, match="function"):
+        m.use_solved_unknowns(X, V, partial=True)

@@ -156,10 +156,22 @@ class DescribedMechanism(Mechanism):
         self._penv[SOLVE_KEY] = np.concatenate([[float(L)], self._solve_U0, self._solve_uscale,
                                                 closure_geometry(legs)])
 
-    def _closure(self, X, U):
-        """The legs' closure residuals (N, k) at task coordinates X with the unknowns U."""
+    def _closure(self, X, U, chain=None):
+        """The legs' closure residuals (N, k) at task coordinates X with the unknowns U
+        (``chain``: as in :func:`parasynth.model.parasitic.closure_residuals`)."""
         p, R, _, _ = self._pose_eval(X, False, U=U)
-        return closure_residuals(self._solve_legs, p, R, self._solve_L)
+        return closure_residuals(self._solve_legs, p, R, self._solve_L, chain)
+
+    def solve_unknowns(self, X, chain=None) -> np.ndarray:
+        """The unknowns of ``task.solve`` (N, m) at task coordinates X by the Gauss-Newton
+        solve of :meth:`solved_unknowns` (NaN where it does not converge), not kept;
+        ``chain(leg, p, R)`` gives the closure equations of chain limbs by another solve than
+        their own (the compiled one: :mod:`parasynth.engine.chains`)."""
+        X = np.atleast_2d(np.asarray(X, dtype=float))
+        if self.description.task.solve is None:
+            return np.zeros((X.shape[0], 0))
+        U, _ = gauss_newton(lambda X, U: self._closure(X, U, chain), X, self._solve_U0, self._solve_uscale)
+        return U
 
     def solved_unknowns(self, X) -> np.ndarray:
         """The unknowns of ``task.solve`` (N, m) at task coordinates X (N, n_task) (SI; NaN where
@@ -172,27 +184,33 @@ class DescribedMechanism(Mechanism):
             if not callable(c[1]):
                 return c[1]
             U = c[1]()  # unknowns offered by use_solved_unknowns, computed at their first use
-            if U is not None and U.shape == (X.shape[0], len(self._solve_uscale)) and np.all(np.isfinite(U)):
+            if U is not None and U.shape == (X.shape[0], len(self._solve_uscale)) and \
+                    (c[2] or np.all(np.isfinite(U))):
                 self._solve_cache = (c[0], U)
                 return U
         U, _ = gauss_newton(self._closure, X, self._solve_U0, self._solve_uscale)
         self._solve_cache = (X.copy(), U)
         return U
 
-    def use_solved_unknowns(self, X, U) -> None:
+    def use_solved_unknowns(self, X, U, partial: bool = False) -> None:
         """Take ``U`` (N, m) as the unknowns of ``task.solve`` at poses X (N, n_task) from now
         until other poses are asked for (``solved_unknowns`` keeps one set): a measure that
         evaluates the NumPy model at poses whose unknowns the compiled engine solved
         (:func:`parasynth.engine.solved_unknowns`) spares the NumPy solve. ``U`` must be a
         solution of the closure equations at X (finite, every row), or a function giving it
         (or None), called when the NumPy model first asks for the unknowns at X: where it
-        gives none, or not finite ones, the NumPy solve runs as without it."""
+        gives none, or not finite ones, the NumPy solve runs as without it. With ``partial``
+        (a function only) its NaN rows are taken as poses where the solve does not converge,
+        as the NumPy solve marks them (the chain limbs' closure solved by the compiled solve,
+        :mod:`parasynth.engine.chains`)."""
         X = np.atleast_2d(np.asarray(X, dtype=float))
         if callable(U):
             if self.description.task.solve is None:
                 raise ValueError(f"{self.name}: no task.solve, no unknowns")
-            self._solve_cache = (X.copy(), U)
+            self._solve_cache = (X.copy(), U, bool(partial))
             return
+        if partial:
+            raise ValueError(f"{self.name}: partial unknowns are given by a function")
         U = np.asarray(U, dtype=float)
         if self.description.task.solve is None or U.shape != (X.shape[0], len(self._solve_uscale)):
             raise ValueError(f"{self.name}: unknowns of shape {U.shape} for {X.shape[0]} poses and "
