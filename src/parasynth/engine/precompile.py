@@ -36,8 +36,9 @@ from ..model.chains import ChainLeg
 from ..model.legs import LEG_TYPES
 from . import chains, closure, core, indices
 
-__all__ = ["KERNELS_OF", "LOCAL", "STRUCTURE_STUDY", "STRUCTURE_CHAINS", "structure_kinds", "chain_kinds", "signatures", "in_cache", "missing", "compile_ahead", "start_early",
-           "early", "left", "with_kernels", "stop_helpers", "main"]
+__all__ = ["KERNELS_OF", "LOCAL", "WITH", "STRUCTURE_STUDY", "STRUCTURE_CHAINS", "structure_kinds", "chain_kinds",
+           "signatures", "in_cache", "missing", "compile_ahead", "start_early", "early", "left", "with_kernels",
+           "stop_helpers", "main"]
 
 #: Kernels behind each compiled entry point (the names of :data:`parasynth.engine.EXERCISES`).
 KERNELS_OF = {
@@ -63,8 +64,9 @@ KERNELS_OF = {
 #: the calling process. A structure study's early compile has none (docs/performance.md).
 WITH = {"singularity_margin": ("_constraint_rank_kernel",)}
 
-#: Kernels compiled in the calling process: they run the expression interpreter, which each
-#: process compiling one of them compiles too (compiled once here for all three).
+#: Kernels compiled in the calling process by :func:`compile_ahead`: they run the expression
+#: interpreter, compiled with the first of them (and then cached: a process compiling one later
+#: loads it).
 LOCAL = ("_pose_kernel", "_feasible_kernel", "_margins_kernel")
 
 # Rough cold-compile CPU seconds (5pus_upu, 2-core development machine), to share the work;
@@ -172,8 +174,9 @@ def compile_ahead(names, processes: int | None = None, poll: float = 0.05) -> di
     """Compile kernels ``names`` (not yet cached) into numba's cache: those of :data:`LOCAL`
     here, the others in up to ``processes - 1`` helper processes (default: one fewer than the
     cores, at least one; none on a single core) at the same time, fewer by the helpers of
-    :func:`start_early` still running (it compiles them here when no core is left). Returns ``{"local": [...],
-    "helpers": [[...], ...], "failed": [...]}`` (kernels of helpers that did not finish).
+    :func:`start_early` still running (here, when no core is left). Returns ``{"local":
+    [...], "helpers": [[...], ...], "failed": [...]}`` (kernels of helpers that did not
+    finish).
     Helpers still running when this returns or raises (an interrupt) are terminated."""
     names = list(names)
     if processes is None:
@@ -229,10 +232,10 @@ def start_early(kinds, processes: int | None = None, busy: float = 5.0) -> list[
     the calling process while the helper runs (its interpreter kernels last, the interpreter
     then loaded from the cache). So no more processes compile than there are cores: a third
     process on two cores would slow the helper, whose kernel is the longest compile
-    (docs/performance.md). On one core the helper takes every kernel. :func:`compile_ahead` later waits for the helper's kernels instead of
-    compiling them again. Returns the kernels of each helper started ([] when everything is
-    cached or left to the work). Helpers still running at the end of the process are
-    terminated (what they finished is in the cache)."""
+    (docs/performance.md). On one core the helper takes every kernel. :func:`compile_ahead`
+    later waits for the helper's kernels instead of compiling them again. Returns the kernels
+    of each helper started ([] when everything is cached or left to the work). Helpers still
+    running at the end of the process are terminated (what they finished is in the cache)."""
     names = [n for n in missing(kinds) if n not in _EARLY and n not in _LEFT]
     if not names:
         return []

@@ -188,7 +188,7 @@ class DescribedMechanism(Mechanism):
                     (c[2] or np.all(np.isfinite(U))):
                 self._solve_cache = (c[0], U)
                 return U
-        U, _ = gauss_newton(self._closure, X, self._solve_U0, self._solve_uscale)
+        U = self.solve_unknowns(X)
         self._solve_cache = (X.copy(), U)
         return U
 
