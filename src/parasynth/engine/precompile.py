@@ -100,6 +100,11 @@ STRUCTURE_STUDY = ("feasible", "singularity_margin")
 STRUCTURE_CHAINS = ("chains", "chain_closure")
 
 
+def _chain_types() -> set:
+    """The names of the chain limb types (model/chains.py) in the limb vocabulary."""
+    return {k for k, v in LEG_TYPES.items() if issubclass(v, ChainLeg)}
+
+
 def structure_kinds(leg_types=None) -> tuple[str, ...]:
     """The entry points a structure study of the limb types ``leg_types`` asks for:
     :data:`STRUCTURE_STUDY`, and :data:`STRUCTURE_CHAINS` when a chain limb type is among them.
@@ -107,8 +112,7 @@ def structure_kinds(leg_types=None) -> tuple[str, ...]:
     whether a chain limb is among the structures kept is known only once they are enumerated
     (:func:`chain_kinds` then; structures_1t2r keeps none, and its chain kernels would cost ~8 s
     of compile on the core its interpreter kernels need)."""
-    chain = {k for k, v in LEG_TYPES.items() if issubclass(v, ChainLeg)}
-    if leg_types is not None and any(str(t) in chain for t in leg_types):
+    if leg_types is not None and any(str(t) in _chain_types() for t in leg_types):
         return STRUCTURE_STUDY + STRUCTURE_CHAINS
     return STRUCTURE_STUDY
 
@@ -116,14 +120,9 @@ def structure_kinds(leg_types=None) -> tuple[str, ...]:
 def chain_kinds(structures) -> tuple[str, ...]:
     """:data:`STRUCTURE_CHAINS` when one of ``structures`` (enumerated structures,
     :class:`parasynth.structures.Structure`) has a chain limb, else ()."""
-    chain = {k for k, v in LEG_TYPES.items() if issubclass(v, ChainLeg)}
-    if any(str(t) in chain for s in structures for t in s.leg_counts):
+    if any(str(t) in _chain_types() for s in structures for t in s.leg_counts):
         return STRUCTURE_CHAINS
     return ()
-
-
-#: CPU seconds a helper process spends starting (Python, numba, parasynth).
-_START = 1.5
 
 
 def signatures() -> dict:
