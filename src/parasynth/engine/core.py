@@ -1200,6 +1200,7 @@ if HAVE_NUMBA:
                                     -2.75573141792967388112e-7, 2.48015872888517045348e-5,
                                     -1.38888888888730564116e-3, 4.16666666666665929218e-2)
     _BIG_ANGLE = 1e6
+    _DBL_MAX = float(np.finfo(np.float64).max)  # the pose limit of inf, as a finite bound
 
     @njit(**_jit_ir_inline)
     def _sincos(x):
@@ -1413,16 +1414,20 @@ if HAVE_NUMBA:
         validity for poses X[j0:j0+nb]: okm, and Tm (12, nb) = (p, R row-major)."""
         nt = X.shape[1]
         # column by column (straight loops over the sub-block): the coordinates into their
-        # registers with finiteness and magnitude, the coordinate ranges, then the
-        # coordinates of rejected poses set to 0
+        # registers, then finiteness and magnitude in one test (a limit of inf is taken as
+        # the greatest double, so |x| <= lim is false for NaN and inf), the coordinate ranges,
+        # then the coordinates of rejected poses set to 0. Loading apart from testing: the
+        # strided loads alone, then a loop over the registers that vectorises (~3 ns a pose
+        # less for 5 coordinates than both in one loop)
+        for j in range(nt):
+            for ii in range(nb):
+                Rg[j, ii] = X[j0 + ii, j]
         for ii in range(nb):
             okm[ii] = 1
         for j in range(nt):
-            lim = plim[j]
+            lim = min(plim[j], _DBL_MAX)
             for ii in range(nb):
-                x = X[j0 + ii, j]
-                Rg[j, ii] = x
-                okm[ii] = okm[ii] & (abs(x) < np.inf) & (abs(x) <= lim)
+                okm[ii] = okm[ii] & (abs(Rg[j, ii]) <= lim)
         for q in range(coord.shape[0]):
             c = int(coord[q, 0])
             lo = coord[q, 1]
