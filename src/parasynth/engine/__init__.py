@@ -78,7 +78,8 @@ __all__ = ["HAVE_NUMBA", "ENGINES", "EngineFallbackWarning", "feasible", "feasib
            "solved_unknowns", "available",
            "reason", "check_engine", "plan", "use_compiled", "warn_fallback", "coverage", "singularity_margin",
            "transmission", "local_transmission_index", "condition_number", "leg_directions", "constraint_rank", "ready",
-           "closure_plan", "closure_prep", "closure_solve", "warm_up", "exercise", "needs", "effective_engine", "WarmUp", "COMPILING", "reference"]
+           "closure_plan", "closure_prep", "closure_solve", "warm_up", "exercise", "needs", "effective_engine", "WarmUp", "COMPILING", "reference",
+           "compiling_early", "n_threads"]
 
 #: Names looked up in :mod:`parasynth.engine.core` when first asked for.
 _CORE_NAMES = ("HAVE_NUMBA", "BLOCK", "SUB", "KernelPlan", "Unsupported")
@@ -466,6 +467,28 @@ def needs(work) -> set:
     finally:
         _WANTED.reset(token)
     return wanted
+
+
+def n_threads() -> int:
+    """The threads the engine spreads a batch over (:func:`parasynth.engine.core.n_threads`:
+    numba's thread count, i.e. ``NUMBA_NUM_THREADS`` or the cores, which a study's worker
+    processes share out), without importing numba when the kernels are not loaded yet."""
+    core = sys.modules.get(__name__ + ".core")
+    if core is not None:
+        return core.n_threads()
+    try:
+        return max(1, int(os.environ.get("NUMBA_NUM_THREADS", "")))
+    except ValueError:
+        return os.cpu_count() or 1
+
+
+def compiling_early() -> bool:
+    """Whether helper processes started ahead of the work
+    (:func:`parasynth.engine.precompile.start_early`) are still compiling: they hold cores that
+    other parallel work of this process (the enumeration of a study's structures) should leave
+    to them."""
+    pre_mod = sys.modules.get(__name__ + ".precompile")  # loaded if start_early ran
+    return pre_mod is not None and any(pre_mod.early().values())
 
 
 def _ahead(work):

@@ -201,3 +201,10 @@ def candidate_rule(groups, describe):
         except NoTaskRule as e:
             _RULES[groups] = (None, str(e))
     return _RULES[groups]
+
+
+def remember_rule(groups, rule) -> None:
+    """Keep ``rule`` (``(rule, reason)``, as :func:`candidate_rule` gives) as the rule of
+    ``groups``: one found in another process (:mod:`.synthesis` spreads the candidates' rules
+    over processes)."""
+    _RULES.setdefault(groups, rule)

@@ -15,10 +15,13 @@ as ``singular at home``); equivalent structures are folded into one (:data:`EQUI
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import hashlib
 import itertools
 import math
+import multiprocessing as mp
+import signal
 import warnings
 from collections import Counter
 from dataclasses import dataclass, field
@@ -26,11 +29,13 @@ from pathlib import Path
 
 import numpy as np
 
-from ..common.validation import MAX_LEGS, MAX_SEED, InputError, check_count, is_real_number
+from ..common.validation import (MAX_LEGS, MAX_SEED, InputError, check_count, check_engine, is_real_number,
+                                 numpy_reference)
+from .. import engine as _engine
 from ..mechanisms import described_class
 from ..measures.usable import SINGULARITY_FLOOR
 from ..model.legs import LEG_TYPES
-from .motion import candidate_rule
+from .motion import candidate_rule, remember_rule
 from .vocabulary import (ARRANGEMENTS, CHECKS, HOME_TILTS, LIMB_TYPES, PARAMETERS, TEMPLATES, StructureError,
                          StructureWarning, limb_type, parse_motion)
 
@@ -591,6 +596,77 @@ def _check(c: _Candidate, motion: str, desc: dict, n_poses: int, seed: int):
     return None, details, cls
 
 
+def _verify(c: _Candidate, motion: str, desc: dict, n_poses: int, seed: int):
+    """(reason or None, details, description, class, home margin) of a candidate: its checks
+    (:func:`_check`), then, if it passes them, its home pose (:func:`_controlled_home`: the
+    description, class and margin there; description and class None when it is singular at
+    every home tried)."""
+    reason, det, cls = _check(c, motion, desc, n_poses, seed)
+    if reason is not None:
+        return reason, det, None, None, None
+    desc, cls, home_margin = _controlled_home(c, desc, cls)
+    return None, det, desc, cls, home_margin
+
+
+#: Candidates below which their checks (or motion rules) run in this process: forking the
+#: checking processes costs ~50 ms, a candidate's checks ~20-60 ms.
+PARALLEL_CHECKS = 8
+
+#: (function, items, result to send, within numpy_reference) of the checking processes,
+#: inherited by fork (see _spread).
+_WORK: tuple = ()
+
+
+def _work_item(i: int):
+    fn, items, send, reference = _WORK
+    with numpy_reference() if reference else contextlib.nullcontext():  # as in the parent
+        return send(fn(items[i]))
+
+
+def _ignore_interrupt() -> None:  # a checking process: Ctrl-C is the parent's to handle
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def _check_processes(processes, n_items: int) -> int:
+    if processes is None:
+        processes = _engine.n_threads()
+    if n_items < PARALLEL_CHECKS or processes < 2 or "fork" not in mp.get_all_start_methods():
+        return 1
+    return min(int(processes), n_items)
+
+
+def _spread(fn, items: list, processes, send=lambda r: r) -> list:
+    """``[fn(item) for item in items]``, in this process or, from :data:`PARALLEL_CHECKS` items
+    on, spread over ``processes`` forked processes (default the engine's thread count,
+    :func:`parasynth.engine.n_threads`: the cores, or a study worker's share of them),
+    each result passed through ``send`` there (what cannot be sent between processes left
+    out). The first item is done here before the fork: it loads and builds once what every
+    item uses (modules, parsed limb descriptions, kernels from the cache), which the forked
+    processes then inherit instead of each doing it again. Every item is computed alone
+    (seeded on its own), so the answers do not depend on the split."""
+    n = _check_processes(processes, len(items))
+    if n < 2:
+        return [fn(x) for x in items]
+    first = fn(items[0])
+    global _WORK
+    _WORK = (fn, items, send, check_engine("compiled") == "numpy")  # inside numpy_reference()?
+    try:
+        with mp.get_context("fork").Pool(n, initializer=_ignore_interrupt) as pool:
+            rest = pool.map(_work_item, range(1, len(items)), chunksize=1)
+    finally:
+        _WORK = ()
+    return [first] + rest
+
+
+def _verified(jobs: list, processes) -> list:
+    """:func:`_verify` of each job ``(candidate, motion, description, n_poses, seed)``, in order
+    (:func:`_spread`); the class of a structure checked in another process is built here again
+    from its description."""
+    out = _spread(lambda j: _verify(*j), jobs, processes, send=lambda r: r[:3] + (None,) + r[4:])
+    return [(r, det, desc, cls if cls is not None or desc is None else described_class(desc, source=c.name), m)
+            for (c, *_), (r, det, desc, cls, m) in zip(jobs, out)]
+
+
 def _home_margin(cls) -> float:
     """The singularity margin of ``cls`` at its default dimensions and home pose (NumPy)."""
     mech = cls(cls.Params())
@@ -732,7 +808,7 @@ def _legs(legs) -> list[int] | None:
 
 
 def structures(motion, *, leg_types=None, legs=None, axes=None, all_axes: bool = False, n_poses: int = 4,
-               seed: int = 0, show_dropped: bool = False) -> StructureList:
+               seed: int = 0, show_dropped: bool = False, processes: int | None = None) -> StructureList:
     """The candidate structures of the vocabulary for ``motion`` (``"3T3R"``, ``"3T2R"``,
     ``"2T2R"``, ...), each verified numerically.
 
@@ -753,7 +829,10 @@ def structures(motion, *, leg_types=None, legs=None, axes=None, all_axes: bool =
     with a singularity margin of at least :data:`SINGULARITY_FLOOR` at the default dimensions
     (the level platform, else the first of ``HOME_TILTS`` that is, as its default
     ``home_tilt``); kinematically equivalent structures are reported as one
-    (``Structure.equivalents``, ``Structure.label``).
+    (``Structure.equivalents``, ``Structure.label``). ``processes``: how many processes check
+    the candidates (forked, :data:`PARALLEL_CHECKS` candidates or more; default the engine's
+    thread count, i.e. the cores or a study worker's share of them; 1: this process alone); the
+    answer is the same for any number.
     Returns a :class:`StructureList` of :class:`Structure` with the counts of the dropped
     candidates by reason. :class:`StructureError` (a ``ValueError``) names the argument at
     fault."""
@@ -770,6 +849,11 @@ def structures(motion, *, leg_types=None, legs=None, axes=None, all_axes: bool =
         raise StructureError(f"all_axes must be True or False, got {_describe(all_axes)}")
     if not isinstance(show_dropped, (bool, np.bool_)):
         raise StructureError(f"show_dropped must be True or False, got {_describe(show_dropped)}")
+    if processes is not None:
+        try:
+            processes = check_count("processes", processes, 1, 1024)
+        except InputError as e:
+            raise StructureError(f"{e}; or None for the engine's thread count") from None
     all_axes = bool(all_axes)
     dof = nt + nr
     most = max(6 - LIMB_TYPES[t].constraints for t in types)
@@ -842,8 +926,10 @@ def structures(motion, *, leg_types=None, legs=None, axes=None, all_axes: bool =
         keep(c, key, template)
     if pending:
         too_many(len(to_check), "at least ")
-    for c, key in pending:
-        template, why = candidate_rule(c.groups, lambda t, c=c: _description(c, t, "rule"))
+    rules = _spread(lambda c: candidate_rule(c.groups, lambda t: _description(c, t, "rule")),
+                    [c for c, _ in pending], processes)
+    for (c, key), (template, why) in zip(pending, rules):
+        remember_rule(c.groups, (template, why))  # a rule found in another process, for later calls
         if template is None:
             drop("no task rule", c)
             no_rule[f"{c.name} [{'; '.join(g.label() for g in c.groups)}]"] = why
@@ -853,16 +939,16 @@ def structures(motion, *, leg_types=None, legs=None, axes=None, all_axes: bool =
             keep(c, key, template)
     to_check.sort(key=lambda t: order[id(t[0])])  # enumeration order, as the candidates came
     too_many(len(to_check))
-    found = []
+    jobs = []
     for c, key, template in to_check:
         arrs = "-".join(dict.fromkeys(g.arrangement for g in c.groups if g.actuated))
         short = f"{arrs}-{hashlib.sha1(repr(key).encode()).hexdigest()[:6]}"
-        desc = _description(c, template, short)
-        reason, det, cls = _check(c, motion, desc, n_poses, seed)
+        jobs.append((c, motion, _description(c, template, short), n_poses, seed))
+    found = []
+    for (c, key, template), (reason, det, desc, cls, home_margin) in zip(to_check, _verified(jobs, processes)):
         if reason is not None:
             drop(reason, c)
             continue
-        desc, cls, home_margin = _controlled_home(c, desc, cls)
         if desc is None:
             drop("singular at home", c)
             continue

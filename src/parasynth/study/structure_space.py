@@ -34,6 +34,7 @@ from dataclasses import dataclass
 
 from .. import structures as synthesis
 from ..common.validation import numpy_reference
+from ..engine import compiling_early
 from ..mechanisms import described_class, register
 from .errors import StudyError
 from .optimizers.base import optimizer_class
@@ -149,9 +150,11 @@ def resolve_structures(sec) -> StructureSetup:
         # compile here (pose and constraint-rank kernels, ~8 s CPU on an empty cache, the latter
         # used by nothing else of a study) would stand alone before the run's own side-by-side
         # compile (docs/performance.md, "Cold start of the structure studies")
+        # its candidates checked on the cores (forked processes) unless compiling helpers
+        # started ahead of the run hold them (engine.compiling_early)
         with numpy_reference():
             found = synthesis.structures(sec.motion, leg_types=sec.leg_types, legs=sec.legs, axes=axes,
-                                         all_axes=sec.all_axes)
+                                         all_axes=sec.all_axes, processes=1 if compiling_early() else None)
     except ValueError as e:
         msg = str(e)
         if msg.startswith(("leg_types", "legs", "axes", "all_axes")):  # the message names its field
