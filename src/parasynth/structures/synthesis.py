@@ -22,6 +22,7 @@ import itertools
 import math
 import multiprocessing as mp
 import signal
+import sys
 import warnings
 from collections import Counter
 from dataclasses import dataclass, field
@@ -612,6 +613,10 @@ def _verify(c: _Candidate, motion: str, desc: dict, n_poses: int, seed: int):
 #: checking processes costs ~50 ms, a candidate's checks ~20-60 ms.
 PARALLEL_CHECKS = 8
 
+#: Whether the checks can be forked: Linux (elsewhere a forked process may not run the
+#: libraries loaded in its parent; the checks then run in the calling process).
+_CAN_FORK = sys.platform.startswith("linux") and "fork" in mp.get_all_start_methods()
+
 #: (function, items, result to send, within numpy_reference) of the checking processes,
 #: inherited by fork (see _spread).
 _WORK: tuple = ()
@@ -630,7 +635,7 @@ def _ignore_interrupt() -> None:  # a checking process: Ctrl-C is the parent's t
 def _check_processes(processes, n_items: int) -> int:
     if processes is None:
         processes = _engine.n_threads()
-    if n_items < PARALLEL_CHECKS or processes < 2 or "fork" not in mp.get_all_start_methods():
+    if n_items < PARALLEL_CHECKS or processes < 2 or not _CAN_FORK:
         return 1
     return min(int(processes), n_items)
 
@@ -651,7 +656,12 @@ def _spread(fn, items: list, processes, send=lambda r: r) -> list:
     global _WORK
     _WORK = (fn, items, send, check_engine("compiled") == "numpy")  # inside numpy_reference()?
     try:
-        with mp.get_context("fork").Pool(n, initializer=_ignore_interrupt) as pool:
+        with warnings.catch_warnings():
+            # Python 3.12+ warns of fork with other threads alive: the engine's kept threads
+            # sleep on locks of their own, and a forked process starts a crew of its own
+            warnings.filterwarnings("ignore", message=r".*use of fork\(\) may lead to deadlocks", category=DeprecationWarning)
+            pool = mp.get_context("fork").Pool(n, initializer=_ignore_interrupt)
+        with pool:
             rest = pool.map(_work_item, range(1, len(items)), chunksize=1)
     finally:
         _WORK = ()
