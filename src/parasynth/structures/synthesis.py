@@ -659,7 +659,8 @@ def _spread(fn, items: list, processes, send=lambda r: r) -> list:
         with warnings.catch_warnings():
             # Python 3.12+ warns of fork with other threads alive: the engine's kept threads
             # sleep on locks of their own, and a forked process starts a crew of its own
-            warnings.filterwarnings("ignore", message=r".*use of fork\(\) may lead to deadlocks", category=DeprecationWarning)
+            warnings.filterwarnings("ignore", message=r".*use of fork\(\) may lead to deadlocks",
+                                    category=DeprecationWarning)
             pool = mp.get_context("fork").Pool(n, initializer=_ignore_interrupt)
         with pool:
             rest = pool.map(_work_item, range(1, len(items)), chunksize=1)
