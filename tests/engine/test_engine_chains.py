@@ -426,6 +426,30 @@ def test_motion_solved_on_chain_limbs_poses_with_the_compiled_closure(motion, ty
     assert m._solve_cache is before
 
 
+@pytest.mark.parametrize("motion,types,limb", [("3T0R", ["RUU"], "RUU"), ("2T2R", ["RPUR", "RPS"], "RPUR")])
+def test_pose_batch_of_a_motion_closing_on_chain_limbs_says_why_it_runs_on_numpy(motion, types, limb):
+    """The pose program does not hold a chain limb's closure: pose_batch of such a structure
+    runs on NumPy with a warning that names the chain limbs and what stays compiled (not an
+    internal KeyError), and gives the NumPy poses."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", EngineFallbackWarning)
+        s = next(s for s in parasynth.structures(motion, leg_types=types)
+                 if any(hasattr(leg, "chain_arrays") for leg in s.mechanism()._solve_legs))
+        m = s.mechanism()
+    core = pytest.importorskip("parasynth.engine.core")
+    core._WARNED.clear()
+    with warnings.catch_warnings(record=True) as w:
+        warnings.simplefilter("always")
+        valid, p, R, _ = engine.pose_batch(m, m.home[None, :])
+    msgs = [str(x.message) for x in w if issubclass(x.category, EngineFallbackWarning)]
+    assert len(msgs) == 1 and f"a motion closing on {limb} limbs" in msgs[0], msgs
+    assert "KeyError" not in msgs[0] and "feasibility, margins and indices" in msgs[0]
+    vn, pn, Rn, _ = engine.pose_batch(m, m.home[None, :], engine="numpy")
+    assert valid[0] and vn[0]
+    np.testing.assert_array_equal(p, pn)
+    np.testing.assert_array_equal(R, Rn)
+
+
 def test_partial_unknowns_take_unsolved_rows_as_unsolved():
     """use_solved_unknowns(..., partial=True): NaN rows of the function's unknowns are taken as
     poses whose solve did not converge (as the NumPy solve marks them); a full set refuses them,

@@ -42,7 +42,7 @@ import operator
 
 import numpy as np
 
-from ..model.parasitic import SOLVE_KEY
+from ..model.parasitic import CLOSURE_COUNTS, SOLVE_KEY
 from ..model.spatial import EULER_CONVENTIONS, R_NAMES
 from .parasitic import solve_nodes
 
@@ -758,6 +758,11 @@ def build_program(mech, margin_exprs: dict, twist: bool = False, unknowns: bool 
     if solve is not None:  # the unrolled Gauss-Newton solve of the legs' closure equations
         if SOLVE_KEY not in penv:
             raise Untranslatable("task.solve without its solve data")
+        chained = sorted({leg.joints for leg in mech.legs} - set(CLOSURE_COUNTS))
+        if chained:  # their closure is a numerical solve of its own (model/chains.py)
+            raise Untranslatable(f"a motion closing on {', '.join(chained)} limbs (the pose program solves the "
+                                 f"closure of {', '.join(k for k, v in CLOSURE_COUNTS.items() if v)} limbs; the "
+                                 f"feasibility, margins and indices of such a structure are compiled)")
         unknowns, chain, ok, seed = solve_nodes(
             g, _Diff, [leg.joints for leg in mech.legs], SOLVE_KEY, n, len(solve.names),
             lambda ph: (lambda o: (o[5], o[2]))(pose_of(ph)))
