@@ -807,17 +807,20 @@ def _check_program(mech, prog: Program, twist: bool) -> None:
     consts = prog.constants(mech._penv)
     ok, p1, R1, T1 = run_pose(prog, consts, X, twist)
     if not np.array_equal(ok, valid):
-        raise Unsupported("the compiled pose validity does not match mech.pose_valid")
+        raise Unsupported(f"a task parametrisation whose compiled pose validity differs from mech.pose_valid at "
+                          f"{int(np.count_nonzero(ok != valid))} of {len(X)} probe poses around home")
     scale = max(1.0, float(np.max(np.abs(p0), initial=0.0)))
     if not (np.allclose(p0, p1[valid], rtol=0, atol=1e-12 * scale)
             and np.allclose(R0, R1[valid], rtol=0, atol=1e-12)):
-        raise Unsupported("the compiled pose does not match mech.pose")
+        raise Unsupported("a task parametrisation whose compiled pose differs from mech.pose (beyond 1e-12) at "
+                          "probe poses around home")
     if twist:
         tscale = max(1.0, float(np.max(np.abs(T0), initial=0.0)))
         fin = np.isfinite(T0)
         if not (np.array_equal(fin, np.isfinite(T1[valid]))
                 and np.allclose(T0[fin], T1[valid][fin], rtol=0, atol=1e-10 * tscale)):
-            raise Unsupported("the compiled twist map does not match mech.twist_map")
+            raise Unsupported("a task parametrisation whose compiled twist map differs from mech.twist_map at probe "
+                              "poses around home")
 
 
 def build_plan(mech, cons) -> KernelPlan:
