@@ -143,3 +143,22 @@ def test_engine_threads_without_loading_numba():
     env = dict(os.environ, NUMBA_NUM_THREADS="2", PYTHONPATH=src + os.pathsep + os.environ.get("PYTHONPATH", ""))
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True).stdout
     assert out.split() == ["2", "False", "1"]
+
+
+def test_spread_from_two_threads_at_once_keeps_each_its_own_work():
+    """Two threads spreading different work at the same time: each call's forked processes
+    run that call's function (the fork takes its work under a lock)."""
+    import threading
+
+    out = {}
+
+    def run(k):
+        out[k] = synthesis._spread(lambda i: (k, i), list(range(24)), 2)
+
+    ts = [threading.Thread(target=run, args=(k,)) for k in ("a", "b", "c")]
+    for t in ts:
+        t.start()
+    for t in ts:
+        t.join()
+    for k in ("a", "b", "c"):
+        assert out[k] == [(k, i) for i in range(24)]

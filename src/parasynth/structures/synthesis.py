@@ -23,6 +23,7 @@ import math
 import multiprocessing as mp
 import signal
 import sys
+import threading
 import warnings
 from collections import Counter
 from dataclasses import dataclass, field
@@ -620,6 +621,7 @@ _CAN_FORK = sys.platform.startswith("linux") and "fork" in mp.get_all_start_meth
 #: (function, items, result to send, within numpy_reference) of the checking processes,
 #: inherited by fork (see _spread).
 _WORK: tuple = ()
+_FORKING = threading.Lock()  # one call forks at a time: its processes inherit its _WORK
 
 
 def _work_item(i: int):
@@ -654,18 +656,19 @@ def _spread(fn, items: list, processes, send=lambda r: r) -> list:
         return [fn(x) for x in items]
     first = fn(items[0])
     global _WORK
-    _WORK = (fn, items, send, check_engine("compiled") == "numpy")  # inside numpy_reference()?
-    try:
-        with warnings.catch_warnings():
-            # Python 3.12+ warns of fork with other threads alive: the engine's kept threads
-            # sleep on locks of their own, and a forked process starts a crew of its own
-            warnings.filterwarnings("ignore", message=r".*use of fork\(\) may lead to deadlocks",
-                                    category=DeprecationWarning)
-            pool = mp.get_context("fork").Pool(n, initializer=_ignore_interrupt)
-        with pool:
-            rest = pool.map(_work_item, range(1, len(items)), chunksize=1)
-    finally:
-        _WORK = ()
+    with _FORKING:  # the pool's processes are forked here, each with this call's work
+        _WORK = (fn, items, send, check_engine("compiled") == "numpy")  # inside numpy_reference()?
+        try:
+            with warnings.catch_warnings():
+                # Python 3.12+ warns of fork with other threads alive: the engine's kept threads
+                # sleep on locks of their own, and a forked process starts a crew of its own
+                warnings.filterwarnings("ignore", message=r".*use of fork\(\) may lead to deadlocks",
+                                        category=DeprecationWarning)
+                pool = mp.get_context("fork").Pool(n, initializer=_ignore_interrupt)
+        finally:
+            _WORK = ()
+    with pool:
+        rest = pool.map(_work_item, range(1, len(items)), chunksize=1)
     return [first] + rest
 
 
