@@ -340,3 +340,36 @@ def test_forward_kinematics_of_a_solved_structure_inverts_its_inverse_kinematics
     X = m.home + np.array([0.02, 0.12, -0.08])
     q = m.inverse_kinematics(X[None]).actuators[0]
     assert np.allclose(m.forward_kinematics(q), X, atol=1e-9)
+
+
+@motion_group("3T0R")
+def test_zero_length_upu_not_valid_in_either_engine_so_the_3upu_upu_runs_compiled():
+    """A UPU limb of zero length (its platform anchor on its base joint) has no direction: the
+    NumPy closure and the compiled pose program both find such a pose not valid. The 3T0R
+    3-UPU/UPU of all_axes has that at the zero pose, one of the compiled program's probe poses:
+    it runs compiled (no fallback) and agrees with NumPy."""
+    import warnings
+
+    from parasynth import engine
+    from parasynth.model.mechanism import EngineFallbackWarning
+
+    s = next(x for x in enumerated("3T0R", True) if x.label == "3-UPU/UPU")
+    m = s.mechanism()
+    zero = np.zeros(m.n_task)
+    assert m.pose_valid(np.array([m.home, zero])).tolist() == [True, False]
+    lo, hi = (np.array(v) for v in zip(*[m.default_ranges()[k] for k in m.task_coordinates]))
+    X = lo + (hi - lo) * np.random.default_rng(3).uniform(0, 1, (400, len(lo)))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", EngineFallbackWarning)
+        v, p, R, _ = engine.pose_batch(m, np.array([m.home, zero]))
+        fc = m.is_feasible(X)
+        mc = m.constraint_margins(X)
+    assert v.tolist() == [True, False]
+    p0, R0 = m.pose(m.home[None])
+    np.testing.assert_allclose(p[0], p0[0], atol=1e-12)
+    assert np.array_equal(fc, m.is_feasible(X, engine="numpy"))
+    mn = m.constraint_margins(X, engine="numpy")
+    for k in mn:
+        fin = np.isfinite(mn[k])
+        assert np.array_equal(fin, np.isfinite(mc[k])), k
+        np.testing.assert_allclose(mc[k][fin], mn[k][fin], rtol=0, atol=1e-9, err_msg=k)

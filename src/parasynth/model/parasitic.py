@@ -111,7 +111,9 @@ def _leg_residuals(leg, p, R, L, chain=None):
         return [dot_rows(A - leg.base, leg.r_axis) / L]
     if j == "UPU":
         d = A - leg.base
-        n = d / np.maximum(np.linalg.norm(d, axis=-1, keepdims=True), 1e-300)
+        # a zero-length UPU (the platform anchor on its base joint) has no direction: its
+        # residual is NaN there (0/0) and the pose not valid, as in the compiled pose program
+        n = d / np.linalg.norm(d, axis=-1, keepdims=True)
         a4 = rotate_rows(R, leg.u_platform_axis)
         return [np.einsum("ij,ij->i", cross(np.broadcast_to(leg.u_axis, n.shape), n), a4)]
     if closure_count(leg) == 0:
