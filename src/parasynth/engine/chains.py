@@ -92,49 +92,69 @@ if HAVE_NUMBA:  # pragma: no branch
     @njit(**_jit)
     def _forward(q, kinds, axes, points, home, Rg, tg, axw, ptw, pos):
         """The anchor frame (``pos``, ``Rg``) and the freedoms' current axes and points at the
-        joint coordinates ``q`` (product of exponentials, as ``ChainLeg.forward``)."""
+        joint coordinates ``q`` (product of exponentials, as ``ChainLeg.forward``). The running
+        frame is kept in local scalars (the compiler cannot keep it in registers when it lives in
+        arrays that the stores to ``axw`` and ``ptw`` might alias); the arithmetic is the same,
+        operation for operation, as a frame held in ``Rg`` and ``tg``."""
         n = kinds.shape[0]
-        for a in range(3):
-            tg[a] = 0.0
-            for b in range(3):
-                Rg[a, b] = 1.0 if a == b else 0.0
+        g00, g01, g02, g10, g11, g12, g20, g21, g22 = 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0
+        t0, t1, t2 = 0.0, 0.0, 0.0
         for m in range(n):
-            ax = Rg[0, 0] * axes[m, 0] + Rg[0, 1] * axes[m, 1] + Rg[0, 2] * axes[m, 2]
-            ay = Rg[1, 0] * axes[m, 0] + Rg[1, 1] * axes[m, 1] + Rg[1, 2] * axes[m, 2]
-            az = Rg[2, 0] * axes[m, 0] + Rg[2, 1] * axes[m, 1] + Rg[2, 2] * axes[m, 2]
+            a0 = axes[m, 0]
+            a1 = axes[m, 1]
+            a2 = axes[m, 2]
+            ax = g00 * a0 + g01 * a1 + g02 * a2
+            ay = g10 * a0 + g11 * a1 + g12 * a2
+            az = g20 * a0 + g21 * a1 + g22 * a2
             axw[m, 0] = ax
             axw[m, 1] = ay
             axw[m, 2] = az
+            qm = q[m]
             if kinds[m] == 1:
                 ptw[m, 0] = np.nan
                 ptw[m, 1] = np.nan
                 ptw[m, 2] = np.nan
-                tg[0] += ax * q[m]
-                tg[1] += ay * q[m]
-                tg[2] += az * q[m]
+                t0 += ax * qm
+                t1 += ay * qm
+                t2 += az * qm
                 continue
-            cx = Rg[0, 0] * points[m, 0] + Rg[0, 1] * points[m, 1] + Rg[0, 2] * points[m, 2] + tg[0]
-            cy = Rg[1, 0] * points[m, 0] + Rg[1, 1] * points[m, 1] + Rg[1, 2] * points[m, 2] + tg[1]
-            cz = Rg[2, 0] * points[m, 0] + Rg[2, 1] * points[m, 1] + Rg[2, 2] * points[m, 2] + tg[2]
+            c0 = points[m, 0]
+            c1 = points[m, 1]
+            c2 = points[m, 2]
+            cx = g00 * c0 + g01 * c1 + g02 * c2 + t0
+            cy = g10 * c0 + g11 * c1 + g12 * c2 + t1
+            cz = g20 * c0 + g21 * c1 + g22 * c2 + t2
             ptw[m, 0] = cx
             ptw[m, 1] = cy
             ptw[m, 2] = cz
-            r00, r01, r02, r10, r11, r12, r20, r21, r22 = _rotation(ax, ay, az, q[m])
-            dx = tg[0] - cx
-            dy = tg[1] - cy
-            dz = tg[2] - cz
-            tg[0] = r00 * dx + r01 * dy + r02 * dz + cx
-            tg[1] = r10 * dx + r11 * dy + r12 * dz + cy
-            tg[2] = r20 * dx + r21 * dy + r22 * dz + cz
-            for b in range(3):
-                g0 = Rg[0, b]
-                g1 = Rg[1, b]
-                g2 = Rg[2, b]
-                Rg[0, b] = r00 * g0 + r01 * g1 + r02 * g2
-                Rg[1, b] = r10 * g0 + r11 * g1 + r12 * g2
-                Rg[2, b] = r20 * g0 + r21 * g1 + r22 * g2
-        for a in range(3):
-            pos[a] = Rg[a, 0] * home[0] + Rg[a, 1] * home[1] + Rg[a, 2] * home[2] + tg[a]
+            r00, r01, r02, r10, r11, r12, r20, r21, r22 = _rotation(ax, ay, az, qm)
+            dx = t0 - cx
+            dy = t1 - cy
+            dz = t2 - cz
+            t0 = r00 * dx + r01 * dy + r02 * dz + cx
+            t1 = r10 * dx + r11 * dy + r12 * dz + cy
+            t2 = r20 * dx + r21 * dy + r22 * dz + cz
+            g00, g10, g20 = r00 * g00 + r01 * g10 + r02 * g20, r10 * g00 + r11 * g10 + r12 * g20, \
+                r20 * g00 + r21 * g10 + r22 * g20
+            g01, g11, g21 = r00 * g01 + r01 * g11 + r02 * g21, r10 * g01 + r11 * g11 + r12 * g21, \
+                r20 * g01 + r21 * g11 + r22 * g21
+            g02, g12, g22 = r00 * g02 + r01 * g12 + r02 * g22, r10 * g02 + r11 * g12 + r12 * g22, \
+                r20 * g02 + r21 * g12 + r22 * g22
+        Rg[0, 0] = g00
+        Rg[0, 1] = g01
+        Rg[0, 2] = g02
+        Rg[1, 0] = g10
+        Rg[1, 1] = g11
+        Rg[1, 2] = g12
+        Rg[2, 0] = g20
+        Rg[2, 1] = g21
+        Rg[2, 2] = g22
+        tg[0] = t0
+        tg[1] = t1
+        tg[2] = t2
+        pos[0] = g00 * home[0] + g01 * home[1] + g02 * home[2] + t0
+        pos[1] = g10 * home[0] + g11 * home[1] + g12 * home[2] + t1
+        pos[2] = g20 * home[0] + g21 * home[1] + g22 * home[2] + t2
 
     @njit(**_jit)
     def _frames(q, kinds, axes, FR, i):
@@ -206,8 +226,8 @@ if HAVE_NUMBA:  # pragma: no branch
     @njit(**_jit)
     def _normal_equations(n, kinds, axw, ptw, pos, L, e, J, A, b):
         """The joint twists at the anchor as the columns of J (6, n) (a prismatic freedom (a, 0),
-        a revolute one (a x (pos - c), a); position rows divided by L), A = J^T J and b = J^T e;
-        returns the trace of A."""
+        a revolute one (a x (pos - c), a); position rows divided by L), the lower triangle of
+        A = J^T J and b = J^T e; returns the trace of A."""
         for m in range(n):
             ax = axw[m, 0]
             ay = axw[m, 1]
@@ -231,7 +251,7 @@ if HAVE_NUMBA:  # pragma: no branch
                 J[5, m] = az
         tr = 0.0
         for a in range(n):
-            for c in range(n):
+            for c in range(a + 1):  # the lower triangle: all that the Cholesky solve reads
                 s = 0.0
                 for k in range(6):
                     s += J[k, a] * J[k, c]
@@ -245,8 +265,8 @@ if HAVE_NUMBA:  # pragma: no branch
 
     @njit(**_jit)
     def _cholesky_solve(n, A, b, Lc, dq):
-        """dq solving A dq = b (A symmetric positive definite, damped by the caller): Cholesky
-        A = Lc Lc^T, then the two triangular solves."""
+        """dq solving A dq = b (A symmetric positive definite, damped by the caller; its lower
+        triangle read): Cholesky A = Lc Lc^T, then the two triangular solves."""
         for a in range(n):
             for c in range(a + 1):
                 s = A[a, c]
@@ -295,6 +315,7 @@ if HAVE_NUMBA:  # pragma: no branch
         b = np.empty(n)
         dq = np.empty(n)
         Lc = np.empty((n, n))
+        d0 = np.empty(n)
         for i in range(i0, i1):
             R = Rm[i]
             tx = P[i, 0] + R[0, 0] * plat[0] + R[0, 1] * plat[1] + R[0, 2] * plat[2]
@@ -305,14 +326,21 @@ if HAVE_NUMBA:  # pragma: no branch
             _forward(q, kinds, axes, points, home, Rg, tg, axw, ptw, pos)
             cost, r = _error(R, tx, ty, tz, Rg, pos, L, e)
             lam = 1e-12
+            fresh = True  # the normal equations are those of the current coordinates
+            tr = 0.0
             for it in range(n_iter):
                 if not (r >= tol):  # reached, or not finite
                     break
-                # joint twists at the anchor: P (a, 0), R (a x (pos - c), a); position rows / L
-                tr = _normal_equations(n, kinds, axw, ptw, pos, L, e, J, A, b)
+                # joint twists at the anchor: P (a, 0), R (a x (pos - c), a); position rows / L.
+                # After a refused step the coordinates are unchanged, and so are J^T J and J^T e:
+                # only the damping on the diagonal is new.
+                if fresh:
+                    tr = _normal_equations(n, kinds, axw, ptw, pos, L, e, J, A, b)
+                    for a in range(n):
+                        d0[a] = A[a, a]
                 mu = lam * (1.0 + tr / n)
                 for a in range(n):
-                    A[a, a] += mu
+                    A[a, a] = d0[a] + mu
                 _cholesky_solve(n, A, b, Lc, dq)
                 step = 0.0
                 for a in range(n):
@@ -326,18 +354,15 @@ if HAVE_NUMBA:  # pragma: no branch
                 ct, rt = _error(R, tx, ty, tz, Rgt, post, L, et)
                 ok = (ct == ct) and ct < cost
                 gain = cost - ct if ok else 0.0
-                if ok:
+                fresh = ok
+                if ok:  # the trial becomes the current state (the buffers exchanged, not copied)
                     cost = ct
                     r = rt
-                    for a in range(n):
-                        q[a] = qt[a]
-                        for k in range(3):
-                            axw[a, k] = axt[a, k]
-                            ptw[a, k] = ptt[a, k]
-                    for k in range(6):
-                        e[k] = et[k]
-                    for k in range(3):
-                        pos[k] = post[k]
+                    q, qt = qt, q
+                    axw, axt = axt, axw
+                    ptw, ptt = ptt, ptw
+                    e, et = et, e
+                    pos, post = post, pos
                     lam = lam * 0.1 if lam * 0.1 > 1e-12 else 1e-12
                 else:
                     lam = lam * 10.0
