@@ -10,9 +10,10 @@ exponentials, the error ``e = ((target - position) / L, log(R Rc^T))``, its larg
 ``r``; while ``r >= IK_TOL`` (and finite), at most ``IK_ITERATIONS`` trials: the step
 ``(J^T J + mu I) dq = J^T e`` with ``mu = lam (1 + trace(J^T J) / n)`` (J: the joint twists at
 the anchor, position rows divided by L), scaled to at most 0.5 per coordinate, taken only where
-it lowers ``|e|^2``; ``lam`` starts at 1e-12, shrinks tenfold (not below 1e-12) after a taken
-step and grows tenfold after a refused one; the pose stops stalled (a least-squares minimum off
-the limb's reach) when a taken step gained no more than 1e-12 of the error or ``lam`` exceeds
+it lowers ``|e|^2``; ``lam`` starts at 1e-12 and follows Nielsen's rule
+(``model.chains.damping_factor`` after a taken step, not below 1e-12; times 2, 4, 8, ... after
+successive refused ones); the pose stops stalled (a least-squares minimum off the limb's reach)
+when a taken step gained no more than ``IK_STALL`` of the error or ``lam`` exceeds
 1e6. The reference solves the normal equations by LU (``np.linalg.solve``), this kernel by
 Cholesky (they are symmetric positive definite with the damping): the iterates agree to
 rounding, the converged coordinates to ~1e-12, and a pose whose residual ends within rounding
@@ -50,7 +51,7 @@ import math
 import numpy as np
 
 from ..model import parasitic
-from ..model.chains import CLOSURE_ITERATIONS, IK_ITERATIONS, IK_TOL, ChainLeg
+from ..model.chains import CLOSURE_ITERATIONS, IK_ITERATIONS, IK_STALL, IK_TOL, ChainLeg
 from ..model.constraints import PoseContext
 from ..model.legs import LegState
 from ..model.spatial import unit
@@ -288,14 +289,26 @@ if HAVE_NUMBA:  # pragma: no branch
             dq[a] = s / Lc[a, a]
 
     @njit(**_jit)
-    def _chain_kernel(P, Rm, kinds, axes, points, home, plat, L, n_iter, tol, Q, res, POS, AXW, PTW, FR, i0, i1):
+    def _damping_factor(gain, pred):
+        """What the damping is multiplied by after a taken step (Nielsen's rule, as
+        ``model.chains.damping_factor``): ``max(1/3, 1 - (2 rho - 1)^3)`` with ``rho`` the
+        decrease obtained over the decrease the linear model predicted (1 where it predicted
+        none)."""
+        rho = gain / pred if pred > 0.0 else 1.0
+        f = 1.0 - (2.0 * rho - 1.0) ** 3
+        return f if f > 1.0 / 3.0 else 1.0 / 3.0
+
+    @njit(**_jit)
+    def _chain_kernel(P, Rm, kinds, axes, points, home, plat, L, n_iter, tol, stall, Q, res, POS, AXW, PTW, FR, i0,
+                      i1):
         """Poses ``i0 .. i1 - 1``: joint coordinates ``Q``, residual ``res``, anchor position
         ``POS``, the freedoms' axes ``AXW`` and points ``PTW`` at the solution and, if ``FR`` has
         rows (N, n + 1, 3, 3), the orientation of the body before each freedom (:func:`_frames`). The
         reference's Levenberg-Marquardt: a trial step is taken only where it lowers the squared
-        error; the damping shrinks tenfold (not below 1e-12) after a taken step and grows tenfold
-        after a refused one; a pose stops when reached, stalled (a taken step gained no more than
-        1e-12 of the error, or the damping exceeds 1e6) or after ``n_iter`` trials."""
+        error; the damping follows Nielsen's rule (:func:`_damping_factor` after a taken step, not
+        below 1e-12; times 2, 4, 8, ... after successive refused ones); a pose stops when reached,
+        stalled (a taken step gained no more than ``stall`` of the error, or the damping exceeds 1e6)
+        or after ``n_iter`` trials."""
         n = kinds.shape[0]
         q = np.zeros(n)
         qt = np.zeros(n)
@@ -326,6 +339,7 @@ if HAVE_NUMBA:  # pragma: no branch
             _forward(q, kinds, axes, points, home, Rg, tg, axw, ptw, pos)
             cost, r = _error(R, tx, ty, tz, Rg, pos, L, e)
             lam = 1e-12
+            nu = 2.0
             fresh = True  # the normal equations are those of the current coordinates
             tr = 0.0
             for it in range(n_iter):
@@ -356,6 +370,20 @@ if HAVE_NUMBA:  # pragma: no branch
                 gain = cost - ct if ok else 0.0
                 fresh = ok
                 if ok:  # the trial becomes the current state (the buffers exchanged, not copied)
+                    # the decrease the linear model predicted for the step s = fac dq:
+                    # |e|^2 - |e - J s|^2 = 2 s.b - s^T (J^T J) s (its lower triangle and d0)
+                    sb = 0.0
+                    sas = 0.0
+                    for a in range(n):
+                        sa = dq[a] * fac
+                        sb += sa * b[a]
+                        sas += d0[a] * sa * sa
+                        for c in range(a):
+                            sas += 2.0 * A[a, c] * sa * (dq[c] * fac)
+                    pred = 2.0 * sb - sas
+                    lam = lam * _damping_factor(gain, pred)
+                    lam = lam if lam > 1e-12 else 1e-12
+                    nu = 2.0
                     cost = ct
                     r = rt
                     q, qt = qt, q
@@ -363,10 +391,10 @@ if HAVE_NUMBA:  # pragma: no branch
                     ptw, ptt = ptt, ptw
                     e, et = et, e
                     pos, post = post, pos
-                    lam = lam * 0.1 if lam * 0.1 > 1e-12 else 1e-12
                 else:
-                    lam = lam * 10.0
-                if (ok and gain <= 1e-12 * (cost + gain)) or lam > 1e6:
+                    lam = lam * nu
+                    nu = nu * 2.0
+                if (ok and gain <= stall * (cost + gain)) or lam > 1e6:
                     break
             res[i] = r
             for m in range(n):
@@ -467,8 +495,8 @@ def signatures() -> dict:
     from numba import types as nbt
 
     f1, f2, f3, f4, i1 = _array("f8", 1), _array("f8", 2), _array("f8", 3), _array("f8", 4), _array("i8", 1)
-    sig = (f2, f3, i1, f2, f2, f1, f1, nbt.float64, nbt.int64, nbt.float64, f2, f1, f2, f3, f3, f4, nbt.int64,
-           nbt.int64)
+    sig = (f2, f3, i1, f2, f2, f1, f1, nbt.float64, nbt.int64, nbt.float64, nbt.float64, f2, f1, f2, f3, f3, f4,
+           nbt.int64, nbt.int64)
     csig = (f2, f3, i1, f2, f2, f1, nbt.float64, nbt.int64, f2, f2, nbt.int64, nbt.int64)
     return {"_chain_kernel": (_chain_kernel, sig), "_closure_kernel": (_closure_kernel, csig)}
 
@@ -493,7 +521,7 @@ def solve_arrays(leg: ChainLeg, p, R, frames: bool = False) -> dict:
     PTW = np.empty((N, n, 3))
     FR = np.empty((N if frames else 0, n + 1, 3, 3))
     args = (P, Rm, _c(d["kinds"], np.int64), _c(d["axes"]), _c(d["points"]), _c(d["home"]), _c(d["platform"]),
-            float(d["length"]), int(IK_ITERATIONS), float(IK_TOL), Q, res, POS, AXW, PTW, FR)
+            float(d["length"]), int(IK_ITERATIONS), float(IK_TOL), float(IK_STALL), Q, res, POS, AXW, PTW, FR)
     core._timed_blocks("chain", lambda block, b0, b1: _chain_kernel(*args, b0 * block, min(N, b1 * block)), N,
                        N * CHAIN_WORK)
     out = {"q": Q, "residual": res, "position": POS, "axes": AXW, "points": PTW}
