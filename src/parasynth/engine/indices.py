@@ -101,6 +101,11 @@ __all__ = [
 from . import core
 from .core import _WARNED, HAVE_NUMBA, _array, over_blocks, record_of, warn_fallback  # noqa: F401
 
+#: A chain limb's rows (two one-sided Jacobi SVDs of its joint twists) cost ~2 us a pose on one
+#: core (a 5-RPUR limb: 17 ms for 8192 poses), as its solve (``chains.CHAIN_WORK``): a batch is
+#: spread over threads from a few hundred poses up.
+CHAIN_ROWS_WORK = 2000.0 / core.REFERENCE_NS
+
 if HAVE_NUMBA:
     from .core import crank_tip
 
@@ -295,10 +300,12 @@ def _chain_ext(legs, plan, p, R) -> np.ndarray:
         d = leg.chain_arrays()
         kinds = np.ascontiguousarray(d["kinds"], dtype=np.int64)
         rot = np.flatnonzero(kinds == 0)
-        _chain_rows_kernel(p, out["axes"], out["points"], out["position"], out["residual"], REACH_FACTOR * IK_TOL,
-                           kinds, int(d["actuated"]), int(rot[0]) if rot.size else -1,
-                           np.ascontiguousarray(leg.base, dtype=float), int(sc[j, 1]), float(d["length"]), ext,
-                           int(sc[j, 0]))
+        args = (p, out["axes"], out["points"], out["position"], out["residual"], REACH_FACTOR * IK_TOL, kinds,
+                int(d["actuated"]), int(rot[0]) if rot.size else -1, np.ascontiguousarray(leg.base, dtype=float),
+                int(sc[j, 1]), float(d["length"]), ext, int(sc[j, 0]))
+        core._timed_blocks("chain_rows", lambda block, b0, b1: _chain_rows_kernel(*args, b0 * block,
+                                                                                  min(N, b1 * block)),
+                           N, N * CHAIN_ROWS_WORK)
     return ext
 
 
@@ -907,7 +914,7 @@ if HAVE_NUMBA:
         return r
 
     @njit(**_jit)
-    def _chain_rows_kernel(p, AXW, PTW, POS, res, tol, kinds, act, first, base, nc, Ll, ext, off):
+    def _chain_rows_kernel(p, AXW, PTW, POS, res, tol, kinds, act, first, base, nc, Ll, ext, off, i0, i1):
         """A chain limb's rows at every pose, into ``ext[:, off:]`` (see ``_EXT_*``), from its
         solved configuration (``engine.chains.solve_arrays``: axes ``AXW``, points ``PTW``,
         anchor ``POS``, residual ``res``, reachable below ``tol``), as the NumPy reference
@@ -917,8 +924,8 @@ if HAVE_NUMBA:
         (one-sided Jacobi), a unit force or (when the force vanishes) a unit couple; the unit
         actuation wrench reciprocal to the passive twists, out of the span of the constraint
         wrenches, its power on the actuated twist (``rate``) made positive; the direction from
-        the first rotational joint centre (``first``, or ``base``) to the anchor."""
-        N = p.shape[0]
+        the first rotational joint centre (``first``, or ``base``) to the anchor. Poses ``i0 ..
+        i1 - 1``, each on its own (ranges of poses are spread over threads)."""
         n = kinds.shape[0]
         T = np.empty((max(n, 1), 6))
         Mt = np.empty((6, max(n, 1)))
@@ -928,7 +935,8 @@ if HAVE_NUMBA:
         Qc = np.empty((max(nc, 1), 6))
         ns = np.empty((6, 6))
         order = np.empty(6, np.int64)
-        for i in range(N):
+        w0 = np.empty(6)
+        for i in range(i0, i1):
             ok = res[i] < tol
             ext[i, off] = 1.0 if ok else 0.0
             px, py, pz = p[i, 0], p[i, 1], p[i, 2]
@@ -1048,7 +1056,6 @@ if HAVE_NUMBA:
                 for q in range(7):
                     ext[i, off + _EXT_A + q] = np.nan
                 continue
-            w0 = np.empty(6)
             for q in range(6):
                 w0[q] = ns[best, q] * Ll if q >= 3 else ns[best, q]
             f = math.sqrt(w0[0] ** 2 + w0[1] ** 2 + w0[2] ** 2)
@@ -1599,7 +1606,7 @@ def signatures() -> dict:
     return {
         "_upu_mean_lengths": (_upu_mean_lengths, (f2, f3, i1, f3)),
         "_constraint_rank_kernel": (_constraint_rank_kernel, (f2, f3, i1, f3, f2, f2, f8)),
-        "_chain_rows_kernel": (_chain_rows_kernel, (f2, f3, f3, f2, f1, f8, i1, i8, i8, f1, i8, f8, f2, i8)),
+        "_chain_rows_kernel": (_chain_rows_kernel, (f2, f3, f3, f2, f1, f8, i1, i8, i8, f1, i8, f8, f2, i8, i8, i8)),
         "_margin_kernel": (_KERNELS["_margin_kernel"], (f2, f3, b1) + legs + (i8, f8, f1, i8, i8)),
         "_lti_kernel": (_KERNELS["_lti_kernel"], (f2, f3, b1) + legs + (f8, f8, f2, f2, f1, i8, i8)),
         "_kappa_kernel": (_KERNELS["_kappa_kernel"], (f2, f3, b1, f3, b1) + legs + (f8, f1, i8, i8)),
