@@ -1,13 +1,17 @@
 """Compare the result tables of two run trees (e.g. two ``parasynth run-all --runs DIR``
 outputs) column by column.
 
-    python benchmarks/compare_results.py RUNS_A RUNS_B [--ignore time_s] [--final]
+    python benchmarks/compare_results.py RUNS_A RUNS_B [--ignore time_s] [--final] [--rtol 1e-6]
 
 For every study directory in either tree, ``results.csv`` must have the same columns in the
 same order and the same rows, cell by cell, as text (no tolerance: the values written by the
 run are compared exactly), except the ignored columns (default ``time_s``, the wall-clock
-time of each design). ``--final`` compares ``final.csv`` the same way. Prints one line per
-study and the first differing cells; exit status 0 when everything agrees, 1 otherwise.
+time of each design). ``--final`` compares ``final.csv`` the same way. With ``--rtol R`` two
+numbers within ``R`` of each other (relative to the larger) count as agreeing, and the largest
+relative difference of each table is printed: for a change of the code that moves results by
+rounding only (a solver converging to the same root along another path), where the question
+is whether the designs and their rankings stay, not the last digits. Prints one line per study
+and the first differing cells; exit status 0 when everything agrees, 1 otherwise.
 """
 
 from __future__ import annotations
@@ -24,8 +28,24 @@ def _read(path: Path) -> tuple[list[str], list[list[str]]]:
     return (rows[0], rows[1:]) if rows else ([], [])
 
 
-def compare_tables(a: Path, b: Path, ignore: set[str], show: int = 5) -> list[str]:
-    """Differences between two CSV files (empty when they agree outside ``ignore``)."""
+def _close(x: str, y: str, rtol: float) -> tuple[bool, float]:
+    """Whether two cells agree within ``rtol`` (numbers; other text exactly), and the
+    relative difference of two numbers (0 otherwise)."""
+    if x == y:
+        return True, 0.0
+    try:
+        u, v = float(x), float(y)
+    except ValueError:
+        return False, 0.0
+    if u == v or (u != u and v != v):
+        return True, 0.0
+    d = abs(u - v) / max(abs(u), abs(v))
+    return d <= rtol, d
+
+
+def compare_tables(a: Path, b: Path, ignore: set[str], show: int = 5, rtol: float = 0.0) -> list[str]:
+    """Differences between two CSV files (empty when they agree outside ``ignore``, numbers
+    within ``rtol``)."""
     ha, ra = _read(a)
     hb, rb = _read(b)
     out = []
@@ -42,14 +62,19 @@ def compare_tables(a: Path, b: Path, ignore: set[str], show: int = 5) -> list[st
         out.append(f"{len(ra)} rows vs {len(rb)} rows")
     keep = [j for j, (c, d) in enumerate(zip(ha, hb)) if c not in ignore and d not in ignore]
     n_diff = 0
+    worst = 0.0
     for i, (x, y) in enumerate(zip(ra, rb)):
         for j in keep:
-            if x[j] != y[j]:
+            same, d = _close(x[j], y[j], rtol) if rtol > 0 else (x[j] == y[j], 0.0)
+            worst = max(worst, d if same else 0.0)
+            if not same:
                 n_diff += 1
                 if n_diff <= show:
                     out.append(f"row {i + 1} column {ha[j]!r}: {x[j]!r} vs {y[j]!r}")
     if n_diff > show:
         out.append(f"... {n_diff - show} more differing cells")
+    if rtol > 0 and worst > 0:
+        out.append(f"note: numbers agree within {worst:.2g} (relative) where they agree within the tolerance")
     return out
 
 
@@ -59,7 +84,11 @@ def main(argv=None) -> int:
     ap.add_argument("b", type=Path, help="second run tree")
     ap.add_argument("--ignore", nargs="*", default=["time_s"], help="columns not compared (default time_s)")
     ap.add_argument("--final", action="store_true", help="compare final.csv as well")
+    ap.add_argument("--rtol", type=float, default=0.0,
+                    help="numbers within this relative difference agree (default 0: compared as text)")
     args = ap.parse_args(argv)
+    if not (args.rtol >= 0):
+        ap.error(f"--rtol must be a relative tolerance >= 0, got {args.rtol}")
     names = sorted({p.name for p in args.a.iterdir() if p.is_dir()} | {p.name for p in args.b.iterdir() if p.is_dir()})
     files = ["results.csv"] + (["final.csv"] if args.final else [])
     ok = True
@@ -72,7 +101,7 @@ def main(argv=None) -> int:
                 print(f"{name}/{fname}: only in {args.a if fa.exists() else args.b}")
                 ok = False
                 continue
-            diffs = compare_tables(fa, fb, set(args.ignore))
+            diffs = compare_tables(fa, fb, set(args.ignore), rtol=args.rtol)
             notes = [d for d in diffs if d.startswith("note: ")]
             diffs = [d for d in diffs if not d.startswith("note: ")]
             for d in notes:
@@ -84,8 +113,11 @@ def main(argv=None) -> int:
                 for d in diffs:
                     print(f"    {d}")
             else:
-                print(f"{name}/{fname}: identical ({n} rows; ignored: {', '.join(args.ignore) or 'none'})")
-    print("all identical" if ok else "differences found")
+                what = (f"the same within rtol {args.rtol:g}" if any("numbers agree within" in d for d in notes)
+                        else "identical")
+                print(f"{name}/{fname}: {what} ({n} rows; ignored: {', '.join(args.ignore) or 'none'})")
+    print(("all identical" if args.rtol == 0 else f"all the same within rtol {args.rtol:g}") if ok
+          else "differences found")
     return 0 if ok else 1
 
 
