@@ -91,3 +91,64 @@ def test_stroke_margin_by_hand():
     expect = min(np.min(q - 0.7), np.min(1.0 - q))  # 639.0 mm is below the 700 mm minimum
     assert mech.constraint_margins(X)["stroke"] == pytest.approx(expect, abs=1e-6)
     assert not mech.is_feasible(X)
+
+
+def _box_poses(mech, n, seed, spread=1.0):
+    rng = np.random.default_rng(seed)
+    ranges = mech.default_ranges()
+    X = np.tile(mech.home, (n, 1))
+    for c, (lo, hi) in ranges.items():
+        j = mech.task_coordinates.index(c)
+        mid = 0.5 * (lo + hi)
+        X[:, j] = mid + spread * (rng.uniform(lo, hi, n) - mid)
+    return X
+
+
+def _chain_structure():
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return parasynth.structures("3T2R", leg_types=["RPUR"])[0].mechanism()
+
+
+@pytest.mark.parametrize("name", ["5pus_upu", "4ups_1rps", "2rpu_2sps", "chain 5-RPUR"])
+def test_context_rows_give_the_margins_of_those_poses(name):
+    """A constraint's margin at ctx.rows(idx) is its margin at those poses of the whole context,
+    bit for bit: every margin is a function of each pose alone, and rows() carries every
+    per-pose array (states, angles, a chain limb's solved coordinates)."""
+    mech = _chain_structure() if name.startswith("chain") else parasynth.load_mechanism(name)
+    X = _box_poses(mech, 300, 5, spread=1.6)
+    ctx = mech.pose_context(X)
+    idx = np.random.default_rng(6).permutation(300)[:97]
+    sub = ctx.rows(idx)
+    assert sub.X.shape[0] == sub.p.shape[0] == sub.actuators.shape[0] == 97
+    np.testing.assert_array_equal(sub.reachable, ctx.reachable[idx])
+    both = False
+    for cname, c in mech.constraints.items():
+        with np.errstate(invalid="ignore"):
+            whole, part = np.asarray(c.margin(ctx)), np.asarray(c.margin(sub))
+        np.testing.assert_array_equal(part, whole[idx], err_msg=cname)
+        both |= bool(np.any(part >= 0) and np.any(part < 0))
+    assert both  # poses inside and outside a constraint among the rows
+
+
+@pytest.mark.parametrize("name", ["5pus_upu", "2rpu_2sps", "chain 5-RPUR"])
+def test_feasibility_by_rows_is_every_constraint_at_every_pose(name):
+    """is_feasible (NumPy, and the chain engine) evaluates each constraint only at the poses the
+    ones before it left feasible: the answer is the conjunction of every margin at every pose,
+    computed here the long way."""
+    from parasynth.model.constraints import feasible_rows
+
+    mech = _chain_structure() if name.startswith("chain") else parasynth.load_mechanism(name)
+    X = _box_poses(mech, 400, 7, spread=1.6)
+    ctx = mech.pose_context(X)
+    expected = ctx.reachable.copy()
+    with np.errstate(invalid="ignore"):
+        for c in mech.constraints.values():
+            expected &= np.asarray(c.margin(ctx)) >= 0
+    assert 0 < expected.sum() < 0.5 * len(X)  # the subset path taken, and feasible poses left
+    np.testing.assert_array_equal(feasible_rows(ctx, list(mech.constraints.values())), expected)
+    np.testing.assert_array_equal(mech.is_feasible(X, engine="numpy"), expected)
+    if name.startswith("chain"):
+        np.testing.assert_array_equal(mech.is_feasible(X), expected)

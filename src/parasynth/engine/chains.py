@@ -52,7 +52,7 @@ import numpy as np
 
 from ..model import parasitic
 from ..model.chains import CLOSURE_ITERATIONS, IK_ITERATIONS, IK_STALL, IK_TOL, ChainLeg
-from ..model.constraints import PoseContext
+from ..model.constraints import PoseContext, feasible_rows
 from ..model.legs import LegState
 from ..model.spatial import unit
 from . import core
@@ -703,13 +703,7 @@ def feasible(mech, X, names=None):
     """``mech._is_feasible_numpy(X, names)`` with the chain limbs solved by the kernel."""
     _, single = mech._poses(X)
     cons = mech._select(names)
-    ctx = context(mech, X)
-    ok = ctx.reachable.copy()
-    with np.errstate(invalid="ignore"):
-        for c in cons:
-            if not ok.any():
-                break
-            ok &= np.asarray(c.margin(ctx)) >= 0
+    ok = feasible_rows(context(mech, X), cons)
     return ok[0] if single else ok
 
 

@@ -28,6 +28,7 @@ __all__ = [
     "CoordinateRange",
     "SingularityMarginFloor",
     "PoseContext",
+    "feasible_rows",
 ]
 
 
@@ -51,6 +52,51 @@ class PoseContext:
             if leg.name == leg_name:
                 return st
         raise KeyError(leg_name)
+
+    def rows(self, idx) -> "PoseContext":
+        """The context at the poses ``idx`` (indices into the N poses): every per-pose array
+        (leading dimension N, also inside a state's ``angles`` and ``extra``) taken at ``idx``.
+        A constraint's margin is a function of each pose alone, so ``c.margin(ctx.rows(idx))``
+        is ``c.margin(ctx)[idx]``: the feasibility tests evaluate a constraint only at the poses
+        the constraints before it left feasible."""
+        idx = np.asarray(idx)
+        N = self.X.shape[0]
+        states = [LegState(*(_take(getattr(st, f), idx, N) for f in ("actuator", "reachable", "base_point",
+                                                                      "platform_point", "direction", "length")),
+                           _take(st.angles, idx, N), _take(st.extra, idx, N)) for st in self.states]
+        return PoseContext(self.X[idx], self.p[idx], self.R[idx], self.legs, states, self.reachable[idx],
+                           _take(self.actuators, idx, N), self.mechanism)
+
+
+def _take(v, idx, N: int):
+    """``v`` at the poses ``idx``: an array of leading dimension N indexed, a list, tuple or dict
+    taken item by item, anything else (None, constants) kept."""
+    if isinstance(v, np.ndarray):
+        return v[idx] if v.ndim and v.shape[0] == N else v
+    if isinstance(v, dict):
+        return {k: _take(x, idx, N) for k, x in v.items()}
+    if isinstance(v, (list, tuple)):
+        return type(v)(_take(x, idx, N) for x in v)
+    return v
+
+
+def feasible_rows(ctx: PoseContext, constraints) -> np.ndarray:
+    """Whether each pose of ``ctx`` is reachable and meets every constraint (N,): each
+    constraint evaluated at the poses the ones before it left feasible only (all of them while
+    at least half are; a margin is a function of each pose alone, so the answer is the one
+    of every constraint at every pose)."""
+    ok = np.asarray(ctx.reachable, dtype=bool).copy()
+    N = ok.shape[0]
+    with np.errstate(invalid="ignore"):
+        for c in constraints:
+            live = np.flatnonzero(ok)
+            if not live.size:
+                break
+            if 2 * live.size >= N:
+                ok &= np.asarray(c.margin(ctx)) >= 0
+            else:
+                ok[live] = np.asarray(c.margin(ctx.rows(live))) >= 0
+    return ok
 
 
 @dataclass(frozen=True)

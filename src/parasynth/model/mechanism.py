@@ -32,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from .constraints import Constraint, PoseContext
+from .constraints import Constraint, PoseContext, feasible_rows
 from .legs import JOINT_DOF, Leg, LegState, solve_geometry
 from .spatial import reciprocal_basis
 from ..common.validation import check_engine, check_names, check_pose_array, is_real_number, mask_huge_poses
@@ -761,13 +761,7 @@ class Mechanism:
         """The NumPy reference of :meth:`is_feasible`."""
         Xa, single = self._poses(X)
         cons = self._select(names)
-        ctx = self.pose_context(Xa)
-        ok = ctx.reachable.copy()
-        with np.errstate(invalid="ignore"):
-            for c in cons:
-                if not ok.any():
-                    break
-                ok &= np.asarray(c.margin(ctx)) >= 0
+        ok = feasible_rows(self.pose_context(Xa), cons)
         return ok[0] if single else ok
 
     # -- sampling helpers ---------------------------------------------------------------------------
