@@ -94,9 +94,9 @@ if HAVE_NUMBA:  # pragma: no branch
     def _forward(q, kinds, axes, points, home, Rg, tg, axw, ptw, pos):
         """The anchor frame (``pos``, ``Rg``) and the freedoms' current axes and points at the
         joint coordinates ``q`` (product of exponentials, as ``ChainLeg.forward``). The running
-        frame is kept in local scalars (the compiler cannot keep it in registers when it lives in
-        arrays that the stores to ``axw`` and ``ptw`` might alias); the arithmetic is the same,
-        operation for operation, as a frame held in ``Rg`` and ``tg``."""
+        frame is kept in local scalars, not in ``Rg`` and ``tg`` (written once at the end), so
+        that the stores to ``axw`` and ``ptw`` do not make the compiler reload it (171 -> 151 ns
+        for a five-freedom chain); the arithmetic is the same, operation for operation."""
         n = kinds.shape[0]
         g00, g01, g02, g10, g11, g12, g20, g21, g22 = 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0
         t0, t1, t2 = 0.0, 0.0, 0.0
