@@ -419,3 +419,50 @@ def test_box_centre_is_at_the_reference_structure_with_its_dimensions():
     assert choices[0] != "5-PUS/UPU" or len(choices) == 1  # the reference is not merely the first choice
     assert c["base_radius"] == pytest.approx(0.125) and c["height"] == pytest.approx(0.275)
     assert set(c) == {v.name for v in study.space.active(c)}  # only the dimensions that structure uses
+
+
+def test_stored_records_parsed_once_per_counted_trial(monkeypatch):
+    """A structure study asks for every stored record before each trial: with the sampler's
+    ``known`` dict each counted trial is parsed once, and the records are those parsed afresh
+    (counted trials only: complete ones and failed ones with a record; not a running trial, nor a
+    failed one without a record), as trials are added between the calls."""
+    import optuna
+    from optuna.distributions import FloatDistribution
+    from optuna.trial import TrialState, create_trial
+
+    from parasynth.study import storage, workers
+
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    ostudy = optuna.create_study(directions=["maximize"], study_name="records")
+
+    def add(k, state, with_record=True, status="ok"):
+        rec = Record(values={"structure": f"S{k % 3}", "x": float(k)}, objectives={"v": float(k)}, status=status)
+        attrs = {storage.ATTR_RECORD: rec.to_dict()} if with_record else {}
+        ostudy.add_trial(create_trial(state=state, params={"x": float(k)}, distributions={"x": FloatDistribution(0, 99)},
+                                      values=[float(k)] if state == TrialState.COMPLETE else None, user_attrs=attrs))
+
+    parsed = []
+    real = workers.trial_record
+    monkeypatch.setattr(workers, "trial_record", lambda t: (parsed.append(t.number), real(t))[1])
+    known = {}
+
+    def same(a, b):
+        return [(r.trial, r.values, r.objectives, r.status) for r in a] == [(r.trial, r.values, r.objectives, r.status)
+                                                                          for r in b]
+
+    for k in range(5):
+        add(k, TrialState.COMPLETE)
+    add(5, TrialState.FAIL, status="failed")   # counted: a design that failed
+    add(6, TrialState.FAIL, with_record=False)  # not counted: no record
+    first = workers._stored_records(ostudy, known)
+    assert [r.trial for r in first] == [0, 1, 2, 3, 4, 5]
+    assert sorted(parsed) == [0, 1, 2, 3, 4, 5]
+    parsed.clear()
+    for k in range(7, 10):
+        add(k, TrialState.COMPLETE)
+    again = workers._stored_records(ostudy, known)
+    assert sorted(parsed) == [7, 8, 9]  # only the new counted trials parsed
+    parsed.clear()
+    fresh = workers._stored_records(ostudy)
+    assert len(parsed) == 9  # without ``known``: every counted trial parsed again
+    assert same(again, fresh) and [r.trial for r in again] == [0, 1, 2, 3, 4, 5, 7, 8, 9]

@@ -203,17 +203,38 @@ def make_sampler(study, seed):
     cf = _constraints_func if study.constraints and not _uses_set_constraint() else None
     alg = optuna_algorithm(study)
     schedule = structure_schedule(study)
-    assign = (lambda ostudy, trial: assign_structure(schedule, ostudy)) if schedule is not None else None
+    known: dict = {}  # the sampler's parsed records of counted trials (see _stored_records)
+    assign = (lambda ostudy, trial: assign_structure(schedule, ostudy, known)) if schedule is not None else None
     return PerTrialSeeded(lambda s: _base_sampler(study, s, cf), seed, per_trial=(alg != "qmc"), assign=assign)
 
 
-def _stored_records(ostudy) -> list:
-    return [r for r in (trial_record(t) for t in ostudy.get_trials(deepcopy=False) if counts(t)) if r is not None]
+def _stored_records(ostudy, known: dict | None = None) -> list:
+    """The records of the counted trials of ``ostudy``. With ``known`` (a dict kept by the caller
+    between calls) each counted trial's record is parsed once: a counted trial is finished and
+    its record no longer changes, and a structure study asks for all of them before every trial
+    (parsing every one each time made a study of n trials parse n^2 / 2 records: 550,000 and ~4 s
+    of a 1,050-trial run)."""
+    trials = ostudy.get_trials(deepcopy=False)
+    if known is None:
+        return [r for r in (trial_record(t) for t in trials if counts(t)) if r is not None]
+    out = []
+    for t in trials:
+        key = (ostudy.study_name, t.number)
+        if key in known:
+            r = known[key]
+        elif counts(t):
+            r = known[key] = trial_record(t)
+        else:
+            continue
+        if r is not None:
+            out.append(r)
+    return out
 
 
-def assign_structure(schedule, ostudy) -> str:
+def assign_structure(schedule, ostudy, known: dict | None = None) -> str:
     """The structure of the trial being asked (:meth:`~parasynth.study.schedule.Schedule.next_structure`
-    given the stored designs and the trials other processes are evaluating)."""
+    given the stored designs and the trials other processes are evaluating); ``known``: the
+    caller's records already parsed (:func:`_stored_records`)."""
     from optuna.trial import TrialState  # lazy: optuna takes about a second to import
 
     running = {}
@@ -221,7 +242,7 @@ def assign_structure(schedule, ostudy) -> str:
         s = t.system_attrs.get(ATTR_STRUCTURE)
         if s is not None:
             running[s] = running.get(s, 0) + 1
-    return schedule.next_structure(schedule.plan(_stored_records(ostudy)), running)
+    return schedule.next_structure(schedule.plan(_stored_records(ostudy, known)), running)
 
 
 def _set_optuna_constraints(trial, study, rec):
