@@ -70,6 +70,8 @@ other capability but ``stiffness`` and ``passive`` is off, so the other parts re
 
 from __future__ import annotations
 
+import functools
+
 import math
 from dataclasses import dataclass
 from typing import ClassVar
@@ -124,6 +126,15 @@ def damping_factor(gain, pred):
     with np.errstate(divide="ignore", invalid="ignore"):
         rho = np.where(pred > 0.0, gain / np.where(pred > 0.0, pred, 1.0), 1.0)
     return np.maximum(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
+
+
+@functools.lru_cache(maxsize=256)
+def _parsed(chain, axes, stations, offsets, passive: bool) -> ChainSpec:
+    """:func:`parse_chain` of hashable arguments (tuples or None), kept: a ``ChainSpec`` is frozen,
+    and a study builds the same limbs for every design (a ``ChainError`` is raised each time)."""
+    return parse_chain(chain, axes=None if axes is None else list(axes), passive=passive,
+                       stations=None if stations is None else list(stations),
+                       offsets=None if offsets is None else list(offsets))
 
 
 class ChainError(ValueError):
@@ -456,10 +467,14 @@ class ChainLeg(Leg):
     def __post_init__(self):
         super().__post_init__()
         chain = self.chain.replace("*", "") if self.passive and isinstance(self.chain, str) else self.chain
+        opts = [None if v is None else tuple(v) for v in (self.axes, self.stations, self.offsets)]
         try:
-            spec = parse_chain(chain, axes=None if self.axes is None else list(self.axes), passive=self.passive,
-                               stations=None if self.stations is None else list(self.stations),
-                               offsets=None if self.offsets is None else list(self.offsets))
+            try:  # a study builds the same limbs for every design: their parse is kept
+                spec = _parsed(chain, *opts, bool(self.passive))
+            except TypeError:  # something unhashable: parsed (and refused) as given
+                spec = parse_chain(chain, axes=None if self.axes is None else list(self.axes), passive=self.passive,
+                                   stations=None if self.stations is None else list(self.stations),
+                                   offsets=None if self.offsets is None else list(self.offsets))
         except ChainError as e:
             raise ChainError(f"leg {self.name}: {e}") from None
         A0 = (self.platform + np.array([0.0, 0.0, float(self.home_height)]) if self.home_point is None
