@@ -471,10 +471,8 @@ class ChainLeg(Leg):
         try:
             try:  # a study builds the same limbs for every design: their parse is kept
                 spec = _parsed(chain, *opts, bool(self.passive))
-            except TypeError:  # something unhashable: parsed (and refused) as given
-                spec = parse_chain(chain, axes=None if self.axes is None else list(self.axes), passive=self.passive,
-                                   stations=None if self.stations is None else list(self.stations),
-                                   offsets=None if self.offsets is None else list(self.offsets))
+            except TypeError:  # something unhashable: parsed (and refused) as given, not kept
+                spec = _parsed.__wrapped__(chain, *opts, bool(self.passive))
         except ChainError as e:
             raise ChainError(f"leg {self.name}: {e}") from None
         A0 = (self.platform + np.array([0.0, 0.0, float(self.home_height)]) if self.home_point is None
