@@ -467,3 +467,85 @@ def test_partial_unknowns_take_unsolved_rows_as_unsolved():
     np.testing.assert_array_equal(m.solved_unknowns(X), U)
     with pytest.raises(ValueError, match="function"):
         m.use_solved_unknowns(X, V, partial=True)
+
+
+# -- feasibility: a chain limb solved only where the legs before it keep their own limits ----------
+@pytest.mark.parametrize("motion, types, legs", [("3T2R", ["RPUR"], [5]), ("2T2R", ["RPU", "URPU"], [4])],
+                         ids=["5-RPUR", "2-RPU&2-URPU"])
+def test_feasibility_solves_a_chain_limb_only_where_the_legs_before_it_keep_their_limits(motion, types, legs):
+    """``engine.feasible`` of a structure with chain limbs (all chains: a 5-RPUR; closed-form RPU
+    legs before two URPU chains): a chain limb is solved only at the poses where every leg
+    before it keeps its own stroke and joint-angle limits (``leg_gate``), fewer poses than
+    without that gate, and the answer is exactly that of the context with every limb solved at
+    every pose reachable by the legs before it (``feasible_rows`` of the ungated context), and
+    the NumPy reference's away from a boundary."""
+    from parasynth.model.constraints import feasible_rows
+
+    ch = _chains()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", EngineFallbackWarning)
+        # a short stroke (120 mm), so that the legs' own limits decide part of the poses
+        m = parasynth.structures(motion, leg_types=types, legs=legs)[0].mechanism(stroke=0.12)
+    assert any(type(c).__name__ in ("LegLengthRange", "JointAngleLimit") for c in m.constraints.values())
+    rng = np.random.default_rng(5)
+    lo, hi = (np.array(v) for v in zip(*[m.default_ranges()[k] for k in m.task_coordinates]))
+    # half the poses near home (mostly feasible), half over the box (mostly not)
+    ang = np.isin(m.task_coordinates, m.angular_coordinates)
+    X = np.concatenate([m.home + rng.uniform(-1, 1, (300, len(lo))) * np.where(ang, 0.15, 0.06),
+                        lo + (hi - lo) * rng.uniform(0, 1, (300, len(lo)))])
+    solved = []
+    orig = ch.solve
+
+    def counting(leg, p, R, joint_angles=True):
+        solved.append(p.shape[0])
+        return orig(leg, p, R, joint_angles)
+
+    ch.solve = counting
+    try:
+        cons = m._select(None)
+        gated = ch.feasible(m, X)
+        n_gated = sum(solved)
+        solved.clear()
+        full = feasible_rows(ch.context(m, X), cons)
+        n_full = sum(solved)
+    finally:
+        ch.solve = orig
+    assert n_gated < n_full, (n_gated, n_full)
+    assert np.array_equal(gated, full)
+    assert 0 < gated.sum() < len(X)
+    ref = m.is_feasible(X, engine="numpy")
+    mn = m.constraint_margins(X, engine="numpy")
+    near = np.zeros(len(X), bool)
+    for v in mn.values():
+        near |= np.isfinite(v) & (np.abs(v) < 1e-9)
+    assert np.array_equal(gated[~near], ref[~near])
+
+
+def test_leg_gate_reads_only_the_limits_of_one_leg():
+    """``leg_gate``: the stroke (ActuatorRange, LegLengthRange) and joint-angle limits of the
+    given leg, None for constraints that need several legs (interference) or a subclass whose
+    margin may differ."""
+    from dataclasses import dataclass
+
+    from parasynth.model.constraints import ActuatorRange, JointAngleLimit, LegInterference, LegLengthRange, leg_gate
+
+    leg = UPS("L1", base=[0.3, 0.0, 0.0], platform=[0.1, 0.0, 0.0])
+    st = leg.solve(np.array([[0.0, 0.0, 0.3], [0.0, 0.0, 0.5], [0.0, 0.0, 0.7]]), np.repeat(np.eye(3)[None], 3, 0))
+    q = st.actuator
+    assert leg_gate([LegInterference("i", diameter=0.01)], leg, st) is None
+    np.testing.assert_array_equal(leg_gate([ActuatorRange("a", lo=q[0] + 1e-9, hi=q[2])], leg, st),
+                                  [False, True, True])
+    np.testing.assert_array_equal(leg_gate([LegLengthRange("l", legs=("L2",), lo=1.0)], leg, st) is None, True)
+    np.testing.assert_array_equal(leg_gate([LegLengthRange("l", legs=("L1",), lo=0.0, hi=q[1])], leg, st),
+                                  [True, True, False])
+    key = next(iter(st.angles))
+    a = st.angles[key]
+    lim = JointAngleLimit("j", key=key, lo=-np.inf, hi=float(np.sort(a)[1]))
+    np.testing.assert_array_equal(leg_gate([lim], leg, st), a <= lim.hi)
+
+    @dataclass(frozen=True)
+    class Shifted(ActuatorRange):
+        def margin(self, ctx):
+            return super().margin(ctx) + 1.0
+
+    assert leg_gate([Shifted("s", lo=10.0)], leg, st) is None

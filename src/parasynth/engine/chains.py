@@ -52,7 +52,7 @@ import numpy as np
 
 from ..model import parasitic
 from ..model.chains import CLOSURE_ITERATIONS, IK_ITERATIONS, IK_STALL, IK_TOL, ChainLeg
-from ..model.constraints import PoseContext, feasible_rows
+from ..model.constraints import PoseContext, feasible_rows, leg_gate
 from ..model.legs import LegState
 from ..model.spatial import unit
 from . import core
@@ -646,8 +646,12 @@ def _offer_unknowns(mech, X) -> bool:
     return True
 
 
-def context(mech, X) -> PoseContext:
-    """``mech.pose_context(X)`` with the chain limbs solved by the compiled kernel."""
+def context(mech, X, gate=()) -> PoseContext:
+    """``mech.pose_context(X)`` with the chain limbs solved by the compiled kernel. With
+    constraints ``gate`` (a feasibility test's), a chain limb is solved only at the poses where
+    no leg before it breaks one of them alone (:func:`parasynth.model.constraints.leg_gate`:
+    a stroke, a joint angle out of its range); elsewhere it is left unreachable, which those
+    poses are not feasible anyway."""
     Xa, _ = mech._poses(X)
     Xa = np.ascontiguousarray(Xa, dtype=np.float64)
     valid, p, R = _poses(mech, Xa)
@@ -662,15 +666,24 @@ def context(mech, X) -> PoseContext:
     N = p.shape[0]
     states = [None if isinstance(leg, ChainLeg) else leg.solve(p, R) for leg in mech.legs]
     alive = valid.copy()
-    for st in states:
+    for leg, st in zip(mech.legs, states):
         if st is not None:
             alive &= st.reachable
+            ok = leg_gate(gate, leg, st)
+            if ok is not None:
+                alive &= ok
     for k, leg in enumerate(mech.legs):
         if states[k] is None:
             idx = np.flatnonzero(alive)
             st = solve(leg, p[idx], R[idx]) if idx.size < N else solve(leg, p, R)
             states[k] = st if idx.size == N else _expand(leg, st, idx, p, R)
             alive &= states[k].reachable
+            ok = leg_gate(gate, leg, st)
+            if ok is not None:
+                if idx.size == N:
+                    alive &= ok
+                else:
+                    alive[idx] &= ok
     reachable = valid & np.logical_and.reduce([st.reachable for st in states])
     act = np.stack([st.actuator for leg, st in zip(mech.legs, states) if leg.is_actuated], axis=-1)
     return PoseContext(Xa, p, R, list(mech.legs), states, reachable, act, mech)
@@ -703,7 +716,7 @@ def feasible(mech, X, names=None):
     """``mech._is_feasible_numpy(X, names)`` with the chain limbs solved by the kernel."""
     _, single = mech._poses(X)
     cons = mech._select(names)
-    ok = feasible_rows(context(mech, X), cons)
+    ok = feasible_rows(context(mech, X, gate=cons), cons)
     return ok[0] if single else ok
 
 

@@ -29,6 +29,7 @@ __all__ = [
     "SingularityMarginFloor",
     "PoseContext",
     "feasible_rows",
+    "leg_gate",
 ]
 
 
@@ -96,6 +97,33 @@ def feasible_rows(ctx: PoseContext, constraints) -> np.ndarray:
                 ok &= np.asarray(c.margin(ctx)) >= 0
             else:
                 ok[live] = np.asarray(c.margin(ctx.rows(live))) >= 0
+    return ok
+
+
+def leg_gate(constraints, leg, st: LegState) -> np.ndarray | None:
+    """Where the state ``st`` (N poses) of ``leg`` alone leaves every constraint of
+    ``constraints`` possibly met (N,) bool; None when none of them looks at that leg alone.
+
+    The constraints whose margin is the least of per-leg parts (:class:`ActuatorRange`,
+    :class:`LegLengthRange`, :class:`JointAngleLimit`, exactly these classes) break at a pose
+    where one leg's part is negative (or NaN): such a pose is infeasible whatever the other
+    legs do, so a feasibility test may skip solving the other legs there (the chain limbs'
+    numerical inverse kinematics, :func:`parasynth.engine.chains.feasible`). The answer is that
+    of :func:`feasible_rows` on the full context."""
+    ok = None
+    with np.errstate(invalid="ignore"):
+        for c in constraints:
+            t = type(c)
+            part = None
+            if t is ActuatorRange and leg.is_actuated:
+                part = np.minimum(st.actuator - c.lo, c.hi - st.actuator)
+            elif t is LegLengthRange and leg.name in c.legs:
+                part = np.minimum(st.length - c.lo, c.hi - st.length)
+            elif t is JointAngleLimit and (not c.legs or leg.name in c.legs) and c.key in st.angles:
+                a = st.angles[c.key]
+                part = np.minimum(a - c.lo, c.hi - a)
+            if part is not None:
+                ok = (part >= 0) if ok is None else ok & (part >= 0)
     return ok
 
 
