@@ -475,10 +475,12 @@ def test_partial_unknowns_take_unsolved_rows_as_unsolved():
 def test_feasibility_solves_a_chain_limb_only_where_the_legs_before_it_keep_their_limits(motion, types, legs):
     """``engine.feasible`` of a structure with chain limbs (all chains: a 5-RPUR; closed-form RPU
     legs before two URPU chains): a chain limb is solved only at the poses where every leg
-    before it keeps its own stroke and joint-angle limits (``leg_gate``), fewer poses than
-    without that gate, and the answer is exactly that of the context with every limb solved at
-    every pose reachable by the legs before it (``feasible_rows`` of the ungated context), and
-    the NumPy reference's away from a boundary."""
+    before it keeps its own stroke and joint-angle limits (``leg_gate``) and where its own
+    length (first joint centre to the target anchor) is not clearly outside its stroke
+    (``_length_gate``), fewer poses than without these gates, and the answer is exactly that
+    of the context with every limb solved at every pose reachable by the legs before it
+    (``feasible_rows`` of the ungated context), and the NumPy reference's away from a
+    boundary."""
     from parasynth.model.constraints import feasible_rows
 
     ch = _chains()
@@ -504,13 +506,25 @@ def test_feasibility_solves_a_chain_limb_only_where_the_legs_before_it_keep_thei
     try:
         cons = m._select(None)
         gated = ch.feasible(m, X)
-        n_gated = sum(solved)
+        n_gated, first_gated = sum(solved), solved[0]
         solved.clear()
-        full = feasible_rows(ch.context(m, X), cons)
+        ctx = ch.context(m, X)
+        full = feasible_rows(ctx, cons)
         n_full = sum(solved)
     finally:
         ch.solve = orig
+    # the length the gate reads before the solve: within its slack of the solved state's
+    for leg, st in zip(m.legs, ctx.states):
+        d = leg.chain_arrays() if hasattr(leg, "chain_arrays") else None
+        if d is None or d["kinds"][0] != 0:
+            continue
+        r = st.reachable
+        A = ctx.p[r] + np.einsum("nij,j->ni", ctx.R[r], leg.platform)
+        gap = np.abs(np.linalg.norm(A - d["points"][0], axis=1) - st.length[r])
+        assert r.any() and gap.max() <= 10.0 * ch.REACH_FACTOR * IK_TOL * d["length"], gap.max()
     assert n_gated < n_full, (n_gated, n_full)
+    if motion == "3T2R":  # the first limb too: its stroke read from the target anchor before its solve
+        assert first_gated < len(X), first_gated
     assert np.array_equal(gated, full)
     assert 0 < gated.sum() < len(X)
     ref = m.is_feasible(X, engine="numpy")

@@ -52,7 +52,7 @@ import numpy as np
 
 from ..model import parasitic
 from ..model.chains import CLOSURE_ITERATIONS, IK_ITERATIONS, IK_STALL, IK_TOL, ChainLeg
-from ..model.constraints import PoseContext, feasible_rows, leg_gate
+from ..model.constraints import LegLengthRange, PoseContext, feasible_rows, leg_gate
 from ..model.legs import LegState
 from ..model.spatial import unit
 from . import core
@@ -674,6 +674,9 @@ def context(mech, X, gate=()) -> PoseContext:
                 alive &= ok
     for k, leg in enumerate(mech.legs):
         if states[k] is None:
+            ok = _length_gate(gate, leg, p, R)
+            if ok is not None:
+                alive &= ok
             idx = np.flatnonzero(alive)
             st = solve(leg, p[idx], R[idx]) if idx.size < N else solve(leg, p, R)
             states[k] = st if idx.size == N else _expand(leg, st, idx, p, R)
@@ -687,6 +690,30 @@ def context(mech, X, gate=()) -> PoseContext:
     reachable = valid & np.logical_and.reduce([st.reachable for st in states])
     act = np.stack([st.actuator for leg, st in zip(mech.legs, states) if leg.is_actuated], axis=-1)
     return PoseContext(Xa, p, R, list(mech.legs), states, reachable, act, mech)
+
+
+def _length_gate(gate, leg: ChainLeg, p, R):
+    """Before a chain limb is solved: False at the poses where its length (first joint centre
+    to platform anchor, as its state gives it) is outside a :class:`LegLengthRange` of
+    ``gate`` on it by more than a reached pose's error can explain, None when no such
+    range names it or its first joint is prismatic (whose centre moves with the slider).
+
+    The first joint's centre is fixed (it turns about itself); the anchor of a reached pose is
+    within ``REACH_FACTOR * IK_TOL`` of the limb's length scale of the target on each axis, so
+    its length within sqrt(3) of that of the target's: the slack is ten times it."""
+    cs = [c for c in gate if type(c) is LegLengthRange and leg.name in c.legs]
+    if not cs:
+        return None
+    d = leg.chain_arrays()
+    if d["kinds"][0] != 0:
+        return None
+    A = p + np.einsum("nij,j->ni", R, np.asarray(leg.platform, float))
+    ln = np.linalg.norm(A - d["points"][0], axis=-1)
+    slack = 10.0 * REACH_FACTOR * IK_TOL * d["length"]
+    ok = np.ones(ln.shape, bool)
+    for c in cs:
+        ok &= (ln >= c.lo - slack) & (ln <= c.hi + slack)
+    return ok
 
 
 def _expand(leg: ChainLeg, st: LegState, idx, p, R) -> LegState:
