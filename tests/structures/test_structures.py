@@ -138,11 +138,11 @@ def test_engine_agrees_with_numpy_on_every_structure(motion):
         # reference, with a parasitic motion solved on the chains' closure equations, costs up to
         # ~25 ms a pose) 200 of them and 50 around its home pose (the box's corners are often
         # beyond their reach); where the motion itself is solved on a chain limb's closure (both
-        # engines pose it by the NumPy solve, ~20 ms a pose) 60 and 20
+        # engines pose it by the NumPy solve, ~20 ms a pose) 30 and 10
         rng = np.random.default_rng(1)
         chained = any(isinstance(lg, ChainLeg) for lg in m.legs)  # solved numerically: fewer poses
         on_chains = any(isinstance(lg, ChainLeg) for lg in getattr(m, "_solve_legs", ()))
-        n_box, n_home = (60, 20) if on_chains else (200, 50) if chained else (2000, 0)
+        n_box, n_home = (30, 10) if on_chains else (200, 50) if chained else (2000, 0)
         X = (lo + hi) / 2 + 1.5 * (hi - lo) * rng.uniform(-0.5, 0.5, size=(n_box, len(lo)))
         if n_home:
             X = np.vstack([m.home + 0.05 * (hi - lo) * rng.uniform(-0.5, 0.5, size=(n_home, len(lo))), X])
