@@ -498,9 +498,9 @@ def test_feasibility_solves_a_chain_limb_only_where_the_legs_before_it_keep_thei
     solved = []
     orig = ch.solve
 
-    def counting(leg, p, R, joint_angles=True):
+    def counting(leg, p, R, joint_angles=True, arrays=False):
         solved.append(p.shape[0])
-        return orig(leg, p, R, joint_angles)
+        return orig(leg, p, R, joint_angles, arrays)
 
     ch.solve = counting
     try:
@@ -563,3 +563,38 @@ def test_leg_gate_reads_only_the_limits_of_one_leg():
             return super().margin(ctx) + 1.0
 
     assert leg_gate([Shifted("s", lo=10.0)], leg, st) is None
+
+
+def test_the_margin_at_the_feasible_poses_reuses_the_feasibility_solve():
+    """After ``engine.feasible`` a chain limb keeps its solve at the feasible poses: the
+    singularity margin at exactly those poses (what the workspace measures ask) does not solve
+    the limbs again and equals, bit for bit, the margin of a mechanism that solves them anew;
+    at other poses the limbs are solved."""
+    ch = _chains()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", EngineFallbackWarning)
+        s = parasynth.structures("3T2R", leg_types=["RPUR"], legs=[5])[0]
+        m, fresh = s.mechanism(), s.mechanism()
+    lo, hi = (np.array(v) for v in zip(*[m.default_ranges()[k] for k in m.task_coordinates]))
+    X = lo + (hi - lo) * np.random.default_rng(8).uniform(0, 1, (400, len(lo)))
+    ok = engine.feasible(m, X)
+    assert 10 < ok.sum() < len(X)
+    assert m.constraint_rank == fresh.constraint_rank  # (at home: the limbs solved there, once)
+    calls = []
+    orig = ch._chain_kernel
+
+    def counting(*a):
+        calls.append(a[0].shape[0])
+        return orig(*a)
+
+    ch._chain_kernel = counting
+    try:
+        kept = m.singularity_margin(X[ok])
+        assert not calls
+        other = m.singularity_margin(X[ok][::2])  # other poses: solved
+        assert calls
+    finally:
+        ch._chain_kernel = orig
+    ref = fresh.singularity_margin(X[ok])
+    assert np.array_equal(kept, ref, equal_nan=True)
+    np.testing.assert_array_equal(other, ref[::2])

@@ -513,6 +513,10 @@ def solve_arrays(leg: ChainLeg, p, R, frames: bool = False) -> dict:
     d = leg.chain_arrays()
     P = _c(np.atleast_2d(np.asarray(p, float)))
     Rm = _c(np.asarray(R, float).reshape(-1, 3, 3))
+    kept = leg.__dict__.get("_kept_solve")
+    if kept is not None and not frames and kept[0].shape == P.shape and np.array_equal(kept[0], P) \
+            and np.array_equal(kept[1], Rm):
+        return dict(kept[2])
     N, n = P.shape[0], d["kinds"].shape[0]
     Q = np.empty((N, n))
     res = np.empty(N)
@@ -530,10 +534,11 @@ def solve_arrays(leg: ChainLeg, p, R, frames: bool = False) -> dict:
     return out
 
 
-def solve(leg: ChainLeg, p, R, joint_angles: bool = True):
+def solve(leg: ChainLeg, p, R, joint_angles: bool = True, arrays: bool = False):
     """``leg.solve(p, R)`` with the compiled inverse kinematics: the same
     :class:`~parasynth.model.legs.LegState` (actuator, reachability, end points, direction,
-    length, joint angles; ``extra`` q, axes, points, residual as lists per freedom)."""
+    length, joint angles; ``extra`` q, axes, points, residual as lists per freedom; with
+    ``arrays``, also the compiled solve's arrays, :func:`solve_arrays`)."""
     out = solve_arrays(leg, p, R, frames=joint_angles and leg.has_cones)
     d = leg.chain_arrays()
     q, res = out["q"], out["residual"]
@@ -552,6 +557,8 @@ def solve(leg: ChainLeg, p, R, joint_angles: bool = True):
     angles = leg.joint_angles(q, reachable, frames) if joint_angles else {}
     st = LegState(act, reachable, B, A, nvec, length, angles)
     st.extra.update({"q": q, "axes": axes, "points": points, "residual": res})
+    if arrays:
+        st.extra["arrays"] = out
     return st
 
 
@@ -646,12 +653,13 @@ def _offer_unknowns(mech, X) -> bool:
     return True
 
 
-def context(mech, X, gate=()) -> PoseContext:
+def context(mech, X, gate=(), raw: dict | None = None) -> PoseContext:
     """``mech.pose_context(X)`` with the chain limbs solved by the compiled kernel. With
     constraints ``gate`` (a feasibility test's), a chain limb is solved only at the poses where
     no leg before it breaks one of them alone (:func:`parasynth.model.constraints.leg_gate`:
     a stroke, a joint angle out of its range); elsewhere it is left unreachable, which those
-    poses are not feasible anyway."""
+    poses are not feasible anyway. ``raw``: filled with {leg index: (the poses it was solved
+    at, the compiled solve's arrays there)}."""
     Xa, _ = mech._poses(X)
     Xa = np.ascontiguousarray(Xa, dtype=np.float64)
     valid, p, R = _poses(mech, Xa)
@@ -678,7 +686,10 @@ def context(mech, X, gate=()) -> PoseContext:
             if ok is not None:
                 alive &= ok
             idx = np.flatnonzero(alive)
-            st = solve(leg, p[idx], R[idx]) if idx.size < N else solve(leg, p, R)
+            keep = raw is not None
+            st = solve(leg, p[idx], R[idx], arrays=keep) if idx.size < N else solve(leg, p, R, arrays=keep)
+            if keep:
+                raw[k] = (idx, st.extra.pop("arrays"))
             states[k] = st if idx.size == N else _expand(leg, st, idx, p, R)
             alive &= states[k].reachable
             ok = leg_gate(gate, leg, st)
@@ -743,8 +754,28 @@ def feasible(mech, X, names=None):
     """``mech._is_feasible_numpy(X, names)`` with the chain limbs solved by the kernel."""
     _, single = mech._poses(X)
     cons = mech._select(names)
-    ok = feasible_rows(context(mech, X, gate=cons), cons)
+    raw = {}
+    ctx = context(mech, X, gate=cons, raw=raw)
+    ok = feasible_rows(ctx, cons)
+    _keep_solves(mech, ctx, ok, raw)
     return ok[0] if single else ok
+
+
+def _keep_solves(mech, ctx, ok, raw) -> None:
+    """Keep on each chain limb its compiled solve at the feasible poses ``ok`` of ``ctx`` (the
+    platform poses and the arrays, one set a limb): the measures then evaluate the
+    wrench-system indices there (the singularity margin over the workspace), and
+    :func:`solve_arrays` at exactly those platform poses returns them instead of solving again
+    (a pose's solve depends on its pose alone)."""
+    F = np.flatnonzero(ok)
+    for k, (idx, out) in raw.items():
+        leg = mech.legs[k]
+        pos = np.searchsorted(idx, F)
+        if F.size and not (pos.max() < idx.size and np.array_equal(idx[pos], F)):
+            object.__setattr__(leg, "_kept_solve", None)  # (cannot happen: a feasible pose was solved)
+            continue
+        kept = {key: np.ascontiguousarray(v[pos]) for key, v in out.items() if key != "frames"}
+        object.__setattr__(leg, "_kept_solve", (np.ascontiguousarray(ctx.p[F]), np.ascontiguousarray(ctx.R[F]), kept))
 
 
 def margins(mech, X, names=None) -> dict:
