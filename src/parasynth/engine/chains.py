@@ -52,7 +52,7 @@ import numpy as np
 
 from ..model import parasitic
 from ..model.chains import CLOSURE_ITERATIONS, IK_ITERATIONS, IK_STALL, IK_TOL, ChainLeg
-from ..model.constraints import LegLengthRange, PoseContext, feasible_rows, leg_gate
+from ..model.constraints import LegLengthRange, PoseContext, feasible_rows, leg_gate, state_rows
 from ..model.legs import LegState
 from ..model.spatial import unit
 from . import core
@@ -653,13 +653,15 @@ def _offer_unknowns(mech, X) -> bool:
     return True
 
 
-def context(mech, X, gate=(), raw: dict | None = None) -> PoseContext:
+def context(mech, X, gate=(), raw: dict | None = None, live: list | None = None) -> PoseContext:
     """``mech.pose_context(X)`` with the chain limbs solved by the compiled kernel. With
     constraints ``gate`` (a feasibility test's), a chain limb is solved only at the poses where
     no leg before it breaks one of them alone (:func:`parasynth.model.constraints.leg_gate`:
     a stroke, a joint angle out of its range); elsewhere it is left unreachable, which those
     poses are not feasible anyway. ``raw``: filled with {leg index: (the poses it was solved
-    at, the compiled solve's arrays there)}."""
+    at, the compiled solve's arrays there)}. ``live``: a list, then given the poses every leg
+    reached (indices into X), and the context is of those poses alone (no chain state is
+    expanded to every pose: a feasibility test needs no other)."""
     Xa, _ = mech._poses(X)
     Xa = np.ascontiguousarray(Xa, dtype=np.float64)
     valid, p, R = _poses(mech, Xa)
@@ -690,14 +692,30 @@ def context(mech, X, gate=(), raw: dict | None = None) -> PoseContext:
             st = solve(leg, p[idx], R[idx], arrays=keep) if idx.size < N else solve(leg, p, R, arrays=keep)
             if keep:
                 raw[k] = (idx, st.extra.pop("arrays"))
-            states[k] = st if idx.size == N else _expand(leg, st, idx, p, R)
-            alive &= states[k].reachable
+            if live is not None:
+                states[k] = (idx, st)
+                alive[idx] &= st.reachable
+            else:
+                states[k] = st if idx.size == N else _expand(leg, st, idx, p, R)
+                alive &= states[k].reachable
             ok = leg_gate(gate, leg, st)
             if ok is not None:
                 if idx.size == N:
                     alive &= ok
                 else:
                     alive[idx] &= ok
+    if live is not None:  # the context of the poses every leg reached
+        L = np.flatnonzero(alive)
+        live.append(L)
+        rows = []
+        for st in states:
+            if isinstance(st, tuple):
+                idx, st = st
+                rows.append(state_rows(st, np.searchsorted(idx, L), idx.size))
+            else:
+                rows.append(state_rows(st, L, N))
+        act = np.stack([st.actuator for leg, st in zip(mech.legs, rows) if leg.is_actuated], axis=-1)
+        return PoseContext(Xa[L], p[L], R[L], list(mech.legs), rows, np.ones(L.size, bool), act, mech)
     reachable = valid & np.logical_and.reduce([st.reachable for st in states])
     act = np.stack([st.actuator for leg, st in zip(mech.legs, states) if leg.is_actuated], axis=-1)
     return PoseContext(Xa, p, R, list(mech.legs), states, reachable, act, mech)
@@ -751,23 +769,26 @@ def _expand(leg: ChainLeg, st: LegState, idx, p, R) -> LegState:
 
 
 def feasible(mech, X, names=None):
-    """``mech._is_feasible_numpy(X, names)`` with the chain limbs solved by the kernel."""
-    _, single = mech._poses(X)
+    """``mech._is_feasible_numpy(X, names)`` with the chain limbs solved by the kernel: the
+    constraints evaluated at the poses every leg reached (:func:`context` with ``live``)."""
+    Xa, single = mech._poses(X)
     cons = mech._select(names)
-    raw = {}
-    ctx = context(mech, X, gate=cons, raw=raw)
-    ok = feasible_rows(ctx, cons)
-    _keep_solves(mech, ctx, ok, raw)
+    raw, live = {}, []
+    ctx = context(mech, X, gate=cons, raw=raw, live=live)
+    L = live[0]
+    ok = np.zeros(Xa.shape[0], bool)
+    ok[L] = feasible_rows(ctx, cons)
+    _keep_solves(mech, ctx, ok[L], L, raw)
     return ok[0] if single else ok
 
 
-def _keep_solves(mech, ctx, ok, raw) -> None:
+def _keep_solves(mech, ctx, ok, L, raw) -> None:
     """Keep on each chain limb its compiled solve at the feasible poses ``ok`` of ``ctx`` (the
-    platform poses and the arrays, one set a limb): the measures then evaluate the
-    wrench-system indices there (the singularity margin over the workspace), and
-    :func:`solve_arrays` at exactly those platform poses returns them instead of solving again
-    (a pose's solve depends on its pose alone)."""
-    F = np.flatnonzero(ok)
+    context of the poses ``L``; the platform poses and the arrays, one set a limb): the
+    measures then evaluate the wrench-system indices there (the singularity margin over the
+    workspace), and :func:`solve_arrays` at exactly those platform poses returns them instead
+    of solving again (a pose's solve depends on its pose alone)."""
+    F = L[ok]
     for k, (idx, out) in raw.items():
         leg = mech.legs[k]
         pos = np.searchsorted(idx, F)
@@ -775,7 +796,8 @@ def _keep_solves(mech, ctx, ok, raw) -> None:
             object.__setattr__(leg, "_kept_solve", None)  # (cannot happen: a feasible pose was solved)
             continue
         kept = {key: np.ascontiguousarray(v[pos]) for key, v in out.items() if key != "frames"}
-        object.__setattr__(leg, "_kept_solve", (np.ascontiguousarray(ctx.p[F]), np.ascontiguousarray(ctx.R[F]), kept))
+        object.__setattr__(leg, "_kept_solve", (np.ascontiguousarray(ctx.p[ok]), np.ascontiguousarray(ctx.R[ok]),
+                                                kept))
 
 
 def margins(mech, X, names=None) -> dict:

@@ -30,6 +30,7 @@ __all__ = [
     "PoseContext",
     "feasible_rows",
     "leg_gate",
+    "state_rows",
 ]
 
 
@@ -62,11 +63,17 @@ class PoseContext:
         the constraints before it left feasible."""
         idx = np.asarray(idx)
         N = self.X.shape[0]
-        states = [LegState(*(_take(getattr(st, f), idx, N) for f in ("actuator", "reachable", "base_point",
-                                                                      "platform_point", "direction", "length")),
-                           _take(st.angles, idx, N), _take(st.extra, idx, N)) for st in self.states]
+        states = [state_rows(st, idx, N) for st in self.states]
         return PoseContext(self.X[idx], self.p[idx], self.R[idx], self.legs, states, self.reachable[idx],
                            _take(self.actuators, idx, N), self.mechanism)
+
+
+def state_rows(st: LegState, idx, N: int) -> LegState:
+    """The leg state ``st`` of N poses at the poses ``idx``: every per-pose array (leading
+    dimension N, also inside ``angles`` and ``extra``) taken at ``idx``."""
+    return LegState(*(_take(getattr(st, f), idx, N) for f in ("actuator", "reachable", "base_point",
+                                                              "platform_point", "direction", "length")),
+                    _take(st.angles, idx, N), _take(st.extra, idx, N))
 
 
 def _take(v, idx, N: int):
