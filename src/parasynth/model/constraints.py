@@ -120,18 +120,15 @@ def leg_gate(constraints, leg, st: LegState) -> np.ndarray | None:
     ok = None
     with np.errstate(invalid="ignore"):
         for c in constraints:
-            t = type(c)
-            part = None
-            if t is ActuatorRange and leg.is_actuated:
-                part = np.minimum(st.actuator - c.lo, c.hi - st.actuator)
-            elif t is LegLengthRange and leg.name in c.legs:
-                part = np.minimum(st.length - c.lo, c.hi - st.length)
-            elif t is JointAngleLimit and (not c.legs or leg.name in c.legs) and c.key in st.angles:
-                a = st.angles[c.key]
-                part = np.minimum(a - c.lo, c.hi - a)
+            part = c.leg_part(leg, st) if type(c) in _PER_LEG else None
             if part is not None:
                 ok = (part >= 0) if ok is None else ok & (part >= 0)
     return ok
+
+
+def _within(v, lo, hi):
+    """The margin of values ``v`` inside [lo, hi]: min(v - lo, hi - v)."""
+    return np.minimum(v - lo, hi - v)
 
 
 @dataclass(frozen=True)
@@ -154,8 +151,11 @@ class ActuatorRange(Constraint):
     hi: float = np.inf
 
     def margin(self, ctx):
-        q = ctx.actuators
-        return np.min(np.minimum(q - self.lo, self.hi - q), axis=1)
+        return np.min(_within(ctx.actuators, self.lo, self.hi), axis=1)
+
+    def leg_part(self, leg, st):
+        """The margin's part of ``leg`` alone (its actuator), None for a passive leg."""
+        return _within(st.actuator, self.lo, self.hi) if leg.is_actuated else None
 
 
 @dataclass(frozen=True)
@@ -168,8 +168,12 @@ class LegLengthRange(Constraint):
     hi: float = np.inf
 
     def margin(self, ctx):
-        m = [np.minimum(ctx.state(n).length - self.lo, self.hi - ctx.state(n).length) for n in self.legs]
+        m = [_within(ctx.state(n).length, self.lo, self.hi) for n in self.legs]
         return np.min(np.stack(m, 1), axis=1)
+
+    def leg_part(self, leg, st):
+        """The margin's part of ``leg`` alone, None for a leg it does not name."""
+        return _within(st.length, self.lo, self.hi) if leg.name in self.legs else None
 
 
 @dataclass(frozen=True)
@@ -184,14 +188,16 @@ class JointAngleLimit(Constraint):
     unit: str = "rad"
 
     def margin(self, ctx):
-        vals = []
-        for leg, st in zip(ctx.legs, ctx.states):
-            if (not self.legs or leg.name in self.legs) and self.key in st.angles:
-                a = st.angles[self.key]
-                vals.append(np.minimum(a - self.lo, self.hi - a))
+        vals = [v for v in (self.leg_part(leg, st) for leg, st in zip(ctx.legs, ctx.states)) if v is not None]
         if not vals:
             raise ValueError(f"constraint {self.name!r}: no leg has a joint angle {self.key!r}")
         return np.min(np.stack(vals, 1), axis=1)
+
+    def leg_part(self, leg, st):
+        """The margin's part of ``leg`` alone, None for a leg it does not name or without the angle."""
+        if (not self.legs or leg.name in self.legs) and self.key in st.angles:
+            return _within(st.angles[self.key], self.lo, self.hi)
+        return None
 
 
 @dataclass(frozen=True)
@@ -291,3 +297,8 @@ class SingularityMarginFloor(Constraint):
             raise ValueError(f"constraint {self.name!r}: the pose context carries no mechanism")
         m = mech.singularity_margin_of_states(ctx.states, ctx.p, ctx.reachable)
         return m - self.floor
+
+
+#: The constraints whose margin is the least of their legs' parts (``leg_part``), read by
+#: :func:`leg_gate` (exactly these classes: a subclass may change its margin).
+_PER_LEG = (ActuatorRange, LegLengthRange, JointAngleLimit)
