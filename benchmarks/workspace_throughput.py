@@ -39,6 +39,7 @@ from ``core.PARALLEL_MIN`` up whether they pay now or not, ``core.ADAPTIVE = Fal
 each figure of issue 29 with its ratio to the anchor (threads while they pay, as in a run)::
 
     threads_ratio n=<int> engine=<float> anchor=<float> engine_vs_anchor_1_thread=<float> (target ...)
+    threads_after_idle n=<int> one_thread_ms=<f> two_threads_ms=<f> ratio=<f> ratio_crew_not_kept_apart=<f>
     figure worst_case_feasibility poses_per_s=<f> anchor_poses_per_s=<f> ratio_vs_anchor=<f>
     figure workspace_volume_1e5 ms=<f> anchor_ms=<f> time_vs_anchor=<f>
     figure described_6pus_2^17 ms=<f> anchor_ms=<f> per_pose_time_vs_anchor=<f>
@@ -419,6 +420,39 @@ def _best(fn, repeats=7, min_time=0.05):
     return best, cpu
 
 
+def _after_idle(core, kernels, mech, anchor, set_threads, sizes=(8192, 16384), rounds=25, calls=12):
+    """Batches after an idle millisecond (the calling thread asleep, as between a study's
+    evaluations that wait for a file or a database): the median time on one thread and on two,
+    with the crew kept off the calling thread's CPU (``core.APART``) and without, interleaved
+    round by round so that the three share the machine's state."""
+    import os as _os
+
+    out = []
+    cpus = _os.sched_getaffinity(0) if hasattr(_os, "sched_getaffinity") else None
+    apart0 = core.APART
+    for n in sizes:
+        X = anchor.feasible_poses(n)
+        t = {"one": [], "apart": [], "together": []}
+        for _ in range(rounds):
+            for way in t:
+                set_threads(1 if way == "one" else 2)
+                if way != "one":
+                    core.APART = apart0 and way == "apart"
+                    if way == "together" and cpus is not None:
+                        for th, _w in core._CREW.members:
+                            _os.sched_setaffinity(th.native_id, cpus)
+                        core._CREW.apart_from = None
+                for _ in range(calls):
+                    time.sleep(0.001)
+                    t0 = time.perf_counter()
+                    kernels.feasible_fast(mech, X)
+                    t[way].append(time.perf_counter() - t0)
+        core.APART = apart0
+        set_threads(None)
+        out.append({"n": n, "apart_available": apart0, **{k: float(np.median(v)) for k, v in t.items()}})
+    return out
+
+
 def run_figures(opts: dict) -> dict:
     """The engine's figures and the anchor's, alternately in this process: the thread ratio per
     batch size, the worst-case feasibility rate (2e6 all-feasible poses), ``workspace_volume``
@@ -457,9 +491,10 @@ def run_figures(opts: dict) -> dict:
             row[f"anchor{t}"] = (anchor.anchor_seconds(n, t), None)
         set_threads(None)
         rows.append(row)
+    res["threads"] = rows
+    res["idle"] = _after_idle(core, kernels, mech, anchor, set_threads) if hasattr(core, "APART") else []
     if adaptive is not None:  # the figures below as a run has them: threads while they pay
         core.ADAPTIVE = adaptive
-    res["threads"] = rows
     # worst-case feasibility, 2e6 poses, both threads
     n = 2_000_000
     X = anchor.feasible_poses(n)
@@ -507,6 +542,11 @@ def print_figures(r: dict) -> None:
         print(f"threads_ratio n={row['n']} engine={row['engine1'][0] / row['engine2'][0]:.3g} "
               f"anchor={row['anchor1'][0] / row['anchor2'][0]:.3g} "
               f"engine_vs_anchor_1_thread={row['anchor1'][0] / row['engine1'][0]:.3g} {tgt}")
+    for row in r.get("idle", []):
+        print(f"threads_after_idle n={row['n']} one_thread_ms={row['one'] * 1e3:.3f} "
+              f"two_threads_ms={row['apart'] * 1e3:.3f} ratio={row['one'] / row['apart']:.3g} "
+              f"ratio_crew_not_kept_apart={row['one'] / row['together']:.3g}"
+              + ("" if row["apart_available"] else " (crew not kept apart here: not Linux)"))
     w = r["worst"]
     print(f"figure worst_case_feasibility poses_per_s={w['n'] / w['engine']:.4g} "
           f"anchor_poses_per_s={w['n'] / w['anchor']:.4g} ratio_vs_anchor={w['anchor'] / w['engine']:.3g} "

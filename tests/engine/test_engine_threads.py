@@ -207,3 +207,61 @@ def test_small_batches_of_costly_kernels_answer_as_one_thread(monkeypatch):
         assert np.array_equal(f3, f1)
         for k in m1:
             assert np.array_equal(m3[k], m1[k], equal_nan=True), k
+
+
+def _crew_batch(monkeypatch, nt=3):
+    """A parallel batch of ``nt`` ranges (the crew woken); returns the items done."""
+    done = np.zeros(nt)
+
+    def fn(b0, b1):
+        done[b0:b1] += 1
+
+    _ranges_run(monkeypatch, nt, nt, fn)
+    return done
+
+
+@pytest.mark.skipif(not core.APART, reason="the crew is kept apart on Linux only (sched_getcpu, sched_setaffinity)")
+def test_the_crew_is_kept_off_the_callers_cpu(monkeypatch):
+    import os
+
+    allowed = os.sched_getaffinity(0)
+    monkeypatch.setattr(core, "ITEMS_PER_THREAD", 1)
+    monkeypatch.setattr(core, "_CREW", core._Crew())  # a crew of this test's own
+    try:
+        assert np.array_equal(_crew_batch(monkeypatch), np.ones(3))
+        crew = core._CREW
+        cpu = crew.apart_from
+        assert len(crew.members) == 2
+        if len(allowed) < 2:  # nowhere else to go: left as they are
+            assert all(os.sched_getaffinity(t.native_id) == allowed for t, _ in crew.members)
+            return
+        assert cpu in allowed
+        assert all(os.sched_getaffinity(t.native_id) == allowed - {cpu} for t, _ in crew.members)
+        # the caller moved: the crew follows at the next batch (the test pins the caller)
+        other = min(allowed - {cpu})
+        os.sched_setaffinity(0, {other})
+        try:
+            assert np.array_equal(_crew_batch(monkeypatch), np.ones(3))
+            assert crew.apart_from == other
+            assert all(os.sched_getaffinity(t.native_id) == allowed - {other} for t, _ in crew.members)
+        finally:
+            os.sched_setaffinity(0, allowed)
+    finally:
+        core._CREW.batch = None
+
+
+@pytest.mark.skipif(not core.APART, reason="the crew is kept apart on Linux only (sched_getcpu, sched_setaffinity)")
+def test_a_failure_to_keep_the_crew_apart_turns_it_off_and_the_batch_still_runs(monkeypatch):
+    import os
+
+    def refuse(*_):
+        raise OSError(22, "Invalid argument")
+
+    monkeypatch.setattr(core, "_CREW", core._Crew())
+    monkeypatch.setattr(core, "ITEMS_PER_THREAD", 1)
+    monkeypatch.setattr(os, "sched_setaffinity", refuse)
+    monkeypatch.setattr(os, "sched_getaffinity", lambda _: {0, 1})
+    monkeypatch.setattr(core, "_sched_getcpu", lambda: 0)
+    assert np.array_equal(_crew_batch(monkeypatch), np.ones(3))
+    assert core.APART is False
+    assert np.array_equal(_crew_batch(monkeypatch), np.ones(3))  # and without it

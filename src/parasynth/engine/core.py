@@ -45,11 +45,13 @@ the whole batch to NumPy.
 
 from __future__ import annotations
 
+import ctypes
 import logging
 import functools
 import itertools
 import math
 import os
+import sys
 import threading
 import time
 import warnings
@@ -275,12 +277,15 @@ class _Crew:
     calling thread takes ranges too and then waits for the ranges the crew took, spinning in
     compiled code (:func:`_spin_done`, the lock released) rather than sleeping: a sleeping
     thread woke ~50 us after the last range ended on the development machine (a third of a
-    batch of 8192 poses on two threads)."""
+    batch of 8192 poses on two threads). On Linux the crew is kept off the CPU of the thread
+    that wakes it (:meth:`_keep_apart`)."""
 
     def __init__(self):
         self.lock = threading.Lock()
         self.members: list = []  # (thread, wake lock)
         self.batch = None
+        self.apart_from = None  # the CPU the crew was last kept off (see _keep_apart)
+        self.cpus = None  # the CPUs the crew may use: the caller's when the first was started
 
     def _loop(self, wake) -> None:
         _IN_POOL.active = True
@@ -300,10 +305,53 @@ class _Crew:
                                      name=f"parasynth-engine-{len(self.members)}")
                 t.start()
                 self.members.append((t, wake))
+                self.apart_from = None  # the new one is kept apart too
+            if APART:
+                self._keep_apart()
             for _, wake in self.members[:n]:
                 if wake.locked():  # else it has not taken the last wake-up yet: it will see this batch
                     wake.release()
 
+    def _keep_apart(self) -> None:
+        """Keep the crew off the calling thread's CPU (Linux): a crew thread woken from its
+        sleep is placed by the scheduler on the CPU of the thread that woke it, which that
+        thread is about to use for its own range; the two then share one core while another
+        idles, and a batch on two threads took as long as on one after an idle gap (measured
+        on a 2-core virtual machine, docs/performance.md). The crew's CPUs are set again only
+        when the calling thread has moved; any failure turns this off for the process."""
+        global APART
+        try:
+            cpu = _sched_getcpu()
+            if cpu == self.apart_from or cpu < 0:
+                return
+            if self.cpus is None:
+                self.cpus = frozenset(os.sched_getaffinity(0))
+            others = self.cpus - {cpu}
+            if others:
+                for t, _ in self.members:
+                    os.sched_setaffinity(t.native_id, others)
+            self.apart_from = cpu
+        except (OSError, AttributeError, TypeError, ValueError):
+            APART = False
+
+
+def _libc_sched_getcpu():
+    """``sched_getcpu`` of the C library (Linux), or None."""
+    if not sys.platform.startswith("linux") or not hasattr(os, "sched_setaffinity"):
+        return None
+    try:
+        fn = ctypes.CDLL(None, use_errno=True).sched_getcpu
+        fn.restype = ctypes.c_int
+        fn.argtypes = []
+        return fn if fn() >= 0 else None
+    except (OSError, AttributeError):
+        return None
+
+
+_sched_getcpu = _libc_sched_getcpu()
+#: Whether the crew is kept off the calling thread's CPU (:meth:`_Crew._keep_apart`): on Linux,
+#: where the C library tells the calling thread's CPU.
+APART = _sched_getcpu is not None
 
 _CREW = _Crew()
 
