@@ -252,6 +252,11 @@ def test_no_task_rule_is_rare_and_says_why(motion):
         assert f.dropped["no task rule"] <= 12
         assert f.dropped["no task rule"] == len(f.no_task_rule)
         assert all(isinstance(v, str) and v for v in f.no_task_rule.values())
+        # --show-dropped says why of each, under the reason's line, in words (no markup)
+        lines = f.dropped_lines()
+        for name, why in f.no_task_rule.items():
+            assert f"  {name}: {why}" in lines
+        assert not [x for x in lines if "``" in x]
 
 
 @motion_group("3T0R")

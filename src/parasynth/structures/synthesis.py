@@ -49,9 +49,9 @@ DROP_REASONS = {
     "duplicate": "isomorphic to a candidate enumerated before it (same multiset of limbs, joints, actuation "
                  "and arrangement)",
     "no task rule": "its constraining limbs select no motion template and no motion can be computed from their "
-                    "closure equations (the reason of each is in ``no_task_rule``; computed only for a candidate "
-                    "with as many actuators as freedoms)",
-    "other axes": "its freedoms are not along the axes required (``axes``)",
+                    "closure equations (the reason of each is in StructureList.no_task_rule; computed only for a "
+                    "candidate with as many actuators as freedoms)",
+    "other axes": "its freedoms are not along the axes required (axes)",
     "under-actuated": "fewer actuators than the requested freedoms",
     "over-actuated": "more actuators than the requested freedoms (redundant actuation)",
     "not assemblable": "the description cannot be built: its home pose is out of reach of a limb",
@@ -531,6 +531,8 @@ class StructureList(list):
             counted = Counter(names)
             listed = ", ".join(n if k == 1 else f"{n} x{k}" for n, k in counted.items())
             out.append(f"{reason} ({len(names)}; {DROP_REASONS[reason]}): {listed}")
+            if reason == "no task rule":  # why, candidate by candidate
+                out += [f"  {name}: {why}" for name, why in self.no_task_rule.items()]
         return out
 
     def summary(self) -> str:
