@@ -44,6 +44,30 @@ def test_warm_up_reports_only_when_compiling():
     assert w.done and not w.compiled and w.result == 30.0 and msgs == []
 
 
+def test_the_compile_notice_said_ahead_is_not_said_again(monkeypatch):
+    """A command says the notice once its input is checked (engine.announce_compile, on an
+    empty cache); the next warm-up then goes on from it, and only that one."""
+    from parasynth.engine import precompile
+
+    monkeypatch.setattr(engine, "_ANNOUNCED", False)
+    assert engine.announce_compile() is False  # the pose kernel is in this run's cache
+    monkeypatch.setattr(precompile, "in_cache", lambda name: name != "_pose_kernel")
+    monkeypatch.setenv("PARASYNTH_COMPILE_AHEAD", "0")
+    assert engine.announce_compile() is False  # compiling ahead turned off: nothing said ahead
+    monkeypatch.delenv("PARASYNTH_COMPILE_AHEAD")
+    assert engine.announce_compile() is True
+    k = _fresh_kernel()
+    x = np.arange(3.0)
+    msgs = []
+    w = engine.warm_up(lambda: k(x), progress=msgs.append)
+    assert w.done and w.compiled and w.result == 5.0
+    assert engine.COMPILING not in msgs and msgs and "compiled in" in msgs[-1]
+    msgs.clear()
+    k2 = _fresh_kernel()
+    engine.warm_up(lambda: k2(x), progress=msgs.append)  # the next one says it itself
+    assert msgs[0] == engine.COMPILING
+
+
 def test_warm_up_returns_errors_and_stops_on_request():
     w = engine.warm_up(lambda: 1 / 0, progress=None)
     assert w.done and isinstance(w.error, ZeroDivisionError)
@@ -202,7 +226,7 @@ def test_sigint_during_compile_ends_with_resume_hint(tmp_path):
             break
         time.sleep(0.05)
     assert any(engine.COMPILING in x for x in err_lines), "".join(err_lines)
-    time.sleep(0.5)
+    time.sleep(1.0)
     t0 = time.time()
     proc.send_signal(signal.SIGINT)
     proc.wait(timeout=60)  # stderr is read by the reader thread alone, to its end
@@ -213,6 +237,7 @@ def test_sigint_during_compile_ends_with_resume_hint(tmp_path):
     assert proc.returncode == 130, stderr
     assert waited < 10, f"the run went on compiling for {waited:.1f} s after Ctrl-C"
     assert "Traceback" not in stderr and "Exception ignored" not in stderr
+    assert stderr.count(engine.COMPILING) == 1, stderr  # said once, at the start of the warm-up
     last = [x for x in stderr.splitlines() if x.strip()][-1]
     assert last.startswith("interrupted:") and "--resume" in last and str(out) in last, stderr
     assert not (out / "journal.jsonl").exists() or not (out / "journal.jsonl").read_text().strip()

@@ -52,7 +52,7 @@ from pathlib import Path
 import pandas as pd
 
 from ..measures.display import reference_name
-from ..engine import warm_up
+from ..engine import COMPILING, announce_compile, warm_up
 from .budget import budget_for_run, same_study
 from .evaluate import Record
 from .final import reevaluate_best
@@ -200,6 +200,8 @@ def _run_locked(study, out_dir, previous, resume, n_trials, progress, storage, n
             records[:] = optimizer.open(problem, out_dir, resume, n_trials, storage, records)
 
             n_warm = max(1, int(study.evaluation["n"]) // 2)  # not the run's sample count: no cache hit later
+            if progress and study.evaluation.get("engine") != "numpy" and announce_compile():
+                print_err(COMPILING)  # at once: the warm-up first runs its design on NumPy and imports numba
             warm_up(lambda: problem.evaluate(_warm_up_design(problem), n=n_warm, source="warm-up"),
                     progress=None if not progress else print_err, stop=lambda: guard.requested)
             journal = Journal(out_dir / "journal.jsonl")
