@@ -49,8 +49,8 @@ DROP_REASONS = {
     "duplicate": "isomorphic to a candidate enumerated before it (same multiset of limbs, joints, actuation "
                  "and arrangement)",
     "no task rule": "its constraining limbs select no motion template and no motion can be computed from their "
-                    "closure equations (the reason of each is in StructureList.no_task_rule; computed only for a "
-                    "candidate with as many actuators as freedoms)",
+                    "closure equations (each one's reason follows it, from StructureList.no_task_rule; computed "
+                    "only for a candidate with as many actuators as freedoms)",
     "other axes": "its freedoms are not along the axes required (axes)",
     "under-actuated": "fewer actuators than the requested freedoms",
     "over-actuated": "more actuators than the requested freedoms (redundant actuation)",
