@@ -65,6 +65,20 @@ def resolved(**over):
 
 
 # -- resolution ------------------------------------------------------------------------------------
+def test_a_run_says_which_structures_it_compares(capsys):
+    from parasynth import cli
+
+    s = resolved()
+    cli._say_structures(s, quiet=True)
+    assert capsys.readouterr().err == ""
+    cli._say_structures(s, quiet=False)
+    err = capsys.readouterr().err.strip()
+    setup = s.structures
+    assert err.startswith(f"3T2R: {len(setup.labels)} structure(s) to compare, of {setup.enumerated} candidate(s)")
+    assert "; reference 5-PUS/UPU: " in err and all(label in err for label in setup.labels)
+    assert len(setup.labels) >= 2
+
+
 def test_structure_is_a_categorical_variable_with_conditional_dimensions():
     s = resolved()
     found = [x for x in structures("3T2R", leg_types=["UPS", "PUS", "RUS", "UPU"]) if x.groups[0].arrangement == "paired"]

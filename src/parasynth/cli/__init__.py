@@ -336,6 +336,17 @@ def _compile_early(path, quiet: bool) -> None:
         print(COMPILING, file=sys.stderr, flush=True)
 
 
+def _say_structures(study, quiet: bool) -> None:
+    """For a study over structures, the structures it compares, once they are enumerated (the
+    enumeration takes seconds, and a designer wants to know what the run weighs)."""
+    setup = getattr(study, "structures", None)
+    if setup is None or quiet:
+        return
+    ref = f"; reference {setup.reference}" if setup.reference else ""
+    print(f"{setup.motion}: {len(setup.labels)} structure(s) to compare, of {setup.enumerated} candidate(s) "
+          f"enumerated{ref}: {', '.join(setup.labels)}", file=sys.stderr, flush=True)
+
+
 def _compile_chains_early(study) -> None:
     """Once a structure study's structures are enumerated: when one of them has a chain limb and
     the kernels of chain limbs were not started with the others (``leg_types`` not given, see
@@ -358,6 +369,7 @@ def cmd_run(args) -> int:
     _compile_early(args.study, args.quiet)
     study = _checked_study(args.study)
     _compile_chains_early(study)
+    _say_structures(study, args.quiet)
     if args.resume:
         target = Path(args.out or study.spec.output or Path("runs") / study.name)
         shared = study.optimizer.plugin.uses_storage and (args.storage or study.optimizer.storage)
