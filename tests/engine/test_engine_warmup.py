@@ -68,6 +68,25 @@ def test_the_compile_notice_said_ahead_is_not_said_again(monkeypatch):
     assert msgs[0] == engine.COMPILING
 
 
+def test_a_compile_started_ahead_counts_its_time_from_its_start():
+    """Helpers started ahead (precompile.start_early) compile while the work does other things
+    first: the wait for them reports the time since they started, not since the wait began."""
+    from parasynth.engine import warmup
+
+    since = time.perf_counter() - 7.0  # started 7 s ago
+    msgs = []
+    w = warmup.warm_up(lambda: time.sleep(0.4), progress=msgs.append, busy=lambda: True, announced=True,
+                       since=since, poll=0.02, every=0.1)
+    assert w.done and w.compiled and w.compile_seconds >= 7.0
+    ticks = [m for m in msgs if m.startswith("  ... ")]
+    assert ticks and all(float(m.split()[1]) >= 7 for m in ticks), msgs
+    assert engine.COMPILING not in msgs and msgs[-1].startswith("  compiled in 7.")
+    msgs.clear()
+    w = warmup.warm_up(lambda: time.sleep(0.2), progress=msgs.append, busy=lambda: True, announced=True,
+                       poll=0.02, every=0.1)  # no start given: from the wait's first poll
+    assert w.compile_seconds < 5 and msgs[-1].startswith("  compiled in 0.")
+
+
 def test_warm_up_returns_errors_and_stops_on_request():
     w = engine.warm_up(lambda: 1 / 0, progress=None)
     assert w.done and isinstance(w.error, ZeroDivisionError)

@@ -552,6 +552,7 @@ def warm_up(work, processes: int | None = None, **options) -> WarmUp:
     if pre_mod is not None and pre_mod.early():
         options.setdefault("busy", lambda: any(pre_mod.early().values()))
         options.setdefault("announced", True)  # said when they were started
+        options.setdefault("since", pre_mod.started_at())  # and the compile's time counts from then
     global _ANNOUNCED
     if _ANNOUNCED:  # said by the command (announce_compile): the progress goes on from there
         _ANNOUNCED = False

@@ -38,7 +38,7 @@ from . import chains, closure, core, indices
 
 __all__ = ["KERNELS_OF", "LOCAL", "WITH", "STRUCTURE_STUDY", "STRUCTURE_CHAINS", "structure_kinds", "chain_kinds",
            "signatures", "in_cache", "missing", "compile_ahead", "start_early", "early", "left", "with_kernels",
-           "stop_helpers", "main"]
+           "stop_helpers", "started_at", "main"]
 
 #: Kernels behind each compiled entry point (the names of :data:`parasynth.engine.EXERCISES`).
 KERNELS_OF = {
@@ -87,6 +87,8 @@ _EARLY: dict = {}
 #: Kernels :func:`start_early` left to the work (its :func:`compile_ahead` compiles them): not
 #: handed to a helper by a later call.
 _LEFT: set = set()
+#: When start_early started its first helper (see :func:`started_at`).
+_SINCE: list = []
 
 #: The entry points the shipped structure studies ask for (``engine.needs`` of the warm-up
 #: design, the same for structures_1t2r, structures_2t2r and structures_3t2r: the workspace's
@@ -263,6 +265,8 @@ def start_early(kinds, processes: int | None = None, busy: float = 5.0) -> list[
         _RUNNING.append(p)
         for n in share:
             _EARLY[n] = p
+    if shares and not _SINCE:
+        _SINCE.append(time.perf_counter())
     if not _ATEXIT:
         atexit.register(stop_helpers)
         _ATEXIT.append(True)
@@ -270,6 +274,12 @@ def start_early(kinds, processes: int | None = None, busy: float = 5.0) -> list[
 
 
 _ATEXIT: list = []
+
+
+def started_at() -> float | None:
+    """When :func:`start_early` started its first helper (``time.perf_counter``), or None: the
+    compile's elapsed time counts from then."""
+    return _SINCE[0] if _SINCE else None
 
 
 def early() -> dict:

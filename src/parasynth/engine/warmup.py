@@ -109,7 +109,7 @@ def _stderr(msg: str) -> None:
 
 
 def warm_up(work, *, progress=_stderr, stop=None, poll: float = 0.1, every: float = 5.0, busy=None,
-            announced: bool = False) -> WarmUp:
+            announced: bool = False, since: float | None = None) -> WarmUp:
     """Run ``work()`` on a compiling thread and wait for it interruptibly (see the module
     docstring); returns a :class:`WarmUp` (true when the work finished).
 
@@ -122,11 +122,13 @@ def warm_up(work, *, progress=_stderr, stop=None, poll: float = 0.1, every: floa
     once. ``busy``: a callable, true while other processes compile kernels the work waits for
     (:func:`parasynth.engine.precompile.start_early`): that wait is reported as a compile.
     ``announced``: :data:`COMPILING` was said already (when those processes were started), so
-    the progress goes on with the elapsed time.
+    the progress goes on with the elapsed time; ``since``: when that compile started
+    (``time.perf_counter``), from which the elapsed time and ``compile_seconds`` count.
     Calls from a thread other than the main one run ``work`` directly (nothing to keep
     interruptible there)."""
     state = WarmUp()
     t0 = time.perf_counter()
+    state._first = since  # None: from the first compile event (or the first busy poll)
     try:
         from numba.core import event as _ev
     except Exception:  # pragma: no cover - no numba: nothing compiles
@@ -155,7 +157,8 @@ def warm_up(work, *, progress=_stderr, stop=None, poll: float = 0.1, every: floa
             body_thread.join(poll)
             if busy is not None and not state.compiled and busy():
                 state.compiled = True
-                state._first = time.perf_counter()
+                if state._first is None:
+                    state._first = time.perf_counter()
                 state._current = "helper processes"
             if state.compiled and progress is not None:
                 now = time.perf_counter()
