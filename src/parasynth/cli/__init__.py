@@ -316,7 +316,9 @@ def _compile_early(path, quiet: bool) -> None:
     processes while its structures are enumerated (parasynth.engine.precompile.start_early),
     and say so. Anything unusual (an unreadable file, the NumPy engine asked for, no numba)
     starts nothing: the study's loading reports what is wrong, the run compiles as usual."""
-    if os.environ.get("PARASYNTH_COMPILE_AHEAD", "").strip() == "0":
+    from ..engine import compile_ahead_off
+
+    if compile_ahead_off():
         return
     try:
         import yaml
@@ -353,7 +355,9 @@ def _compile_chains_early(study) -> None:
     :func:`parasynth.engine.precompile.structure_kinds`), start them now, before the first
     design asks for them."""
     setup = getattr(study, "structures", None)
-    if setup is None or os.environ.get("PARASYNTH_COMPILE_AHEAD", "").strip() == "0":
+    from ..engine import compile_ahead_off
+
+    if setup is None or compile_ahead_off():
         return
     from ..engine import core, precompile
 

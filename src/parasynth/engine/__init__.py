@@ -79,7 +79,7 @@ __all__ = ["HAVE_NUMBA", "ENGINES", "EngineFallbackWarning", "feasible", "feasib
            "reason", "check_engine", "plan", "use_compiled", "warn_fallback", "coverage", "singularity_margin",
            "transmission", "local_transmission_index", "condition_number", "leg_directions", "constraint_rank", "ready",
            "closure_plan", "closure_prep", "closure_solve", "warm_up", "exercise", "needs", "effective_engine", "WarmUp", "COMPILING", "reference",
-           "compiling_early", "announce_compile", "n_threads"]
+           "compiling_early", "announce_compile", "compile_ahead_off", "n_threads"]
 
 #: Names looked up in :mod:`parasynth.engine.core` when first asked for.
 _CORE_NAMES = ("HAVE_NUMBA", "BLOCK", "SUB", "KernelPlan", "Unsupported")
@@ -491,6 +491,12 @@ def compiling_early() -> bool:
     return pre_mod is not None and any(pre_mod.early().values())
 
 
+def compile_ahead_off() -> bool:
+    """Whether compiling ahead is turned off (``PARASYNTH_COMPILE_AHEAD=0``): no helper
+    processes, no notice said ahead; each run compiles what it uses as it meets it."""
+    return os.environ.get("PARASYNTH_COMPILE_AHEAD", "").strip() == "0"
+
+
 #: The compile notice (:data:`COMPILING`) was said ahead of the next :func:`warm_up` (see
 #: :func:`announce_compile`).
 _ANNOUNCED = False
@@ -499,13 +505,13 @@ _ANNOUNCED = False
 def announce_compile() -> bool:
     """Whether the compile cache lacks the pose kernel, which every compiled evaluation uses (an
     installation that has not compiled yet): then the next :func:`warm_up` compiles, and takes
-    the notice as said, going on with the elapsed time. A command calls it once its input is
-    checked, to say :data:`COMPILING` at once instead of after the warm-up's first steps (the
-    work run once on NumPy to learn what it needs, numba's import). False without numba, with
+    the notice as said, going on with the elapsed time. The study runner calls it just before
+    its warm-up, to say :data:`COMPILING` at once instead of after the warm-up's first steps
+    (the work run once on NumPy to learn what it needs, numba's import). False without numba, with
     ``PARASYNTH_COMPILE_AHEAD=0``, when the pose kernel is cached, or when helpers started
     ahead (:func:`parasynth.engine.precompile.start_early`) said it already."""
     global _ANNOUNCED
-    if os.environ.get("PARASYNTH_COMPILE_AHEAD", "").strip() == "0":
+    if compile_ahead_off():
         return False
     core, pre = _compiled()[0], _compiled()[3]
     if not core.HAVE_NUMBA or pre.early() or pre.in_cache("_pose_kernel"):  # early helpers: said when started
@@ -543,7 +549,7 @@ def warm_up(work, processes: int | None = None, **options) -> WarmUp:
         def work():
             return exercise(mech)
 
-    if os.environ.get("PARASYNTH_COMPILE_AHEAD", "").strip() == "0":
+    if compile_ahead_off():
         return _warmup.warm_up(work, **options)
     loaded = []
     # helpers started ahead of the work (precompile.start_early) still compiling: the wait for
