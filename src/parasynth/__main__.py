@@ -1,6 +1,4 @@
 """``python -m parasynth``: the command line, as the ``parasynth`` command."""
-import sys
+from .cli import entry
 
-from .cli import main
-
-sys.exit(main())
+entry()

@@ -1,6 +1,4 @@
 """``python -m parasynth.cli``: the command line."""
-import sys
+from . import entry
 
-from . import main
-
-sys.exit(main())
+entry()
