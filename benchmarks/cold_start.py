@@ -1,7 +1,8 @@
 """Cold start: the quick start with an empty compile cache, then warm, and the compile alone.
 
-Three fresh processes (``python -m parasynth.cli ...``), each with this benchmark's own
-temporary ``NUMBA_CACHE_DIR`` and output directories:
+Fresh processes (``python -m parasynth.cli ...``), each with this benchmark's own temporary
+cache folder (numba's ``NUMBA_CACHE_DIR``, and in it parasynth's ``PARASYNTH_CACHE_DIR`` of the
+results kept on disk: sampled points, enumerated structures) and output directories:
 
 1. **cold**: ``parasynth run STUDY`` with the cache empty (everything the run uses is
    compiled, then the run), timing the first line it writes on stderr (the compile notice:
@@ -67,7 +68,11 @@ def _run(cmd, cache: str, cwd=ROOT, first: list | None = None) -> tuple[float, f
     """Wall and CPU seconds (the process and its children) and the output of ``cmd``; with
     ``first`` a list, the seconds until the first line on stderr are appended to it (None if
     there was none)."""
-    env = dict(os.environ, NUMBA_CACHE_DIR=cache, PYTHONUNBUFFERED="1")
+    # both of parasynth's caches in the folder: numba's compiled kernels and the results kept on
+    # disk (sampled points, enumerated structures: parasynth.common.cache), so that an empty
+    # folder is a first run on a fresh machine
+    env = dict(os.environ, NUMBA_CACHE_DIR=cache, PARASYNTH_CACHE_DIR=os.path.join(cache, "parasynth"),
+               PYTHONUNBUFFERED="1")
     t0 = time.perf_counter()
     r0 = os.times()
     p = subprocess.Popen(cmd, cwd=cwd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)

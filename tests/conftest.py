@@ -2,7 +2,9 @@
 folder importable from every test folder (including ``tests/reproduction``)."""
 
 import os
+import shutil
 import sys
+import tempfile
 
 _HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, _HERE)
@@ -19,6 +21,19 @@ from hypothesis import settings  # noqa: E402
 settings.register_profile("ci", derandomize=True, deadline=None, print_blob=True)
 if os.environ.get("CI"):
     settings.load_profile("ci")
+
+
+# The results parasynth keeps on disk between processes (sampled points, enumerated structures:
+# parasynth.common.cache) go to a folder of this test session, shared by its workers, unless
+# PARASYNTH_CACHE_DIR is set: every session computes them anew at least once, as a first run does.
+_SESSION_CACHE = None
+if "PARASYNTH_CACHE_DIR" not in os.environ:
+    _SESSION_CACHE = os.environ["PARASYNTH_CACHE_DIR"] = tempfile.mkdtemp(prefix="parasynth-test-cache-")
+
+
+def pytest_unconfigure(config):
+    if _SESSION_CACHE is not None and not os.environ.get("PYTEST_XDIST_WORKER"):
+        shutil.rmtree(_SESSION_CACHE, ignore_errors=True)
 
 
 def pytest_collection_modifyitems(config, items):

@@ -23,6 +23,12 @@ def _answer(found):
             dict(found.no_task_rule))
 
 
+@pytest.fixture(autouse=True)
+def _computed(monkeypatch):
+    """Every enumeration here computed, none read back from the disk cache (parasynth.common.cache)."""
+    monkeypatch.setenv("PARASYNTH_CACHE_DIR", "off")
+
+
 @pytest.fixture
 def forks(monkeypatch):
     """The process pools the enumeration opens (their sizes)."""

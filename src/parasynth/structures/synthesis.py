@@ -34,6 +34,7 @@ import numpy as np
 from ..common.validation import (MAX_LEGS, MAX_SEED, InputError, check_count, check_engine, is_real_number,
                                  numpy_reference)
 from .. import engine as _engine
+from ..common import cache as _cache
 from ..mechanisms import described_class
 from ..measures.usable import SINGULARITY_FLOOR
 from ..model.legs import LEG_TYPES
@@ -445,6 +446,14 @@ class Structure:
     checked_margin: float = math.nan
     equivalents: tuple = ()
     _cls: list = field(default_factory=list, repr=False)
+
+    def __getstate__(self):
+        """Pickled without the built model class (made anew from ``description`` when asked
+        for, :meth:`mechanism_class`): a class made at run time does not pickle."""
+        return {**self.__dict__, "_cls": []}
+
+    def __setstate__(self, state):
+        self.__dict__.update(state)
 
     @property
     def verified(self) -> bool:
@@ -896,6 +905,17 @@ def structures(motion, *, leg_types=None, legs=None, axes=None, all_axes: bool =
                           f"{'those counts add nothing' if len(none) < len(legs) else 'nothing is enumerated'}",
                           StructureWarning, stacklevel=2)
 
+    # the same arguments, engine and code give the same structures: kept on disk between
+    # processes (parasynth.common.cache; PARASYNTH_CACHE_DIR=off disables it)
+    cache_key = None
+    if _own_vocabulary(types):
+        cache_key = ("structures", motion, tuple(types), None if legs is None else tuple(legs), all_axes,
+                     None if want_axes is None else tuple(sorted((k, tuple(sorted(v))) for k, v in want_axes.items())),
+                     n_poses, seed, check_engine("compiled"))
+    kept = None if cache_key is None else _cache.load("structures", cache_key, StructureList)
+    if kept is not None:
+        kept.show_dropped = bool(show_dropped)
+        return kept
     no_rule = {}
 
     def drop(reason, c):
@@ -978,8 +998,35 @@ def structures(motion, *, leg_types=None, legs=None, axes=None, all_axes: bool =
         s._cls.append(cls)
         found.append(s)
     found = _fold_equivalents(found, drop)
-    return StructureList(found, motion, len(cands), dropped, dropped_names, show_dropped=bool(show_dropped),
-                         no_task_rule=no_rule)
+    out = StructureList(found, motion, len(cands), dropped, dropped_names, show_dropped=bool(show_dropped),
+                        no_task_rule=no_rule)
+    if cache_key is not None:
+        _cache.save("structures", cache_key, out)
+    return out
+
+
+#: The vocabulary as parasynth defines it (at import): an enumeration from it alone is kept on
+#: disk (parasynth.common.cache, keyed by the package's code). A limb type registered or
+#: replaced since (``register_limb``, a leg class of a plugin), or tables changed, are code the
+#: cache's key does not see: such an enumeration is computed every time.
+_OWN = ({k: (v, LEG_TYPES.get(k)) for k, v in LIMB_TYPES.items()},
+        (ARRANGEMENTS, dict(ARRANGEMENTS)), (TEMPLATES, dict(TEMPLATES)), (PARAMETERS, dict(PARAMETERS)),
+        HOME_TILTS, CHECKS, (EQUIVALENT_LIMBS, dict(EQUIVALENT_LIMBS)))
+
+
+def _own_vocabulary(types) -> bool:
+    """Whether the limb types ``types`` and the tables an enumeration reads are parasynth's own,
+    as at import (the same objects)."""
+    limbs, *tables, tilts, checks, equivalent = _OWN
+    for t in types:
+        own = limbs.get(t)
+        if own is None or LIMB_TYPES.get(t) is not own[0] or LEG_TYPES.get(t) is not own[1]:
+            return False
+    current = (ARRANGEMENTS, TEMPLATES, PARAMETERS)
+    if any(d is not snap[0] or d.keys() != snap[1].keys() or any(d[k] is not v for k, v in snap[1].items())
+           for d, snap in zip(current, tables)):
+        return False
+    return HOME_TILTS is tilts and CHECKS is checks and EQUIVALENT_LIMBS == equivalent[1]
 
 
 def _signature(s: Structure, mapping: dict) -> tuple:
