@@ -1,5 +1,5 @@
 """Compare the result tables of two run trees (e.g. two ``parasynth run-all --runs DIR``
-outputs) column by column.
+outputs), or of two run directories (``parasynth run ... --out DIR``), column by column.
 
     python benchmarks/compare_results.py RUNS_A RUNS_B [--ignore time_s] [--final] [--rtol 1e-6]
 
@@ -11,7 +11,8 @@ numbers within ``R`` of each other (relative to the larger) count as agreeing, a
 relative difference of each table is printed: for a change of the code that moves results by
 rounding only (a solver converging to the same root along another path), where the question
 is whether the designs and their rankings stay, not the last digits. Prints one line per study
-and the first differing cells; exit status 0 when everything agrees, 1 otherwise.
+and the first differing cells; exit status 0 when everything agrees, 1 otherwise (also when
+there was nothing to compare: no ``results.csv`` in either).
 """
 
 from __future__ import annotations
@@ -80,8 +81,8 @@ def compare_tables(a: Path, b: Path, ignore: set[str], show: int = 5, rtol: floa
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("a", type=Path, help="first run tree (one directory per study)")
-    ap.add_argument("b", type=Path, help="second run tree")
+    ap.add_argument("a", type=Path, help="first run tree (one directory per study), or one run directory")
+    ap.add_argument("b", type=Path, help="second run tree, or run directory")
     ap.add_argument("--ignore", nargs="*", default=["time_s"], help="columns not compared (default time_s)")
     ap.add_argument("--final", action="store_true", help="compare final.csv as well")
     ap.add_argument("--rtol", type=float, default=0.0,
@@ -89,18 +90,28 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     if not (args.rtol >= 0):
         ap.error(f"--rtol must be a relative tolerance >= 0, got {args.rtol}")
-    names = sorted({p.name for p in args.a.iterdir() if p.is_dir()} | {p.name for p in args.b.iterdir() if p.is_dir()})
+    for d in (args.a, args.b):
+        if not d.is_dir():
+            ap.error(f"{d}: not a directory")
     files = ["results.csv"] + (["final.csv"] if args.final else [])
+    single = (args.a / "results.csv").exists() or (args.b / "results.csv").exists()
+    if single:  # two run directories (each with its results.csv), not two trees of them
+        pairs = {args.a.name if args.a.name == args.b.name else f"{args.a.name} vs {args.b.name}": (args.a, args.b)}
+    else:
+        names = sorted({p.name for p in args.a.iterdir() if p.is_dir()} | {p.name for p in args.b.iterdir() if p.is_dir()})
+        pairs = {name: (args.a / name, args.b / name) for name in names}
     ok = True
-    for name in names:
+    compared = 0
+    for name, (da, db) in pairs.items():
         for fname in files:
-            fa, fb = args.a / name / fname, args.b / name / fname
+            fa, fb = da / fname, db / fname
             if not fa.exists() and not fb.exists():
                 continue
             if not fa.exists() or not fb.exists():
                 print(f"{name}/{fname}: only in {args.a if fa.exists() else args.b}")
                 ok = False
                 continue
+            compared += 1
             diffs = compare_tables(fa, fb, set(args.ignore), rtol=args.rtol)
             notes = [d for d in diffs if d.startswith("note: ")]
             diffs = [d for d in diffs if not d.startswith("note: ")]
@@ -116,6 +127,9 @@ def main(argv=None) -> int:
                 what = (f"the same within rtol {args.rtol:g}" if any("numbers agree within" in d for d in notes)
                         else "identical")
                 print(f"{name}/{fname}: {what} ({n} rows; ignored: {', '.join(args.ignore) or 'none'})")
+    if not compared:
+        print(f"nothing compared: neither {args.a} nor {args.b} holds a results.csv, directly or in a study directory")
+        return 1
     print(("all identical" if args.rtol == 0 else f"all the same within rtol {args.rtol:g}") if ok
           else "differences found")
     return 0 if ok else 1
