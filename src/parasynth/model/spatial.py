@@ -35,6 +35,7 @@ __all__ = [
     "reciprocal_basis",
     "canonical_wrenches",
     "null_space",
+    "null_direction",
     "segment_distance",
 ]
 
@@ -246,6 +247,18 @@ def null_space(A: np.ndarray, rtol: float = 1e-9) -> tuple[np.ndarray, np.ndarra
     scale = np.maximum(s[:, :1], 1e-300)
     rank = np.sum(s > rtol * scale, axis=1)
     return Vt, rank
+
+
+def null_direction(A: np.ndarray) -> np.ndarray:
+    """A unit vector (N, 6) orthogonal to the five rows of each ``A`` (N, 5, 6): the last column
+    of the complete QR factorisation of ``A^T`` (a quarter of the time of the SVD in
+    :func:`null_space` for these sizes). Where ``A`` has rank five it spans the null space, to
+    rounding, as the SVD's last right singular vector does (up to sign: neither sign is
+    meaningful); where the rank is lower it is one direction of the null space; NaN rows give
+    NaN."""
+    A = np.asarray(A, dtype=float)
+    Q, _ = np.linalg.qr(np.swapaxes(A, -1, -2), mode="complete")
+    return Q[..., -1]
 
 
 def reciprocal_basis(twists: np.ndarray, length: float, rtol: float = 1e-9) -> list[np.ndarray]:
