@@ -136,3 +136,41 @@ def test_a_run_compiling_on_its_own_compiles_the_rank_kernel_with_the_margin(mon
     early = engine._ahead(lambda: None)
     assert "_constraint_rank_kernel" not in early
     assert "_margin_kernel" in early
+
+
+def test_a_run_starts_the_helpers_before_loading_its_study(monkeypatch, tmp_path, capsys):
+    """``parasynth run`` on an empty compile cache starts the helpers before the study is loaded
+    and checked: a study over structures with the kernels of its limb types (its enumeration
+    first), any other study with those nearly every study asks for (its loading and check
+    first), and says so once; the NumPy engine, PARASYNTH_COMPILE_AHEAD=0 or a file that does
+    not read start nothing (the run then reports what is wrong, or compiles as before)."""
+    from pathlib import Path
+
+    import yaml
+
+    from parasynth import cli
+    from parasynth.engine import precompile as pre
+
+    root = Path(__file__).resolve().parents[2]
+    calls = []
+    monkeypatch.setattr(pre, "start_early", lambda kinds, processes=None, busy=5.0:
+                        calls.append((tuple(kinds), busy)) or [["_feasible_kernel"]])
+    cli._compile_early(root / "studies" / "quickstart.yaml", quiet=False)
+    assert calls == [(pre.STUDY, 1.5)]
+    assert set(pre.STUDY) == {"feasible", "singularity_margin", "constraint_rank"}
+    assert capsys.readouterr().err == engine.COMPILING + "\n"
+    cli._compile_early(root / "studies" / "structures_3t2r.yaml", quiet=True)
+    doc = yaml.safe_load((root / "studies" / "structures_3t2r.yaml").read_text())
+    assert calls[-1] == (pre.structure_kinds(doc["structure"]["leg_types"]), 5.0)
+    assert "chains" in calls[-1][0] and capsys.readouterr().err == ""
+    numpy_study = yaml.safe_load((root / "studies" / "quickstart.yaml").read_text())
+    numpy_study["evaluation"]["engine"] = "numpy"
+    path = tmp_path / "numpy.yaml"
+    path.write_text(yaml.safe_dump(numpy_study))
+    cli._compile_early(path, quiet=False)
+    (tmp_path / "bad.yaml").write_text("evaluation: [unclosed")
+    cli._compile_early(tmp_path / "bad.yaml", quiet=False)
+    cli._compile_early(tmp_path / "missing.yaml", quiet=False)
+    monkeypatch.setenv("PARASYNTH_COMPILE_AHEAD", "0")
+    cli._compile_early(root / "studies" / "quickstart.yaml", quiet=False)
+    assert len(calls) == 2 and capsys.readouterr().err == ""

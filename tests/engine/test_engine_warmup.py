@@ -245,7 +245,12 @@ def test_sigint_during_compile_ends_with_resume_hint(tmp_path):
             break
         time.sleep(0.05)
     assert any(engine.COMPILING in x for x in err_lines), "".join(err_lines)
-    time.sleep(1.0)
+    # said from the start (helpers compile while the study is loaded and checked): Ctrl-C once
+    # the run itself has begun (its lock file), while its warm-up waits for the compile
+    while time.time() < deadline and not (out / "run.lock").exists() and proc.poll() is None:
+        time.sleep(0.05)
+    assert (out / "run.lock").exists(), "".join(err_lines)
+    time.sleep(0.5)
     t0 = time.time()
     proc.send_signal(signal.SIGINT)
     proc.wait(timeout=60)  # stderr is read by the reader thread alone, to its end
@@ -256,7 +261,7 @@ def test_sigint_during_compile_ends_with_resume_hint(tmp_path):
     assert proc.returncode == 130, stderr
     assert waited < 10, f"the run went on compiling for {waited:.1f} s after Ctrl-C"
     assert "Traceback" not in stderr and "Exception ignored" not in stderr
-    assert stderr.count(engine.COMPILING) == 1, stderr  # said once, at the start of the warm-up
+    assert stderr.count(engine.COMPILING) == 1, stderr  # said once, when the helpers started
     last = [x for x in stderr.splitlines() if x.strip()][-1]
     assert last.startswith("interrupted:") and "--resume" in last and str(out) in last, stderr
     assert not (out / "journal.jsonl").exists() or not (out / "journal.jsonl").read_text().strip()

@@ -36,7 +36,7 @@ from ..model.chains import ChainLeg
 from ..model.legs import LEG_TYPES
 from . import chains, closure, core, indices
 
-__all__ = ["KERNELS_OF", "LOCAL", "WITH", "STRUCTURE_STUDY", "STRUCTURE_CHAINS", "structure_kinds", "chain_kinds",
+__all__ = ["KERNELS_OF", "LOCAL", "WITH", "STUDY", "STRUCTURE_STUDY", "STRUCTURE_CHAINS", "structure_kinds", "chain_kinds",
            "signatures", "in_cache", "missing", "compile_ahead", "start_early", "early", "left", "with_kernels",
            "stop_helpers", "started_at", "main"]
 
@@ -97,6 +97,13 @@ _SINCE: list = []
 #: compiled already), compiled from the start of such a run by :func:`start_early` while the
 #: structures are enumerated.
 STRUCTURE_STUDY = ("feasible", "singularity_margin")
+#: What nearly every study asks for, compiled from the start of a run of a study without a
+#: ``structure:`` section by :func:`start_early` while the study is checked: the workspace's
+#: feasibility, the singularity margin (the home floor of the verification, which every run's
+#: recommendation passes, and the margin measures) and the structural constraint rank the margin
+#: asks for per design (on NumPy until its kernel is compiled: ~2 ms of a quick-start design).
+#: A study asking for other entry points compiles them in its warm-up, as before.
+STUDY = ("feasible", "singularity_margin", "constraint_rank")
 #: What a structure study with chain limbs (model/chains.py) asks for besides: their compiled
 #: inverse kinematics and index rows, and their closure (the motion rule of the enumeration).
 STRUCTURE_CHAINS = ("chains", "chain_closure")
