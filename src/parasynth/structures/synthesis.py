@@ -909,7 +909,7 @@ def structures(motion, *, leg_types=None, legs=None, axes=None, all_axes: bool =
     # processes (parasynth.common.cache; PARASYNTH_CACHE_DIR=off disables it)
     cache_key = None
     if _own_vocabulary(types):
-        cache_key = ("structures", motion, tuple(types), None if legs is None else tuple(legs), all_axes,
+        cache_key = (motion, tuple(types), None if legs is None else tuple(legs), all_axes,
                      None if want_axes is None else tuple(sorted((k, tuple(sorted(v))) for k, v in want_axes.items())),
                      n_poses, seed, check_engine("compiled"))
     kept = None if cache_key is None else _cache.load("structures", cache_key, StructureList)
