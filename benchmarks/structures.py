@@ -32,8 +32,10 @@ vocabulary, 50 designs each in the screening, 200 for each survivor) is run from
 temporary directory: its wall and CPU time, the designs per structure, and whether every
 structure that survived the screening got at least 200 designs within 15 minutes.
 
-Times on a shared machine are noisy: compare the CPU times and the ratios of one run. Not part
-of the test suite. Usage::
+Every enumeration is computed, none read back from the disk cache (``PARASYNTH_CACHE_DIR=off``
+for this process and the study's, as on a machine that has not enumerated yet). Times on a
+shared machine are noisy: compare the CPU times and the ratios of one run. Not part of the test
+suite. Usage::
 
     python benchmarks/structures.py            # all of it
     python benchmarks/structures.py --no-study # enumeration and design costs only
@@ -207,6 +209,7 @@ def main(argv=None) -> int:
     ap.add_argument("--no-study", action="store_true", help="skip the full 3T2R study")
     ap.add_argument("--chains", action="store_true", help="only the enumeration of 3T2R and the chain limbs' cost")
     args = ap.parse_args(argv)
+    os.environ["PARASYNTH_CACHE_DIR"] = "off"  # every enumeration computed (parasynth.common.cache)
     warnings.simplefilter("ignore", EngineFallbackWarning)  # counted per enumeration (chain limbs only)
     print(f"load average {os.getloadavg()[0]:.2f} ({os.cpu_count()} cores)")
     print(f"{'motion':6s} {'enumerated':>10s} {'kept':>5s} {'wall s':>7s} {'CPU s':>6s} {'checked/s':>10s} "
