@@ -174,3 +174,35 @@ def test_a_run_starts_the_helpers_before_loading_its_study(monkeypatch, tmp_path
     monkeypatch.setenv("PARASYNTH_COMPILE_AHEAD", "0")
     cli._compile_early(root / "studies" / "quickstart.yaml", quiet=False)
     assert len(calls) == 2 and capsys.readouterr().err == ""
+
+
+def test_helpers_started_ahead_are_forgotten_once_stopped(monkeypatch, tmp_path):
+    """After the work (its warm-up, or a run that failed before it), the helpers started ahead
+    are forgotten: the next work of the process -- another run in a script or a test -- says
+    the notice itself and leaves nothing to anyone; and ``parasynth run`` stops them however
+    it ends."""
+    from parasynth import cli
+    from parasynth.engine import precompile as pre
+
+    class Finished:
+        returncode = 0
+
+        def poll(self):
+            return 0
+
+    monkeypatch.setattr(engine, "_ANNOUNCED", False)
+    monkeypatch.setattr(pre, "in_cache", lambda name: name != "_pose_kernel")
+    monkeypatch.setitem(pre._EARLY, "_feasible_kernel", Finished())
+    pre._LEFT.add("_margin_kernel")
+    pre._SINCE.append(1.0)
+    assert engine.announce_compile() is False  # said when the helpers were started
+    pre.stop_helpers()
+    assert pre.early() == {} and pre.left() == [] and pre.started_at() is None
+    assert engine.announce_compile() is True  # the next work's own notice
+    monkeypatch.setattr(engine, "_ANNOUNCED", False)
+    stopped = []
+    monkeypatch.setattr(pre, "start_early", lambda kinds, processes=None, busy=5.0: [["_feasible_kernel"]])
+    monkeypatch.setattr(pre, "stop_helpers", lambda: stopped.append(True))
+    (tmp_path / "bad.yaml").write_text("name: bad\nmechanism: no_such_mechanism\n")
+    assert cli.main(["run", str(tmp_path / "bad.yaml"), "--out", str(tmp_path / "out")]) == 2
+    assert stopped == [True]

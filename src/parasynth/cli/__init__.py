@@ -377,9 +377,18 @@ def _compile_chains_early(study) -> None:
 
 
 def cmd_run(args) -> int:
+    _compile_early(args.study, args.quiet)
+    try:
+        return _run_command(args)
+    finally:  # helpers started ahead and not waited for (the run failed or stopped before its warm-up)
+        pre = sys.modules.get("parasynth.engine.precompile")
+        if pre is not None:
+            pre.stop_helpers()
+
+
+def _run_command(args) -> int:
     from ..study import run_study
 
-    _compile_early(args.study, args.quiet)
     study = _checked_study(args.study)
     _compile_chains_early(study)
     _say_structures(study, args.quiet)

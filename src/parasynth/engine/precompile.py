@@ -325,10 +325,15 @@ def _stop(procs) -> None:
 
 def stop_helpers() -> None:
     """Terminate the helper processes still compiling (the caller was interrupted while
-    :func:`compile_ahead` waited for them on another thread, or exits)."""
+    :func:`compile_ahead` waited for them on another thread, the work is over, or the process
+    exits), and forget the helpers started ahead (:func:`start_early`): their kernels are in the
+    cache, or, a helper terminated or failed, compile where they are needed. So the next work
+    of the process (another run of a script, of a test) starts from what the cache holds:
+    nothing said ahead for it, nothing left to it, its compile timed from its own start."""
     _stop(list(_RUNNING))
-    for n in [n for n, p in _EARLY.items() if p.returncode is not None and p.returncode != 0]:
-        del _EARLY[n]  # a terminated or failed helper: its kernels compile where they are needed
+    _EARLY.clear()
+    _LEFT.clear()
+    _SINCE.clear()
 
 
 def main(argv=None) -> int:
