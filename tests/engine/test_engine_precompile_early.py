@@ -138,6 +138,31 @@ def test_a_run_compiling_on_its_own_compiles_the_rank_kernel_with_the_margin(mon
     assert "_margin_kernel" in early
 
 
+def test_the_warm_up_waits_for_what_early_helpers_compile_though_the_work_does_not_ask(monkeypatch):
+    """A study's early helper compiles the constraint rank's kernel (precompile.STUDY), which a
+    design asks for only once it is compiled. With every other kernel cached the warm-up's work
+    does not ask for it, and the warm-up used to stop that helper half done: every later run
+    started it again and evaluated its designs' rank on NumPy. The warm-up now waits for it; a
+    helper that has finished (its kernel cached) is not waited for."""
+    from parasynth.engine import precompile as pre
+
+    class Helper:
+        def __init__(self, running):
+            self.running = running
+
+        def poll(self):
+            return None if self.running else 0
+
+    monkeypatch.setattr(engine, "needs", lambda work: {"feasible", "singularity_margin"})
+    monkeypatch.setattr(pre, "in_cache", lambda name: name != "_constraint_rank_kernel")
+    monkeypatch.setattr(pre, "_LEFT", set())
+    monkeypatch.setattr(pre, "_EARLY", {"_constraint_rank_kernel": Helper(True)})
+    assert engine._ahead(lambda: None) == ["_constraint_rank_kernel"]
+    monkeypatch.setattr(pre, "_EARLY", {"_constraint_rank_kernel": Helper(False)})
+    monkeypatch.setattr(pre, "in_cache", lambda name: True)
+    assert engine._ahead(lambda: None) == []
+
+
 def test_a_run_starts_the_helpers_before_loading_its_study(monkeypatch, tmp_path, capsys):
     """``parasynth run`` on an empty compile cache starts the helpers before the study is loaded
     and checked: a study over structures with the kernels of its limb types (its enumeration

@@ -527,15 +527,22 @@ def _ahead(work):
     that compiled before: ``work`` compiles what it still needs itself); with the kernels
     :func:`parasynth.engine.precompile.start_early` left to the work, or, without such early
     helpers, those its entry points use besides (``precompile.WITH``). Off with
-    ``PARASYNTH_COMPILE_AHEAD=0``."""
+    ``PARASYNTH_COMPILE_AHEAD=0``. The kernels early helpers are still compiling are among them
+    whether ``work``'s first evaluation asks for them or not: they were started for this work
+    (the structural constraint rank of :data:`~parasynth.engine.precompile.STUDY`, which a design
+    asks for only once compiled), so the warm-up waits for them rather than stopping them half
+    done, which left a run whose other kernels were cached on NumPy for that entry point, run
+    after run."""
     pre = _compiled()[3]
-    if pre.in_cache("_pose_kernel") and not any(pre.early().values()):
+    running = [n for n, busy in pre.early().items() if busy]
+    if pre.in_cache("_pose_kernel") and not running:
         return []
     kinds = needs(work)
     wanted = pre.missing(kinds)
     if not pre.early():  # a run compiling on its own: what its entry points use besides (precompile.WITH)
         wanted += [n for n in pre.with_kernels(kinds) if n not in wanted]
-    return wanted + [n for n in pre.left() if n not in wanted]  # and the work's share of start_early
+    # and the work's share of start_early, and what its helpers are compiling for it
+    return wanted + [n for n in dict.fromkeys(pre.left() + running) if n not in wanted]
 
 
 def warm_up(work, processes: int | None = None, **options) -> WarmUp:
