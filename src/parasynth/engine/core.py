@@ -64,6 +64,7 @@ from ..model.constraints import (ActuatorRange, CoordinateRange, JointAngleLimit
 from ..model.mechanism import EngineFallbackWarning
 from ..model.legs import GEOM_TOL, PRS, PUS, RPS, RPU, RUS, SPS, UPS, UPU
 from ..model.spatial import unit
+from ..common import cache as _disk
 from ..common.validation import MAX_POSE_MAGNITUDE
 from .program import OPS, Program, Untranslatable, build_program
 
@@ -759,6 +760,28 @@ def _program_key(mech, exprs, twist, unknowns=False):
     return (type(mech), id(d), tuple((n, e.text) for n, e in exprs.items()), bool(twist), shapes, bool(unknowns))
 
 
+def _program_content(mech, exprs, twist, unknowns) -> tuple:
+    """What :func:`~parasynth.engine.program.build_program` reads of ``mech``, as a key of the
+    programs kept on disk (:mod:`parasynth.common.cache`, kind ``programs``): the description's
+    digest and variant selection, and, whatever that digest covers, the task's expressions and
+    rotation, the legs' joints, the parameters' names and shapes (their values are the
+    program's constants, read per design), the margins' expressions and the flags. Parameter
+    values never enter a program, so every design of a description shares it."""
+    d = mech.description
+    t = d.task
+    solve = getattr(t, "solve", None)
+    conv = getattr(t, "convention", None)
+    axes = None if conv is not None else tuple(tuple(float(v) for v in np.ravel(a)) for a in (t.rot_axes or ()))
+    return (f"{type(mech).__module__}.{type(mech).__qualname__}", d.name, getattr(d, "digest", None),
+            tuple(sorted((str(k), str(v)) for k, v in (getattr(d, "selection", None) or {}).items())),
+            tuple(t.names), tuple((n, e.text) for n, e in t.defines), tuple(e.text for e in t.angles), conv, axes,
+            tuple(e.text for e in t.position), tuple(e.text for e in t.valid),
+            None if solve is None else (tuple(solve.names), repr(getattr(solve, "closure", None))),
+            tuple(leg.joints for leg in mech.legs),
+            tuple(sorted((k, tuple(int(x) for x in np.shape(v))) for k, v in mech._penv.items())),
+            tuple((n, e.text) for n, e in exprs.items()), bool(twist), bool(unknowns))
+
+
 def program_for(mech, exprs: dict, twist: bool = False, unknowns: bool = False) -> Program:
     """The (cached) program of a described ``mech`` with the margins ``exprs`` (and, with
     ``unknowns``, the solved unknowns of ``task.solve`` kept); checked against
@@ -773,14 +796,21 @@ def program_for(mech, exprs: dict, twist: bool = False, unknowns: bool = False) 
         if isinstance(hit[1], Exception):
             raise hit[1]
         return hit[1]
+    content = _program_content(mech, exprs, twist, unknowns)
+    kept = _disk.load("programs", content, Program)
     try:
-        try:
-            prog = build_program(mech, exprs, twist, unknowns)
-        except Untranslatable as e:
-            raise Unsupported(str(e)) from None
-        except (KeyError, IndexError, TypeError, ValueError, RecursionError) as e:
-            raise Unsupported(f"the task parametrisation ({type(e).__name__}: {e})") from None
-        _check_program(mech, prog, twist)
+        if kept is not None:
+            prog = kept
+        else:
+            try:
+                prog = build_program(mech, exprs, twist, unknowns)
+            except Untranslatable as e:
+                raise Unsupported(str(e)) from None
+            except (KeyError, IndexError, TypeError, ValueError, RecursionError) as e:
+                raise Unsupported(f"the task parametrisation ({type(e).__name__}: {e})") from None
+        _check_program(mech, prog, twist)  # a program read back is checked as a new one
+        if kept is None:
+            _disk.save("programs", content, prog)
         prog.pose_limit = _pose_limit(mech)
     except Unsupported as e:
         _PROGRAMS[key] = (mech.description, e)
