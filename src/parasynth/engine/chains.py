@@ -59,7 +59,7 @@ from . import core
 from .core import HAVE_NUMBA, Unsupported
 
 __all__ = ["covers", "chain_legs", "context", "solve", "solve_arrays", "feasible", "margins", "signatures",
-           "closure_solve", "closure_residuals", "REACH_FACTOR"]
+           "closure_solve", "closure_residuals", "REACH_FACTOR", "closes_on_chains", "pose_batch"]
 
 #: A pose is reachable when the solve's residual is below ``REACH_FACTOR * IK_TOL`` (as
 #: ``ChainLeg.solve``).
@@ -634,6 +634,38 @@ def _poses(mech, Xa):
     if offered:  # the NumPy model keeps its own solve: the reference never sees these unknowns
         mech._solve_cache = kept
     return valid, np.asarray(p, float), np.asarray(R, float)
+
+
+def closes_on_chains(mech) -> bool:
+    """Whether ``mech`` is a description whose ``task.solve`` closes on chain limbs (a 3-RUU, a
+    4-RPUR/RPS), with numba: its pose program cannot hold their closure, :func:`pose_batch`
+    poses it."""
+    return (HAVE_NUMBA and getattr(mech, "solve_unknowns", None) is not None
+            and getattr(getattr(mech, "description", None), "task", None) is not None
+            and getattr(mech.description.task, "solve", None) is not None
+            and any(isinstance(leg, ChainLeg) for leg in getattr(mech, "_solve_legs", ())))
+
+
+def pose_batch(mech, Xa, twist: bool = False):
+    """``(valid, p, R, T)`` of poses ``Xa`` (N, n_task), as :func:`parasynth.engine.pose_batch`,
+    of a description whose ``task.solve`` closes on chain limbs (:func:`closes_on_chains`): the
+    unknowns by the model's Gauss-Newton with the chain limbs' closure by the compiled solve
+    (:func:`_offer_unknowns`, ~1e-14 from the NumPy closure's), and so the derivatives of the
+    unknowns in the twist map (the implicit function theorem's closure Jacobians); the pose and
+    the twist map from them by the description's expressions. The model keeps its own solve
+    (the reference never sees these unknowns)."""
+    kept = mech._solve_cache
+    try:
+        with np.errstate(all="ignore"):
+            _offer_unknowns(mech, Xa)
+            valid = np.asarray(mech.pose_valid(Xa), dtype=bool)
+            Xs = np.where(valid[:, None], Xa, mech.home)
+            _offer_unknowns(mech, Xs)
+            p, R = mech._pose(Xs)
+            T = mech._twist_map(Xs, chain=_closure_of) if twist else None
+    finally:
+        mech._solve_cache = kept
+    return valid, np.asarray(p, dtype=float), np.asarray(R, dtype=float), T
 
 
 def _offer_unknowns(mech, X) -> bool:

@@ -162,8 +162,10 @@ def compiled_unknowns(mech, Xa):
 
 def compiled_pose_batch(mech, Xa, twist: bool = False):
     """``(valid, p, R, T)`` of poses ``Xa`` (N, n_task) from the description's compiled program
-    (as :func:`parasynth.engine.pose_batch`), or None, having said why once, when the program
-    does not cover ``mech`` (the caller then evaluates the NumPy methods)."""
+    (as :func:`parasynth.engine.pose_batch`) -- for a motion closing on chain limbs, which the
+    program cannot hold, from the chain limbs' compiled closure (:func:`chains.pose_batch`) --
+    or None, having said why once, when neither covers ``mech`` (the caller then evaluates the
+    NumPy methods)."""
     if not HAVE_NUMBA:
         _warn(mech, "numba (not importable, or disabled by PARASYNTH_NO_NUMBA)", "pose_batch")
         return None
@@ -173,6 +175,8 @@ def compiled_pose_batch(mech, Xa, twist: bool = False):
     try:
         prog, consts = core.program_constants(mech, {}, twist)
     except (Unsupported, KeyError, IndexError, TypeError, ValueError, AttributeError) as e:
+        if chains.closes_on_chains(mech):  # the closure's solve compiled, the pose from its unknowns
+            return chains.pose_batch(mech, Xa, twist)
         _warn(mech, str(e), "pose_batch")
         return None
     return core.run_pose(prog, consts, Xa, twist)

@@ -220,9 +220,10 @@ class DescribedMechanism(Mechanism):
         self._solve_cache = (X.copy(), U.copy())
 
     # -- pose ------------------------------------------------------------------------------------
-    def _task_env(self, X, dual: bool = False, U=None) -> dict:
+    def _task_env(self, X, dual: bool = False, U=None, chain=None) -> dict:
         """Parameters, task coordinates, solved unknowns (``task.solve``; given as ``U`` (N, m),
-        or solved) and defined names for poses X (N, n_task)."""
+        or solved) and defined names for poses X (N, n_task); ``chain``: the chain limbs'
+        closure for the unknowns' derivatives, as in :meth:`solve_unknowns`."""
         env = dict(self._penv)
         N, n = X.shape
         if dual:
@@ -237,7 +238,8 @@ class DescribedMechanism(Mechanism):
             if U is None:
                 U = self.solved_unknowns(X)
             if dual:
-                G = implicit_gradient(self._closure, X, U, self._solve_xscale, self._solve_uscale)
+                G = implicit_gradient(lambda Xq, Uq: self._closure(Xq, Uq, chain), X, U, self._solve_xscale,
+                                      self._solve_uscale)
                 for j, c in enumerate(solve.names):
                     env[c] = _Dual(U[:, j], G[:, j, :])
             else:
@@ -264,10 +266,10 @@ class DescribedMechanism(Mechanism):
             R = R @ rot_axis(ax, a[:, k])
         return R, np.stack(cols, axis=-1)
 
-    def _pose_eval(self, X, dual: bool, U=None):
+    def _pose_eval(self, X, dual: bool, U=None, chain=None):
         t = self.description.task
         N, n = X.shape
-        env = self._task_env(X, dual, U)
+        env = self._task_env(X, dual, U, chain)
         with np.errstate(all="ignore"):
             angs = [e(env, dual) for e in t.angles]
             a = np.stack([np.broadcast_to(_val(v), (N,)) for v in angs], -1) if angs else np.zeros((N, 0))
@@ -293,8 +295,8 @@ class DescribedMechanism(Mechanism):
         p, R, _, _ = self._pose_eval(X, False)
         return p, R
 
-    def _twist_map(self, X):
-        _, _, dp, W = self._pose_eval(X, True)
+    def _twist_map(self, X, chain=None):
+        _, _, dp, W = self._pose_eval(X, True, chain=chain)
         T = np.zeros((X.shape[0], 6, self.n_task))
         T[:, :3] = dp
         T[:, 3:] = W
