@@ -100,8 +100,9 @@ class _Subst:
             if t[0] in ("c", "x", "p"):
                 r = i
             else:
-                args = [self(a) for a in t[1:]]
-                r = i if all(a == b for a, b in zip(args, t[1:])) else self.g.op(t[0], *args)
+                memo = self.memo
+                args = tuple([memo[a] if a in memo else self(a) for a in t[1:]])  # (the call only when new)
+                r = i if args == t[1:] else self.g.op(t[0], *args)
         self.memo[i] = r
         return r
 
