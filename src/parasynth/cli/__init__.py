@@ -953,15 +953,29 @@ def _load_user_plugins() -> None:
                        EXIT_FAILED) from None
 
 
+#: The program's full collections (``gc``'s third threshold): one per this many collections of
+#: the middle generation, against Python's 10 (see :func:`entry`).
+FULL_COLLECTION_EVERY = 100
+
+
 def entry() -> None:
     """The ``parasynth`` program (console script and ``python -m parasynth.cli``): :func:`main`,
     then the process exits with its status.
+
+    The cyclic garbage collector's full collections are ten times rarer than Python's default
+    (:data:`FULL_COLLECTION_EVERY`): with the default, the imports of numba, pandas and SciPy
+    set off three of them in a run's first 1.5 s, each walking every object loaded so far
+    (0.12 s of a 2.2 s warm quick start; docs/performance.md, "Tenth pass"), and none found
+    garbage worth it. The young generations are collected as before, and a full collection still
+    comes in a long run, ten times less often.
 
     Before the interpreter shuts down, every object still alive is frozen out of the cyclic
     garbage collector (``gc.freeze``): the shutdown's last collection would otherwise walk the
     ~2e5 objects of NumPy, numba, Optuna and pandas once more, 0.3-0.45 s of a 2.6 s warm quick
     start (docs/performance.md, "Ninth pass"). Nothing of the run's output depends on it: files
     are closed and the standard streams flushed by then, and exit handlers run as before."""
+    young, middle, _ = gc.get_threshold()
+    gc.set_threshold(young, middle, FULL_COLLECTION_EVERY)
     code = main()
     for stream in (sys.stdout, sys.stderr):
         try:
