@@ -97,3 +97,17 @@ def test_no_cache_folder_builds_every_process(tmp_path, builds, monkeypatch):
         _fresh_process(monkeypatch)
         core.program_for(m, {})
     assert builds == ["3rps", "3rps"]
+
+
+@needs_numba
+def test_a_mechanism_the_key_cannot_describe_is_built_and_not_kept(folder, builds, monkeypatch):
+    """A described mechanism whose task the disk key cannot read (an attribute missing) is built
+    and used as before, and nothing is written."""
+    def no_key(*a):
+        raise AttributeError("rot_axes")
+
+    monkeypatch.setattr(core, "_program_content", no_key)
+    m = parasynth.load_mechanism("3rps")
+    prog = core.program_for(m, {})
+    assert builds == ["3rps"] and prog.ins.shape[0] > 0
+    assert not (folder / "programs").exists() or not list((folder / "programs").glob("*.pickle"))

@@ -796,8 +796,11 @@ def program_for(mech, exprs: dict, twist: bool = False, unknowns: bool = False) 
         if isinstance(hit[1], Exception):
             raise hit[1]
         return hit[1]
-    content = _program_content(mech, exprs, twist, unknowns)
-    kept = _disk.load("programs", content, Program)
+    try:
+        content = _program_content(mech, exprs, twist, unknowns)
+    except Exception:  # noqa: BLE001 - a description the key does not describe: built, not kept
+        content = None
+    kept = None if content is None else _disk.load("programs", content, Program)
     try:
         if kept is not None:
             prog = kept
@@ -809,7 +812,7 @@ def program_for(mech, exprs: dict, twist: bool = False, unknowns: bool = False) 
             except (KeyError, IndexError, TypeError, ValueError, RecursionError) as e:
                 raise Unsupported(f"the task parametrisation ({type(e).__name__}: {e})") from None
         _check_program(mech, prog, twist)  # a program read back is checked as a new one
-        if kept is None:
+        if kept is None and content is not None:
             _disk.save("programs", content, prog)
         prog.pose_limit = _pose_limit(mech)
     except Unsupported as e:
