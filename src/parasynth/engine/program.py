@@ -546,17 +546,13 @@ def _operand_positions(op) -> tuple:
     return (2, 3), (1,)
 
 
-#: Per opcode, a function of an instruction row giving its (sources, destinations) registers.
-_OPERANDS = {}
-for _op in OPS.values():
-    _src, _dst = _operand_positions(_op)
-    _OPERANDS[_op] = eval(f"lambda row: ([{', '.join(f'row[{i}]' for i in _src)}], "  # noqa: S307 - generated
-                          f"[{', '.join(f'row[{i}]' for i in _dst)}])")
-del _op, _src, _dst
+#: Per opcode, the positions of its (sources, destinations) registers in an instruction row.
+_OPERANDS = {op: _operand_positions(op) for op in OPS.values()}
 
 
 def _operands(row):
-    return _OPERANDS[row[0]](row)
+    src, dst = _OPERANDS[row[0]]
+    return [row[i] for i in src], [row[i] for i in dst]
 
 
 def _fuse(code, uses):
