@@ -624,15 +624,13 @@ def _poses(mech, Xa):
             return valid, np.asarray(p, float), np.asarray(R, float)
         except (Unsupported, KeyError, IndexError, TypeError, ValueError, AttributeError):
             pass
-    kept = getattr(mech, "_solve_cache", None)
+    if closes_on_chains(mech):  # the unknowns by the compiled closure
+        valid, p, R, _ = pose_batch(mech, Xa)
+        return valid, p, R
     with np.errstate(all="ignore"):
-        offered = _offer_unknowns(mech, Xa)
         valid = mech.pose_valid(Xa)
         Xs = np.where(valid[:, None], Xa, mech.home)
-        _offer_unknowns(mech, Xs)
         p, R = mech._pose(Xs)
-    if offered:  # the NumPy model keeps its own solve: the reference never sees these unknowns
-        mech._solve_cache = kept
     return valid, np.asarray(p, float), np.asarray(R, float)
 
 
@@ -668,21 +666,15 @@ def pose_batch(mech, Xa, twist: bool = False):
     return valid, np.asarray(p, dtype=float), np.asarray(R, dtype=float), T
 
 
-def _offer_unknowns(mech, X) -> bool:
-    """A description whose ``task.solve`` closes on chain limbs (a 3-RUU, a 4-RPUR/RPS: the
-    pose program cannot hold their solve) poses on its NumPy model; let that model solve the
-    unknowns at ``X`` with the chain limbs' closure equations by the compiled solve (the same
-    Gauss-Newton, ~1e-14 from the NumPy closure's), when it asks for them; True when offered.
-    The NumPy engine (``engine="numpy"``, the reference) keeps the NumPy closure: only this
-    compiled path offers it, and :func:`_poses` puts the model's own cache back after."""
-    solve = getattr(mech, "solve_unknowns", None)
-    if solve is None or getattr(mech.description.task, "solve", None) is None:
-        return False
-    if not any(isinstance(leg, ChainLeg) for leg in getattr(mech, "_solve_legs", ())):
-        return False
+def _offer_unknowns(mech, X) -> None:
+    """Let the NumPy model of a description whose ``task.solve`` closes on chain limbs
+    (:func:`closes_on_chains`: the pose program cannot hold their solve) solve the unknowns at
+    ``X`` with the chain limbs' closure equations by the compiled solve (the same Gauss-Newton,
+    ~1e-14 from the NumPy closure's), when it asks for them. The NumPy engine (``engine="numpy"``,
+    the reference) keeps the NumPy closure: only this compiled path offers it, and
+    :func:`pose_batch` puts the model's own cache back after."""
     Xc = np.array(X, dtype=float)
-    mech.use_solved_unknowns(Xc, lambda: solve(Xc, chain=_closure_of), partial=True)
-    return True
+    mech.use_solved_unknowns(Xc, lambda: mech.solve_unknowns(Xc, chain=_closure_of), partial=True)
 
 
 def context(mech, X, gate=(), raw: dict | None = None, live: list | None = None) -> PoseContext:
