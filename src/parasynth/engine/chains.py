@@ -638,9 +638,8 @@ def closes_on_chains(mech) -> bool:
     """Whether ``mech`` is a description whose ``task.solve`` closes on chain limbs (a 3-RUU, a
     4-RPUR/RPS), with numba: its pose program cannot hold their closure, :func:`pose_batch`
     poses it."""
-    return (HAVE_NUMBA and getattr(mech, "solve_unknowns", None) is not None
-            and getattr(getattr(mech, "description", None), "task", None) is not None
-            and getattr(mech.description.task, "solve", None) is not None
+    task = getattr(getattr(mech, "description", None), "task", None)
+    return (HAVE_NUMBA and getattr(task, "solve", None) is not None
             and any(isinstance(leg, ChainLeg) for leg in getattr(mech, "_solve_legs", ())))
 
 
