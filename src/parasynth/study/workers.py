@@ -132,6 +132,7 @@ def _per_trial_class():
             self._cur = (None, None)
             self._assign = assign  # (study, trial) -> structure, asked before the trial's proposal
             self._assigned = {}
+            self._spaces = {}  # {structure or None: the search space kept across trials (_keep_space)}
 
         @property
         def inner(self):
@@ -142,8 +143,28 @@ def _per_trial_class():
                 return self._fixed
             n = trial.number
             if self._cur[0] != n:
-                self._cur = (n, self._factory(derive_seed(self._seed, n)))
+                self._cur = (n, self._keep_space(self._factory(derive_seed(self._seed, n)), n))
             return self._cur[1]
+
+        def _keep_space(self, sampler, number: int):
+            """``sampler`` with the intersection search space of the trials it sees (those of
+            trial ``number``'s structure) kept from the trials before it: a multivariate TPE
+            sampler computes that space incrementally (Optuna's ``IntersectionSearchSpace``,
+            exact: it resumes after the last trial it read, and before the first that was
+            still running), but a new sampler each trial started from none and compared
+            every stored trial's distributions again (~15 % of a structure study's proposal
+            time, O(n^2) over a study). The same space, so the same proposals. A sampler without
+            that attribute (another algorithm, a grouped TPE, another Optuna) keeps its own."""
+            space = getattr(sampler, "_search_space", None)
+            if type(space).__name__ != "IntersectionSearchSpace" or getattr(sampler, "_group", False):
+                return sampler
+            key = self._assigned.get(number)
+            kept = self._spaces.get(key)
+            if kept is None:
+                kept = self._spaces[key] = space
+            else:
+                sampler._search_space = kept
+            return sampler
 
         def fixed(self, number: int) -> dict:
             """Design values fixed for trial ``number`` by the schedule (the structure), else {}."""

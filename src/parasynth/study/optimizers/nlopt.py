@@ -107,7 +107,7 @@ def run_nlopt(problem: Problem, ctx: RunContext) -> None:
                 rec = problem.evaluate(vals, trial=len(cache))
             cache[k] = rec
             record(rec)
-            bar.update(rec, problem.best_str(list(cache.values())))
+            bar.update(rec, lambda: problem.best_str(list(cache.values())))
         return rec
 
     use_constraints = alg in NLOPT_WITH_CONSTRAINTS

@@ -125,7 +125,7 @@ def run_optuna(problem: Problem, ctx: RunContext) -> None:
             def on_new(recs):
                 for r in recs:
                     record(r)
-                bar.update(None, problem.best_str(records), n=len(recs))
+                bar.update(None, lambda: problem.best_str(records), n=len(recs))
 
             codes = run_local_workers(Path(ctx.out_dir) / "study.yaml", backend["url"], ctx.workers, total, ostudy,
                                       guard, on_new=on_new, fork=(study, problem, backend["seed"]))
@@ -136,7 +136,7 @@ def run_optuna(problem: Problem, ctx: RunContext) -> None:
         else:
             def on_record(rec):
                 record(rec)
-                bar.update(rec, problem.best_str(records))
+                bar.update(rec, lambda: problem.best_str(records))
 
             objective = optuna_objective(study, problem, on_record, guard=guard, mark_owner=backend["shared"])
             optimize_budget(ostudy, objective, study, total, guard, shared=backend["shared"], counted=counted,

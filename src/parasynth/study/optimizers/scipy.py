@@ -143,7 +143,7 @@ def run_scipy(problem: Problem, ctx: RunContext) -> None:
             state["n"] += 1
             cache[k] = rec
             ctx.record(rec)
-            bar.update(rec, problem.best_str(list(cache.values())))
+            bar.update(rec, lambda: problem.best_str(list(cache.values())))
         return rec
 
     def f(x):

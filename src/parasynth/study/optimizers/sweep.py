@@ -73,6 +73,6 @@ def run_sweep(problem: Problem, ctx: RunContext) -> None:
             with guard.evaluating():
                 rec = problem.evaluate(d, trial=i)
             ctx.record(rec)
-            bar.update(rec, problem.best_str(records))
+            bar.update(rec, lambda: problem.best_str(records))
     finally:
         bar.close()
