@@ -620,3 +620,61 @@ def test_the_margin_at_the_feasible_poses_reuses_the_feasibility_solve():
     ref = fresh.singularity_margin(X[ok])
     assert np.array_equal(kept, ref, equal_nan=True)
     np.testing.assert_array_equal(other, ref[::2])
+
+
+def _wide_poses(n, seed, motion):
+    """Poses of a motion (3T2R: rotations about x then the moving y; else level) over a box much
+    wider than the limb's reach, so that most are out of it."""
+    rng = np.random.default_rng(seed)
+    p = np.array([0.0, 0.0, 0.4]) + rng.uniform(-0.5, 0.5, (n, 3))
+    if motion == "3T2R":
+        R = rot_x(rng.uniform(-0.4, 0.4, n)) @ rot_y(rng.uniform(-0.4, 0.4, n))
+    else:
+        R = np.broadcast_to(np.eye(3), (n, 3, 3)).copy()
+    return p, R
+
+
+@pytest.mark.parametrize("cls, motion, has_test", [
+    (RRUR, "3T2R", True), (PRUR, "3T2R", True), (RPUR, "3T2R", False), (RUU, "3T0R", True),
+    (SPU, "3T3R", False), (RRPS, "3T3R", False), (URPU, "3T3R", False), (PRRS, "3T3R", True)],
+    ids=["RRUR", "PRUR", "RPUR", "RUU", "SPU", "RRPS", "URPU", "PRRS"])
+def test_the_reach_gate_refuses_only_poses_the_solve_does_not_reach(cls, motion, has_test):
+    """``reach_gate`` (the anchor's component along the leading revolutes' axis against the reach
+    of the chain after them, engine/chains.py ``axial_reach``) refuses no pose that the compiled
+    solve reaches, over random limbs (anchors and platform anchors) and poses mostly out of
+    reach. The chains with the test (their leading revolutes parallel, their prismatic joints
+    before them normal to them, only revolutes after: RRUR, PRUR, RUU, PRRS) are gated: on these
+    poses it refuses ~0.9 of the poses the solve does not reach for the RRUR, ~0.35-0.4 for the
+    others; the rest (the RPUR's slider along the limb after its first revolute, the SPU's, RRPS's
+    and URPU's slider after joints of other axes) are not."""
+    ch = _chains()
+    rng = np.random.default_rng(17)
+    refused = caught = 0
+    for trial in range(6):
+        ab, ap = rng.uniform(0, 2 * np.pi, 2)
+        rb, rp = rng.uniform(0.15, 0.35), rng.uniform(0.05, 0.2)
+        leg = cls("L", base=[rb * np.cos(ab), rb * np.sin(ab), 0.0], platform=[rp * np.cos(ap), rp * np.sin(ap), 0.0])
+        p, R = _wide_poses(1500, trial, motion)
+        ok = ch.reach_gate(leg, p, R)
+        if not has_test:
+            assert ok is None and ch.axial_reach(leg) is None
+            continue
+        reached = ch.solve(leg, p, R, joint_angles=False).reachable
+        assert reached.any() and (~reached).any()
+        assert not (reached & ~ok).any(), np.flatnonzero(reached & ~ok)
+        refused += int((~ok).sum())
+        caught += int((~ok & ~reached).sum())
+        # the test's own bound, checked on the solved configurations: the component along the
+        # leading axis of the anchor minus that of the first joint centre after the leading
+        # freedoms never exceeds the reach of the chain after them
+        a, h, reach, _ = ch.axial_reach(leg)
+        out = ch.solve_arrays(leg, p[reached], R[reached])
+        d = leg.chain_arrays()
+        k = next(m for m in range(len(d["kinds"])) if not (
+            (d["kinds"][m] == 0 and np.linalg.norm(np.cross(d["axes"][m], a)) < 1e-9)
+            or (d["kinds"][m] == 1 and abs(d["axes"][m] @ a) < 1e-9)))
+        np.testing.assert_allclose(out["points"][:, k] @ a, h, rtol=0, atol=1e-12)
+        assert np.all(np.abs(out["position"] @ a - h) <= reach + 1e-12)
+    if has_test:
+        unreached = caught  # all refused poses are unreached (asserted above)
+        assert refused == unreached and refused > 0
