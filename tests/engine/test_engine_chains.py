@@ -678,3 +678,67 @@ def test_the_reach_gate_refuses_only_poses_the_solve_does_not_reach(cls, motion,
     if has_test:
         unreached = caught  # all refused poses are unreached (asserted above)
         assert refused == unreached and refused > 0
+
+
+def test_a_context_for_constraints_that_read_no_joint_angle_skips_them_with_the_same_answers():
+    """The chain engine's feasibility and margins of constraints none of which reads a passive
+    joint angle (``Constraint.reads_angles``: strokes, lengths, interference) solve the legs
+    without their angles (closed-form legs by ``solve_geometry``, chain limbs without frames),
+    with the same answers as a context with them; a joint-angle limit among them brings the
+    angles back."""
+    from parasynth.model.constraints import JointAngleLimit, feasible_rows
+
+    ch = _chains()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", EngineFallbackWarning)
+        m = parasynth.structures("2T2R", leg_types=["RPU", "RRPS"], legs=[4])[0].mechanism(stroke=0.2)
+    rng = np.random.default_rng(8)
+    lo, hi = (np.array(v) for v in zip(*[m.default_ranges()[k] for k in m.task_coordinates]))
+    X = np.concatenate([m.home + rng.uniform(-0.05, 0.05, (300, len(lo))), lo + (hi - lo) * rng.uniform(0, 1, (300, len(lo)))])
+    plain = [c.name for c in m.constraints.values() if not c.reads_angles]
+    assert plain and ch.needs_angles(m._select(None)) == any(
+        isinstance(c, JointAngleLimit) for c in m.constraints.values())
+    asked = []
+    orig = ch.solve
+
+    def recording(leg, p, R, joint_angles=True, arrays=False):
+        asked.append(joint_angles)
+        return orig(leg, p, R, joint_angles, arrays)
+
+    ch.solve = recording
+    try:
+        got = ch.feasible(m, X, plain)
+        assert asked and not any(asked)
+        margins = ch.margins(m, X, plain)
+        asked.clear()
+        ctx = ch.context(m, X)  # every angle
+        assert asked and all(asked)
+    finally:
+        ch.solve = orig
+    assert all(st.angles for st in ctx.states)
+    cons = m._select(plain)
+    assert np.array_equal(got, feasible_rows(ctx, cons) & ctx.reachable)
+    assert 0 < got.sum() < len(X)
+    for c in cons:
+        ref = np.where(ctx.reachable, np.asarray(c.margin(ctx), float), -np.inf)
+        np.testing.assert_array_equal(margins[c.name], np.where(np.isnan(ref), -np.inf, ref))
+    # a joint-angle limit reads them: the context is built with them
+    limited = m.with_constraints(JointAngleLimit("cone", key="S_platform_cone", hi=0.6))
+    assert ch.needs_angles(limited._select(None)) and not limited.constraints["cone"].vacuous
+    ok = ch.feasible(limited, X, plain + ["cone"])
+    full = ch.context(limited, X)
+    assert np.array_equal(ok, feasible_rows(full, limited._select(plain + ["cone"])) & full.reachable)
+    assert ok.sum() < got.sum()
+    # but not a cone limit of 180 deg (cone angles lie in [0, pi]): the feasibility leaves it out
+    loose = m.with_constraints(JointAngleLimit("cone", key="S_platform_cone", hi=np.pi))
+    assert loose.constraints["cone"].vacuous
+    ch.solve = recording
+    try:
+        asked.clear()
+        same = ch.feasible(loose, X, plain + ["cone"])
+        assert asked and not any(asked)
+    finally:
+        ch.solve = orig
+    assert np.array_equal(same, got)
+    full = ch.context(loose, X)
+    assert np.array_equal(same, feasible_rows(full, loose._select(plain + ["cone"])) & full.reachable)

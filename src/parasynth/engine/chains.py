@@ -53,14 +53,14 @@ import numpy as np
 from ..model import parasitic
 from ..model.chains import CLOSURE_ITERATIONS, IK_ITERATIONS, IK_STALL, IK_TOL, ChainLeg
 from ..model.constraints import LegLengthRange, PoseContext, feasible_rows, leg_gate, state_rows
-from ..model.legs import LegState
+from ..model.legs import LegState, solve_geometry
 from ..model.spatial import unit
 from . import core
 from .core import HAVE_NUMBA, Unsupported
 
 __all__ = ["covers", "chain_legs", "context", "solve", "solve_arrays", "feasible", "margins", "signatures",
            "closure_solve", "closure_residuals", "REACH_FACTOR", "closes_on_chains", "pose_batch", "axial_reach",
-           "reach_gate"]
+           "reach_gate", "needs_angles"]
 
 #: A pose is reachable when the solve's residual is below ``REACH_FACTOR * IK_TOL`` (as
 #: ``ChainLeg.solve``).
@@ -677,7 +677,7 @@ def _offer_unknowns(mech, X) -> None:
     mech.use_solved_unknowns(Xc, lambda: mech.solve_unknowns(Xc, chain=_closure_of), partial=True)
 
 
-def context(mech, X, gate=(), raw: dict | None = None, live: list | None = None) -> PoseContext:
+def context(mech, X, gate=(), raw: dict | None = None, live: list | None = None, angles: bool = True) -> PoseContext:
     """``mech.pose_context(X)`` with the chain limbs solved by the compiled kernel. With
     constraints ``gate`` (a feasibility test's), a chain limb is solved only at the poses where
     no leg before it breaks one of them alone (:func:`parasynth.model.constraints.leg_gate`:
@@ -685,7 +685,9 @@ def context(mech, X, gate=(), raw: dict | None = None, live: list | None = None)
     poses are not feasible anyway. ``raw``: filled with {leg index: (the poses it was solved
     at, the compiled solve's arrays there)}. ``live``: a list, then given the poses every leg
     reached (indices into X), and the context is of those poses alone (no chain state is
-    expanded to every pose: a feasibility test needs no other)."""
+    expanded to every pose: a feasibility test needs no other). ``angles=False``: the legs'
+    states without their passive joint angles, for constraints none of which reads them
+    (``Constraint.reads_angles``; :func:`needs_angles`)."""
     Xa, _ = mech._poses(X)
     Xa = np.ascontiguousarray(Xa, dtype=np.float64)
     valid, p, R = _poses(mech, Xa)
@@ -698,7 +700,8 @@ def context(mech, X, gate=(), raw: dict | None = None, live: list | None = None)
     # it reaches (a pose another leg misses is infeasible whatever the chain's state there: the
     # solve of a pose out of reach, up to its stall, is the costly one)
     N = p.shape[0]
-    states = [None if isinstance(leg, ChainLeg) else leg.solve(p, R) for leg in mech.legs]
+    states = [None if isinstance(leg, ChainLeg) else (leg.solve(p, R) if angles else solve_geometry(leg, p, R))
+              for leg in mech.legs]
     alive = valid.copy()
     for leg, st in zip(mech.legs, states):
         if st is not None:
@@ -713,7 +716,7 @@ def context(mech, X, gate=(), raw: dict | None = None, live: list | None = None)
                     alive &= ok
             idx = np.flatnonzero(alive)
             keep = raw is not None
-            st = solve(leg, p[idx], R[idx], arrays=keep) if idx.size < N else solve(leg, p, R, arrays=keep)
+            st = solve(leg, p[idx], R[idx], angles, keep) if idx.size < N else solve(leg, p, R, angles, keep)
             if keep:
                 raw[k] = (idx, st.extra.pop("arrays"))
             if live is not None:
@@ -859,16 +862,26 @@ def _expand(leg: ChainLeg, st: LegState, idx, p, R) -> LegState:
 
 def feasible(mech, X, names=None):
     """``mech._is_feasible_numpy(X, names)`` with the chain limbs solved by the kernel: the
-    constraints evaluated at the poses every leg reached (:func:`context` with ``live``)."""
+    constraints evaluated at the poses every leg reached (:func:`context` with ``live``), but
+    for the joint-angle limits that hold at every reached pose (``JointAngleLimit.vacuous``:
+    a cone angle up to 180 deg), which would only ask for the angles."""
     Xa, single = mech._poses(X)
-    cons = mech._select(names)
+    cons = [c for c in mech._select(names) if not getattr(c, "vacuous", False)]
     raw, live = {}, []
-    ctx = context(mech, X, gate=cons, raw=raw, live=live)
+    ctx = context(mech, X, gate=cons, raw=raw, live=live, angles=needs_angles(cons))
     L = live[0]
     ok = np.zeros(Xa.shape[0], bool)
     ok[L] = feasible_rows(ctx, cons)
     _keep_solves(mech, ctx, ok[L], L, raw)
     return ok[0] if single else ok
+
+
+def needs_angles(cons) -> bool:
+    """Whether a margin of the constraints ``cons`` reads the legs' passive joint angles
+    (``Constraint.reads_angles``; a constraint class that does not say is taken to): without
+    them a closed-form leg's NumPy solve takes about half the time (an RPU at 8192 poses) and a
+    chain limb's solve keeps no frames."""
+    return any(getattr(c, "reads_angles", True) for c in cons)
 
 
 def _keep_solves(mech, ctx, ok, L, raw) -> None:
@@ -893,7 +906,7 @@ def margins(mech, X, names=None) -> dict:
     """``mech._constraint_margins_numpy(X, names)`` with the chain limbs solved by the kernel."""
     _, single = mech._poses(X)
     cons = mech._select(names)
-    ctx = context(mech, X)
+    ctx = context(mech, X, angles=needs_angles(cons))
     out = {}
     with np.errstate(invalid="ignore"):
         for c in cons:

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from itertools import combinations
+from typing import ClassVar
 
 import numpy as np
 
@@ -133,7 +134,15 @@ def _within(v, lo, hi):
 
 @dataclass(frozen=True)
 class Constraint:
-    """Base class: ``name`` (unique in a mechanism), ``unit`` of the margin, ``doc``."""
+    """Base class: ``name`` (unique in a mechanism), ``unit`` of the margin, ``doc``.
+
+    ``reads_angles``: whether the margin reads the legs' passive joint angles (``LegState.angles``);
+    a pose context for constraints that do not is built without them (the chain engine's
+    feasibility and margins: the angles are most of a closed-form leg's NumPy solve, and a chain
+    limb's frames). True unless a class says otherwise, so that a constraint written elsewhere
+    gets them."""
+
+    reads_angles: ClassVar[bool] = True
 
     name: str
     unit: str = "m"
@@ -146,6 +155,8 @@ class Constraint:
 @dataclass(frozen=True)
 class ActuatorRange(Constraint):
     """Every actuator value within [lo, hi] (m): margin min_i min(q_i - lo, hi - q_i)."""
+
+    reads_angles: ClassVar[bool] = False
 
     lo: float = 0.0
     hi: float = np.inf
@@ -162,6 +173,8 @@ class ActuatorRange(Constraint):
 class LegLengthRange(Constraint):
     """Distance between the end joint centres of the named legs within [lo, hi] (m) -- for
     passive legs whose stroke is limited (e.g. the grinding robot's d2)."""
+
+    reads_angles: ClassVar[bool] = False
 
     legs: tuple[str, ...] = ()
     lo: float = 0.0
@@ -193,6 +206,13 @@ class JointAngleLimit(Constraint):
             raise ValueError(f"constraint {self.name!r}: no leg has a joint angle {self.key!r}")
         return np.min(np.stack(vals, 1), axis=1)
 
+    @property
+    def vacuous(self) -> bool:
+        """Whether the limit holds at every pose a leg reaches: a cone angle (a key ending in
+        ``_cone``: the angle between two directions, in [0, pi]) limited to a range that holds
+        [0, pi] (a study's ``platform_joint_max: 180 deg``, no limit)."""
+        return self.key.endswith("_cone") and self.lo <= 0.0 and self.hi >= np.pi
+
     def leg_part(self, leg, st):
         """The margin's part of ``leg`` alone, None for a leg it does not name or without the angle."""
         if (not self.legs or leg.name in self.legs) and self.key in st.angles:
@@ -206,6 +226,8 @@ class LegInterference(Constraint):
     (base joint centre to platform joint centre) minus ``diameter`` (m), over ``pairs``
     (default: every pair of the named legs, or of all legs). The 2022 paper's D <= D_i of
     eq. (9) with D the cylinder diameter."""
+
+    reads_angles: ClassVar[bool] = False
 
     diameter: float = 0.0
     legs: tuple[str, ...] = ()
@@ -236,6 +258,8 @@ class LegAxisAngle(Constraint):
     (``frame="platform"``, rotated with it). This is the form of the 2022 paper's eq. (9)
     joint-angle rows, e.g. phi_i^m = arccos(L_i . R n_mi / l_i) with n_mi = (0, 1, 0)."""
 
+    reads_angles: ClassVar[bool] = False
+
     legs: tuple[str, ...] = ()
     axis: tuple[float, float, float] = (0.0, 0.0, 1.0)
     frame: str = "base"
@@ -260,6 +284,8 @@ class LegAxisAngle(Constraint):
 class CoordinateRange(Constraint):
     """A task coordinate (column ``index``) within [lo, hi] (its own unit)."""
 
+    reads_angles: ClassVar[bool] = False
+
     index: int = 0
     lo: float = -np.inf
     hi: float = np.inf
@@ -279,6 +305,8 @@ class SingularityMarginFloor(Constraint):
     (``PoseContext.mechanism`` is the mechanism evaluated); the compiled engine applies the
     floor with its singularity-margin kernel to the poses its feasibility kernel accepts
     (docs/architecture.md)."""
+
+    reads_angles: ClassVar[bool] = False
 
     floor: float = 0.0
     unit: str = "1"

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
-from typing import Callable
+from typing import Callable, ClassVar
 
 import numpy as np
 
@@ -40,6 +40,8 @@ _CONSTRAINT_REQUIRED = {"leg_length": {"legs"}, "joint_angle": {"key"}, "interfe
 class ExpressionConstraint(Constraint):
     """A margin given as an expression of the parameters, task coordinates, defined names and
     the platform pose (``px, py, pz`` and ``R11 .. R33``), >= 0 where feasible."""
+
+    reads_angles: ClassVar[bool] = False
 
     text: str = ""
     evaluate: Callable | None = dataclasses.field(default=None, repr=False, compare=False)
