@@ -51,6 +51,27 @@ def test_design_key_survives_csv_round_trip(tmp_path):
     assert isinstance(design_key(study, {**values, "n": np.int64(4)})[1], int)
 
 
+def test_design_keys_of_a_table_are_the_rows_keys(tmp_path):
+    """``final.design_keys`` (the rows read as dicts) gives each row's ``design_key`` as a row of
+    ``iterrows`` does: floats to 12 digits, integers, categories, an inactive (empty) value,
+    read back from CSV, and a variable without a column; so the merged duplicates and the front
+    are those of the rows."""
+    from parasynth.study.final import design_keys, merge_duplicates
+
+    study = _study(Variable("a", "continuous", "length", 0.1, 0.4), Variable("n", "integer", None, 1, 9),
+                   Variable("c", "categorical", None, choices=("x", "y")), Variable("z", "continuous", None, 0, 1))
+    rows = [{"a": 0.1 + 0.2 / 3, "n": 4, "c": "y"}, {"a": 0.2, "n": 5, "c": "x", "z": 0.5},
+            {"a": (0.1 + 0.2 / 3) * (1 + 1e-14), "n": 4, "c": "y"}, {"a": 0.2, "n": 5, "c": "x", "z": np.nan}]
+    pd.DataFrame(rows).assign(v=[1.0, 2.0, 3.0, 4.0]).to_csv(tmp_path / "t.csv", index=False)
+    table = pd.read_csv(tmp_path / "t.csv")
+    for df in (table, table.drop(columns="z")):
+        keys = design_keys(study, df)
+        assert keys == [design_key(study, r) for _, r in df.iterrows()]
+        assert keys[0] == keys[2] and (keys[1] != keys[3]) == ("z" in df)
+    merged = merge_duplicates(study, table)
+    assert merged["v"].tolist() == [1.0, 2.0, 4.0] and merged["count"].tolist() == [2, 1, 1]
+
+
 def test_design_params_adds_fixed_and_tied():
     study = _study(Variable("a", "continuous", "length", 0.1, 0.4), fixed={"r": 0.3}, tied={"b": "a"})
     assert design_params(study, {"a": 0.2}) == {"r": 0.3, "a": 0.2, "b": 0.2}

@@ -12,7 +12,7 @@ import pandas as pd
 
 from ..common.pareto import (FAR_FENCE, NoisyComparison, ReferenceStanding, compare_with_noise, default_reference_point, hypervolume,
                              reference_standing, to_min)
-from ..study.rundir import (Run, design_key, knee_of, pareto_front, recommendation_order, screening_dominators,
+from ..study.rundir import (Run, design_key, design_keys, knee_of, pareto_front, recommendation_order, screening_dominators,
                             sorted_front)
 from .checks import design_warnings
 from ..common import columns as derived
@@ -164,14 +164,15 @@ def _recommendation(run: Run, first) -> Recommendation:
     best = fin[fin["source"] == "best"]
     runs = run.table[run.table["source"] == "run"]
     order = recommendation_order(study, runs)
-    rank = {design_key(study, r): i for i, (_, r) in enumerate(order.iterrows())}
+    order_keys = design_keys(study, order)
+    rank = {k: i for i, k in enumerate(order_keys)}
     checked = best.assign(_rank=[rank.get(design_key(study, r), len(rank)) for _, r in best.iterrows()])
     checked = checked.sort_values("_rank", kind="stable")
     picked = checked[checked["recommended"].astype(bool)]
     if len(picked):
         fr = picked.iloc[0]
         key = design_key(study, fr)
-        row = next((r for _, r in order.iterrows() if design_key(study, r) == key), None)
+        row = order.iloc[order_keys.index(key)] if key in rank else None
         if row is None:  # the run table no longer holds it as a feasible design (an older final.csv)
             return Recommendation("not verified", first, first=first)
         failed = [(int(r["trial"]), str(r.get("verification", ""))) for _, r in checked.iterrows()

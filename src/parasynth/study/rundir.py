@@ -22,7 +22,8 @@ from .columns import csv_column, from_csv_columns, to_csv_columns
 from .defaults import planned_designs
 from .design import design_key, design_mechanism, design_params, measure_settings
 from .verify import SINGULARITY_FLOOR, estimate_of
-from .final import best_designs, knee_of, merge_duplicates, pareto_front, recommendation_order, screening_dominators
+from .final import (best_designs, design_keys, knee_of, merge_duplicates, pareto_front, recommendation_order,
+                    screening_dominators)
 from .journal import read_journal
 from .polish import read_polish
 from .schedule import structure_schedule
@@ -33,7 +34,7 @@ from .view import (MAX_FRONT_DESIGNS, N_CLOUD, N_POSES, design_values, design_vi
                    rounded, sorted_front, trajectory_of, view_key)
 from ..common import columns as derived
 
-__all__ = ["Run", "RunDirError", "read_run", "read_final", "to_csv_columns", "measure_settings", "design_key", "design_params", "design_mechanism", "pareto_front", "knee_of",
+__all__ = ["Run", "RunDirError", "read_run", "read_final", "to_csv_columns", "measure_settings", "design_key", "design_keys", "design_params", "design_mechanism", "pareto_front", "knee_of",
            "screening_dominators", "merge_duplicates", "best_designs", "recommendation_order", "estimate_of",
            "SINGULARITY_FLOOR", "read_view", "design_view", "design_values", "view_key", "front_choice", "sorted_front",
            "trajectory_of", "rounded", "MAX_FRONT_DESIGNS", "N_POSES", "N_CLOUD"]
