@@ -60,7 +60,7 @@ from .core import HAVE_NUMBA, Unsupported
 
 __all__ = ["covers", "chain_legs", "context", "solve", "solve_arrays", "feasible", "margins", "signatures",
            "closure_solve", "closure_residuals", "REACH_FACTOR", "closes_on_chains", "pose_batch", "axial_reach",
-           "reach_gate", "needs_angles"]
+           "trailing_reach", "reach_gate", "needs_angles"]
 
 #: A pose is reachable when the solve's residual is below ``REACH_FACTOR * IK_TOL`` (as
 #: ``ChainLeg.solve``).
@@ -711,9 +711,11 @@ def context(mech, X, gate=(), raw: dict | None = None, live: list | None = None,
                 alive &= ok
     for k, leg in enumerate(mech.legs):
         if states[k] is None:
-            for ok in (_length_gate(gate, leg, p, R), reach_gate(leg, p, R)):
+            idx = np.flatnonzero(alive)  # the gates read only the poses still alive
+            pa, Ra = (p, R) if idx.size == N else (p[idx], R[idx])
+            for ok in (_length_gate(gate, leg, pa, Ra), reach_gate(leg, pa, Ra)):
                 if ok is not None:
-                    alive &= ok
+                    alive[idx] &= ok
             idx = np.flatnonzero(alive)
             keep = raw is not None
             st = solve(leg, p[idx], R[idx], angles, keep) if idx.size < N else solve(leg, p, R, angles, keep)
@@ -818,23 +820,145 @@ def axial_reach(leg: ChainLeg):
     return a, float(a @ pts[k]), reach, 10.0 * REACH_FACTOR * IK_TOL * d["length"]
 
 
+#: The least sine of the angle between the leading axis and the trailing one for the line test of
+#: :func:`trailing_reach` (nearly parallel axes: the two planes' line is ill-conditioned).
+LINE_SIN_MIN = 0.1
+
+
+def trailing_reach(leg: ChainLeg):
+    """The second reach test of a chain limb (:func:`reach_gate`), for a chain of three parts: the
+    leading freedoms of :func:`axial_reach` (prismatics normal to ``a`` all before the revolutes
+    parallel to it, the prismatics along one direction ``d``), then, from the first joint centre
+    ``c`` after them, only revolutes parallel to the last one's axis ``b`` up to the anchor (the
+    RRUR's and PRUR's universal joint's second axis and last revolute, both along the platform's
+    y). A dict of the test's data, or None where the chain has not that form.
+
+    At a configuration reaching the anchor ``A`` with the platform's rotation ``R``:
+
+    * ``a . c = h`` (:func:`axial_reach`);
+    * the trailing revolutes turn about axes parallel to ``b_w = R b`` (the last axis is fixed in
+      the platform), through ``c`` and points after it, so ``b_w . (A - c) = kb`` (its home value)
+      and ``|A - c| <= ell`` (the rigid links after ``c``);
+    * the leading revolutes turn ``c`` about axes parallel to ``a`` from the first one's centre
+      ``c1`` shifted by the prismatics along ``d``: its component along ``w = a x d`` stays within
+      ``rho`` (the links' lengths normal to ``a``) of ``w . c1``; without a prismatic its
+      distance from the line through ``c1`` along ``a`` is at most ``rho``.
+
+    So ``c`` lies on the line of the two planes, within ``ell`` of ``A`` and in that slab (or
+    cylinder): where the segment of the line within ``ell`` of ``A`` misses it, no configuration
+    reaches the pose."""
+    d = leg.chain_arrays()
+    kinds, axes, pts, home = d["kinds"], d["axes"], d["points"], d["home"]
+    n = len(kinds)
+    t = axial_reach(leg)
+    if t is None or kinds[n - 1] != 0:
+        return None
+    a = t[0]
+    unit_axes = [ax / math.sqrt(float(ax @ ax)) for ax in axes]
+    k = 0
+    while k < n and ((kinds[k] == 0 and float(np.linalg.norm(np.cross(unit_axes[k], a))) <= AXIAL_TOL)
+                     or (kinds[k] == 1 and abs(float(unit_axes[k] @ a)) <= AXIAL_TOL)):
+        k += 1
+    b = unit_axes[n - 1]
+    j = n - 1
+    while j - 1 >= k and kinds[j - 1] == 0 and float(np.linalg.norm(np.cross(unit_axes[j - 1], b))) <= AXIAL_TOL:
+        j -= 1
+    if j != k:  # freedoms of other axes between the two groups
+        return None
+    pris = [m for m in range(k) if kinds[m] == 1]
+    revs = [m for m in range(k) if kinds[m] == 0]
+    if not revs or (pris and max(pris) > min(revs)):
+        return None
+    dvec = unit_axes[pris[0]] if pris else None
+    if dvec is not None and any(float(np.linalg.norm(np.cross(unit_axes[m], dvec))) > AXIAL_TOL for m in pris):
+        return None
+    c = pts[k]
+
+    def chain_of(points):
+        out = []
+        for q in points:
+            if not out or not np.array_equal(q, out[-1]):
+                out.append(q)
+        return out
+
+    lead = chain_of([pts[m] for m in revs] + [c])
+    rho = sum(float(np.linalg.norm((q1 - q0) - float((q1 - q0) @ a) * a)) for q0, q1 in zip(lead, lead[1:]))
+    trail = chain_of([c] + [pts[m] for m in range(k + 1, n)] + [home])
+    ell = sum(float(np.linalg.norm(q1 - q0)) for q0, q1 in zip(trail, trail[1:]))
+    w = None if dvec is None else np.cross(a, dvec) / float(np.linalg.norm(np.cross(a, dvec)))
+    return {"a": a, "h": float(a @ c), "b": b, "kb": float(b @ (home - c)), "ell": ell, "rho": rho, "c1": lead[0],
+            "w": w, "length": float(d["length"])}
+
+
+def _trailing_gate(t: dict, A, R):
+    """:func:`trailing_reach`'s test at anchors ``A`` (N, 3) and rotations ``R`` (N, 3, 3): False
+    where the segment of the planes' line within ``ell`` of ``A`` misses the leading part's slab
+    (or cylinder) by more than a reached pose's error can explain; True where the leading and
+    trailing axes are within ``LINE_SIN_MIN`` of parallel (no test). A reached pose's anchor and
+    rotation are within ``REACH_FACTOR * IK_TOL`` (of the length scale, in rad) of the target's on
+    each axis, so its line is within that times the lengths involved (the links', the anchor's
+    distance from the origin) over the sine of the axes' angle of the target's: the slack is ten
+    times it."""
+    a, h, kb, ell, rho, c1, w = t["a"], t["h"], t["kb"], t["ell"], t["rho"], t["c1"], t["w"]
+    bw = R @ t["b"]
+    cr = np.cross(a, bw)
+    sn = np.linalg.norm(cr, axis=1)
+    line = sn >= LINE_SIN_MIN
+    tl = cr / np.where(line, sn, 1.0)[:, None]
+    eps = 10.0 * REACH_FACTOR * IK_TOL
+    slack = eps * (t["length"] + ell + rho + np.linalg.norm(A, axis=1)) / np.where(line, sn, 1.0) + eps * t["length"]
+    # the line {a . c = h, bw . c = bw . A - kb}: its point c0 = alpha a + beta bw
+    g = bw @ a
+    r2 = np.einsum("ij,ij->i", bw, A) - kb
+    den = np.where(line, 1.0 - g * g, 1.0)
+    c0 = ((h - g * r2) / den)[:, None] * a + ((r2 - g * h) / den)[:, None] * bw
+    # its segment within ell of A: tau in [tc - dl, tc + dl]
+    tc = np.einsum("ij,ij->i", tl, A - c0)
+    off = A - c0 - tc[:, None] * tl
+    e = ell + slack
+    disc = e * e - np.einsum("ij,ij->i", off, off)
+    dl = np.sqrt(np.maximum(disc, 0.0))
+    lo, hi = tc - dl, tc + dl
+    r = rho + slack
+    if w is not None:  # the slab |w . c - w . c1| <= rho
+        wt, wc, w0 = tl @ w, c0 @ w, float(w @ c1)
+        flat = np.abs(wt) < 1e-12
+        wt_ = np.where(flat, 1.0, wt)
+        t1, t2 = (w0 - r - wc) / wt_, (w0 + r - wc) / wt_
+        meets = np.where(flat, np.abs(wc - w0) <= r, np.maximum(lo, np.minimum(t1, t2)) <= np.minimum(hi, np.maximum(t1, t2)))
+    else:  # the cylinder |(c - c1) normal to a| <= rho (the line is normal to a)
+        q = c0 - c1
+        q = q - (q @ a)[:, None] * a
+        B = np.einsum("ij,ij->i", q, tl)
+        D = B * B - (np.einsum("ij,ij->i", q, q) - r * r)
+        sq = np.sqrt(np.maximum(D, 0.0))
+        meets = (D >= 0.0) & (np.maximum(lo, -B - sq) <= np.minimum(hi, -B + sq))
+    return ~line | ((disc >= 0.0) & meets)
+
+
 def reach_gate(leg: ChainLeg, p, R):
-    """Before a chain limb is solved: False at the poses its chain cannot reach by the test of
+    """Before a chain limb is solved: False at the poses its chain cannot reach, by the tests of
     :func:`axial_reach` (the anchor's component along the leading axis further from that of the
-    first joint centre after the leading freedoms than the rest of the chain reaches), by more
-    than a reached pose's error can explain (the solve's anchor is within ``REACH_FACTOR *
-    IK_TOL`` of the length scale of the target on each axis: the slack is ten times it); None
-    where the chain has no such test. A pose it refuses is one the solve does not reach, so
-    the answers do not change; the solve of a pose out of reach, run to its stall, costs three to
-    five times that of a reached one (a 5-RRUR's limbs: 12-25 us against 4-5 us a pose), and
-    the test refuses four fifths of them for the 5-RRUR, a fifth to two fifths for the 5-PRUR
-    (``structures_3t2r``'s box)."""
+    first joint centre after the leading freedoms than the rest of the chain reaches) and of
+    :func:`trailing_reach` (that joint centre on the line of two planes, within reach of the
+    anchor and of the leading part), each by more than a reached pose's error can explain (the
+    solve's anchor is within ``REACH_FACTOR * IK_TOL`` of the length scale of the target on each
+    axis, its rotation within that in rad: the slack is ten times it); None where the chain has
+    no such test. A pose it refuses is one the solve does not reach, so the answers do not
+    change; the solve of a pose out of reach, run to its stall, costs three to five times that
+    of a reached one (a 5-RRUR's limbs: 12-25 us against 4-5 us a pose). In
+    ``structures_3t2r``'s box, with rotations, the two refuse all the unreached poses of a 5-RRUR's
+    first limb and 0.7-0.95 of a 5-PRUR's (the first test alone: 0.83 and 0-0.4)."""
     t = axial_reach(leg)
     if t is None:
         return None
     a, h, reach, slack = t
     A = p + np.einsum("nij,j->ni", R, np.asarray(leg.platform, float))
-    return np.abs(A @ a - h) <= reach + slack
+    ok = np.abs(A @ a - h) <= reach + slack
+    tr = trailing_reach(leg)
+    if tr is not None:
+        ok &= _trailing_gate(tr, A, np.asarray(R, float))
+    return ok
 
 
 def _expand(leg: ChainLeg, st: LegState, idx, p, R) -> LegState:
