@@ -88,6 +88,26 @@ def test_the_summary_explains_the_unitless_measures_before_any_table(tmp_path):
     assert sum("Reading the unitless measures" in s.text for s in secs) == 1
 
 
+def test_the_reading_paragraph_defines_a_measure_once():
+    """A constraint on an objective's measure (the structure studies' margin_q05 and margin_min)
+    is said to be that measure, and a definition several meanings share (the singularity margin,
+    the local transmission index) is given once: the first measure of it defines it."""
+    from parasynth.report.sections import _LTI, _MARGIN
+
+    study = _study(objectives=[{"name": "singularity_margin_min", "label": "margin_q05", "settings": {"quantile": 0.05}},
+                               {"name": "min_lti", "label": "lti"}],
+                   constraints=[{"name": "singularity_margin_min", "label": "margin_min", "min": 0.001,
+                                 "settings": {"quantile": 0.05}},
+                                {"name": "mean_lti", "min": 0.3}],
+                   evaluation={"samples": 256, "constraints": [{"type": "singularity_margin", "min": 0.02}]})
+    text = reading_text(study)
+    assert text.count(_MARGIN) == 1 and text.count(_LTI) == 1
+    assert "**margin_min** (singularity_margin_min): the same measure as margin_q05." in text
+    assert "**mean_lti**: the mean local transmission index over the workspace samples." in text
+    assert "**singularity_margin**: a floor on the singularity margin of every pose counted." in text
+    assert text.index(_MARGIN) < text.index("**margin_min**")
+
+
 def test_a_study_without_unitless_measures_has_no_reading_paragraph():
     study = _study(objectives=[{"name": "workspace_volume", "label": "volume"},
                                {"name": "footprint_radius"}])

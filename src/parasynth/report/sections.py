@@ -4,6 +4,8 @@ Text marks bold as ``**...**`` and paragraphs by blank lines; tables hold displa
 
 from __future__ import annotations
 
+import re
+
 import importlib.metadata as md
 import platform
 import time
@@ -34,6 +36,9 @@ _LTI = ("the local transmission index is the smaller of the input and output tra
         "the pressure angles between the force a leg transmits and the motion it drives: 1 is transmission without "
         "loss, 0 a singularity, and 0.7 (pressure angles within about 45.6 deg) the usual threshold of good "
         "transmission")
+
+#: The definitions several meanings below share: given once in a report's reading paragraph.
+_DEFINITIONS = (_MARGIN, _LTI)
 
 #: One sentence on the meaning and the scale of each unitless measure, shown where the report
 #: first names the study's measures (the summary). Every registered measure of unit "1" has one
@@ -327,7 +332,7 @@ def reading_text(study) -> str:
     settings = {x.label: dict(x.settings or {}) for x in list(study.objectives) + list(study.constraints)}
     items += [(c.get("name", "singularity_margin"), c.get("type", "")) for c in
               (study.evaluation.get("added_constraints") or ())]
-    out, seen = [], set()
+    out, seen, said, defined = [], set(), {}, set()
     for label, name in items:
         meaning = INDEX_MEANINGS.get(name)
         if meaning is None or (label, name) in seen:
@@ -338,6 +343,15 @@ def reading_text(study) -> str:
             meaning = meaning.replace("the smallest (or the set quantile of the)", which, 1)
         seen.add((label, name))
         what = f"**{label}**" + (f" ({name})" if label != name else "")
+        if meaning in said:  # the same measure under another label (a constraint on an objective's measure)
+            out.append(f"{what}: the same measure as {said[meaning]}.")
+            continue
+        said[meaning] = label
+        for definition in _DEFINITIONS:  # a definition given once, not again for every measure of it
+            if definition in meaning:
+                if definition in defined:
+                    meaning = re.sub(r"(?:; the singularity margin is |; |, )" + re.escape(definition), "", meaning, 1)
+                defined.add(definition)
         out.append(f"{what}: {meaning}")
     if not out:
         return ""
