@@ -779,6 +779,32 @@ def _length_gate(gate, leg: ChainLeg, p, R):
 AXIAL_TOL = 1e-9
 
 
+def _distinct(points) -> list:
+    """``points`` without the repeats of the one before (a universal joint's two freedoms share
+    their centre): the joint centres of a chain, in order."""
+    out = []
+    for q in points:
+        if not out or not np.array_equal(q, out[-1]):
+            out.append(q)
+    return out
+
+
+def _leading(leg: ChainLeg):
+    """``(chain arrays, unit axes, a, k)``: the first revolute's unit axis ``a`` (None without a
+    revolute) and the number ``k`` of leading freedoms that are revolutes parallel to it or
+    prismatics normal to it."""
+    d = leg.chain_arrays()
+    kinds = d["kinds"]
+    unit_axes = [ax / math.sqrt(float(ax @ ax)) for ax in d["axes"]]
+    a = next((u for u, kind in zip(unit_axes, kinds) if kind == 0), None)
+    k = 0
+    while a is not None and k < len(kinds) and (
+            (kinds[k] == 0 and float(np.linalg.norm(np.cross(unit_axes[k], a))) <= AXIAL_TOL)
+            or (kinds[k] == 1 and abs(float(unit_axes[k] @ a)) <= AXIAL_TOL)):
+        k += 1
+    return d, unit_axes, a, k
+
+
 def axial_reach(leg: ChainLeg):
     """The reach test of a chain limb (:func:`reach_gate`): ``(a, h, reach, slack)``, or None
     where the chain has none.
@@ -794,29 +820,13 @@ def axial_reach(leg: ChainLeg):
     axis) and the 5-PRUR's (the vertical slider normal to x) have it; a chain whose prismatic
     joint follows a revolute off its normal (the RPUR's slider along the limb) or comes later
     has none."""
-    d = leg.chain_arrays()
-    kinds, axes, pts = d["kinds"], d["axes"], d["points"]
+    d, unit_axes, a, k = _leading(leg)
+    kinds, pts = d["kinds"], d["points"]
     n = len(kinds)
-    unit_axes = [ax / math.sqrt(float(ax @ ax)) for ax in axes]
-    a = next((unit_axes[m] for m in range(n) if kinds[m] == 0), None)
-    if a is None:
+    if a is None or k == 0 or k == n or (kinds[k:] == 1).any():
         return None
-    k = 0
-    while k < n:
-        u = unit_axes[k]
-        if (kinds[k] == 0 and float(np.linalg.norm(np.cross(u, a))) <= AXIAL_TOL) or \
-                (kinds[k] == 1 and abs(float(u @ a)) <= AXIAL_TOL):
-            k += 1
-            continue
-        break
-    if k == 0 or k == n or (kinds[k:] == 1).any():
-        return None
-    centres = [pts[k]]
-    for m in range(k + 1, n):
-        if not np.array_equal(pts[m], centres[-1]):  # a universal joint's two freedoms share their centre
-            centres.append(pts[m])
-    centres.append(d["home"])
-    reach = sum(float(np.linalg.norm(centres[i + 1] - centres[i])) for i in range(len(centres) - 1))
+    centres = _distinct([pts[m] for m in range(k, n)] + [d["home"]])
+    reach = sum(float(np.linalg.norm(q1 - q0)) for q0, q1 in zip(centres, centres[1:]))
     return a, float(a @ pts[k]), reach, 10.0 * REACH_FACTOR * IK_TOL * d["length"]
 
 
@@ -847,18 +857,13 @@ def trailing_reach(leg: ChainLeg):
     So ``c`` lies on the line of the two planes, within ``ell`` of ``A`` and in that slab (or
     cylinder): where the segment of the line within ``ell`` of ``A`` misses it, no configuration
     reaches the pose."""
-    d = leg.chain_arrays()
-    kinds, axes, pts, home = d["kinds"], d["axes"], d["points"], d["home"]
-    n = len(kinds)
-    t = axial_reach(leg)
-    if t is None or kinds[n - 1] != 0:
+    if axial_reach(leg) is None:
         return None
-    a = t[0]
-    unit_axes = [ax / math.sqrt(float(ax @ ax)) for ax in axes]
-    k = 0
-    while k < n and ((kinds[k] == 0 and float(np.linalg.norm(np.cross(unit_axes[k], a))) <= AXIAL_TOL)
-                     or (kinds[k] == 1 and abs(float(unit_axes[k] @ a)) <= AXIAL_TOL)):
-        k += 1
+    d, unit_axes, a, k = _leading(leg)
+    kinds, pts, home = d["kinds"], d["points"], d["home"]
+    n = len(kinds)
+    if kinds[n - 1] != 0:
+        return None
     b = unit_axes[n - 1]
     j = n - 1
     while j - 1 >= k and kinds[j - 1] == 0 and float(np.linalg.norm(np.cross(unit_axes[j - 1], b))) <= AXIAL_TOL:
@@ -873,17 +878,9 @@ def trailing_reach(leg: ChainLeg):
     if dvec is not None and any(float(np.linalg.norm(np.cross(unit_axes[m], dvec))) > AXIAL_TOL for m in pris):
         return None
     c = pts[k]
-
-    def chain_of(points):
-        out = []
-        for q in points:
-            if not out or not np.array_equal(q, out[-1]):
-                out.append(q)
-        return out
-
-    lead = chain_of([pts[m] for m in revs] + [c])
+    lead = _distinct([pts[m] for m in revs] + [c])
     rho = sum(float(np.linalg.norm((q1 - q0) - float((q1 - q0) @ a) * a)) for q0, q1 in zip(lead, lead[1:]))
-    trail = chain_of([c] + [pts[m] for m in range(k + 1, n)] + [home])
+    trail = _distinct([c] + [pts[m] for m in range(k + 1, n)] + [home])
     ell = sum(float(np.linalg.norm(q1 - q0)) for q0, q1 in zip(trail, trail[1:]))
     w = None if dvec is None else np.cross(a, dvec) / float(np.linalg.norm(np.cross(a, dvec)))
     return {"a": a, "h": float(a @ c), "b": b, "kb": float(b @ (home - c)), "ell": ell, "rho": rho, "c1": lead[0],
