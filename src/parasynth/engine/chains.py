@@ -805,6 +805,35 @@ def _leading(leg: ChainLeg):
     return d, unit_axes, a, k
 
 
+def _reach_tests(leg: ChainLeg):
+    """``(axial, trailing)``: the data of :func:`axial_reach` and :func:`trailing_reach` of
+    ``leg``, read from its chain in one pass; each None where the chain has not that test."""
+    d, unit_axes, a, k = _leading(leg)
+    kinds, pts, home = d["kinds"], d["points"], d["home"]
+    n = len(kinds)
+    if a is None or k == 0 or k == n or (kinds[k:] == 1).any():
+        return None, None
+    c = pts[k]
+    trail = _distinct([pts[m] for m in range(k, n)] + [home])
+    reach = sum(float(np.linalg.norm(q1 - q0)) for q0, q1 in zip(trail, trail[1:]))
+    axial = (a, float(a @ c), reach, 10.0 * REACH_FACTOR * IK_TOL * d["length"])
+    b = unit_axes[n - 1]
+    j = n - 1
+    while j - 1 >= k and kinds[j - 1] == 0 and float(np.linalg.norm(np.cross(unit_axes[j - 1], b))) <= AXIAL_TOL:
+        j -= 1
+    pris = [m for m in range(k) if kinds[m] == 1]
+    revs = [m for m in range(k) if kinds[m] == 0]
+    dvec = unit_axes[pris[0]] if pris else None
+    if j != k or not revs or (pris and max(pris) > min(revs)) or (  # other axes between the groups; a slider after a turn
+            dvec is not None and any(float(np.linalg.norm(np.cross(unit_axes[m], dvec))) > AXIAL_TOL for m in pris)):
+        return axial, None
+    lead = _distinct([pts[m] for m in revs] + [c])
+    rho = sum(float(np.linalg.norm((q1 - q0) - float((q1 - q0) @ a) * a)) for q0, q1 in zip(lead, lead[1:]))
+    w = None if dvec is None else np.cross(a, dvec) / float(np.linalg.norm(np.cross(a, dvec)))
+    return axial, {"a": a, "h": axial[1], "b": b, "kb": float(b @ (home - c)), "ell": reach, "rho": rho,
+                   "c1": lead[0], "w": w, "length": float(d["length"])}
+
+
 def axial_reach(leg: ChainLeg):
     """The reach test of a chain limb (:func:`reach_gate`): ``(a, h, reach, slack)``, or None
     where the chain has none.
@@ -820,14 +849,7 @@ def axial_reach(leg: ChainLeg):
     axis) and the 5-PRUR's (the vertical slider normal to x) have it; a chain whose prismatic
     joint follows a revolute off its normal (the RPUR's slider along the limb) or comes later
     has none."""
-    d, unit_axes, a, k = _leading(leg)
-    kinds, pts = d["kinds"], d["points"]
-    n = len(kinds)
-    if a is None or k == 0 or k == n or (kinds[k:] == 1).any():
-        return None
-    centres = _distinct([pts[m] for m in range(k, n)] + [d["home"]])
-    reach = sum(float(np.linalg.norm(q1 - q0)) for q0, q1 in zip(centres, centres[1:]))
-    return a, float(a @ pts[k]), reach, 10.0 * REACH_FACTOR * IK_TOL * d["length"]
+    return _reach_tests(leg)[0]
 
 
 #: The least sine of the angle between the leading axis and the trailing one for the line test of
@@ -857,34 +879,7 @@ def trailing_reach(leg: ChainLeg):
     So ``c`` lies on the line of the two planes, within ``ell`` of ``A`` and in that slab (or
     cylinder): where the segment of the line within ``ell`` of ``A`` misses it, no configuration
     reaches the pose."""
-    if axial_reach(leg) is None:
-        return None
-    d, unit_axes, a, k = _leading(leg)
-    kinds, pts, home = d["kinds"], d["points"], d["home"]
-    n = len(kinds)
-    if kinds[n - 1] != 0:
-        return None
-    b = unit_axes[n - 1]
-    j = n - 1
-    while j - 1 >= k and kinds[j - 1] == 0 and float(np.linalg.norm(np.cross(unit_axes[j - 1], b))) <= AXIAL_TOL:
-        j -= 1
-    if j != k:  # freedoms of other axes between the two groups
-        return None
-    pris = [m for m in range(k) if kinds[m] == 1]
-    revs = [m for m in range(k) if kinds[m] == 0]
-    if not revs or (pris and max(pris) > min(revs)):
-        return None
-    dvec = unit_axes[pris[0]] if pris else None
-    if dvec is not None and any(float(np.linalg.norm(np.cross(unit_axes[m], dvec))) > AXIAL_TOL for m in pris):
-        return None
-    c = pts[k]
-    lead = _distinct([pts[m] for m in revs] + [c])
-    rho = sum(float(np.linalg.norm((q1 - q0) - float((q1 - q0) @ a) * a)) for q0, q1 in zip(lead, lead[1:]))
-    trail = _distinct([c] + [pts[m] for m in range(k + 1, n)] + [home])
-    ell = sum(float(np.linalg.norm(q1 - q0)) for q0, q1 in zip(trail, trail[1:]))
-    w = None if dvec is None else np.cross(a, dvec) / float(np.linalg.norm(np.cross(a, dvec)))
-    return {"a": a, "h": float(a @ c), "b": b, "kb": float(b @ (home - c)), "ell": ell, "rho": rho, "c1": lead[0],
-            "w": w, "length": float(d["length"])}
+    return _reach_tests(leg)[1]
 
 
 def _trailing_gate(t: dict, A, R):
@@ -946,13 +941,12 @@ def reach_gate(leg: ChainLeg, p, R):
     of a reached one (a 5-RRUR's limbs: 12-25 us against 4-5 us a pose). In
     ``structures_3t2r``'s box, with rotations, the two refuse all the unreached poses of a 5-RRUR's
     first limb and 0.7-0.95 of a 5-PRUR's (the first test alone: 0.83 and 0-0.4)."""
-    t = axial_reach(leg)
+    t, tr = _reach_tests(leg)
     if t is None:
         return None
     a, h, reach, slack = t
     A = p + np.einsum("nij,j->ni", R, np.asarray(leg.platform, float))
     ok = np.abs(A @ a - h) <= reach + slack
-    tr = trailing_reach(leg)
     if tr is not None:
         ok &= _trailing_gate(tr, A, np.asarray(R, float))
     return ok
