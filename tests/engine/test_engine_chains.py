@@ -634,22 +634,25 @@ def _wide_poses(n, seed, motion):
     return p, R
 
 
-@pytest.mark.parametrize("cls, motion, has_test, trailing, least", [
-    (RRUR, "3T2R", True, True, 0.99), (PRUR, "3T2R", True, True, 0.9), (RPUR, "3T2R", False, False, 0),
-    (RUU, "3T0R", True, False, 0.3), (SPU, "3T3R", False, False, 0), (RRPS, "3T3R", False, False, 0),
-    (URPU, "3T3R", False, False, 0), (PRRS, "3T3R", True, False, 0.3)],
+@pytest.mark.parametrize("cls, motion, test, trailing, least", [
+    (RRUR, "3T2R", "axial", True, 0.99), (PRUR, "3T2R", "axial", True, 0.9), (RPUR, "3T2R", "cone", False, 0.8),
+    (RUU, "3T0R", "axial", False, 0.3), (SPU, "3T3R", None, False, 0), (RRPS, "3T3R", None, False, 0),
+    (URPU, "3T3R", None, False, 0), (PRRS, "3T3R", "axial", False, 0.3)],
     ids=["RRUR", "PRUR", "RPUR", "RUU", "SPU", "RRPS", "URPU", "PRRS"])
-def test_the_reach_gate_refuses_only_poses_the_solve_does_not_reach(cls, motion, has_test, trailing, least):
-    """``reach_gate`` (the anchor's component along the leading revolutes' axis against the reach
-    of the chain after them, engine/chains.py ``axial_reach``) refuses no pose that the compiled
-    solve reaches, over random limbs (anchors and platform anchors) and poses mostly out of
-    reach. The chains with the axial test (their leading revolutes parallel, their prismatic joints
-    before them normal to them, only revolutes after: RRUR, PRUR, RUU, PRRS) are gated, and those
-    whose revolutes after the leading ones are parallel to the last (RRUR, PRUR) also by the line
-    test (``trailing_reach``): on these poses the two refuse all but a thousandth of the poses the
-    solve does not reach for the RRUR, ~0.93 for the PRUR (the axial test alone: 0.88, 0.42),
-    ~0.35 for the RUU and PRRS; the rest (the RPUR's slider along the limb after its first
-    revolute, the SPU's, RRPS's and URPU's slider after joints of other axes) are not gated."""
+def test_the_reach_gate_refuses_only_poses_the_solve_does_not_reach(cls, motion, test, trailing, least):
+    """``reach_gate`` refuses no pose that the compiled solve reaches, over random limbs (anchors
+    and platform anchors) and poses mostly out of reach. The chains with the axial test (the
+    anchor's component along the leading revolutes' axis against the reach of the chain after
+    them, engine/chains.py ``axial_reach``: their leading revolutes parallel, their prismatic
+    joints before them normal to them, only revolutes after: RRUR, PRUR, RUU, PRRS) are gated,
+    and those whose revolutes after the leading ones are parallel to the last (RRUR, PRUR) also
+    by the line test (``trailing_reach``): on these poses the two refuse all but a thousandth of
+    the poses the solve does not reach for the RRUR, ~0.93 for the PRUR (the axial test alone:
+    0.88, 0.42), ~0.35 for the RUU and PRRS. The RPUR (its slider along the limb after its first
+    revolute) has the cone test (``cone_reach``: the universal joint's centre on the cone the
+    slider sweeps, within the trailing link's reach of the anchor): ~0.84. The SPU's, RRPS's and
+    URPU's six freedoms reach the poses about as far as their sliders go: not gated. Each test's
+    own bound is checked on the solved configurations."""
     ch = _chains()
     rng = np.random.default_rng(17)
     refused = caught = unreached = 0
@@ -660,27 +663,41 @@ def test_the_reach_gate_refuses_only_poses_the_solve_does_not_reach(cls, motion,
         p, R = _wide_poses(1500, trial, motion)
         ok = ch.reach_gate(leg, p, R)
         assert (ch.trailing_reach(leg) is not None) == trailing
-        if not has_test:
-            assert ok is None and ch.axial_reach(leg) is None
+        assert (ch.axial_reach(leg) is not None) == (test == "axial")
+        assert (ch.cone_reach(leg) is not None) == (test == "cone")
+        if test is None:
+            assert ok is None
             continue
         reached = ch.solve(leg, p, R, joint_angles=False).reachable
         assert reached.any() and (~reached).any()
         assert not (reached & ~ok).any(), np.flatnonzero(reached & ~ok)
         refused += int((~ok).sum())
         caught += int((~ok & ~reached).sum())
-        # the test's own bound, checked on the solved configurations: the component along the
-        # leading axis of the anchor minus that of the first joint centre after the leading
-        # freedoms never exceeds the reach of the chain after them
-        a, h, reach, _ = ch.axial_reach(leg)
+        unreached += int((~reached).sum())
         out = ch.solve_arrays(leg, p[reached], R[reached])
         d = leg.chain_arrays()
+        if test == "cone":
+            # the universal joint's centre c of each solved configuration: on the cone about the
+            # first axis (the same angle to it from the apex as at home, either nappe) and within
+            # rho of the anchor moved back along the platform's last axis
+            t = ch.cone_reach(leg)
+            c = out["points"][:, 2]
+            v = c - t["apex"]
+            cosang = (v @ t["a"]) / np.linalg.norm(v, axis=1)
+            np.testing.assert_allclose(np.abs(cosang), abs(t["cos"]), rtol=0, atol=1e-9)
+            Ab = out["position"] - t["kb"] * (R[reached] @ t["b"])
+            assert np.all(np.linalg.norm(Ab - c, axis=1) <= t["rho"] + 1e-9)
+            continue
+        # the axial test's own bound: the component along the leading axis of the anchor minus
+        # that of the first joint centre after the leading freedoms never exceeds the reach of
+        # the chain after them
+        a, h, reach, _ = ch.axial_reach(leg)
         k = next(m for m in range(len(d["kinds"])) if not (
             (d["kinds"][m] == 0 and np.linalg.norm(np.cross(d["axes"][m], a)) < 1e-9)
             or (d["kinds"][m] == 1 and abs(d["axes"][m] @ a) < 1e-9)))
         np.testing.assert_allclose(out["points"][:, k] @ a, h, rtol=0, atol=1e-12)
         assert np.all(np.abs(out["position"] @ a - h) <= reach + 1e-12)
-        unreached += int((~reached).sum())
-    if has_test:
+    if test is not None:
         assert refused == caught > 0  # every refused pose is one the solve does not reach (asserted above)
         assert caught >= least * unreached, caught / unreached
 

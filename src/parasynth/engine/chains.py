@@ -60,7 +60,7 @@ from .core import HAVE_NUMBA, Unsupported
 
 __all__ = ["covers", "chain_legs", "context", "solve", "solve_arrays", "feasible", "margins", "signatures",
            "closure_solve", "closure_residuals", "REACH_FACTOR", "closes_on_chains", "pose_batch", "axial_reach",
-           "trailing_reach", "reach_gate", "needs_angles"]
+           "trailing_reach", "cone_reach", "reach_gate", "needs_angles"]
 
 #: A pose is reachable when the solve's residual is below ``REACH_FACTOR * IK_TOL`` (as
 #: ``ChainLeg.solve``).
@@ -805,33 +805,71 @@ def _leading(leg: ChainLeg):
     return d, unit_axes, a, k
 
 
+def _trailing_group(unit_axes, kinds, first: int) -> int:
+    """The first freedom ``j >= first`` from which every freedom up to the last is a revolute
+    parallel to the last one's axis."""
+    b = unit_axes[-1]
+    j = len(kinds) - 1
+    while j - 1 >= first and kinds[j - 1] == 0 and float(np.linalg.norm(np.cross(unit_axes[j - 1], b))) <= AXIAL_TOL:
+        j -= 1
+    return j
+
+
 def _reach_tests(leg: ChainLeg):
-    """``(axial, trailing)``: the data of :func:`axial_reach` and :func:`trailing_reach` of
-    ``leg``, read from its chain in one pass; each None where the chain has not that test."""
+    """``(axial, trailing, cone)``: the data of :func:`axial_reach`, :func:`trailing_reach` and
+    :func:`cone_reach` of ``leg``, read from its chain in one pass; each None where the chain has
+    not that test."""
     d, unit_axes, a, k = _leading(leg)
     kinds, pts, home = d["kinds"], d["points"], d["home"]
     n = len(kinds)
+    if a is not None and k == 1 and n > 2 and kinds[0] == 0 and kinds[1] == 1 and not (kinds[2:] == 1).any():
+        return None, None, _cone(d, unit_axes)
     if a is None or k == 0 or k == n or (kinds[k:] == 1).any():
-        return None, None
+        return None, None, None
     c = pts[k]
     trail = _distinct([pts[m] for m in range(k, n)] + [home])
     reach = sum(float(np.linalg.norm(q1 - q0)) for q0, q1 in zip(trail, trail[1:]))
     axial = (a, float(a @ c), reach, 10.0 * REACH_FACTOR * IK_TOL * d["length"])
     b = unit_axes[n - 1]
-    j = n - 1
-    while j - 1 >= k and kinds[j - 1] == 0 and float(np.linalg.norm(np.cross(unit_axes[j - 1], b))) <= AXIAL_TOL:
-        j -= 1
+    j = _trailing_group(unit_axes, kinds, k)
     pris = [m for m in range(k) if kinds[m] == 1]
     revs = [m for m in range(k) if kinds[m] == 0]
     dvec = unit_axes[pris[0]] if pris else None
     if j != k or not revs or (pris and max(pris) > min(revs)) or (  # other axes between the groups; a slider after a turn
             dvec is not None and any(float(np.linalg.norm(np.cross(unit_axes[m], dvec))) > AXIAL_TOL for m in pris)):
-        return axial, None
+        return axial, None, None
     lead = _distinct([pts[m] for m in revs] + [c])
     rho = sum(float(np.linalg.norm((q1 - q0) - float((q1 - q0) @ a) * a)) for q0, q1 in zip(lead, lead[1:]))
     w = None if dvec is None else np.cross(a, dvec) / float(np.linalg.norm(np.cross(a, dvec)))
     return axial, {"a": a, "h": axial[1], "b": b, "kb": float(b @ (home - c)), "ell": reach, "rho": rho,
-                   "c1": lead[0], "w": w, "length": float(d["length"])}
+                   "c1": lead[0], "w": w, "length": float(d["length"])}, None
+
+
+def _cone(d: dict, unit_axes) -> dict | None:
+    """The data of :func:`cone_reach` of a chain that starts with a revolute and a prismatic
+    joint (checked by the caller, with only revolutes after them), or None where it has not
+    that form."""
+    kinds, pts, home = d["kinds"], d["points"], d["home"]
+    n = len(kinds)
+    a, e, o, c = unit_axes[0], unit_axes[1], pts[0], pts[2]
+
+    def normal(v):  # the part of v normal to a
+        return v - float(v @ a) * a
+
+    v0, en = c - o, normal(e)
+    if float(np.linalg.norm(en)) <= AXIAL_TOL or float(np.linalg.norm(np.cross(normal(v0), en))) > AXIAL_TOL * d["length"]:
+        return None  # the slider's line along a (a cylinder) or missing the axis (a hyperboloid): no test
+    j = _trailing_group(unit_axes, kinds, 2)
+    if any(not np.array_equal(pts[m], c) for m in range(2, j)):
+        return None  # a freedom between the slider and the trailing revolutes that moves c
+    s = -float(normal(v0) @ en) / float(en @ en)
+    trail = _distinct([pts[m] for m in range(2, n)] + [home])
+    ell = sum(float(np.linalg.norm(q1 - q0)) for q0, q1 in zip(trail, trail[1:]))
+    b = unit_axes[n - 1]
+    kb = float(b @ (home - c))
+    return {"a": a, "apex": o + float(a @ (v0 + s * e)) * a, "cos": float(a @ e), "sin": float(np.linalg.norm(en)),
+            "b": b, "kb": kb, "ell": ell, "rho": math.sqrt(max(ell * ell - kb * kb, 0.0)),
+            "length": float(d["length"])}
 
 
 def axial_reach(leg: ChainLeg):
@@ -847,8 +885,8 @@ def axial_reach(leg: ChainLeg):
     within ``reach`` (their lengths' sum) of ``c`` and ``|a . A - h| <= reach`` wherever the
     chain reaches ``A``. The 5-RRUR's limbs (their x axes up to the universal joint's second
     axis) and the 5-PRUR's (the vertical slider normal to x) have it; a chain whose prismatic
-    joint follows a revolute off its normal (the RPUR's slider along the limb) or comes later
-    has none."""
+    joint follows a revolute off its normal (the RPUR's slider along the limb: :func:`cone_reach`)
+    or comes later has none."""
     return _reach_tests(leg)[0]
 
 
@@ -928,6 +966,45 @@ def _trailing_gate(t: dict, A, R):
     return ~line | ((disc >= 0.0) & meets)
 
 
+def cone_reach(leg: ChainLeg):
+    """The reach test of a chain limb that starts with a revolute and a slider not normal to its
+    axis (:func:`reach_gate`; the RPUR's slider along the limb): a dict of the test's data, or
+    None where the chain has not the form below.
+
+    The first revolute turns about the axis ``a`` through its centre ``o``; the slider's line,
+    which meets that axis, turns with it. So the first joint centre after the slider, ``c``, lies
+    on a cone of revolution about the axis (its apex where the line meets the axis, its half-angle
+    that of the slider to ``a``; both nappes: the slider is not bounded in the solve). Every
+    freedom after the slider is a revolute: those before the trailing revolutes (all parallel to
+    the last axis ``b``, fixed in the platform) turn about axes through ``c``. At a configuration
+    reaching the anchor ``A`` with the platform's rotation ``R``, as in :func:`trailing_reach`,
+    ``b_w . (A - c) = kb`` (``b_w = R b``, ``kb`` its home value) and ``|A - c| <= ell`` (the
+    rigid links after ``c``): ``c`` is within ``rho = sqrt(ell^2 - kb^2)`` of
+    ``A - kb b_w``. Where that point is further than ``rho`` from the cone, no configuration
+    reaches the pose."""
+    return _reach_tests(leg)[2]
+
+
+def _cone_gate(t: dict, A, R):
+    """:func:`cone_reach`'s test at anchors ``A`` (N, 3) and rotations ``R`` (N, 3, 3): False where
+    ``A - kb R b`` is further from the cone than ``rho`` by more than a reached pose's error can
+    explain (its anchor within ``REACH_FACTOR * IK_TOL`` of the length scale of the target's on
+    each axis, its rotation within that in rad: the point moves by at most that times the length
+    scale plus ``|kb|``; the distance to a fixed cone moves by no more): the slack is ten times
+    it, with the trailing reach added."""
+    a = t["a"]
+    X = A - t["kb"] * (R @ t["b"]) - t["apex"]
+    z = X @ a  # the point in the cone's meridian half-plane: along the axis, from the axis
+    r = np.sqrt(np.maximum(np.einsum("ij,ij->i", X, X) - z * z, 0.0))
+    cs, sn = t["cos"], t["sin"]
+    dist = np.full(z.shape, np.inf)
+    for vz in (cs, -cs):  # the two nappes' generators (vz, sn) in that half-plane
+        along = z * vz + r * sn
+        dist = np.minimum(dist, np.where(along >= 0.0, np.abs(z * sn - r * vz), np.hypot(z, r)))
+    slack = 10.0 * REACH_FACTOR * IK_TOL * (t["length"] + abs(t["kb"]) + t["ell"])
+    return dist <= t["rho"] + slack
+
+
 def reach_gate(leg: ChainLeg, p, R):
     """Before a chain limb is solved: False at the poses its chain cannot reach, by the tests of
     :func:`axial_reach` (the anchor's component along the leading axis further from that of the
@@ -940,12 +1017,16 @@ def reach_gate(leg: ChainLeg, p, R):
     change; the solve of a pose out of reach, run to its stall, costs three to five times that
     of a reached one (a 5-RRUR's limbs: 12-25 us against 4-5 us a pose). In
     ``structures_3t2r``'s box, with rotations, the two refuse all the unreached poses of a 5-RRUR's
-    first limb and 0.7-0.95 of a 5-PRUR's (the first test alone: 0.83 and 0-0.4)."""
-    t, tr = _reach_tests(leg)
-    if t is None:
+    first limb and 0.7-0.95 of a 5-PRUR's (the first test alone: 0.83 and 0-0.4). A chain that
+    starts with a revolute and a slider off its normal (RPUR) has the test of :func:`cone_reach`
+    instead: 0.65-0.95 of a 5-RPUR limb's unreached poses in that box."""
+    t, tr, cn = _reach_tests(leg)
+    if t is None and cn is None:
         return None
-    a, h, reach, slack = t
     A = p + np.einsum("nij,j->ni", R, np.asarray(leg.platform, float))
+    if cn is not None:
+        return _cone_gate(cn, A, np.asarray(R, float))
+    a, h, reach, slack = t
     ok = np.abs(A @ a - h) <= reach + slack
     if tr is not None:
         ok &= _trailing_gate(tr, A, np.asarray(R, float))
