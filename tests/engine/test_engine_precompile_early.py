@@ -8,6 +8,7 @@ import os
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
 from parasynth import engine
@@ -106,11 +107,34 @@ def test_structure_kinds_and_chain_kinds():
 
     assert pre.structure_kinds(None) == pre.STRUCTURE_STUDY  # known only once enumerated
     assert pre.structure_kinds(["UPS", "RPS"]) == pre.STRUCTURE_STUDY
-    assert pre.structure_kinds(["UPS", "RPUR"]) == pre.STRUCTURE_STUDY + pre.STRUCTURE_CHAINS
+    # the chains' closure only once the structures say they need it (chain_kinds)
+    assert pre.structure_kinds(["UPS", "RPUR"]) == pre.STRUCTURE_STUDY + ("chains",)
     found = structures("3T2R", leg_types=["UPU", "RPUR"])
     assert any("RPUR" in s.leg_counts for s in found)
-    assert pre.chain_kinds(list(found)) == pre.STRUCTURE_CHAINS
+    # a motion template poses the platform: the chains' solve, not their closure
+    assert all((s.description.get("task") or {}).get("solve") is None for s in found)
+    assert pre.chain_kinds(list(found)) == ("chains",)
     assert pre.chain_kinds([s for s in found if "RPUR" not in s.leg_counts]) == ()
+    # the 3-RUU's translation is computed from its limbs' closure (task.solve): the closure too
+    ruu = structures("3T0R", leg_types=["RUU"])
+    assert ruu and all((s.description.get("task") or {}).get("solve") is not None for s in ruu)
+    assert pre.chain_kinds(list(ruu)) == pre.STRUCTURE_CHAINS
+    # and such a design's evaluation runs the closure kernel, a template's does not
+    from parasynth.engine import chains
+
+    calls = []
+    orig = chains._closure_kernel
+    chains._closure_kernel = lambda *a: (calls.append(1), orig(*a))[1]
+    try:
+        for s, closes in ((ruu[0], True), (next(s for s in found if "RPUR" in s.leg_counts), False)):
+            design = s.mechanism()
+            calls.clear()
+            X = design.home + np.zeros((4, design.n_task))
+            engine.pose_batch(design, X)
+            engine.feasible(design, X)
+            assert bool(calls) == closes, s.name
+    finally:
+        chains._closure_kernel = orig
 
 
 def test_a_run_compiling_on_its_own_compiles_the_rank_kernel_with_the_margin(monkeypatch):

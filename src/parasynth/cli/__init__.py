@@ -359,10 +359,11 @@ def _say_structures(study, quiet: bool) -> None:
 
 
 def _compile_chains_early(study) -> None:
-    """Once a structure study's structures are enumerated: when one of them has a chain limb and
-    the kernels of chain limbs were not started with the others (``leg_types`` not given, see
-    :func:`parasynth.engine.precompile.structure_kinds`), start them now, before the first
-    design asks for them."""
+    """Once a structure study's structures are enumerated: the kernels their chain limbs ask for
+    (:func:`parasynth.engine.precompile.chain_kinds`) that were not started with the others
+    (``leg_types`` not given, or the closure, which only a structure whose motion is computed
+    from its limbs asks for; see :func:`parasynth.engine.precompile.structure_kinds`), started
+    now, before the first design asks for them."""
     setup = getattr(study, "structures", None)
     from ..engine import compile_ahead_off
 

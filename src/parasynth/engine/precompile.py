@@ -115,23 +115,32 @@ def _chain_types() -> set:
 
 
 def structure_kinds(leg_types=None) -> tuple[str, ...]:
-    """The entry points a structure study of the limb types ``leg_types`` asks for:
-    :data:`STRUCTURE_STUDY`, and :data:`STRUCTURE_CHAINS` when a chain limb type is among them.
-    None (the default vocabulary, chain limbs included) gives :data:`STRUCTURE_STUDY` alone:
-    whether a chain limb is among the structures kept is known only once they are enumerated
-    (:func:`chain_kinds` then; structures_1t2r keeps none, and its chain kernels would cost ~8 s
-    of compile on the core its interpreter kernels need)."""
+    """The entry points a structure study of the limb types ``leg_types`` asks for before its
+    structures are enumerated: :data:`STRUCTURE_STUDY`, and the chain limbs' solve
+    (``"chains"``) when a chain limb type is among them. None (the default vocabulary, chain
+    limbs included) gives :data:`STRUCTURE_STUDY` alone: whether a chain limb is among the
+    structures kept is known only once they are enumerated (:func:`chain_kinds` then;
+    structures_1t2r keeps none, and its chain kernels would cost ~8 s of compile on the core its
+    interpreter kernels need). So is whether their closure is asked for (:func:`chain_kinds`)."""
     if leg_types is not None and any(str(t) in _chain_types() for t in leg_types):
-        return STRUCTURE_STUDY + STRUCTURE_CHAINS
+        return STRUCTURE_STUDY + STRUCTURE_CHAINS[:1]
     return STRUCTURE_STUDY
 
 
 def chain_kinds(structures) -> tuple[str, ...]:
-    """:data:`STRUCTURE_CHAINS` when one of ``structures`` (enumerated structures,
-    :class:`parasynth.structures.Structure`) has a chain limb, else ()."""
-    if any(str(t) in _chain_types() for s in structures for t in s.leg_counts):
+    """What the chain limbs among ``structures`` (enumerated structures,
+    :class:`parasynth.structures.Structure`) ask for: their compiled inverse kinematics and index
+    rows (``"chains"``) when one has a chain limb, and their closure (``"chain_closure"``) only
+    when such a structure's motion is computed from its limbs' closure equations (its
+    description's ``task.solve``): a motion template poses the platform without it
+    (structures_3t2r's six chain structures; ~2.5 s of compile on the helper that the first
+    chain design waits for), else ()."""
+    chained = [s for s in structures if any(str(t) in _chain_types() for t in s.leg_counts)]
+    if not chained:
+        return ()
+    if any((s.description.get("task") or {}).get("solve") is not None for s in chained):
         return STRUCTURE_CHAINS
-    return ()
+    return STRUCTURE_CHAINS[:1]
 
 
 def signatures() -> dict:
