@@ -105,7 +105,8 @@ STRUCTURE_STUDY = ("feasible", "singularity_margin")
 #: A study asking for other entry points compiles them in its warm-up, as before.
 STUDY = ("feasible", "singularity_margin", "constraint_rank")
 #: What a structure study with chain limbs (model/chains.py) asks for besides: their compiled
-#: inverse kinematics and index rows, and their closure (the motion rule of the enumeration).
+#: inverse kinematics and index rows (the first), and their closure, where a structure's motion is
+#: computed from its limbs' closure equations (:func:`chain_kinds`).
 STRUCTURE_CHAINS = ("chains", "chain_closure")
 
 
