@@ -423,6 +423,87 @@ def test_postgres_wrong_credentials_one_line(tmp_path, capsys, monkeypatch, post
     assert len(lines) == 1 and "refused the credentials" in lines[0] and "wrong" not in lines[0]
 
 
+def test_a_storage_whose_tables_another_process_is_creating_opens_on_a_later_attempt(tmp_path, monkeypatch):
+    """Workers started together on a new database race to create Optuna's tables: the loser's
+    CREATE TABLE collides with the winner's (PostgreSQL: a unique violation on pg_type). Opening
+    the storage tries again and succeeds once the tables exist; any other error, or a collision
+    that does not go away, is the one-line storage error at once or after the last attempt."""
+    import optuna.storages
+    from sqlalchemy.exc import IntegrityError
+
+    from parasynth.study import storage as st
+
+    race = IntegrityError("CREATE TABLE studies (...)", {}, Exception(
+        'duplicate key value violates unique constraint "pg_type_typname_nsp_index"'))
+    calls = []
+
+    def opening(fail: int, error=race):
+        def rdb(url, **kw):
+            calls.append(url)
+            if len(calls) <= fail:
+                raise error
+            return "storage"
+        return rdb
+
+    monkeypatch.setattr(st.time, "sleep", lambda s: None)
+    url = f"sqlite:///{tmp_path / 'o.db'}"
+    monkeypatch.setattr(optuna.storages, "RDBStorage", opening(2))
+    assert st.open_storage(url, heartbeat=False) == "storage" and len(calls) == 3
+    calls.clear()
+    monkeypatch.setattr(optuna.storages, "RDBStorage", opening(st.SCHEMA_ATTEMPTS))
+    with pytest.raises(st.StorageError, match="cannot use it as an Optuna storage .*duplicate key"):
+        st.open_storage(url, heartbeat=False)
+    assert len(calls) == st.SCHEMA_ATTEMPTS
+    calls.clear()
+    monkeypatch.setattr(optuna.storages, "RDBStorage", opening(1, RuntimeError("incompatible schema version")))
+    with pytest.raises(st.StorageError, match="incompatible schema version"):
+        st.open_storage(url, heartbeat=False)
+    assert len(calls) == 1
+
+
+def test_postgres_workers_opening_a_new_database_together(postgres_url):
+    """Four storages opened at the same moment on a new PostgreSQL database (as workers started
+    together): every one opens, and the study one of them creates is seen by the others."""
+    import threading
+
+    import optuna
+    from sqlalchemy import create_engine, text
+
+    from parasynth.study.storage import open_storage
+
+    name = f"parasynth_new_{os.getpid()}_{int(time.time() * 1000) % 100000}"
+    admin = create_engine(postgres_url.replace("postgresql://", "postgresql+psycopg2://", 1), isolation_level="AUTOCOMMIT")
+    with admin.connect() as c:
+        c.execute(text(f"CREATE DATABASE {name}"))
+    url = postgres_url.rsplit("/", 1)[0] + "/" + name
+    try:
+        start = threading.Barrier(4)
+        got, errors = [], []
+
+        def worker():
+            start.wait()
+            try:
+                got.append(open_storage(url, heartbeat=False))
+            except Exception as e:  # noqa: BLE001 - collected and shown below
+                errors.append(e)
+
+        threads = [threading.Thread(target=worker) for _ in range(4)]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join(timeout=120)
+        assert not errors, errors
+        assert len(got) == 4
+        optuna.create_study(study_name="together", storage=got[0])
+        assert [s.study_name for s in got[3].get_all_studies()] == ["together"]
+        for s in got:
+            s.engine.dispose()
+    finally:
+        with admin.connect() as c:
+            c.execute(text(f"DROP DATABASE IF EXISTS {name} WITH (FORCE)"))
+        admin.dispose()
+
+
 def test_postgres_worker_wrong_study_name(tmp_path, capsys, monkeypatch, postgres_url):
     path = tmp_path / "s.yaml"
     path.write_text(yaml.safe_dump(study_dict(f"pg_never_started_{os.getpid()}", 2)))

@@ -32,6 +32,7 @@ from __future__ import annotations
 import importlib.util
 import os
 import re
+import time
 import warnings
 from pathlib import Path
 
@@ -224,22 +225,47 @@ def open_storage(url: str, heartbeat: bool = True):
         from optuna.storages import RetryFailedTrialCallback as Retry  # lazy: optuna
 
     engine_kwargs = {"pool_pre_ping": True, **kw}
-    try:
-        with warnings.catch_warnings():
-            # heartbeats are "experimental" in Optuna: nothing for a user of the command line
-            # to act on.
-            warnings.simplefilter("ignore")
-            options = {}
-            if heartbeat and u.get_backend_name() != "sqlite":
-                interval = max(1, int(float(os.environ.get("PARASYNTH_HEARTBEAT", "5"))))
-                options = dict(heartbeat_interval=interval, grace_period=3 * interval,
-                               heartbeat_stale_trial_callback=Retry(max_retry=1))
-            return RDBStorage(url, engine_kwargs=engine_kwargs, **options)
-    except optuna.exceptions.StorageInternalError as e:
-        raise StorageError(f"storage {describe_url(url)!r}: {e}") from None
-    except Exception as e:  # schema creation refused, incompatible schema version, ...
-        first = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
-        raise StorageError(f"storage {describe_url(url)!r}: cannot use it as an Optuna storage ({first})") from None
+    for attempt in range(SCHEMA_ATTEMPTS):
+        try:
+            with warnings.catch_warnings():
+                # heartbeats are "experimental" in Optuna: nothing for a user of the command line
+                # to act on.
+                warnings.simplefilter("ignore")
+                options = {}
+                if heartbeat and u.get_backend_name() != "sqlite":
+                    interval = max(1, int(float(os.environ.get("PARASYNTH_HEARTBEAT", "5"))))
+                    options = dict(heartbeat_interval=interval, grace_period=3 * interval,
+                                   heartbeat_stale_trial_callback=Retry(max_retry=1))
+                return RDBStorage(url, engine_kwargs=engine_kwargs, **options)
+        except optuna.exceptions.StorageInternalError as e:
+            raise StorageError(f"storage {describe_url(url)!r}: {e}") from None
+        except Exception as e:  # schema creation refused, incompatible schema version, ...
+            if attempt + 1 < SCHEMA_ATTEMPTS and _schema_race(e):
+                time.sleep(0.2 * (attempt + 1))  # another process is creating the tables: they exist next time
+                continue
+            first = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
+            raise StorageError(f"storage {describe_url(url)!r}: cannot use it as an Optuna storage ({first})") from None
+    raise AssertionError("unreachable")  # pragma: no cover
+
+
+#: Attempts at opening a database storage whose first schema creation races with another
+#: process's (:func:`_schema_race`).
+SCHEMA_ATTEMPTS = 5
+
+
+def _schema_race(e: BaseException) -> bool:
+    """Whether ``e`` is what a database says when two processes create Optuna's tables in a new
+    database at once (workers started together on a fresh PostgreSQL database): the loser's
+    ``CREATE TABLE`` collides with the winner's (a unique violation on the catalogue, or "already
+    exists"). The tables are there then, so opening the storage again succeeds."""
+    from sqlalchemy.exc import IntegrityError, ProgrammingError  # lazy: SQLAlchemy loads with Optuna
+
+    while e is not None:
+        if isinstance(e, (IntegrityError, ProgrammingError)):
+            text_ = str(e).lower()
+            return "duplicate key" in text_ or "already exists" in text_
+        e = e.__cause__ or e.__context__
+    return False
 
 
 def study_names(storage) -> list[str]:
