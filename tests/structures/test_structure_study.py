@@ -251,6 +251,75 @@ def test_schedule_rungs_and_survivors_match_an_independent_ranking():
         assert "not among the best 1 of 5" in one.rungs[0].stopped[lab]
 
 
+def test_a_schedule_asked_again_with_more_records_plans_as_a_new_one(monkeypatch):
+    """A run asks its schedule before every trial with the stored records (the same objects from
+    call to call, the new ones after them); the schedule then reads only the new ones. Over a
+    growing list, with records arriving out of trial order now and then (workers), a reference
+    record, and records given in another order, every plan equals that of a new schedule given the
+    same records (which reads them all), rungs, scores and survivors."""
+    from parasynth.study import schedule as sched
+
+    whole = []  # the calls that read every record (sorted them)
+    monkeypatch.setattr(sched, "sorted", lambda it, **kw: (whole.append(1), sorted(it, **kw))[1], raising=False)
+    rng = np.random.default_rng(11)
+    labels = ["A", "B", "C", "D"]
+    objs = [_Obj("f", "maximize"), _Obj("g", "minimize")]
+    kept = Schedule(labels, "A", screening=3, eta=2, n_full=12, objectives=objs)
+    recs, pending = [Record(values={"structure": "A"}, objectives={"f": 0.5, "g": 0.5}, trial=-1, source="reference")], []
+    calls = 0
+    for trial in range(60):
+        lab = labels[int(rng.integers(len(labels)))]
+        r = Record(values={"structure": lab}, objectives={"f": float(rng.uniform()), "g": float(rng.uniform())},
+                   margins={"c": float(rng.uniform(-0.2, 1.0))}, trial=trial)
+        if rng.uniform() < 0.15:
+            pending.append(r)  # still running: stored later, before trials after it
+            continue
+        recs.append(r)
+        if pending and rng.uniform() < 0.5:
+            recs = sorted(recs + pending, key=lambda x: x.trial)  # as the storage gives them: in trial order
+            pending = []
+        got = kept.plan(recs)
+        calls += 1
+        want = Schedule(labels, "A", screening=3, eta=2, n_full=12, objectives=objs).plan(recs)
+        assert got.counts == want.counts and got.done == want.done
+        assert [(g.index, g.target, g.alive, g.scores, g.stopped) for g in got.rungs] == \
+            [(w.index, w.target, w.alive, w.scores, w.stopped) for w in want.rungs]
+        if trial % 7 == 0:  # another order: read whole, the same plan
+            assert kept.plan(list(reversed(recs))).rungs == want.rungs
+    # the kept schedule read every record only on its first call, after an insertion in the
+    # middle and after a call in another order; the new schedules every time
+    assert len(whole) < 2 * calls - 10
+
+
+def test_a_structure_index_picks_the_trials_a_filter_would():
+    """``StructureIndex.numbers`` (the trials of a structure, kept across calls) gives the trials
+    that testing each one's structure attribute gives, in order, as trials are added: finished
+    ones without a structure belong to none; a running one without its structure yet (just
+    created by another process) is read again until it has one."""
+    from types import SimpleNamespace
+
+    from optuna.trial import TrialState
+
+    from parasynth.study.optuna_adapter import StructureIndex
+
+    rng = np.random.default_rng(5)
+    trials, index = [], StructureIndex("s")
+    for k in range(80):
+        kind = rng.uniform()
+        attrs = {} if kind < 0.1 else {"s": "AB"[int(rng.integers(2))]}
+        state = TrialState.RUNNING if kind < 0.05 or rng.uniform() < 0.1 else TrialState.COMPLETE
+        trials.append(SimpleNamespace(number=k, system_attrs=attrs, state=state))
+        if rng.uniform() < 0.1:  # a running trial gets its structure, another finishes without one
+            late = [t for t in trials if not t.system_attrs and t.state == TrialState.RUNNING]
+            if late:
+                late[0].system_attrs = {"s": "B"}
+        for s in "AB":
+            want = [t.number for t in trials if t.system_attrs.get("s") == s]
+            assert index.numbers(trials, s) == want
+    assert index._done > 40  # most trials classified once, not read again
+    assert StructureIndex("s").numbers(list(reversed(trials)), "A") is None  # not in number order: the caller tests
+
+
 # -- runs -------------------------------------------------------------------------------------------------
 def _counts(table):
     run = table[table["source"] == "run"]
@@ -480,3 +549,24 @@ def test_stored_records_parsed_once_per_counted_trial(monkeypatch):
     fresh = workers._stored_records(ostudy)
     assert len(parsed) == 9  # without ``known``: every counted trial parsed again
     assert same(again, fresh) and [r.trial for r in again] == [0, 1, 2, 3, 4, 5, 7, 8, 9]
+    # the trials before the first one still running are read once; a running trial is read
+    # again until it counts, and its record then comes in its place
+    looked = []
+    real_counts = workers.counts
+    monkeypatch.setattr(workers, "counts", lambda t: (looked.append(t.number), real_counts(t))[1])
+    running = ostudy.ask()  # trial 10
+    for k in range(11, 13):
+        add(k, TrialState.COMPLETE)
+    got = workers._stored_records(ostudy, known)
+    assert 10 in looked and not set(looked) & set(range(10))
+    assert [r.trial for r in got] == [0, 1, 2, 3, 4, 5, 7, 8, 9, 11, 12] and same(got, workers._stored_records(ostudy))
+    looked.clear()
+    running.set_user_attr(storage.ATTR_RECORD, Record(values={"structure": "S1", "x": 10.0}, objectives={"v": 10.0}).to_dict())
+    ostudy.tell(running, 10.0)
+    got = workers._stored_records(ostudy, known)
+    assert 10 in looked and not set(looked) & set(range(10))
+    assert [r.trial for r in got] == [0, 1, 2, 3, 4, 5, 7, 8, 9, 10, 11, 12] and same(got, workers._stored_records(ostudy))
+    looked.clear()
+    add(13, TrialState.COMPLETE)
+    got = workers._stored_records(ostudy, known)
+    assert looked == [13] and [r.trial for r in got][-2:] == [12, 13]  # all before it final: not read again

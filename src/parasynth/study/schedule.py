@@ -109,6 +109,7 @@ class Schedule:
         self.labels_obj = [o.label for o in objectives]
         self.senses = [o.goal for o in objectives]
         self._decided: dict = {}
+        self._grouped = None  # (records grouped, their last record, {structure: records}): _per_structure
 
     @property
     def max_total(self) -> int:
@@ -116,11 +117,32 @@ class Schedule:
         return len(self.labels) * self.targets[-1]
 
     def _per_structure(self, records) -> dict:
-        per = {s: [] for s in self.labels}
-        for r in sorted((r for r in records if r.source == "run"), key=lambda r: r.trial):
+        """{structure: its run records in trial order}. A run asks with the records of its last
+        call and the new ones after them (the stored trials in number order, each counted
+        trial's record the same object from call to call): then only the new ones are read;
+        any other list is read whole."""
+        g = self._grouped
+        n0 = g[0] if g is not None else 0
+        if n0 and len(records) >= n0 and records[n0 - 1] is g[1]:
+            per, new, last = {s: list(v) for s, v in g[2].items()}, records[n0:], g[1].trial
+        else:
+            per, new, last = {s: [] for s in self.labels}, records, None
+        ordered = True
+        for r in new:
+            if last is not None and r.trial <= last:
+                ordered = False
+                break
+            last = r.trial
+        if not ordered:  # read whole, in trial order, and not kept
+            per = {s: [] for s in self.labels}
+            new = sorted(records, key=lambda r: r.trial)
+        for r in new:
+            if r.source != "run":
+                continue
             s = r.values.get(STRUCTURE)
             if s in per:
                 per[s].append(r)
+        self._grouped = (len(records), records[-1], per) if ordered and records else None
         return per
 
     def scores(self, alive, per, target) -> dict:
@@ -139,7 +161,10 @@ class Schedule:
         return {s: (hypervolume((F[s] - lo) / span, ref) if len(F[s]) else None) for s in alive}
 
     def _decide(self, k, alive, per, target):
-        key = (k, tuple((s, tuple(r.trial for r in per[s][:target])) for s in alive))
+        # the first `target` records of a structure are those up to the target-th trial number:
+        # records are only ever added, so that number names them (for every alive structure,
+        # which holds at least `target` here)
+        key = (k, tuple((s, per[s][target - 1].trial) for s in alive))
         hit = self._decided.get(key)
         if hit is None:
             sc = self.scores(alive, per, target)

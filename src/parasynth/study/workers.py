@@ -56,8 +56,8 @@ import numpy as np
 from .defaults import optuna_algorithm
 from .evaluate import Evaluator
 from .journal import jsonable
-from .optuna_adapter import (StructureView, fail_stale, fail_trial, heartbeat_enabled, heartbeat_thread,
-                             set_trial_system_attr)
+from .optuna_adapter import (StructureIndex, StructureView, fail_stale, fail_trial, heartbeat_enabled, heartbeat_thread,
+                             set_trial_system_attr, study_identity)
 from .schedule import ATTR_STRUCTURE, structure_schedule
 from .signals import Interrupt
 from .spec import StudyError
@@ -133,6 +133,7 @@ def _per_trial_class():
             self._assign = assign  # (study, trial) -> structure, asked before the trial's proposal
             self._assigned = {}
             self._spaces = {}  # {structure or None: the search space kept across trials (_keep_space)}
+            self._index = (None, None)  # (the study's key, its StructureIndex): see _view
 
         @property
         def inner(self):
@@ -172,9 +173,16 @@ def _per_trial_class():
             return {} if s is None else {STRUCTURE: s}
 
         def _view(self, study, trial):
-            """The study as the trial's sampler sees it: only its structure's trials."""
+            """The study as the trial's sampler sees it: only its structure's trials, picked by
+            the study's :class:`StructureIndex` (kept while the sampler proposes for the same
+            study)."""
             s = self._assigned.get(trial.number)
-            return study if s is None else StructureView(study, ATTR_STRUCTURE, s)
+            if s is None:
+                return study
+            key = study_identity(study)
+            if self._index[0] != key:
+                self._index = (key, StructureIndex(ATTR_STRUCTURE))
+            return StructureView(study, ATTR_STRUCTURE, s, self._index[1])
 
         def infer_relative_search_space(self, study, trial):
             return self._for(trial).infer_relative_search_space(self._view(study, trial), trial)
@@ -238,17 +246,32 @@ def _stored_records(ostudy, known: dict | None = None) -> list:
     trials = ostudy.get_trials(deepcopy=False)
     if known is None:
         return [r for r in (trial_record(t) for t in trials if counts(t)) if r is not None]
-    out = []
-    for t in trials:
+    # the trials before the first one still running or waiting are final (a trial that finished
+    # uncounted, failed without a record, never counts): their records are kept in ``known``
+    # with their number, and only the later trials are read
+    head = ("final", ostudy.study_name)
+    done, kept = known.get(head, (0, ()))
+    if done > len(trials) or (done and trials[done - 1].number != done - 1):
+        done, kept = 0, ()
+    out = list(kept)
+    n_final = len(out)
+    final = True
+    for t in trials[done:]:
         key = (ostudy.study_name, t.number)
         if key in known:
             r = known[key]
         elif counts(t):
             r = known[key] = trial_record(t)
         else:
-            continue
+            r = None
         if r is not None:
             out.append(r)
+        if final and t.state.is_finished():
+            done += 1
+            n_final = len(out)
+        else:
+            final = False
+    known[head] = (done, tuple(out[:n_final]))
     return out
 
 
