@@ -79,7 +79,7 @@ from typing import ClassVar
 import numpy as np
 
 from .legs import JOINT_DOF, LEG_TYPES, Leg, LegCapabilities, LegState, _vec3
-from .spatial import null_space, unit
+from .spatial import cross, null_space, unit
 
 __all__ = ["ChainError", "ChainSpec", "ChainLeg", "parse_chain", "JOINT_LETTERS", "REFERENCES", "RELATIONS",
            "IK_TOL", "IK_ITERATIONS", "IK_STALL", "CLOSURE_ITERATIONS", "chain_class"]
@@ -346,19 +346,19 @@ def _resolve_axes(spec: ChainSpec, radial, tangent, limb, who: str = "") -> list
                                  f"anchor on the centre); give x, y, z or base_normal")
         if par:
             a = unit(par[0])
-        elif len(nor) >= 2 and np.linalg.norm(np.cross(nor[0], nor[1])) > 1e-6:
-            a = unit(np.cross(nor[0], nor[1]))
+        elif len(nor) >= 2 and np.linalg.norm(cross(nor[0], nor[1])) > 1e-6:
+            a = unit(cross(nor[0], nor[1]))
         else:
-            c = np.cross(nor[0], fixed["limb"])
+            c = cross(nor[0], fixed["limb"])
             if np.linalg.norm(c) < 1e-6:
-                c = np.cross(nor[0], fixed["base_normal"])
+                c = cross(nor[0], fixed["base_normal"])
             if np.linalg.norm(c) < 1e-6:
-                c = np.cross(nor[0], fixed["x"])
+                c = cross(nor[0], fixed["x"])
             a = unit(c)
         names = [f"{kind}:{r}" for kind, r in rels]
         for (kind, r) in rels:
             v = unit(vec[r])
-            bad = (np.linalg.norm(np.cross(a, v)) > 1e-6) if kind == "parallel" else (abs(float(a @ v)) > 1e-6)
+            bad = (np.linalg.norm(cross(a, v)) > 1e-6) if kind == "parallel" else (abs(float(a @ v)) > 1e-6)
             if bad:
                 raise ChainError(f"{where}: relations {' & '.join(names)} contradict each other here ({kind} to {r!r} "
                                  f"cannot hold with the others); {_ALLOWED}")
@@ -385,7 +385,7 @@ def _elbow_direction(axis, limb, radial) -> np.ndarray:
     """The direction of a joint centre's offset off the anchor line: normal to the joint's
     first axis and to the limb (``axis x limb``; the base normal stands for a spherical joint's
     axis), else the radial direction, else x."""
-    for v in (np.cross(axis, limb), np.asarray(radial, float), np.eye(3)[0]):
+    for v in (cross(axis, limb), np.asarray(radial, float), np.eye(3)[0]):
         if np.linalg.norm(v) > 1e-6:
             return unit(np.asarray(v, float))
     return np.eye(3)[0]  # pragma: no cover
@@ -485,7 +485,7 @@ class ChainLeg(Leg):
         if rad is None:
             rad = np.array([self.base[0], self.base[1], 0.0])
             rad = rad / np.linalg.norm(rad) if np.linalg.norm(rad) > 1e-12 else np.zeros(3)
-        tan = self.tangent if self.tangent is not None else np.cross([0.0, 0.0, 1.0], rad)
+        tan = self.tangent if self.tangent is not None else cross([0.0, 0.0, 1.0], rad)
         axes = _resolve_axes(spec, rad, tan, d / L, who=f"leg {self.name}: ")
         n_rot = sum(1 for j in spec.joints if j in "RUS")
         st = spec.stations or tuple(np.linspace(0.0, 1.0, n_rot)) if n_rot > 1 else (spec.stations or (1.0,))
