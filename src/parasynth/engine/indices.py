@@ -960,21 +960,23 @@ if HAVE_NUMBA:
                 bx, by, bz = base[0], base[1], base[2]
             d0, d1, d2 = _unit3(POS[i, 0] - bx, POS[i, 1] - by, POS[i, 2] - bz)
             ext[i, off + _EXT_D], ext[i, off + _EXT_D + 1], ext[i, off + _EXT_D + 2] = d0, d1, d2
-            # constraint wrenches: null space of the scaled twists (columns: the six coordinates)
-            for m in range(n):
+            # constraint wrenches: null space of the scaled twists (columns: the six coordinates);
+            # a limb without any (six freedoms) skips the decomposition, whose results only they read
+            if nc > 0:
+                for m in range(n):
+                    for q in range(6):
+                        Mt[q, m] = T[m, q] * Ll if q >= 3 else T[m, q]
+                _jacobi_sv(Mt, n, np.int64(6), V, np.int64(1), sv)
+                # the six singular values in increasing order (insertion sort)
                 for q in range(6):
-                    Mt[q, m] = T[m, q] * Ll if q >= 3 else T[m, q]
-            _jacobi_sv(Mt, n, np.int64(6), V, np.int64(1), sv)
-            # the six singular values in increasing order (insertion sort)
-            for q in range(6):
-                order[q] = q
-            for a in range(1, 6):
-                b = a
-                while b > 0 and sv[order[b]] < sv[order[b - 1]]:
-                    tmp = order[b]
-                    order[b] = order[b - 1]
-                    order[b - 1] = tmp
-                    b -= 1
+                    order[q] = q
+                for a in range(1, 6):
+                    b = a
+                    while b > 0 and sv[order[b]] < sv[order[b - 1]]:
+                        tmp = order[b]
+                        order[b] = order[b - 1]
+                        order[b - 1] = tmp
+                        b -= 1
             for r in range(nc):
                 q0 = order[r]
                 for q in range(6):
