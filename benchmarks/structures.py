@@ -12,7 +12,9 @@ Per motion (3T3R, 3T2R, 2T2R, the default vocabulary):
   task box in its translations (the rotations at home), with the compiled engine warm -- the
   median of 5 evaluations (CPU time).
 
-The chain limbs (``model/chains.py``: joint strings solved numerically) against closed forms:
+The chain limbs (``model/chains.py``: joint strings solved numerically, or by a closed form where
+their geometry has one, then also solved numerically for comparison, ``<limb>/num``) against
+closed forms:
 ``us/pose`` of the inverse kinematics of one limb, 4096 random poses, one thread, median of 5:
 the NumPy reference (``ChainLeg.solve``) and the compiled kernel (``engine/chains.py``) of the
 chain ``UP*S`` (the hand-written ``UPS``'s limb) and of the chain limbs of the vocabulary on
@@ -131,18 +133,21 @@ def chain_cost(n: int = 4096):
     I = np.broadcast_to(np.eye(3), (n, 3, 3))
     for t in CHAIN_TYPES:
         # poses of the limb's motion: x-y rotations, or none for a translational limb (RUU)
-        rows.append((t, LEG_TYPES[t]("L1", base=base, platform=plat), I if t == "RUU" else Rxy))
+        leg = LEG_TYPES[t]("L1", base=base, platform=plat)
+        rows.append((t, leg, I if t == "RUU" else Rxy))
+        if leg.closed_form:  # the same limb solved numerically, to say what its closed form saves
+            rows.append((f"{t}/num", LEG_TYPES[t]("L1", base=base, platform=plat, closed=False), Rxy))
     compiled_chains.solve(chain, p[:2], R[:2])  # compiled (or loaded) once, not timed
     ref = _median_us(lambda: ups.solve(p, R), n)
     print(f"\ninverse kinematics of one limb, us per pose ({n} poses, one thread, CPU, median of 5); "
           f"closed-form UPS (NumPy): {ref:.3f} us")
-    print(f"  {'limb':6s} {'NumPy chain':>12s} {'compiled chain':>15s} {'compiled / UPS':>15s} "
-          f"{'NumPy / compiled':>17s} {'reached':>8s}")
+    print(f"  {'limb':8s} {'NumPy chain':>12s} {'compiled chain':>15s} {'compiled / UPS':>15s} "
+          f"{'NumPy / compiled':>17s} {'reached':>8s}  solve")
     for name, leg, Rr in rows:
         us_np = _median_us(lambda: leg.solve(p, Rr), n)
         us_c = _median_us(lambda: compiled_chains.solve(leg, p, Rr), n)
-        print(f"  {name:6s} {us_np:12.2f} {us_c:15.3f} {us_c / ref:14.1f}x {us_np / us_c:16.1f}x "
-              f"{leg.solve(p, Rr).reachable.mean():8.2f}")
+        print(f"  {name:8s} {us_np:12.2f} {us_c:15.3f} {us_c / ref:14.1f}x {us_np / us_c:16.1f}x "
+              f"{leg.solve(p, Rr).reachable.mean():8.2f}  {leg.closed_form or 'numerical'}")
     # a mechanism: feasibility per pose, 6-UPS (closed form, the kernels) against 6-SPU (chain limbs)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", EngineFallbackWarning)

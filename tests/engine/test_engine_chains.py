@@ -764,3 +764,23 @@ def test_a_context_for_constraints_that_read_no_joint_angle_skips_them_with_the_
     assert np.array_equal(same, got)
     full = ch.context(loose, X)
     assert np.array_equal(same, feasible_rows(full, loose._select(plain + ["cone"])) & full.reachable)
+
+
+def test_the_compiled_closed_form_agrees_with_the_reference_and_with_the_numerical_solve():
+    """The RRPS's closed form in the kernel: the coordinates of the NumPy closed form (to
+    rounding), reached to rounding (the numerical solve stops at its tolerance, so the kernel took
+    the closed form); the same limb with its closed form taken away is solved by the kernel's
+    Levenberg-Marquardt to the same coordinates within that tolerance."""
+    leg = RRPS("L", base=BASE, platform=PLAT)
+    assert leg.closed_form == "RRP-S"
+    p, R = _general_poses(2000, 8)
+    out = _chains().solve_arrays(leg, p, R)
+    q_ref, res_ref = leg.inverse(p, R)
+    np.testing.assert_allclose(out["q"], q_ref, rtol=0, atol=1e-12)
+    assert out["residual"].max() < 1e-13
+    bare = RRPS("L", base=BASE, platform=PLAT, closed=False)
+    assert bare.closed_form is None
+    num = _chains().solve_arrays(bare, p, R)
+    ok = num["residual"] < 1e3 * IK_TOL
+    assert ok.mean() > 0.99 and num["residual"][ok].max() > 1e-13
+    np.testing.assert_allclose(num["q"][ok], out["q"][ok], rtol=0, atol=1e-7)

@@ -5,7 +5,9 @@ kind, home axis and home point; the anchor's home position, the platform anchor,
 scale, the actuated freedom). One specialisation serves every chain limb: a new joint string,
 new axes or a new design is new data, not a new compile.
 
-Per pose: from the home configuration (q = 0), the anchor frame by the product of
+Per pose: from the home configuration (q = 0), or from the coordinates of the chain's closed form
+where it has one (``ChainLeg.chain_arrays()["closed"]``: ``_closed_form``, as
+``model.chains.closed_form_solve``), the anchor frame by the product of
 exponentials, the error ``e = ((target - position) / L, log(R Rc^T))``, its largest component
 ``r``; while ``r >= IK_TOL`` (and finite), at most ``IK_ITERATIONS`` trials: the step
 ``(J^T J + mu I) dq = J^T e`` with ``mu = lam (1 + trace(J^T J) / n)`` (J: the joint twists at
@@ -300,8 +302,48 @@ if HAVE_NUMBA:  # pragma: no branch
         return f if f > 1.0 / 3.0 else 1.0 / 3.0
 
     @njit(**_jit)
-    def _chain_kernel(P, Rm, kinds, axes, points, home, plat, L, n_iter, tol, stall, Q, res, POS, AXW, PTW, FR, i0,
-                      i1):
+    def _closed_form(cf, tx, ty, tz, R, q):
+        """``q`` (6,): the closed form ``"RRP-S"`` (``model.chains.closed_form_solve``, one pose;
+        ``cf`` its constants) reaching the anchor position (tx, ty, tz) with orientation ``R``."""
+        Ax, Ay, Az = cf[1], cf[2], cf[3]
+        a1x, a1y, a1z = cf[4], cf[5], cf[6]
+        a2x, a2y, a2z = cf[7], cf[8], cf[9]
+        cx, cy, cz = cf[10], cf[11], cf[12]
+        ux, uy, uz = cf[13], cf[14], cf[15]
+        k, b, rho0 = cf[16], cf[17], cf[18]
+        wx = tx - Ax
+        wy = ty - Ay
+        wz = tz - Az
+        th1 = math.atan2(k * (wx * a2x + wy * a2y + wz * a2z), -k * (wx * cx + wy * cy + wz * cz))
+        r00, r01, r02, r10, r11, r12, r20, r21, r22 = _rotation(a1x, a1y, a1z, th1)
+        # R1^T w - b u
+        rx = r00 * wx + r10 * wy + r20 * wz - b * ux
+        ry = r01 * wx + r11 * wy + r21 * wz - b * uy
+        rz = r02 * wx + r12 * wy + r22 * wz - b * uz
+        th2 = math.atan2((uy * rz - uz * ry) * a2x + (uz * rx - ux * rz) * a2y + (ux * ry - uy * rx) * a2z,
+                         rx * ux + ry * uy + rz * uz)
+        # T = R1^T R, then M = R2^T T: the rows of M needed (0 and 1, 2) column by column
+        s00, s01, s02, s10, s11, s12, s20, s21, s22 = _rotation(a2x, a2y, a2z, th2)
+        t = np.empty((3, 3))
+        for j in range(3):
+            t[0, j] = r00 * R[0, j] + r10 * R[1, j] + r20 * R[2, j]
+            t[1, j] = r01 * R[0, j] + r11 * R[1, j] + r21 * R[2, j]
+            t[2, j] = r02 * R[0, j] + r12 * R[1, j] + r22 * R[2, j]
+        m00 = s00 * t[0, 0] + s10 * t[1, 0] + s20 * t[2, 0]
+        m01 = s00 * t[0, 1] + s10 * t[1, 1] + s20 * t[2, 1]
+        m02 = s00 * t[0, 2] + s10 * t[1, 2] + s20 * t[2, 2]
+        m12 = s01 * t[0, 2] + s11 * t[1, 2] + s21 * t[2, 2]
+        m22 = s02 * t[0, 2] + s12 * t[1, 2] + s22 * t[2, 2]
+        q[0] = th1
+        q[1] = th2
+        q[2] = math.sqrt(rx * rx + ry * ry + rz * rz) - rho0
+        q[3] = math.atan2(-m12, m22)
+        q[4] = math.atan2(m02, math.hypot(m12, m22))
+        q[5] = math.atan2(-m01, m00)
+
+    @njit(**_jit)
+    def _chain_kernel(P, Rm, kinds, axes, points, home, plat, L, n_iter, tol, stall, cf, Q, res, POS, AXW, PTW, FR,
+                      i0, i1):
         """Poses ``i0 .. i1 - 1``: joint coordinates ``Q``, residual ``res``, anchor position
         ``POS``, the freedoms' axes ``AXW`` and points ``PTW`` at the solution and, if ``FR`` has
         rows (N, n + 1, 3, 3), the orientation of the body before each freedom (:func:`_frames`). The
@@ -309,7 +351,9 @@ if HAVE_NUMBA:  # pragma: no branch
         error; the damping follows Nielsen's rule (:func:`_damping_factor` after a taken step, not
         below 1e-12; times 2, 4, 8, ... after successive refused ones); a pose stops when reached,
         stalled (a taken step gained no more than ``stall`` of the error, or the damping exceeds 1e6)
-        or after ``n_iter`` trials."""
+        or after ``n_iter`` trials. With the constants ``cf`` of a closed form (non-empty,
+        ``model.chains.closed_form_constants``) the solve starts from its coordinates (where they
+        reach, no step is taken), else from home."""
         n = kinds.shape[0]
         q = np.zeros(n)
         qt = np.zeros(n)
@@ -335,8 +379,11 @@ if HAVE_NUMBA:  # pragma: no branch
             tx = P[i, 0] + R[0, 0] * plat[0] + R[0, 1] * plat[1] + R[0, 2] * plat[2]
             ty = P[i, 1] + R[1, 0] * plat[0] + R[1, 1] * plat[1] + R[1, 2] * plat[2]
             tz = P[i, 2] + R[2, 0] * plat[0] + R[2, 1] * plat[1] + R[2, 2] * plat[2]
-            for m in range(n):
-                q[m] = 0.0
+            if cf.shape[0] > 0 and cf[0] == 1.0:
+                _closed_form(cf, tx, ty, tz, R, q)
+            else:
+                for m in range(n):
+                    q[m] = 0.0
             _forward(q, kinds, axes, points, home, Rg, tg, axw, ptw, pos)
             cost, r = _error(R, tx, ty, tz, Rg, pos, L, e)
             lam = 1e-12
@@ -496,7 +543,7 @@ def signatures() -> dict:
     from numba import types as nbt
 
     f1, f2, f3, f4, i1 = _array("f8", 1), _array("f8", 2), _array("f8", 3), _array("f8", 4), _array("i8", 1)
-    sig = (f2, f3, i1, f2, f2, f1, f1, nbt.float64, nbt.int64, nbt.float64, nbt.float64, f2, f1, f2, f3, f3, f4,
+    sig = (f2, f3, i1, f2, f2, f1, f1, nbt.float64, nbt.int64, nbt.float64, nbt.float64, f1, f2, f1, f2, f3, f3, f4,
            nbt.int64, nbt.int64)
     csig = (f2, f3, i1, f2, f2, f1, nbt.float64, nbt.int64, f2, f2, nbt.int64, nbt.int64)
     return {"_chain_kernel": (_chain_kernel, sig), "_closure_kernel": (_closure_kernel, csig)}
@@ -526,7 +573,8 @@ def solve_arrays(leg: ChainLeg, p, R, frames: bool = False) -> dict:
     PTW = np.empty((N, n, 3))
     FR = np.empty((N if frames else 0, n + 1, 3, 3))
     args = (P, Rm, _c(d["kinds"], np.int64), _c(d["axes"]), _c(d["points"]), _c(d["home"]), _c(d["platform"]),
-            float(d["length"]), int(IK_ITERATIONS), float(IK_TOL), float(IK_STALL), Q, res, POS, AXW, PTW, FR)
+            float(d["length"]), int(IK_ITERATIONS), float(IK_TOL), float(IK_STALL), _c(d["closed"]), Q, res, POS, AXW,
+            PTW, FR)
     core._timed_blocks("chain", lambda block, b0, b1: _chain_kernel(*args, b0 * block, min(N, b1 * block)), N,
                        N * CHAIN_WORK)
     out = {"q": Q, "residual": res, "position": POS, "axes": AXW, "points": PTW}

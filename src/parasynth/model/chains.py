@@ -1,6 +1,7 @@
 """Limbs defined by their joint string: a serial chain of R, P, U and S joints with the actuated
-joint marked and the relations of its axes, solved by a numerical inverse kinematics (the NumPy
-reference; docs/structures.md, "Limbs from joint strings").
+joint marked and the relations of its axes, solved by a numerical inverse kinematics, from a
+closed form where the limb's geometry has one (the NumPy reference; docs/structures.md, "Limbs
+from joint strings").
 
 A limb is written as its joints from base to platform, the actuated joint followed by ``*``
 (``"RP*UR"``: revolute, actuated prismatic, universal, revolute), or as the plain string with the
@@ -36,7 +37,9 @@ points of one line are a stretched planar chain, singular (the RRUR's three x ax
 crank along its link). The chain's forward kinematics is the product of exponentials of its
 joint twists from this home configuration; its inverse kinematics at a platform pose is a
 Levenberg-Marquardt solve of the anchor frame's position and orientation over the joint
-coordinates, started at the home configuration (the branch of the home pose). A pose is
+coordinates, started at the home configuration (the branch of the home pose), or at the
+coordinates of a closed form where the chain's geometry has one (:func:`closed_form_constants`:
+then no step is taken where they reach). A pose is
 reachable when the solve's residual is below 1000 :data:`IK_TOL`; a limb of fewer than six
 freedoms reaches only the poses its constraints allow. The actuator value is the actuated
 joint's coordinate from home (a prismatic joint between two joint centres adds their home
@@ -82,7 +85,8 @@ from .legs import JOINT_DOF, LEG_TYPES, Leg, LegCapabilities, LegState, _vec3
 from .spatial import cross, null_space, unit
 
 __all__ = ["ChainError", "ChainSpec", "ChainLeg", "parse_chain", "JOINT_LETTERS", "REFERENCES", "RELATIONS",
-           "IK_TOL", "IK_ITERATIONS", "IK_STALL", "CLOSURE_ITERATIONS", "chain_class"]
+           "IK_TOL", "IK_ITERATIONS", "IK_STALL", "CLOSURE_ITERATIONS", "chain_class", "CLOSED_FORMS",
+           "closed_form_constants", "closed_form_solve"]
 
 #: The joint letters a joint string may hold, with their freedoms.
 JOINT_LETTERS = {"R": "revolute", "P": "prismatic", "U": "universal", "S": "spherical"}
@@ -126,6 +130,74 @@ def damping_factor(gain, pred):
     with np.errstate(divide="ignore", invalid="ignore"):
         rho = np.where(pred > 0.0, gain / np.where(pred > 0.0, pred, 1.0), 1.0)
     return np.maximum(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3)
+
+
+#: The closed forms of a chain limb's inverse kinematics, by the code its constants start with
+#: (:func:`closed_form_constants`).
+CLOSED_FORMS = {1: "RRP-S"}
+#: Relative tolerance of the geometry a closed form assumes (normal axes, centres on a line).
+CLOSED_FORM_TOL = 1e-9
+
+
+def closed_form_constants(kinds, axes, points, home, L) -> np.ndarray:
+    """The constants of the closed-form inverse kinematics of a chain given as data (per freedom
+    its kind, 0 revolute or 1 prismatic, home axis and home point; the anchor at home; the length
+    scale), or an empty array where its geometry has none (the numerical solve then works alone).
+
+    One form (code 1, ``"RRP-S"``): two revolutes, a slider and a spherical joint at the anchor
+    (its three freedoms about x, y, z through the anchor), the first revolute's axis ``a1``
+    through ``A``, the second's ``a2`` normal to it and to the slider's direction ``u``, and the
+    second revolute's centre and the anchor on the slider's line through ``A`` (the RRPS of the
+    vocabulary; an elbow offset breaks it). The anchor ``w = target - A`` is then
+    ``R1 (b u + rho R2 u)``: ``R1^T w`` is normal to ``a2``, which gives the first angle (two
+    solutions, ``pi`` apart: the one of the home pose), the second angle and ``rho`` (> 0, the
+    home pose's side) follow in the plane normal to ``a2``, and the spherical joint's angles are
+    the x-y-z angles of ``(R1 R2)^T R`` with the middle one within +-pi/2. Constants: the code, A,
+    a1, a2, a1 x a2, u, the sign that puts the home pose at the first angle 0, ``b`` (the second
+    centre's distance from A along u) and the anchor's home distance from the second centre."""
+    kinds = np.asarray(kinds)
+    axes = np.asarray(axes, float)
+    points = np.asarray(points, float)
+    home = np.asarray(home, float)
+    tol = CLOSED_FORM_TOL
+    if kinds.shape != (6,) or list(kinds) != [0, 0, 1, 0, 0, 0] or not np.allclose(axes[3:], np.eye(3), rtol=0,
+                                                                                      atol=tol):
+        return np.zeros(0)
+    if not np.allclose(points[3:], home, rtol=0, atol=tol * L):
+        return np.zeros(0)
+    A, a1, B, a2, u = points[0], axes[0], points[1], axes[1], axes[2]
+    c12 = cross(a1, a2)
+    if abs(a1 @ a2) > tol or abs(a2 @ u) > tol or abs(u @ c12) < 1e-6:
+        return np.zeros(0)
+    if np.linalg.norm(cross(B - A, u)) > tol * L or np.linalg.norm(cross(home - B, u)) > tol * L:
+        return np.zeros(0)
+    k = -1.0 if u @ c12 > 0 else 1.0
+    return np.concatenate([[1.0], A, a1, a2, c12, u, [k, (B - A) @ u, (home - B) @ u]])
+
+
+def _rot_rows(a, t) -> np.ndarray:
+    """Rotations (N, 3, 3) through the angles ``t`` (N,) about the unit axis ``a`` (Rodrigues)."""
+    K = np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
+    t = np.asarray(t, float)[:, None, None]
+    return np.eye(3) + np.sin(t) * K + (1.0 - np.cos(t)) * (K @ K)
+
+
+def closed_form_solve(cf, target, R) -> np.ndarray:
+    """Joint coordinates (N, 6) of the closed form with constants ``cf``
+    (:func:`closed_form_constants`) reaching the anchor positions ``target`` (N, 3) with the
+    platform orientations ``R`` (N, 3, 3)."""
+    A, a1, a2, c12, u = cf[1:4], cf[4:7], cf[7:10], cf[10:13], cf[13:16]
+    k, b, rho0 = cf[16], cf[17], cf[18]
+    w = np.asarray(target, float) - A
+    th1 = np.arctan2(k * (w @ a2), -k * (w @ c12))
+    R1 = _rot_rows(a1, th1)
+    r = np.einsum("nji,nj->ni", R1, w) - b * u
+    th2 = np.arctan2(cross(u, r) @ a2, r @ u)
+    M = np.einsum("nji,njk->nik", _rot_rows(a2, th2), np.einsum("nji,njk->nik", R1, R))
+    q3 = np.arctan2(-M[:, 1, 2], M[:, 2, 2])
+    q4 = np.arctan2(M[:, 0, 2], np.hypot(M[:, 1, 2], M[:, 2, 2]))
+    q5 = np.arctan2(-M[:, 0, 1], M[:, 0, 0])
+    return np.stack([th1, th2, np.linalg.norm(r, axis=1) - rho0, q3, q4, q5], axis=1)
 
 
 @functools.lru_cache(maxsize=256)
@@ -441,7 +513,8 @@ class ChainLeg(Leg):
     platform anchor raised by ``home_height`` above the base plane); ``radial`` and ``tangent``:
     the base anchor's directions (None: from the anchor's angle about z); ``offsets``: home
     offsets of the rotational joints' centres off the anchor line (fractions of its length, the
-    elbows; None: on the line)."""
+    elbows; None: on the line); ``closed``: False solves the limb numerically even where its
+    geometry has a closed form (:attr:`closed_form`; to compare the two)."""
 
     chain: str = "RP*UR"
     axes: tuple | None = None
@@ -452,6 +525,7 @@ class ChainLeg(Leg):
     radial: np.ndarray | None = None
     tangent: np.ndarray | None = None
     offsets: tuple | None = None
+    closed: bool = True
 
     joints: ClassVar[str] = "chain"
     actuated: ClassVar[int | None] = None
@@ -534,6 +608,9 @@ class ChainLeg(Leg):
         object.__setattr__(self, "_home", A0)
         object.__setattr__(self, "_L", L)
         object.__setattr__(self, "_cones", _cone_links(spec, centres, joint_of, self.base, A0, L))
+        object.__setattr__(self, "_closed", closed_form_constants(
+            [1 if kind == "P" else 0 for kind, _, _ in free], [a for _, a, _ in free],
+            [np.zeros(3) if c is None else c for _, _, c in free], A0, L) if self.closed else np.zeros(0))
         # the closure directions: the left null space of the scaled joint twists at home (the
         # constraint wrenches' directions there), onto which the closure residual is projected
         pos, _, ax0, pt0 = self.forward(np.zeros((1, len(free))))
@@ -561,13 +638,20 @@ class ChainLeg(Leg):
     def actuator_kind(self) -> str:
         return _actuator_kind(self._spec)
 
+    @property
+    def closed_form(self) -> str | None:
+        """The name of the closed form of this limb's inverse kinematics (:data:`CLOSED_FORMS`;
+        from its geometry: :func:`closed_form_constants`), or None: solved numerically alone."""
+        return CLOSED_FORMS[int(self._closed[0])] if self._closed.size else None
+
     def chain_arrays(self) -> dict:
         """The chain as data, for a compiled solve (:mod:`parasynth.engine.chains`): ``kinds``
         (n,) int64 per freedom (0 revolute, 1 prismatic), ``axes`` (n, 3) and ``points`` (n, 3,
         zeros for a prismatic freedom) at home, ``home`` and ``platform`` (the anchor at home,
         base frame; the platform anchor, platform frame), ``length`` (the scale of the solve's
-        position residual), ``actuated`` (the actuated freedom, -1 for none), ``act_home`` and
-        ``joint_of`` (n,) the joint of each freedom."""
+        position residual), ``actuated`` (the actuated freedom, -1 for none), ``act_home``,
+        ``joint_of`` (n,) the joint of each freedom and ``closed`` the constants of its closed
+        form (:func:`closed_form_constants`; empty: none)."""
         n = len(self._free)
         kinds = np.array([1 if k == "P" else 0 for k, _, _ in self._free], dtype=np.int64)
         axes = np.array([a for _, a, _ in self._free], dtype=float).reshape(n, 3)
@@ -575,7 +659,7 @@ class ChainLeg(Leg):
         return {"kinds": kinds, "axes": axes, "points": points, "home": np.array(self._home, float),
                 "platform": np.array(self.platform, float), "length": float(self._L),
                 "actuated": -1 if self._act is None else int(self._act), "act_home": float(self._act_home),
-                "joint_of": np.array(self._joint_of, dtype=np.int64)}
+                "joint_of": np.array(self._joint_of, dtype=np.int64), "closed": self._closed}
 
     # -- kinematics --------------------------------------------------------------------------
     def forward(self, q: np.ndarray):
@@ -637,10 +721,12 @@ class ChainLeg(Leg):
         e = np.concatenate([(target - pos) / self._L, _log_rot(R @ np.transpose(Rc, (0, 2, 1)))], axis=1)
         return e, pos, axes, points
 
-    def inverse(self, p, R, q0=None):
+    def inverse(self, p, R, q0=None, closed: bool = True):
         """Joint coordinates (N, n) reaching the platform poses ``(p, R)`` and the residual (N,)
-        of the solve (position / length scale, orientation in rad): Levenberg-Marquardt on the
-        anchor frame's error from the home configuration. A step is taken only where it lowers
+        of the solve (position / length scale, orientation in rad): the closed form where the
+        limb has one (:attr:`closed_form`; not with ``closed=False``), then Levenberg-Marquardt
+        on the anchor frame's error from there (from the home configuration without a closed
+        form, or from ``q0``), which takes no step where the closed form reached. A step is taken only where it lowers
         the squared error; the damping follows Nielsen's rule (:func:`damping_factor` after a
         taken step, not below 1e-12; doubled, then quadrupled, ... after refused ones); a pose
         leaves the batch when reached (residual below :data:`IK_TOL`) or stalled (a
@@ -650,7 +736,12 @@ class ChainLeg(Leg):
         R = np.asarray(R, float).reshape(-1, 3, 3)
         N, n = p.shape[0], len(self._free)
         target = p + np.einsum("nij,j->ni", R, self.platform)
-        q = np.zeros((N, n)) if q0 is None else np.array(q0, float)
+        if q0 is not None:
+            q = np.array(q0, float)
+        elif closed and self._closed.size:
+            q = closed_form_solve(self._closed, target, R)
+        else:
+            q = np.zeros((N, n))
         L = self._L
         e, pos, axes, points = self._error(q, target, R)
         res = np.max(np.abs(e), axis=1)

@@ -328,7 +328,7 @@ for _limb in (
                  "inversion of the UPS)"),
     LimbType("RRPS", "P", False, 0, ("regular", "paired", "irregular"), options=dict(_CHAIN),
              doc="two revolutes (tangent, then normal to it and the limb, offset along the limb), actuated prismatic, "
-                 "spherical, solved numerically: six freedoms"),
+                 "spherical, solved by its closed form (RRP-S): six freedoms"),
     LimbType("RRUR", "R", False, 1, ("regular", "paired", "irregular"), options=dict(_CHAIN),
              templates={a: "xy_ring" for a in ("regular", "paired", "irregular")},
              doc="actuated revolute (x), revolute (x) at an elbow off the limb's line, universal (x, then the "
