@@ -158,54 +158,76 @@ def test_actuation_wrench_gives_the_actuator_rate_along_a_motion():
 
 
 # -- closed forms ---------------------------------------------------------------------------------
+def _random_limb(cls, rng):
+    """A limb of type ``cls`` at a random anchor, platform point and height."""
+    a, b = rng.uniform(-np.pi, np.pi, 2)
+    rb, rp = rng.uniform(0.2, 0.5), rng.uniform(0.05, 0.3)
+    return cls("L", base=[rb * np.cos(a), rb * np.sin(a), 0.0], platform=[rp * np.cos(b), rp * np.sin(b), 0.0],
+               home_height=float(rng.uniform(0.3, 0.9)))
+
+
 def _random_rrps(rng):
     """An RRPS limb (model.chains.RRPS: revolute along the anchor's tangent, revolute normal to it
     and the limb a tenth up, slider along the limb, spherical at the platform anchor) at a random
     anchor, platform point and height."""
     from parasynth.model.chains import RRPS
 
-    a, b = rng.uniform(-np.pi, np.pi, 2)
-    rb, rp = rng.uniform(0.2, 0.5), rng.uniform(0.05, 0.3)
-    return RRPS("L", base=[rb * np.cos(a), rb * np.sin(a), 0.0], platform=[rp * np.cos(b), rp * np.sin(b), 0.0],
-                home_height=float(rng.uniform(0.3, 0.9)))
+    return _random_limb(RRPS, rng)
 
 
-def _poses_around(leg, rng, n, reach=0.15, turn=0.6):
-    """Platform poses within ``reach`` of the limb's home and turned by up to ``turn`` rad about
-    random axes."""
+def _poses_around(leg, rng, n, reach=0.15, turn=0.6, motion="3T3R"):
+    """Platform poses within ``reach`` of the limb's home, turned by up to ``turn`` rad about
+    random axes (3T3R) or about x and then the moving y (3T2R: the motion of the RRUR and PRUR)."""
     from parasynth.model.spatial import rot_axis
 
     home = leg._home - leg.platform
     p = home + rng.uniform(-reach, reach, (n, 3))
+    if motion == "3T2R":
+        return p, rot_x(rng.uniform(-turn, turn, n)) @ rot_y(rng.uniform(-turn, turn, n))
     ax = rng.normal(size=(n, 3))
     R = rot_axis(ax / np.linalg.norm(ax, axis=1, keepdims=True), rng.uniform(-turn, turn, n))
     return p, R
 
 
-def test_the_rrps_closed_form_reaches_the_pose_and_finds_the_numerical_solution():
+@pytest.mark.parametrize("name, form, motion", [("RRPS", "RRP-S", "3T3R"), ("RRUR", "RR-UR", "3T2R"),
+                                                ("PRUR", "PR-UR", "3T2R")])
+def test_the_closed_form_reaches_the_pose_and_finds_the_numerical_solution(name, form, motion):
     """The closed form against two independent checks: its coordinates carried through the
     forward kinematics give the pose (a round trip), and the Levenberg-Marquardt solve from home
-    (``closed=False``) finds the same coordinates wherever it reaches. 20 random RRPS limbs, 500
-    poses each within 150 mm and 0.6 rad of home."""
+    (``closed=False``) reaches every pose it solves, at the same coordinates; a pose without a
+    solution in the home pose's working mode is out of reach (the numerical solve may reach it in
+    another). 20 random
+    limbs, 500 poses each within 150 mm and 0.6 rad of home (the limb's motion: any rotation for
+    the RRPS, x then the moving y for the RRUR and PRUR, which reach a part of them)."""
     from parasynth.model.chains import closed_form_solve
+    from parasynth.model.legs import LEG_TYPES
 
     rng = np.random.default_rng(11)
+    reached = []
     for _ in range(20):
-        leg = _random_rrps(rng)
-        assert leg.closed_form == "RRP-S"
-        p, R = _poses_around(leg, rng, 500)
+        leg = _random_limb(LEG_TYPES[name], rng)
+        assert leg.closed_form == form
+        p, R = _poses_around(leg, rng, 500, motion=motion)
         target = p + np.einsum("nij,j->ni", R, leg.platform)
         q = closed_form_solve(leg._closed, target, R)
         pos, Rc, _, _ = leg.forward(q)
-        np.testing.assert_allclose(pos, target, rtol=0, atol=1e-12)
-        np.testing.assert_allclose(Rc, R, rtol=0, atol=1e-12)
+        err = np.maximum(np.abs(pos - target).max(axis=1) / leg._L, np.abs(Rc - R).max(axis=(1, 2)))
+        solved = err < 1e-12  # the others have no solution in the home pose's working mode: NaN
+        assert np.isnan(q[~solved]).any(axis=1).all()
         qn, res = leg.inverse(p, R, closed=False)
         ok = res < 1e-6
-        assert ok.mean() > 0.99
-        np.testing.assert_allclose(q[ok], qn[ok], rtol=0, atol=1e-7)
+        assert not (solved & ~ok).any()  # every pose it solves the numerical solve reaches,
+        np.testing.assert_allclose(q[solved], qn[solved], rtol=0, atol=1e-6)  # at the same coordinates
+        # a pose it has no solution for is out of reach (the numerical solve from home may reach one in
+        # another working mode: a PRUR with its platform-side universal joint turned over)
+        qc, resc = leg.inverse(p, R)
+        assert np.array_equal(resc < 1e-6, solved) and np.isinf(resc[~solved]).all()
+        assert solved.sum() >= 0.9 * ok.sum()
+        reached.append(ok.mean())
         # the home pose is the home configuration (the branch of every solve from home)
         q0 = closed_form_solve(leg._closed, leg._home[None], np.eye(3)[None])
         np.testing.assert_allclose(q0, 0.0, rtol=0, atol=1e-12)
+    assert np.mean(reached) > (0.99 if motion == "3T3R" else 0.3)
 
 
 def test_the_closed_form_is_what_the_solve_gives_and_is_taken_only_where_the_geometry_allows():

@@ -342,6 +342,98 @@ if HAVE_NUMBA:  # pragma: no branch
         q[5] = math.atan2(-m01, m00)
 
     @njit(**_jit)
+    def _wrap(x):
+        """An angle into [-pi, pi) (``model.chains._wrap``)."""
+        return x - 2.0 * np.pi * math.floor((x + np.pi) / (2.0 * np.pi))
+
+    @njit(**_jit)
+    def _planar_form(cf, tx, ty, tz, R, q):
+        """``q`` (5,): the closed forms ``"RR-UR"`` and ``"PR-UR"`` (``model.chains._planar_solve``,
+        one pose); False (``q`` untouched) where the pose has no solution."""
+        ax, ay, az = cf[1], cf[2], cf[3]
+        bx, by, bz = cf[4], cf[5], cf[6]
+        nx, ny, nz = cf[7], cf[8], cf[9]
+        cx, cy, cz = cf[10], cf[11], cf[12]
+        vx_, vy_, vz_ = cf[13], cf[14], cf[15]
+        # R a, R b, R n
+        rax = R[0, 0] * ax + R[0, 1] * ay + R[0, 2] * az
+        ray = R[1, 0] * ax + R[1, 1] * ay + R[1, 2] * az
+        raz = R[2, 0] * ax + R[2, 1] * ay + R[2, 2] * az
+        rbx = R[0, 0] * bx + R[0, 1] * by + R[0, 2] * bz
+        rby = R[1, 0] * bx + R[1, 1] * by + R[1, 2] * bz
+        rbz = R[2, 0] * bx + R[2, 1] * by + R[2, 2] * bz
+        rnx = R[0, 0] * nx + R[0, 1] * ny + R[0, 2] * nz
+        rny = R[1, 0] * nx + R[1, 1] * ny + R[1, 2] * nz
+        rnz = R[2, 0] * nx + R[2, 1] * ny + R[2, 2] * nz
+        phi = math.atan2(rbx * nx + rby * ny + rbz * nz, rbx * bx + rby * by + rbz * bz)
+        psi = math.atan2(rnx * ax + rny * ay + rnz * az, rax * ax + ray * ay + raz * az)
+        va = vx_ * ax + vy_ * ay + vz_ * az
+        vn = vx_ * nx + vy_ * ny + vz_ * nz
+        rv = math.hypot(va, vn)
+        h = (tx - cx) * ax + (ty - cy) * ay + (tz - cz) * az
+        if not abs(h) <= rv:
+            return False
+        dl = math.acos(h / rv)
+        th4 = _wrap(math.atan2(vn, va) - dl if vn >= 0.0 else math.atan2(vn, va) + dl)
+        # w = Rot(a, phi) Rot(b, th4) v; c = target - w
+        b00, b01, b02, b10, b11, b12, b20, b21, b22 = _rotation(bx, by, bz, th4)
+        w0 = b00 * vx_ + b01 * vy_ + b02 * vz_
+        w1 = b10 * vx_ + b11 * vy_ + b12 * vz_
+        w2 = b20 * vx_ + b21 * vy_ + b22 * vz_
+        a00, a01, a02, a10, a11, a12, a20, a21, a22 = _rotation(ax, ay, az, phi)
+        px = tx - (a00 * w0 + a01 * w1 + a02 * w2)
+        py = ty - (a10 * w0 + a11 * w1 + a12 * w2)
+        pz = tz - (a20 * w0 + a21 * w1 + a22 * w2)
+        f0x, f0y, f0z = cf[16], cf[17], cf[18]
+        f1x, f1y, f1z = cf[19], cf[20], cf[21]
+        if cf[0] == 2.0:
+            u1b = (f1x - f0x) * bx + (f1y - f0y) * by + (f1z - f0z) * bz
+            u1n = (f1x - f0x) * nx + (f1y - f0y) * ny + (f1z - f0z) * nz
+            u2b = (cx - f1x) * bx + (cy - f1y) * by + (cz - f1z) * bz
+            u2n = (cx - f1x) * nx + (cy - f1y) * ny + (cz - f1z) * nz
+            db = (px - f0x) * bx + (py - f0y) * by + (pz - f0z) * bz
+            dn = (px - f0x) * nx + (py - f0y) * ny + (pz - f0z) * nz
+            uu1 = u1b * u1b + u1n * u1n
+            uu2 = u2b * u2b + u2n * u2n
+            m = 0.5 * ((db * db + dn * dn) - uu1 - uu2)
+            g0 = math.atan2(u1b * u2n - u1n * u2b, u1b * u2b + u1n * u2n)
+            cosv = m / math.sqrt(uu1 * uu2)
+            if not abs(cosv) <= 1.0:
+                return False
+            ac = math.acos(cosv)
+            th2 = _wrap((ac if g0 >= 0.0 else -ac) - g0)
+            c2 = math.cos(th2)
+            s2 = math.sin(th2)
+            sx = u1b + c2 * u2b - s2 * u2n
+            sy = u1n + s2 * u2b + c2 * u2n
+            th1 = math.atan2(sx * dn - sy * db, sx * db + sy * dn)
+            q[0] = th1
+            q[1] = th2
+            q[2] = _wrap(phi - th1 - th2)
+        else:
+            u2b = (cx - f1x) * bx + (cy - f1y) * by + (cz - f1z) * bz
+            u2n = (cx - f1x) * nx + (cy - f1y) * ny + (cz - f1z) * nz
+            eb = f0x * bx + f0y * by + f0z * bz
+            en = f0x * nx + f0y * ny + f0z * nz
+            gb = (px - f1x) * bx + (py - f1y) * by + (pz - f1z) * bz
+            gn = (px - f1x) * nx + (py - f1y) * ny + (pz - f1z) * nz
+            ge = gb * eb + gn * en
+            disc = ge * ge - (gb * gb + gn * gn) + (u2b * u2b + u2n * u2n)
+            if not disc >= 0.0:
+                return False
+            sq = math.sqrt(disc)
+            s = ge - sq if u2b * eb + u2n * en >= 0.0 else ge + sq
+            rx = gb - s * eb
+            ry = gn - s * en
+            th1 = math.atan2(u2b * ry - u2n * rx, u2b * rx + u2n * ry)
+            q[0] = s
+            q[1] = th1
+            q[2] = _wrap(phi - th1)
+        q[3] = th4
+        q[4] = _wrap(psi - th4)
+        return True
+
+    @njit(**_jit)
     def _chain_kernel(P, Rm, kinds, axes, points, home, plat, L, n_iter, tol, stall, cf, Q, res, POS, AXW, PTW, FR,
                       i0, i1):
         """Poses ``i0 .. i1 - 1``: joint coordinates ``Q``, residual ``res``, anchor position
@@ -379,18 +471,31 @@ if HAVE_NUMBA:  # pragma: no branch
             tx = P[i, 0] + R[0, 0] * plat[0] + R[0, 1] * plat[1] + R[0, 2] * plat[2]
             ty = P[i, 1] + R[1, 0] * plat[0] + R[1, 1] * plat[1] + R[1, 2] * plat[2]
             tz = P[i, 2] + R[2, 0] * plat[0] + R[2, 1] * plat[1] + R[2, 2] * plat[2]
-            if cf.shape[0] > 0 and cf[0] == 1.0:
-                _closed_form(cf, tx, ty, tz, R, q)
-            else:
+            finite = tx == tx and ty == ty and tz == tz
+            for a in range(3):
+                for c in range(3):
+                    finite = finite and R[a, c] == R[a, c]
+            closed = True  # False: no solution in the home pose's working mode (out of reach, not solved)
+            if cf.shape[0] > 0 and finite:
+                if cf[0] == 1.0:
+                    _closed_form(cf, tx, ty, tz, R, q)
+                else:
+                    closed = _planar_form(cf, tx, ty, tz, R, q)
+            if not closed or cf.shape[0] == 0 or not finite:
                 for m in range(n):
                     q[m] = 0.0
             _forward(q, kinds, axes, points, home, Rg, tg, axw, ptw, pos)
             cost, r = _error(R, tx, ty, tz, Rg, pos, L, e)
+            if not closed:
+                r = np.inf
+                n_it = 0
+            else:
+                n_it = n_iter
             lam = 1e-12
             nu = 2.0
             fresh = True  # the normal equations are those of the current coordinates
             tr = 0.0
-            for it in range(n_iter):
+            for it in range(n_it):
                 if not (r >= tol):  # reached, or not finite
                     break
                 # joint twists at the anchor: P (a, 0), R (a x (pos - c), a); position rows / L.

@@ -134,7 +134,7 @@ def damping_factor(gain, pred):
 
 #: The closed forms of a chain limb's inverse kinematics, by the code its constants start with
 #: (:func:`closed_form_constants`).
-CLOSED_FORMS = {1: "RRP-S"}
+CLOSED_FORMS = {1: "RRP-S", 2: "RR-UR", 3: "PR-UR"}
 #: Relative tolerance of the geometry a closed form assumes (normal axes, centres on a line).
 CLOSED_FORM_TOL = 1e-9
 
@@ -160,6 +160,8 @@ def closed_form_constants(kinds, axes, points, home, L) -> np.ndarray:
     points = np.asarray(points, float)
     home = np.asarray(home, float)
     tol = CLOSED_FORM_TOL
+    if kinds.shape == (5,):
+        return _planar_constants(kinds, axes, points, home, L)
     if kinds.shape != (6,) or list(kinds) != [0, 0, 1, 0, 0, 0] or not np.allclose(axes[3:], np.eye(3), rtol=0,
                                                                                       atol=tol):
         return np.zeros(0)
@@ -175,6 +177,95 @@ def closed_form_constants(kinds, axes, points, home, L) -> np.ndarray:
     return np.concatenate([[1.0], A, a1, a2, c12, u, [k, (B - A) @ u, (home - B) @ u]])
 
 
+def _planar_constants(kinds, axes, points, home, L) -> np.ndarray:
+    """The constants of the forms ``"RR-UR"`` (code 2) and ``"PR-UR"`` (code 3) (see
+    :func:`closed_form_constants`), or an empty array: a revolute about ``a`` (or a slider along
+    ``e`` normal to ``a``), a revolute about ``a``, a universal joint (``a``, then ``b`` normal to
+    it) and a revolute about ``b`` at the anchor -- the RRUR and PRUR of the vocabulary. Then the
+    rotations about ``a`` sum to the platform's angle ``phi`` about ``a`` and those about ``b`` to
+    its angle ``psi`` about ``b`` (``R = Rot(a, phi) Rot(b, psi)``); the universal joint's
+    centre keeps its component along ``a``, which gives its second angle ``t4`` (the home pose's
+    side of ``b``), hence the centre ``c = target - Rot(a, phi) Rot(b, t4) v``; and the planar
+    chain before it reaches ``c`` in the plane normal to ``a``: two links with the elbow on its
+    home side, or the slider's root with the link pointing along the slider as at home. Constants:
+    the code, a, b, a x b, the universal joint's home centre ``c0``, ``v = anchor - c0``, then the
+    first revolute's centre and the elbow (RR) or the slider's direction and the revolute's
+    centre (PR)."""
+    tol = CLOSED_FORM_TOL
+    if not all(k == 0 for k in kinds[1:]) or kinds[0] not in (0, 1):
+        return np.zeros(0)
+    a, b = axes[1], axes[3]
+    if not (np.allclose(axes[2], a, rtol=0, atol=tol) and np.allclose(axes[4], b, rtol=0, atol=tol)
+            and abs(a @ b) <= tol):
+        return np.zeros(0)
+    if (kinds[0] == 0 and not np.allclose(axes[0], a, rtol=0, atol=tol)) or (kinds[0] == 1 and abs(axes[0] @ a) > tol):
+        return np.zeros(0)
+    c0 = points[2]
+    if not (np.allclose(points[3], c0, rtol=0, atol=tol * L) and np.allclose(points[4], home, rtol=0, atol=tol * L)):
+        return np.zeros(0)
+    n = cross(a, b)
+    v = home - c0
+
+    def flat(x):  # the length of a vector's part normal to a
+        return float(np.hypot(x @ b, x @ n))
+
+    first, second = (points[0], points[1]) if kinds[0] == 0 else (axes[0], points[1])
+    links = [second - first, c0 - second] if kinds[0] == 0 else [c0 - second]
+    if flat(v) < 1e-9 * L or any(flat(x) < 1e-9 * L for x in links):
+        return np.zeros(0)
+    return np.concatenate([[2.0 if kinds[0] == 0 else 3.0], a, b, n, c0, v, first, second])
+
+
+def _wrap(x):
+    """Angles into [-pi, pi)."""
+    return x - 2.0 * np.pi * np.floor((x + np.pi) / (2.0 * np.pi))
+
+
+def _planar_solve(cf, target, R) -> np.ndarray:
+    """:func:`closed_form_solve` of the forms ``"RR-UR"`` and ``"PR-UR"`` (N, 5); NaN rows for
+    the poses without a solution in the home pose's working mode."""
+    a, b, n, c0, v, f0, f1 = (cf[1 + 3 * i:4 + 3 * i] for i in range(7))
+    t = np.asarray(target, float)
+    Ra, Rb, Rn = R @ a, R @ b, R @ n  # R's columns in the frame (a, b, n): RF[i, j] = f_i . R f_j
+    phi = np.arctan2(Rb @ n, Rb @ b)
+    psi = np.arctan2(Rn @ a, Ra @ a)
+    vx, vz = float(v @ a), float(v @ n)
+    rv = math.hypot(vx, vz)
+    h = (t - c0) @ a
+    with np.errstate(invalid="ignore"):
+        dl = np.arccos(h / rv)
+    th4 = _wrap(math.atan2(vz, vx) - dl if vz >= 0.0 else math.atan2(vz, vx) + dl)
+    w = np.einsum("nij,j->ni", _rot_rows(a, phi) @ _rot_rows(b, th4), v)
+    c = t - w
+    q = np.empty((t.shape[0], 5))
+    if cf[0] == 2.0:  # two revolutes: A (f0), the elbow (f1)
+        u1 = np.array([(f1 - f0) @ b, (f1 - f0) @ n])
+        u2 = np.array([(c0 - f1) @ b, (c0 - f1) @ n])
+        dd = np.stack([(c - f0) @ b, (c - f0) @ n], -1)
+        m = 0.5 * (np.einsum("ni,ni->n", dd, dd) - u1 @ u1 - u2 @ u2)
+        g0 = math.atan2(u1[0] * u2[1] - u1[1] * u2[0], u1 @ u2)
+        with np.errstate(invalid="ignore"):
+            ac = np.arccos(m / math.sqrt((u1 @ u1) * (u2 @ u2)))
+        th2 = _wrap((ac if g0 >= 0.0 else -ac) - g0)
+        sx = u1[0] + np.cos(th2) * u2[0] - np.sin(th2) * u2[1]
+        sy = u1[1] + np.sin(th2) * u2[0] + np.cos(th2) * u2[1]
+        th1 = np.arctan2(sx * dd[:, 1] - sy * dd[:, 0], sx * dd[:, 0] + sy * dd[:, 1])
+        q[:, 0], q[:, 1], q[:, 2] = th1, th2, _wrap(phi - th1 - th2)
+    else:  # a slider along e (f0), the revolute's centre (f1)
+        u2 = np.array([(c0 - f1) @ b, (c0 - f1) @ n])
+        e2 = np.array([f0 @ b, f0 @ n])
+        g = np.stack([(c - f1) @ b, (c - f1) @ n], -1)
+        ge = g @ e2
+        with np.errstate(invalid="ignore"):
+            sq = np.sqrt(ge * ge - np.einsum("ni,ni->n", g, g) + u2 @ u2)
+        s = ge - sq if u2 @ e2 >= 0.0 else ge + sq
+        rx, ry = g[:, 0] - s * e2[0], g[:, 1] - s * e2[1]
+        th1 = np.arctan2(u2[0] * ry - u2[1] * rx, u2[0] * rx + u2[1] * ry)
+        q[:, 0], q[:, 1], q[:, 2] = s, th1, _wrap(phi - th1)
+    q[:, 3], q[:, 4] = th4, _wrap(psi - th4)
+    return q
+
+
 def _rot_rows(a, t) -> np.ndarray:
     """Rotations (N, 3, 3) through the angles ``t`` (N,) about the unit axis ``a`` (Rodrigues)."""
     K = np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
@@ -183,9 +274,12 @@ def _rot_rows(a, t) -> np.ndarray:
 
 
 def closed_form_solve(cf, target, R) -> np.ndarray:
-    """Joint coordinates (N, 6) of the closed form with constants ``cf``
+    """Joint coordinates (N, n) of the closed form with constants ``cf``
     (:func:`closed_form_constants`) reaching the anchor positions ``target`` (N, 3) with the
-    platform orientations ``R`` (N, 3, 3)."""
+    platform orientations ``R`` (N, 3, 3), in the working mode of the home pose; NaN rows where
+    it has no solution there (the pose is out of the limb's reach in that mode)."""
+    if cf[0] != 1.0:
+        return _planar_solve(cf, target, R)
     A, a1, a2, c12, u = cf[1:4], cf[4:7], cf[7:10], cf[10:13], cf[13:16]
     k, b, rho0 = cf[16], cf[17], cf[18]
     w = np.asarray(target, float) - A
@@ -742,9 +836,15 @@ class ChainLeg(Leg):
             q = closed_form_solve(self._closed, target, R)
         else:
             q = np.zeros((N, n))
+        # a pose the closed form has no solution for is out of reach in the home pose's working mode:
+        # not solved (its coordinates those of home, its residual infinite)
+        finite = np.isfinite(target).all(axis=1) & np.isfinite(R).all(axis=(1, 2))
+        out = ~np.isfinite(q).all(axis=1) & finite
+        q[out | ~finite] = 0.0
         L = self._L
         e, pos, axes, points = self._error(q, target, R)
         res = np.max(np.abs(e), axis=1)
+        res[out] = np.inf
         cost = np.einsum("ij,ij->i", e, e)
         lam = np.full(N, 1e-12)
         nu = np.full(N, 2.0)

@@ -321,7 +321,7 @@ for _limb in (
     LimbType("PRUR", "P", False, 1, ("regular", "paired", "irregular"), options=dict(_CHAIN),
              templates={a: "xy_ring" for a in ("regular", "paired", "irregular")},
              doc="actuated vertical slider, revolute (x), universal (x, then the platform's y), revolute (the "
-                 "platform's y), solved numerically: one constraint couple; a ring of five gives the 5-PRUR's "
+                 "platform's y), solved by its closed form (PR-UR): one constraint couple; a ring of five gives the 5-PRUR's "
                  "xy_ring"),
     LimbType("SPU", "P", False, 0, ("regular", "paired", "irregular"), options=dict(_CHAIN),
              doc="spherical, actuated prismatic, universal at the platform, solved numerically: six freedoms (the "
@@ -332,7 +332,7 @@ for _limb in (
     LimbType("RRUR", "R", False, 1, ("regular", "paired", "irregular"), options=dict(_CHAIN),
              templates={a: "xy_ring" for a in ("regular", "paired", "irregular")},
              doc="actuated revolute (x), revolute (x) at an elbow off the limb's line, universal (x, then the "
-                 "platform's y), revolute (the platform's y), solved numerically: one constraint couple about "
+                 "platform's y), revolute (the platform's y), solved by its closed form (RR-UR): one constraint couple about "
                  "x x (R y), as the RPUR (Masouleh, Gosselin et al.); a ring of five gives the 5-RRUR's xy_ring"),
     LimbType("RUU", "R", False, 1, ("regular", "paired", "irregular"), options=dict(_CHAIN),
              doc="actuated crank (revolute, tangent), universal at the crank's end (tangent, then the intermediate "
