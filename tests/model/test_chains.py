@@ -190,7 +190,7 @@ def _poses_around(leg, rng, n, reach=0.15, turn=0.6, motion="3T3R"):
 
 
 @pytest.mark.parametrize("name, form, motion", [("RRPS", "RRP-S", "3T3R"), ("RRUR", "RR-UR", "3T2R"),
-                                                ("PRUR", "PR-UR", "3T2R")])
+                                                ("PRUR", "PR-UR", "3T2R"), ("SPU", "SP-U", "3T3R")])
 def test_the_closed_form_reaches_the_pose_and_finds_the_numerical_solution(name, form, motion):
     """The closed form against two independent checks: its coordinates carried through the
     forward kinematics give the pose (a round trip), and the Levenberg-Marquardt solve from home
@@ -198,7 +198,7 @@ def test_the_closed_form_reaches_the_pose_and_finds_the_numerical_solution(name,
     solution in the home pose's working mode is out of reach (the numerical solve may reach it in
     another). 20 random
     limbs, 500 poses each within 150 mm and 0.6 rad of home (the limb's motion: any rotation for
-    the RRPS, x then the moving y for the RRUR and PRUR, which reach a part of them)."""
+    the RRPS and SPU, x then the moving y for the RRUR and PRUR, which reach a part of them)."""
     from parasynth.model.chains import closed_form_solve
     from parasynth.model.legs import LEG_TYPES
 
@@ -252,6 +252,7 @@ def test_the_closed_form_is_what_the_solve_gives_and_is_taken_only_where_the_geo
     # the same axes written again (a limb type of the user's) have it; the other limbs have none
     same = chain_class("RRP*S", axes=("tangent", "normal:prev&normal:limb", "limb"), stations=(0.0, 0.1, 1.0))
     assert same("L", base=leg.base, platform=leg.platform).closed_form == "RRP-S"
-    for cls in (RPUR, SPU, URPU, PRRS):
+    for cls in (RPUR, URPU, PRRS):
         assert cls("L", base=leg.base, platform=leg.platform).closed_form is None
+    assert SPU("L", base=leg.base, platform=leg.platform).closed_form == "SP-U"
     assert RRPS("L", base=leg.base, platform=leg.platform).closed_form == "RRP-S"

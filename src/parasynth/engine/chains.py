@@ -434,6 +434,66 @@ if HAVE_NUMBA:  # pragma: no branch
         return True
 
     @njit(**_jit)
+    def _spu_form(cf, tx, ty, tz, R, q):
+        """``q`` (6,): the closed form ``"SP-U"`` (``model.chains._spu_solve``, one pose); False
+        (``q`` untouched) where the pose has no solution in the home pose's working mode."""
+        wx, wy, wz = tx - cf[1], ty - cf[2], tz - cf[3]
+        ux, uy, uz = cf[4], cf[5], cf[6]
+        t0, t1, t2 = cf[7], cf[8], cf[9]
+        n0, n1, n2 = cf[10], cf[11], cf[12]
+        f0, f1, f2 = cf[13], cf[14], cf[15]
+        rho = math.sqrt(wx * wx + wy * wy + wz * wz)
+        mx, my, mz = wx / rho, wy / rho, wz / rho
+        kx = R[0, 0] * mx + R[1, 0] * my + R[2, 0] * mz  # R^T m
+        ky = R[0, 1] * mx + R[1, 1] * my + R[2, 1] * mz
+        kz = R[0, 2] * mx + R[1, 2] * my + R[2, 2] * mz
+        kt = kx * t0 + ky * t1 + kz * t2
+        kf = kx * f0 + ky * f1 + kz * f2
+        ut = ux * t0 + uy * t1 + uz * t2
+        uf = ux * f0 + uy * f1 + uz * f2
+        cosv = ut / math.hypot(kt, kf)
+        if not abs(cosv) <= 1.0:
+            return False
+        dl = math.acos(cosv)
+        beta = math.atan2(kf, kt)
+        q5 = _wrap(beta - dl if uf >= 0.0 else beta + dl)
+        r00, r01, r02, r10, r11, r12, r20, r21, r22 = _rotation(n0, n1, n2, q5)
+        vx = r00 * kx + r01 * ky + r02 * kz
+        vy = r10 * kx + r11 * ky + r12 * kz
+        vz = r20 * kx + r21 * ky + r22 * kz
+        vt = vx * t0 + vy * t1 + vz * t2
+        upx, upy, upz = ux - ut * t0, uy - ut * t1, uz - ut * t2
+        vpx, vpy, vpz = vx - vt * t0, vy - vt * t1, vz - vt * t2
+        q4 = -math.atan2((upy * vpz - upz * vpy) * t0 + (upz * vpx - upx * vpz) * t1 + (upx * vpy - upy * vpx) * t2,
+                         vpx * upx + vpy * upy + vpz * upz)
+        # Rs = R Rot(n2, -q5) Rot(t, -q4): Rot(a, -x) is Rot(a, x) transposed
+        s00, s01, s02, s10, s11, s12, s20, s21, s22 = _rotation(t0, t1, t2, q4)
+        m = np.empty((3, 3))
+        # a = Rot(t, q4) Rot(n2, q5), so Rot(n2, -q5) Rot(t, -q4) = a^T
+        a00 = s00 * r00 + s01 * r10 + s02 * r20
+        a01 = s00 * r01 + s01 * r11 + s02 * r21
+        a02 = s00 * r02 + s01 * r12 + s02 * r22
+        a10 = s10 * r00 + s11 * r10 + s12 * r20
+        a11 = s10 * r01 + s11 * r11 + s12 * r21
+        a12 = s10 * r02 + s11 * r12 + s12 * r22
+        a20 = s20 * r00 + s21 * r10 + s22 * r20
+        a21 = s20 * r01 + s21 * r11 + s22 * r21
+        a22 = s20 * r02 + s21 * r12 + s22 * r22
+        # Rs = R a^T
+        m[0, 0] = R[0, 0] * a00 + R[0, 1] * a01 + R[0, 2] * a02
+        m[0, 1] = R[0, 0] * a10 + R[0, 1] * a11 + R[0, 2] * a12
+        m[0, 2] = R[0, 0] * a20 + R[0, 1] * a21 + R[0, 2] * a22
+        m[1, 2] = R[1, 0] * a20 + R[1, 1] * a21 + R[1, 2] * a22
+        m[2, 2] = R[2, 0] * a20 + R[2, 1] * a21 + R[2, 2] * a22
+        q[0] = math.atan2(-m[1, 2], m[2, 2])
+        q[1] = math.atan2(m[0, 2], math.hypot(m[1, 2], m[2, 2]))
+        q[2] = math.atan2(-m[0, 1], m[0, 0])
+        q[3] = rho - cf[16]
+        q[4] = q4
+        q[5] = q5
+        return True
+
+    @njit(**_jit)
     def _chain_kernel(P, Rm, kinds, axes, points, home, plat, L, n_iter, tol, stall, cf, Q, res, POS, AXW, PTW, FR,
                       i0, i1):
         """Poses ``i0 .. i1 - 1``: joint coordinates ``Q``, residual ``res``, anchor position
@@ -479,6 +539,8 @@ if HAVE_NUMBA:  # pragma: no branch
             if cf.shape[0] > 0 and finite:
                 if cf[0] == 1.0:
                     _closed_form(cf, tx, ty, tz, R, q)
+                elif cf[0] == 4.0:
+                    closed = _spu_form(cf, tx, ty, tz, R, q)
                 else:
                     closed = _planar_form(cf, tx, ty, tz, R, q)
             if not closed or cf.shape[0] == 0 or not finite:

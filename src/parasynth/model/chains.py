@@ -134,7 +134,7 @@ def damping_factor(gain, pred):
 
 #: The closed forms of a chain limb's inverse kinematics, by the code its constants start with
 #: (:func:`closed_form_constants`).
-CLOSED_FORMS = {1: "RRP-S", 2: "RR-UR", 3: "PR-UR"}
+CLOSED_FORMS = {1: "RRP-S", 2: "RR-UR", 3: "PR-UR", 4: "SP-U"}
 #: Relative tolerance of the geometry a closed form assumes (normal axes, centres on a line).
 CLOSED_FORM_TOL = 1e-9
 
@@ -162,10 +162,11 @@ def closed_form_constants(kinds, axes, points, home, L) -> np.ndarray:
     tol = CLOSED_FORM_TOL
     if kinds.shape == (5,):
         return _planar_constants(kinds, axes, points, home, L)
-    if kinds.shape != (6,) or list(kinds) != [0, 0, 1, 0, 0, 0] or not np.allclose(axes[3:], np.eye(3), rtol=0,
-                                                                                      atol=tol):
+    if kinds.shape == (6,) and list(kinds) == [0, 0, 0, 1, 0, 0]:
+        return _spu_constants(axes, points, home, L)
+    if kinds.shape != (6,) or list(kinds) != [0, 0, 1, 0, 0, 0] or not _near(axes[3:], np.eye(3), tol):
         return np.zeros(0)
-    if not np.allclose(points[3:], home, rtol=0, atol=tol * L):
+    if not _near(points[3:], home, tol * L):
         return np.zeros(0)
     A, a1, B, a2, u = points[0], axes[0], points[1], axes[1], axes[2]
     c12 = cross(a1, a2)
@@ -175,6 +176,12 @@ def closed_form_constants(kinds, axes, points, home, L) -> np.ndarray:
         return np.zeros(0)
     k = -1.0 if u @ c12 > 0 else 1.0
     return np.concatenate([[1.0], A, a1, a2, c12, u, [k, (B - A) @ u, (home - B) @ u]])
+
+
+def _near(a, b, tol: float) -> bool:
+    """Whether ``a`` and ``b`` differ by at most ``tol`` in every entry (``np.allclose`` with
+    ``rtol=0`` for the few entries of a limb's geometry, a tenth of its time)."""
+    return float(np.max(np.abs(np.asarray(a, float) - b))) <= tol
 
 
 def _planar_constants(kinds, axes, points, home, L) -> np.ndarray:
@@ -195,13 +202,13 @@ def _planar_constants(kinds, axes, points, home, L) -> np.ndarray:
     if not all(k == 0 for k in kinds[1:]) or kinds[0] not in (0, 1):
         return np.zeros(0)
     a, b = axes[1], axes[3]
-    if not (np.allclose(axes[2], a, rtol=0, atol=tol) and np.allclose(axes[4], b, rtol=0, atol=tol)
+    if not (_near(axes[2], a, tol) and _near(axes[4], b, tol)
             and abs(a @ b) <= tol):
         return np.zeros(0)
-    if (kinds[0] == 0 and not np.allclose(axes[0], a, rtol=0, atol=tol)) or (kinds[0] == 1 and abs(axes[0] @ a) > tol):
+    if (kinds[0] == 0 and not _near(axes[0], a, tol)) or (kinds[0] == 1 and abs(axes[0] @ a) > tol):
         return np.zeros(0)
     c0 = points[2]
-    if not (np.allclose(points[3], c0, rtol=0, atol=tol * L) and np.allclose(points[4], home, rtol=0, atol=tol * L)):
+    if not (_near(points[3], c0, tol * L) and _near(points[4], home, tol * L)):
         return np.zeros(0)
     n = cross(a, b)
     v = home - c0
@@ -214,6 +221,55 @@ def _planar_constants(kinds, axes, points, home, L) -> np.ndarray:
     if flat(v) < 1e-9 * L or any(flat(x) < 1e-9 * L for x in links):
         return np.zeros(0)
     return np.concatenate([[2.0 if kinds[0] == 0 else 3.0], a, b, n, c0, v, first, second])
+
+
+def _spu_constants(axes, points, home, L) -> np.ndarray:
+    """The constants of the form ``"SP-U"`` (code 4), or an empty array: a spherical joint at
+    ``A`` (its freedoms about x, y, z), a slider along ``u`` from ``A`` through the anchor, a
+    universal joint at the anchor (``t``, then ``n2`` normal to it and to ``u``) -- the SPU of the
+    vocabulary. The anchor is ``A + rho Rs u`` (``Rs`` the spherical joint's rotation): ``rho =
+    |target - A|`` (> 0, the home side) and ``Rs u`` its direction ``m``; the platform's rotation
+    is ``Rs Rot(t, q4) Rot(n2, q5)``, so ``Rot(t, -q4) u = Rot(n2, q5) R^T m``: the components
+    along ``t`` give ``q5`` (two roots: the one keeping the link on its home side of the plane of
+    ``t`` and ``n2``), the rest ``q4``, and the spherical joint's angles are the x-y-z angles of
+    ``R Rot(n2, -q5) Rot(t, -q4)``. Constants: the code, A, u, t, n2, t x n2, the anchor's home
+    distance from A."""
+    tol = CLOSED_FORM_TOL
+    A, u, t, n2 = points[0], axes[3], axes[4], axes[5]
+    if not (_near(axes[:3], np.eye(3), tol) and _near(points[1:3], A, tol * L)
+            and _near(points[4:], home, tol * L)):
+        return np.zeros(0)
+    if abs(t @ n2) > tol or abs(u @ n2) > tol or np.linalg.norm(cross(t, u)) < 1e-6:
+        return np.zeros(0)
+    if np.linalg.norm(cross(home - A, u)) > tol * L or (home - A) @ u <= 0.0:
+        return np.zeros(0)
+    return np.concatenate([[4.0], A, u, t, n2, cross(t, n2), [(home - A) @ u]])
+
+
+def _spu_solve(cf, target, R) -> np.ndarray:
+    """:func:`closed_form_solve` of the form ``"SP-U"`` (N, 6); NaN rows for the poses without
+    a solution in the home pose's working mode."""
+    A, u, t, n2, f = (cf[1 + 3 * i:4 + 3 * i] for i in range(5))
+    rho0 = cf[16]
+    w = np.asarray(target, float) - A
+    rho = np.linalg.norm(w, axis=1)
+    m = w / rho[:, None]
+    k = np.einsum("nji,nj->ni", R, m)  # R^T m
+    kt, kf = k @ t, k @ f
+    ut, uf = float(u @ t), float(u @ f)
+    with np.errstate(invalid="ignore"):
+        dl = np.arccos(ut / np.hypot(kt, kf))
+    beta = np.arctan2(kf, kt)
+    q5 = _wrap(beta - dl if uf >= 0.0 else beta + dl)
+    v = np.einsum("nij,nj->ni", _rot_rows(n2, q5), k)
+    up = u - ut * t  # the parts normal to t
+    vp = v - (v @ t)[:, None] * t
+    q4 = -np.arctan2(cross(up, vp) @ t, vp @ up)
+    Rs = R @ _rot_rows(n2, -q5) @ _rot_rows(t, -q4)
+    q0 = np.arctan2(-Rs[:, 1, 2], Rs[:, 2, 2])
+    q1 = np.arctan2(Rs[:, 0, 2], np.hypot(Rs[:, 1, 2], Rs[:, 2, 2]))
+    q2 = np.arctan2(-Rs[:, 0, 1], Rs[:, 0, 0])
+    return np.stack([q0, q1, q2, rho - rho0, q4, q5], axis=1)
 
 
 def _wrap(x):
@@ -278,6 +334,8 @@ def closed_form_solve(cf, target, R) -> np.ndarray:
     (:func:`closed_form_constants`) reaching the anchor positions ``target`` (N, 3) with the
     platform orientations ``R`` (N, 3, 3), in the working mode of the home pose; NaN rows where
     it has no solution there (the pose is out of the limb's reach in that mode)."""
+    if cf[0] == 4.0:
+        return _spu_solve(cf, target, R)
     if cf[0] != 1.0:
         return _planar_solve(cf, target, R)
     A, a1, a2, c12, u = cf[1:4], cf[4:7], cf[7:10], cf[10:13], cf[13:16]

@@ -324,7 +324,7 @@ for _limb in (
                  "platform's y), solved by its closed form (PR-UR): one constraint couple; a ring of five gives the 5-PRUR's "
                  "xy_ring"),
     LimbType("SPU", "P", False, 0, ("regular", "paired", "irregular"), options=dict(_CHAIN),
-             doc="spherical, actuated prismatic, universal at the platform, solved numerically: six freedoms (the "
+             doc="spherical, actuated prismatic, universal at the platform, solved by its closed form (SP-U): six freedoms (the "
                  "inversion of the UPS)"),
     LimbType("RRPS", "P", False, 0, ("regular", "paired", "irregular"), options=dict(_CHAIN),
              doc="two revolutes (tangent, then normal to it and the limb, offset along the limb), actuated prismatic, "
