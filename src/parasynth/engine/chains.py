@@ -322,18 +322,22 @@ if HAVE_NUMBA:  # pragma: no branch
         rz = r02 * wx + r12 * wy + r22 * wz - b * uz
         th2 = math.atan2((uy * rz - uz * ry) * a2x + (uz * rx - ux * rz) * a2y + (ux * ry - uy * rx) * a2z,
                          rx * ux + ry * uy + rz * uz)
-        # T = R1^T R, then M = R2^T T: the rows of M needed (0 and 1, 2) column by column
+        # T = R1^T R, then M = R2^T T: the entries of M needed (columns 0, 1 and 2 of T)
         s00, s01, s02, s10, s11, s12, s20, s21, s22 = _rotation(a2x, a2y, a2z, th2)
-        t = np.empty((3, 3))
-        for j in range(3):
-            t[0, j] = r00 * R[0, j] + r10 * R[1, j] + r20 * R[2, j]
-            t[1, j] = r01 * R[0, j] + r11 * R[1, j] + r21 * R[2, j]
-            t[2, j] = r02 * R[0, j] + r12 * R[1, j] + r22 * R[2, j]
-        m00 = s00 * t[0, 0] + s10 * t[1, 0] + s20 * t[2, 0]
-        m01 = s00 * t[0, 1] + s10 * t[1, 1] + s20 * t[2, 1]
-        m02 = s00 * t[0, 2] + s10 * t[1, 2] + s20 * t[2, 2]
-        m12 = s01 * t[0, 2] + s11 * t[1, 2] + s21 * t[2, 2]
-        m22 = s02 * t[0, 2] + s12 * t[1, 2] + s22 * t[2, 2]
+        t00 = r00 * R[0, 0] + r10 * R[1, 0] + r20 * R[2, 0]
+        t10 = r01 * R[0, 0] + r11 * R[1, 0] + r21 * R[2, 0]
+        t20 = r02 * R[0, 0] + r12 * R[1, 0] + r22 * R[2, 0]
+        t01 = r00 * R[0, 1] + r10 * R[1, 1] + r20 * R[2, 1]
+        t11 = r01 * R[0, 1] + r11 * R[1, 1] + r21 * R[2, 1]
+        t21 = r02 * R[0, 1] + r12 * R[1, 1] + r22 * R[2, 1]
+        t02 = r00 * R[0, 2] + r10 * R[1, 2] + r20 * R[2, 2]
+        t12 = r01 * R[0, 2] + r11 * R[1, 2] + r21 * R[2, 2]
+        t22 = r02 * R[0, 2] + r12 * R[1, 2] + r22 * R[2, 2]
+        m00 = s00 * t00 + s10 * t10 + s20 * t20
+        m01 = s00 * t01 + s10 * t11 + s20 * t21
+        m02 = s00 * t02 + s10 * t12 + s20 * t22
+        m12 = s01 * t02 + s11 * t12 + s21 * t22
+        m22 = s02 * t02 + s12 * t12 + s22 * t22
         q[0] = th1
         q[1] = th2
         q[2] = math.sqrt(rx * rx + ry * ry + rz * rz) - rho0
@@ -468,7 +472,6 @@ if HAVE_NUMBA:  # pragma: no branch
                          vpx * upx + vpy * upy + vpz * upz)
         # Rs = R Rot(n2, -q5) Rot(t, -q4): Rot(a, -x) is Rot(a, x) transposed
         s00, s01, s02, s10, s11, s12, s20, s21, s22 = _rotation(t0, t1, t2, q4)
-        m = np.empty((3, 3))
         # a = Rot(t, q4) Rot(n2, q5), so Rot(n2, -q5) Rot(t, -q4) = a^T
         a00 = s00 * r00 + s01 * r10 + s02 * r20
         a01 = s00 * r01 + s01 * r11 + s02 * r21
@@ -479,15 +482,15 @@ if HAVE_NUMBA:  # pragma: no branch
         a20 = s20 * r00 + s21 * r10 + s22 * r20
         a21 = s20 * r01 + s21 * r11 + s22 * r21
         a22 = s20 * r02 + s21 * r12 + s22 * r22
-        # Rs = R a^T
-        m[0, 0] = R[0, 0] * a00 + R[0, 1] * a01 + R[0, 2] * a02
-        m[0, 1] = R[0, 0] * a10 + R[0, 1] * a11 + R[0, 2] * a12
-        m[0, 2] = R[0, 0] * a20 + R[0, 1] * a21 + R[0, 2] * a22
-        m[1, 2] = R[1, 0] * a20 + R[1, 1] * a21 + R[1, 2] * a22
-        m[2, 2] = R[2, 0] * a20 + R[2, 1] * a21 + R[2, 2] * a22
-        q[0] = math.atan2(-m[1, 2], m[2, 2])
-        q[1] = math.atan2(m[0, 2], math.hypot(m[1, 2], m[2, 2]))
-        q[2] = math.atan2(-m[0, 1], m[0, 0])
+        # Rs = R a^T: the entries the x-y-z angles read
+        m00 = R[0, 0] * a00 + R[0, 1] * a01 + R[0, 2] * a02
+        m01 = R[0, 0] * a10 + R[0, 1] * a11 + R[0, 2] * a12
+        m02 = R[0, 0] * a20 + R[0, 1] * a21 + R[0, 2] * a22
+        m12 = R[1, 0] * a20 + R[1, 1] * a21 + R[1, 2] * a22
+        m22 = R[2, 0] * a20 + R[2, 1] * a21 + R[2, 2] * a22
+        q[0] = math.atan2(-m12, m22)
+        q[1] = math.atan2(m02, math.hypot(m12, m22))
+        q[2] = math.atan2(-m01, m00)
         q[3] = rho - cf[16]
         q[4] = q4
         q[5] = q5
