@@ -6,8 +6,9 @@ scale, the actuated freedom). One specialisation serves every chain limb: a new 
 new axes or a new design is new data, not a new compile.
 
 Per pose: from the home configuration (q = 0), or from the coordinates of the chain's closed form
-where it has one (``ChainLeg.chain_arrays()["closed"]``: ``_closed_form``, as
-``model.chains.closed_form_solve``), the anchor frame by the product of
+where it has one (``ChainLeg.chain_arrays()["closed"]``; ``_rrps_form``, ``_planar_form`` and
+``_spu_form``, as ``model.chains.closed_form_solve``; a pose without a solution in the home
+pose's working mode is out of reach, its residual infinite), the anchor frame by the product of
 exponentials, the error ``e = ((target - position) / L, log(R Rc^T))``, its largest component
 ``r``; while ``r >= IK_TOL`` (and finite), at most ``IK_ITERATIONS`` trials: the step
 ``(J^T J + mu I) dq = J^T e`` with ``mu = lam (1 + trace(J^T J) / n)`` (J: the joint twists at
@@ -302,7 +303,7 @@ if HAVE_NUMBA:  # pragma: no branch
         return f if f > 1.0 / 3.0 else 1.0 / 3.0
 
     @njit(**_jit)
-    def _closed_form(cf, tx, ty, tz, R, q):
+    def _rrps_form(cf, tx, ty, tz, R, q):
         """``q`` (6,): the closed form ``"RRP-S"`` (``model.chains.closed_form_solve``, one pose;
         ``cf`` its constants) reaching the anchor position (tx, ty, tz) with orientation ``R``."""
         Ax, Ay, Az = cf[1], cf[2], cf[3]
@@ -541,7 +542,7 @@ if HAVE_NUMBA:  # pragma: no branch
             closed = True  # False: no solution in the home pose's working mode (out of reach, not solved)
             if cf.shape[0] > 0 and finite:
                 if cf[0] == 1.0:
-                    _closed_form(cf, tx, ty, tz, R, q)
+                    _rrps_form(cf, tx, ty, tz, R, q)
                 elif cf[0] == 4.0:
                     closed = _spu_form(cf, tx, ty, tz, R, q)
                 else:

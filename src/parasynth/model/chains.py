@@ -143,30 +143,39 @@ def closed_form_constants(kinds, axes, points, home, L) -> np.ndarray:
     """The constants of the closed-form inverse kinematics of a chain given as data (per freedom
     its kind, 0 revolute or 1 prismatic, home axis and home point; the anchor at home; the length
     scale), or an empty array where its geometry has none (the numerical solve then works alone).
-
-    One form (code 1, ``"RRP-S"``): two revolutes, a slider and a spherical joint at the anchor
-    (its three freedoms about x, y, z through the anchor), the first revolute's axis ``a1``
-    through ``A``, the second's ``a2`` normal to it and to the slider's direction ``u``, and the
-    second revolute's centre and the anchor on the slider's line through ``A`` (the RRPS of the
-    vocabulary; an elbow offset breaks it). The anchor ``w = target - A`` is then
-    ``R1 (b u + rho R2 u)``: ``R1^T w`` is normal to ``a2``, which gives the first angle (two
-    solutions, ``pi`` apart: the one of the home pose), the second angle and ``rho`` (> 0, the
-    home pose's side) follow in the plane normal to ``a2``, and the spherical joint's angles are
-    the x-y-z angles of ``(R1 R2)^T R`` with the middle one within +-pi/2. Constants: the code, A,
-    a1, a2, a1 x a2, u, the sign that puts the home pose at the first angle 0, ``b`` (the second
-    centre's distance from A along u) and the anchor's home distance from the second centre."""
+    The constants start with the form's code (:data:`CLOSED_FORMS`): ``"RRP-S"``
+    (:func:`_rrps_constants`), ``"RR-UR"`` and ``"PR-UR"`` (:func:`_planar_constants`),
+    ``"SP-U"`` (:func:`_spu_constants`). Each form gives the solution in the working mode of the
+    home pose (:func:`closed_form_solve`)."""
     kinds = np.asarray(kinds)
     axes = np.asarray(axes, float)
     points = np.asarray(points, float)
     home = np.asarray(home, float)
-    tol = CLOSED_FORM_TOL
-    if kinds.shape == (5,):
-        return _planar_constants(kinds, axes, points, home, L)
-    if kinds.shape == (6,) and list(kinds) == [0, 0, 0, 1, 0, 0]:
+    pattern = tuple(int(k) for k in kinds)
+    if pattern == (0, 0, 1, 0, 0, 0):
+        return _rrps_constants(axes, points, home, L)
+    if pattern == (0, 0, 0, 1, 0, 0):
         return _spu_constants(axes, points, home, L)
-    if kinds.shape != (6,) or list(kinds) != [0, 0, 1, 0, 0, 0] or not _near(axes[3:], np.eye(3), tol):
-        return np.zeros(0)
-    if not _near(points[3:], home, tol * L):
+    if len(pattern) == 5:
+        return _planar_constants(kinds, axes, points, home, L)
+    return np.zeros(0)
+
+
+def _rrps_constants(axes, points, home, L) -> np.ndarray:
+    """The constants of the form ``"RRP-S"`` (code 1), or an empty array: two revolutes, a slider
+    and a spherical joint at the anchor (its three freedoms about x, y, z through the anchor), the
+    first revolute's axis ``a1`` through ``A``, the second's ``a2`` normal to it and to the
+    slider's direction ``u``, and the second revolute's centre and the anchor on the slider's line
+    through ``A`` (the RRPS of the vocabulary; an elbow offset breaks it). The anchor ``w = target
+    - A`` is then ``R1 (b u + rho R2 u)``: ``R1^T w`` is normal to ``a2``, which gives the first
+    angle (two solutions, ``pi`` apart: the one of the home pose), the second angle and ``rho``
+    (> 0, the home pose's side) follow in the plane normal to ``a2``, and the spherical joint's
+    angles are the x-y-z angles of ``(R1 R2)^T R`` with the middle one within +-pi/2. Constants:
+    the code, A, a1, a2, a1 x a2, u, the sign that puts the home pose at the first angle 0, ``b``
+    (the second centre's distance from A along u) and the anchor's home distance from the second
+    centre."""
+    tol = CLOSED_FORM_TOL
+    if not (_near(axes[3:], np.eye(3), tol) and _near(points[3:], home, tol * L)):
         return np.zeros(0)
     A, a1, B, a2, u = points[0], axes[0], points[1], axes[1], axes[2]
     c12 = cross(a1, a2)
@@ -334,10 +343,11 @@ def closed_form_solve(cf, target, R) -> np.ndarray:
     (:func:`closed_form_constants`) reaching the anchor positions ``target`` (N, 3) with the
     platform orientations ``R`` (N, 3, 3), in the working mode of the home pose; NaN rows where
     it has no solution there (the pose is out of the limb's reach in that mode)."""
-    if cf[0] == 4.0:
-        return _spu_solve(cf, target, R)
-    if cf[0] != 1.0:
-        return _planar_solve(cf, target, R)
+    return {1.0: _rrps_solve, 4.0: _spu_solve}.get(float(cf[0]), _planar_solve)(cf, target, R)
+
+
+def _rrps_solve(cf, target, R) -> np.ndarray:
+    """:func:`closed_form_solve` of the form ``"RRP-S"`` (N, 6): every finite pose has a solution."""
     A, a1, a2, c12, u = cf[1:4], cf[4:7], cf[7:10], cf[10:13], cf[13:16]
     k, b, rho0 = cf[16], cf[17], cf[18]
     w = np.asarray(target, float) - A
