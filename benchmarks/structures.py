@@ -151,7 +151,8 @@ def chain_cost(n: int = 4096):
     # a mechanism: feasibility per pose, 6-UPS (closed form, the kernels) against 6-SPU (chain limbs)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", EngineFallbackWarning)
-        found = parasynth.structures("3T3R", leg_types=["UPS", "SPU"], legs=[6])
+        # each limb type alone: together the 6-SPU is reported as the inverted 6-UPS, one structure
+        found = [s for t in ("UPS", "SPU") for s in parasynth.structures("3T3R", leg_types=[t], legs=[6])]
     mechs = {}
     for s in found:
         mechs.setdefault(s.name, s.mechanism())
