@@ -187,6 +187,16 @@ def _rrps_constants(axes, points, home, L) -> np.ndarray:
     return np.concatenate([[1.0], A, a1, a2, c12, u, [k, (B - A) @ u, (home - B) @ u]])
 
 
+def _free_arrays(free) -> tuple:
+    """A chain's freedoms ``(kind, home axis, home point)`` as arrays: kinds (n,) int64 (0
+    revolute, 1 prismatic), axes (n, 3), points (n, 3; zeros for a prismatic freedom)."""
+    n = len(free)
+    kinds = np.array([1 if k == "P" else 0 for k, _, _ in free], dtype=np.int64)
+    axes = np.array([a for _, a, _ in free], dtype=float).reshape(n, 3)
+    points = np.array([np.zeros(3) if c is None else c for _, _, c in free], dtype=float).reshape(n, 3)
+    return kinds, axes, points
+
+
 def _near(a, b, tol: float) -> bool:
     """Whether ``a`` and ``b`` differ by at most ``tol`` in every entry (``np.allclose`` with
     ``rtol=0`` for the few entries of a limb's geometry, a tenth of its time)."""
@@ -770,9 +780,8 @@ class ChainLeg(Leg):
         object.__setattr__(self, "_home", A0)
         object.__setattr__(self, "_L", L)
         object.__setattr__(self, "_cones", _cone_links(spec, centres, joint_of, self.base, A0, L))
-        object.__setattr__(self, "_closed", closed_form_constants(
-            [1 if kind == "P" else 0 for kind, _, _ in free], [a for _, a, _ in free],
-            [np.zeros(3) if c is None else c for _, _, c in free], A0, L) if self.closed else np.zeros(0))
+        object.__setattr__(self, "_closed", closed_form_constants(*_free_arrays(free), A0, L) if self.closed
+                           else np.zeros(0))
         # the closure directions: the left null space of the scaled joint twists at home (the
         # constraint wrenches' directions there), onto which the closure residual is projected
         pos, _, ax0, pt0 = self.forward(np.zeros((1, len(free))))
@@ -814,10 +823,7 @@ class ChainLeg(Leg):
         position residual), ``actuated`` (the actuated freedom, -1 for none), ``act_home``,
         ``joint_of`` (n,) the joint of each freedom and ``closed`` the constants of its closed
         form (:func:`closed_form_constants`; empty: none)."""
-        n = len(self._free)
-        kinds = np.array([1 if k == "P" else 0 for k, _, _ in self._free], dtype=np.int64)
-        axes = np.array([a for _, a, _ in self._free], dtype=float).reshape(n, 3)
-        points = np.array([np.zeros(3) if c is None else c for _, _, c in self._free], dtype=float).reshape(n, 3)
+        kinds, axes, points = _free_arrays(self._free)
         return {"kinds": kinds, "axes": axes, "points": points, "home": np.array(self._home, float),
                 "platform": np.array(self.platform, float), "length": float(self._L),
                 "actuated": -1 if self._act is None else int(self._act), "act_home": float(self._act_home),
