@@ -793,3 +793,40 @@ def test_the_compiled_closed_form_agrees_with_the_reference_and_with_the_numeric
     ok = (num["residual"] < 1e3 * IK_TOL) & reach
     assert ok.sum() >= 0.9 * reach.sum() and num["residual"][ok].max() > 1e-13
     np.testing.assert_allclose(num["q"][ok], out["q"][ok], rtol=0, atol=1e-6)
+
+
+@pytest.mark.parametrize("limb", [chain_class("RP*S"), chain_class("P*RS"), chain_class("UP*U"), chain_class("P*UU"),
+                                  RPUR, RRUR, RRPS, SPU, chain_class("RP*U")],
+                         ids=["RP*S", "P*RS", "UP*U", "P*UU", "RPUR", "RRUR", "RRPS", "SPU", "RP*U"])
+def test_the_compiled_rows_of_a_chain_limb_are_the_reference_wrenches(limb):
+    """The per-pose rows of a chain limb (``indices._chain_ext``: the constraint wrenches, the
+    actuation wrench and its rate) at 300 poses of the limb's own motion (the forward kinematics
+    of random joint coordinates) equal the NumPy reference's (``ChainLeg.constraint_wrenches``,
+    ``actuation_wrench``, by NumPy's SVD and QR) to 1e-9: one constraint force (RP*S, P*RS,
+    UP*U, P*UU) or couple (RPUR, RRUR) -- the compiled null vector by Householder, up to its
+    sign --, none (RRPS, SPU), two (RP*U: by Jacobi, the same span)."""
+    from parasynth.engine import indices
+
+    leg = limb("L", base=BASE, platform=PLAT)
+    rng = np.random.default_rng(3)
+    q = rng.uniform(-0.3, 0.3, (300, len(leg.chain_arrays()["kinds"])))
+    pos, R, _, _ = leg.forward(q)
+    p = pos - np.einsum("nij,j->ni", R, leg.platform)
+    ext = indices._chain_ext([leg], indices._legs_plan([leg]), p, R)
+    st = _chains().solve(leg, p, R)
+    assert st.reachable.all() and (ext[:, 0] == 1.0).all()  # every pose of the motion reached
+    k = leg.n_closure
+    W = leg.constraint_wrenches(st, p)
+    Wg = ext[:, indices._EXT_C:indices._EXT_C + 6 * k].reshape(len(p), k, 6)
+    assert W.shape == Wg.shape
+    if k == 1:
+        force = np.linalg.norm(W[:, 0, :3], axis=1) > 0.5
+        assert force.all() == (leg.constraint_rows == ("length",)) and force.any() == force.all()
+        sign = np.sign(np.einsum("ni,ni->n", W[:, 0], Wg[:, 0]))
+        np.testing.assert_allclose(Wg[:, 0], sign[:, None] * W[:, 0], rtol=0, atol=1e-9)
+    else:
+        for a, b in zip(W, Wg):
+            np.testing.assert_allclose(_span(b), _span(a), rtol=0, atol=1e-9)
+    wa, rate = leg.actuation_wrench(st, p)
+    np.testing.assert_allclose(ext[:, indices._EXT_A:indices._EXT_A + 6], wa, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(ext[:, indices._EXT_S], rate, rtol=0, atol=1e-9)

@@ -370,6 +370,53 @@ if HAVE_NUMBA:
                         [0, 4], [3, 5], [1, 2], [0, 5], [1, 4], [2, 3]], dtype=np.int64)
 
     @njit(**_jit)
+    def _null_of_five(M, hv, beta, q):
+        """A unit vector ``q`` (6,) orthogonal to the five rows of ``M`` (5, 6; overwritten): the
+        last column of the complete Householder QR factorisation of ``M^T`` (``hv`` (5, 6),
+        ``beta`` (5,): the reflections' vectors and ``2 / |v|^2``, scratch). Where ``M`` has rank
+        five it spans the null space, as the right singular vector of the zero singular value
+        does, up to sign (neither sign is meaningful); five reflections, no sweeps
+        (:func:`parasynth.model.spatial.null_direction` is the same on NumPy)."""
+        for k in range(5):
+            nrm = 0.0
+            for i in range(k, 6):
+                nrm += M[k, i] * M[k, i]
+            nrm = math.sqrt(nrm)
+            if nrm == 0.0:
+                beta[k] = 0.0
+                continue
+            alpha = -nrm if M[k, k] >= 0.0 else nrm
+            for i in range(k, 6):
+                hv[k, i] = M[k, i]
+            hv[k, k] -= alpha
+            vn = 0.0
+            for i in range(k, 6):
+                vn += hv[k, i] * hv[k, i]
+            if vn == 0.0:
+                beta[k] = 0.0
+                continue
+            beta[k] = 2.0 / vn
+            for jj in range(k + 1, 5):
+                d = 0.0
+                for i in range(k, 6):
+                    d += hv[k, i] * M[jj, i]
+                d *= beta[k]
+                for i in range(k, 6):
+                    M[jj, i] -= d * hv[k, i]
+        for i in range(6):
+            q[i] = 0.0
+        q[5] = 1.0
+        for k in range(4, -1, -1):
+            if beta[k] == 0.0:
+                continue
+            d = 0.0
+            for i in range(k, 6):
+                d += hv[k, i] * q[i]
+            d *= beta[k]
+            for i in range(k, 6):
+                q[i] -= d * hv[k, i]
+
+    @njit(**_jit)
     def _jacobi_sv(Mt, m, n, Vt, want_v, sv):
         """One-sided Jacobi (Hestenes) SVD of the m x n matrix whose columns are stored as the
         rows ``Mt[j, :m]`` (overwritten: column j becomes ``sigma_j u_j``). ``sv[:n]`` receives
@@ -540,50 +587,11 @@ if HAVE_NUMBA:
         """Null direction of the 5 scaled twists (rows of ``Tw`` (5, 6)) by Householder QR of
         Tw^T; written to ``w`` (6,) as a wrench in SI (moment scaled back by ``Lu``), then
         made a unit force or, when its force vanishes, a unit couple."""
-        X = np.empty((6, 5))
-        for i in range(6):
-            for k in range(5):
-                X[i, k] = Tw[k, i]
-        vs = np.zeros((5, 6))
-        beta = np.zeros(5)
+        M = np.empty((5, 6))
         for k in range(5):
-            nrm = 0.0
-            for i in range(k, 6):
-                nrm += X[i, k] * X[i, k]
-            nrm = math.sqrt(nrm)
-            if nrm == 0.0:
-                beta[k] = 0.0
-                continue
-            alpha = -nrm if X[k, k] >= 0.0 else nrm
-            for i in range(k, 6):
-                vs[k, i] = X[i, k]
-            vs[k, k] -= alpha
-            vn = 0.0
-            for i in range(k, 6):
-                vn += vs[k, i] * vs[k, i]
-            if vn == 0.0:
-                beta[k] = 0.0
-                continue
-            beta[k] = 2.0 / vn
-            for jj in range(k, 5):
-                d = 0.0
-                for i in range(k, 6):
-                    d += vs[k, i] * X[i, jj]
-                d *= beta[k]
-                for i in range(k, 6):
-                    X[i, jj] -= d * vs[k, i]
-        for i in range(6):
-            w[i] = 0.0
-        w[5] = 1.0
-        for k in range(4, -1, -1):
-            if beta[k] == 0.0:
-                continue
-            d = 0.0
-            for i in range(k, 6):
-                d += vs[k, i] * w[i]
-            d *= beta[k]
-            for i in range(k, 6):
-                w[i] -= d * vs[k, i]
+            for i in range(6):
+                M[k, i] = Tw[k, i]
+        _null_of_five(M, np.empty((5, 6)), np.empty(5), w)
         for i in range(3, 6):
             w[i] *= Lu
         fn = math.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
@@ -919,11 +927,14 @@ if HAVE_NUMBA:
         solved configuration (``engine.chains.solve_arrays``: axes ``AXW``, points ``PTW``,
         anchor ``POS``, residual ``res``, reachable below ``tol``), as the NumPy reference
         (``ChainLeg.joint_twists``, ``constraint_wrenches``, ``actuation_wrench``): the joint
-        twists about ``p``; the ``nc`` constraint wrenches, the right singular vectors of the
-        smallest singular values of the twists with moments scaled by the limb's length ``Ll``
-        (one-sided Jacobi), a unit force or (when the force vanishes) a unit couple; the unit
-        actuation wrench reciprocal to the passive twists, out of the span of the constraint
-        wrenches, its power on the actuated twist (``rate``) made positive; the direction from
+        twists about ``p``; the ``nc`` constraint wrenches, the null space of the twists with
+        moments scaled by the limb's length ``Ll`` (one wrench: the null vector of the five
+        twists by Householder, :func:`_null_of_five`; more: the right singular vectors of the
+        smallest singular values, one-sided Jacobi), each a unit force or (when the force
+        vanishes) a unit couple; the unit actuation wrench reciprocal to the passive twists, out
+        of the span of the constraint wrenches (where those are five rows, their null vector;
+        else the null space of the passive twists by Jacobi, the constraint span projected out),
+        its power on the actuated twist (``rate``) made positive; the direction from
         the first rotational joint centre (``first``, or ``base``) to the anchor. Poses ``i0 ..
         i1 - 1``, each on its own (ranges of poses are spread over threads)."""
         n = kinds.shape[0]
@@ -936,6 +947,10 @@ if HAVE_NUMBA:
         ns = np.empty((6, 6))
         order = np.empty(6, np.int64)
         w0 = np.empty(6)
+        M5 = np.empty((5, 6))
+        hv = np.empty((5, 6))
+        hb = np.empty(5)
+        nv = np.empty(6)
         for i in range(i0, i1):
             ok = res[i] < tol
             ext[i, off] = 1.0 if ok else 0.0
@@ -961,8 +976,18 @@ if HAVE_NUMBA:
             d0, d1, d2 = _unit3(POS[i, 0] - bx, POS[i, 1] - by, POS[i, 2] - bz)
             ext[i, off + _EXT_D], ext[i, off + _EXT_D + 1], ext[i, off + _EXT_D + 2] = d0, d1, d2
             # constraint wrenches: null space of the scaled twists (columns: the six coordinates);
-            # a limb without any (six freedoms) skips the decomposition, whose results only they read
-            if nc > 0:
+            # a limb without any (six freedoms) skips the decomposition, whose results only they read.
+            # One (five freedoms): the null vector of the five scaled twists by Householder; more
+            # (a basis of a larger null space, which any rotation of it spans too): the right
+            # singular vectors of the smallest singular values, as the NumPy reference picks them
+            if nc == 1 and n == 5:
+                for m in range(5):
+                    for q in range(6):
+                        M5[m, q] = T[m, q] * Ll if q >= 3 else T[m, q]
+                _null_of_five(M5, hv, hb, nv)
+                for q in range(6):
+                    W[0, q] = nv[q] * Ll if q >= 3 else nv[q]
+            elif nc > 0:
                 for m in range(n):
                     for q in range(6):
                         Mt[q, m] = T[m, q] * Ll if q >= 3 else T[m, q]
@@ -977,10 +1002,11 @@ if HAVE_NUMBA:
                         order[b] = order[b - 1]
                         order[b - 1] = tmp
                         b -= 1
+                for r in range(nc):
+                    q0 = order[r]
+                    for q in range(6):
+                        W[r, q] = V[q0, q] * Ll if q >= 3 else V[q0, q]
             for r in range(nc):
-                q0 = order[r]
-                for q in range(6):
-                    W[r, q] = V[q0, q] * Ll if q >= 3 else V[q0, q]
                 f = math.sqrt(W[r, 0] ** 2 + W[r, 1] ** 2 + W[r, 2] ** 2)
                 mm = math.sqrt(W[r, 3] ** 2 + W[r, 4] ** 2 + W[r, 5] ** 2)
                 couple = f <= 1e-9 * max(mm / Ll, 1e-300)
@@ -994,26 +1020,6 @@ if HAVE_NUMBA:
                 for q in range(7):
                     ext[i, off + _EXT_A + q] = np.nan
                 continue
-            # actuation wrench: reciprocal to the passive twists (scaled), less the constraint span
-            npas = n - 1
-            c = 0
-            for m in range(n):
-                if m == act:
-                    continue
-                for q in range(6):
-                    Mt[q, c] = T[m, q] * Ll if q >= 3 else T[m, q]
-                c += 1
-            if npas > 0:
-                _jacobi_sv(Mt, npas, np.int64(6), V, np.int64(1), sv)
-                smax = 0.0
-                for q in range(6):
-                    smax = max(smax, sv[q])
-            else:
-                for a in range(6):
-                    sv[a] = 0.0
-                    for q in range(6):
-                        V[a, q] = 1.0 if a == q else 0.0
-                smax = 0.0
             # orthonormal basis of the constraint wrenches, scaled as the twists' dual (Gram-Schmidt)
             nq = 0
             for r in range(nc):
@@ -1033,33 +1039,72 @@ if HAVE_NUMBA:
                     for q in range(6):
                         Qc[nq, q] /= nrm
                     nq += 1
-            best = -1
-            bestn = -1.0
-            nn = 0
-            for a in range(6):
-                if sv[a] > 1e-9 * max(smax, 1e-300):
+            # actuation wrench: reciprocal to the passive twists (scaled), less the constraint span
+            npas = n - 1
+            if npas + nq == 5:
+                # five rows, the passive twists and the constraint basis: their null vector (Householder)
+                c = 0
+                for m in range(n):
+                    if m == act:
+                        continue
+                    for q in range(6):
+                        M5[c, q] = T[m, q] * Ll if q >= 3 else T[m, q]
+                    c += 1
+                for r in range(nq):
+                    for q in range(6):
+                        M5[c, q] = Qc[r, q]
+                    c += 1
+                _null_of_five(M5, hv, hb, nv)
+                for q in range(6):
+                    w0[q] = nv[q] * Ll if q >= 3 else nv[q]
+            else:
+                # the null space of the passive twists (Jacobi), less the constraint span: its
+                # longest remaining vector
+                c = 0
+                for m in range(n):
+                    if m == act:
+                        continue
+                    for q in range(6):
+                        Mt[q, c] = T[m, q] * Ll if q >= 3 else T[m, q]
+                    c += 1
+                if npas > 0:
+                    _jacobi_sv(Mt, npas, np.int64(6), V, np.int64(1), sv)
+                    smax = 0.0
+                    for q in range(6):
+                        smax = max(smax, sv[q])
+                else:
+                    for a in range(6):
+                        sv[a] = 0.0
+                        for q in range(6):
+                            V[a, q] = 1.0 if a == q else 0.0
+                    smax = 0.0
+                best = -1
+                bestn = -1.0
+                nn = 0
+                for a in range(6):
+                    if sv[a] > 1e-9 * max(smax, 1e-300):
+                        continue
+                    for q in range(6):
+                        ns[nn, q] = V[a, q]
+                    for r2 in range(nq):
+                        dd = 0.0
+                        for q in range(6):
+                            dd += ns[nn, q] * Qc[r2, q]
+                        for q in range(6):
+                            ns[nn, q] -= dd * Qc[r2, q]
+                    nrm = 0.0
+                    for q in range(6):
+                        nrm += ns[nn, q] * ns[nn, q]
+                    if nrm > bestn:
+                        bestn = nrm
+                        best = nn
+                    nn += 1
+                if best < 0:
+                    for q in range(7):
+                        ext[i, off + _EXT_A + q] = np.nan
                     continue
                 for q in range(6):
-                    ns[nn, q] = V[a, q]
-                for r2 in range(nq):
-                    dd = 0.0
-                    for q in range(6):
-                        dd += ns[nn, q] * Qc[r2, q]
-                    for q in range(6):
-                        ns[nn, q] -= dd * Qc[r2, q]
-                nrm = 0.0
-                for q in range(6):
-                    nrm += ns[nn, q] * ns[nn, q]
-                if nrm > bestn:
-                    bestn = nrm
-                    best = nn
-                nn += 1
-            if best < 0:
-                for q in range(7):
-                    ext[i, off + _EXT_A + q] = np.nan
-                continue
-            for q in range(6):
-                w0[q] = ns[best, q] * Ll if q >= 3 else ns[best, q]
+                    w0[q] = ns[best, q] * Ll if q >= 3 else ns[best, q]
             f = math.sqrt(w0[0] ** 2 + w0[1] ** 2 + w0[2] ** 2)
             mm = math.sqrt(w0[3] ** 2 + w0[4] ** 2 + w0[5] ** 2)
             nrm = f if f > 1e-9 * mm / Ll else mm
