@@ -31,6 +31,8 @@ RPUR_AXES = ("x", "limb", "parallel:prev", "normal:prev&normal:limb", "parallel:
     ("RP*UR", {"axes": ["x", "limb", "prev", "parallel:prev", "prev"]}, ["axes[3]", "second axis is normal"]),
     ("RP*UR", {"axes": ["x", "limb", "prev", "normal:prev&parallel:limb", "prev"]},
      ["axes[3]", "contradict each other here"]),
+    ("RP*UR", {"axes": ["x", "limb", "prev", "normal:prev", "parallel:x&parallel:limb"]},
+     ["axes[4]", "contradict each other here", "parallel to 'limb'"]),
     ("RP*UR", {"axes": ["sideways", "limb", "prev", "normal:prev", "prev"]}, ["unknown reference 'sideways'", "allowed"]),
     ("RP*UR", {"axes": ["along:x", "limb", "prev", "normal:prev", "prev"]}, ["unknown relation 'along'", "parallel, normal"]),
     ("RP*UR", {"axes": ["prev", "limb", "prev", "normal:prev", "prev"]}, ["axes[0]", "no rotational axis comes before"]),
