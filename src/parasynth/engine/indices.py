@@ -369,6 +369,21 @@ if HAVE_NUMBA:
     _PAIRS6 = np.array([[0, 1], [2, 5], [3, 4], [0, 2], [1, 3], [4, 5], [0, 3], [2, 4], [1, 5],
                         [0, 4], [3, 5], [1, 2], [0, 5], [1, 4], [2, 3]], dtype=np.int64)
 
+    @njit(**_jit_inline)
+    def _less_span(X, k, Qc, nq):
+        """Row ``k`` of ``X`` less its components along the first ``nq`` rows of ``Qc``
+        (orthonormal), in place (Gram-Schmidt); returns the squared length left."""
+        for r2 in range(nq):
+            dd = 0.0
+            for q in range(6):
+                dd += X[k, q] * Qc[r2, q]
+            for q in range(6):
+                X[k, q] -= dd * Qc[r2, q]
+        nrm = 0.0
+        for q in range(6):
+            nrm += X[k, q] * X[k, q]
+        return nrm
+
     @njit(**_jit)
     def _null_of_five(M, hv, beta, q):
         """A unit vector ``q`` (6,) orthogonal to the five rows of ``M`` (5, 6; overwritten): the
@@ -508,6 +523,23 @@ if HAVE_NUMBA:
                 a += Mt[j, k] * Mt[j, k]
             sv[j] = math.sqrt(a)
         return sweeps
+
+    @njit(**_jit)
+    def _sv_or_none(Mt, m, V, sv):
+        """:func:`_jacobi_sv` of the ``m`` columns of ``Mt`` (6 rows) with its right singular
+        vectors ``V``; with no column, zero singular values and the unit vectors. Returns the
+        largest singular value."""
+        if m > 0:
+            _jacobi_sv(Mt, m, np.int64(6), V, np.int64(1), sv)
+        else:
+            for a in range(6):
+                sv[a] = 0.0
+                for q in range(6):
+                    V[a, q] = 1.0 if a == q else 0.0
+        smax = 0.0
+        for q in range(6):
+            smax = max(smax, sv[q])
+        return smax
 
     @njit(**_jit)
     def _jacobi_sv6(Mt, n, sv):
@@ -947,7 +979,7 @@ if HAVE_NUMBA:
         ns = np.empty((6, 6))
         order = np.empty(6, np.int64)
         w0 = np.empty(6)
-        M5 = np.empty((5, 6))
+        M5 = np.empty((max(n, 5), 6))
         hv = np.empty((5, 6))
         hb = np.empty(5)
         nv = np.empty(6)
@@ -1025,59 +1057,35 @@ if HAVE_NUMBA:
             for r in range(nc):
                 for q in range(6):
                     Qc[nq, q] = W[r, q] / Ll if q >= 3 else W[r, q]
-                for r2 in range(nq):
-                    dd = 0.0
-                    for q in range(6):
-                        dd += Qc[nq, q] * Qc[r2, q]
-                    for q in range(6):
-                        Qc[nq, q] -= dd * Qc[r2, q]
-                nrm = 0.0
-                for q in range(6):
-                    nrm += Qc[nq, q] * Qc[nq, q]
-                nrm = math.sqrt(nrm)
+                nrm = math.sqrt(_less_span(Qc, nq, Qc, nq))
                 if nrm > 1e-12:
                     for q in range(6):
                         Qc[nq, q] /= nrm
                     nq += 1
             # actuation wrench: reciprocal to the passive twists (scaled), less the constraint span
             npas = n - 1
+            c = 0
+            for m in range(n):  # the passive twists, scaled, as rows
+                if m == act:
+                    continue
+                for q in range(6):
+                    M5[c, q] = T[m, q] * Ll if q >= 3 else T[m, q]
+                c += 1
             if npas + nq == 5:
                 # five rows, the passive twists and the constraint basis: their null vector (Householder)
-                c = 0
-                for m in range(n):
-                    if m == act:
-                        continue
-                    for q in range(6):
-                        M5[c, q] = T[m, q] * Ll if q >= 3 else T[m, q]
-                    c += 1
                 for r in range(nq):
                     for q in range(6):
-                        M5[c, q] = Qc[r, q]
-                    c += 1
+                        M5[npas + r, q] = Qc[r, q]
                 _null_of_five(M5, hv, hb, nv)
                 for q in range(6):
                     w0[q] = nv[q] * Ll if q >= 3 else nv[q]
             else:
                 # the null space of the passive twists (Jacobi), less the constraint span: its
                 # longest remaining vector
-                c = 0
-                for m in range(n):
-                    if m == act:
-                        continue
+                for c in range(npas):
                     for q in range(6):
-                        Mt[q, c] = T[m, q] * Ll if q >= 3 else T[m, q]
-                    c += 1
-                if npas > 0:
-                    _jacobi_sv(Mt, npas, np.int64(6), V, np.int64(1), sv)
-                    smax = 0.0
-                    for q in range(6):
-                        smax = max(smax, sv[q])
-                else:
-                    for a in range(6):
-                        sv[a] = 0.0
-                        for q in range(6):
-                            V[a, q] = 1.0 if a == q else 0.0
-                    smax = 0.0
+                        Mt[q, c] = M5[c, q]
+                smax = _sv_or_none(Mt, npas, V, sv)
                 best = -1
                 bestn = -1.0
                 nn = 0
@@ -1086,15 +1094,7 @@ if HAVE_NUMBA:
                         continue
                     for q in range(6):
                         ns[nn, q] = V[a, q]
-                    for r2 in range(nq):
-                        dd = 0.0
-                        for q in range(6):
-                            dd += ns[nn, q] * Qc[r2, q]
-                        for q in range(6):
-                            ns[nn, q] -= dd * Qc[r2, q]
-                    nrm = 0.0
-                    for q in range(6):
-                        nrm += ns[nn, q] * ns[nn, q]
+                    nrm = _less_span(ns, nn, Qc, nq)
                     if nrm > bestn:
                         bestn = nrm
                         best = nn
@@ -1303,16 +1303,7 @@ if HAVE_NUMBA:
                         for q in range(6):
                             O[q, row] = C[r, q]
                         row += 1
-                    if m > 0:
-                        _jacobi_sv(O, m, np.int64(6), V, np.int64(1), sv)
-                    else:
-                        for q in range(6):
-                            sv[q] = 0.0
-                            for q2 in range(6):
-                                V[q, q2] = 1.0 if q == q2 else 0.0
-                    smax = 0.0
-                    for q in range(6):
-                        smax = max(smax, sv[q])
+                    smax = _sv_or_none(O, m, V, sv)
                     thr = rtol * max(smax, 1e-300)
                     d = 0
                     for q in range(6):
