@@ -189,3 +189,31 @@ def test_offsets_are_kept_in_the_spec():
     s = parse_chain("R*RUR", offsets=[0.0, 0.3, 0.0, 0.0])
     assert s.offsets == (0.0, 0.3, 0.0, 0.0) and s.name == "R*RUR"
     assert parse_chain("R*RUR", offsets=[0, 0, 0, 0]).offsets is None
+
+
+@pytest.mark.parametrize("spec", ["RP*S", "P*RS", "UP*U", "RP*UR", "R*RUR", "RP*U", "UP*S"])
+def test_closure_directions_are_the_left_null_space_of_the_home_twists(spec):
+    """A chain limb's closure directions (onto which its closure residual is projected) span the
+    wrenches reciprocal to its joint twists at home, taken about the home anchor with their
+    linear parts over the limb's length -- the twists computed here from the forward kinematics
+    at q = 0 -- and there are 6 minus their rank of them (a constraint force, RP*S, P*RS, UP*U:
+    its direction depends on the reference point; a couple, RP*UR, R*RUR; two, RP*U; none,
+    UP*S)."""
+    from parasynth.model.chains import chain_class
+
+    leg = chain_class(spec)("L", base=[0.3 * math.cos(0.4), 0.3 * math.sin(0.4), 0.02],
+                            platform=[0.15 * math.cos(0.5), 0.15 * math.sin(0.5), 0.0], home_height=0.37)
+    n = len(leg.chain_arrays()["kinds"])
+    pos, _, axes, points = leg.forward(np.zeros((1, n)))
+    T = np.zeros((6, n))
+    for m, (a, c) in enumerate(zip(axes, points)):
+        if c is None:
+            T[:3, m] = a[0]
+        else:
+            T[:3, m] = np.cross(a[0], pos[0] - c[0])
+            T[3:, m] = a[0]
+    T[:3] /= np.linalg.norm(pos[0] - leg.base)  # lengths over the limb's home length
+    U = leg._closure_dirs
+    assert U.shape == (6, 6 - np.linalg.matrix_rank(T, tol=1e-9))
+    np.testing.assert_allclose(U.T @ T, 0.0, atol=1e-12)
+    np.testing.assert_allclose(U.T @ U, np.eye(U.shape[1]), atol=1e-12)

@@ -804,9 +804,10 @@ class ChainLeg(Leg):
         object.__setattr__(self, "_closed", closed_form_constants(*_free_arrays(free), A0, L) if self.closed
                            else np.zeros(0))
         # the closure directions: the left null space of the scaled joint twists at home (the
-        # constraint wrenches' directions there), onto which the closure residual is projected
-        pos, _, ax0, pt0 = self.forward(np.zeros((1, len(free))))
-        J = self._twists_at(ax0, pt0, pos)[0].T.copy()
+        # constraint wrenches' directions there), onto which the closure residual is projected;
+        # the twists from the home axes and points (those of forward(q = 0), the same numbers)
+        J = self._twists_at([a[None] for _, a, _ in free], [None if c is None else c[None] for _, _, c in free],
+                            A0[None])[0].T.copy()
         J[:3] /= L
         U, sv, _ = np.linalg.svd(J)
         rank = int(np.sum(sv > 1e-9 * max(sv[0], 1e-300))) if len(sv) else 0
