@@ -31,6 +31,13 @@ if "PARASYNTH_CACHE_DIR" not in os.environ:
     _SESSION_CACHE = os.environ["PARASYNTH_CACHE_DIR"] = tempfile.mkdtemp(prefix="parasynth-test-cache-")
 
 
+# The generated pose loops (parasynth.engine.posefn) are compiled by a helper process per
+# program once a run has seen it; across the suite's hundreds of descriptions those helpers would
+# compete with the tests for the cores. The suite runs the interpreter unless a test asks for the
+# loops (tests/engine/test_pose_loops.py compiles them in its process and compares them with it).
+os.environ.setdefault("PARASYNTH_POSE_LOOPS", "0")
+
+
 def pytest_unconfigure(config):
     if _SESSION_CACHE is not None and not os.environ.get("PYTEST_XDIST_WORKER"):
         shutil.rmtree(_SESSION_CACHE, ignore_errors=True)

@@ -74,6 +74,8 @@ try:  # pragma: no cover - depends on the environment
     from numba import njit
     from numba import types as _nbt
 
+    from . import posefn as _posefn
+
     HAVE_NUMBA = True
 except Exception:  # ImportError, or a broken numba/llvmlite install
     HAVE_NUMBA = False
@@ -535,7 +537,7 @@ class KernelPlan:
         p = self.program
         t = self.tables
         return (p.ins, self.consts, p.const_base, p.n_reg, p.n_pose, p.pose_regs, p.valid_regs, p.pose_limit,
-                self.expr, GEOM_TOL,
+                _posefn.function(p, SUB), self.expr, GEOM_TOL,
                 self.leg_kind, self.leg_act, self.leg_f, t["coord"], t["actr"], t["lenr"], t["cone"], t["rang"],
                 t["axang"], t["pair"], t["offs"])
 
@@ -982,7 +984,8 @@ def run_unknowns(prog: Program, consts, X: np.ndarray):
     tr = np.zeros((0, 0), dtype=np.int64)
     Tw = np.empty((0, 0, 0))
     _timed_blocks("pose", lambda block, b0, b1: _pose_kernel(X, prog.ins, consts, prog.const_base, prog.n_reg,
-                                                             prog.n_pose, regs, prog.valid_regs, prog.pose_limit, tr,
+                                                             prog.n_pose, regs, prog.valid_regs, prog.pose_limit,
+                                                             _posefn.function(prog, SUB), tr,
                                                              block, ok, P, Rm, Tw, b0, b1), N, program_work(N, prog.n_pose))
     return ok, np.concatenate([P, Rm], axis=1)[:, :m].copy()
 
@@ -1003,7 +1006,8 @@ def run_pose(prog: Program, consts, X: np.ndarray, twist: bool = False):
         Tw = np.empty((0, 0, 0))
         n_run = prog.n_pose
     _timed_blocks("pose", lambda block, b0, b1: _pose_kernel(X, prog.ins, consts, prog.const_base, prog.n_reg, n_run,
-                                                             prog.pose_regs, prog.valid_regs, prog.pose_limit, tr,
+                                                             prog.pose_regs, prog.valid_regs, prog.pose_limit,
+                                                             _posefn.function(prog, SUB), tr,
                                                              block, ok, P, Rm, Tw, b0, b1), N,
                   program_work(N, prog.ins.shape[0] if twist else prog.n_pose))
     return ok, P, Rm.reshape(N, 3, 3), (Tw if twist else None)
@@ -1037,6 +1041,18 @@ if HAVE_NUMBA:
             ary = context.make_array(aryty)(context, builder, args[0])
             ptr = _cgutils.get_item_pointer(context, builder, aryty, ary, [args[1]])
             return builder.load_atomic(ptr, "acquire", align=8)
+
+        return sig, codegen
+
+    @_intrinsic
+    def _data(typingctx, arr):
+        """The data pointer of a C-contiguous array (what a generated pose loop is given: the
+        array itself would be stored to memory for the call, and every access to it after
+        reloaded from there)."""
+        sig = _nbt.CPointer(arr.dtype)(arr)
+
+        def codegen(context, builder, signature, args):
+            return context.make_array(signature.args[0])(context, builder, args[0]).data
 
         return sig, codegen
 
@@ -1270,39 +1286,11 @@ if HAVE_NUMBA:
             r |= m[ii] != 0
         return r
 
-    # Vectorisable sin/cos (Cephes sin.c: reduction by pi/4 in three parts, degree-6
-    # polynomials; absolute error <= ~2.2e-16, i.e. within an ulp or two of libm) for the
-    # SIMD pose stage; arguments beyond 1e6 rad are recomputed with libm.
-    _FOPI = 1.27323954473516268615
-    _DP1 = 7.85398125648498535156e-1
-    _DP2 = 3.77489470793079817668e-8
-    _DP3 = 2.69515142907905952645e-15
-    _S0, _S1, _S2, _S3, _S4, _S5 = (1.58962301576546568060e-10, -2.50507477628578072866e-8,
-                                    2.75573136213857245213e-6, -1.98412698295895385996e-4,
-                                    8.33333333332211858878e-3, -1.66666666666666307295e-1)
-    _C0, _C1, _C2, _C3, _C4, _C5 = (-1.13585365213876817300e-11, 2.08757008419747316778e-9,
-                                    -2.75573141792967388112e-7, 2.48015872888517045348e-5,
-                                    -1.38888888888730564116e-3, 4.16666666666665929218e-2)
-    _BIG_ANGLE = 1e6
-    _DBL_MAX = float(np.finfo(np.float64).max)  # the pose limit of inf, as a finite bound
+    # the vectorisable sin/cos (Cephes) of the pose stage, in a module of its own: the generated
+    # pose loops (parasynth.engine.posefn) embed its source
+    from .sincos import _BIG_ANGLE, _sincos
 
-    @njit(**_jit_ir_inline)
-    def _sincos(x):
-        # np.floor (float result): math.floor returns an integer, which keeps the loop scalar
-        ax = abs(x)
-        y = np.floor(ax * _FOPI)
-        y = y + (y - 2.0 * np.floor(y * 0.5))  # next even octant
-        j = y - 8.0 * np.floor(y * 0.125)  # octant mod 8: 0, 2, 4 or 6
-        z = ((ax - y * _DP1) - y * _DP2) - y * _DP3
-        zz = z * z
-        ps = z + z * zz * (((((_S0 * zz + _S1) * zz + _S2) * zz + _S3) * zz + _S4) * zz + _S5)
-        pc = 1.0 - 0.5 * zz + zz * zz * (((((_C0 * zz + _C1) * zz + _C2) * zz + _C3) * zz + _C4) * zz + _C5)
-        swap = (j == 2.0) | (j == 6.0)
-        s = pc if swap else ps
-        c = ps if swap else pc
-        s = -s if (j >= 4.0) != (x < 0.0) else s
-        c = -c if (j == 2.0) | (j == 4.0) else c
-        return s, c
+    _DBL_MAX = float(np.finfo(np.float64).max)  # the pose limit of inf, as a finite bound
 
     # ------------------------------------------------------------------------------------------
     # The program interpreter: each instruction a loop over the nb lanes of a sub-block.
@@ -1493,7 +1481,14 @@ if HAVE_NUMBA:
                 Rg[cbase + j, ii] = v
 
     @njit(**_jit_ir_inline)
-    def _pose_prog(X, j0, nb, coord, okm, Rg, Sc, Tm, ins, n_pose, pose_regs, valid_regs, plim):
+    def _zero_rejected(Rg, okm, nt, nb):
+        """The task coordinates of the rejected lanes set to 0 (their pose is computed but not used)."""
+        for j in range(nt):
+            for ii in range(nb):
+                Rg[j, ii] = Rg[j, ii] if okm[ii] else 0.0
+
+    @njit(**_jit_ir_inline)
+    def _pose_prog(X, j0, nb, coord, okm, Rg, Sc, Tm, ins, n_pose, pose_regs, valid_regs, plim, loop):
         """Task-coordinate ranges, finiteness, the pose part of the program and the pose's
         validity for poses X[j0:j0+nb]: okm, and Tm (12, nb) = (p, R row-major)."""
         nt = X.shape[1]
@@ -1523,10 +1518,18 @@ if HAVE_NUMBA:
         for ii in range(nb):
             rejected |= okm[ii] == 0
         if rejected:
-            for j in range(nt):
-                for ii in range(nb):
-                    Rg[j, ii] = Rg[j, ii] if okm[ii] else 0.0
-        _run(ins, np.int64(0), n_pose, Rg, Sc, nb)  # (not a literal: one specialisation)
+            _zero_rejected(Rg, okm, nt, nb)
+        # the pose part: the program's generated loop (parasynth.engine.posefn) if it has one,
+        # else (or for a sub-block with a lane the loop leaves to libm) the interpreter
+        st = loop(_data(Rg), nb)
+        if st != 0:
+            if st > 0:  # the loop ran: the coordinates again (it may have reused their rows)
+                for j in range(nt):
+                    for ii in range(nb):
+                        Rg[j, ii] = X[j0 + ii, j]
+                if rejected:
+                    _zero_rejected(Rg, okm, nt, nb)
+            _run(ins, np.int64(0), n_pose, Rg, Sc, nb)  # (not a literal: one specialisation)
         for q in range(valid_regs.shape[0]):
             r = valid_regs[q]
             for ii in range(nb):
@@ -1539,7 +1542,7 @@ if HAVE_NUMBA:
                 okm[ii] = okm[ii] & (abs(t) < np.inf)
 
     @njit(**_jit)
-    def _pose_kernel(X, ins, consts, cbase, n_reg, n_run, pose_regs, valid_regs, plim, twist_regs, block, ok, P, Rm,
+    def _pose_kernel(X, ins, consts, cbase, n_reg, n_run, pose_regs, valid_regs, plim, loop, twist_regs, block, ok, P, Rm,
                      Tw, b0, b1):
         """Validity, positions, rotations (row-major) and, if twist_regs is not empty, the
         twist map of poses X: the program alone."""
@@ -1555,7 +1558,7 @@ if HAVE_NUMBA:
             i1 = min(N, (blk + 1) * block)
             for j0 in range(blk * block, i1, SUB):
                 nb = min(SUB, i1 - j0)
-                _pose_prog(X, j0, nb, coord, okm, Rg, Sc, Tm, ins, n_pose, pose_regs, valid_regs, plim)
+                _pose_prog(X, j0, nb, coord, okm, Rg, Sc, Tm, ins, n_pose, pose_regs, valid_regs, plim, loop)
                 if twist_regs.shape[0] > 0:
                     _run(ins, n_pose, ins.shape[0], Rg, Sc, nb)
                 for ii in range(nb):
@@ -1570,7 +1573,8 @@ if HAVE_NUMBA:
                             Tw[i, r, j] = Rg[twist_regs[r, j], ii]
 
     @njit(**_jit)
-    def _feasible_kernel(X, ins, consts, cbase, n_reg, n_pose, pose_regs, valid_regs, plim, expr, tol, leg_kind, leg_act,
+    def _feasible_kernel(X, ins, consts, cbase, n_reg, n_pose, pose_regs, valid_regs, plim, loop, expr, tol, leg_kind,
+                         leg_act,
                          leg_f, coord, actr, lenr, cone, rang, axang, pair, offs, block, out, amb, ext, b0, b1):
         """Boolean feasibility of poses X (N, n_task) -> out (N,), amb[block] = number of
         poses whose RPS/RPU reachability NumPy decides batch-dependently; if ``ext`` has rows,
@@ -1601,7 +1605,7 @@ if HAVE_NUMBA:
                 nb = min(SUB, i1 - j0)
                 nb0 = nb
                 # 1. task-coordinate ranges and the pose (the program's pose part)
-                _pose_prog(X, j0, nb, coord, okm, Rg, Sc, Tm, ins, n_pose, pose_regs, valid_regs, plim)
+                _pose_prog(X, j0, nb, coord, okm, Rg, Sc, Tm, ins, n_pose, pose_regs, valid_regs, plim, loop)
                 for ii in range(nb):
                     und[ii] = 0
                     lane[ii] = ii
@@ -2014,7 +2018,8 @@ if HAVE_NUMBA:
             M[i, ci] = m
 
     @njit(**_jit)
-    def _margins_kernel(X, ins, consts, cbase, n_reg, n_pose, pose_regs, valid_regs, plim, expr, tol, leg_kind, leg_act,
+    def _margins_kernel(X, ins, consts, cbase, n_reg, n_pose, pose_regs, valid_regs, plim, loop, expr, tol, leg_kind,
+                        leg_act,
                         leg_f, coord, actr, lenr, cone, rang, axang, pair, offs, block, M, amb, b0, b1):
         """All constraint margins with NumPy's formulas (arctan2, arccos, sqrt), no early
         exit -- Mechanism.constraint_margins. The program runs per sub-block; the rest per
@@ -2037,7 +2042,7 @@ if HAVE_NUMBA:
             i1 = min(N, (blk + 1) * block)
             for j0 in range(blk * block, i1, SUB):
               nb = min(SUB, i1 - j0)
-              _pose_prog(X, j0, nb, nocoord, okm, Rg, Sc, Tm, ins, n_pose, pose_regs, valid_regs, plim)
+              _pose_prog(X, j0, nb, nocoord, okm, Rg, Sc, Tm, ins, n_pose, pose_regs, valid_regs, plim, loop)
               _run(ins, n_pose, ins.shape[0], Rg, Sc, nb)
               for ii in range(nb):
                 i = j0 + ii
@@ -2140,7 +2145,8 @@ def signatures() -> dict:
     i1, i2, b1 = _array("i8", 1), _array("i8", 2), _array("b1", 1)
     i8, f8 = _nbt.int64, _nbt.float64
     X = _array("f8", 2, readonly=True)
-    prog = (X, i2, f1, i8, i8, i8, i1, i1, f1)  # poses, ins, consts, cbase, n_reg, n_pose, regs, plim
+    prog = (X, i2, f1, i8, i8, i8, i1, i1, f1, _posefn.FN_TYPE)  # poses, ins, consts, cbase, n_reg, n_pose, regs,
+    # plim, the pose loop
     plan = (i2, f8, i1, i1) + (f2,) * 8 + (i2,)  # expr, tol, leg_kind, leg_act, leg_f .. pair, offs
     return {
         "_pose_kernel": (_pose_kernel, prog + (i2, i8, b1, f2, f2, f3, i8, i8)),
