@@ -17,9 +17,10 @@ feasible poses are at most half is compacted (the later stages run on those alon
 of size N is allocated but the result (and, for a workspace, the per-block extents of the
 feasible poses' positions).
 
-Costs per pose (5pus_upu, every pose feasible, one core, ~52 ns in all): the coordinates in
-and the program's pose part (after fusing products into their sums,
-:func:`parasynth.engine.program._fuse`) ~20 ns, the six legs' inverse kinematics ~12 ns, the
+Costs per pose (5pus_upu, every pose feasible, one core, ~52 ns in all with the interpreter):
+the coordinates in and the program's pose part (after fusing products into their sums,
+:func:`parasynth.engine.program._fuse`) ~20 ns (~14 ns once the program's generated loop,
+:mod:`parasynth.engine.posefn`, is compiled), the six legs' inverse kinematics ~12 ns, the
 ten cone limits ~9 ns, the ten interference pairs ~11 ns (bounding boxes and, for two pairs,
 the line distance), the rest (actuator ranges, the result) ~1 ns. Coordinate magnitudes are tested in the kernel (``Program.pose_limit``
 per coordinate), so the entry points make no NumPy pass over a float batch.
