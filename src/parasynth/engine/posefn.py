@@ -47,6 +47,7 @@ import threading
 import weakref
 from pathlib import Path
 
+import numba
 import numpy as np
 from numba import cfunc
 from numba import types as _nbt
@@ -205,7 +206,10 @@ def _paths(prog: Program, sub: int):
     body = source(prog, sub)
     if body is None:
         return None
-    key = hashlib.sha256(f"{_VERSION}\n{sub}\n".encode() + body.encode()).hexdigest()[:24]
+    # the numba and Python versions and numba's cache folder in the name: a module marked done
+    # for another of them would have no compiled loop in this one's cache (and compile on load)
+    stamp = f"{_VERSION}\n{sub}\n{numba.__version__}\n{sys.version_info[:2]}\n{os.environ.get('NUMBA_CACHE_DIR', '')}\n"
+    key = hashlib.sha256(stamp.encode() + body.encode()).hexdigest()[:24]
     path = folder / "pose_loops" / f"pose_loop_{key}.py"
     return path, path.with_suffix(".done"), body
 
