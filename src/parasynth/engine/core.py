@@ -167,7 +167,7 @@ def program_work(n: int, n_instructions: int) -> float:
 
 
 def blocking(n: int, threads: int | None = None, kind: str | None = None,
-             work: float | None = None) -> tuple[int, int, bool]:
+             work: float | None = None, per_thread: int = ITEMS_PER_THREAD) -> tuple[int, int, bool]:
     """``(block, n_blocks, parallel)`` for a batch of ``n`` poses: on the calling thread in
     blocks of BLOCK poses below PARALLEL_MIN poses' work (``work``: the batch's work in poses
     of the cheapest kernel, :func:`program_work`; default ``n``), or for SUB poses or fewer, or
@@ -181,8 +181,8 @@ def blocking(n: int, threads: int | None = None, kind: str | None = None,
         return BLOCK, max(1, (n + BLOCK - 1) // BLOCK), False
     if threads is None and kind is not None and not TIMING.threads_pay(kind, int(w)):
         return BLOCK, (n + BLOCK - 1) // BLOCK, False
-    per = -(-n // (ITEMS_PER_THREAD * nt))
-    block = max(SUB, -(-per // SUB) * SUB)  # rounded up: at most ITEMS_PER_THREAD items a thread
+    per = -(-n // (per_thread * nt))
+    block = max(SUB, -(-per // SUB) * SUB)  # rounded up: at most per_thread items a thread
     return block, (n + block - 1) // block, True
 
 
@@ -239,6 +239,24 @@ def _timed_blocks(kind: str, fn, n: int, work: float | None = None) -> None:
     block, nblk, par = blocking(n, kind=kind, work=work)
     t0 = time.perf_counter()
     over_blocks(lambda b0, b1: fn(block, b0, b1), nblk, par)
+    TIMING.record(kind, par, int(max(n, work or 0)), time.perf_counter() - t0)
+
+
+#: Work items per thread of a batch whose kernel claims its items itself (:func:`_timed_claims`):
+#: a thread that starts late (a crew thread's wake-up, ~0.03-0.05 ms) takes fewer of them.
+CLAIMS_PER_THREAD = 8
+
+
+def _timed_claims(kind: str, fn, n: int, work: float | None = None) -> None:
+    """As :func:`_timed_blocks` for a kernel that claims its work items itself
+    (``fn(block, claim, n_blocks)``, each item taken by an atomic increment of ``claim[0]``):
+    every thread of the batch calls it once and takes items until none is left, so a thread
+    that starts late takes fewer and none waits for another's range; the items are finer
+    (:data:`CLAIMS_PER_THREAD` a thread). One thread: one call takes them all in order."""
+    block, nblk, par = blocking(n, kind=kind, work=work, per_thread=CLAIMS_PER_THREAD)
+    claim = np.zeros(1, dtype=np.int64)
+    t0 = time.perf_counter()
+    over_blocks(lambda p0, p1: fn(block, claim, nblk), n_threads() if par else 1, par)
     TIMING.record(kind, par, int(max(n, work or 0)), time.perf_counter() - t0)
 
 
@@ -951,7 +969,7 @@ def run_feasible(plan: KernelPlan, X: np.ndarray, extents: bool = False):
     else:
         ext = _NO_EXT
     args = plan.args()
-    _timed_blocks("feasible", lambda block, b0, b1: _feasible_kernel(X, *args, block, out, amb, ext, b0, b1),
+    _timed_claims("feasible", lambda block, claim, b1: _feasible_kernel(X, *args, block, out, amb, ext, claim, b1),
                   X.shape[0], program_work(X.shape[0], plan.program.ins.shape[0]))
     if not extents:
         return out, bool(amb.any())
@@ -964,7 +982,7 @@ def run_margins(plan: KernelPlan, X: np.ndarray):
     M = np.empty((X.shape[0], len(plan.names)))
     amb = np.zeros(max(1, (X.shape[0] + SUB - 1) // SUB), dtype=np.int64)  # one per block, any blocking
     args = plan.args()
-    _timed_blocks("margins", lambda block, b0, b1: _margins_kernel(X, *args, block, M, amb, b0, b1), X.shape[0],
+    _timed_claims("margins", lambda block, claim, b1: _margins_kernel(X, *args, block, M, amb, claim, b1), X.shape[0],
                   program_work(X.shape[0], plan.program.ins.shape[0]))
     return M, bool(amb.any())
 
@@ -984,10 +1002,10 @@ def run_unknowns(prog: Program, consts, X: np.ndarray):
     Rm = np.empty((N, 9))
     tr = np.zeros((0, 0), dtype=np.int64)
     Tw = np.empty((0, 0, 0))
-    _timed_blocks("pose", lambda block, b0, b1: _pose_kernel(X, prog.ins, consts, prog.const_base, prog.n_reg,
+    _timed_claims("pose", lambda block, claim, b1: _pose_kernel(X, prog.ins, consts, prog.const_base, prog.n_reg,
                                                              prog.n_pose, regs, prog.valid_regs, prog.pose_limit,
                                                              _posefn.function(prog, SUB), tr,
-                                                             block, ok, P, Rm, Tw, b0, b1), N, program_work(N, prog.n_pose))
+                                                             block, ok, P, Rm, Tw, claim, b1), N, program_work(N, prog.n_pose))
     return ok, np.concatenate([P, Rm], axis=1)[:, :m].copy()
 
 
@@ -1006,10 +1024,10 @@ def run_pose(prog: Program, consts, X: np.ndarray, twist: bool = False):
         tr = np.zeros((0, 0), dtype=np.int64)
         Tw = np.empty((0, 0, 0))
         n_run = prog.n_pose
-    _timed_blocks("pose", lambda block, b0, b1: _pose_kernel(X, prog.ins, consts, prog.const_base, prog.n_reg, n_run,
+    _timed_claims("pose", lambda block, claim, b1: _pose_kernel(X, prog.ins, consts, prog.const_base, prog.n_reg, n_run,
                                                              prog.pose_regs, prog.valid_regs, prog.pose_limit,
                                                              _posefn.function(prog, SUB), tr,
-                                                             block, ok, P, Rm, Tw, b0, b1), N,
+                                                             block, ok, P, Rm, Tw, claim, b1), N,
                   program_work(N, prog.ins.shape[0] if twist else prog.n_pose))
     return ok, P, Rm.reshape(N, 3, 3), (Tw if twist else None)
 
@@ -1042,6 +1060,20 @@ if HAVE_NUMBA:
             ary = context.make_array(aryty)(context, builder, args[0])
             ptr = _cgutils.get_item_pointer(context, builder, aryty, ary, [args[1]])
             return builder.load_atomic(ptr, "acquire", align=8)
+
+        return sig, codegen
+
+    @_intrinsic
+    def _claim(typingctx, arr):
+        """The next work item of a batch shared by threads: ``arr[0]`` incremented atomically,
+        its value before returned (each item goes to exactly one caller)."""
+        sig = _nbt.int64(arr)
+
+        def codegen(context, builder, signature, args):
+            aryty = signature.args[0]
+            ary = context.make_array(aryty)(context, builder, args[0])
+            ptr = _cgutils.get_item_pointer(context, builder, aryty, ary, [context.get_constant(_nbt.intp, 0)])
+            return builder.atomic_rmw("add", ptr, context.get_constant(_nbt.int64, 1), "monotonic")
 
         return sig, codegen
 
@@ -1544,13 +1576,17 @@ if HAVE_NUMBA:
 
     @njit(**_jit)
     def _pose_kernel(X, ins, consts, cbase, n_reg, n_run, pose_regs, valid_regs, plim, loop, twist_regs, block, ok, P, Rm,
-                     Tw, b0, b1):
+                     Tw, claim, b1):
         """Validity, positions, rotations (row-major) and, if twist_regs is not empty, the
-        twist map of poses X: the program alone."""
+        twist map of poses X: the program alone. Blocks claimed from ``claim`` (see
+        :func:`_timed_claims`) until ``b1``."""
         N = X.shape[0]
         coord = np.zeros((0, 4))
         n_pose = n_run
-        for blk in range(b0, b1):
+        while True:
+            blk = _claim(claim)
+            if blk >= b1:
+                break
             Rg = np.empty((n_reg, SUB))
             _fill_consts(Rg, consts, cbase)
             Sc = np.empty((2, SUB))
@@ -1576,7 +1612,7 @@ if HAVE_NUMBA:
     @njit(**_jit)
     def _feasible_kernel(X, ins, consts, cbase, n_reg, n_pose, pose_regs, valid_regs, plim, loop, expr, tol, leg_kind,
                          leg_act,
-                         leg_f, coord, actr, lenr, cone, rang, axang, pair, offs, block, out, amb, ext, b0, b1):
+                         leg_f, coord, actr, lenr, cone, rang, axang, pair, offs, block, out, amb, ext, claim, b1):
         """Boolean feasibility of poses X (N, n_task) -> out (N,), amb[block] = number of
         poses whose RPS/RPU reachability NumPy decides batch-dependently; if ``ext`` has rows,
         ext[block] = (least x, y, z, greatest x, y, z) of the feasible poses' platform position.
@@ -1589,7 +1625,10 @@ if HAVE_NUMBA:
         module docstring)."""
         N = X.shape[0]
         nl = leg_kind.shape[0]
-        for blk in range(b0, b1):
+        while True:
+            blk = _claim(claim)
+            if blk >= b1:
+                break
             Tm = np.empty((12, SUB))
             Rg = np.empty((n_reg, SUB))
             _fill_consts(Rg, consts, cbase)
@@ -2021,7 +2060,7 @@ if HAVE_NUMBA:
     @njit(**_jit)
     def _margins_kernel(X, ins, consts, cbase, n_reg, n_pose, pose_regs, valid_regs, plim, loop, expr, tol, leg_kind,
                         leg_act,
-                        leg_f, coord, actr, lenr, cone, rang, axang, pair, offs, block, M, amb, b0, b1):
+                        leg_f, coord, actr, lenr, cone, rang, axang, pair, offs, block, M, amb, claim, b1):
         """All constraint margins with NumPy's formulas (arctan2, arccos, sqrt), no early
         exit -- Mechanism.constraint_margins. The program runs per sub-block; the rest per
         pose."""
@@ -2029,7 +2068,10 @@ if HAVE_NUMBA:
         nl = leg_kind.shape[0]
         nc = M.shape[1]
         nocoord = np.zeros((0, 4))
-        for blk in range(b0, b1):
+        while True:
+            blk = _claim(claim)
+            if blk >= b1:
+                break
             seg = np.empty((nl, 6))
             lens = np.empty(nl)
             qv = np.empty(nl)
@@ -2150,8 +2192,8 @@ def signatures() -> dict:
     # plim, the pose loop
     plan = (i2, f8, i1, i1) + (f2,) * 8 + (i2,)  # expr, tol, leg_kind, leg_act, leg_f .. pair, offs
     return {
-        "_pose_kernel": (_pose_kernel, prog + (i2, i8, b1, f2, f2, f3, i8, i8)),
-        "_feasible_kernel": (_feasible_kernel, prog + plan + (i8, b1, i1, f2, i8, i8)),
-        "_margins_kernel": (_margins_kernel, prog + plan + (i8, f2, i1, i8, i8)),
+        "_pose_kernel": (_pose_kernel, prog + (i2, i8, b1, f2, f2, f3, i1, i8)),
+        "_feasible_kernel": (_feasible_kernel, prog + plan + (i8, b1, i1, f2, i1, i8)),
+        "_margins_kernel": (_margins_kernel, prog + plan + (i8, f2, i1, i1, i8)),
         "_spin_done": (_spin_done, (i1, i8)),
     }
