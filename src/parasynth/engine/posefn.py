@@ -25,7 +25,8 @@ Cephes code, :mod:`parasynth.engine.sincos`).
   ~1 s. :func:`function` never compiles in the calling process: the first time it sees a
   program it writes the module under the cache folder
   (:func:`parasynth.common.qmc.cache_dir`, ``pose_loops/``) and starts one helper process
-  (``python -m parasynth.engine.posefn FILE``, numba's cache then holds the compiled loop);
+  (``python -m parasynth.engine.posefn FILE``, at a lower scheduling priority, so that it takes a
+  core the run leaves idle; numba's cache then holds the compiled loop);
   until the helper is done it returns :data:`NONE` (the interpreter runs). A later call, in
   this or any later process, loads the compiled loop from numba's cache (~ms). Without a cache
   folder (``PARASYNTH_CACHE_DIR=off``), on a cache that cannot be written, or with
@@ -285,6 +286,13 @@ def build(prog: Program, sub: int):
     return fn
 
 
+def _lower_priority() -> None:  # the helper takes a core only when the run leaves one idle
+    try:
+        os.nice(10)
+    except OSError:
+        pass
+
+
 def _start(path: Path, body: str) -> None:
     """Write the module and start its compiling helper (nothing if the folder cannot be
     written)."""
@@ -296,7 +304,8 @@ def _start(path: Path, body: str) -> None:
             os.replace(tmp, path)
         _HELPERS[str(path)] = subprocess.Popen(
             [sys.executable, "-m", "parasynth.engine.posefn", str(path)],
-            stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+            stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+            preexec_fn=_lower_priority if hasattr(os, "nice") else None)
     except OSError:
         _LOADED[str(path)] = NONE
 
