@@ -12,10 +12,11 @@ multiply-add, no reassociation: numba's ``fastmath=False``; the sine and cosine 
 Cephes code, :mod:`parasynth.engine.sincos`).
 
 * **Which programs.** Pose parts of at most :data:`MAX_INSTRUCTIONS` instructions using only
-  the opcodes in :data:`_EMIT` (arithmetic, the fused products, square root, comparisons and
-  selections, ``sincos`` and ``sincos_atan2``): every closed-form description's. A 1T2R
-  structure's unrolled Gauss-Newton (thousands of instructions) keeps the interpreter: its
-  compile would cost seconds.
+  the opcodes in :data:`_EMIT`: every closed-form description's (12-30 instructions, a loop
+  compiled in ~1 s), and the unrolled Gauss-Newton of a 3-RPS or 3-PRS structure's parasitic
+  coordinates (1,667 instructions: ~12 s and ~0.5 GB to compile, then 230-240 ns a pose against the
+  interpreter's 1,080-1,120). Longer ones (a 3-UPU's 3,511, the 3T0R structures' 5,000-6,500) keep the
+  interpreter: their compile would take minutes.
 * **The same answer.** A lane whose angle needs libm (beyond ``_BIG_ANGLE``) or whose
   ``atan2`` radius is zero or not finite makes the generated loop return 1: the caller loads
   the coordinates again and runs the interpreter for that sub-block. The scratch rows are
@@ -72,8 +73,8 @@ def NONE(Rg, nb):  # noqa: N802 - a constant
     return -1
 
 
-#: Pose parts longer than this keep the interpreter (compile time grows with the loop).
-MAX_INSTRUCTIONS = 400
+#: Pose parts longer than this keep the interpreter (the loop's compile grows with it: ~12 s at 1,667).
+MAX_INSTRUCTIONS = 2000
 #: Bumped whenever the generated code changes (part of each module's name).
 _VERSION = 3
 
