@@ -13,10 +13,11 @@ Cephes code, :mod:`parasynth.engine.sincos`).
 
 * **Which programs.** Pose parts of at most :data:`MAX_INSTRUCTIONS` instructions using only
   the opcodes in :data:`_EMIT`: every closed-form description's (12-30 instructions, a loop
-  compiled in ~1 s), and the unrolled Gauss-Newton of a 3-RPS or 3-PRS structure's parasitic
-  coordinates (1,667 instructions: ~12 s and ~0.5 GB to compile, then 230-240 ns a pose against the
-  interpreter's 1,080-1,120). Longer ones (a 3-UPU's 3,511, the 3T0R structures' 5,000-6,500) keep the
-  interpreter: their compile would take minutes.
+  compiled in ~1 s), and the unrolled Gauss-Newton of the 1T2R structures' parasitic
+  coordinates (3-RPS and 3-PRS 1,667 instructions: ~12 s and ~0.5 GB to compile, then 240 ns a
+  pose against the interpreter's 1,115; 3-UPU 3,511: ~19 s and ~0.55 GB, 357 ns against
+  1,926). The 3T0R structures' (5,000-6,500 instructions) keep the interpreter: ~50 s and
+  ~1.2 GB to compile one (6x faster then), more than a background helper should take.
 * **The same answer.** A lane whose angle needs libm (beyond ``_BIG_ANGLE``) or whose
   ``atan2`` radius is zero or not finite makes the generated loop return 1: the caller loads
   the coordinates again and runs the interpreter for that sub-block. The scratch rows are
@@ -73,8 +74,9 @@ def NONE(Rg, nb):  # noqa: N802 - a constant
     return -1
 
 
-#: Pose parts longer than this keep the interpreter (the loop's compile grows with it: ~12 s at 1,667).
-MAX_INSTRUCTIONS = 2000
+#: Pose parts longer than this keep the interpreter (the loop's compile grows faster than its
+#: length: ~12 s at 1,667 instructions, ~19 s at 3,511, ~49 s and 1.2 GB at 6,456).
+MAX_INSTRUCTIONS = 4000
 #: Bumped whenever the generated code changes (part of each module's name).
 _VERSION = 3
 
