@@ -113,3 +113,46 @@ def test_without_a_cache_folder_the_interpreter_runs(monkeypatch):
     prog = core.build_plan(mech, list(mech.constraints.values())).program
     posefn._STATE.pop(prog, None)
     assert posefn.function(prog, core.SUB) is posefn.NONE
+
+
+def test_a_run_gets_its_loop_from_a_helper_process_and_loads_it_later(monkeypatch, tmp_path):
+    """The path a run takes: the first call starts the compiling helper and answers with the
+    interpreter; once the helper is done, a call loads the compiled loop, and a new process
+    (here: the state forgotten) loads it from the cache without a helper."""
+    monkeypatch.setenv("PARASYNTH_POSE_LOOPS", "1")
+    monkeypatch.setenv("PARASYNTH_CACHE_DIR", str(tmp_path))
+    mech = load_mechanism("3prs")
+    plan = core.build_plan(mech, list(mech.constraints.values()))
+    prog = plan.program
+    posefn._STATE.pop(prog, None)
+    assert posefn.function(prog, core.SUB) is posefn.NONE  # the helper started, nothing compiled here
+    path = posefn._paths(prog, core.SUB)[0]
+    helper = posefn._HELPERS[str(path)]
+    assert helper.wait(timeout=300) == 0
+    loop = posefn.function(prog, core.SUB)
+    assert loop is not posefn.NONE
+    X = _poses(mech, n=500, seed=9)
+    a = core.run_feasible(plan, X, extents=True)
+    posefn._STATE[prog] = [posefn.NONE, None]
+    b = core.run_feasible(plan, X, extents=True)
+    for u, v in zip(a, b):
+        _same(u, v)
+    posefn._STATE.pop(prog, None)
+    posefn._LOADED.pop(str(path), None)
+    posefn._HELPERS.pop(str(path), None)
+    assert posefn.function(prog, core.SUB) is not posefn.NONE  # from the cache, no new helper
+    assert str(path) not in posefn._HELPERS
+
+
+def test_a_broken_loop_module_leaves_the_interpreter(monkeypatch, tmp_path):
+    monkeypatch.setenv("PARASYNTH_POSE_LOOPS", "1")
+    monkeypatch.setenv("PARASYNTH_CACHE_DIR", str(tmp_path))
+    mech = load_mechanism("3rps")
+    prog = core.build_plan(mech, list(mech.constraints.values())).program
+    posefn._STATE.pop(prog, None)
+    path, done, _ = posefn._paths(prog, core.SUB)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text("this is not python\n")
+    done.write_text("")
+    posefn._LOADED.pop(str(path), None)
+    assert posefn.function(prog, core.SUB) is posefn.NONE
