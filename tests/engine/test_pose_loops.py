@@ -145,14 +145,35 @@ def test_a_run_gets_its_loop_from_a_helper_process_and_loads_it_later(monkeypatc
 
 
 def test_a_broken_loop_module_leaves_the_interpreter(monkeypatch, tmp_path):
-    monkeypatch.setenv("PARASYNTH_POSE_LOOPS", "1")
     monkeypatch.setenv("PARASYNTH_CACHE_DIR", str(tmp_path))
     mech = load_mechanism("3rps")
-    prog = core.build_plan(mech, list(mech.constraints.values())).program
+    prog = core.build_plan(mech, list(mech.constraints.values())).program  # (its checks run no helper: loops off)
+    monkeypatch.setenv("PARASYNTH_POSE_LOOPS", "1")
     posefn._STATE.pop(prog, None)
     path, done, _ = posefn._paths(prog, core.SUB)
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text("this is not python\n")
     done.write_text("")
+    cached = path.parent / "__pycache__" / f"{path.stem}.loop-1.py311.nbi"  # as if numba's cache had it
+    cached.parent.mkdir(exist_ok=True)
+    cached.write_text("")
     posefn._LOADED.pop(str(path), None)
     assert posefn.function(prog, core.SUB) is posefn.NONE
+
+
+def test_a_loop_marked_done_but_missing_from_numbas_cache_is_compiled_again_by_a_helper(monkeypatch, tmp_path):
+    monkeypatch.setenv("PARASYNTH_CACHE_DIR", str(tmp_path))
+    mech = load_mechanism("2rpu_2sps")
+    prog = core.build_plan(mech, list(mech.constraints.values())).program  # (its checks run no helper: loops off)
+    monkeypatch.setenv("PARASYNTH_POSE_LOOPS", "1")
+    posefn._STATE.pop(prog, None)
+    path, done, body = posefn._paths(prog, core.SUB)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(posefn._module_text(body))
+    done.write_text("")  # done, but never compiled into this numba cache
+    assert not posefn._in_numba_cache(path)
+    assert posefn.function(prog, core.SUB) is posefn.NONE  # not compiled here: a helper instead
+    assert not done.exists()
+    assert posefn._HELPERS[str(path)].wait(timeout=300) == 0
+    assert posefn._in_numba_cache(path)
+    assert posefn.function(prog, core.SUB) is not posefn.NONE

@@ -60,7 +60,8 @@ from .program import OPS, Program
 
 __all__ = ["SIG", "FN_TYPE", "NONE", "MAX_INSTRUCTIONS", "source", "function", "build", "main"]
 
-#: Signature of a generated pose loop: (scratch rows (n_reg, SUB), poses of the sub-block) ->
+#: Signature of a generated pose loop: (the data of the scratch rows (n_reg, SUB), poses of the
+#: sub-block) ->
 #: 0 done, 1 a lane needs the interpreter (the caller reloads the coordinates and runs it), -1
 #: not run (the placeholder).
 SIG = _nbt.int64(_nbt.CPointer(_nbt.float64), _nbt.int64)
@@ -218,6 +219,17 @@ def _paths(prog: Program, sub: int):
     return path, path.with_suffix(".done"), body
 
 
+def _in_numba_cache(path: Path) -> bool:
+    """Whether numba's cache holds the compiled loop of the module ``path`` (its index file, in
+    ``__pycache__`` beside the module or under ``NUMBA_CACHE_DIR``): loading a module whose loop
+    is not there would compile it in the calling process."""
+    pattern = f"{path.stem}.loop-*.nbi"
+    places = [path.parent / "__pycache__"]
+    if os.environ.get("NUMBA_CACHE_DIR"):
+        places.append(Path(os.environ["NUMBA_CACHE_DIR"]))
+    return any(next(p.rglob(pattern), None) is not None for p in places if p.is_dir())
+
+
 def _load(path: Path):
     name = path.stem
     spec = importlib.util.spec_from_file_location(name, path)
@@ -253,6 +265,8 @@ def function(prog: Program, sub: int):
         fn = _LOADED.get(key)
         if fn is None:
             helper = _HELPERS.get(key)
+            if done.exists() and (helper is None or helper.poll() is not None) and not _in_numba_cache(path):
+                done.unlink(missing_ok=True)  # marked done, but numba's cache lost it: compile it again
             if done.exists() and (helper is None or helper.poll() is not None):
                 try:
                     fn = _load(path)
