@@ -225,9 +225,11 @@ def _in_numba_cache(path: Path) -> bool:
     is not there would compile it in the calling process."""
     pattern = f"{path.stem}.loop-*.nbi"
     places = [path.parent / "__pycache__"]
-    if os.environ.get("NUMBA_CACHE_DIR"):
-        places.append(Path(os.environ["NUMBA_CACHE_DIR"]))
-    return any(next(p.rglob(pattern), None) is not None for p in places if p.is_dir())
+    if os.environ.get("NUMBA_CACHE_DIR"):  # numba's folder for the modules of path's folder there
+        folder = os.path.dirname(os.path.abspath(path))
+        sub = f"{os.path.basename(folder)}_{hashlib.sha1(folder.encode()).hexdigest()}"
+        places.append(Path(os.environ["NUMBA_CACHE_DIR"]) / sub)
+    return any(next(p.glob(pattern), None) is not None for p in places if p.is_dir())
 
 
 def _load(path: Path):
