@@ -144,16 +144,23 @@ def test_a_run_gets_its_loop_from_a_helper_process_and_loads_it_later(monkeypatc
     assert str(path) not in posefn._HELPERS
 
 
-def test_a_broken_loop_module_leaves_the_interpreter(monkeypatch, tmp_path):
+def _marked_done(name, text, monkeypatch, tmp_path):
+    """(program, module path, done marker) of mechanism ``name``'s loop, its module written with
+    ``text`` (given the module body) and marked done in a cache folder of its own, loops on."""
     monkeypatch.setenv("PARASYNTH_CACHE_DIR", str(tmp_path))
-    mech = load_mechanism("3rps")
+    mech = load_mechanism(name)
     prog = core.build_plan(mech, list(mech.constraints.values())).program  # (its checks run no helper: loops off)
     monkeypatch.setenv("PARASYNTH_POSE_LOOPS", "1")
     posefn._STATE.pop(prog, None)
-    path, done, _ = posefn._paths(prog, core.SUB)
+    path, done, body = posefn._paths(prog, core.SUB)
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text("this is not python\n")
+    path.write_text(text(body))
     done.write_text("")
+    return prog, path, done
+
+
+def test_a_broken_loop_module_leaves_the_interpreter(monkeypatch, tmp_path):
+    prog, path, done = _marked_done("3rps", lambda body: "this is not python\n", monkeypatch, tmp_path)
     cached = path.parent / "__pycache__" / f"{path.stem}.loop-1.py311.nbi"  # as if numba's cache had it
     cached.parent.mkdir(exist_ok=True)
     cached.write_text("")
@@ -162,15 +169,8 @@ def test_a_broken_loop_module_leaves_the_interpreter(monkeypatch, tmp_path):
 
 
 def test_a_loop_marked_done_but_missing_from_numbas_cache_is_compiled_again_by_a_helper(monkeypatch, tmp_path):
-    monkeypatch.setenv("PARASYNTH_CACHE_DIR", str(tmp_path))
-    mech = load_mechanism("2rpu_2sps")
-    prog = core.build_plan(mech, list(mech.constraints.values())).program  # (its checks run no helper: loops off)
-    monkeypatch.setenv("PARASYNTH_POSE_LOOPS", "1")
-    posefn._STATE.pop(prog, None)
-    path, done, body = posefn._paths(prog, core.SUB)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(posefn._module_text(body))
-    done.write_text("")  # done, but never compiled into this numba cache
+    # done, but never compiled into this numba cache
+    prog, path, done = _marked_done("2rpu_2sps", posefn._module_text, monkeypatch, tmp_path)
     assert not posefn._in_numba_cache(path)
     assert posefn.function(prog, core.SUB) is posefn.NONE  # not compiled here: a helper instead
     assert not done.exists()
