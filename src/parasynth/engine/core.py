@@ -243,7 +243,8 @@ def _timed_blocks(kind: str, fn, n: int, work: float | None = None) -> None:
 
 
 #: Work items per thread of a batch whose kernel claims its items itself (:func:`_timed_claims`):
-#: a thread that starts late (a crew thread's wake-up, ~0.03-0.05 ms) takes fewer of them.
+#: a thread that starts late (a crew thread starts ~0.09 ms after the caller: its wake-up, the
+#: interpreter lock while the caller enters its kernel, its own call) takes fewer of them.
 CLAIMS_PER_THREAD = 8
 
 
@@ -1079,9 +1080,9 @@ if HAVE_NUMBA:
 
     @_intrinsic
     def _data(typingctx, arr):
-        """The data pointer of a C-contiguous array (what a generated pose loop is given: the
-        array itself would be stored to memory for the call, and every access to it after
-        reloaded from there)."""
+        """The data pointer of a C-contiguous array: what a generated pose loop is given
+        (passing the array itself made the whole feasibility kernel ~13 ns a pose slower,
+        docs/performance.md)."""
         sig = _nbt.CPointer(arr.dtype)(arr)
 
         def codegen(context, builder, signature, args):
