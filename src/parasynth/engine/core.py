@@ -1515,6 +1515,13 @@ if HAVE_NUMBA:
                 Rg[cbase + j, ii] = v
 
     @njit(**_jit_ir_inline)
+    def _coords_in(X, j0, nb, Rg):
+        """The task coordinates of poses X[j0:j0+nb] into their registers (rows 0..n_task-1)."""
+        for j in range(X.shape[1]):
+            for ii in range(nb):
+                Rg[j, ii] = X[j0 + ii, j]
+
+    @njit(**_jit_ir_inline)
     def _zero_rejected(Rg, okm, nt, nb):
         """The task coordinates of the rejected lanes set to 0 (their pose is computed but not used)."""
         for j in range(nt):
@@ -1532,9 +1539,7 @@ if HAVE_NUMBA:
         # then the coordinates of rejected poses set to 0. Loading apart from testing: the
         # strided loads alone, then a loop over the registers that vectorises (~3 ns a pose
         # less for 5 coordinates than both in one loop)
-        for j in range(nt):
-            for ii in range(nb):
-                Rg[j, ii] = X[j0 + ii, j]
+        _coords_in(X, j0, nb, Rg)
         for ii in range(nb):
             okm[ii] = 1
         for j in range(nt):
@@ -1558,9 +1563,7 @@ if HAVE_NUMBA:
         st = loop(_data(Rg), nb)
         if st != 0:
             if st > 0:  # the loop ran: the coordinates again (it may have reused their rows)
-                for j in range(nt):
-                    for ii in range(nb):
-                        Rg[j, ii] = X[j0 + ii, j]
+                _coords_in(X, j0, nb, Rg)
                 if rejected:
                     _zero_rejected(Rg, okm, nt, nb)
             _run(ins, np.int64(0), n_pose, Rg, Sc, nb)  # (not a literal: one specialisation)
