@@ -61,6 +61,7 @@ from .measure_spec import Setting, SettingError, as_setting, check_settings
 from .stiffness import part_stiffness, point_deflection, stiffness_along
 from .usable import DEFAULT_FLOOR_FRACTION, usable_of
 from ..common.validation import MAX_SAMPLES, MAX_SEED, check_count, check_mechanism, check_names
+from ..common.stats import quantile as quantile_of
 from ..common.units import actuator_unit_kind, actuators_summary
 from .workspace import WorkspaceSample, freeze, params_key, workspace
 
@@ -559,7 +560,7 @@ def singularity_margin_min(mech, quantile: float = 0.0, **kw) -> float:
         pts = pts[np.linspace(0, len(pts) - 1, 20000).astype(int)]
     m = mech.singularity_margin(pts, engine=kw.get("engine", "compiled"))
     m = m[np.isfinite(m)]
-    return float(np.quantile(m, quantile)) if m.size else 0.0
+    return quantile_of(m, quantile) if m.size else 0.0
 
 
 # -- cheap measures --------------------------------------------------------------------------------
@@ -657,7 +658,7 @@ def min_lti(mech, quantile: float = 0.0, **kw) -> float:
         return 0.0
     v = local_transmission_index(mech, pts, engine=kw.get("engine", "compiled"))
     v = v[np.isfinite(v)]
-    return float(np.quantile(v, quantile)) if v.size else 0.0
+    return quantile_of(v, quantile) if v.size else 0.0
 
 
 @register("mean_lti", unit="1", sense="maximize", settings=_IDX_SETTINGS)
@@ -803,7 +804,7 @@ def _quantile(v, quantile, empty):
     q = float(quantile)
     if not 0.0 <= q <= 1.0:
         raise ValueError(f"quantile must be in [0, 1], got {quantile!r}")
-    return float(np.quantile(v, q, method="lower" if q == 0.0 else "linear"))
+    return quantile_of(v, q)  # np.quantile's "linear" ("lower" at q = 0), the same bits
 
 
 def _split(kw, keys):
