@@ -502,3 +502,25 @@ def test_a_pose_at_infinity_does_not_spoil_the_batch(big):
         assert np.isnan(s[1]) and np.isnan(lti[1]) and np.isnan(k[1]), name
         assert abs(s[0] - float(mech.singularity_margin(mech.home, engine="numpy"))) <= ATOL, name
         assert abs(lti[0] - float(local_transmission_index(mech, mech.home, engine="numpy"))) <= ATOL, name
+
+
+def test_constraint_rank_at_home_takes_the_pose_of_the_build(monkeypatch):
+    """The compiled constraint rank at ``home`` takes the platform pose the NumPy model
+    computed at the build (the pose the reference takes; no pose kernel for one pose), and a
+    ``home`` moved afterwards is evaluated anew."""
+    mech = parasynth.load_mechanism("5pus_upu.yaml")
+    p, R = mech.home_platform_pose()
+    p0, R0 = mech.pose(mech.home[None, :])
+    assert np.array_equal(p, p0) and np.array_equal(R, R0)
+    expected = mech.structural_constraint_rank(engine="numpy")
+
+    def no_pose_kernel(*a, **k):
+        raise AssertionError("the home pose was computed again")
+
+    with monkeypatch.context() as mp:
+        mp.setattr(ei, "_poses", no_pose_kernel)
+        assert ei.constraint_rank(mech) == expected
+    moved = mech.home + np.r_[np.full(3, 0.0), 0.01 * np.ones(mech.n_task - 3)][: mech.n_task]
+    mech.home = moved
+    assert mech.home_platform_pose() is None
+    assert ei.constraint_rank(mech) == Mechanism.structural_constraint_rank(mech, engine="numpy")

@@ -160,12 +160,14 @@ def compiled_unknowns(mech, Xa):
     return core.run_unknowns(prog, consts, Xa)
 
 
-def compiled_pose_batch(mech, Xa, twist: bool = False):
+def compiled_pose_batch(mech, Xa, twist: bool = False, masked: bool = True):
     """``(valid, p, R, T)`` of poses ``Xa`` (N, n_task) from the description's compiled program
     (as :func:`parasynth.engine.pose_batch`) -- for a motion closing on chain limbs, which the
     program cannot hold, from the chain limbs' compiled closure (:func:`chains.pose_batch`) --
     or None, having said why once, when neither covers ``mech`` (the caller then evaluates the
-    NumPy methods)."""
+    NumPy methods). ``masked=False``: ``Xa`` did not go through ``mech._poses`` (its huge
+    lengths are not NaN yet): the program tests every coordinate against its limit, the
+    chain limbs' closure is given the masked poses."""
     if not HAVE_NUMBA:
         _warn(mech, "numba (not importable, or disabled by PARASYNTH_NO_NUMBA)", "pose_batch")
         return None
@@ -176,7 +178,7 @@ def compiled_pose_batch(mech, Xa, twist: bool = False):
         prog, consts = core.program_constants(mech, {}, twist)
     except (Unsupported, KeyError, IndexError, TypeError, ValueError, AttributeError) as e:
         if chains.closes_on_chains(mech):  # the closure's solve compiled, the pose from its unknowns
-            return chains.pose_batch(mech, Xa, twist)
+            return chains.pose_batch(mech, Xa if masked else mech._poses(Xa)[0], twist)
         _warn(mech, str(e), "pose_batch")
         return None
     return core.run_pose(prog, consts, Xa, twist)

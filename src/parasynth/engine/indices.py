@@ -80,7 +80,7 @@ from ..model.legs import GEOM_TOL, PRS, PUS, RPS, RPU, RUS, SPS, UPS, UPU, Leg, 
 from ..model.mechanism import Mechanism
 from .chains import REACH_FACTOR
 from .chains import solve_arrays as chain_solve_arrays
-from .evaluate import compiled_pose_batch
+from .evaluate import _kernel_poses, compiled_pose_batch
 
 __all__ = [
     "HAVE_NUMBA",
@@ -316,10 +316,12 @@ def _poses(mech, X, need_twist: bool):
     (:func:`parasynth.engine.evaluate.compiled_pose_batch`) where it covers the description, else
     from the model's NumPy ``pose_valid``/``_pose``/``_twist_map`` (model classes written in
     Python)."""
-    Xa, single = mech._poses(X)
     compiled = None
     if getattr(mech, "description", None) is not None:  # a description: its pose is compiled too
-        compiled = compiled_pose_batch(mech, Xa, twist=need_twist)
+        # the poses as the kernels take them (the program tests each coordinate against its
+        # limit: no NumPy pass masking huge lengths first)
+        Xa, single = _kernel_poses(mech, X)
+        compiled = compiled_pose_batch(mech, Xa, twist=need_twist, masked=False)
     if compiled is not None:
         valid, p, R, T = compiled
         valid = np.asarray(valid, dtype=bool)
@@ -334,6 +336,7 @@ def _poses(mech, X, need_twist: bool):
             if need_twist:
                 T[bad] = mech._twist_map(mech.home[None, :])[0]
     else:
+        Xa, single = mech._poses(X)
         valid = np.asarray(mech.pose_valid(Xa), dtype=bool)
         Xs = np.where(valid[:, None], Xa, mech.home)
         p, R = mech._pose(Xs)
@@ -1608,7 +1611,11 @@ def constraint_rank(mech, X=None) -> int:
     plan = _plan(mech)
     code, act, geo, sc, nc = plan
     X0 = mech.home if X is None else np.asarray(X, dtype=float)
-    Xa, _, valid, p, R, _ = _poses(mech, X0[None, :], False)
+    home = mech.home_platform_pose() if X is None and hasattr(mech, "home_platform_pose") else None
+    if home is not None:  # the pose the NumPy reference takes, computed when the mechanism was built
+        (p, R), valid = home, (True,)
+    else:
+        Xa, _, valid, p, R, _ = _poses(mech, X0[None, :], False)
     r = -1
     if valid[0]:
         r = int(_constraint_rank_kernel(p, R, code, geo, sc, _chain_ext(mech.legs, plan, p, R),

@@ -379,6 +379,7 @@ class DescribedMechanism(Mechanism):
         """Each leg's neutral joint directions: its direction at home (as
         :meth:`Mechanism._neutral_refs`), after checking that every leg reaches home."""
         p, R = self.__dict__.pop("_home_pose", None) or self._pose(self.home[None, :])
+        self._home_platform_pose = (self.home.copy(), p, R)
         out = []
         for leg in legs:
             with np.errstate(all="ignore"):
@@ -400,6 +401,15 @@ class DescribedMechanism(Mechanism):
                                        f"by leg {leg.name} ({leg.joints}){why}")
             out.append(leg.with_neutral(n, R[0].T @ (-n)))
         return out
+
+    def home_platform_pose(self):
+        """The platform pose (p (1, 3), R (1, 3, 3)) at ``home`` as the NumPy model computed it
+        when the mechanism was built (the legs' neutral directions were taken there); None
+        once ``home`` was changed. Shared arrays: not to be written."""
+        kept = self.__dict__.get("_home_platform_pose")
+        if kept is None or not np.array_equal(kept[0], self.home):
+            return None
+        return kept[1], kept[2]
 
     def _check_constraints(self, margins: bool = True):
         try:
