@@ -210,6 +210,17 @@ class _Param:
     below: float | None = None
 
     def coerce(self, value, where: str):
+        if value is self.default:  # a parameter left at its default (an immutable float or tuple)
+            hit = self.__dict__.get("_coerced_default")
+            if hit is not None:
+                return hit
+            out = self._coerce(value, where)
+            if type(value) in (float, tuple):
+                self.__dict__["_coerced_default"] = out
+            return out
+        return self._coerce(value, where)
+
+    def _coerce(self, value, where: str):
         unit = _SI_UNIT[self.kind]
         if self.shape == ():
             if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
