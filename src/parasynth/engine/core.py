@@ -46,6 +46,7 @@ the whole batch to NumPy.
 
 from __future__ import annotations
 
+import bisect
 import ctypes
 import logging
 import functools
@@ -562,6 +563,10 @@ class KernelPlan:
                 t["axang"], t["pair"], t["offs"])
 
 
+def _first(row):
+    return row[0]
+
+
 def _table(rows, width):
     a = np.asarray(rows, dtype=np.float64).reshape(-1, width) if rows else np.zeros((0, width))
     return np.ascontiguousarray(a)
@@ -759,14 +764,13 @@ def leg_tables(mech, cons):
         else:
             raise Unsupported(f"constraint {c.name}: the constraint type {t.__name__}")
     widths = {"coord": 4, "actr": 3, "lenr": 4, "cone": 11, "rang": 10, "axang": 8, "pair": 5}
-    for k in ("lenr", "cone", "rang", "axang"):
-        rows[k] = sorted(rows[k], key=lambda r: r[0])
+    offs = []
+    for k in ("lenr", "cone", "rang", "axang"):  # the rows by leg, and where each leg's rows start
+        rows[k] = sorted(rows[k], key=_first)
+        legs_of = [r[0] for r in rows[k]]
+        offs.append([bisect.bisect_left(legs_of, i) for i in range(nl + 1)])
     tables = {k: _table(v, widths[k]) for k, v in rows.items()}
-    offs = np.zeros((4, nl + 1), dtype=np.int64)
-    for j, k in enumerate(("lenr", "cone", "rang", "axang")):
-        legs_of = tables[k][:, 0].astype(np.int64)
-        offs[j] = np.searchsorted(legs_of, np.arange(nl + 1), side="left")
-    tables["offs"] = offs
+    tables["offs"] = np.array(offs, dtype=np.int64).reshape(4, nl + 1)
     return kind, act, np.ascontiguousarray(F), tables, exprs, expr_rows
 
 
