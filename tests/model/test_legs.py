@@ -7,6 +7,7 @@ geometric conditions (planar legs in their plane, PUS spheres within reach of th
 
 from __future__ import annotations
 
+import math
 import warnings
 
 import numpy as np
@@ -15,7 +16,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from _support import random_rotation
-from parasynth.model.legs import PUS, RPS, RPU, SPS, UPS, UPU
+from parasynth.model.legs import PUS, RPS, RPU, SPS, UPS, UPU, _axis
 
 #: Freedoms per joint letter (independent of parasynth.model.legs.JOINT_DOF).
 DOF = {"R": 1, "P": 1, "U": 2, "S": 3}
@@ -293,3 +294,25 @@ def test_pus_state_length_one_link_length_or_one_per_pose():
         s1 = one.solve(p[i:i + 1], R[i:i + 1], joint_angles=False)
         assert np.array_equal(sk.actuator[i:i + 1], s1.actuator)
         assert np.array_equal(sk.direction[i:i + 1], s1.direction)
+
+
+def test_axes_are_numpys_unit_vectors_and_a_neutral_copy_changes_only_its_references():
+    """A leg's axes normalised in Python floats equal NumPy's ``v / norm`` to the bit; the
+    copy ``with_neutral`` gives is a new leg of the same type with every other field the
+    same object, the original untouched; bad axes are refused by name."""
+    rng = np.random.default_rng(3)
+    for _ in range(2000):
+        v = rng.normal(size=3) * 10.0 ** rng.uniform(-8, 8)
+        x, y, z = v.tolist()
+        assert np.array_equal(_axis("v", v), v / math.sqrt(x * x + y * y + z * z))
+    leg = PUS("L1", base=np.array([0.1, 0.0, 0.0]), platform=np.array([0.05, 0.0, 0.0]), link_length=0.2,
+              slider_axis=np.array([0.0, 0.0, 2.0]))
+    new = leg.with_neutral([0.0, 3.0, 4.0], [1.0, 0.0, 0.0])
+    assert type(new) is PUS and new is not leg
+    assert np.array_equal(new.base_ref, [0.0, 0.6, 0.8]) and np.array_equal(new.platform_ref, [1.0, 0.0, 0.0])
+    assert np.array_equal(leg.base_ref, [0.0, 0.0, 1.0])  # the original keeps its own
+    for f in ("name", "base", "platform", "slider_axis", "link_length", "branch", "u_axis"):
+        assert getattr(new, f) is getattr(leg, f)
+    for bad, why in (([0.0, 0.0], "3-vector"), ([np.inf, 0.0, 0.0], "finite"), ([0.0, 0.0, 0.0], "non-zero")):
+        with pytest.raises(ValueError, match=f"leg L1: base_ref must be .*{why}"):
+            leg.with_neutral(bad, [1.0, 0.0, 0.0])

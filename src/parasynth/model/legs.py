@@ -59,23 +59,24 @@ JOINT_DOF = {"R": 1, "P": 1, "U": 2, "S": 3, "C": 2}
 GEOM_TOL = 1e-9
 
 
-def _vec3(name: str, v) -> np.ndarray:
+def _vec3_xyz(name: str, v):
+    """``v`` as a float 3-vector and its three entries as Python floats; ``ValueError`` naming
+    ``name`` unless it is a finite 3-vector."""
     a = np.asarray(v, dtype=float)
     if a.shape != (3,):
         raise ValueError(f"{name} must be a 3-vector, got shape {a.shape}")
     x, y, z = a.tolist()  # three floats: math is ten times cheaper than NumPy's reductions here
     if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
         raise ValueError(f"{name} must be finite, got {a.tolist()}")
-    return a
+    return a, x, y, z
+
+
+def _vec3(name: str, v) -> np.ndarray:
+    return _vec3_xyz(name, v)[0]
 
 
 def _axis(name: str, v) -> np.ndarray:
-    a = np.asarray(v, dtype=float)
-    if a.shape != (3,):
-        raise ValueError(f"{name} must be a 3-vector, got shape {a.shape}")
-    x, y, z = a.tolist()
-    if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
-        raise ValueError(f"{name} must be finite, got {a.tolist()}")
+    _, x, y, z = _vec3_xyz(name, v)
     n = math.sqrt(x * x + y * y + z * z)
     if n == 0:
         raise ValueError(f"{name} must be a non-zero direction")
