@@ -197,7 +197,7 @@ def test_small_batches_of_costly_kernels_answer_as_one_thread(monkeypatch):
         monkeypatch.setattr(core, "n_threads", lambda: 3)
         split = []
         over = core.over_blocks
-        monkeypatch.setattr(core, "over_blocks", lambda fn, nb, par=True: (split.append(par and nb > 1), over(fn, nb, par))[1])
+        monkeypatch.setattr(core, "over_blocks", lambda fn, nb, par=True, **kw: (split.append(par and nb > 1), over(fn, nb, par, **kw))[1])
         f3, m3 = engine.feasible(m, X), engine.margins(m, X)
         monkeypatch.setattr(core, "over_blocks", over)
         assert any(split), m.name  # some batch was spread over threads
@@ -265,3 +265,84 @@ def test_a_failure_to_keep_the_crew_apart_turns_it_off_and_the_batch_still_runs(
     assert np.array_equal(_crew_batch(monkeypatch), np.ones(3))
     assert core.APART is False
     assert np.array_equal(_crew_batch(monkeypatch), np.ones(3))  # and without it
+
+
+def test_the_crews_spin_marks_its_range_and_waits_for_a_batch_and_the_callers_first_claim():
+    import threading
+    import time
+
+    core.spin_warm()
+    mail, claim = np.zeros(2, dtype=np.int64), np.zeros(1, dtype=np.int64)
+    fin = np.zeros(3, dtype=np.int64)
+    # no batch: gives up after its rounds, having marked the range it ran last (and no other)
+    assert not core._crew_spin(mail, 0, claim, 1000, fin, 1)
+    assert fin.tolist() == [0, 1, 0]
+    assert not core._crew_spin(mail, 0, claim, 1000, fin, -1) and fin.tolist() == [0, 1, 0]  # -1: none
+    mail[0] = 1  # a batch posted whose ranges are claimed in Python: at once
+    assert core._crew_spin(mail, 0, claim, 1, fin, -1)
+    # a batch whose kernel claims from ``claim``: not before the caller's first claim
+    mail[:] = (2, 1)
+    wrote = []
+
+    def later():
+        time.sleep(0.02)
+        wrote.append(time.perf_counter())
+        claim[0] = 1
+
+    t = threading.Thread(target=later)
+    t.start()
+    assert core._crew_spin(mail, 1, claim, 10**12, fin, -1)
+    back = time.perf_counter()
+    t.join()
+    assert back >= wrote[0]
+
+
+def test_a_deferred_drain_leaves_its_last_range_unmarked():
+    ran = []
+    b = core._Batch(lambda b0, b1: ran.append(b0), [0, 1, 2, 3])
+    assert b.drain(defer=True) == 2
+    assert ran == [0, 1, 2] and b.fin.tolist() == [1, 1, 0]
+    assert b.drain(defer=True) == -1  # nothing left to run
+
+    def fail(b0, b1):
+        if b0 == 2:
+            raise ValueError("range 2")
+
+    b = core._Batch(fail, [0, 1, 2, 3])
+    assert b.drain(defer=True) == -1  # the failed last range is marked (its error kept), not deferred
+    assert b.fin.tolist() == [1, 1, 1] and isinstance(b.err, ValueError)
+    b = core._Batch(fail, [0, 2, 3, 4])
+    assert b.drain(defer=True) == 2 and b.fin.tolist() == [1, 1, 0]  # after a failed range: the last run
+    b = core._Batch(lambda b0, b1: None, [0, 1, 2])
+    assert b.drain() == -1 and b.fin.tolist() == [1, 1]
+
+
+def test_a_spinning_crew_takes_the_next_batch_without_being_woken(monkeypatch):
+    """After a batch, a crew thread spins for the next one (CREW_SPIN rounds) before it sleeps:
+    a batch posted meanwhile reaches it with no wake-up at all."""
+    import threading
+
+    core.spin_warm()
+    monkeypatch.setattr(core, "ITEMS_PER_THREAD", 1)
+    monkeypatch.setattr(core, "_CREW", core._Crew())  # a crew of this test's own
+    monkeypatch.setattr(core, "CREW_SPIN", 10**10)  # spins for seconds: the test does not race it
+    monkeypatch.setattr(core, "n_threads", lambda: 2)
+    caller = threading.get_ident()
+    for woken in (True, False):
+        if not woken:
+            monkeypatch.setattr(core._CREW, "wake", lambda n: None)
+        took = threading.Event()
+        by = []
+
+        def fn(b0, b1):
+            if threading.get_ident() == caller:
+                took.wait(10.0)  # the caller leaves the other range to the crew
+            else:
+                by.append(b0)
+                took.set()
+
+        core.over_blocks(fn, 2, True)
+        assert by == [1], f"woken={woken}: the crew ran {by}"
+    # end the long spin: a batch of nothing posted, then the crew spins briefly and sleeps
+    monkeypatch.setattr(core, "CREW_SPIN", 1000)
+    core._CREW.post(None, False)

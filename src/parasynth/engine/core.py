@@ -256,13 +256,21 @@ def _timed_claims(kind: str, fn, n: int, work: float | None = None) -> None:
     that starts late takes fewer and none waits for another's range; the items are finer
     (:data:`CLAIMS_PER_THREAD` a thread). One thread: one call takes them all in order."""
     block, nblk, par = blocking(n, kind=kind, work=work, per_thread=CLAIMS_PER_THREAD)
-    claim = np.zeros(1, dtype=np.int64)
+    crew = _CREW
+    shared = par and crew.busy.acquire(blocking=False)  # the crew's counter, which its spin watches
+    claim = crew.claim if shared else np.zeros(1, dtype=np.int64)
+    claim[0] = 0
     t0 = time.perf_counter()
-    over_blocks(lambda p0, p1: fn(block, claim, nblk), n_threads() if par else 1, par)
+    try:
+        over_blocks(lambda p0, p1: fn(block, claim, nblk), n_threads() if par else 1, par, claiming=shared)
+    finally:
+        if shared:
+            crew.busy.release()
     TIMING.record(kind, par, int(max(n, work or 0)), time.perf_counter() - t0)
 
 
 _IN_POOL = threading.local()
+_NO_FIN = np.zeros(1, dtype=np.int64)
 
 
 class _Batch:
@@ -280,19 +288,31 @@ class _Batch:
         self.fin = np.zeros(len(edges) - 1, dtype=np.int64)
         self.err = None
 
-    def drain(self) -> None:
+    def drain(self, defer: bool = False) -> int:
+        """Run the ranges not yet claimed; with ``defer``, the last one run is not marked
+        finished but returned (-1 if none: every other is marked), for the caller to mark from
+        compiled code once it has released the interpreter lock (:meth:`_Crew._loop`)."""
         edges, fin, n = self.edges, self.fin, len(self.edges) - 1
+        last = -1
         for i in self.claim:
             if i >= n:
-                return
+                break
+            if last >= 0:
+                fin[last] = 1
+                last = -1
             try:
                 if self.err is None:
                     self.fn(edges[i], edges[i + 1])
             except BaseException as e:  # noqa: BLE001 - handed to the calling thread
                 if self.err is None:
                     self.err = e
-            finally:
                 fin[i] = 1
+                continue
+            last = i
+        if last >= 0 and not defer:
+            fin[last] = 1
+            last = -1
+        return last
 
 
 class _Crew:
@@ -308,16 +328,44 @@ class _Crew:
         self.lock = threading.Lock()
         self.members: list = []  # (thread, wake lock)
         self.batch = None
+        # a batch posted: mail[0] counts them, mail[1] says whether its kernel claims its items
+        # from ``claim`` (then the crew's spin waits until the poster is inside its kernel)
+        self.mail = np.zeros(2, dtype=np.int64)
+        self.claim = np.zeros(1, dtype=np.int64)
+        self.busy = threading.Lock()  # held by the thread whose batch uses ``claim``
         self.apart_from = None  # the CPU the crew was last kept off (see _keep_apart)
         self.cpus = None  # the CPUs the crew may use: the caller's when the first was started
 
     def _loop(self, wake) -> None:
         _IN_POOL.active = True
+        mail, seen, fin, last = self.mail, 0, _NO_FIN, -1
         while True:
-            wake.acquire()
+            # after a batch, spin a while (CREW_SPIN) for the next one before sleeping: a
+            # sleeping thread starts ~0.1 ms after the caller's wake-up (its own and the
+            # interpreter lock's, on a virtual machine), a third of a batch of 16384 poses. The
+            # spin marks the last range done (fin[last]) once the interpreter lock is released,
+            # so the calling thread, seeing it, does not wait for the lock (and sleep).
+            if _crew_ready():
+                if not _crew_spin(mail, seen, self.claim, CREW_SPIN, fin, last):
+                    wake.acquire()
+            else:
+                if last >= 0:
+                    fin[last] = 1
+                if int(mail[0]) == seen:
+                    wake.acquire()
+            seen = int(mail[0])
             b = self.batch
+            fin, last = _NO_FIN, -1
             if b is not None:
-                b.drain()
+                last = b.drain(defer=True)
+                fin = b.fin
+
+    def post(self, batch, claiming: bool) -> None:
+        """``batch`` for the crew: spinning members see it at once, sleeping ones at
+        :meth:`wake`."""
+        self.batch = batch
+        self.mail[1] = 1 if claiming else 0
+        self.mail[0] += 1
 
     def wake(self, n: int) -> None:
         """Wake ``n`` crew threads (started at the first need)."""
@@ -391,6 +439,8 @@ if hasattr(os, "register_at_fork"):
 #: Iterations of the calling thread's spin while the crew finishes (~0.5-1 ms); then it polls
 #: with short sleeps (a crew thread descheduled by other work on the machine).
 SPIN_ITERATIONS = 200_000
+#: Rounds of a crew thread's spin for the next batch before it sleeps (~1 ms).
+CREW_SPIN = 2000000
 
 
 def _wait(fin: np.ndarray) -> None:
@@ -427,15 +477,28 @@ def _spin_ready() -> bool:
     return _SPIN_READY
 
 
+_CREW_READY = False
+
+
+def _crew_ready() -> bool:
+    """Whether the crew's spin kernel can run without compiling now (else a crew thread sleeps
+    between batches)."""
+    global _CREW_READY
+    if not _CREW_READY and HAVE_NUMBA:
+        _CREW_READY = compiled_or_cached(*signatures()["_crew_spin"])
+    return _CREW_READY
+
+
 def spin_warm() -> None:
     """Compile (or load from the cache) the spin kernel of the threads' wait."""
-    global _SPIN_READY
+    global _SPIN_READY, _CREW_READY
     if HAVE_NUMBA:
         _spin_done(np.ones(1, dtype=np.int64), 1)
-        _SPIN_READY = True
+        _crew_spin(np.ones(2, dtype=np.int64), 0, np.ones(1, dtype=np.int64), 1, _NO_FIN, -1)
+        _SPIN_READY = _CREW_READY = True
 
 
-def over_blocks(fn, n_blocks: int, parallel: bool = True) -> None:
+def over_blocks(fn, n_blocks: int, parallel: bool = True, claiming: bool = False) -> None:
     """Run ``fn(b0, b1)`` over the work items ``0 .. n_blocks - 1``: on the calling thread, or,
     when ``parallel`` and there are several items and threads, as contiguous ranges (about
     ITEMS_PER_THREAD a thread) claimed in turn by the calling thread and ``n_threads() - 1``
@@ -449,7 +512,7 @@ def over_blocks(fn, n_blocks: int, parallel: bool = True) -> None:
     parts = min(n_blocks, ITEMS_PER_THREAD * nt)
     batch = _Batch(fn, [n_blocks * i // parts for i in range(parts + 1)])
     crew = _CREW
-    crew.batch = batch
+    crew.post(batch, claiming)
     crew.wake(min(nt, parts) - 1)
     _IN_POOL.active = True  # a range's own batches run on its thread
     try:
@@ -558,7 +621,7 @@ class KernelPlan:
         p = self.program
         t = self.tables
         return (p.ins, self.consts, p.const_base, p.n_reg, p.n_pose, p.pose_regs, p.valid_regs, p.pose_limit,
-                _posefn.function(p, SUB), self.expr, GEOM_TOL,
+                _posefn.function(p, SUB).address, self.expr, GEOM_TOL,
                 self.leg_kind, self.leg_act, self.leg_f, t["coord"], t["actr"], t["lenr"], t["cone"], t["rang"],
                 t["axang"], t["pair"], t["offs"])
 
@@ -1009,7 +1072,7 @@ def run_unknowns(prog: Program, consts, X: np.ndarray):
     Tw = np.empty((0, 0, 0))
     _timed_claims("pose", lambda block, claim, b1: _pose_kernel(X, prog.ins, consts, prog.const_base, prog.n_reg,
                                                              prog.n_pose, regs, prog.valid_regs, prog.pose_limit,
-                                                             _posefn.function(prog, SUB), tr,
+                                                             _posefn.function(prog, SUB).address, tr,
                                                              block, ok, P, Rm, Tw, claim, b1), N, program_work(N, prog.n_pose))
     return ok, np.concatenate([P, Rm], axis=1)[:, :m].copy()
 
@@ -1031,7 +1094,7 @@ def run_pose(prog: Program, consts, X: np.ndarray, twist: bool = False):
         n_run = prog.n_pose
     _timed_claims("pose", lambda block, claim, b1: _pose_kernel(X, prog.ins, consts, prog.const_base, prog.n_reg, n_run,
                                                              prog.pose_regs, prog.valid_regs, prog.pose_limit,
-                                                             _posefn.function(prog, SUB), tr,
+                                                             _posefn.function(prog, SUB).address, tr,
                                                              block, ok, P, Rm, Tw, claim, b1), N,
                   program_work(N, prog.ins.shape[0] if twist else prog.n_pose))
     return ok, P, Rm.reshape(N, 3, 3), (Tw if twist else None)
@@ -1050,6 +1113,7 @@ if HAVE_NUMBA:
     _jit_inline = _jit
     _jit_ir_inline = dict(_jit, inline="always")
 
+    from llvmlite import ir as _llir
     from numba.core import cgutils as _cgutils
     from numba.core.extending import intrinsic as _intrinsic
 
@@ -1065,6 +1129,37 @@ if HAVE_NUMBA:
             ary = context.make_array(aryty)(context, builder, args[0])
             ptr = _cgutils.get_item_pointer(context, builder, aryty, ary, [args[1]])
             return builder.load_atomic(ptr, "acquire", align=8)
+
+        return sig, codegen
+
+    @_intrinsic
+    def _call_loop(typingctx, addr, ptr, nb):
+        """The generated pose loop at address ``addr`` (a :data:`posefn.SIG` C function, see
+        :func:`posefn.function`) called on ``(ptr, nb)``. The kernels take the loop's address,
+        an integer, rather than the loop as a first-class function, whose every call unboxed it
+        in Python (~8 us of a kernel call's ~17 us)."""
+        sig = _nbt.int64(_nbt.int64, _nbt.CPointer(_nbt.float64), _nbt.int64)
+
+        def codegen(context, builder, signature, args):
+            fnty = _llir.FunctionType(_llir.IntType(64), [_llir.DoubleType().as_pointer(), _llir.IntType(64)])
+            fn = builder.inttoptr(args[0], fnty.as_pointer())
+            return builder.call(fn, [args[1], args[2]])
+
+        return sig, codegen
+
+    @_intrinsic
+    def _store_release(typingctx, arr, idx, val):
+        """``arr[idx] = val`` with release ordering: what this thread wrote before is visible
+        to a thread that reads it with :func:`_load_acquire`."""
+        sig = _nbt.void(arr, idx, val)
+
+        def codegen(context, builder, signature, args):
+            aryty = signature.args[0]
+            ary = context.make_array(aryty)(context, builder, args[0])
+            ptr = _cgutils.get_item_pointer(context, builder, aryty, ary, [args[1]])
+            builder.store_atomic(context.cast(builder, args[2], signature.args[2], aryty.dtype), ptr,
+                                 "release", align=8)
+            return context.get_dummy_value()
 
         return sig, codegen
 
@@ -1093,6 +1188,26 @@ if HAVE_NUMBA:
             return context.make_array(signature.args[0])(context, builder, args[0]).data
 
         return sig, codegen
+
+    @njit(**_jit)
+    def _crew_spin(mail, gen, claim, max_iter, fin, last):
+        """A crew thread's wait for the next batch, spinning with the interpreter lock released:
+        first ``fin[last] = 1`` (the range it ran last is done; ``last`` < 0: none), then True
+        once ``mail[0]`` differs from ``gen`` (a batch was posted) and, for a batch whose
+        kernel claims its items from ``claim`` (``mail[1]`` set), once the posting thread has
+        claimed its first item -- it is then inside its kernel and has released the lock, so
+        the crew thread takes the lock without sleeping on it; False after ``max_iter`` rounds
+        without a batch."""
+        if last >= 0:
+            _store_release(fin, last, 1)
+        for _ in range(max_iter):
+            if _load_acquire(mail, 0) != gen:
+                if _load_acquire(mail, 1) != 0:
+                    for _ in range(max_iter):
+                        if _load_acquire(claim, 0) != 0:
+                            break
+                return True
+        return False
 
     @njit(**_jit)
     def _spin_done(fin, max_iter):
@@ -1564,7 +1679,7 @@ if HAVE_NUMBA:
             _zero_rejected(Rg, okm, nt, nb)
         # the pose part: the program's generated loop (parasynth.engine.posefn) if it has one,
         # else (or for a sub-block with a lane the loop leaves to libm) the interpreter
-        st = loop(_data(Rg), nb)
+        st = _call_loop(loop, _data(Rg), nb)
         if st != 0:
             if st > 0:  # the loop ran: the coordinates again (it may have reused their rows)
                 _coords_in(X, j0, nb, Rg)
@@ -1591,15 +1706,16 @@ if HAVE_NUMBA:
         N = X.shape[0]
         coord = np.zeros((0, 4))
         n_pose = n_run
+        # the scratch once a call, not once a claimed block (9 allocations ~2 us)
+        Rg = np.empty((n_reg, SUB))
+        _fill_consts(Rg, consts, cbase)
+        Sc = np.empty((2, SUB))
+        Tm = np.empty((12, SUB))
+        okm = np.empty(SUB, dtype=np.uint8)
         while True:
             blk = _claim(claim)
             if blk >= b1:
                 break
-            Rg = np.empty((n_reg, SUB))
-            _fill_consts(Rg, consts, cbase)
-            Sc = np.empty((2, SUB))
-            Tm = np.empty((12, SUB))
-            okm = np.empty(SUB, dtype=np.uint8)
             i1 = min(N, (blk + 1) * block)
             for j0 in range(blk * block, i1, SUB):
                 nb = min(SUB, i1 - j0)
@@ -1633,20 +1749,22 @@ if HAVE_NUMBA:
         module docstring)."""
         N = X.shape[0]
         nl = leg_kind.shape[0]
+        # the scratch once a call, not once a claimed block (the registers' constant rows are
+        # never written by the program)
+        Tm = np.empty((12, SUB))
+        Rg = np.empty((n_reg, SUB))
+        _fill_consts(Rg, consts, cbase)
+        Sc = np.empty((2, SUB))
+        okm = np.empty(SUB, dtype=np.uint8)
+        und = np.empty(SUB, dtype=np.uint8)
+        pend = np.empty(SUB, dtype=np.uint8)
+        lane = np.empty(SUB, dtype=np.int64)
+        Sg = np.empty((nl, 6, SUB))
+        Q = np.empty((nl, SUB))
         while True:
             blk = _claim(claim)
             if blk >= b1:
                 break
-            Tm = np.empty((12, SUB))
-            Rg = np.empty((n_reg, SUB))
-            _fill_consts(Rg, consts, cbase)
-            Sc = np.empty((2, SUB))
-            okm = np.empty(SUB, dtype=np.uint8)
-            und = np.empty(SUB, dtype=np.uint8)
-            pend = np.empty(SUB, dtype=np.uint8)
-            lane = np.empty(SUB, dtype=np.int64)
-            Sg = np.empty((nl, 6, SUB))
-            Q = np.empty((nl, SUB))
             n_amb = 0
             i1 = min(N, (blk + 1) * block)
             for j0 in range(blk * block, i1, SUB):
@@ -2076,19 +2194,19 @@ if HAVE_NUMBA:
         nl = leg_kind.shape[0]
         nc = M.shape[1]
         nocoord = np.zeros((0, 4))
+        seg = np.empty((nl, 6))
+        lens = np.empty(nl)
+        qv = np.empty(nl)
+        nvec = np.empty((nl, 3))
+        Rg = np.empty((n_reg, SUB))
+        _fill_consts(Rg, consts, cbase)
+        Sc = np.empty((2, SUB))
+        Tm = np.empty((12, SUB))
+        okm = np.empty(SUB, dtype=np.uint8)
         while True:
             blk = _claim(claim)
             if blk >= b1:
                 break
-            seg = np.empty((nl, 6))
-            lens = np.empty(nl)
-            qv = np.empty(nl)
-            nvec = np.empty((nl, 3))
-            Rg = np.empty((n_reg, SUB))
-            _fill_consts(Rg, consts, cbase)
-            Sc = np.empty((2, SUB))
-            Tm = np.empty((12, SUB))
-            okm = np.empty(SUB, dtype=np.uint8)
             n_amb = 0
             i1 = min(N, (blk + 1) * block)
             for j0 in range(blk * block, i1, SUB):
@@ -2196,12 +2314,13 @@ def signatures() -> dict:
     i1, i2, b1 = _array("i8", 1), _array("i8", 2), _array("b1", 1)
     i8, f8 = _nbt.int64, _nbt.float64
     X = _array("f8", 2, readonly=True)
-    prog = (X, i2, f1, i8, i8, i8, i1, i1, f1, _posefn.FN_TYPE)  # poses, ins, consts, cbase, n_reg, n_pose, regs,
-    # plim, the pose loop
+    prog = (X, i2, f1, i8, i8, i8, i1, i1, f1, i8)  # poses, ins, consts, cbase, n_reg, n_pose, regs, plim, the
+    # pose loop's address
     plan = (i2, f8, i1, i1) + (f2,) * 8 + (i2,)  # expr, tol, leg_kind, leg_act, leg_f .. pair, offs
     return {
         "_pose_kernel": (_pose_kernel, prog + (i2, i8, b1, f2, f2, f3, i1, i8)),
         "_feasible_kernel": (_feasible_kernel, prog + plan + (i8, b1, i1, f2, i1, i8)),
         "_margins_kernel": (_margins_kernel, prog + plan + (i8, f2, i1, i1, i8)),
         "_spin_done": (_spin_done, (i1, i8)),
+        "_crew_spin": (_crew_spin, (i1, i8, i1, i8, i1, i8)),
     }
