@@ -164,10 +164,10 @@ def _kernel_timer(parts: dict):
 
     real = core.over_blocks
 
-    def timed(fn, n_blocks, parallel=True):
+    def timed(fn, n_blocks, parallel=True, **kw):
         t0 = time.perf_counter()
         try:
-            return real(fn, n_blocks, parallel)
+            return real(fn, n_blocks, parallel, **kw)
         finally:
             parts["(kernels)"] = parts.get("(kernels)", 0.0) + time.perf_counter() - t0
 

@@ -85,12 +85,19 @@ __all__ = ["HAVE_NUMBA", "ENGINES", "EngineFallbackWarning", "feasible", "feasib
 _CORE_NAMES = ("HAVE_NUMBA", "BLOCK", "SUB", "KernelPlan", "Unsupported")
 
 
+_MODULES: tuple | None = None
+
+
 def _compiled():
     """The modules of the compiled path, ``(core, evaluate, indices, precompile, closure, chains)``."""
-    # lazy: they import numba (about a second) and define its kernels: loaded at the first compiled evaluation
-    from . import chains, closure, core, evaluate, indices, precompile
+    global _MODULES
+    if _MODULES is None:
+        # lazy: they import numba (about a second) and define its kernels: loaded at the first
+        # compiled evaluation (then kept: an import statement at every call cost ~4 us)
+        from . import chains, closure, core, evaluate, indices, precompile
 
-    return core, evaluate, indices, precompile, closure, chains
+        _MODULES = (core, evaluate, indices, precompile, closure, chains)
+    return _MODULES
 
 
 def _closure():
@@ -423,7 +430,7 @@ def exercise(mech, what=EXERCISES) -> None:
         if "feasible" in what:
             feasible(mech, X)
             if effective_engine("compiled") == "compiled":
-                _compiled()[0].spin_warm()  # the threads' wait (core._spin_done), used by large batches
+                _compiled()[0].spin_warm()  # the threads' waits (core._spin_done, core._crew_spin), used by large batches
         if "margins" in what:
             margins(mech, X)
         if "pose" in what:

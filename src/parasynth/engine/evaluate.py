@@ -35,8 +35,8 @@ def plan(mech, names=None):
     if not HAVE_NUMBA:
         return None, "numba (not importable, or disabled by PARASYNTH_NO_NUMBA)"
     cons = _selection(mech, names)
-    key = tuple(id(c) for c in cons)
-    legs = tuple(id(leg) for leg in mech.legs)
+    key = tuple(map(id, cons))
+    legs = tuple(map(id, mech.legs))
     per = core.record_of(mech).setdefault("feasibility", {})
     hit = per.get(key)
     if hit is not None and hit[0] == legs and hit[1] is mech.constraints and hit[2] == key:
