@@ -1634,11 +1634,39 @@ if HAVE_NUMBA:
                 Rg[cbase + j, ii] = v
 
     @njit(**_jit_ir_inline)
+    def _rows_in(xp, rp, w, base, nb, nt):
+        """Poses' rows (``nt`` coordinates each, from ``xp[base]``) into the register rows
+        ``rp[j * w + ii]``; given a literal ``nt``, the inner loop is unrolled."""
+        for ii in range(nb):
+            r = base + ii * nt
+            for j in range(nt):
+                rp[j * w + ii] = xp[r + j]
+
+    @njit(**_jit_ir_inline)
     def _coords_in(X, j0, nb, Rg):
-        """The task coordinates of poses X[j0:j0+nb] into their registers (rows 0..n_task-1)."""
-        for j in range(X.shape[1]):
-            for ii in range(nb):
-                Rg[j, ii] = X[j0 + ii, j]
+        """The task coordinates of poses X[j0:j0+nb] into their registers (rows 0..n_task-1),
+        through the data pointers of the (C-contiguous) poses and registers, pose by pose with
+        the coordinates unrolled for 3 to 6 of them: ``Rg[j, ii] = X[j0 + ii, j]`` tested
+        ``j0 + ii`` for a negative index at every element, a scalar loop that took ~11-14 %
+        of the feasibility kernel's time (a perf profile of the worst case, 3.5 -> 1.1 ns a
+        pose alone; docs/performance.md)."""
+        nt = X.shape[1]
+        xp = _data(X)
+        rp = _data(Rg)
+        w = Rg.shape[1]
+        base = j0 * nt
+        if nt == 5:
+            _rows_in(xp, rp, w, base, nb, 5)
+        elif nt == 6:
+            _rows_in(xp, rp, w, base, nb, 6)
+        elif nt == 3:
+            _rows_in(xp, rp, w, base, nb, 3)
+        elif nt == 4:
+            _rows_in(xp, rp, w, base, nb, 4)
+        else:
+            for j in range(nt):
+                for ii in range(nb):
+                    rp[j * w + ii] = xp[base + ii * nt + j]
 
     @njit(**_jit_ir_inline)
     def _zero_rejected(Rg, okm, nt, nb):
@@ -1938,31 +1966,31 @@ if HAVE_NUMBA:
                         plat = end == 1
                         sgn = -1.0 if plat else 1.0
                         if lo_mode == 0 and hi_mode == 1:  # the usual cone: hi < pi/2, no lower limit
+                            # |w x v|^2 as |w|^2 - (w.v)^2 (v a unit vector: the reference
+                            # directions are normalised, R orthonormal; at the limit the
+                            # difference is ~3 eps / sin^2(hi) relative), and the platform's
+                            # -w by the sign of the dot product: ~11 operations a pose less
                             if plat:
                                 for ii in range(nb):
-                                    wx = sgn * (Sg[k, 3, ii] - Sg[k, 0, ii])
-                                    wy = sgn * (Sg[k, 4, ii] - Sg[k, 1, ii])
-                                    wz = sgn * (Sg[k, 5, ii] - Sg[k, 2, ii])
+                                    wx = Sg[k, 3, ii] - Sg[k, 0, ii]
+                                    wy = Sg[k, 4, ii] - Sg[k, 1, ii]
+                                    wz = Sg[k, 5, ii] - Sg[k, 2, ii]
                                     vx = Tm[3, ii] * r0 + Tm[4, ii] * r1 + Tm[5, ii] * r2
                                     vy = Tm[6, ii] * r0 + Tm[7, ii] * r1 + Tm[8, ii] * r2
                                     vz = Tm[9, ii] * r0 + Tm[10, ii] * r1 + Tm[11, ii] * r2
-                                    dot = wx * vx + wy * vy + wz * vz
-                                    cx = wy * vz - wz * vy
-                                    cy = wz * vx - wx * vz
-                                    cz = wx * vy - wy * vx
-                                    cr2 = cx * cx + cy * cy + cz * cz
-                                    okm[ii] = okm[ii] & (dot >= 0.0) & (sh2 * (dot * dot) >= ch2 * cr2)
+                                    dp = wx * vx + wy * vy + wz * vz  # (-w).v = -dp
+                                    d2 = dp * dp
+                                    cr2 = (wx * wx + wy * wy + wz * wz) - d2
+                                    okm[ii] = okm[ii] & (dp <= 0.0) & (sh2 * d2 >= ch2 * cr2)
                             else:
                                 for ii in range(nb):
-                                    wx = sgn * (Sg[k, 3, ii] - Sg[k, 0, ii])
-                                    wy = sgn * (Sg[k, 4, ii] - Sg[k, 1, ii])
-                                    wz = sgn * (Sg[k, 5, ii] - Sg[k, 2, ii])
+                                    wx = Sg[k, 3, ii] - Sg[k, 0, ii]
+                                    wy = Sg[k, 4, ii] - Sg[k, 1, ii]
+                                    wz = Sg[k, 5, ii] - Sg[k, 2, ii]
                                     dot = wx * q0 + wy * q1 + wz * q2
-                                    cx = wy * q2 - wz * q1
-                                    cy = wz * q0 - wx * q2
-                                    cz = wx * q1 - wy * q0
-                                    cr2 = cx * cx + cy * cy + cz * cz
-                                    okm[ii] = okm[ii] & (dot >= 0.0) & (sh2 * (dot * dot) >= ch2 * cr2)
+                                    d2 = dot * dot
+                                    cr2 = (wx * wx + wy * wy + wz * wz) - d2
+                                    okm[ii] = okm[ii] & (dot >= 0.0) & (sh2 * d2 >= ch2 * cr2)
                             continue
                         for ii in range(nb):
                             wx = sgn * (Sg[k, 3, ii] - Sg[k, 0, ii])
