@@ -1815,6 +1815,7 @@ if HAVE_NUMBA:
         Sg = np.empty((nl, 6, SUB))
         Q = np.empty((nl, SUB))
         pu = _pair_directions(pair, leg_f)
+        outv = out.view(np.uint8)  # okm's 0/1 bytes are the booleans
         while True:
             blk = _claim(claim)
             if blk >= b1:
@@ -2209,11 +2210,18 @@ if HAVE_NUMBA:
                                 dist2 = _parallel_seg2(p1x, p1y, p1z, d1x, d1y, d1z, a, p2x, p2y, p2z, d2x, d2y,
                                                        d2z, e)
                                 okm[ii] = okm[ii] & (dist2 >= D2)
+                # the answers through the output's data pointer (no negative-index tests);
+                # a sub-block not compacted (lane[ii] == ii) as one straight loop
+                op = _data(outv)
                 if nb < nb0:  # compacted: lanes not listed are infeasible
                     for ii in range(nb0):
-                        out[j0 + ii] = False
+                        op[j0 + ii] = 0
+                    for ii in range(nb):
+                        op[j0 + lane[ii]] = okm[ii]
+                else:
+                    for ii in range(nb):
+                        op[j0 + ii] = okm[ii]
                 for ii in range(nb):
-                    out[j0 + lane[ii]] = okm[ii] != 0
                     n_amb += okm[ii] & und[ii]
                 if ext.shape[0] > 0:
                     for c in range(3):
