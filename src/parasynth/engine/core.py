@@ -9,27 +9,29 @@ poses. Per sub-block: the task-coordinate ranges and finiteness, the program's p
 then leg by leg its inverse kinematics and that leg's checks (actuator range, passive length,
 joint cone angles, leg-axis angles, revolute angle), each a straight loop over the sub-block
 with the leg's geometry and limits as loop invariants (SIMD across poses), then the
-expression margins and, last and most expensive, leg interference (a bounding-box test
-settles most pairs, the distance of the two lines most of the rest; the segment distance is
-computed only for a sub-block with a feasible pose neither settles). A sub-block stops at the
+expression margins and, last and most expensive, leg interference (the two segments projected
+on the pair's direction settle most pairs, the distance of the two lines most of the rest;
+the segment distance is computed only for a sub-block with a feasible pose neither settles). A sub-block stops at the
 first stage after which none of its poses is feasible, and before each leg a sub-block whose
 feasible poses are at most half is compacted (the later stages run on those alone). Nothing
 of size N is allocated but the result (and, for a workspace, the per-block extents of the
 feasible poses' positions).
 
-Costs per pose (5pus_upu, every pose feasible, one core, ~52 ns in all with the interpreter):
-the coordinates in and the program's pose part (after fusing products into their sums,
-:func:`parasynth.engine.program._fuse`) ~20 ns (~14 ns once the program's generated loop,
-:mod:`parasynth.engine.posefn`, is compiled), the six legs' inverse kinematics ~12 ns, the
-ten cone limits ~9 ns, the ten interference pairs ~11 ns (bounding boxes and, for two pairs,
-the line distance), the rest (actuator ranges, the result) ~1 ns. Coordinate magnitudes are tested in the kernel (``Program.pose_limit``
-per coordinate), so the entry points make no NumPy pass over a float batch.
+Costs per pose (5pus_upu, every pose feasible, one core, ~36 ns in all once the program's
+generated pose loop, :mod:`parasynth.engine.posefn`, is compiled; a perf profile's shares):
+the coordinates in and the pose part ~10 ns (the loop ~5 ns of it), the six legs' inverse
+kinematics ~8 ns (the five square roots of the PUS legs a floor), the ten cone limits ~6 ns,
+the ten interference pairs ~8 ns (the projections and, for two pairs, the line distance), the
+rest (actuator ranges, the result) ~2 ns. Coordinate magnitudes are tested in the kernel
+(``Program.pose_limit`` per coordinate), so the entry points make no NumPy pass over a float
+batch.
 
 Agreement with the NumPy path
 -----------------------------
 The kernels evaluate the same conditions, not always in the same arithmetic form: a cone
 limit ``angle(u, v) <= hi`` is tested as ``sin(hi) (u.v) - cos(hi) |u x v| >= 0`` (on
-squares, signs handled), ``arccos(c) <= hi`` as ``c >= cos(hi)``, a distance limit
+squares, signs handled; for a unit ``v`` and an upper limit below pi/2, ``|u x v|^2`` as
+``|u|^2 - (u.v)^2``), ``arccos(c) <= hi`` as ``c >= cos(hi)``, a distance limit
 ``d >= D`` as ``d^2 >= D^2``; the sine and cosine of an ``atan2`` are taken algebraically; the
 vectorised sin/cos (Cephes) may differ from NumPy's by an ulp; sums may associate
 differently. The booleans therefore agree exactly except at poses within rounding of a
@@ -322,7 +324,10 @@ class _Crew:
     compiled code (:func:`_spin_done`, the lock released) rather than sleeping: a sleeping
     thread woke ~50 us after the last range ended on the development machine (a third of a
     batch of 8192 poses on two threads). On Linux the crew is kept off the CPU of the thread
-    that wakes it (:meth:`_keep_apart`)."""
+    that wakes it (:meth:`_keep_apart`). After a batch a crew thread spins for the next one
+    (:data:`CREW_SPIN`, ~1 ms, in compiled code with the lock released) before it sleeps, and
+    takes a batch posted meanwhile once the caller is inside its kernel: no wake-up, and no
+    wait for the interpreter lock (a thread that sleeps on it wakes ~0.05-0.1 ms later here)."""
 
     def __init__(self):
         self.lock = threading.Lock()
