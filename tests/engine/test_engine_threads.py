@@ -350,3 +350,22 @@ def test_a_spinning_crew_takes_the_next_batch_without_being_woken(monkeypatch):
     # end the long spin: a batch of nothing posted, then the crew spins briefly and sleeps
     monkeypatch.setattr(core, "CREW_SPIN", 1000)
     core._CREW.post(None, False)
+
+
+def test_the_first_parallel_batch_loads_the_spin_kernels(monkeypatch):
+    """A process that never ran the warm-up (a user's script, a benchmark) gets the waits' spin
+    kernels at its first parallel batch (loaded from numba's cache or compiled once), so the
+    caller and the crew spin rather than sleep; one-thread batches do not need them."""
+    monkeypatch.setattr(core, "_SPIN_READY", False)
+    monkeypatch.setattr(core, "n_threads", lambda: 1)
+    core.over_blocks(lambda b0, b1: None, 4, True)
+    assert not core._spin_ready() and not core._crew_ready()
+    monkeypatch.setattr(core, "n_threads", lambda: 2)
+    done = np.zeros(4)
+
+    def fn(b0, b1):
+        done[b0:b1] += 1
+
+    core.over_blocks(fn, 4, True)
+    assert core._spin_ready() and core._crew_ready()
+    assert np.array_equal(done, np.ones(4))

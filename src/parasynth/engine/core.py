@@ -449,8 +449,8 @@ CREW_SPIN = 2000000
 
 
 def _wait(fin: np.ndarray) -> None:
-    """Until every ``fin`` is set: spinning in compiled code while that is compiled (in this
-    process or numba's cache), then sleeping 20 us at a time."""
+    """Until every ``fin`` is set: spinning in compiled code (:func:`_spin_done`), then
+    sleeping 20 us at a time."""
     if _spin_ready() and _spin_done(fin, SPIN_ITERATIONS):
         return
     while not fin.all():
@@ -474,33 +474,27 @@ def compiled_or_cached(disp, sig) -> bool:
 
 
 def _spin_ready() -> bool:
-    """Whether the spin kernel can run without compiling now (a batch never waits for a compile;
-    it is compiled ahead with the feasibility kernel, see :mod:`parasynth.engine.precompile`)."""
-    global _SPIN_READY
-    if not _SPIN_READY and HAVE_NUMBA:
-        _SPIN_READY = compiled_or_cached(*signatures()["_spin_done"])
+    """Whether the waits' spin kernels are loaded in this process (:func:`spin_warm`, which the
+    first parallel batch of a process calls)."""
     return _SPIN_READY
 
 
-_CREW_READY = False
-
-
 def _crew_ready() -> bool:
-    """Whether the crew's spin kernel can run without compiling now (else a crew thread sleeps
-    between batches)."""
-    global _CREW_READY
-    if not _CREW_READY and HAVE_NUMBA:
-        _CREW_READY = compiled_or_cached(*signatures()["_crew_spin"])
-    return _CREW_READY
+    """Whether the crew's spin kernel is loaded (else a crew thread sleeps between batches)."""
+    return _SPIN_READY
 
 
 def spin_warm() -> None:
-    """Compile (or load from the cache) the spin kernel of the threads' wait."""
-    global _SPIN_READY, _CREW_READY
+    """Load the spin kernels of the threads' waits (:func:`_spin_done`, :func:`_crew_spin`) from
+    numba's cache, or compile them (~0.2 s, then cached): a run compiles them ahead with the
+    feasibility kernel (:mod:`parasynth.engine.precompile`); any other process at its first
+    parallel batch. Without them the caller and the crew sleep where they would spin (a batch
+    of 8192 poses on two threads took twice its time on one)."""
+    global _SPIN_READY
     if HAVE_NUMBA:
         _spin_done(np.ones(1, dtype=np.int64), 1)
         _crew_spin(np.ones(2, dtype=np.int64), 0, np.ones(1, dtype=np.int64), 1, _NO_FIN, -1)
-        _SPIN_READY = _CREW_READY = True
+        _SPIN_READY = True
 
 
 def over_blocks(fn, n_blocks: int, parallel: bool = True, claiming: bool = False) -> None:
@@ -514,6 +508,8 @@ def over_blocks(fn, n_blocks: int, parallel: bool = True, claiming: bool = False
     if nt <= 1 or n_blocks < 2 or getattr(_IN_POOL, "active", False):
         fn(0, n_blocks)
         return
+    if not _SPIN_READY:
+        spin_warm()
     parts = min(n_blocks, ITEMS_PER_THREAD * nt)
     batch = _Batch(fn, [n_blocks * i // parts for i in range(parts + 1)])
     crew = _CREW
