@@ -1660,39 +1660,21 @@ if HAVE_NUMBA:
                 Rg[cbase + j, ii] = v
 
     @njit(**_jit_ir_inline)
-    def _rows_in(xp, rp, w, base, nb, nt):
-        """Poses' rows (``nt`` coordinates each, from ``xp[base]``) into the register rows
-        ``rp[j * w + ii]``; given a literal ``nt``, the inner loop is unrolled."""
-        for ii in range(nb):
-            r = base + ii * nt
-            for j in range(nt):
-                rp[j * w + ii] = xp[r + j]
-
-    @njit(**_jit_ir_inline)
     def _coords_in(X, j0, nb, Rg):
         """The task coordinates of poses X[j0:j0+nb] into their registers (rows 0..n_task-1),
-        through the data pointers of the (C-contiguous) poses and registers, pose by pose with
-        the coordinates unrolled for 3 to 6 of them: ``Rg[j, ii] = X[j0 + ii, j]`` tested
-        ``j0 + ii`` for a negative index at every element, a scalar loop that took ~11-14 %
-        of the feasibility kernel's time (a perf profile of the worst case, 3.5 -> 1.1 ns a
-        pose alone; docs/performance.md)."""
+        through the data pointers of the (C-contiguous) poses and registers:
+        ``Rg[j, ii] = X[j0 + ii, j]`` tested ``j0 + ii`` for a negative index at every element,
+        a scalar loop that took ~11-14 % of the feasibility kernel's time (a perf profile of the
+        worst case; 3.5 -> 1.4 ns a pose alone, docs/performance.md). (Unrolled per count of
+        coordinates it took 0.7-1.1 ns, but 1.4-2.3 s more of compile for each kernel.)"""
         nt = X.shape[1]
         xp = _data(X)
         rp = _data(Rg)
         w = Rg.shape[1]
         base = j0 * nt
-        if nt == 5:
-            _rows_in(xp, rp, w, base, nb, 5)
-        elif nt == 6:
-            _rows_in(xp, rp, w, base, nb, 6)
-        elif nt == 3:
-            _rows_in(xp, rp, w, base, nb, 3)
-        elif nt == 4:
-            _rows_in(xp, rp, w, base, nb, 4)
-        else:
-            for j in range(nt):
-                for ii in range(nb):
-                    rp[j * w + ii] = xp[base + ii * nt + j]
+        for j in range(nt):
+            for ii in range(nb):
+                rp[j * w + ii] = xp[base + ii * nt + j]
 
     @njit(**_jit_ir_inline)
     def _zero_rejected(Rg, okm, nt, nb):
