@@ -1,6 +1,6 @@
-"""A design's few hundred poses of the singularity margin cut into ranges of poses spread over
-threads (``engine.indices._kernel`` with ``_SPLIT``): the same numbers, bit for bit, as on one
-thread, and as the NumPy reference to rounding."""
+"""A design's few hundred poses of the singularity margin spread over threads in blocks of a
+few poses that the threads claim (``engine.indices._kernel`` with ``_CLAIMING``): the same
+numbers, bit for bit, as on one thread, and as the NumPy reference to rounding."""
 
 from __future__ import annotations
 
@@ -25,26 +25,31 @@ def test_split_margin_equals_one_thread(name, n, monkeypatch):
             X[:, j] = rng.uniform(*r[c], len(X))
     X = np.ascontiguousarray(X[mech.is_feasible(X)][:n])
     assert len(X) >= 20
-    if len(X) * indices._SPLIT["_margin_kernel"][1] < indices.WORK_MIN_NS:
-        monkeypatch.setattr(indices, "WORK_MIN_NS", 0.0)  # split even a small batch
+    if len(X) * indices._CLAIMING["_margin_kernel"] < indices.WORK_MIN_NS:
+        monkeypatch.setattr(indices, "WORK_MIN_NS", 1.0)  # spread even a small batch
     monkeypatch.setattr(core, "ADAPTIVE", False)  # threads whenever there are several
     calls = []
-    real = indices._ranges
+    real = core.over_blocks
 
-    def spy(*a):
-        calls.append(a[-1])
-        return real(*a)
+    def spy(fn, n_blocks, parallel=True, claiming=False):
+        calls.append((n_blocks, parallel, claiming))
+        return real(fn, n_blocks, parallel, claiming)
 
-    monkeypatch.setattr(indices, "_ranges", spy)
+    monkeypatch.setattr(core, "over_blocks", spy)
     try:
         core.set_threads(1)
         one = mech.singularity_margin(X)
-        assert calls == []  # one thread: the chunks, not the ranges
+        assert calls and not any(par for _, par, _ in calls)  # one thread: no parallel batch
         core.set_threads(None)
         if core.n_threads() < 2:
             pytest.skip("one thread only")
+        calls.clear()
         split = mech.singularity_margin(X)
-        assert calls == [True]
+        # the margin's batch on every thread, each claiming blocks of a few poses
+        assert (core.n_threads(), True, True) in calls
+        block, nblk, par = core.blocking(len(X), 2, work=len(X) * 1e9, per_thread=core.CLAIMS_PER_THREAD,
+                                         unit=indices.MIN_BLOCK)
+        assert par and block < len(X) / 2 and block % indices.MIN_BLOCK == 0
     finally:
         core.set_threads(None)
     np.testing.assert_array_equal(split, one)

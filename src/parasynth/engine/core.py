@@ -170,22 +170,22 @@ def program_work(n: int, n_instructions: int) -> float:
 
 
 def blocking(n: int, threads: int | None = None, kind: str | None = None,
-             work: float | None = None, per_thread: int = ITEMS_PER_THREAD) -> tuple[int, int, bool]:
+             work: float | None = None, per_thread: int = ITEMS_PER_THREAD, unit: int = SUB) -> tuple[int, int, bool]:
     """``(block, n_blocks, parallel)`` for a batch of ``n`` poses: on the calling thread in
     blocks of BLOCK poses below PARALLEL_MIN poses' work (``work``: the batch's work in poses
     of the cheapest kernel, :func:`program_work`; default ``n``), or for SUB poses or fewer, or
     with one thread, or when :data:`TIMING` finds that threads do not pay for the kernel
-    ``kind`` now; else in ITEMS_PER_THREAD blocks per thread (a multiple of SUB; a block's
-    scratch is of SUB poses, so its size costs nothing). The result does not depend on the
-    blocking: every pose is computed alone."""
+    ``kind`` now; else in ITEMS_PER_THREAD blocks per thread (a multiple of ``unit``, SUB for the
+    program kernels: a block's scratch is of SUB poses, so its size costs nothing). The result
+    does not depend on the blocking: every pose is computed alone."""
     nt = n_threads() if threads is None else threads
     w = n if work is None else max(float(n), float(work))
-    if nt <= 1 or w < PARALLEL_MIN or n <= SUB or getattr(_IN_POOL, "active", False):
+    if nt <= 1 or w < PARALLEL_MIN or n <= unit or getattr(_IN_POOL, "active", False):
         return BLOCK, max(1, (n + BLOCK - 1) // BLOCK), False
     if threads is None and kind is not None and not TIMING.threads_pay(kind, int(w)):
         return BLOCK, (n + BLOCK - 1) // BLOCK, False
     per = -(-n // (per_thread * nt))
-    block = max(SUB, -(-per // SUB) * SUB)  # rounded up: at most per_thread items a thread
+    block = max(unit, -(-per // unit) * unit)  # rounded up: at most per_thread items a thread
     return block, (n + block - 1) // block, True
 
 
@@ -251,13 +251,13 @@ def _timed_blocks(kind: str, fn, n: int, work: float | None = None) -> None:
 CLAIMS_PER_THREAD = 8
 
 
-def _timed_claims(kind: str, fn, n: int, work: float | None = None) -> None:
+def _timed_claims(kind: str, fn, n: int, work: float | None = None, unit: int = SUB) -> None:
     """As :func:`_timed_blocks` for a kernel that claims its work items itself
     (``fn(block, claim, n_blocks)``, each item taken by an atomic increment of ``claim[0]``):
     every thread of the batch calls it once and takes items until none is left, so a thread
     that starts late takes fewer and none waits for another's range; the items are finer
     (:data:`CLAIMS_PER_THREAD` a thread). One thread: one call takes them all in order."""
-    block, nblk, par = blocking(n, kind=kind, work=work, per_thread=CLAIMS_PER_THREAD)
+    block, nblk, par = blocking(n, kind=kind, work=work, per_thread=CLAIMS_PER_THREAD, unit=unit)
     crew = _CREW
     shared = par and crew.busy.acquire(blocking=False)  # the crew's counter, which its spin watches
     claim = crew.claim if shared else np.zeros(1, dtype=np.int64)

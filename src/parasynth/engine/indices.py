@@ -71,7 +71,6 @@ singularity) may fall on either side.
 from __future__ import annotations
 
 import math
-import time
 
 import numpy as np
 
@@ -107,7 +106,7 @@ from .core import _WARNED, HAVE_NUMBA, _array, over_blocks, record_of, warn_fall
 CHAIN_ROWS_WORK = 2000.0 / core.REFERENCE_NS
 
 if HAVE_NUMBA:
-    from .core import crank_tip
+    from .core import _claim, crank_tip
 
 if HAVE_NUMBA:
     from numba import njit
@@ -1120,25 +1119,31 @@ if HAVE_NUMBA:
                 ext[i, off + _EXT_A + q] = w0[q] * sgn
             ext[i, off + _EXT_S] = rate * sgn
 
-    def _margin_kernel(p, R, valid, code, act, geo, sc, upuL, ext, na, nc, rc, L, out, c0, c1):
+    def _margin_kernel(p, R, valid, code, act, geo, sc, upuL, ext, na, nc, rc, L, out, block, claim, nblk):
+        """The singularity margin of poses (p, R) -> out, pose by pose; blocks of ``block``
+        poses claimed from ``claim`` (every thread of a batch calls it once, see
+        :func:`parasynth.engine.core._timed_claims`) until ``nblk``."""
         N = p.shape[0]
         rcu = min(rc, nc, 6) if nc > 0 else 0
         k = na + rcu
         kk = min(k, 6)
-        for c in range(c0, c1):
-            A = np.empty((max(na, 1), 6))
-            scale = np.empty(max(na, 1))
-            anchor = np.empty((max(na, 1), 3))
-            C = np.empty((max(nc, 1), 6))
-            Tw = np.empty((5, 6))
-            w = np.empty(6)
-            Ct = np.empty((max(nc, 1), 6))
-            svc = np.empty(max(nc, 1))
-            Vd = np.empty((1, 1))
-            M = np.empty((max(k, 6), max(k, 6)))
-            sv = np.empty(max(k, 6))
-            used = np.zeros(max(nc, 1), np.bool_)
-            for i in range(c * CHUNK, min(N, (c + 1) * CHUNK)):
+        A = np.empty((max(na, 1), 6))
+        scale = np.empty(max(na, 1))
+        anchor = np.empty((max(na, 1), 3))
+        C = np.empty((max(nc, 1), 6))
+        Tw = np.empty((5, 6))
+        w = np.empty(6)
+        Ct = np.empty((max(nc, 1), 6))
+        svc = np.empty(max(nc, 1))
+        Vd = np.empty((1, 1))
+        M = np.empty((max(k, 6), max(k, 6)))
+        sv = np.empty(max(k, 6))
+        used = np.zeros(max(nc, 1), np.bool_)
+        while True:
+            c = _claim(claim)
+            if c >= nblk:
+                break
+            for i in range(c * block, min(N, (c + 1) * block)):
                 if not valid[i]:
                     out[i] = np.nan
                     continue
@@ -1459,63 +1464,39 @@ if HAVE_NUMBA:
 PARALLEL_MIN = 16384
 
 
-#: Per kernel, the positions of its per-pose arguments (poses, validity, outputs: sliced
-#: along the first axis for a range of poses) and its CPU time per pose (ns, one core,
-#: 5-PUS/UPU, measured): a smaller batch whose work passes :data:`WORK_MIN_NS` is cut into ranges
-#: of poses spread over threads while that pays (``core.TIMING``, as the feasibility batches).
-#: One design's singularity margin (~3 us a pose, the SVDs of the wrench system) is worth it for
-#: a few hundred feasible poses.
-_SPLIT = {"_margin_kernel": ((0, 1, 2, 8, 13), 3000.0)}
-#: Work (ns of one core) from which a batch below PARALLEL_MIN is spread over threads: about
-#: what 8192 poses of the feasibility kernel take (``core.PARALLEL_MIN``).
+#: Kernels that claim their blocks of poses themselves (:func:`core._timed_claims`), with their
+#: CPU time per pose (ns, one core, 5-PUS/UPU, measured): a batch is spread over threads from
+#: :data:`WORK_MIN_NS` of work (while that pays, ``core.TIMING``), in blocks of a few poses, so
+#: one design's few hundred feasible poses of the singularity margin (~3 us a pose, the SVDs of
+#: the wrench system) are shared by the threads, a late crew thread taking fewer.
+_CLAIMING = {"_margin_kernel": 3000.0}
+#: Work (ns of one core) from which a batch is spread over threads: about what 8192 poses of the
+#: feasibility kernel take (``core.PARALLEL_MIN``).
 WORK_MIN_NS = 4.0e5
-#: Fewest poses per range of such a split.
-MIN_RANGE = 16
+#: Poses per block of a claiming kernel's parallel batch: at least this many.
+MIN_BLOCK = 4
 
 
 def _kernel(name: str, n: int):
-    """``kernel(*args)`` for ``n`` poses: the compiled kernel over all chunks of CHUNK poses,
-    spread over threads when ``n >= PARALLEL_MIN``, or, for a kernel of :data:`_SPLIT` whose
-    batch is smaller but worth :data:`WORK_MIN_NS`, over ranges of poses (slices) while
-    threads pay. Every pose is computed alone: the split never changes a result."""
+    """``kernel(*args)`` for ``n`` poses: a claiming kernel (:data:`_CLAIMING`) over blocks its
+    threads claim (:func:`core._timed_claims`; its work in poses of the feasibility kernel,
+    ``n * cost * core.PARALLEL_MIN / WORK_MIN_NS``, decides whether threads pay), any other
+    over all chunks of CHUNK poses, spread over threads when ``n >= PARALLEL_MIN``. Every pose
+    is computed alone: the split never changes a result."""
     k = _KERNELS[name]
+    cost = _CLAIMING.get(name)
+    if cost is not None:
+        work = n * cost * core.PARALLEL_MIN / WORK_MIN_NS
+
+        def claimed(*args):
+            core._timed_claims(name, lambda block, claim, nblk: k(*args, block, claim, nblk), n, work,
+                               unit=MIN_BLOCK)
+
+        return claimed
     nchunk = (n + CHUNK - 1) // CHUNK
-    split = _SPLIT.get(name)
-    if n < PARALLEL_MIN and split is not None and n * split[1] >= WORK_MIN_NS and n >= 2 * MIN_RANGE:
-        nt = core.n_threads()
-        # the work in poses of the feasibility kernel (~60 ns): the size class core.TIMING keeps
-        n_eq = max(core.PARALLEL_MIN, int(n * split[1] / 60.0))
-        if nt > 1:
-            return _ranges(k, n, nchunk, split[0], nt, name, n_eq, core.TIMING.threads_pay(name, n_eq))
 
     def run(*args):
         over_blocks(lambda c0, c1: k(*args, c0, c1), nchunk, n >= PARALLEL_MIN)
-
-    return run
-
-
-def _ranges(k, n: int, nchunk: int, pose_args, nt: int, name: str, n_eq: int, parallel: bool):
-    """``kernel(*args)``: with ``parallel``, over about ``ITEMS_PER_THREAD`` ranges of poses per
-    thread (the arguments at ``pose_args`` sliced, each range's chunks from 0), else over all
-    chunks on the calling thread; either way timed for ``core.TIMING`` (as ``n_eq`` poses)."""
-    parts = max(2, min(core.ITEMS_PER_THREAD * nt, n // MIN_RANGE))
-    edges = [n * i // parts for i in range(parts + 1)]
-
-    def run(*args):
-        def item(b0, b1):
-            for j in range(b0, b1):
-                a, b = edges[j], edges[j + 1]
-                sl = list(args)
-                for q in pose_args:
-                    sl[q] = args[q][a:b]
-                k(*sl, 0, (b - a + CHUNK - 1) // CHUNK)
-
-        t0 = time.perf_counter()
-        if parallel:
-            over_blocks(item, parts, True)
-        else:
-            over_blocks(lambda c0, c1: k(*args, c0, c1), nchunk, False)
-        core.TIMING.record(name, parallel, n_eq, time.perf_counter() - t0)
 
     return run
 
@@ -1652,7 +1633,7 @@ def signatures() -> dict:
         "_upu_mean_lengths": (_upu_mean_lengths, (f2, f3, i1, f3)),
         "_constraint_rank_kernel": (_constraint_rank_kernel, (f2, f3, i1, f3, f2, f2, f8)),
         "_chain_rows_kernel": (_chain_rows_kernel, (f2, f3, f3, f2, f1, f8, i1, i8, i8, f1, i8, f8, f2, i8, i8, i8)),
-        "_margin_kernel": (_KERNELS["_margin_kernel"], (f2, f3, b1) + legs + (i8, f8, f1, i8, i8)),
+        "_margin_kernel": (_KERNELS["_margin_kernel"], (f2, f3, b1) + legs + (i8, f8, f1, i8, i1, i8)),
         "_lti_kernel": (_KERNELS["_lti_kernel"], (f2, f3, b1) + legs + (f8, f8, f2, f2, f1, i8, i8)),
         "_kappa_kernel": (_KERNELS["_kappa_kernel"], (f2, f3, b1, f3, b1) + legs + (f8, f1, i8, i8)),
         "_dir_kernel": (_KERNELS["_dir_kernel"], (f2, f3, b1) + legs + (f3, b1, i8, i8)),
