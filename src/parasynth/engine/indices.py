@@ -1119,6 +1119,13 @@ if HAVE_NUMBA:
                 ext[i, off + _EXT_A + q] = w0[q] * sgn
             ext[i, off + _EXT_S] = rate * sgn
 
+    @njit(**_jit_inline)
+    def _legs_scratch(na, nc):
+        """The scratch :func:`_legs` fills for one pose: the actuation rows (na, 6), their scales
+        and anchors, the constraint rows (nc, 6), the joint twists (5, 6) and a wrench (6)."""
+        return (np.empty((max(na, 1), 6)), np.empty(max(na, 1)), np.empty((max(na, 1), 3)),
+                np.empty((max(nc, 1), 6)), np.empty((5, 6)), np.empty(6))
+
     def _margin_kernel(p, R, valid, code, act, geo, sc, upuL, ext, na, nc, rc, L, out, block, claim, nblk):
         """The singularity margin of poses (p, R) -> out, pose by pose; blocks of ``block``
         poses claimed from ``claim`` (every thread of a batch calls it once, see
@@ -1127,12 +1134,7 @@ if HAVE_NUMBA:
         rcu = min(rc, nc, 6) if nc > 0 else 0
         k = na + rcu
         kk = min(k, 6)
-        A = np.empty((max(na, 1), 6))
-        scale = np.empty(max(na, 1))
-        anchor = np.empty((max(na, 1), 3))
-        C = np.empty((max(nc, 1), 6))
-        Tw = np.empty((5, 6))
-        w = np.empty(6)
+        A, scale, anchor, C, Tw, w = _legs_scratch(na, nc)
         Ct = np.empty((max(nc, 1), 6))
         svc = np.empty(max(nc, 1))
         Vd = np.empty((1, 1))
@@ -1218,12 +1220,7 @@ if HAVE_NUMBA:
         N = p.shape[0]
         m = na - 1 + nc
         for c in range(c0, c1):
-            A = np.empty((max(na, 1), 6))
-            scale = np.empty(max(na, 1))
-            anchor = np.empty((max(na, 1), 3))
-            C = np.empty((max(nc, 1), 6))
-            Tw = np.empty((5, 6))
-            w = np.empty(6)
+            A, scale, anchor, C, Tw, w = _legs_scratch(na, nc)
             O = np.empty((6, max(m, 1)))
             V = np.empty((6, 6))
             sv = np.empty(6)
@@ -1363,12 +1360,7 @@ if HAVE_NUMBA:
         nt = T.shape[2]
         mn = min(na, nt)
         for c in range(c0, c1):
-            A = np.empty((max(na, 1), 6))
-            scale = np.empty(max(na, 1))
-            anchor = np.empty((max(na, 1), 3))
-            C = np.empty((max(nc, 1), 6))
-            Tw = np.empty((5, 6))
-            w = np.empty(6)
+            A, scale, anchor, C, Tw, w = _legs_scratch(na, nc)
             J = np.empty((max(na, nt), max(na, nt)))
             sv = np.empty(max(na, nt))
             Vd = np.empty((1, 1))
@@ -1412,12 +1404,7 @@ if HAVE_NUMBA:
         N = p.shape[0]
         nl = code.shape[0]
         for c in range(c0, c1):
-            A = np.empty((max(na, 1), 6))
-            scale = np.empty(max(na, 1))
-            anchor = np.empty((max(na, 1), 3))
-            C = np.empty((max(nc, 1), 6))
-            Tw = np.empty((5, 6))
-            w = np.empty(6)
+            A, scale, anchor, C, Tw, w = _legs_scratch(na, nc)
             for i in range(c * CHUNK, min(N, (c + 1) * CHUNK)):
                 reach[i] = valid[i] and _legs(p, R, i, code, act, geo, sc, upuL, ext, A, scale, anchor, C, Tw, w)
                 for j in range(nl):
