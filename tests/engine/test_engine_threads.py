@@ -359,7 +359,7 @@ def test_the_first_parallel_batch_loads_the_spin_kernels(monkeypatch):
     monkeypatch.setattr(core, "_SPIN_READY", False)
     monkeypatch.setattr(core, "n_threads", lambda: 1)
     core.over_blocks(lambda b0, b1: None, 4, True)
-    assert not core._spin_ready() and not core._crew_ready()
+    assert not core._spin_ready()
     monkeypatch.setattr(core, "n_threads", lambda: 2)
     done = np.zeros(4)
 
@@ -367,5 +367,5 @@ def test_the_first_parallel_batch_loads_the_spin_kernels(monkeypatch):
         done[b0:b1] += 1
 
     core.over_blocks(fn, 4, True)
-    assert core._spin_ready() and core._crew_ready()
+    assert core._spin_ready()
     assert np.array_equal(done, np.ones(4))

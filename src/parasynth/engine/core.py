@@ -350,7 +350,7 @@ class _Crew:
             # interpreter lock's, on a virtual machine), a third of a batch of 16384 poses. The
             # spin marks the last range done (fin[last]) once the interpreter lock is released,
             # so the calling thread, seeing it, does not wait for the lock (and sleep).
-            if _crew_ready():
+            if _spin_ready():
                 if not _crew_spin(mail, seen, self.claim, CREW_SPIN, fin, last):
                     wake.acquire()
             else:
@@ -445,7 +445,7 @@ if hasattr(os, "register_at_fork"):
 #: with short sleeps (a crew thread descheduled by other work on the machine).
 SPIN_ITERATIONS = 200_000
 #: Rounds of a crew thread's spin for the next batch before it sleeps (~1 ms).
-CREW_SPIN = 2000000
+CREW_SPIN = 2_000_000
 
 
 def _wait(fin: np.ndarray) -> None:
@@ -475,12 +475,7 @@ def compiled_or_cached(disp, sig) -> bool:
 
 def _spin_ready() -> bool:
     """Whether the waits' spin kernels are loaded in this process (:func:`spin_warm`, which the
-    first parallel batch of a process calls)."""
-    return _SPIN_READY
-
-
-def _crew_ready() -> bool:
-    """Whether the crew's spin kernel is loaded (else a crew thread sleeps between batches)."""
+    first parallel batch of a process calls); until then the caller and the crew sleep."""
     return _SPIN_READY
 
 
