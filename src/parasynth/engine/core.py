@@ -762,6 +762,33 @@ def leg_tables(mech, cons):
         F[i, _BREF:_BREF + 3] = leg.base_ref
         F[i, _PREF:_PREF + 3] = leg.platform_ref
 
+    # The check tables depend on the constraint objects, the legs' names, types and actuation
+    # and the description -- not on the legs' geometry, but for revolute-joint angle limits
+    # ("rang" rows) -- so the designs of a study, whose described constraints are shared objects
+    # while their values are (parasynth.mechanisms.description.constraints), share them too.
+    key = (id(getattr(mech, "description", None)), mech.n_task, tuple(map(id, cons)),
+           tuple((type(leg), leg.name, bool(act[i])) for i, leg in enumerate(legs)))
+    hit = _CHECK_TABLES.get(key)
+    if hit is not None and hit[0] is getattr(mech, "description", None):
+        tables, exprs, expr_rows = hit[2]
+        return kind, act, np.ascontiguousarray(F), dict(tables), dict(exprs), list(expr_rows)
+    tables, exprs, expr_rows = _check_tables(mech, legs, cons, kind, act, index, names)
+    if not len(tables["rang"]) and not exprs:  # an expression constraint is a new object per design
+        if len(_CHECK_TABLES) >= 64:
+            _CHECK_TABLES.clear()
+        # the description and the constraints kept alive: their ids stay theirs
+        _CHECK_TABLES[key] = (getattr(mech, "description", None), tuple(cons), (tables, exprs, expr_rows))
+    return kind, act, np.ascontiguousarray(F), dict(tables), dict(exprs), list(expr_rows)
+
+
+#: {key: (description, constraints, (tables, exprs, expr_rows))} of :func:`leg_tables`: the
+#: check tables (read-only arrays) of the constraint objects, leg names and types.
+_CHECK_TABLES: dict = {}
+
+
+def _check_tables(mech, legs, cons, kind, act, index, names):
+    """The check tables of the constraints ``cons`` of ``mech`` (see :func:`leg_tables`)."""
+    nl = len(legs)
     rows = {k: [] for k in ("coord", "actr", "lenr", "cone", "rang", "axang", "pair")}
     exprs = {}
     expr_rows = []
@@ -830,7 +857,7 @@ def leg_tables(mech, cons):
         offs.append([bisect.bisect_left(legs_of, i) for i in range(nl + 1)])
     tables = {k: _table(v, widths[k]) for k, v in rows.items()}
     tables["offs"] = np.array(offs, dtype=np.int64).reshape(4, nl + 1)
-    return kind, act, np.ascontiguousarray(F), tables, exprs, expr_rows
+    return tables, exprs, expr_rows  # shared by the plans of designs that share constraints: read only
 
 
 # ---------------------------------------------------------------------------------------------
@@ -841,7 +868,8 @@ _PROGRAMS: dict = {}
 
 def _program_key(mech, exprs, twist, unknowns=False):
     d = mech.description
-    shapes = tuple(sorted((k, np.shape(v)) for k, v in mech._penv.items()))
+    # the shapes of the parameters that are not float64 scalars (those are all of shape ())
+    shapes = tuple(sorted((k, np.shape(v)) for k, v in mech._penv.items() if type(v) is not np.float64))
     return (type(mech), id(d), tuple((n, e.text) for n, e in exprs.items()), bool(twist), shapes, bool(unknowns))
 
 

@@ -5,6 +5,7 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass
 from typing import Callable, ClassVar
 
@@ -62,6 +63,11 @@ def _check_kind_of_parameters(raw, kind: str, path: str, scope: _Scope) -> None:
         what = "crank angles (RUS legs)" if kind == "angle" else "lengths (leg lengths or slider positions)"
         raise DescriptionError(f"{path}: parameters.{name} is {'an' if have == 'angle' else 'a'} {have}, and this "
                                f"mechanism's actuators are {what}; give {'an' if kind == 'angle' else 'a'} {kind}")
+
+
+def _exact(v):
+    """A bound as a key that tells every float apart: a zero with its sign (0.0 == -0.0)."""
+    return (v, math.copysign(1.0, v)) if v == 0 else v
 
 
 class _ConstraintSpec:
@@ -147,12 +153,30 @@ class _ConstraintSpec:
             self.unit = unit
 
     def build(self, mech: Mechanism) -> Constraint:
-        """The constraint for the described mechanism ``mech`` (a ``DescribedMechanism``)."""
+        """The constraint for the described mechanism ``mech`` (a ``DescribedMechanism``): for
+        every type but ``expression`` (whose margin reads ``mech``) one object per value of its
+        bounds and sizes, shared by the mechanisms that give the same values -- constraints are
+        frozen values, and a study's designs mostly share them (the engine then finds its check
+        tables for them again, :func:`parasynth.engine.core.leg_tables`)."""
         env = mech._penv
         lo = self.min(env) if self.min is not None else None
         hi = self.max(env) if self.max is not None else None
         if lo is not None and hi is not None and not lo < hi:
             raise DescriptionError(f"{self.path}: min ({lo:g}) must be below max ({hi:g}) (SI)")
+        if self.type == "expression":
+            return self._build(mech, env, lo, hi)
+        key = (_exact(lo), _exact(hi), _exact(self.diameter(env)) if self.type == "interference" else None,
+               tuple(map(_exact, self.axis(env, None, 0).tolist())) if self.type == "leg_axis_angle" else None)
+        memo = self.__dict__.setdefault("_built", {})
+        hit = memo.get(key)
+        if hit is None:
+            hit = self._build(mech, env, lo, hi)
+            if len(memo) >= 64:
+                memo.clear()
+            memo[key] = hit
+        return hit
+
+    def _build(self, mech: Mechanism, env, lo, hi) -> Constraint:
         lo_ = -np.inf if lo is None else lo
         hi_ = np.inf if hi is None else hi
         t = self.type
