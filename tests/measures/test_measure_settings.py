@@ -138,6 +138,25 @@ def test_python_calls_check_the_same_declarations():
     assert v == objectives.get("min_lti")(mech, sample=s, quantile=0.5, max_points=32)
 
 
+def test_settings_checked_once_are_still_checked_for_other_values():
+    # Settings that passed the checks with a sample are not checked again; any other value is,
+    # also one equal as a number but of another type, every time.
+    mech = parasynth.load_mechanism("5pus_upu")
+    s = WorkspaceSample(n=64)
+    m = objectives.get("min_lti")
+    good = m(mech, sample=s, quantile=0.5)
+    assert m(mech, sample=s, quantile=0.5) == good
+    for _ in range(2):
+        with pytest.raises(ValueError, match=r"min_lti\.quantile"):
+            m(mech, sample=s, quantile=5)
+        with pytest.raises(ValueError, match=r"min_lti\.quantile"):
+            m(mech, sample=s, quantile=True)  # not the number 1
+        with pytest.raises(ValueError, match=r"unknown setting"):
+            m(mech, sample=s, quantile=0.5, bogus=1)
+    with pytest.raises(ValueError, match=r"min_lti\.quantile"):
+        m(mech, sample=s, quantile=[0.5])  # not hashable: checked as always
+
+
 def test_declared_defaults_match_the_functions():
     checked = 0
     for name, m in objectives.OBJECTIVES.items():

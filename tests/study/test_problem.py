@@ -147,3 +147,30 @@ def test_a_measure_asked_twice_with_the_same_arguments_is_computed_once(tmp_path
     assert rec.objectives["margin_q05"] == alone
     assert rec.objectives["margin_q10"] == m(mech, sample=sample, quantile=0.10)
     assert rec.objectives["margin_q10"] > rec.objectives["margin_q05"]
+
+
+def test_kept_arguments_give_what_fresh_ones_give(tmp_path):
+    """The evaluator keeps a sample and the measures' arguments per (n, seed): a second design,
+    and a re-evaluation with its own sample size and seed, get the values a new evaluator
+    (nothing kept) and the measures called alone give."""
+    from parasynth.measures import objectives as obj
+    from parasynth.study.evaluate import Evaluator
+
+    f = tmp_path / "s.yaml"
+    f.write_text(SHARED)
+    study = load_study(f)
+    ev = Evaluator(study)
+    first = ev.evaluate({"link_length": 0.2})
+    second = ev.evaluate({"link_length": 0.21})
+    again = ev.evaluate({"link_length": 0.21}, n=256, seed=5)
+    other = ev.evaluate({"link_length": 0.21}, n=256, seed=6)
+    assert ev.sample() is ev.sample() and ev.sample(256, 5) is not ev.sample()
+    assert ev.sample(256, 5).n == 256 and ev.sample(256, 5).seed == 5
+    for rec, kw in ((second, {}), (again, {"n": 256, "seed": 5}), (other, {"n": 256, "seed": 6})):
+        fresh = Evaluator(study).evaluate({"link_length": 0.21}, **kw)
+        assert rec.status == fresh.status == "ok", rec.error
+        assert rec.objectives == fresh.objectives and rec.constraint_values == fresh.constraint_values
+    assert first.objectives != second.objectives and other.objectives != again.objectives
+    mech = ev.build({"link_length": 0.21})
+    alone = obj.get("singularity_margin_min")(mech, sample=ev.sample(256, 5), quantile=0.05)
+    assert again.objectives["margin_q05"] == alone != second.objectives["margin_q05"]

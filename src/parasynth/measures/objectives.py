@@ -190,6 +190,21 @@ class Measure:
         keyword settings of the function beside ``sample=``."""
         return {k: v for k, v in settings.items() if not (k in self.params and self.params[k].sample_field)}
 
+    def _settings_key(self, settings: dict):
+        """``settings`` as a key of the settings already checked with a sample (a study asks
+        the same settings for every design), or None when a value is not hashable."""
+        key = tuple(sorted((k, type(v), v) for k, v in settings.items()))
+        try:
+            hash(key)
+        except TypeError:
+            return None
+        return key
+
+    @property
+    def _checked(self) -> set:
+        """The settings keys (:meth:`_settings_key`) that passed the checks with a sample."""
+        return self.__dict__.setdefault("_checked_settings", set())
+
     def __call__(self, mech, sample: WorkspaceSample | None = None, **settings) -> float:
         check_mechanism("mech", mech)
         if "constraints" in settings:
@@ -203,16 +218,22 @@ class Measure:
                 sample = WorkspaceSample(**sample)
             if not isinstance(sample, WorkspaceSample):
                 raise ValueError(f"measure {self.name!r}: sample must be a WorkspaceSample, got {sample!r}")
-            beside = sorted(set(settings) - set(self.own_settings) & set(self.params))
-            if beside:
-                fields = ", ".join(f"sample.{self.params[k].sample_field}" for k in beside)
-                raise ValueError(f"measure {self.name!r}: {beside} belong to the workspace sample; give them in it "
-                                 f"({fields}), not beside it")
-            unknown = sorted(set(settings) - set(self.own_settings))
-            if unknown:
-                raise ValueError(f"measure {self.name!r}: unknown setting(s) {unknown}; allowed with a sample: "
-                                 f"{sorted(self.own_settings) or '(none)'}")
-            self.check_settings(settings, self.name)
+            key = self._settings_key(settings)
+            if key is None or key not in self._checked:
+                beside = sorted(set(settings) - set(self.own_settings) & set(self.params))
+                if beside:
+                    fields = ", ".join(f"sample.{self.params[k].sample_field}" for k in beside)
+                    raise ValueError(f"measure {self.name!r}: {beside} belong to the workspace sample; give them in "
+                                     f"it ({fields}), not beside it")
+                unknown = sorted(set(settings) - set(self.own_settings))
+                if unknown:
+                    raise ValueError(f"measure {self.name!r}: unknown setting(s) {unknown}; allowed with a sample: "
+                                     f"{sorted(self.own_settings) or '(none)'}")
+                self.check_settings(settings, self.name)
+                if key is not None:
+                    if len(self._checked) >= 256:
+                        self._checked.clear()
+                    self._checked.add(key)
             return float(self.func(mech, sample=sample, **settings))
         unknown = sorted(set(settings) - set(self.settings))
         if unknown:
@@ -584,7 +605,8 @@ def home_feasibility(mech) -> float:
 @register("footprint_radius", unit="m", kind="length", sense="minimize", cost="cheap")
 def footprint_radius(mech) -> float:
     """Largest distance of a base anchor from the base Z axis (m): the machine's footprint."""
-    return float(max(np.hypot(leg.base[0], leg.base[1]) for leg in mech.legs))
+    B = np.array([leg.base for leg in mech.legs], dtype=float).reshape(-1, 3)
+    return float(np.hypot(B[:, 0], B[:, 1]).max())  # per leg as np.hypot of its two floats
 
 
 @register("joint_spacing_min", unit="m", kind="length", sense="maximize", cost="cheap")

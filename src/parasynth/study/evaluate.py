@@ -106,8 +106,13 @@ class Evaluator:
         return measure_settings(self.study, measure_name, own, n, seed)
 
     def sample(self, n: int | None = None, seed: int | None = None):
-        """The workspace sample of a design (:func:`~parasynth.study.design.evaluation_sample`)."""
-        return evaluation_sample(self.study, n, seed)
+        """The workspace sample of a design (:func:`~parasynth.study.design.evaluation_sample`),
+        one object per (n, seed): a frozen value, made and checked once rather than per design."""
+        kept = self.__dict__.setdefault("_samples", {})
+        hit = kept.get((n, seed))
+        if hit is None:
+            hit = kept[(n, seed)] = evaluation_sample(self.study, n, seed)
+        return hit
 
     def build(self, values: dict):
         return design_mechanism(self.study, values)
@@ -126,16 +131,14 @@ class Evaluator:
             task = design_task(self.study, values)  # one object per design: the task measures share its evaluation
             if self.require_reachable and task is not None and self._task_item is not None:
                 self._check_reachable(mech, task, sample, pinned)
-            cons = sorted(self.study.constraints, key=lambda c: get_measure(c.name).cost != "cheap")
+            cons, objs = self._arguments(sample, pinned, task)
             memo = {}  # a measure asked twice with the same arguments (a constraint and an objective)
-            for c in cons:
-                args = measure_arguments(self.study, c.name, c.settings, sample, pinned, task)
-                v = self._once(memo, c, mech, args, rec, bound=c.bound, probability=c.probability)
+            for c, args, key in cons:
+                v = self._once(memo, c, mech, args, rec, bound=c.bound, probability=c.probability, key=key)
                 rec.constraint_values[c.label] = v
                 rec.margins[c.label] = c.margin(v) if math.isfinite(v) else -math.inf
-            for o in self.study.objectives:
-                args = measure_arguments(self.study, o.name, o.settings, sample, pinned, task)
-                v = self._once(memo, o, mech, args, rec)
+            for o, args, key in objs:
+                v = self._once(memo, o, mech, args, rec, key=key)
                 if not math.isfinite(v):
                     raise FloatingPointError(f"objective {o.label!r} is not finite ({v})")
                 rec.objectives[o.label] = v
@@ -158,19 +161,48 @@ class Evaluator:
             raise RequirementError(f"reaches none of the task's {task.n_poses} required poses (none reachable with "
                                    "every pose constraint met); its task measures would have no pose to hold on")
 
+    def _arguments(self, sample, pinned: tuple, task):
+        """([(constraint, arguments, memo key)], [(objective, arguments, memo key)]): the
+        constraints cheapest first, each item's :func:`measure_arguments` and its :meth:`_once`
+        key. The same for every design of one sample and the study's own task: kept for them
+        (the arguments are only read)."""
+        shared = task is None or task is getattr(self.study, "task", None)
+        kept = self.__dict__.setdefault("_args", {})
+        hit = kept.get((id(sample), pinned)) if shared else None
+        if hit is not None and hit[0] is sample:
+            return hit[1]
+
+        def entry(item):
+            args = measure_arguments(self.study, item.name, item.settings, sample, pinned, task)
+            return item, args, self._memo_key(item, args)
+
+        cons = sorted(self.study.constraints, key=lambda c: get_measure(c.name).cost != "cheap")
+        out = ([entry(c) for c in cons], [entry(o) for o in self.study.objectives])
+        if shared:
+            if len(kept) >= 16:
+                kept.clear()
+            kept[(id(sample), pinned)] = (sample, out)  # the sample kept alive: its id stays its own
+        return out
+
+    @staticmethod
+    def _memo_key(item, args):
+        """The key of ``item`` with ``args`` in :meth:`_once` (None: not kept)."""
+        if getattr(item, "robust", None) is not None:
+            return None
+        try:
+            return (item.name, _frozen(args))
+        except TypeError:
+            return None
+
     @classmethod
-    def _once(cls, memo: dict, item, mech, args, rec, bound=None, probability=None) -> float:
+    def _once(cls, memo: dict, item, mech, args, rec, bound=None, probability=None, key=False) -> float:
         """:meth:`_value`, computed once per design for a measure without a ``robust`` block
         asked again with the same arguments (the structure studies' margin quantile is both an
         objective and a constraint): measures are functions of the design and their
         arguments, so the value is the same. Arguments other than plain values (the workspace
         sample, the task) are compared by identity, and kept alive in ``memo`` meanwhile."""
-        key = None
-        if getattr(item, "robust", None) is None:
-            try:
-                key = (item.name, _frozen(args))
-            except TypeError:
-                key = None
+        if key is False:
+            key = cls._memo_key(item, args)
         if key is not None and key in memo:
             return memo[key][0]
         v = cls._value(item, mech, args, rec, bound=bound, probability=probability)
