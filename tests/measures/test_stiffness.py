@@ -436,3 +436,18 @@ def test_paper_models_declare_the_documented_estimate(name, modulus):
     # The study setting beats the declared modulus.
     np.testing.assert_allclose(stiffness_matrix(stiffer, X, youngs_modulus=STEEL_E, shear_modulus=STEEL_E / 2.6), K,
                                rtol=1e-12, atol=1e-12 * np.abs(K).max())
+
+
+def test_declared_stiffness_follows_the_parameters_and_is_not_shared():
+    # The values are kept per parameter values: another value gives its own, and each
+    # mechanism gets dicts of its own (writing one leaves the next build's unchanged).
+    section = [{"legs": ["L1", "L2", "L3"], "axial": "leg_stiffness"},
+               {"legs": ["L4", "L5", "L6"], "axial": "2*leg_stiffness"}]
+    cls = description_class(_gs_description(section=section))
+    a = cls(cls.Params(leg_stiffness=3e7))
+    a.declared_stiffness["L1"]["axial"] = -1.0
+    b = cls(cls.Params(leg_stiffness=3e7))
+    c = cls(cls.Params(leg_stiffness=5e7))
+    assert b.declared_stiffness["L1"]["axial"] == 3e7 and b.declared_stiffness["L4"]["axial"] == 6e7
+    assert c.declared_stiffness["L1"]["axial"] == 5e7 and c.declared_stiffness["L4"]["axial"] == 1e8
+    assert b.declared_stiffness is not cls(cls.Params(leg_stiffness=3e7)).declared_stiffness

@@ -305,15 +305,16 @@ def _prepared_chunks(sampler, chunk, base, cols, rshape):
     """Yield (start, X, Xs, gidx, flat, counts) for every chunk: X (m, n_task) the full poses,
     Xs the sampled columns, gidx grid indices or None, flat the raster cells, counts their
     bincount. Cached for runs of at most SAMPLE_CACHE_MAX_POINTS samples."""
-    cells = int(np.prod(rshape))
+    cells = math.prod(rshape)
     key = None
     if sampler.n <= SAMPLE_CACHE_MAX_POINTS:
         # the fixed coordinates only: the sampled columns of ``base`` are overwritten (a
         # design's home pose, which moves with its dimensions, does not split the cache when
         # every coordinate is sampled)
-        fixed = np.delete(base, cols)
+        sampled = set(cols.tolist())
+        fixed = tuple(v for i, v in enumerate(base.tolist()) if i not in sampled)  # np.delete(base, cols)
         key = (sampler.method, sampler.n, tuple(sampler.lows.tolist()), tuple(sampler.highs.tolist()), sampler.seed,
-               sampler.shape, int(chunk), base.size, tuple(fixed.tolist()), tuple(cols.tolist()), tuple(rshape))
+               sampler.shape, int(chunk), base.size, fixed, tuple(cols.tolist()), tuple(rshape))
         hit = _SAMPLES.get(key)
         if hit is not None:
             yield from hit
@@ -796,18 +797,19 @@ def workspace(mech, ranges=None, n: int = 2**16, method: str = "sobol", seed: in
             ok, p_lo, p_hi = fe
         else:
             ok = np.asarray(mech.is_feasible(X, names=names, engine=engine), dtype=bool)
-        k = int(np.count_nonzero(ok))
+        sel = np.flatnonzero(ok)  # the feasible rows once: index arrays, not three boolean masks
+        k = len(sel)
         n_feasible += k
         r_total += counts
         if k:
-            r_feas += np.bincount(flat[ok], minlength=cells)
+            r_feas += np.bincount(flat[sel], minlength=cells)
             if fe is None:
-                p = np.asarray(pose_batch(mech, X[ok], engine=engine)[1], dtype=float)
+                p = np.asarray(pose_batch(mech, X[sel], engine=engine)[1], dtype=float)
                 p_lo, p_hi = p.min(axis=0), p.max(axis=0)
             ext_lo = np.minimum(ext_lo, p_lo)
             ext_hi = np.maximum(ext_hi, p_hi)
             if cap != 0:
-                store.add(Xs[ok], start + np.flatnonzero(ok))
+                store.add(Xs[sel], start + sel)
         if boundary is not None:
             boundary.add(start, ok, gidx)
         report.update(start + m, n_feasible)
@@ -815,7 +817,7 @@ def workspace(mech, ranges=None, n: int = 2**16, method: str = "sobol", seed: in
 
     rec.total[...] = r_total.reshape(rshape)
     rec.feasible[...] = r_feas.reshape(rshape)
-    box_vol = float(np.prod(highs - lows))
+    box_vol = math.prod((highs - lows).tolist())  # np.prod's products, in the same order
     f = n_feasible / n_samples
     volume = f * box_vol
     if boundary is not None:
@@ -873,7 +875,7 @@ def _check_ranges(mech, ranges):
             lo, hi = (float(v) for v in r)
         except (TypeError, ValueError):
             raise ValueError(f"ranges[{c!r}] must be a pair (lo, hi) of numbers (SI), got {r!r}") from None
-        if not (np.isfinite(lo) and np.isfinite(hi)):
+        if not (math.isfinite(lo) and math.isfinite(hi)):
             raise ValueError(f"ranges[{c!r}] must be finite, got {r!r}")
         if not lo < hi:
             raise ValueError(f"ranges[{c!r}] is empty or inverted: lo = {lo} must be < hi = {hi}")

@@ -381,9 +381,9 @@ class DescribedMechanism(Mechanism):
         p, R = self.__dict__.pop("_home_pose", None) or self._pose(self.home[None, :])
         self._home_platform_pose = (self.home.copy(), p, R)
         out = []
-        for leg in legs:
-            with np.errstate(all="ignore"):
-                st = solve_geometry(leg, p, R)
+        with np.errstate(all="ignore"):  # once for every leg (~1.5 us each)
+            states = [solve_geometry(leg, p, R) for leg in legs]
+        for leg, st in zip(legs, states):
             n = st.direction[0]
             x, y, z = n.tolist()  # three floats: Python's tests cost a tenth of NumPy's reductions
             if not (st.reachable[0] and math.isfinite(x) and math.isfinite(y) and math.isfinite(z)) \

@@ -38,6 +38,19 @@ def _bare_number_error(path, raw, kind):
 _F64 = np.float64
 
 
+def values_key(env, names):
+    """The values of ``names`` in ``env`` as a key of what they determine: None unless every one
+    is a float64 scalar (as :func:`_param_env` gives them) and none is zero (0.0 == -0.0 would
+    share a key; atan2 tells them apart) or a name is missing."""
+    try:
+        key = tuple(env[n] for n in names)
+    except KeyError:
+        return None
+    if all(type(x) is _F64 for x in key) and 0.0 not in key:
+        return key
+    return None
+
+
 class _Scalar:
     """A scalar in the geometry: a quantity with its unit ("135 mm"), a plain number where the
     quantity is dimensionless (or 0), or an expression of parameters (SI)."""
@@ -82,24 +95,17 @@ class _Scalar:
         # The value of the same inputs is the same: kept per input values (float64 scalars, as
         # _param_env gives them, none of them zero -- 0.0 == -0.0 would share a key, atan2 tells
         # them apart), as a study's designs mostly repeat the parameters a value depends on.
-        key = None
         names = self.__dict__.get("_names")
         if names is None:
             names = self._names = tuple(sorted(self.expr.names))
-        try:
-            key = tuple(env[n] for n in names)
-        except KeyError:
-            pass
+        key = values_key(env, names)
         if key is not None:
-            if all(type(x) is _F64 for x in key) and 0.0 not in key:
-                memo = self.__dict__.get("_memo")
-                if memo is None:
-                    memo = self._memo = {}
-                hit = memo.get(key)
-                if hit is not None:
-                    return hit
-            else:
-                key = None
+            memo = self.__dict__.get("_memo")
+            if memo is None:
+                memo = self._memo = {}
+            hit = memo.get(key)
+            if hit is not None:
+                return hit
         with np.errstate(all="ignore"):
             v = self.expr(env)
         if np.ndim(v) != 0:

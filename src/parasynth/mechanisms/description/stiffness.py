@@ -31,7 +31,7 @@ import math
 
 from ...model.legs import LEG_TYPES
 from .errors import DescriptionError
-from .parameters import _EXAMPLE_UNIT, _Scalar, _check_keys
+from .parameters import _EXAMPLE_UNIT, _Scalar, _check_keys, values_key
 
 #: Keys of an entry and their quantity kinds.
 STIFFNESS_KEYS = {
@@ -121,7 +121,28 @@ class _StiffnessSpec:
                     slot[key] = (scalar, kp)
 
     def values(self, env) -> dict:
-        """{leg name: {key: SI value}} for the parameter values ``env``."""
+        """{leg name: {key: SI value}} for the parameter values ``env`` (kept per the values of
+        the parameters they name: a study's designs mostly share them; each call gets dicts of
+        its own)."""
+        names = self.__dict__.get("_names")
+        if names is None:
+            used = set()
+            for slot in self.per_leg.values():
+                for scalar, _ in slot.values():
+                    used |= set(scalar.expr.names) if scalar.expr is not None else set()
+            names = self._names = tuple(sorted(used))
+        key = values_key(env, names)
+        memo = self.__dict__.setdefault("_memo", {})
+        hit = memo.get(key) if key is not None else None
+        if hit is None:
+            hit = self._values(env)
+            if key is not None:
+                if len(memo) >= 64:
+                    memo.clear()
+                memo[key] = hit
+        return {nm: dict(d) for nm, d in hit.items()}
+
+    def _values(self, env) -> dict:
         out = {}
         for nm, slot in self.per_leg.items():
             d = {}
