@@ -1072,16 +1072,20 @@ def _flat_params_key(params):
     """``freeze(dataclasses.asdict(params))`` for a dataclass whose fields are numbers,
     strings, booleans, None or (nested) tuples of those (a description's ``Params``): the same key
     without asdict's deep copy; None for any other dataclass."""
-    if not dataclasses.is_dataclass(params):
-        return None
-    items = []
-    for f in dataclasses.fields(params):
-        name = f.name
-        v = getattr(params, name)
+    names = _FIELD_NAMES.get(type(params))
+    if names is None:
+        if not dataclasses.is_dataclass(params):
+            return None
+        names = _FIELD_NAMES[type(params)] = tuple(sorted(f.name for f in dataclasses.fields(params)))
+    items = tuple((name, getattr(params, name)) for name in names)  # sorted by name, as sorted(items)
+    for _, v in items:
         if not _plain(v):
             return None
-        items.append((name, v))
-    return tuple(sorted(items))
+    return items
+
+
+#: {dataclass: its field names, sorted} of :func:`_flat_params_key`.
+_FIELD_NAMES: dict = {}
 
 
 def freeze(v):
