@@ -312,7 +312,9 @@ class Leg:
     def _line(self, base_pts: np.ndarray, plat_pts: np.ndarray):
         d = plat_pts - base_pts
         length = np.linalg.norm(d, axis=-1)
-        n = unit(d)
+        # unit(d) with the norm computed once: the same norm, the same division
+        ln = length[..., None]
+        n = np.divide(d, ln, out=np.zeros_like(d), where=ln > 0)
         return n, length
 
     def _cone_angles(self, n: np.ndarray, R: np.ndarray, prefix_base: str, prefix_plat: str):
