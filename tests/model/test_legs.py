@@ -316,3 +316,27 @@ def test_axes_are_numpys_unit_vectors_and_a_neutral_copy_changes_only_its_refere
     for bad, why in (([0.0, 0.0], "3-vector"), ([np.inf, 0.0, 0.0], "finite"), ([0.0, 0.0, 0.0], "non-zero")):
         with pytest.raises(ValueError, match=f"leg L1: base_ref must be .*{why}"):
             leg.with_neutral(bad, [1.0, 0.0, 0.0])
+
+
+def test_default_neutral_directions_are_checked_unit_vectors_that_cannot_be_written():
+    """A leg built without neutral directions takes the defaults (+z at the base, -z at the
+    platform) as the unit vectors ``_axis`` makes of them, shared by every such leg and
+    read-only (writing into one would change every leg's); directions given are checked
+    and normalised as before, even when equal to the defaults."""
+    a = SPS("A", base=[0.1, 0.0, 0.0], platform=[0.05, 0.0, 0.0])
+    b = PUS("B", base=[0.1, 0.0, 0.0], platform=[0.05, 0.0, 0.0], link_length=0.2)
+    for leg in (a, b):
+        assert np.array_equal(leg.base_ref, _axis("r", [0.0, 0.0, 1.0]))
+        assert np.array_equal(leg.platform_ref, _axis("r", [0.0, 0.0, -1.0]))
+        with pytest.raises(ValueError, match="read-only"):
+            leg.base_ref[0] = 1.0
+        with pytest.raises(ValueError, match="read-only"):
+            leg.platform_ref[2] = 1.0
+    assert np.array_equal(a.base_ref, [0.0, 0.0, 1.0])  # nothing written
+    given = SPS("C", base=[0.1, 0.0, 0.0], platform=[0.05, 0.0, 0.0], base_ref=[0.0, 0.0, 2.0],
+                platform_ref=np.array([0.0, 0.0, -1.0]))
+    assert np.array_equal(given.base_ref, [0.0, 0.0, 1.0]) and given.base_ref.flags.writeable
+    assert given.platform_ref.flags.writeable  # a copy of its own, not the shared default
+    for bad, why in (([0.0, 0.0, 0.0], "non-zero"), ([np.nan, 0.0, 1.0], "finite")):
+        with pytest.raises(ValueError, match=f"leg D: platform_ref must be .*{why}"):
+            SPS("D", base=[0.1, 0.0, 0.0], platform=[0.05, 0.0, 0.0], platform_ref=bad)

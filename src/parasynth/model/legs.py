@@ -83,6 +83,17 @@ def _axis(name: str, v) -> np.ndarray:
     return np.array((x / n, y / n, z / n))  # a / n, each entry as NumPy divides it (one IEEE division)
 
 
+def _unit_constant(v) -> np.ndarray:
+    a = np.array(v, dtype=float)
+    a.flags.writeable = False
+    return a
+
+
+#: The default neutral directions of a leg's end joints (:class:`Leg`), shared and read-only.
+_UP = _unit_constant((0.0, 0.0, 1.0))
+_DOWN = _unit_constant((0.0, 0.0, -1.0))
+
+
 def _angle_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Angle (rad) between unit vectors along the last axis, robust near 0 and pi."""
     sin = np.linalg.norm(cross(a, b), axis=-1)
@@ -223,8 +234,8 @@ class Leg:
     name: str
     base: np.ndarray
     platform: np.ndarray
-    base_ref: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, 1.0]))
-    platform_ref: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, -1.0]))
+    base_ref: np.ndarray = field(default_factory=lambda: _UP)
+    platform_ref: np.ndarray = field(default_factory=lambda: _DOWN)
 
     joints: ClassVar[str] = ""
     actuated: ClassVar[int | None] = 1  # index in ``joints`` of the actuated joint
@@ -245,10 +256,12 @@ class Leg:
     def __post_init__(self):
         object.__setattr__(self, "base", _vec3(f"leg {self.name}: base", self.base))
         object.__setattr__(self, "platform", _vec3(f"leg {self.name}: platform", self.platform))
-        object.__setattr__(self, "base_ref", _axis(f"leg {self.name}: base_ref", self.base_ref))
-        object.__setattr__(
-            self, "platform_ref", _axis(f"leg {self.name}: platform_ref", self.platform_ref)
-        )
+        # the default neutral directions are unit vectors already (shared, read-only): a
+        # described leg is given its own at home (Mechanism._neutral_refs) right after
+        if self.base_ref is not _UP:
+            object.__setattr__(self, "base_ref", _axis(f"leg {self.name}: base_ref", self.base_ref))
+        if self.platform_ref is not _DOWN:
+            object.__setattr__(self, "platform_ref", _axis(f"leg {self.name}: platform_ref", self.platform_ref))
 
     # -- structure -------------------------------------------------------------------------
     @property
