@@ -640,3 +640,49 @@ def test_raster_edges_are_linspace_and_each_rasters_own():
             assert e.tobytes() == np.linspace(lo, hi, n + 1).tobytes()
         r.edges[0][0] = 99.0
         assert W._new_raster(lows, highs, shape).edges[0][0] == lows[0]
+
+
+@pytest.mark.parametrize("method", ["sobol", "random", "grid"])
+@pytest.mark.parametrize("chunk", [None, 700])
+def test_raster_counted_when_read_is_the_samples_histogram(method, chunk, monkeypatch):
+    """The raster a run records (counted when first read for runs of at most
+    ``LAZY_RASTER_MAX_SAMPLES`` samples, chunk by chunk for longer ones): per cell, the samples
+    and the feasible samples are ``np.histogramdd`` of the run's own sample points (every point
+    kept) and of its feasible ones over the raster's edges (not for a grid, whose points lie on
+    the edges); both ways of counting give the same counts, largest box and section, in one
+    chunk or several."""
+    import parasynth.measures.workspace as W
+
+    mech = ShellProbe(r_min=0.1, r_max=0.3)
+    kw = dict(n=3000, method=method, raster=6, max_points=None, seed=4)
+    if chunk is not None:
+        kw["chunk_size"] = chunk
+    lazy = workspace(mech, CUBE, **kw)
+    assert lazy.n_samples <= W.LAZY_RASTER_MAX_SAMPLES
+    monkeypatch.setattr(W, "LAZY_RASTER_MAX_SAMPLES", 0)
+    eager = workspace(mech, CUBE, **kw)
+    r_lazy, r_eager = lazy._raster, eager._raster
+    assert r_lazy._pieces is not None and r_eager._pieces is None  # the two ways were taken
+    assert r_lazy.shape == r_eager.shape == (6, 6, 6)
+    # an independent count: the sample stream again, binned by histogramdd on the edges
+    s = lazy._sampler
+    Xs = np.concatenate([b for _, b, _ in s.blocks(1 << 20)])
+    X = np.repeat(mech.home[None, :], len(Xs), axis=0)
+    X[:, :3] = Xs
+    ok = np.asarray(mech.is_feasible(X), dtype=bool)
+    edges = [np.linspace(lo, hi, 7) for lo, hi in CUBE.values()]
+    tot, _ = np.histogramdd(Xs, bins=edges)
+    feas, _ = np.histogramdd(Xs[ok], bins=edges)
+    assert ok.sum() == lazy.n_feasible > 0
+    assert all(np.array_equal(a, b) for a, b in zip(r_lazy.edges, edges))
+    if method != "grid":  # (grid points lie on cell edges, where histogramdd bins by other rules)
+        assert np.array_equal(r_lazy.total, tot.astype(np.int64))
+        assert np.array_equal(r_lazy.feasible, feas.astype(np.int64))
+    assert r_lazy.total.sum() == len(Xs) and r_lazy.feasible.sum() == lazy.n_feasible
+    for a, b in zip((r_lazy.total, r_lazy.feasible, *r_lazy.edges), (r_eager.total, r_eager.feasible, *r_eager.edges)):
+        assert np.array_equal(a, b)
+    assert r_lazy._pieces is None  # counted once, then kept
+    box_a, box_b = lazy.largest_box(), eager.largest_box()
+    assert box_a is not None and all(np.array_equal(u, v) for u, v in zip(box_a, box_b))
+    a, b = lazy.section("x", "y"), eager.section("x", "y")
+    assert np.array_equal(a.occupancy, b.occupancy)

@@ -120,6 +120,9 @@ _AXES = ("x", "y", "z")
 SAMPLE_CACHE_BYTES = 256 * 2**20
 #: Runs of more samples than this are generated chunk by chunk and not cached.
 SAMPLE_CACHE_MAX_POINTS = 2**21
+#: Runs of at most this many samples count their raster when it is first read (a study's
+#: designs mostly never read it); longer ones count it chunk by chunk (see _RecordedRaster).
+LAZY_RASTER_MAX_SAMPLES = 2**17
 
 
 # ---------------------------------------------------------------------------------------------
@@ -218,6 +221,51 @@ class _Raster:
                                          return_distances=False, return_indices=True)
             occ = occ[tuple(idx)]
         return occ
+
+
+class _RecordedRaster(_Raster):
+    """The raster a :func:`workspace` run records (:meth:`add` per chunk). A run of at most
+    ``LAZY_RASTER_MAX_SAMPLES`` samples keeps each chunk's cells (the sample cache's arrays),
+    their sample counts and its feasible rows, and counts the raster when a part first reads it
+    (``largest_box``, ``section``, the usable workspace), which a study's volume and margin
+    measures do not; a longer run counts chunk by chunk, as it samples."""
+
+    def __init__(self, lows, highs, shape, lazy: bool):
+        self._lows, self._highs, self._shape = lows, highs, tuple(shape)
+        self._pieces = [] if lazy else None
+        self._counted = None
+        if not lazy:
+            self._counted = _new_raster(lows, highs, shape)
+            self._flat_total = self._counted.total.reshape(-1)
+            self._flat_feasible = self._counted.feasible.reshape(-1)
+
+    def add(self, flat, counts, sel) -> None:
+        """A chunk: its samples' cells ``flat``, their bincount ``counts``, the feasible rows ``sel``."""
+        if self._pieces is not None:
+            self._pieces.append((flat, counts, sel))
+            return
+        self._flat_total += counts
+        if len(sel):
+            self._flat_feasible += np.bincount(flat[sel], minlength=self._flat_total.size)
+
+    @property
+    def shape(self) -> tuple[int, ...]:
+        return self._shape
+
+    def _counts(self) -> _Raster:
+        if self._counted is None:
+            rec = _new_raster(self._lows, self._highs, self._shape)
+            total, feas = rec.total.reshape(-1), rec.feasible.reshape(-1)
+            for flat, counts, sel in self._pieces:
+                total += counts
+                if len(sel):
+                    feas += np.bincount(flat[sel], minlength=total.size)
+            self._counted, self._pieces = rec, None
+        return self._counted
+
+    edges = property(lambda self: self._counts().edges)
+    total = property(lambda self: self._counts().total)
+    feasible = property(lambda self: self._counts().feasible)
 
 
 @dataclass(frozen=True)
@@ -776,10 +824,7 @@ def workspace(mech, ranges=None, n: int = 2**16, method: str = "sobol", seed: in
         rshape = _raster_shape(raster, coords, "raster")
         if shape is not None:
             rshape = tuple(min(r, m) for r, m in zip(rshape, shape))
-    rec = _new_raster(lows, highs, rshape)
-    cells = rec.total.size
-    r_total = np.zeros(cells, np.int64)
-    r_feas = np.zeros(cells, np.int64)
+    rec = _RecordedRaster(lows, highs, rshape, lazy=n_samples <= LAZY_RASTER_MAX_SAMPLES)
 
     boundary = _GridBoundary(shape) if shape is not None else None
 
@@ -800,9 +845,8 @@ def workspace(mech, ranges=None, n: int = 2**16, method: str = "sobol", seed: in
         sel = np.flatnonzero(ok)  # the feasible rows once: index arrays, not three boolean masks
         k = len(sel)
         n_feasible += k
-        r_total += counts
+        rec.add(flat, counts, sel)
         if k:
-            r_feas += np.bincount(flat[sel], minlength=cells)
             if fe is None:
                 p = np.asarray(pose_batch(mech, X[sel], engine=engine)[1], dtype=float)
                 p_lo, p_hi = p.min(axis=0), p.max(axis=0)
@@ -815,8 +859,6 @@ def workspace(mech, ranges=None, n: int = 2**16, method: str = "sobol", seed: in
         report.update(start + m, n_feasible)
     report.close(n_feasible)
 
-    rec.total[...] = r_total.reshape(rshape)
-    rec.feasible[...] = r_feas.reshape(rshape)
     box_vol = math.prod((highs - lows).tolist())  # np.prod's products, in the same order
     f = n_feasible / n_samples
     volume = f * box_vol
