@@ -16,7 +16,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from _support import random_rotation
-from parasynth.model.legs import PUS, RPS, RPU, SPS, UPS, UPU, _axis
+from parasynth.model.legs import PRS, PUS, RPS, RPU, RUS, SPS, UPS, UPU, _axis
 
 #: Freedoms per joint letter (independent of parasynth.model.legs.JOINT_DOF).
 DOF = {"R": 1, "P": 1, "U": 2, "S": 3}
@@ -340,3 +340,112 @@ def test_default_neutral_directions_are_checked_unit_vectors_that_cannot_be_writ
     for bad, why in (([0.0, 0.0, 0.0], "non-zero"), ([np.nan, 0.0, 1.0], "finite")):
         with pytest.raises(ValueError, match=f"leg D: platform_ref must be .*{why}"):
             SPS("D", base=[0.1, 0.0, 0.0], platform=[0.05, 0.0, 0.0], platform_ref=bad)
+
+
+def _random_leg(kind: str, rng, reach: float):
+    """A leg of type ``kind`` with random geometry (anchors within 0.3 m, random axes) whose link
+    or crank lengths make poses near (0, 0, 0.6) mostly reachable when ``reach`` is about 1."""
+    b = rng.uniform(-0.3, 0.3, 3)
+    a = rng.uniform(-0.15, 0.15, 3)
+    ax = rng.normal(size=3)
+    if kind in ("SPS",):
+        return SPS("L", base=b, platform=a)
+    if kind == "UPS":
+        return UPS("L", base=b, platform=a, u_axis=ax)
+    if kind == "UPU":
+        return UPU("L", base=b, platform=a, u_axis=ax, u_platform_axis=rng.normal(size=3))
+    if kind == "RPS":
+        return RPS("L", base=b, platform=a, r_axis=ax)
+    if kind == "RPU":
+        return RPU("L", base=b, platform=a, r_axis=ax, u_platform_axis=rng.normal(size=3))
+    if kind == "PUS":
+        return PUS("L", base=b, platform=a, slider_axis=ax, link_length=reach * 0.5, branch=int(rng.choice([-1, 1])))
+    if kind == "PRS":
+        e = ax / np.linalg.norm(ax)
+        r = np.cross(e, rng.normal(size=3))
+        return PRS("L", base=b, platform=a, slider_axis=e, r_axis=r, link_length=reach * 0.5,
+                   branch=int(rng.choice([-1, 1])))
+    return RUS("L", base=b, platform=a, r_axis=ax, crank_length=0.2, link_length=reach * 0.6,
+               branch=int(rng.choice([-1, 1])))
+
+
+@pytest.mark.parametrize("kind", ["SPS", "UPS", "UPU", "RPS", "RPU", "PUS", "PRS", "RUS"])
+def test_home_direction_in_floats_is_the_solves_direction(kind):
+    """``Leg.home_direction`` (Python floats, for the neutral directions at home) against the
+    leg's NumPy ``solve`` at random poses of random legs: the same reachability and the same
+    direction to a few units in the last place (NumPy's small matrix products may round
+    otherwise), and out of reach (None) where the solve says so -- also for the planar legs
+    (RPS, RPU, PRS), posed in their plane (reachable) and off it (not)."""
+    from parasynth.model.legs import GEOM_TOL
+
+    rng = np.random.default_rng(sum(map(ord, kind)))
+    seen = {True: 0, False: 0}
+    for trial in range(400):
+        leg = _random_leg(kind, rng, reach=rng.uniform(0.6, 1.6))
+        R = random_rotation(rng)
+        p = rng.uniform(-0.1, 0.1, 3) + [0.0, 0.0, 0.6]
+        if kind in ("RPS", "RPU", "PRS") and trial % 2 == 0:
+            # move the pose into the leg's plane (through its base, normal to r_axis) for half the
+            # trials: a random pose is out of it (and out of reach)
+            A = p + R @ leg.platform
+            p = p - ((A - leg.base) @ leg.r_axis) * leg.r_axis
+            if kind == "RPU":  # and turn the platform's U axis normal to r_axis
+                a4 = R @ leg.u_platform_axis
+                axis = np.cross(a4, leg.r_axis)
+                ang = np.arcsin(np.clip(a4 @ leg.r_axis, -1, 1))
+                R = _rot(axis / np.linalg.norm(axis), -ang) @ R
+                A = p + R @ leg.platform
+                p = p - ((A - leg.base) @ leg.r_axis) * leg.r_axis
+        st = leg.solve(p[None, :], R[None, :, :], joint_angles=False)
+        hd = leg.home_direction(p.tolist(), R.ravel().tolist())
+        ok = bool(st.reachable[0])
+        seen[ok] += 1
+        if not ok:
+            assert hd is None, (trial, hd)
+            continue
+        assert hd is not None
+        n = st.direction[0]
+        # a slider's or crank's link direction comes from a difference of nearby points: a few
+        # units in the last place of the anchors' coordinates
+        assert np.max(np.abs(np.array(hd) - n)) <= (4e-16 if kind in FIXED_BASE else 1e-14), (trial, hd, n)
+    assert seen[True] >= 60  # both branches exercised where the leg can miss a pose
+    assert seen[False] >= 20 or kind in FIXED_BASE
+    assert GEOM_TOL > 0
+
+
+FIXED_BASE = ("SPS", "UPS", "UPU")
+
+
+def _rot(u, ang):
+    """The rotation by ``ang`` about the unit axis ``u`` (Rodrigues)."""
+    K = np.array([[0.0, -u[2], u[1]], [u[2], 0.0, -u[0]], [-u[1], u[0], 0.0]])
+    return np.eye(3) + np.sin(ang) * K + (1.0 - np.cos(ang)) * K @ K
+
+
+def test_a_described_mechanisms_neutral_directions_are_its_legs_directions_at_home():
+    """Every shipped description, at its defaults and at random designs of the quick start: each
+    leg's neutral directions are its NumPy solve's direction at home (base frame) and the
+    opposite of it in the platform frame, unit vectors to a few units in the last place."""
+    import parasynth
+    from parasynth.mechanisms import list_mechanisms
+
+    mechs = [parasynth.load_mechanism(n) for n in list_mechanisms()]
+    rng = np.random.default_rng(5)
+    for _ in range(20):
+        mechs.append(parasynth.load_mechanism("5pus_upu", link_length=rng.uniform(0.16, 0.24),
+                                              slider_radius=rng.uniform(0.11, 0.17)))
+    for m in mechs:
+        p, R = m._pose(m.home[None, :])
+        for leg in m.legs:
+            n = solve_geometry_dir(leg, p, R)
+            assert np.max(np.abs(leg.base_ref - n / np.linalg.norm(n))) <= 1e-14, (m.name, leg.name)
+            pr = R[0].T @ (-n)
+            assert np.max(np.abs(leg.platform_ref - pr / np.linalg.norm(pr))) <= 1e-14, (m.name, leg.name)
+            for ref in (leg.base_ref, leg.platform_ref):
+                assert abs(np.linalg.norm(ref) - 1.0) <= 4e-16
+
+
+def solve_geometry_dir(leg, p, R):
+    from parasynth.model.legs import solve_geometry
+
+    return solve_geometry(leg, p, R).direction[0]

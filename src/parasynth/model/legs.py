@@ -77,10 +77,44 @@ def _vec3(name: str, v) -> np.ndarray:
 
 def _axis(name: str, v) -> np.ndarray:
     _, x, y, z = _vec3_xyz(name, v)
+    return _unit_xyz(name, x, y, z)
+
+
+def _unit_xyz(name: str, x: float, y: float, z: float) -> np.ndarray:
+    """The unit vector along the finite (x, y, z), as :func:`_axis` makes it."""
     n = math.sqrt(x * x + y * y + z * z)
     if n == 0:
         raise ValueError(f"{name} must be a non-zero direction")
     return np.array((x / n, y / n, z / n))  # a / n, each entry as NumPy divides it (one IEEE division)
+
+
+def _at_pose(a, p, R):
+    """The point ``p + R a`` of three floats ``a``, ``p`` and ``R`` (nine floats, row-major)."""
+    ax, ay, az = a
+    return (p[0] + (R[0] * ax + R[1] * ay + R[2] * az), p[1] + (R[3] * ax + R[4] * ay + R[5] * az),
+            p[2] + (R[6] * ax + R[7] * ay + R[8] * az))
+
+
+def _fixed_line(b, A):
+    """The leg direction from a fixed base joint ``b`` to ``A`` and its length (floats)."""
+    dx, dy, dz = A[0] - b[0], A[1] - b[1], A[2] - b[2]
+    length = math.sqrt(dx * dx + dy * dy + dz * dz)
+    if not length > 0:
+        return None, length
+    return (dx / length, dy / length, dz / length), length
+
+
+def _slider_line(leg, S, e, L):
+    """The link direction of a slider leg (PUS, PRS) to the sphere ``S`` (floats), None out of reach."""
+    bx, by, bz = leg.base.tolist()
+    dx, dy, dz = S[0] - bx, S[1] - by, S[2] - bz
+    ex, ey, ez = e
+    de = dx * ex + dy * ey + dz * ez
+    disc = L * L - ((dx * dx + dy * dy + dz * dz) - de * de)
+    if not disc >= 0:
+        return None
+    s = de + leg.branch * math.sqrt(disc)
+    return ((S[0] - (bx + s * ex)) / L, (S[1] - (by + s * ey)) / L, (S[2] - (bz + s * ez)) / L)
 
 
 def _unit_constant(v) -> np.ndarray:
@@ -289,6 +323,24 @@ class Leg:
     def joint_twists(self, st: LegState, P: np.ndarray) -> np.ndarray:  # pragma: no cover
         raise NotImplementedError
 
+    def home_direction(self, p, R):
+        """The leg's direction (three floats) at one platform pose, ``p`` three floats and ``R``
+        nine (row-major), computed in Python floats: what :meth:`solve` gives as
+        ``direction[0]`` there, to a few units in the last place (NumPy's products of small
+        matrices may round otherwise), for a mechanism's neutral joint directions at home
+        without a dozen NumPy calls per leg. None where :meth:`solve` finds the pose out of
+        the leg's reach; ``NotImplemented`` for a leg type without it (then :meth:`solve`)."""
+        return NotImplemented
+
+    def with_unit_neutral(self, base_ref, platform_ref) -> "Leg":
+        """:meth:`with_neutral` of two directions given as finite floats (x, y, z)."""
+        new = object.__new__(type(self))
+        d = new.__dict__
+        d.update(self.__dict__)
+        d["base_ref"] = _unit_xyz(f"leg {self.name}: base_ref", *base_ref)
+        d["platform_ref"] = _unit_xyz(f"leg {self.name}: platform_ref", *platform_ref)
+        return new
+
     def with_neutral(self, base_ref, platform_ref) -> "Leg":
         """A copy with the neutral joint directions ``base_ref`` (base frame) and
         ``platform_ref`` (platform frame) -- ``dataclasses.replace`` without re-checking the
@@ -367,6 +419,9 @@ class SPS(Leg):
     actuator_value = _anchor_distance
     local_dof: ClassVar[int] = 1
 
+    def home_direction(self, p, R):
+        return _fixed_line(self.base.tolist(), _at_pose(self.platform.tolist(), p, R))[0]
+
     def solve(self, p, R, joint_angles: bool = True):
         A = self.platform_points(p, R)
         B = np.broadcast_to(self.base, A.shape)
@@ -409,6 +464,9 @@ class UPS(Leg):
     def __post_init__(self):
         super().__post_init__()
         object.__setattr__(self, "u_axis", _axis(f"leg {self.name}: u_axis", self.u_axis))
+
+    def home_direction(self, p, R):
+        return _fixed_line(self.base.tolist(), _at_pose(self.platform.tolist(), p, R))[0]
 
     def solve(self, p, R, joint_angles: bool = True):
         A = self.platform_points(p, R)
@@ -492,6 +550,11 @@ class PUS(Leg):
         if self.branch not in (1, -1):
             raise ValueError(f"leg {self.name}: branch must be +1 or -1, got {self.branch}")
 
+    def home_direction(self, p, R):
+        if not isinstance(self.link_length, float):
+            return NotImplemented  # a link length per pose
+        return _slider_line(self, _at_pose(self.platform.tolist(), p, R), self.slider_axis.tolist(), self.link_length)
+
     def solve(self, p, R, joint_angles: bool = True):
         S = self.platform_points(p, R)
         e = self.slider_axis
@@ -567,6 +630,14 @@ class RPS(Leg):
     def is_actuated(self) -> bool:
         return not self.passive
 
+    def home_direction(self, p, R):
+        b = self.base.tolist()
+        A = _at_pose(self.platform.tolist(), p, R)
+        n, length = _fixed_line(b, A)
+        rx, ry, rz = self.r_axis.tolist()
+        off = abs((A[0] - b[0]) * rx + (A[1] - b[1]) * ry + (A[2] - b[2]) * rz)
+        return n if off <= GEOM_TOL * max(1.0, length) else None
+
     def solve(self, p, R, joint_angles: bool = True):
         A = self.platform_points(p, R)
         B = np.broadcast_to(self.base, A.shape)
@@ -627,6 +698,16 @@ class RPU(Leg):
         object.__setattr__(
             self, "u_platform_axis", _axis(f"leg {self.name}: u_platform_axis", self.u_platform_axis)
         )
+
+    def home_direction(self, p, R):
+        b = self.base.tolist()
+        A = _at_pose(self.platform.tolist(), p, R)
+        n, length = _fixed_line(b, A)
+        rx, ry, rz = self.r_axis.tolist()
+        off = abs((A[0] - b[0]) * rx + (A[1] - b[1]) * ry + (A[2] - b[2]) * rz)
+        a4 = _at_pose(self.u_platform_axis.tolist(), (0.0, 0.0, 0.0), R)
+        skew = abs(a4[0] * rx + a4[1] * ry + a4[2] * rz)
+        return n if (off <= GEOM_TOL * max(1.0, length) and skew <= GEOM_TOL) else None
 
     def solve(self, p, R, joint_angles: bool = True):
         A = self.platform_points(p, R)
@@ -698,6 +779,9 @@ class UPU(Leg):
     @property
     def is_actuated(self) -> bool:
         return not self.passive
+
+    def home_direction(self, p, R):
+        return _fixed_line(self.base.tolist(), _at_pose(self.platform.tolist(), p, R))[0]
 
     def solve(self, p, R, joint_angles: bool = True):
         A = self.platform_points(p, R)
@@ -798,6 +882,15 @@ class PRS(Leg):
             raise ValueError(f"leg {self.name}: link_length must be a positive length in m, got {L}")
         if self.branch not in (1, -1):
             raise ValueError(f"leg {self.name}: branch must be +1 or -1, got {self.branch}")
+
+    def home_direction(self, p, R):
+        S = _at_pose(self.platform.tolist(), p, R)
+        L = float(self.link_length)
+        bx, by, bz = self.base.tolist()
+        ax, ay, az = self.r_axis.tolist()
+        off = abs((S[0] - bx) * ax + (S[1] - by) * ay + (S[2] - bz) * az)
+        n = _slider_line(self, S, self.slider_axis.tolist(), L)
+        return n if off <= GEOM_TOL * max(1.0, L) else None
 
     def solve(self, p, R, joint_angles: bool = True):
         S = self.platform_points(p, R)
@@ -907,6 +1000,24 @@ class RUS(Leg):
         c0 = self.crank_direction
         c1 = cross(self.r_axis, c0)
         return np.cos(t)[:, None] * c0 + np.sin(t)[:, None] * c1
+
+    def home_direction(self, p, R):
+        S = _at_pose(self.platform.tolist(), p, R)
+        h, L = float(self.crank_length), float(self.link_length)
+        bx, by, bz = self.base.tolist()
+        c0 = self.crank_direction.tolist()
+        c1 = cross(self.r_axis, self.crank_direction).tolist()
+        dx, dy, dz = S[0] - bx, S[1] - by, S[2] - bz
+        P = dx * c0[0] + dy * c0[1] + dz * c0[2]
+        Q = dx * c1[0] + dy * c1[1] + dz * c1[2]
+        K = ((dx * dx + dy * dy + dz * dz) + h * h - L * L) / (2 * h)
+        rho = math.hypot(P, Q)
+        if not rho > 0 or not abs(K / rho) <= 1.0:
+            return None
+        t = math.atan2(Q, P) + self.branch * math.acos(K / rho)
+        t = math.atan2(math.sin(t), math.cos(t))
+        ct, st = math.cos(t), math.sin(t)
+        return tuple((S[i] - ((bx, by, bz)[i] + h * (ct * c0[i] + st * c1[i]))) / L for i in range(3))
 
     def solve(self, p, R, joint_angles: bool = True):
         S = self.platform_points(p, R)

@@ -381,9 +381,24 @@ class DescribedMechanism(Mechanism):
         p, R = self.__dict__.pop("_home_pose", None) or self._pose(self.home[None, :])
         self._home_platform_pose = (self.home.copy(), p, R)
         out = []
-        with np.errstate(all="ignore"):  # once for every leg (~1.5 us each)
-            states = [solve_geometry(leg, p, R) for leg in legs]
-        for leg, st in zip(legs, states):
+        pf, Rf = p[0].tolist(), R[0].ravel().tolist()
+        for leg in legs:
+            # the direction in Python floats where the leg type computes it so (a dozen NumPy
+            # calls less per leg), else, or to say why the leg does not reach home, its solve
+            try:
+                hd = leg.home_direction(pf, Rf)
+            except (ValueError, OverflowError, ZeroDivisionError):
+                hd = None
+            if hd is not None and hd is not NotImplemented:
+                x, y, z = hd
+                if math.isfinite(x) and math.isfinite(y) and math.isfinite(z) and (x or y or z):
+                    nx, ny, nz = -x, -y, -z
+                    out.append(leg.with_unit_neutral(hd, (Rf[0] * nx + Rf[3] * ny + Rf[6] * nz,
+                                                          Rf[1] * nx + Rf[4] * ny + Rf[7] * nz,
+                                                          Rf[2] * nx + Rf[5] * ny + Rf[8] * nz)))
+                    continue
+            with np.errstate(all="ignore"):
+                st = solve_geometry(leg, p, R)
             n = st.direction[0]
             x, y, z = n.tolist()  # three floats: Python's tests cost a tenth of NumPy's reductions
             if not (st.reachable[0] and math.isfinite(x) and math.isfinite(y) and math.isfinite(z)) \
