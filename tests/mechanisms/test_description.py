@@ -472,8 +472,9 @@ def test_home_pose_shared_only_by_designs_with_the_same_task_inputs():
 
 
 def test_parameter_values_kept_per_exact_inputs():
-    """A geometry value computed before for the same float64 inputs is given again; zero inputs
-    (0.0 == -0.0, atan2 tells them apart) and other types are always computed."""
+    """A geometry value computed before for the same float64 inputs is given again; a zero input
+    is kept with its sign (0.0 == -0.0, but atan2 tells them apart), a list parameter by its
+    values, and other types are always computed."""
     from parasynth.mechanisms.description.expressions import _Scope
     from parasynth.mechanisms.description.parameters import _Scalar
 
@@ -481,11 +482,64 @@ def test_parameter_values_kept_per_exact_inputs():
     f64 = np.float64
     assert s({"a": f64(1.0), "b": f64(2.0)}) == np.arctan2(1.0, 2.0)
     assert len(s._memo) == 1 and s({"a": f64(1.0), "b": f64(2.0)}) == np.arctan2(1.0, 2.0)
-    assert s({"a": f64(0.0), "b": f64(-1.0)}) == np.pi and s({"a": f64(-0.0), "b": f64(-1.0)}) == -np.pi
+    for _ in range(2):  # computed, then given again: each zero with its sign
+        assert s({"a": f64(0.0), "b": f64(-1.0)}) == np.pi and s({"a": f64(-0.0), "b": f64(-1.0)}) == -np.pi
+    assert len(s._memo) == 3
     assert s({"a": 1.0, "b": f64(3.0)}) == np.arctan2(1.0, 3.0)
-    assert len(s._memo) == 1  # neither the zeros nor the Python float were kept
+    assert len(s._memo) == 3  # the Python float was not kept
     with pytest.raises(DescriptionError, match="t"):
         s({"a": f64(1.0)})
+    from parasynth.mechanisms.description.parameters import values_key
+
+    assert values_key({"a": f64(0.0)}, ("a",)) != values_key({"a": f64(-0.0)}, ("a",))
+    v = np.array([0.1, -0.0])
+    assert values_key({"v": v}, ("v",)) == values_key({"v": v.copy()}, ("v",)) != values_key({"v": np.abs(v)}, ("v",))
+    assert values_key({"v": v}, ("v",)) != values_key({"v": v.reshape(2, 1)}, ("v",))
+    assert values_key({"a": f64(1.0)}, ("a", "b")) is None and values_key({"a": 1}, ("a",)) is None
+
+
+def _scaled(v, rng, lists: bool):
+    """A single value changed by up to 2 % (``lists`` False) or each entry of a list parameter (True)."""
+    if isinstance(v, float) and not lists:
+        return v * (1.0 + 0.02 * rng.uniform(-1, 1))
+    if lists and isinstance(v, tuple) and all(isinstance(x, float) for x in np.ravel(v)):
+        return tuple(np.asarray(v) * (1.0 + 0.02 * rng.uniform(-1, 1, np.shape(v))))
+    return v
+
+
+def test_anchor_sets_kept_per_their_inputs_give_each_call_its_own_arrays():
+    """A base or platform set built before for the same values of the parameters it reads (its
+    expressions' names, its list parameter) is given again as arrays of its own; for random
+    designs of every shipped description each set equals a fresh build, before and after the
+    others (a parameter the key left out would give a stale set)."""
+    import parasynth
+    from parasynth.mechanisms import list_mechanisms
+    from parasynth.mechanisms.description.parameters import _param_env
+
+    rng = np.random.default_rng(11)
+    for name in list_mechanisms():
+        cls = type(parasynth.load_mechanism(name))
+        d = getattr(cls, "description", None)
+        if d is None:
+            continue
+        sets = list(d.base_sets.values()) + list(d.plat_sets.values())
+        defaults = cls.Params()
+        for k in range(6):
+            # every parameter scaled a little (the defaults' checks hold for small changes)
+            # the single values changed in one design, the lists in the next
+            kw = {f.name: _scaled(getattr(defaults, f.name), rng, lists=k % 2 == 1) for f in dataclasses.fields(defaults)}
+            try:
+                env = _param_env(cls.Params(**kw), d.params)
+            except ValueError:
+                continue
+            for s in sets:
+                for _ in range(2):
+                    got, want = s.build(env), s._build(env)
+                    for a, b in zip((got.points, got.radial, got.tangent, got.normal),
+                                    (want.points, want.radial, want.tangent, want.normal)):
+                        assert np.array_equal(a, b), (name, s.name)
+                got.points[:] = np.nan  # the caller's own arrays
+                assert np.array_equal(s.build(env).points, want.points)
 
 
 def test_anchor_directions_kept_per_points_are_each_calls_own():

@@ -11,7 +11,7 @@ import numpy as np
 
 from .errors import DescriptionError
 from .expressions import _Scope
-from .parameters import _Scalar, _check_keys
+from .parameters import _Scalar, _check_keys, values_key
 
 _PLANES = {"xy": (0, 1, 2), "yx": (1, 0, 2), "xz": (0, 2, 1), "zx": (2, 0, 1), "yz": (1, 2, 0), "zy": (2, 1, 0)}
 _PATTERNS = {
@@ -126,7 +126,37 @@ class _AnchorSet:
             self.length = S("length", "length")
             self.width = S("width", "length")
 
+    def _input_names(self) -> tuple:
+        """The parameters the set's geometry reads: those its scalars' expressions name and its
+        list parameter of points or angles."""
+        scalars = [self.offset, self.scale, self.rotation, *self.shift]
+        scalars += [getattr(self, k) for k in ("radius", "phase", "separation", "length", "width") if hasattr(self, k)]
+        scalars += list(self.angles or ()) + [v for row in (self.point_rows or ()) for v in row]
+        names = {n for sc in scalars if sc.expr is not None for n in sc.expr.names}
+        names |= {p.name for p in (self.points_param, self.angles_param) if p is not None}
+        return tuple(sorted(names))
+
     def build(self, env) -> _Anchors:
+        """The anchors for the parameter values ``env``: kept per the values of the parameters the
+        set's expressions name (as :class:`_Scalar` keeps a value), so that a study's designs
+        that leave the set unchanged (the platform's while the legs vary) share its build; each
+        call gets arrays of its own."""
+        names = self.__dict__.get("_names")
+        if names is None:
+            names = self._names = self._input_names()
+        key = values_key(env, names)
+        memo = self.__dict__.setdefault("_memo", {})
+        hit = memo.get(key) if key is not None else None
+        if hit is None:
+            hit = self._build(env)
+            if key is None:
+                return hit
+            if len(memo) >= 64:
+                memo.clear()
+            memo[key] = hit = _Anchors(hit.points.copy(), hit.radial.copy(), hit.tangent.copy(), hit.normal.copy())
+        return _Anchors(hit.points.copy(), hit.radial.copy(), hit.tangent.copy(), hit.normal.copy())
+
+    def _build(self, env) -> _Anchors:
         i1, i2, i3 = self.axes
         off = self.offset(env)
         if self.pattern == "points":

@@ -39,16 +39,24 @@ _F64 = np.float64
 
 
 def values_key(env, names):
-    """The values of ``names`` in ``env`` as a key of what they determine: None unless every one
-    is a float64 scalar (as :func:`_param_env` gives them) and none is zero (0.0 == -0.0 would
-    share a key; atan2 tells them apart) or a name is missing."""
-    try:
-        key = tuple(env[n] for n in names)
-    except KeyError:
-        return None
-    if all(type(x) is _F64 for x in key) and 0.0 not in key:
-        return key
-    return None
+    """The values of ``names`` in ``env`` as an exact key of what they determine: float64
+    scalars (as :func:`_param_env` gives them; a zero with its sign, as atan2 tells 0.0 from
+    -0.0) and float64 arrays (list parameters, by shape and bytes). None if a name is missing
+    or a value is of another type."""
+    key = []
+    for n in names:
+        x = env.get(n, _MISSING)
+        t = type(x)
+        if t is _F64:
+            key.append(x if x != 0.0 else (0.0, math.copysign(1.0, x)))
+        elif t is np.ndarray and x.dtype == _F64:
+            key.append((x.shape, x.tobytes()))
+        else:
+            return None
+    return tuple(key)
+
+
+_MISSING = object()
 
 
 class _Scalar:
@@ -92,9 +100,9 @@ class _Scalar:
     def __call__(self, env) -> float:
         if self.const is not None:
             return self.const
-        # The value of the same inputs is the same: kept per input values (float64 scalars, as
-        # _param_env gives them, none of them zero -- 0.0 == -0.0 would share a key, atan2 tells
-        # them apart), as a study's designs mostly repeat the parameters a value depends on.
+        # The value of the same inputs is the same: kept per input values (values_key: exact,
+        # a zero with its sign), as a study's designs mostly repeat the parameters a value
+        # depends on.
         names = self.__dict__.get("_names")
         if names is None:
             names = self._names = tuple(sorted(self.expr.names))
