@@ -174,3 +174,33 @@ def test_kept_arguments_give_what_fresh_ones_give(tmp_path):
     mech = ev.build({"link_length": 0.21})
     alone = obj.get("singularity_margin_min")(mech, sample=ev.sample(256, 5), quantile=0.05)
     assert again.objectives["margin_q05"] == alone != second.objectives["margin_q05"]
+
+
+def test_a_run_builds_every_design_from_the_class_it_resolved_first(tmp_path):
+    """The model class of a study is resolved once per study object: a description file edited
+    during a run does not change the model of the designs that follow (a new study of the file
+    takes the new class); bad design parameters are still refused by name."""
+    import shutil
+
+    import os
+
+    import parasynth
+    from parasynth.study.design import design_mechanism, study_class
+
+    src = Path(parasynth.__file__).parent / "mechanisms" / "5pus_upu.yaml"
+    desc = tmp_path / "m.yaml"
+    shutil.copy(src, desc)
+    f = tmp_path / "s.yaml"
+    f.write_text(SHARED.replace("mechanism: 5pus_upu", f"mechanism: {desc}"))
+    study = load_study(f)
+    first = study_class(study)
+    m1 = design_mechanism(study, {"link_length": 0.2})
+    assert type(m1) is first and study_class(study) is first
+    text = desc.read_text()
+    desc.write_text(text.replace("slider_min < slider_max", "slider_min < slider_max + 1 m"))
+    os.utime(desc, ns=(desc.stat().st_atime_ns, desc.stat().st_mtime_ns + 10**9))
+    assert type(design_mechanism(study, {"link_length": 0.21})) is first
+    again = load_study(f)
+    assert study_class(again) is not first and type(design_mechanism(again, {"link_length": 0.2})) is study_class(again)
+    with pytest.raises(ValueError, match=r"unknown parameter\(s\) \['bogus'\]"):
+        design_mechanism(study, {"link_length": 0.2, "bogus": 1.0})

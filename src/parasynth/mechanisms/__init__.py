@@ -19,7 +19,7 @@ from typing import Callable
 
 from ..model.mechanism import Mechanism
 
-__all__ = ["list_mechanisms", "load_mechanism", "register", "mechanism_class", "resolve_mechanism_name",
+__all__ = ["list_mechanisms", "load_mechanism", "instantiate", "register", "mechanism_class", "resolve_mechanism_name",
            "packaged_descriptions", "described_class", "parse_description"]
 
 _PACKAGE_DIR = Path(__file__).resolve().parent
@@ -171,12 +171,17 @@ def load_mechanism(name: str, **params) -> Mechanism:
     packaged description such as ``"5pus_upu.yaml"``). Raises ``ValueError`` naming the valid
     mechanisms for an unknown name, and the valid parameters for an unknown parameter.
     """
-    cls = mechanism_class(name)
+    return instantiate(mechanism_class(name), name, **params)
+
+
+def instantiate(cls: type, name: str, **params) -> Mechanism:
+    """``load_mechanism(name, **params)`` for the model class ``cls`` of ``name`` found before
+    (:func:`mechanism_class`): a study builds every design from the class it resolved once."""
     fields = _FIELDS.get(cls.Params)
     if fields is None:
         fields = _FIELDS[cls.Params] = frozenset(f.name for f in dataclasses.fields(cls.Params))
-    unknown = sorted(set(params) - fields)
-    if unknown:
+    if not fields.issuperset(params):
+        unknown = sorted(set(params) - fields)
         raise ValueError(
             f"unknown parameter(s) {unknown} for mechanism {name!r}; valid: {', '.join(sorted(fields))}"
         )

@@ -27,7 +27,7 @@ from __future__ import annotations
 import dataclasses
 
 from ..model.constraints import SingularityMarginFloor
-from ..mechanisms import load_mechanism
+from ..mechanisms import instantiate, mechanism_class
 from ..measures.objectives import get as get_measure
 from ..measures.workspace import WorkspaceSample
 from .space import BOX_CENTRE_U, centre_value
@@ -35,7 +35,7 @@ from .structure_space import box_centre
 from .space import design_key as key_of
 
 __all__ = ["design_params", "design_key", "BOX_CENTRE_U", "centre_value", "box_centre", "evaluation_sample",
-           "measure_arguments", "measure_settings", "design_mechanism", "with_pose_constraints"]
+           "measure_arguments", "measure_settings", "design_mechanism", "study_class", "with_pose_constraints"]
 
 
 def design_params(study, values: dict) -> dict:
@@ -123,7 +123,25 @@ def with_pose_constraints(study, mech):
                                    for a in added))
 
 
+#: The model class of each study seen (by id, with the study kept alive so that its id stays its own).
+_CLASSES: dict = {}
+
+
+def study_class(study) -> type:
+    """The model class of ``study.mechanism``, resolved once per study object: every design of a
+    run is built from the same class (a description file edited during a run does not change
+    the model halfway through it), without a look at the file per design."""
+    hit = _CLASSES.get(id(study))
+    if hit is not None and hit[0] is study:
+        return hit[1]
+    cls = mechanism_class(study.mechanism)
+    if len(_CLASSES) >= 64:
+        _CLASSES.clear()
+    _CLASSES[id(study)] = (study, cls)
+    return cls
+
+
 def design_mechanism(study, values: dict):
-    """The mechanism of design ``values`` of ``study``: the model built with
+    """The mechanism of design ``values`` of ``study``: the model (:func:`study_class`) built with
     :func:`design_params` and the study's added pose constraints (:func:`with_pose_constraints`)."""
-    return with_pose_constraints(study, load_mechanism(study.mechanism, **design_params(study, values)))
+    return with_pose_constraints(study, instantiate(study_class(study), study.mechanism, **design_params(study, values)))
