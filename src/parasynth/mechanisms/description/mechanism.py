@@ -73,7 +73,8 @@ class DescribedMechanism(Mechanism):
         else:
             d = self.description
         self.params = P
-        self._penv = _param_env(P, d.params)
+        kept = P.__dict__.get("_env")  # the environment the parameters' checks used, as a copy of its own
+        self._penv = dict(kept[1]) if kept is not None and kept[0] is d.params else _param_env(P, d.params)
         try:
             legs, home, L = d.build_geometry(self._penv)
         except DescriptionError as e:

@@ -191,6 +191,7 @@ def _make_params_class(desc: Description, cls_name: str, resolve=None):
         if variants and resolve is not None:
             checks = resolve({v.name: getattr(self, v.name) for v in variants}).checks
         env = _param_env(self, plist)
+        object.__setattr__(self, "_env", (plist, env))  # the model built from these parameters starts from it
         for chk in checks:
             with np.errstate(all="ignore"):
                 ok = chk(env)
