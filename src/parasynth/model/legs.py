@@ -545,7 +545,7 @@ class PUS(Leg):
         object.__setattr__(self, "slider_axis", _axis(f"leg {self.name}: slider_axis", self.slider_axis))
         object.__setattr__(self, "u_axis", _axis(f"leg {self.name}: u_axis", self.u_axis))
         L = float(self.link_length)
-        if not np.isfinite(L) or L <= 0:
+        if not math.isfinite(L) or L <= 0:
             raise ValueError(f"leg {self.name}: link_length must be a positive length in m, got {L}")
         if self.branch not in (1, -1):
             raise ValueError(f"leg {self.name}: branch must be +1 or -1, got {self.branch}")
@@ -878,7 +878,7 @@ class PRS(Leg):
                 f"{self.r_axis.tolist()} and slider_axis {self.slider_axis.tolist()}"
             )
         L = float(self.link_length)
-        if not np.isfinite(L) or L <= 0:
+        if not math.isfinite(L) or L <= 0:
             raise ValueError(f"leg {self.name}: link_length must be a positive length in m, got {L}")
         if self.branch not in (1, -1):
             raise ValueError(f"leg {self.name}: branch must be +1 or -1, got {self.branch}")
@@ -990,7 +990,7 @@ class RUS(Leg):
         object.__setattr__(self, "crank_direction", c / np.linalg.norm(c))
         for nm in ("crank_length", "link_length"):
             v = float(getattr(self, nm))
-            if not np.isfinite(v) or v <= 0:
+            if not math.isfinite(v) or v <= 0:
                 raise ValueError(f"leg {self.name}: {nm} must be a positive length in m, got {v}")
         if self.branch not in (1, -1):
             raise ValueError(f"leg {self.name}: branch must be +1 or -1, got {self.branch}")

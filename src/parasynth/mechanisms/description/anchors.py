@@ -148,12 +148,12 @@ class _AnchorSet:
         memo = self.__dict__.setdefault("_memo", {})
         hit = memo.get(key) if key is not None else None
         if hit is None:
-            hit = self._build(env)
+            hit = self._build(env)  # arrays of its own (_directions)
             if key is None:
                 return hit
             if len(memo) >= 64:
                 memo.clear()
-            memo[key] = hit = _Anchors(hit.points.copy(), hit.radial.copy(), hit.tangent.copy(), hit.normal.copy())
+            memo[key] = hit
         return _Anchors(hit.points.copy(), hit.radial.copy(), hit.tangent.copy(), hit.normal.copy())
 
     def _build(self, env) -> _Anchors:
@@ -174,31 +174,38 @@ class _AnchorSet:
                     P.append(v)
             P = np.array(P)
         else:
-            if self.pattern == "circle":
-                ang = (np.asarray(env[self.angles_param.name], dtype=float) if self.angles_param is not None
-                       else np.array([a(env) for a in self.angles]))
-                r = self.radius(env)
-                ab = np.column_stack([r * np.cos(ang), r * np.sin(ang)])
-            elif self.pattern in ("polygon", "paired"):
-                r, ph = self.radius(env), self.phase(env)
-                centres = ph + 2 * np.pi * np.arange(self.n) / self.n
-                if self.pattern == "paired":
-                    h = 0.5 * self.separation(env)
-                    ang = np.column_stack([centres - h, centres + h]).ravel()
-                else:
-                    ang = centres
-                ab = np.column_stack([r * np.cos(ang), r * np.sin(ang)])
-            else:
+            if self.pattern == "rectangle":
                 a, b = 0.5 * self.length(env), 0.5 * self.width(env)
                 ab = np.array([[a, b], [-a, b], [-a, -b], [a, -b]])
-            P = np.zeros((ab.shape[0], 3))
-            P[:, i1], P[:, i2], P[:, i3] = ab[:, 0], ab[:, 1], off
+                P = np.zeros((4, 3))
+                P[:, i1], P[:, i2], P[:, i3] = ab[:, 0], ab[:, 1], off
+            else:
+                if self.pattern == "circle":
+                    ang = (np.asarray(env[self.angles_param.name], dtype=float) if self.angles_param is not None
+                           else np.array([a(env) for a in self.angles]))
+                    r = self.radius(env)
+                else:  # polygon, paired
+                    r, ph = self.radius(env), self.phase(env)
+                    centres = ph + 2 * np.pi * np.arange(self.n) / self.n
+                    if self.pattern == "paired":
+                        h = 0.5 * self.separation(env)
+                        ang = np.column_stack([centres - h, centres + h]).ravel()
+                    else:
+                        ang = centres
+                P = np.zeros((ang.shape[0], 3))
+                P[:, i1], P[:, i2], P[:, i3] = r * np.cos(ang), r * np.sin(ang), off
         s, rot = self.scale(env), self.rotation(env)
         if s != 1.0 or rot != 0.0:
             a, b = s * P[:, i1], s * P[:, i2]
             c, sn = np.cos(rot), np.sin(rot)
             P[:, i1], P[:, i2] = c * a - sn * b, sn * a + c * b
-        P = P + np.array([v(env) for v in self.shift])
+        shift = self.__dict__.get("_shift")  # a shift of constants: one read-only array
+        if shift is None:
+            shift = np.array([v(env) for v in self.shift])
+            if all(v.expr is None for v in self.shift):
+                shift.flags.writeable = False
+                self._shift = shift
+        P = P + shift
         return _directions(P, self.axes)
 
 
@@ -222,9 +229,13 @@ def _directions(P: np.ndarray, axes) -> _Anchors:
     return _Anchors(hit.points.copy(), hit.radial.copy(), hit.tangent.copy(), hit.normal.copy())
 
 
+_EYE = np.eye(3)
+_EYE.flags.writeable = False
+
+
 def _compute_directions(P: np.ndarray, axes) -> _Anchors:
     i1, i2, i3 = axes
-    e = np.eye(3)
+    e = _EYE
     ab = P[:, [i1, i2]]
     n = np.linalg.norm(ab, axis=1, keepdims=True)
     u = np.divide(ab, n, out=np.zeros_like(ab), where=n > 1e-15)

@@ -46,12 +46,16 @@ class _Axis:
         self.path = path
         self.named = None
         self.vector = None
+        self.constant = None  # a named axis (x, -y, ...): the same read-only vector for every leg
         if isinstance(raw, str):
             s = raw.strip()
             sign = -1.0 if s.startswith("-") else 1.0
             key = s.lstrip("+-").strip()
             if key in _NAMED_AXES or key in _ANCHOR_AXES:
                 self.named = (sign, key)
+                if key in _NAMED_AXES:
+                    self.constant = sign * np.array(_NAMED_AXES[key], dtype=float)
+                    self.constant.flags.writeable = False
                 return
             raise DescriptionError(f"{path}: unknown direction {raw!r}; give x, y, z, radial, tangent or normal "
                                    f"(optionally with a sign, e.g. -z) or [ax, ay, az]")
@@ -62,6 +66,10 @@ class _Axis:
                                f"got {raw!r}")
 
     def __call__(self, env, anchors: _Anchors, k: int) -> np.ndarray:
+        """The direction for anchor ``k`` of ``anchors`` (read-only for a named axis: the leg
+        that takes it normalises it into an array of its own)."""
+        if self.constant is not None:
+            return self.constant
         if self.vector is not None:
             v = np.array([s(env) for s in self.vector])
         else:
@@ -69,7 +77,7 @@ class _Axis:
             if key in _NAMED_AXES:
                 v = sign * np.array(_NAMED_AXES[key], dtype=float)
             else:
-                v = sign * {"radial": anchors.radial[k], "tangent": anchors.tangent[k], "normal": anchors.normal}[key]
+                v = sign * (anchors.normal if key == "normal" else getattr(anchors, key)[k])
                 x, y, z = v.tolist()  # three floats: Python's tests cost a tenth of NumPy's reductions
                 if not (x or y or z):
                     raise DescriptionError(f"{self.path}: {key!r} is undefined for an anchor on the axis of its "
@@ -119,10 +127,16 @@ class _Ref:
         self.n = len(self.indices)
 
     def resolve(self, env, built: dict) -> _Anchors:
+        """The anchors referred to, as arrays the caller's legs may keep (the set's own when it
+        refers to every point in order: the set was built for this mechanism)."""
         if self.point is not None:
             return _directions(np.array([[s(env) for s in self.point]]), _PLANES["xy"])
         a = built[self.set]
         i = self.indices
+        if self.__dict__.get("_all") is None:
+            self._all = i == list(range(len(a.points)))
+        if self._all:
+            return a
         return _Anchors(a.points[i], a.radial[i], a.tangent[i], a.normal)
 
 
