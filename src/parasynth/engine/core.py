@@ -723,44 +723,47 @@ def leg_tables(mech, cons):
     index = {n: i for i, n in enumerate(names)}
     kind = np.zeros(nl, dtype=np.int64)
     act = np.zeros(nl, dtype=np.int64)
-    F = np.zeros((nl, _NLF))
+    rows = []  # each leg's row of F as floats (one array made of them: the same values)
     for i, leg in enumerate(legs):
         t = type(leg)
+        f = [0.0] * _NLF
         if t in (SPS, UPS, UPU):
             kind[i] = _FREE
         elif t is PUS:
             kind[i] = _PUS
-            F[i, _AX:_AX + 3] = leg.slider_axis
-            F[i, _LEN] = float(leg.link_length)
-            F[i, _BRANCH] = float(leg.branch)
+            f[_AX:_AX + 3] = leg.slider_axis.tolist()
+            f[_LEN] = float(leg.link_length)
+            f[_BRANCH] = float(leg.branch)
         elif t is PRS:  # a PUS-like slider and link, in the plane normal to r_axis
             kind[i] = _PRS
-            F[i, _AX:_AX + 3] = leg.slider_axis
-            F[i, _AX2:_AX2 + 3] = leg.r_axis
-            F[i, _LEN] = float(leg.link_length)
-            F[i, _BRANCH] = float(leg.branch)
-            F[i, _PTOL] = GEOM_TOL * max(1.0, float(leg.link_length))
+            f[_AX:_AX + 3] = leg.slider_axis.tolist()
+            f[_AX2:_AX2 + 3] = leg.r_axis.tolist()
+            f[_LEN] = float(leg.link_length)
+            f[_BRANCH] = float(leg.branch)
+            f[_PTOL] = GEOM_TOL * max(1.0, float(leg.link_length))
         elif t is RPS:
             kind[i] = _RPS
-            F[i, _AX:_AX + 3] = leg.r_axis
+            f[_AX:_AX + 3] = leg.r_axis.tolist()
         elif t is RPU:
             kind[i] = _RPU
-            F[i, _AX:_AX + 3] = leg.r_axis
-            F[i, _AX2:_AX2 + 3] = leg.u_platform_axis
+            f[_AX:_AX + 3] = leg.r_axis.tolist()
+            f[_AX2:_AX2 + 3] = leg.u_platform_axis.tolist()
         elif t is RUS:  # a crank about r_axis through the base anchor, then a link of fixed length
             kind[i] = _RUS
-            F[i, _AX:_AX + 3] = leg.crank_direction
-            F[i, _AX2:_AX2 + 3] = np.cross(leg.r_axis, leg.crank_direction)  # as RUS._crank
-            F[i, _LEN] = float(leg.link_length)
-            F[i, _BRANCH] = float(leg.branch)
-            F[i, _CRANK] = float(leg.crank_length)
+            f[_AX:_AX + 3] = leg.crank_direction.tolist()
+            f[_AX2:_AX2 + 3] = np.cross(leg.r_axis, leg.crank_direction).tolist()  # as RUS._crank
+            f[_LEN] = float(leg.link_length)
+            f[_BRANCH] = float(leg.branch)
+            f[_CRANK] = float(leg.crank_length)
         else:
             raise Unsupported(f"the leg type {t.__name__} (leg {leg.name})")
         act[i] = 1 if leg.is_actuated else 0
-        F[i, _B:_B + 3] = leg.base
-        F[i, _A:_A + 3] = leg.platform
-        F[i, _BREF:_BREF + 3] = leg.base_ref
-        F[i, _PREF:_PREF + 3] = leg.platform_ref
+        f[_B:_B + 3] = leg.base.tolist()
+        f[_A:_A + 3] = leg.platform.tolist()
+        f[_BREF:_BREF + 3] = leg.base_ref.tolist()
+        f[_PREF:_PREF + 3] = leg.platform_ref.tolist()
+        rows.append(f)
+    F = np.array(rows, dtype=np.float64).reshape(nl, _NLF)
 
     # The check tables depend on the constraint objects, the legs' names, types and actuation
     # and the description -- not on the legs' geometry, but for revolute-joint angle limits
@@ -771,14 +774,14 @@ def leg_tables(mech, cons):
     hit = _CHECK_TABLES.get(key)
     if hit is not None and hit[0] is getattr(mech, "description", None):
         tables, exprs, expr_rows = hit[2]
-        return kind, act, np.ascontiguousarray(F), dict(tables), dict(exprs), list(expr_rows)
+        return kind, act, F, dict(tables), dict(exprs), list(expr_rows)
     tables, exprs, expr_rows = _check_tables(mech, legs, cons, kind, act, index, names)
     if not len(tables["rang"]) and not exprs:  # an expression constraint is a new object per design
         if len(_CHECK_TABLES) >= 64:
             _CHECK_TABLES.clear()
         # the description and the constraints kept alive: their ids stay theirs
         _CHECK_TABLES[key] = (getattr(mech, "description", None), tuple(cons), (tables, exprs, expr_rows))
-    return kind, act, np.ascontiguousarray(F), dict(tables), dict(exprs), list(expr_rows)
+    return kind, act, F, dict(tables), dict(exprs), list(expr_rows)
 
 
 #: {key: (description, constraints, (tables, exprs, expr_rows))} of :func:`leg_tables`: the

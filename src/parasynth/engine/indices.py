@@ -239,45 +239,50 @@ def _legs_plan(legs):
     nl = len(legs)
     code = np.zeros(nl, np.int64)
     act = np.zeros(nl, np.int64)
-    geo = np.zeros((nl, 5, 3))  # base, platform, axis 1, axis 2, axis 3
-    sc = np.zeros((nl, 3))  # link length, branch, crank length (a chain limb: its offset in ext, c)
+    geo = []  # base, platform, axis 1, axis 2, axis 3 per leg, as floats (one array made of them)
+    sc = []  # link length, branch, crank length (a chain limb: its offset in ext, c)
+    zero = [0.0, 0.0, 0.0]
     nc = 0
     off = 0
     for j, leg in enumerate(legs):
         c = _leg_code(leg)
         code[j] = c
         act[j] = 1 if leg.is_actuated else 0
-        geo[j, 0] = leg.base
-        geo[j, 1] = leg.platform
+        g = [leg.base.tolist(), leg.platform.tolist(), zero, zero, zero]
+        geo.append(g)
         if c == _CHAIN:
             k = int(leg.n_closure)
-            sc[j] = (off, k, 0.0)
+            sc.append((float(off), float(k), 0.0))
             off += _EXT_C + 6 * k
             nc += k
             continue
         nc += _NC[c]
         if c == _UPS:
-            geo[j, 2] = leg.u_axis
+            g[2] = leg.u_axis.tolist()
         elif c == _PUS:
-            geo[j, 2] = leg.slider_axis
-            geo[j, 3] = leg.u_axis
+            g[2] = leg.slider_axis.tolist()
+            g[3] = leg.u_axis.tolist()
         elif c == _RPS:
-            geo[j, 2] = leg.r_axis
+            g[2] = leg.r_axis.tolist()
         elif c == _RPU:
-            geo[j, 2] = leg.r_axis
-            geo[j, 3] = leg.u_platform_axis
+            g[2] = leg.r_axis.tolist()
+            g[3] = leg.u_platform_axis.tolist()
         elif c == _UPU:
-            geo[j, 2] = leg.u_axis
-            geo[j, 3] = leg.u_platform_axis
+            g[2] = leg.u_axis.tolist()
+            g[3] = leg.u_platform_axis.tolist()
         elif c == _PRS:
-            geo[j, 2] = leg.slider_axis
-            geo[j, 3] = leg.r_axis
+            g[2] = leg.slider_axis.tolist()
+            g[3] = leg.r_axis.tolist()
         elif c == _RUS:  # crank axis, the crank's zero direction c0 and r_axis x c0 (as RUS._crank)
-            geo[j, 2] = leg.r_axis
-            geo[j, 3] = leg.crank_direction
-            geo[j, 4] = np.cross(leg.r_axis, leg.crank_direction)
+            g[2] = leg.r_axis.tolist()
+            g[3] = leg.crank_direction.tolist()
+            g[4] = np.cross(leg.r_axis, leg.crank_direction).tolist()
         if c in (_PUS, _PRS, _RUS):
-            sc[j] = (float(leg.link_length), float(leg.branch), float(getattr(leg, "crank_length", 0.0)))
+            sc.append((float(leg.link_length), float(leg.branch), float(getattr(leg, "crank_length", 0.0))))
+        else:
+            sc.append((0.0, 0.0, 0.0))
+    geo = np.array(geo, dtype=np.float64).reshape(nl, 5, 3)
+    sc = np.array(sc, dtype=np.float64).reshape(nl, 3)
     return code, act, geo, sc, int(nc)
 
 
