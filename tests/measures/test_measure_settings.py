@@ -157,6 +157,26 @@ def test_settings_checked_once_are_still_checked_for_other_values():
         m(mech, sample=s, quantile=[0.5])  # not hashable: checked as always
 
 
+def test_settings_checked_without_a_sample_are_kept_apart_from_those_with_one():
+    # Without a sample (the older flat form) settings that passed are not checked again either;
+    # other values are, every time; and settings allowed only without a sample (a sample field
+    # given beside the measure's own) are still refused with one after passing without it.
+    mech = parasynth.load_mechanism("5pus_upu")
+    m = objectives.get("min_lti")
+    good = m(mech, n=64, quantile=0.5)
+    assert m(mech, n=64, quantile=0.5) == good
+    for _ in range(2):
+        with pytest.raises(ValueError, match=r"min_lti\.quantile"):
+            m(mech, n=64, quantile=5)
+        with pytest.raises(ValueError, match=r"unknown setting"):
+            m(mech, n=64, quantile=0.5, bogus=1)
+        with pytest.raises(ValueError, match="belong to the workspace sample"):
+            m(mech, sample=WorkspaceSample(n=64), n=64, quantile=0.5)
+    assert objectives.get("footprint_radius")(mech) == objectives.get("footprint_radius")(mech) > 0
+    with pytest.raises(ValueError, match="unknown setting"):
+        objectives.get("footprint_radius")(mech, quantile=0.5)
+
+
 def test_declared_defaults_match_the_functions():
     checked = 0
     for name, m in objectives.OBJECTIVES.items():

@@ -191,8 +191,8 @@ class Measure:
         return {k: v for k, v in settings.items() if not (k in self.params and self.params[k].sample_field)}
 
     def _settings_key(self, settings: dict):
-        """``settings`` as a key of the settings already checked with a sample (a study asks
-        the same settings for every design), or None when a value is not hashable."""
+        """``settings`` as a key of the settings already checked (a study asks the same settings
+        for every design), or None when a value is not hashable."""
         key = tuple(sorted((k, type(v), v) for k, v in settings.items()))
         try:
             hash(key)
@@ -202,7 +202,8 @@ class Measure:
 
     @property
     def _checked(self) -> set:
-        """The settings keys (:meth:`_settings_key`) that passed the checks with a sample."""
+        """The settings keys (:meth:`_settings_key`; with a leading None when checked without a
+        sample) that passed the checks."""
         return self.__dict__.setdefault("_checked_settings", set())
 
     def __call__(self, mech, sample: WorkspaceSample | None = None, **settings) -> float:
@@ -235,14 +236,22 @@ class Measure:
                         self._checked.clear()
                     self._checked.add(key)
             return float(self.func(mech, sample=sample, **settings))
-        unknown = sorted(set(settings) - set(self.settings))
-        if unknown:
-            raise ValueError(
-                f"measure {self.name!r}: unknown setting(s) {unknown}; allowed: {sorted(self.settings) or '(none)'}"
-            )
-        # the older form: a sample field's name may stand for a setting of the measure's own
-        # (the accuracy measures' method), checked by the measure itself
-        self.check_settings({k: v for k, v in settings.items() if k not in SAMPLE_PARAMS}, self.name)
+        key = self._settings_key(settings)
+        if key is not None:
+            key = (None,) + key  # checked without a sample (another rule than with one)
+        if key is None or key not in self._checked:
+            unknown = sorted(set(settings) - set(self.settings))
+            if unknown:
+                raise ValueError(
+                    f"measure {self.name!r}: unknown setting(s) {unknown}; allowed: {sorted(self.settings) or '(none)'}"
+                )
+            # the older form: a sample field's name may stand for a setting of the measure's own
+            # (the accuracy measures' method), checked by the measure itself
+            self.check_settings({k: v for k, v in settings.items() if k not in SAMPLE_PARAMS}, self.name)
+            if key is not None:
+                if len(self._checked) >= 256:
+                    self._checked.clear()
+                self._checked.add(key)
         return float(self.func(mech, **settings))
 
 
