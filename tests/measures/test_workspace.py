@@ -686,3 +686,25 @@ def test_raster_counted_when_read_is_the_samples_histogram(method, chunk, monkey
     assert box_a is not None and all(np.array_equal(u, v) for u, v in zip(box_a, box_b))
     a, b = lazy.section("x", "y"), eager.section("x", "y")
     assert np.array_equal(a.occupancy, b.occupancy)
+
+
+@pytest.mark.parametrize("sampled", [("x", "y", "z", "phi"), ("x", "y", "z")])
+@pytest.mark.parametrize("chunk", [None, 500])
+def test_stored_points_are_the_feasible_samples_full_rows(sampled, chunk):
+    """The points a run stores are the feasible samples in sampling order as full task
+    coordinates -- the sample stream rebuilt, with the coordinates not sampled at their fixed
+    value (``fixed``) -- whether every coordinate is sampled (the chunks' poses kept as they are)
+    or not, in one chunk or several."""
+    mech = ShellProbe(r_min=0.1, r_max=0.3)
+    ranges = {**CUBE, "phi": (-1.0, 1.0)}
+    ranges = {c: ranges[c] for c in sampled}
+    kw = dict(n=2000, method="sobol", seed=2, max_points=None, fixed={"phi": 0.25} if "phi" not in sampled else None)
+    if chunk is not None:
+        kw["chunk_size"] = chunk
+    ws = workspace(mech, ranges, **kw)
+    Xs = np.concatenate([b for _, b, _ in ws._sampler.blocks(1 << 20)])
+    X = np.tile([0.0, 0.0, 0.0, 0.25], (len(Xs), 1))
+    X[:, [mech.task_coordinates.index(c) for c in sampled]] = Xs
+    want = X[np.asarray(mech.is_feasible(X), dtype=bool)]
+    assert ws.points_complete and len(want) == ws.n_feasible > 100
+    assert np.array_equal(ws.points, want)

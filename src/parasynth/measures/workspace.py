@@ -829,6 +829,7 @@ def workspace(mech, ranges=None, n: int = 2**16, method: str = "sobol", seed: in
     boundary = _GridBoundary(shape) if shape is not None else None
 
     store = _PointStore(cap, seed)
+    whole = d == len(task)  # every task coordinate sampled: the stored rows are the full poses
     ext_lo = np.full(3, np.inf)
     ext_hi = np.full(3, -np.inf)
     n_feasible = 0
@@ -853,7 +854,8 @@ def workspace(mech, ranges=None, n: int = 2**16, method: str = "sobol", seed: in
             ext_lo = np.minimum(ext_lo, p_lo)
             ext_hi = np.maximum(ext_hi, p_hi)
             if cap != 0:
-                store.add(Xs[sel], start + sel)
+                # every coordinate sampled: the chunk's poses are the points' rows (the same floats)
+                store.add(X[sel] if whole else Xs[sel], start + sel)
         if boundary is not None:
             boundary.add(start, ok, gidx)
         report.update(start + m, n_feasible)
@@ -872,7 +874,7 @@ def workspace(mech, ranges=None, n: int = 2**16, method: str = "sobol", seed: in
         extents = {a: (math.nan, math.nan) for a in _AXES}
     ang = mech.angular_coordinates
     cunits = {c: ("rad" if c in ang else "m") for c in coords}
-    points, complete = store.result(n_feasible, base, cols)
+    points, complete = store.result(n_feasible, base, cols, whole)
     return WorkspaceResult(
         mechanism=mech,
         method=method,
@@ -1309,9 +1311,10 @@ class _PointStore:
         idx = np.concatenate(self.idx)[sel]
         self.X, self.idx, self.keys, self.size = [X], [idx], [keys], len(X)
 
-    def result(self, n_feasible: int, base: np.ndarray, cols: np.ndarray) -> tuple[np.ndarray, bool]:
+    def result(self, n_feasible: int, base: np.ndarray, cols: np.ndarray, whole: bool = False) -> tuple[np.ndarray, bool]:
         """Stored points as full task-coordinate rows (``base`` with the sampled ``cols``
-        filled in), in sampling order, and whether they are all the feasible samples."""
+        filled in; ``whole``: the rows stored are full rows already), in sampling order, and
+        whether they are all the feasible samples."""
         if self.cap == 0 or not self.X:
             return np.zeros((0, len(base))), n_feasible == 0
         if self.cap is not None:
@@ -1321,9 +1324,11 @@ class _PointStore:
         else:
             Xs, idx = np.concatenate(self.X), np.concatenate(self.idx)
         self.X, self.idx, self.keys, self.pending = [], [], [], []
-        X = np.repeat(base[None, :], len(Xs), axis=0)
         if len(idx) > 1 and bool(np.any(idx[1:] < idx[:-1])):  # chunks come in order: sorted already
             Xs = Xs[np.argsort(idx, kind="stable")]
+        if whole:
+            return Xs, len(Xs) == n_feasible
+        X = np.repeat(base[None, :], len(Xs), axis=0)
         X[:, cols] = Xs
         return X, len(X) == n_feasible
 
