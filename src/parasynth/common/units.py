@@ -14,6 +14,8 @@ declare (:data:`SI_UNIT_KINDS`), the unit literals of description expressions
 
 from __future__ import annotations
 
+import functools
+
 import math
 import re
 from dataclasses import dataclass
@@ -187,6 +189,11 @@ def si_compound(units) -> str:
     """The SI unit of a product of quantities in the SI ``units`` ("m", "rad", ...) as the
     workspace measures state it: ``("m", "m", "m", "rad", "rad")`` -> ``"m^3 rad^2"``, ``"1"``
     for none (lengths first, then angles, then any other unit in order of appearance)."""
+    return _si_compound(tuple(units))
+
+
+@functools.lru_cache(maxsize=256)
+def _si_compound(units: tuple) -> str:
     units = [u for u in units if u not in ("", "1")]
     order = [UNIT_KINDS["length"].si, UNIT_KINDS["angle"].si] + [u for u in dict.fromkeys(units)
                                                                   if u not in ("m", "rad")]

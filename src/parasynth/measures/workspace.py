@@ -855,7 +855,7 @@ def workspace(mech, ranges=None, n: int = 2**16, method: str = "sobol", seed: in
             ext_hi = np.maximum(ext_hi, p_hi)
             if cap != 0:
                 # every coordinate sampled: the chunk's poses are the points' rows (the same floats)
-                store.add(X[sel] if whole else Xs[sel], start + sel)
+                store.add(X[sel] if whole else Xs[sel], start + sel if start else sel)
         if boundary is not None:
             boundary.add(start, ok, gidx)
         report.update(start + m, n_feasible)
