@@ -104,6 +104,17 @@ def _fixed_line(b, A):
     return (dx / length, dy / length, dz / length), length
 
 
+def _planar_line(leg, p, R):
+    """The direction of a leg from a revolute base joint (RPS, RPU) to its anchor at one pose
+    (floats), None unless the anchor lies in the joint's plane (within ``GEOM_TOL``)."""
+    b = leg.base.tolist()
+    A = _at_pose(leg.platform.tolist(), p, R)
+    n, length = _fixed_line(b, A)
+    rx, ry, rz = leg.r_axis.tolist()
+    off = abs((A[0] - b[0]) * rx + (A[1] - b[1]) * ry + (A[2] - b[2]) * rz)
+    return n if off <= GEOM_TOL * max(1.0, length) else None
+
+
 def _slider_line(leg, S, e, L):
     """The link direction of a slider leg (PUS, PRS) to the sphere ``S`` (floats), None out of reach."""
     bx, by, bz = leg.base.tolist()
@@ -631,12 +642,7 @@ class RPS(Leg):
         return not self.passive
 
     def home_direction(self, p, R):
-        b = self.base.tolist()
-        A = _at_pose(self.platform.tolist(), p, R)
-        n, length = _fixed_line(b, A)
-        rx, ry, rz = self.r_axis.tolist()
-        off = abs((A[0] - b[0]) * rx + (A[1] - b[1]) * ry + (A[2] - b[2]) * rz)
-        return n if off <= GEOM_TOL * max(1.0, length) else None
+        return _planar_line(self, p, R)
 
     def solve(self, p, R, joint_angles: bool = True):
         A = self.platform_points(p, R)
@@ -700,14 +706,10 @@ class RPU(Leg):
         )
 
     def home_direction(self, p, R):
-        b = self.base.tolist()
-        A = _at_pose(self.platform.tolist(), p, R)
-        n, length = _fixed_line(b, A)
+        n = _planar_line(self, p, R)
         rx, ry, rz = self.r_axis.tolist()
-        off = abs((A[0] - b[0]) * rx + (A[1] - b[1]) * ry + (A[2] - b[2]) * rz)
         a4 = _at_pose(self.u_platform_axis.tolist(), (0.0, 0.0, 0.0), R)
-        skew = abs(a4[0] * rx + a4[1] * ry + a4[2] * rz)
-        return n if (off <= GEOM_TOL * max(1.0, length) and skew <= GEOM_TOL) else None
+        return n if abs(a4[0] * rx + a4[1] * ry + a4[2] * rz) <= GEOM_TOL else None
 
     def solve(self, p, R, joint_angles: bool = True):
         A = self.platform_points(p, R)
