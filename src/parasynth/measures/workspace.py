@@ -1323,8 +1323,9 @@ class _PointStore:
             Xs, idx = self.X[0], self.idx[0]
         else:
             Xs, idx = np.concatenate(self.X), np.concatenate(self.idx)
+        single = len(self.X) == 1  # one chunk's rows: in sampling order
         self.X, self.idx, self.keys, self.pending = [], [], [], []
-        if len(idx) > 1 and bool(np.any(idx[1:] < idx[:-1])):  # chunks come in order: sorted already
+        if not single and len(idx) > 1 and bool(np.any(idx[1:] < idx[:-1])):  # chunks come in order: sorted already
             Xs = Xs[np.argsort(idx, kind="stable")]
         if whole:
             return Xs, len(Xs) == n_feasible
