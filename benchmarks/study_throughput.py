@@ -156,10 +156,17 @@ def _run(ev, designs, engine: str, split: bool):
     return dt / len(designs), recs, parts
 
 
+#: The kernels a design's evaluation calls directly, one call over a whole batch or pose (not
+#: through ``core.over_blocks``): the UPU legs' mean lengths over the margin's poses and the
+#: structural constraint rank at home.
+DIRECT_KERNELS = ("_upu_mean_lengths", "_constraint_rank_kernel")
+
+
 def _kernel_timer(parts: dict):
-    """Count the time spent inside the engine's kernels (every compiled batch goes through
-    ``core.over_blocks``, the index kernels through the name imported in ``indices``) in
-    ``parts["(kernels)"]``; returns a function that undoes it."""
+    """Count the time spent inside the engine's kernels in ``parts["(kernels)"]``: every
+    compiled batch that goes through ``core.over_blocks`` (the index kernels through the name
+    imported in ``indices``) and the kernels called directly (:data:`DIRECT_KERNELS`); returns
+    a function that undoes it."""
     from parasynth.engine import core, indices
 
     real = core.over_blocks
@@ -171,12 +178,26 @@ def _kernel_timer(parts: dict):
         finally:
             parts["(kernels)"] = parts.get("(kernels)", 0.0) + time.perf_counter() - t0
 
+    def timed_direct(kernel):
+        def call(*args):
+            t0 = time.perf_counter()
+            try:
+                return kernel(*args)
+            finally:
+                parts["(kernels)"] = parts.get("(kernels)", 0.0) + time.perf_counter() - t0
+        return call
+
+    direct = {name: getattr(indices, name) for name in DIRECT_KERNELS if hasattr(indices, name)}
     core.over_blocks = timed
     indices.over_blocks = timed
+    for name, kernel in direct.items():
+        setattr(indices, name, timed_direct(kernel))
 
     def undo():
         core.over_blocks = real
         indices.over_blocks = real
+        for name, kernel in direct.items():
+            setattr(indices, name, kernel)
 
     return undo
 
