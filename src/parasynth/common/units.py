@@ -15,7 +15,6 @@ declare (:data:`SI_UNIT_KINDS`), the unit literals of description expressions
 from __future__ import annotations
 
 import functools
-
 import math
 import re
 from dataclasses import dataclass
