@@ -708,3 +708,40 @@ def test_stored_points_are_the_feasible_samples_full_rows(sampled, chunk):
     want = X[np.asarray(mech.is_feasible(X), dtype=bool)]
     assert ws.points_complete and len(want) == ws.n_feasible > 100
     assert np.array_equal(ws.points, want)
+
+
+def test_checked_arguments_kept_per_value_and_type_still_refuse_bad_ones():
+    """A run's arguments are checked once per their values and types (a study asks the same
+    for every design): a value equal to an accepted one but of a refused type (True for 1, a
+    bool seed) is still refused with the argument's name, and a run on kept arguments gives
+    what a run on fresh ones gives (the results' dicts each its own)."""
+    from parasynth.measures import workspace as W
+
+    mech = ShellProbe(r_min=0.1, r_max=0.3)
+    ranges = {"x": (-0.3, 0.3), "y": (-0.3, 0.3), "z": (-0.3, 0.3)}
+    first = workspace(mech, ranges, n=1, seed=1, max_points=1, chunk_size=1)
+    for bad, arg in (({"n": True}, "n"), ({"seed": True}, "seed"), ({"max_points": True}, "max_points"),
+                     ({"chunk_size": True}, "chunk_size"), ({"n": 1.5}, "n"), ({"method": "Sobolx"}, "method")):
+        kw = {**dict(n=1, seed=1, max_points=1, chunk_size=1), **bad}
+        with pytest.raises(ValueError, match=arg):
+            workspace(mech, ranges, **kw)
+    assert first.n_samples == 1
+    kw = dict(n=600, method="sobol", seed=3, fixed={"phi": 0.2})
+    W._PREPARED.clear()
+    a = workspace(mech, ranges, **kw)  # fresh checks
+    a.box["x"] = (9.0, 9.0)  # the caller's dicts
+    a.coordinate_units["x"] = "furlong"
+    for _ in range(2):
+        r = workspace(mech, ranges, **kw)  # kept checks
+        assert r.box == {k: tuple(map(float, v)) for k, v in ranges.items()}
+        assert r.coordinate_units == {"x": "m", "y": "m", "z": "m"} and r.units == "m^3"
+        assert r.volume == a.volume and np.array_equal(r.points, a.points) and r.extents == a.extents
+        r.box["y"] = (9.0, 9.0)  # not the next run's
+        r.coordinate_units["y"] = "furlong"
+    W._PREPARED.clear()
+    b = workspace(mech, ranges, **kw)
+    assert b.volume == a.volume and np.array_equal(b.points, a.points)
+    with pytest.raises(ValueError, match="unknown coordinate"):
+        workspace(mech, {"q": (0.0, 1.0)}, n=8)
+    with pytest.raises(ValueError, match="ranges"):
+        workspace(mech, [("x", (0.0, 1.0))], n=8)

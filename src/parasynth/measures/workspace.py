@@ -349,10 +349,17 @@ class _SampleCache:
 _SAMPLES = _SampleCache(SAMPLE_CACHE_BYTES)
 
 
-def _prepared_chunks(sampler, chunk, base, cols, rshape):
+def _chunks_key(sampler, chunk, n_task, cols, rshape) -> tuple:
+    """The part of a sample cache key that does not depend on the fixed coordinates' values."""
+    return (sampler.method, sampler.n, tuple(sampler.lows.tolist()), tuple(sampler.highs.tolist()), sampler.seed,
+            sampler.shape, int(chunk), n_task, tuple(cols.tolist()), tuple(rshape))
+
+
+def _prepared_chunks(sampler, chunk, base, cols, rshape, prefix=None):
     """Yield (start, X, Xs, gidx, flat, counts) for every chunk: X (m, n_task) the full poses,
     Xs the sampled columns, gidx grid indices or None, flat the raster cells, counts their
-    bincount. Cached for runs of at most SAMPLE_CACHE_MAX_POINTS samples."""
+    bincount. Cached for runs of at most SAMPLE_CACHE_MAX_POINTS samples (``prefix``: the
+    key's :func:`_chunks_key`, computed once per prepared run)."""
     cells = math.prod(rshape)
     key = None
     if sampler.n <= SAMPLE_CACHE_MAX_POINTS:
@@ -361,8 +368,9 @@ def _prepared_chunks(sampler, chunk, base, cols, rshape):
         # every coordinate is sampled)
         sampled = set(cols.tolist())
         fixed = tuple(v for i, v in enumerate(base.tolist()) if i not in sampled)  # np.delete(base, cols)
-        key = (sampler.method, sampler.n, tuple(sampler.lows.tolist()), tuple(sampler.highs.tolist()), sampler.seed,
-               sampler.shape, int(chunk), base.size, fixed, tuple(cols.tolist()), tuple(rshape))
+        if prefix is None:
+            prefix = _chunks_key(sampler, chunk, base.size, cols, rshape)
+        key = prefix + (fixed,)
         hit = _SAMPLES.get(key)
         if hit is not None:
             yield from hit
@@ -741,6 +749,97 @@ class WorkspaceSample:
                 "seed": self.seed, "fixed": None if self.fixed is None else dict(self.fixed)}
 
 
+@dataclass(frozen=True, eq=False)
+class _Prepared:
+    """The arguments of a :func:`workspace` run that do not depend on the design, checked: the
+    sampled coordinates and box, the sample count and stream, the raster's shape, the points'
+    cap. Kept per the arguments as given (:func:`_prepare`): a study asks every design for the
+    same ones. Its arrays are read-only; each result gets its own dicts."""
+
+    task: tuple
+    coords: tuple
+    lows: np.ndarray
+    highs: np.ndarray
+    cols: np.ndarray
+    method: str
+    seed: int
+    n_samples: int
+    chunk_size: int
+    cap: int | None
+    shape: tuple | None
+    rshape: tuple
+    whole: bool
+    sampler: _Sampler
+    box_vol: float
+    box: dict
+    coordinate_units: dict
+    units: str
+    chunks_key: tuple
+
+
+#: The checked arguments of the runs asked for, per the arguments as given (:func:`_prepare`).
+_PREPARED: dict = {}
+
+
+def _prepare(mech, ranges, n, method, seed, chunk_size, keep_points, max_points, raster) -> _Prepared:
+    """The checked arguments of a :func:`workspace` run (``ValueError`` naming the argument),
+    kept per the arguments as given with their types (True is not 1 here: it is refused) and
+    the mechanism's task coordinates, when they can be a key."""
+    try:
+        key = (tuple(mech.task_coordinates), mech.angular_coordinates, tuple(ranges.items()),
+               type(n), n, type(method), method, type(seed), seed, type(chunk_size), chunk_size,
+               type(keep_points), keep_points, type(max_points), max_points, type(raster), raster)
+        hit = _PREPARED.get(key)
+    except (TypeError, AttributeError):  # unhashable (a list, an array) or not a mapping: checked below
+        key = hit = None
+    if hit is not None:
+        return hit
+    task = tuple(mech.task_coordinates)
+    coords, lows, highs = _check_ranges(mech, ranges)
+    n = _check_count(n, "n", MAX_WORKSPACE_SAMPLES)
+    chunk_size = _check_count(chunk_size, "chunk_size")
+    if not isinstance(method, str) or method.lower() not in METHODS:
+        raise ValueError(f"method must be one of {', '.join(METHODS)}; got {method!r}")
+    method = method.lower()
+    if isinstance(seed, (bool, np.bool_)) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ValueError(f"seed must be a non-negative integer or None, got {seed!r}")
+    seed = int(seed)
+    if not isinstance(keep_points, (bool, np.bool_)):
+        raise ValueError(f"keep_points must be True or False, got {keep_points!r}")
+    if max_points is not None:
+        if isinstance(max_points, (bool, np.bool_)) or not isinstance(max_points, (int, np.integer)) or max_points < 0:
+            raise ValueError(f"max_points must be a non-negative integer or None, got {max_points!r}")
+    cap = 0 if not keep_points else (None if max_points is None else int(max_points))
+    d = len(coords)
+    shape = _grid_shape(n, d) if method == "grid" else None
+    n_samples = int(np.prod(shape)) if shape is not None else n
+    if raster is None:
+        rshape = _default_raster(method, n_samples, d, shape)
+    else:
+        rshape = _raster_shape(raster, coords, "raster")
+        if shape is not None:
+            rshape = tuple(min(r, m) for r, m in zip(rshape, shape))
+    cols = np.array([task.index(c) for c in coords])
+    for a in (lows, highs, cols):
+        a.flags.writeable = False
+    ang = mech.angular_coordinates
+    cunits = {c: ("rad" if c in ang else "m") for c in coords}
+    sampler = _Sampler(method, n_samples, lows, highs, seed, shape)
+    prep = _Prepared(
+        task=task, coords=coords, lows=lows, highs=highs, cols=cols, method=method, seed=seed, n_samples=n_samples,
+        chunk_size=chunk_size, cap=cap, shape=shape, rshape=tuple(rshape), whole=d == len(task),
+        sampler=sampler,
+        box_vol=math.prod((highs - lows).tolist()),  # np.prod's products, in the same order
+        box={c: (float(lo), float(hi)) for c, lo, hi in zip(coords, lows, highs)},
+        coordinate_units=cunits, units=si_compound(tuple(cunits[c] for c in coords)),
+        chunks_key=_chunks_key(sampler, chunk_size, len(task), cols, rshape))
+    if key is not None:
+        if len(_PREPARED) >= 64:
+            _PREPARED.clear()
+        _PREPARED[key] = prep
+    return prep
+
+
 def workspace(mech, ranges=None, n: int = 2**16, method: str = "sobol", seed: int | None = 0,
               fixed: Mapping | None = None, constraints=None, chunk_size: int = DEFAULT_CHUNK, *,
               keep_points: bool = True, max_points: int | None = DEFAULT_MAX_POINTS, raster=None,
@@ -787,54 +886,30 @@ def workspace(mech, ranges=None, n: int = 2**16, method: str = "sobol", seed: in
         ranges = getattr(mech, "default_ranges", dict)()
         if not ranges:
             raise ValueError(f"ranges: none given and {getattr(mech, 'name', mech)!r} has no default ranges")
-    coords, lows, highs = _check_ranges(mech, ranges)
-    n = _check_count(n, "n", MAX_WORKSPACE_SAMPLES)
-    chunk_size = _check_count(chunk_size, "chunk_size")
-    if not isinstance(method, str) or method.lower() not in METHODS:
-        raise ValueError(f"method must be one of {', '.join(METHODS)}; got {method!r}")
-    method = method.lower()
     if seed is None:
         seed = int(np.random.SeedSequence().entropy)
-    elif isinstance(seed, (bool, np.bool_)) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise ValueError(f"seed must be a non-negative integer or None, got {seed!r}")
-    seed = int(seed)
-    if not isinstance(keep_points, (bool, np.bool_)):
-        raise ValueError(f"keep_points must be True or False, got {keep_points!r}")
-    if max_points is not None:
-        if isinstance(max_points, (bool, np.bool_)) or not isinstance(max_points, (int, np.integer)) or max_points < 0:
-            raise ValueError(f"max_points must be a non-negative integer or None, got {max_points!r}")
-    cap = 0 if not keep_points else (None if max_points is None else int(max_points))
+    prep = _prepare(mech, ranges, n, method, seed, chunk_size, keep_points, max_points, raster)
     engine = check_engine(engine, "engine")
     if not (progress is None or isinstance(progress, (bool, np.bool_)) or callable(progress)):
         raise ValueError(f"progress must be None, True, False or a callable(n_done, n_total, n_feasible); got {progress!r}")
 
-    task = tuple(mech.task_coordinates)
+    coords, lows, highs, cols, shape, rshape = prep.coords, prep.lows, prep.highs, prep.cols, prep.shape, prep.rshape
+    method, seed, n_samples, chunk_size, cap, whole = (prep.method, prep.seed, prep.n_samples, prep.chunk_size,
+                                                       prep.cap, prep.whole)
+    task = prep.task
+    full_rows = whole or n_samples <= chunk_size  # the points stored as whole rows
     base = _fixed_pose(mech, coords, fixed)
     names = _check_constraints(mech, constraints, base, engine)
-    cols = np.array([task.index(c) for c in coords])
-    d = len(coords)
-
-    shape = _grid_shape(n, d) if method == "grid" else None
-    n_samples = int(np.prod(shape)) if shape is not None else n
-    sampler = _Sampler(method, n_samples, lows, highs, seed, shape)
-
-    if raster is None:
-        rshape = _default_raster(method, n_samples, d, shape)
-    else:
-        rshape = _raster_shape(raster, coords, "raster")
-        if shape is not None:
-            rshape = tuple(min(r, m) for r, m in zip(rshape, shape))
+    sampler = prep.sampler
     rec = _RecordedRaster(lows, highs, rshape, lazy=n_samples <= LAZY_RASTER_MAX_SAMPLES)
 
     boundary = _GridBoundary(shape) if shape is not None else None
 
     store = _PointStore(cap, seed)
-    whole = d == len(task)  # every task coordinate sampled: the stored rows are the full poses
-    ext_lo = np.full(3, np.inf)
-    ext_hi = np.full(3, -np.inf)
+    ext_lo = ext_hi = None  # the extents so far (none before the first feasible chunk)
     n_feasible = 0
     report = _Progress(progress, n_samples, getattr(mech, "name", "mechanism"))
-    for start, X, Xs, gidx, flat, counts in _prepared_chunks(sampler, chunk_size, base, cols, rshape):
+    for start, X, Xs, gidx, flat, counts in _prepared_chunks(sampler, chunk_size, base, cols, rshape, prep.chunks_key):
         m = len(Xs)
         # feasibility and the platform positions' extents from one kernel pass where the
         # compiled engine answers so, else the feasibility and then the feasible poses
@@ -851,17 +926,19 @@ def workspace(mech, ranges=None, n: int = 2**16, method: str = "sobol", seed: in
             if fe is None:
                 p = np.asarray(pose_batch(mech, X[sel], engine=engine)[1], dtype=float)
                 p_lo, p_hi = p.min(axis=0), p.max(axis=0)
-            ext_lo = np.minimum(ext_lo, p_lo)
-            ext_hi = np.maximum(ext_hi, p_hi)
+            ext_lo = p_lo if ext_lo is None else np.minimum(ext_lo, p_lo)
+            ext_hi = p_hi if ext_hi is None else np.maximum(ext_hi, p_hi)
             if cap != 0:
-                # every coordinate sampled: the chunk's poses are the points' rows (the same floats)
-                store.add(X[sel] if whole else Xs[sel], start + sel if start else sel)
+                # every coordinate sampled, or one chunk: the chunk's poses are the points' rows
+                # (the same floats as the sampled columns put into the fixed pose; a run of many
+                # chunks keeps only the sampled columns until the end, as they take less memory)
+                store.add(X[sel] if full_rows else Xs[sel], start + sel if start else sel)
         if boundary is not None:
             boundary.add(start, ok, gidx)
         report.update(start + m, n_feasible)
     report.close(n_feasible)
 
-    box_vol = math.prod((highs - lows).tolist())  # np.prod's products, in the same order
+    box_vol = prep.box_vol
     f = n_feasible / n_samples
     volume = f * box_vol
     if boundary is not None:
@@ -869,26 +946,25 @@ def workspace(mech, ranges=None, n: int = 2**16, method: str = "sobol", seed: in
     else:
         volume_error = math.sqrt(f * (1.0 - f) / n_samples) * box_vol
     if n_feasible:
-        extents = {a: (float(ext_lo[i]), float(ext_hi[i])) for i, a in enumerate(_AXES)}
+        lo, hi = np.asarray(ext_lo, dtype=float).tolist(), np.asarray(ext_hi, dtype=float).tolist()
+        extents = {a: (lo[i], hi[i]) for i, a in enumerate(_AXES)}
     else:
         extents = {a: (math.nan, math.nan) for a in _AXES}
-    ang = mech.angular_coordinates
-    cunits = {c: ("rad" if c in ang else "m") for c in coords}
-    points, complete = store.result(n_feasible, base, cols, whole)
+    points, complete = store.result(n_feasible, base, cols, full_rows)
     return WorkspaceResult(
         mechanism=mech,
         method=method,
         seed=seed,
         coordinates=coords,
-        box={c: (float(lo), float(hi)) for c, lo, hi in zip(coords, lows, highs)},
+        box=dict(prep.box),
         fixed={c: float(base[i]) for i, c in enumerate(task) if c not in coords},
         constraints=names if names is not None else tuple(mech.constraints),
         n_samples=n_samples,
         n_feasible=n_feasible,
         volume=volume,
         volume_error=volume_error,
-        units=si_compound(tuple(cunits[c] for c in coords)),
-        coordinate_units=cunits,
+        units=prep.units,
+        coordinate_units=dict(prep.coordinate_units),
         extents=extents,
         points=points,
         points_complete=complete,
