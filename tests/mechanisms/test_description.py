@@ -542,6 +542,130 @@ def test_anchor_sets_kept_per_their_inputs_give_each_call_its_own_arrays():
                 assert np.array_equal(s.build(env).points, want.points)
 
 
+def _array_form_anchors(s, env):
+    """An anchor set's points and directions as arrays (the pattern's points, scaled, turned,
+    shifted; the norms, unit vectors and directions of the whole set at once), written apart
+    from the set's own build."""
+    i1, i2, i3 = s.axes
+    off = s.offset(env)
+    if s.pattern == "points":
+        rows = np.asarray(env[s.points_param.name], float) if s.points_param is not None else \
+            [[v(env) for v in row] for row in s.point_rows]
+        P = []
+        for row in rows:
+            v = np.zeros(3)
+            if len(row) == 3:
+                v[:] = row
+            else:
+                v[i1], v[i2], v[i3] = row[0], row[1], off
+            P.append(v)
+        P = np.array(P)
+    else:
+        if s.pattern == "rectangle":
+            a, b = 0.5 * s.length(env), 0.5 * s.width(env)
+            ab = np.array([[a, b], [-a, b], [-a, -b], [a, -b]])
+        else:
+            if s.pattern == "circle":
+                ang = (np.asarray(env[s.angles_param.name], float) if s.angles_param is not None
+                       else np.array([a(env) for a in s.angles]))
+                r = s.radius(env)
+            else:
+                r, ph = s.radius(env), s.phase(env)
+                centres = ph + 2 * np.pi * np.arange(s.n) / s.n
+                ang = (np.column_stack([centres - 0.5 * s.separation(env), centres + 0.5 * s.separation(env)]).ravel()
+                       if s.pattern == "paired" else centres)
+            ab = np.column_stack([r * np.cos(ang), r * np.sin(ang)])
+        P = np.zeros((len(ab), 3))
+        P[:, i1], P[:, i2], P[:, i3] = ab[:, 0], ab[:, 1], off
+    sc, rot = s.scale(env), s.rotation(env)
+    if sc != 1.0 or rot != 0.0:
+        a, b = sc * P[:, i1], sc * P[:, i2]
+        P[:, i1], P[:, i2] = np.cos(rot) * a - np.sin(rot) * b, np.sin(rot) * a + np.cos(rot) * b
+    P = P + np.array([v(env) for v in s.shift])
+    e = np.eye(3)
+    ab = P[:, [i1, i2]]
+    n = np.linalg.norm(ab, axis=1, keepdims=True)
+    u = np.divide(ab, n, out=np.zeros_like(ab), where=n > 1e-15)
+    return P, u[:, :1] * e[i1] + u[:, 1:] * e[i2], -u[:, 1:] * e[i1] + u[:, :1] * e[i2], e[i3]
+
+
+_PATTERN_SETS = """
+name: pattern_sets
+parameters:
+  r: {value: 200 mm}
+  sep: {value: 20 deg}
+  turn: {value: 7 deg}
+  grow: {value: 1.2}
+  dz: {value: 5 mm}
+  pts: {value: [[10 mm, 0 mm], [0 mm, 0 mm], [-40 mm, 30 mm], [5 mm, -7 mm], [0 mm, 9 mm], [-3 mm, -3 mm]]}
+base:
+  A: {pattern: paired, n: 3, radius: r, separation: sep, phase: turn, rotation: turn, scale: grow}
+  B: {pattern: polygon, n: 6, radius: 0.5 * r, plane: yz, offset: dz, shift: [dz, 0 mm, -dz]}
+  C: {pattern: rectangle, length: r, width: 0.4 * r, plane: zx, rotation: -turn}
+  D: {pattern: points, points: pts, scale: grow, shift: [0 mm, dz, 0 mm]}
+  E: {pattern: circle, radius: r, angles: [0 deg, 90 deg, 200 deg, 300 deg, 45 deg, 123 deg], offset: -dz}
+platform:
+  a: {pattern: points, points: [[0 mm, 0 mm, 1 mm], [30 mm, 0 mm], [0 mm, 30 mm], [-30 mm, 0 mm], [0 mm, -30 mm], [9 mm, 9 mm]]}
+"""
+
+
+def test_anchor_sets_built_in_floats_are_the_array_forms():
+    """Every anchor set (each pattern, plane, scale, rotation, shift; points on the plane's
+    axis) built in Python floats equals, bit for bit, the same operations on whole arrays:
+    every shipped description's sets at random designs and a description with one set of each
+    pattern."""
+    import parasynth
+    from parasynth.mechanisms import list_mechanisms
+    from parasynth.mechanisms.description.parameters import _param_env
+
+    rng = np.random.default_rng(5)
+    classes = [type(parasynth.load_mechanism(name)) for name in list_mechanisms()]
+    spec = yaml.safe_load(_PATTERN_SETS)
+    spec["legs"] = [{"type": "SPS", "name": f"s{i}", "base": f"{k}[{j}]", "platform": f"a[{i}]"}
+                    for i, (k, j) in enumerate([("A", 0), ("B", 1), ("C", 2), ("D", 3), ("E", 4), ("A", 5)])]
+    spec["task"] = yaml.safe_load("""
+      coordinates: {x: length, y: length, z: length, alpha: angle, beta: angle, gamma: angle}
+      position: [x, y, z]
+      orientation: {convention: xyz, angles: [alpha, beta, gamma]}
+      home: {x: 0 mm, y: 0 mm, z: 300 mm, alpha: 0 deg, beta: 0 deg, gamma: 0 deg}
+    """)
+    checked, patterns = 0, set()
+    for cls in classes:
+        d = getattr(cls, "description", None)
+        if d is None:
+            continue
+        defaults = cls.Params()
+        for k in range(4):
+            kw = {f.name: _scaled(getattr(defaults, f.name), rng, lists=k % 2 == 1) for f in dataclasses.fields(defaults)}
+            try:
+                env = _param_env(cls.Params(**kw), d.params)
+            except ValueError:
+                continue
+            for s in list(d.base_sets.values()) + list(d.plat_sets.values()):
+                got = s._build(env)
+                for a, b in zip((got.points, got.radial, got.tangent, got.normal), _array_form_anchors(s, env)):
+                    assert a.tobytes() == np.asarray(b, float).tobytes(), (cls.__name__, s.name)
+                checked += 1
+                patterns.add(s.pattern)
+    assert checked > 40 and {"circle", "paired", "polygon", "points"} <= patterns
+    from parasynth.mechanisms.description import description_class
+    cls = description_class(spec)
+    d = cls.description
+    on_axis = 0
+    for k in range(10):
+        env = dict(_param_env(cls.Params(), d.params))
+        if k:
+            env.update(r=rng.uniform(0.05, 0.5), sep=rng.uniform(-1, 1), turn=rng.uniform(-4, 4),
+                       grow=rng.uniform(0.5, 2), dz=rng.uniform(-0.1, 0.1))
+        for s in list(d.base_sets.values()) + list(d.plat_sets.values()):
+            got = s._build(env)
+            want = _array_form_anchors(s, env)
+            for a, b in zip((got.points, got.radial, got.tangent, got.normal), want):
+                assert a.tobytes() == np.asarray(b, float).tobytes(), s.name
+            on_axis += int(not got.radial.any(axis=1).all())
+    assert on_axis == 10  # the platform's first point lies on its plane's axis: no direction there
+
+
 def test_anchor_directions_kept_per_points_are_each_calls_own():
     """The radial and tangent directions of anchor points in their set's plane (the unit
     in-plane vector, turned a quarter about the plane's normal; zero on the axis), kept per

@@ -7,6 +7,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import math
+
 import numpy as np
 
 from .errors import DescriptionError
@@ -157,56 +159,77 @@ class _AnchorSet:
         return _Anchors(hit.points.copy(), hit.radial.copy(), hit.tangent.copy(), hit.normal.copy())
 
     def _build(self, env) -> _Anchors:
+        """The set's anchors and directions, computed in Python floats: the same operations in
+        the same order as the array form (:func:`_directions` of the pattern's points), a few
+        points each, where NumPy's calls cost more than the arithmetic."""
         i1, i2, i3 = self.axes
         off = self.offset(env)
         if self.pattern == "points":
             if self.points_param is not None:
-                rows = np.asarray(env[self.points_param.name], dtype=float)
+                rows = np.asarray(env[self.points_param.name], dtype=float).tolist()
             else:
                 rows = [[s(env) for s in row] for row in self.point_rows]
             P = []
             for row in rows:
                 if len(row) == 3:
-                    P.append(np.asarray(row, dtype=float))
+                    P.append([float(v) for v in row])
                 else:
-                    v = np.zeros(3)
-                    v[i1], v[i2], v[i3] = row[0], row[1], off
+                    v = [0.0, 0.0, 0.0]
+                    v[i1], v[i2], v[i3] = float(row[0]), float(row[1]), float(off)
                     P.append(v)
-            P = np.array(P)
         else:
             if self.pattern == "rectangle":
                 a, b = 0.5 * self.length(env), 0.5 * self.width(env)
-                ab = np.array([[a, b], [-a, b], [-a, -b], [a, -b]])
-                P = np.zeros((4, 3))
-                P[:, i1], P[:, i2], P[:, i3] = ab[:, 0], ab[:, 1], off
+                ab = [(a, b), (-a, b), (-a, -b), (a, -b)]
             else:
                 if self.pattern == "circle":
-                    ang = (np.asarray(env[self.angles_param.name], dtype=float) if self.angles_param is not None
-                           else np.array([a(env) for a in self.angles]))
-                    r = self.radius(env)
-                else:  # polygon, paired
-                    r, ph = self.radius(env), self.phase(env)
-                    centres = ph + 2 * np.pi * np.arange(self.n) / self.n
+                    ang = (np.asarray(env[self.angles_param.name], dtype=float).tolist() if self.angles_param is not None
+                           else [float(a(env)) for a in self.angles])
+                    r = float(self.radius(env))
+                else:  # polygon, paired: centres ph + 2 pi k / n, as np.arange's
+                    r, ph = float(self.radius(env)), float(self.phase(env))
+                    centres = [ph + 2 * math.pi * k / self.n for k in range(self.n)]
                     if self.pattern == "paired":
                         h = 0.5 * self.separation(env)
-                        ang = np.column_stack([centres - h, centres + h]).ravel()
+                        ang = [a for c in centres for a in (c - h, c + h)]
                     else:
                         ang = centres
-                P = np.zeros((ang.shape[0], 3))
-                P[:, i1], P[:, i2], P[:, i3] = r * np.cos(ang), r * np.sin(ang), off
-        s, rot = self.scale(env), self.rotation(env)
+                ab = [(r * math.cos(t), r * math.sin(t)) for t in ang]
+            P = []
+            for a, b in ab:
+                v = [0.0, 0.0, 0.0]
+                v[i1], v[i2], v[i3] = float(a), float(b), float(off)
+                P.append(v)
+        s, rot = float(self.scale(env)), float(self.rotation(env))
         if s != 1.0 or rot != 0.0:
-            a, b = s * P[:, i1], s * P[:, i2]
-            c, sn = np.cos(rot), np.sin(rot)
-            P[:, i1], P[:, i2] = c * a - sn * b, sn * a + c * b
-        shift = self.__dict__.get("_shift")  # a shift of constants: one read-only array
+            c, sn = math.cos(rot), math.sin(rot)
+            for v in P:
+                a, b = s * v[i1], s * v[i2]
+                v[i1], v[i2] = c * a - sn * b, sn * a + c * b
+        shift = self.__dict__.get("_shift_floats")  # a shift of constants: computed once
         if shift is None:
-            shift = np.array([v(env) for v in self.shift])
+            shift = [float(v(env)) for v in self.shift]
             if all(v.expr is None for v in self.shift):
-                shift.flags.writeable = False
-                self._shift = shift
-        P = P + shift
-        return _directions(P, self.axes)
+                self._shift_floats = shift
+        P = [[v[0] + shift[0], v[1] + shift[1], v[2] + shift[2]] for v in P]
+        return _float_directions(P, self.axes)
+
+
+def _float_directions(P: list, axes) -> _Anchors:
+    """:func:`_compute_directions` of the points ``P`` (rows of three floats), in floats: the
+    norm sqrt(a a + b b), the unit in-plane vector (zero below 1e-15), radial = u1 e1 + u2 e2
+    and tangent = -u2 e1 + u1 e2 component by component, as the array form computes them."""
+    i1, i2, i3 = axes
+    e1, e2 = _EYE_ROWS[i1], _EYE_ROWS[i2]
+    radial, tangent = [], []
+    for v in P:
+        a, b = v[i1], v[i2]
+        n = math.sqrt(a * a + b * b)
+        u1, u2 = (a / n, b / n) if n > 1e-15 else (0.0, 0.0)
+        radial.append([u1 * e1[k] + u2 * e2[k] for k in range(3)])
+        tangent.append([-u2 * e1[k] + u1 * e2[k] for k in range(3)])
+    return _Anchors(np.array(P, dtype=float).reshape(-1, 3), np.array(radial, dtype=float).reshape(-1, 3),
+                    np.array(tangent, dtype=float).reshape(-1, 3), _EYE[i3].copy())
 
 
 #: The directions of anchor points already computed, per exact points (as bytes) and plane: a
@@ -231,6 +254,7 @@ def _directions(P: np.ndarray, axes) -> _Anchors:
 
 _EYE = np.eye(3)
 _EYE.flags.writeable = False
+_EYE_ROWS = _EYE.tolist()
 
 
 def _compute_directions(P: np.ndarray, axes) -> _Anchors:
