@@ -721,9 +721,9 @@ def leg_tables(mech, cons):
     nl = len(legs)
     names = [leg.name for leg in legs]
     index = {n: i for i, n in enumerate(names)}
-    kind = np.zeros(nl, dtype=np.int64)
-    act = np.zeros(nl, dtype=np.int64)
-    rows = []  # each leg's row of F as floats (one array made of them: the same values)
+    kind = [0] * nl
+    act = [0] * nl
+    rows = []  # the legs' rows of F as floats, one after the other (one array made of them: the same values)
     for i, leg in enumerate(legs):
         t = type(leg)
         f = [0.0] * _NLF
@@ -762,15 +762,17 @@ def leg_tables(mech, cons):
         f[_A:_A + 3] = leg.platform.tolist()
         f[_BREF:_BREF + 3] = leg.base_ref.tolist()
         f[_PREF:_PREF + 3] = leg.platform_ref.tolist()
-        rows.append(f)
+        rows += f
     F = np.array(rows, dtype=np.float64).reshape(nl, _NLF)
+    acts = act
+    kind, act = np.array(kind, dtype=np.int64), np.array(act, dtype=np.int64)
 
     # The check tables depend on the constraint objects, the legs' names, types and actuation
     # and the description -- not on the legs' geometry, but for revolute-joint angle limits
     # ("rang" rows) -- so the designs of a study, whose described constraints are shared objects
     # while their values are (parasynth.mechanisms.description.constraints), share them too.
     key = (id(getattr(mech, "description", None)), mech.n_task, tuple(map(id, cons)),
-           tuple((type(leg), leg.name, bool(act[i])) for i, leg in enumerate(legs)))
+           tuple((type(leg), leg.name, bool(acts[i])) for i, leg in enumerate(legs)))
     hit = _CHECK_TABLES.get(key)
     if hit is not None and hit[0] is getattr(mech, "description", None):
         tables, exprs, expr_rows = hit[2]

@@ -281,8 +281,9 @@ def _legs_plan(legs):
             sc.append((float(leg.link_length), float(leg.branch), float(getattr(leg, "crank_length", 0.0))))
         else:
             sc.append((0.0, 0.0, 0.0))
-    geo = np.array(geo, dtype=np.float64).reshape(nl, 5, 3)
-    sc = np.array(sc, dtype=np.float64).reshape(nl, 3)
+    # one flat list of floats each (NumPy reads a flat list several times faster than nested ones)
+    geo = np.array([x for g in geo for v in g for x in v], dtype=np.float64).reshape(nl, 5, 3)
+    sc = np.array([x for row in sc for x in row], dtype=np.float64).reshape(nl, 3)
     return code, act, geo, sc, int(nc)
 
 
