@@ -346,7 +346,6 @@ def list_objectives() -> list[str]:
 # -- workspace cache ------------------------------------------------------------------------------
 _CACHE: "OrderedDict[tuple, object]" = OrderedDict()
 _CACHE_SIZE = 8
-_SAMPLE_KEYS: dict = {}  # {WorkspaceSample: (frozen ranges, frozen fixed)}
 
 
 def workspace_of(mech, ranges=None, n: int = 4096, method: str = "sobol", seed: int = 0, fixed=None,
@@ -360,13 +359,14 @@ def workspace_of(mech, ranges=None, n: int = 4096, method: str = "sobol", seed: 
     if sample is not None:
         if not isinstance(sample, WorkspaceSample):
             raise ValueError(f"sample must be a WorkspaceSample, got {sample!r}")
-        kw = sample.kwargs()
-        ranges, n, method, seed, fixed = (kw[k] for k in WorkspaceSample.FIELDS)  # validated by the sample
-        frozen = _SAMPLE_KEYS.get(sample)
+        # validated by the sample; its mappings as dicts (WorkspaceSample.kwargs)
+        ranges = None if sample.ranges is None else dict(sample.ranges)
+        fixed = None if sample.fixed is None else dict(sample.fixed)
+        n, method, seed = sample.n, sample.method, sample.seed
+        frozen = sample.__dict__.get("_frozen_key")
         if frozen is None:  # the sample's part of the key, once per sample (a study has one)
-            if len(_SAMPLE_KEYS) > 64:
-                _SAMPLE_KEYS.clear()
-            frozen = _SAMPLE_KEYS[sample] = (freeze(ranges) if ranges else None, freeze(fixed))
+            frozen = (freeze(ranges) if ranges else None, freeze(fixed))
+            object.__setattr__(sample, "_frozen_key", frozen)
     else:
         n = check_count("n", n, 1, MAX_SAMPLES, what="a sample count")  # no truncation of 2.5, True, "100"
         seed = check_count("seed", seed, 0, what="an integer seed")
