@@ -178,10 +178,18 @@ _COVERAGE: dict = {}
 
 
 def coverage(mech) -> tuple[bool, str]:
-    """``(True, "")`` when the compiled indices cover ``mech``, else ``(False, reason)``."""
+    """``(True, "")`` when the compiled indices cover ``mech``, else ``(False, reason)`` (kept
+    per leg types, names and actuation, and in the engine's record of ``mech`` while its legs
+    are the same object: a design asks it several times)."""
+    rec = record_of(mech)
+    kept = rec.get("coverage")
+    if kept is not None and kept[0] is mech.legs:
+        return kept[1]
     key = (type(mech), tuple((type(leg), leg.name, bool(leg.is_actuated)) for leg in mech.legs))
     hit = _COVERAGE.get(key)
-    if hit is None:
+    if hit is not None:
+        rec["coverage"] = (mech.legs, hit)
+    else:
         try:
             _check_covered(mech)
             hit = (True, "")
@@ -194,12 +202,38 @@ def coverage(mech) -> tuple[bool, str]:
 
 
 def _leg_code(leg: Leg) -> int:
+    t = type(leg)
+    c = _CODE_OF_TYPE.get(t)
+    if c is not None:
+        return c
     if isinstance(leg, ChainLeg):
-        return _CHAIN
-    for cls in type(leg).__mro__:
-        if cls in _CODES:
-            return _CODES[cls]
-    raise _Unsupported(f"leg {leg.name}: no compiled form")  # pragma: no cover - checked before
+        c = _CHAIN
+    else:
+        c = next((_CODES[cls] for cls in t.__mro__ if cls in _CODES), None)
+        if c is None:
+            raise _Unsupported(f"leg {leg.name}: no compiled form")  # pragma: no cover - checked before
+    _CODE_OF_TYPE[t] = c
+    return c
+
+
+#: {leg type: its code}, as :func:`_leg_code` found it.
+_CODE_OF_TYPE: dict = {}
+
+
+def _code_info(code: np.ndarray) -> tuple[bool, tuple]:
+    """``(any UPU leg, the chain limbs' indices)`` of the legs' codes (kept per codes: the
+    designs of a study have the same)."""
+    key = code.tobytes()
+    hit = _CODE_INFO.get(key)
+    if hit is None:
+        hit = (bool(np.any(code == _UPU)), tuple(np.flatnonzero(code == _CHAIN).tolist()))
+        if len(_CODE_INFO) > 256:
+            _CODE_INFO.clear()
+        _CODE_INFO[key] = hit
+    return hit
+
+
+_CODE_INFO: dict = {}
 
 
 def _plan(mech):
@@ -294,8 +328,8 @@ def _chain_ext(legs, plan, p, R) -> np.ndarray:
     ``_chain_rows_kernel`` at its offset (``sc[j, 0]``)."""
     code, _, _, sc, _ = plan
     N = p.shape[0]
-    ch = np.flatnonzero(code == _CHAIN)
-    if not ch.size:
+    ch = _code_info(code)[1]
+    if not ch:
         return np.empty((N, 0))
     width = int(max(sc[j, 0] + _EXT_C + 6 * sc[j, 1] for j in ch))
     ext = np.empty((N, width))
@@ -359,7 +393,7 @@ def _upu_lengths(plan, p, R) -> np.ndarray:
     Non-finite lengths (poses at infinity) are left out of the mean, where the NumPy mean
     would make every pose of the batch NaN."""
     code, _, geo, _, _ = plan
-    if not np.any(code == _UPU):
+    if not _code_info(code)[0]:
         return np.ones(len(code))
     return _upu_mean_lengths(p, R, code, geo)
 

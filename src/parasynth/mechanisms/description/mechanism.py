@@ -423,7 +423,8 @@ class DescribedMechanism(Mechanism):
         when the mechanism was built (the legs' neutral directions were taken there); None
         once ``home`` was changed. Shared arrays: not to be written."""
         kept = self.__dict__.get("_home_platform_pose")
-        if kept is None or not np.array_equal(kept[0], self.home):
+        # the same bytes: the same home (a home equal otherwise, -0.0 for 0.0, is computed anew)
+        if kept is None or kept[0].tobytes() != np.asarray(self.home, dtype=float).tobytes():
             return None
         return kept[1], kept[2]
 
