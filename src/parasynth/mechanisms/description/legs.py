@@ -233,22 +233,26 @@ class _LegGroup:
         A = self.base.resolve(env, built_base)
         B = self.platform.resolve(env, built_plat)
         legs = []
+        # the options that do not depend on the leg (lengths, flags): evaluated once per group
+        shared, per_leg = {}, []
+        for k, spec in self.options.items():
+            kind = LEG_OPTIONS[self.type][k]
+            if kind == "axis_base":
+                per_leg.append((k, spec, A, True))
+            elif kind == "axis_platform":
+                per_leg.append((k, spec, B, False))
+            elif kind == "length":
+                shared[k] = spec(env)
+            else:
+                shared[k] = spec
+        if self.type in PASSIVE_CAPABLE:
+            shared["passive"] = not self.actuated
         for j, name in enumerate(self.names):
             kb = 0 if self.base.n == 1 else j
             kp = 0 if self.platform.n == 1 else j
-            kw = {}
-            for k, spec in self.options.items():
-                kind = LEG_OPTIONS[self.type][k]
-                if kind == "axis_base":
-                    kw[k] = spec(env, A, kb)
-                elif kind == "axis_platform":
-                    kw[k] = spec(env, B, kp)
-                elif kind == "length":
-                    kw[k] = spec(env)
-                else:
-                    kw[k] = spec
-            if self.type in PASSIVE_CAPABLE:
-                kw["passive"] = not self.actuated
+            kw = dict(shared)
+            for k, spec, S, on_base in per_leg:
+                kw[k] = spec(env, S, kb if on_base else kp)
             try:
                 legs.append(self.cls(name, base=A.points[kb], platform=B.points[kp], **kw))
             except ValueError as e:
