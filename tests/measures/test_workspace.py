@@ -619,6 +619,15 @@ def test_params_key_is_the_frozen_asdict():
         b: dict = dataclasses.field(default_factory=lambda: {"y": 2.0, "x": [1.0, 2.0]})
 
     assert _flat_params_key(Nested()) is None
+
+    @dataclasses.dataclass(frozen=True)
+    class Holder:
+        t: tuple = ((1.0, 2.0), (3.0, 4.0))
+
+    plain, mixed = Holder(), Holder(t=((1.0, 2.0), [3.0, 4.0]))
+    for _ in range(2):  # a tuple found plain once, and one holding a list, each time
+        assert _flat_params_key(plain) == freeze(dataclasses.asdict(plain))
+        assert _flat_params_key(mixed) is None
     m = load_mechanism("5pus_upu.yaml")
     m.params = Nested()
     assert params_key(m) == (("a", 1.0), ("b", (("x", (1.0, 2.0)), ("y", 2.0))))

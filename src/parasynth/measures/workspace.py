@@ -1199,13 +1199,22 @@ def _flat_params_key(params):
         names = _FIELD_NAMES[type(params)] = tuple(sorted(f.name for f in dataclasses.fields(params)))
     items = tuple((name, getattr(params, name)) for name in names)  # sorted by name, as sorted(items)
     for _, v in items:
+        t = type(v)
+        if t in _PLAIN or (t is tuple and _PLAIN_TUPLES.get(id(v)) is v):
+            continue
         if not _plain(v):
             return None
+        if t is tuple:  # a list parameter's value, mostly the field's default: every design's
+            if len(_PLAIN_TUPLES) >= 256:
+                _PLAIN_TUPLES.clear()
+            _PLAIN_TUPLES[id(v)] = v  # kept alive: its id stays its own
     return items
 
 
 #: {dataclass: its field names, sorted} of :func:`_flat_params_key`.
 _FIELD_NAMES: dict = {}
+#: {id: tuple} of the (immutable) tuples found plain (:func:`_plain`) by :func:`_flat_params_key`.
+_PLAIN_TUPLES: dict = {}
 
 
 def freeze(v):
