@@ -247,10 +247,15 @@ def figures(study_file: str, k: int, seed: int) -> None:
     fixed = timed(lambda: [ev.evaluate(x) for x in designs])
     kern = fixed[2]
     # seeds not drawn before (new samples each design), their points kept in a folder of this run
-    # (as a run keeps them, written to disk) removed afterwards
+    # (as a run keeps them, written to disk) removed afterwards: made in the folder a run writes
+    # them to (the user's cache folder, qmc.cache_dir), so that the writes cost what a run's do
+    # (on this machine a file written under /tmp took twice as long as one under the home folder)
     base = 10**9 + int.from_bytes(os.urandom(4), "little") * 10**4
     it = iter(range(10**9))
-    tmp = tempfile.mkdtemp(prefix="parasynth-new-samples-")
+    home = qmc.cache_dir()
+    if home is not None:
+        os.makedirs(home, exist_ok=True)
+    tmp = tempfile.mkdtemp(prefix="parasynth-new-samples-", dir=home)
     prev = os.environ.get("PARASYNTH_CACHE_DIR")
     os.environ["PARASYNTH_CACHE_DIR"] = tmp
     try:
