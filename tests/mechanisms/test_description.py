@@ -507,16 +507,14 @@ def _scaled(v, rng, lists: bool):
     return v
 
 
-def test_anchor_sets_kept_per_their_inputs_give_each_call_its_own_arrays():
-    """A base or platform set built before for the same values of the parameters it reads (its
-    expressions' names, its list parameter) is given again as arrays of its own; for random
-    designs of every shipped description each set equals a fresh build, before and after the
-    others (a parameter the key left out would give a stale set)."""
+def _shipped_anchor_sets(rng, designs: int):
+    """(description name, parameter environment, its anchor sets) of ``designs`` random designs
+    of every shipped description: every parameter scaled a little (the defaults' checks hold
+    for small changes), the single values changed in one design, the lists in the next."""
     import parasynth
     from parasynth.mechanisms import list_mechanisms
     from parasynth.mechanisms.description.parameters import _param_env
 
-    rng = np.random.default_rng(11)
     for name in list_mechanisms():
         cls = type(parasynth.load_mechanism(name))
         d = getattr(cls, "description", None)
@@ -524,22 +522,30 @@ def test_anchor_sets_kept_per_their_inputs_give_each_call_its_own_arrays():
             continue
         sets = list(d.base_sets.values()) + list(d.plat_sets.values())
         defaults = cls.Params()
-        for k in range(6):
-            # every parameter scaled a little (the defaults' checks hold for small changes)
-            # the single values changed in one design, the lists in the next
+        for k in range(designs):
             kw = {f.name: _scaled(getattr(defaults, f.name), rng, lists=k % 2 == 1) for f in dataclasses.fields(defaults)}
             try:
                 env = _param_env(cls.Params(**kw), d.params)
             except ValueError:
                 continue
-            for s in sets:
-                for _ in range(2):
-                    got, want = s.build(env), s._build(env)
-                    for a, b in zip((got.points, got.radial, got.tangent, got.normal),
-                                    (want.points, want.radial, want.tangent, want.normal)):
-                        assert np.array_equal(a, b), (name, s.name)
-                got.points[:] = np.nan  # the caller's own arrays
-                assert np.array_equal(s.build(env).points, want.points)
+            yield name, env, sets
+
+
+def test_anchor_sets_kept_per_their_inputs_give_each_call_its_own_arrays():
+    """A base or platform set built before for the same values of the parameters it reads (its
+    expressions' names, its list parameter) is given again as arrays of its own; for random
+    designs of every shipped description each set equals a fresh build, before and after the
+    others (a parameter the key left out would give a stale set)."""
+    rng = np.random.default_rng(11)
+    for name, env, sets in _shipped_anchor_sets(rng, 6):
+        for s in sets:
+            for _ in range(2):
+                got, want = s.build(env), s._build(env)
+                for a, b in zip((got.points, got.radial, got.tangent, got.normal),
+                                (want.points, want.radial, want.tangent, want.normal)):
+                    assert np.array_equal(a, b), (name, s.name)
+            got.points[:] = np.nan  # the caller's own arrays
+            assert np.array_equal(s.build(env).points, want.points)
 
 
 def _array_form_anchors(s, env):
@@ -614,12 +620,9 @@ def test_anchor_sets_built_in_floats_are_the_array_forms():
     axis) built in Python floats equals, bit for bit, the same operations on whole arrays:
     every shipped description's sets at random designs and a description with one set of each
     pattern."""
-    import parasynth
-    from parasynth.mechanisms import list_mechanisms
     from parasynth.mechanisms.description.parameters import _param_env
 
     rng = np.random.default_rng(5)
-    classes = [type(parasynth.load_mechanism(name)) for name in list_mechanisms()]
     spec = yaml.safe_load(_PATTERN_SETS)
     spec["legs"] = [{"type": "SPS", "name": f"s{i}", "base": f"{k}[{j}]", "platform": f"a[{i}]"}
                     for i, (k, j) in enumerate([("A", 0), ("B", 1), ("C", 2), ("D", 3), ("E", 4), ("A", 5)])]
@@ -630,23 +633,13 @@ def test_anchor_sets_built_in_floats_are_the_array_forms():
       home: {x: 0 mm, y: 0 mm, z: 300 mm, alpha: 0 deg, beta: 0 deg, gamma: 0 deg}
     """)
     checked, patterns = 0, set()
-    for cls in classes:
-        d = getattr(cls, "description", None)
-        if d is None:
-            continue
-        defaults = cls.Params()
-        for k in range(4):
-            kw = {f.name: _scaled(getattr(defaults, f.name), rng, lists=k % 2 == 1) for f in dataclasses.fields(defaults)}
-            try:
-                env = _param_env(cls.Params(**kw), d.params)
-            except ValueError:
-                continue
-            for s in list(d.base_sets.values()) + list(d.plat_sets.values()):
-                got = s._build(env)
-                for a, b in zip((got.points, got.radial, got.tangent, got.normal), _array_form_anchors(s, env)):
-                    assert a.tobytes() == np.asarray(b, float).tobytes(), (cls.__name__, s.name)
-                checked += 1
-                patterns.add(s.pattern)
+    for name, env, sets in _shipped_anchor_sets(rng, 4):
+        for s in sets:
+            got = s._build(env)
+            for a, b in zip((got.points, got.radial, got.tangent, got.normal), _array_form_anchors(s, env)):
+                assert a.tobytes() == np.asarray(b, float).tobytes(), (name, s.name)
+            checked += 1
+            patterns.add(s.pattern)
     assert checked > 40 and {"circle", "paired", "polygon", "points"} <= patterns
     from parasynth.mechanisms.description import description_class
     cls = description_class(spec)
