@@ -49,6 +49,14 @@ def test_design_key_survives_csv_round_trip(tmp_path):
     assert design_key(study, values) == design_key(study, row)
     assert design_key(study, {**values, "a": values["a"] * (1 + 1e-9)}) != design_key(study, values)
     assert isinstance(design_key(study, {**values, "n": np.int64(4)})[1], int)
+    # kept roundings give what formatting gives, the sign of a zero included
+    rng = np.random.default_rng(3)
+    xs = np.concatenate([rng.uniform(-1, 1, 300) * 10.0 ** rng.integers(-12, 12, 300), [0.0, -0.0, 5e-324]])
+    for _ in range(2):
+        for x in xs:
+            got = design_key(study, {**values, "a": np.float64(x)})[0]
+            want = float(f"{float(x):.12g}")
+            assert got == want and math.copysign(1.0, got) == math.copysign(1.0, want)
 
 
 def test_design_keys_of_a_table_are_the_rows_keys(tmp_path):

@@ -109,11 +109,25 @@ def design_key(variables, values) -> tuple:
         if _absent(x):
             x = None
         elif isinstance(x, (float, np.floating)) and np.isfinite(x):
-            x = float(f"{float(x):.12g}")
+            x = float(x)
+            r = _ROUNDED.get(x) if x else None  # (a zero keeps its own sign: not kept)
+            if r is None:
+                r = float(f"{x:.12g}")
+                if x:
+                    if len(_ROUNDED) >= 1 << 16:
+                        _ROUNDED.clear()
+                    _ROUNDED[x] = r
+            x = r
         elif isinstance(x, np.integer):
             x = int(x)
         out.append(x)
     return tuple(out)
+
+
+#: {float: the float of its 12 significant digits} of :func:`design_key`: a study's tables give
+#: the same values again and again (a report reads every design's key several times; the
+#: formatting costs ten times a lookup).
+_ROUNDED: dict = {}
 
 
 def _order(variables, path="variables") -> list:
