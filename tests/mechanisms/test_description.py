@@ -681,3 +681,38 @@ def test_anchor_directions_kept_per_points_are_each_calls_own():
             a.points[:] = 7.0  # the caller's arrays: the next call is not changed
             a.radial[:] = 7.0
             a.normal[:] = 7.0
+
+
+def test_constraints_kept_per_the_values_they_read_are_each_designs_own():
+    """A described mechanism's constraints are kept per the values of the parameters their
+    bounds read: for random designs of every shipped description (single values changed in one
+    design, lists in the next) the constraints equal those built one by one, and a design with a
+    bound parameter changed gets the changed bound (a name the key left out would give a stale
+    constraint)."""
+    import parasynth
+    from parasynth.mechanisms import list_mechanisms
+
+    rng = np.random.default_rng(17)
+    seen = 0
+    for name in list_mechanisms():
+        cls = type(parasynth.load_mechanism(name))
+        defaults = cls.Params()
+        for k in range(4):
+            kw = {f.name: _scaled(getattr(defaults, f.name), rng, lists=k % 2 == 1) for f in dataclasses.fields(defaults)}
+            try:
+                mech = cls(cls.Params(**kw))
+            except ValueError:
+                continue
+            d = getattr(mech, "description", None)
+            if d is None:
+                continue
+            want = [c.build(mech) for c in d.constraints]
+            got = mech.build_constraints()
+            assert [type(c) for c in got] == [type(c) for c in want] and [repr(c) for c in got] == [repr(c) for c in want]
+            seen += 1
+    assert seen > 20
+    m = parasynth.load_mechanism("5pus_upu")
+    for hi in (0.29, 0.31, 0.29):
+        got = parasynth.load_mechanism("5pus_upu", slider_max=hi).constraints
+        assert [c for c in got.values() if getattr(c, "hi", None) == hi], (hi, got)
+    assert m.constraints.keys() == got.keys()

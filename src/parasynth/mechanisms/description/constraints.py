@@ -152,6 +152,15 @@ class _ConstraintSpec:
                 raise DescriptionError(f"{path}.unit: the margin's unit: m, rad or 1, got {unit!r}")
             self.unit = unit
 
+    def inputs(self) -> tuple | None:
+        """The parameters the built constraint depends on (its bounds' and diameter's
+        expressions' names), or None where it depends on more (an ``expression`` constraint
+        reads the mechanism, a ``leg_axis_angle`` its axis)."""
+        if self.type in ("expression", "leg_axis_angle"):
+            return None
+        scalars = [self.min, self.max, self.diameter if self.type == "interference" else None]
+        return tuple(sorted({n for sc in scalars if sc is not None and sc.expr is not None for n in sc.expr.names}))
+
     def build(self, mech: Mechanism) -> Constraint:
         """The constraint for the described mechanism ``mech`` (a ``DescribedMechanism``): for
         every type but ``expression`` (whose margin reads ``mech``) one object per value of its

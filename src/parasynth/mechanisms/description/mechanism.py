@@ -23,7 +23,7 @@ from ...model.spatial import euler_matrix_and_rate, reciprocal_basis, rot_axis, 
 from ...common.units import UNIT_KINDS
 from .errors import DescriptionError, DescriptionWarning
 from .expressions import R_NAMES, _Dual, _grad, _val
-from .parameters import _param_env
+from .parameters import _param_env, values_key
 from .schema import Description
 
 @dataclass(frozen=True)
@@ -69,7 +69,10 @@ class DescribedMechanism(Mechanism):
             d = self._description_for({k: getattr(P, k) for k in self.variants})
             self.description = d
             self.task_coordinates = d.task.names
-            self.angular_coordinates = frozenset(c for c, k in d.task.coords if k == "angle")
+            ang = d.__dict__.get("_angular_coordinates")  # one frozenset per resolved description
+            if ang is None:
+                ang = d._angular_coordinates = frozenset(c for c, k in d.task.coords if k == "angle")
+            self.angular_coordinates = ang
         else:
             d = self.description
         self.params = P
@@ -322,7 +325,25 @@ class DescribedMechanism(Mechanism):
         return out
 
     def build_constraints(self):
-        return [c.build(self) for c in self.description.constraints]
+        # Every constraint a value of the parameters it reads (all types but expression and
+        # leg_axis_angle): the whole list kept per those values, as each constraint is.
+        d = self.description
+        names = d.__dict__.get("_constraint_inputs", False)
+        if names is False:
+            parts = [c.inputs() for c in d.constraints]
+            names = d._constraint_inputs = (None if any(p is None for p in parts)
+                                            else tuple(sorted({n for p in parts for n in p})))
+        key = values_key(self._penv, names) if names is not None else None
+        if key is None:
+            return [c.build(self) for c in d.constraints]
+        memo = d.__dict__.setdefault("_constraints_built", {})
+        hit = memo.get(key)
+        if hit is None:
+            hit = tuple(c.build(self) for c in d.constraints)
+            if len(memo) >= 64:
+                memo.clear()
+            memo[key] = hit
+        return list(hit)
 
     # -- construction checks ---------------------------------------------------------------------
     def _home_pose_key(self, home):
