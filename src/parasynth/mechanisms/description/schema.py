@@ -182,22 +182,25 @@ def _make_params_class(desc: Description, cls_name: str, resolve=None):
     units = {p.name: p.kind for p in plist}
     units.update({v.name: None for v in variants})
 
+    # each field with the name its errors give (made once, not per instance)
+    coerced = [(p, p.name, f"{mname}.{p.name}") for p in plist] + [(v, v.name, f"{mname}.{v.name}") for v in variants]
+
     def __post_init__(self):
-        for p in plist:
-            object.__setattr__(self, p.name, p.coerce(getattr(self, p.name), f"{mname}.{p.name}"))
-        for v in variants:
-            object.__setattr__(self, v.name, v.coerce(getattr(self, v.name), f"{mname}.{v.name}"))
+        for p, name, where in coerced:
+            object.__setattr__(self, name, p.coerce(getattr(self, name), where))
         checks = desc.checks
         if variants and resolve is not None:
             checks = resolve({v.name: getattr(self, v.name) for v in variants}).checks
         env = _param_env(self, plist)
         object.__setattr__(self, "_env", (plist, env))  # the model built from these parameters starts from it
-        for chk in checks:
-            with np.errstate(all="ignore"):
+        if not checks:
+            return
+        with np.errstate(all="ignore"):  # one context for all the checks (each in turn, the first failing said)
+            for chk in checks:
                 ok = chk(env)
-            if not (bool(ok) if isinstance(ok, (bool, np.bool_)) else bool(np.all(ok))):
-                vals = ", ".join(f"{n}={env[n]!r}" for n in sorted(chk.names))
-                raise ValueError(f"{mname}: the parameters fail the check {chk.text!r} ({vals}, SI)")
+                if not (bool(ok) if isinstance(ok, (bool, np.bool_)) else bool(np.all(ok))):
+                    vals = ", ".join(f"{n}={env[n]!r}" for n in sorted(chk.names))
+                    raise ValueError(f"{mname}: the parameters fail the check {chk.text!r} ({vals}, SI)")
 
     fields = [(p.name, float if p.shape == () else tuple, dataclasses.field(default=p.default)) for p in plist]
     fields += [(v.name, bool if v.is_switch else str, dataclasses.field(default=v.default)) for v in variants]
