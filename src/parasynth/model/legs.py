@@ -59,32 +59,38 @@ JOINT_DOF = {"R": 1, "P": 1, "U": 2, "S": 3, "C": 2}
 GEOM_TOL = 1e-9
 
 
-def _vec3_xyz(name: str, v):
+def _label(name) -> str:
+    """The name an error gives: ``name``, or for a pair (leg name, field) "leg <leg>: <field>"
+    (the pair is made per check, the text only for an error)."""
+    return f"leg {name[0]}: {name[1]}" if isinstance(name, tuple) else name
+
+
+def _vec3_xyz(name, v):
     """``v`` as a float 3-vector and its three entries as Python floats; ``ValueError`` naming
-    ``name`` unless it is a finite 3-vector."""
+    ``name`` (a text, or a pair (leg name, field): :func:`_label`) unless it is a finite 3-vector."""
     a = np.asarray(v, dtype=float)
     if a.shape != (3,):
-        raise ValueError(f"{name} must be a 3-vector, got shape {a.shape}")
+        raise ValueError(f"{_label(name)} must be a 3-vector, got shape {a.shape}")
     x, y, z = a.tolist()  # three floats: math is ten times cheaper than NumPy's reductions here
     if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
-        raise ValueError(f"{name} must be finite, got {a.tolist()}")
+        raise ValueError(f"{_label(name)} must be finite, got {a.tolist()}")
     return a, x, y, z
 
 
-def _vec3(name: str, v) -> np.ndarray:
+def _vec3(name, v) -> np.ndarray:
     return _vec3_xyz(name, v)[0]
 
 
-def _axis(name: str, v) -> np.ndarray:
+def _axis(name, v) -> np.ndarray:
     _, x, y, z = _vec3_xyz(name, v)
     return _unit_xyz(name, x, y, z)
 
 
-def _unit_xyz(name: str, x: float, y: float, z: float) -> np.ndarray:
+def _unit_xyz(name, x: float, y: float, z: float) -> np.ndarray:
     """The unit vector along the finite (x, y, z), as :func:`_axis` makes it."""
     n = math.sqrt(x * x + y * y + z * z)
     if n == 0:
-        raise ValueError(f"{name} must be a non-zero direction")
+        raise ValueError(f"{_label(name)} must be a non-zero direction")
     return np.array((x / n, y / n, z / n))  # a / n, each entry as NumPy divides it (one IEEE division)
 
 
@@ -299,14 +305,14 @@ class Leg:
     constraint_rows: ClassVar[tuple[str, ...]] = ()
 
     def __post_init__(self):
-        object.__setattr__(self, "base", _vec3(f"leg {self.name}: base", self.base))
-        object.__setattr__(self, "platform", _vec3(f"leg {self.name}: platform", self.platform))
+        object.__setattr__(self, "base", _vec3((self.name, "base"), self.base))
+        object.__setattr__(self, "platform", _vec3((self.name, "platform"), self.platform))
         # the default neutral directions are unit vectors already (shared, read-only): a
         # described leg is given its own at home (Mechanism._neutral_refs) right after
         if self.base_ref is not _UP:
-            object.__setattr__(self, "base_ref", _axis(f"leg {self.name}: base_ref", self.base_ref))
+            object.__setattr__(self, "base_ref", _axis((self.name, "base_ref"), self.base_ref))
         if self.platform_ref is not _DOWN:
-            object.__setattr__(self, "platform_ref", _axis(f"leg {self.name}: platform_ref", self.platform_ref))
+            object.__setattr__(self, "platform_ref", _axis((self.name, "platform_ref"), self.platform_ref))
 
     # -- structure -------------------------------------------------------------------------
     @property
@@ -348,16 +354,16 @@ class Leg:
         new = object.__new__(type(self))  # copy.copy, without its reduce protocol (~1.5 us)
         d = new.__dict__
         d.update(self.__dict__)
-        d["base_ref"] = _unit_xyz(f"leg {self.name}: base_ref", *base_ref)
-        d["platform_ref"] = _unit_xyz(f"leg {self.name}: platform_ref", *platform_ref)
+        d["base_ref"] = _unit_xyz((self.name, "base_ref"), *base_ref)
+        d["platform_ref"] = _unit_xyz((self.name, "platform_ref"), *platform_ref)
         return new
 
     def with_neutral(self, base_ref, platform_ref) -> "Leg":
         """A copy with the neutral joint directions ``base_ref`` (base frame) and
         ``platform_ref`` (platform frame) -- ``dataclasses.replace`` without re-checking the
         other fields, which are unchanged."""
-        return self.with_unit_neutral(_vec3_xyz(f"leg {self.name}: base_ref", base_ref)[1:],
-                                      _vec3_xyz(f"leg {self.name}: platform_ref", platform_ref)[1:])
+        return self.with_unit_neutral(_vec3_xyz((self.name, "base_ref"), base_ref)[1:],
+                                      _vec3_xyz((self.name, "platform_ref"), platform_ref)[1:])
 
     def actuation_wrench(self, st: LegState, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Unit force along the leg line through the platform anchor, and ``rate_scale``."""
@@ -470,7 +476,7 @@ class UPS(Leg):
 
     def __post_init__(self):
         super().__post_init__()
-        object.__setattr__(self, "u_axis", _axis(f"leg {self.name}: u_axis", self.u_axis))
+        object.__setattr__(self, "u_axis", _axis((self.name, "u_axis"), self.u_axis))
 
     def home_direction(self, p, R):
         return _fixed_line(self.base.tolist(), _at_pose(self.platform.tolist(), p, R))[0]
@@ -549,8 +555,8 @@ class PUS(Leg):
 
     def __post_init__(self):
         super().__post_init__()
-        object.__setattr__(self, "slider_axis", _axis(f"leg {self.name}: slider_axis", self.slider_axis))
-        object.__setattr__(self, "u_axis", _axis(f"leg {self.name}: u_axis", self.u_axis))
+        object.__setattr__(self, "slider_axis", _axis((self.name, "slider_axis"), self.slider_axis))
+        object.__setattr__(self, "u_axis", _axis((self.name, "u_axis"), self.u_axis))
         L = float(self.link_length)
         if not math.isfinite(L) or L <= 0:
             raise ValueError(f"leg {self.name}: link_length must be a positive length in m, got {L}")
@@ -631,7 +637,7 @@ class RPS(Leg):
 
     def __post_init__(self):
         super().__post_init__()
-        object.__setattr__(self, "r_axis", _axis(f"leg {self.name}: r_axis", self.r_axis))
+        object.__setattr__(self, "r_axis", _axis((self.name, "r_axis"), self.r_axis))
 
     @property
     def is_actuated(self) -> bool:
@@ -696,9 +702,9 @@ class RPU(Leg):
 
     def __post_init__(self):
         super().__post_init__()
-        object.__setattr__(self, "r_axis", _axis(f"leg {self.name}: r_axis", self.r_axis))
+        object.__setattr__(self, "r_axis", _axis((self.name, "r_axis"), self.r_axis))
         object.__setattr__(
-            self, "u_platform_axis", _axis(f"leg {self.name}: u_platform_axis", self.u_platform_axis)
+            self, "u_platform_axis", _axis((self.name, "u_platform_axis"), self.u_platform_axis)
         )
 
     def home_direction(self, p, R):
@@ -769,9 +775,9 @@ class UPU(Leg):
 
     def __post_init__(self):
         super().__post_init__()
-        object.__setattr__(self, "u_axis", _axis(f"leg {self.name}: u_axis", self.u_axis))
+        object.__setattr__(self, "u_axis", _axis((self.name, "u_axis"), self.u_axis))
         object.__setattr__(
-            self, "u_platform_axis", _axis(f"leg {self.name}: u_platform_axis", self.u_platform_axis)
+            self, "u_platform_axis", _axis((self.name, "u_platform_axis"), self.u_platform_axis)
         )
 
     @property
@@ -867,8 +873,8 @@ class PRS(Leg):
 
     def __post_init__(self):
         super().__post_init__()
-        object.__setattr__(self, "slider_axis", _axis(f"leg {self.name}: slider_axis", self.slider_axis))
-        object.__setattr__(self, "r_axis", _axis(f"leg {self.name}: r_axis", self.r_axis))
+        object.__setattr__(self, "slider_axis", _axis((self.name, "slider_axis"), self.slider_axis))
+        object.__setattr__(self, "r_axis", _axis((self.name, "r_axis"), self.r_axis))
         if abs(float(self.slider_axis @ self.r_axis)) > 1e-9:
             raise ValueError(
                 f"leg {self.name}: r_axis must be perpendicular to slider_axis (the revolute joint "
@@ -973,14 +979,14 @@ class RUS(Leg):
 
     def __post_init__(self):
         super().__post_init__()
-        a = _axis(f"leg {self.name}: r_axis", self.r_axis)
+        a = _axis((self.name, "r_axis"), self.r_axis)
         object.__setattr__(self, "r_axis", a)
         c = self.crank_direction
         if c is None:
             c = cross(a, [0.0, 0.0, 1.0])
             if np.linalg.norm(c) < 1e-9:
                 c = cross(a, [0.0, 1.0, 0.0])
-        c = _vec3(f"leg {self.name}: crank_direction", c)
+        c = _vec3((self.name, "crank_direction"), c)
         c = c - (c @ a) * a
         if np.linalg.norm(c) < 1e-9:
             raise ValueError(f"leg {self.name}: crank_direction must not be parallel to r_axis "
