@@ -659,18 +659,18 @@ def test_anchor_sets_built_in_floats_are_the_array_forms():
     assert on_axis == 10  # the platform's first point lies on its plane's axis: no direction there
 
 
-def test_anchor_directions_kept_per_points_are_each_calls_own():
+def test_anchor_directions_are_the_in_plane_units_in_arrays_of_each_calls_own():
     """The radial and tangent directions of anchor points in their set's plane (the unit
-    in-plane vector, turned a quarter about the plane's normal; zero on the axis), kept per
-    exact points: a second call gives the same values in arrays of its own."""
-    from parasynth.mechanisms.description.anchors import _PLANES, _directions
+    in-plane vector, turned a quarter about the plane's normal; zero on the axis): a second
+    call gives the same values in arrays of its own."""
+    from parasynth.mechanisms.description.anchors import _PLANES, _float_directions
 
     rng = np.random.default_rng(4)
     for plane, (i1, i2, i3) in _PLANES.items():
         P = rng.uniform(-1, 1, (5, 3))
         P[4, [i1, i2]] = 0.0  # on the plane's axis
         for _ in range(2):
-            a = _directions(P, (i1, i2, i3))
+            a = _float_directions(P.tolist(), (i1, i2, i3))
             assert np.array_equal(a.points, P)
             for k in range(4):
                 u = P[k, [i1, i2]] / math.hypot(P[k, i1], P[k, i2])

@@ -150,7 +150,7 @@ class _AnchorSet:
         memo = self.__dict__.setdefault("_memo", {})
         hit = memo.get(key) if key is not None else None
         if hit is None:
-            hit = self._build(env)  # arrays of its own (_directions)
+            hit = self._build(env)  # arrays of its own
             if key is None:
                 return hit
             if len(memo) >= 64:
@@ -160,8 +160,9 @@ class _AnchorSet:
 
     def _build(self, env) -> _Anchors:
         """The set's anchors and directions, computed in Python floats: the same operations in
-        the same order as the array form (:func:`_directions` of the pattern's points), a few
-        points each, where NumPy's calls cost more than the arithmetic."""
+        the same order as the array form (the pattern's points, then the norms, unit vectors and
+        directions of the whole set), a few points each, where NumPy's calls cost more than the
+        arithmetic."""
         i1, i2, i3 = self.axes
         off = self.offset(env)
         if self.pattern == "points":
@@ -216,7 +217,8 @@ class _AnchorSet:
 
 
 def _float_directions(P: list, axes) -> _Anchors:
-    """:func:`_compute_directions` of the points ``P`` (rows of three floats), in floats: the
+    """The anchors ``P`` (rows of three floats) with the radial and tangent directions of their
+    set's plane ``axes`` and its normal, as new arrays, computed in floats: the
     norm sqrt(a a + b b), the unit in-plane vector (zero below 1e-15), radial = u1 e1 + u2 e2
     and tangent = -u2 e1 + u1 e2 component by component, as the array form computes them."""
     i1, i2, i3 = axes
@@ -232,37 +234,6 @@ def _float_directions(P: list, axes) -> _Anchors:
                     np.array(tangent, dtype=float).reshape(-1, 3), _EYE[i3].copy())
 
 
-#: The directions of anchor points already computed, per exact points (as bytes) and plane: a
-#: study's designs that leave an anchor set unchanged (the platform's while the legs vary, a
-#: leg's inline anchor points) share them.
-_DIRECTIONS: dict = {}
-
-
-def _directions(P: np.ndarray, axes) -> _Anchors:
-    """The anchors ``P`` (n, 3) with the radial and tangent directions of their set's plane
-    ``axes`` and its normal; each call gets arrays of its own."""
-    P = np.asarray(P)
-    key = (tuple(axes), P.shape, P.dtype.str, P.tobytes())
-    hit = _DIRECTIONS.get(key)
-    if hit is None:
-        hit = _compute_directions(P.copy(), axes)
-        if len(_DIRECTIONS) >= 256:
-            _DIRECTIONS.clear()
-        _DIRECTIONS[key] = hit
-    return _Anchors(hit.points.copy(), hit.radial.copy(), hit.tangent.copy(), hit.normal.copy())
-
-
 _EYE = np.eye(3)
 _EYE.flags.writeable = False
 _EYE_ROWS = _EYE.tolist()
-
-
-def _compute_directions(P: np.ndarray, axes) -> _Anchors:
-    i1, i2, i3 = axes
-    e = _EYE
-    ab = P[:, [i1, i2]]
-    n = np.linalg.norm(ab, axis=1, keepdims=True)
-    u = np.divide(ab, n, out=np.zeros_like(ab), where=n > 1e-15)
-    radial = u[:, :1] * e[i1] + u[:, 1:] * e[i2]
-    tangent = -u[:, 1:] * e[i1] + u[:, :1] * e[i2]
-    return _Anchors(P, radial, tangent, e[i3].copy())

@@ -11,7 +11,7 @@ import numpy as np
 from ...model.legs import LEG_TYPES, types_with
 from .errors import DescriptionError
 from .parameters import _Scalar, _check_keys
-from .anchors import _Anchors, _PLANES, _directions
+from .anchors import _Anchors, _PLANES, _float_directions
 
 #: Options of each leg type: {key: "axis_base" | "axis_platform" | "length" | "branch"}, as the
 #: leg types declare them (``description_options``, ``required_options``).
@@ -130,7 +130,7 @@ class _Ref:
         """The anchors referred to, as arrays the caller's legs may keep (the set's own when it
         refers to every point in order: the set was built for this mechanism)."""
         if self.point is not None:
-            return _directions(np.array([[s(env) for s in self.point]]), _PLANES["xy"])
+            return _float_directions([[float(s(env)) for s in self.point]], _PLANES["xy"])
         a = built[self.set]
         i = self.indices
         if self.__dict__.get("_all") is None:
