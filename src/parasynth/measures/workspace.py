@@ -1019,7 +1019,7 @@ def _check_count(v, arg, hi=None) -> int:
 
 def _fixed_pose(mech, coords, fixed) -> np.ndarray:
     task = tuple(mech.task_coordinates)
-    base = np.array(mech.home, dtype=float).copy()
+    base = np.array(mech.home, dtype=float)  # a copy of its own (np.array copies)
     if fixed is None:
         return base
     if not isinstance(fixed, Mapping):
