@@ -443,6 +443,16 @@ def test_a_described_mechanisms_neutral_directions_are_its_legs_directions_at_ho
             assert np.max(np.abs(leg.platform_ref - pr / np.linalg.norm(pr))) <= 1e-14, (m.name, leg.name)
             for ref in (leg.base_ref, leg.platform_ref):
                 assert abs(np.linalg.norm(ref) - 1.0) <= 4e-16
+            # made as with_unit_neutral makes them from the leg's direction in floats, bit for bit
+            hd = leg.home_direction(p[0].tolist(), R[0].ravel().tolist())
+            if hd is not None and hd is not NotImplemented:
+                Rf = R[0].ravel().tolist()
+                want = leg.with_unit_neutral(hd, tuple(sum(Rf[3 * i + j] * -hd[i] for i in range(3)) for j in range(3)))
+                assert leg.base_ref.tobytes() == want.base_ref.tobytes(), (m.name, leg.name)
+                assert np.max(np.abs(leg.platform_ref - want.platform_ref)) <= 1e-15, (m.name, leg.name)
+            leg.base_ref[0] += 1.0  # each leg's own rows: the others' unchanged
+            assert all(abs(np.linalg.norm(o.base_ref) - 1.0) <= 4e-16 for o in m.legs if o is not leg)
+            leg.base_ref[0] -= 1.0
 
 
 def solve_geometry_dir(leg, p, R):

@@ -351,11 +351,17 @@ class Leg:
 
     def with_unit_neutral(self, base_ref, platform_ref) -> "Leg":
         """:meth:`with_neutral` of two directions given as finite floats (x, y, z)."""
+        return self._with_refs(_unit_xyz((self.name, "base_ref"), *base_ref),
+                               _unit_xyz((self.name, "platform_ref"), *platform_ref))
+
+    def _with_refs(self, base_ref: np.ndarray, platform_ref: np.ndarray) -> "Leg":
+        """A copy with the neutral directions ``base_ref`` and ``platform_ref`` as given: unit
+        3-vectors made as :func:`_unit_xyz` makes them (the caller's word)."""
         new = object.__new__(type(self))  # copy.copy, without its reduce protocol (~1.5 us)
         d = new.__dict__
         d.update(self.__dict__)
-        d["base_ref"] = _unit_xyz((self.name, "base_ref"), *base_ref)
-        d["platform_ref"] = _unit_xyz((self.name, "platform_ref"), *platform_ref)
+        d["base_ref"] = base_ref
+        d["platform_ref"] = platform_ref
         return new
 
     def with_neutral(self, base_ref, platform_ref) -> "Leg":

@@ -404,6 +404,7 @@ class DescribedMechanism(Mechanism):
         self._home_platform_pose = (self.home.copy(), p, R)
         out = []
         pf, Rf = p[0].tolist(), R[0].ravel().tolist()
+        units = []  # (index in out, the two unit directions as floats) of the legs done in floats
         for leg in legs:
             # the direction in Python floats where the leg type computes it so (a dozen NumPy
             # calls less per leg), else, or to say why the leg does not reach home, its solve
@@ -415,9 +416,16 @@ class DescribedMechanism(Mechanism):
                 x, y, z = hd
                 if math.isfinite(x) and math.isfinite(y) and math.isfinite(z) and (x or y or z):
                     nx, ny, nz = -x, -y, -z
-                    out.append(leg.with_unit_neutral(hd, (Rf[0] * nx + Rf[3] * ny + Rf[6] * nz,
-                                                          Rf[1] * nx + Rf[4] * ny + Rf[7] * nz,
-                                                          Rf[2] * nx + Rf[5] * ny + Rf[8] * nz)))
+                    pr = (Rf[0] * nx + Rf[3] * ny + Rf[6] * nz, Rf[1] * nx + Rf[4] * ny + Rf[7] * nz,
+                          Rf[2] * nx + Rf[5] * ny + Rf[8] * nz)
+                    # each made a unit vector as _unit_xyz makes it (one division per entry),
+                    # all of them then one array whose rows the legs keep
+                    nb, npf = math.sqrt(x * x + y * y + z * z), math.sqrt(pr[0] * pr[0] + pr[1] * pr[1] + pr[2] * pr[2])
+                    if nb > 0 and npf > 0:
+                        units.append((len(out), (x / nb, y / nb, z / nb), (pr[0] / npf, pr[1] / npf, pr[2] / npf)))
+                        out.append(leg)
+                    else:  # (a direction too small to square: _unit_xyz says so)
+                        out.append(leg.with_unit_neutral(hd, pr))
                     continue
             with np.errstate(all="ignore"):
                 st = solve_geometry(leg, p, R)
@@ -437,6 +445,10 @@ class DescribedMechanism(Mechanism):
                 raise DescriptionError(f"{self.name}: task.home: the home pose {self.home.tolist()} is not reachable "
                                        f"by leg {leg.name} ({leg.joints}){why}")
             out.append(leg.with_neutral(n, R[0].T @ (-n)))
+        if units:
+            rows = np.array([v for _, b, q in units for v in (b, q)], dtype=float)
+            for k, (i, _, _) in enumerate(units):
+                out[i] = out[i]._with_refs(rows[2 * k], rows[2 * k + 1])
         return out
 
     def home_platform_pose(self):
