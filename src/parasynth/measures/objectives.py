@@ -215,7 +215,7 @@ class Measure:
         if sample is not None:
             if not self.sample:
                 raise ValueError(f"measure {self.name!r} takes no workspace sample")
-            if isinstance(sample, Mapping):
+            if type(sample) is not WorkspaceSample and isinstance(sample, Mapping):  # (the ABC test is slow)
                 sample = WorkspaceSample(**sample)
             if not isinstance(sample, WorkspaceSample):
                 raise ValueError(f"measure {self.name!r}: sample must be a WorkspaceSample, got {sample!r}")
@@ -589,7 +589,9 @@ def singularity_margin_min(mech, quantile: float = 0.0, **kw) -> float:
     if len(pts) > 20000:
         pts = pts[np.linspace(0, len(pts) - 1, 20000).astype(int)]
     m = mech.singularity_margin(pts, engine=kw.get("engine", "compiled"))
-    m = m[np.isfinite(m)]
+    fin = np.isfinite(m)
+    if not fin.all():  # (every margin finite, the usual case: no copy)
+        m = m[fin]
     return quantile_of(m, quantile) if m.size else 0.0
 
 
