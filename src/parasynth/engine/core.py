@@ -871,10 +871,16 @@ def _check_tables(mech, legs, cons, kind, act, index, names):
 _PROGRAMS: dict = {}
 
 
+#: The pose methods a program stands for: one replaced on an instance is not what the program computes.
+_PATCHABLE_ORDER = ("_pose", "pose", "pose_valid", "_twist_map", "twist_map", "_task_env")
+_PATCHABLE = frozenset(_PATCHABLE_ORDER)
+
+
 def _program_key(mech, exprs, twist, unknowns=False):
     d = mech.description
     # the shapes of the parameters that are not float64 scalars (those are all of shape ())
-    shapes = tuple(sorted((k, np.shape(v)) for k, v in mech._penv.items() if type(v) is not np.float64))
+    shapes = tuple(sorted((k, v.shape if type(v) is np.ndarray else np.shape(v))
+                          for k, v in mech._penv.items() if type(v) is not np.float64))
     return (type(mech), id(d), tuple((n, e.text) for n, e in exprs.items()), bool(twist), shapes, bool(unknowns))
 
 
@@ -905,7 +911,7 @@ def program_for(mech, exprs: dict, twist: bool = False, unknowns: bool = False) 
     ``unknowns``, the solved unknowns of ``task.solve`` kept); checked against
     ``mech.pose``/``mech.pose_valid`` (and ``mech.twist_map``) when first built. Raises
     :class:`Unsupported`."""
-    patched = [k for k in ("_pose", "pose", "pose_valid", "_twist_map", "twist_map", "_task_env") if k in vars(mech)]
+    patched = [] if _PATCHABLE.isdisjoint(vars(mech)) else [k for k in _PATCHABLE_ORDER if k in vars(mech)]
     if patched:
         raise Unsupported(f"a pose method replaced on the instance ({', '.join(patched)})")
     key = _program_key(mech, exprs, twist, unknowns)
@@ -946,7 +952,7 @@ def program_constants(mech, exprs: dict, twist: bool = False, unknowns: bool = F
     objects: the feasibility plan, the poses of the extents and those of the indices of one
     design look them up once (the program's cache key and constants cost ~50 us a lookup).
     The constants array is shared: the kernels only read it."""
-    patched = [k for k in ("_pose", "pose", "pose_valid", "_twist_map", "twist_map", "_task_env") if k in vars(mech)]
+    patched = [] if _PATCHABLE.isdisjoint(vars(mech)) else [k for k in _PATCHABLE_ORDER if k in vars(mech)]
     if patched:
         raise Unsupported(f"a pose method replaced on the instance ({', '.join(patched)})")
     memo = record_of(mech).setdefault("programs", {})

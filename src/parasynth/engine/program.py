@@ -417,13 +417,14 @@ class Program:
     def constants(self, penv) -> np.ndarray:
         """The constant rows' values for a parameter environment."""
         c = self.literals.copy()
-        for k, s in enumerate(self.const_param):
-            if s >= 0:
-                name, path = self.param_keys[s]
-                v = penv[name]
-                for q in path:
-                    v = v[q]
-                c[k] = float(v)
+        slots = self.__dict__.get("_param_slots")  # (row, parameter, index path) of the parameter rows, made once
+        if slots is None:
+            slots = self._param_slots = [(k, *self.param_keys[int(s)]) for k, s in enumerate(self.const_param) if s >= 0]
+        for k, name, path in slots:
+            v = penv[name]
+            for q in path:
+                v = v[q]
+            c[k] = float(v)
         return c
 
 
