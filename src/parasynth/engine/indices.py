@@ -271,54 +271,52 @@ def _check_legs(legs) -> None:
 def _legs_plan(legs):
     """(code, act, geo, sc, nc): the legs packed into arrays (one geometry per leg)."""
     nl = len(legs)
-    code = np.zeros(nl, np.int64)
-    act = np.zeros(nl, np.int64)
-    geo = []  # base, platform, axis 1, axis 2, axis 3 per leg, as floats (one array made of them)
-    sc = []  # link length, branch, crank length (a chain limb: its offset in ext, c)
+    code, act = [], []
+    geo = []  # base, platform, axis 1, axis 2, axis 3 per leg: one flat list of floats (one array made of it)
+    sc = []  # link length, branch, crank length (a chain limb: its offset in ext, c), flat as geo
     zero = [0.0, 0.0, 0.0]
     nc = 0
     off = 0
-    for j, leg in enumerate(legs):
+    for leg in legs:
         c = _leg_code(leg)
-        code[j] = c
-        act[j] = 1 if leg.is_actuated else 0
-        g = [leg.base.tolist(), leg.platform.tolist(), zero, zero, zero]
-        geo.append(g)
+        code.append(c)
+        act.append(1 if leg.is_actuated else 0)
+        geo += leg.base.tolist()
+        geo += leg.platform.tolist()
         if c == _CHAIN:
+            geo += zero * 3
             k = int(leg.n_closure)
-            sc.append((float(off), float(k), 0.0))
+            sc += (float(off), float(k), 0.0)
             off += _EXT_C + 6 * k
             nc += k
             continue
         nc += _NC[c]
         if c == _UPS:
-            g[2] = leg.u_axis.tolist()
+            axes = (leg.u_axis.tolist(), zero, zero)
         elif c == _PUS:
-            g[2] = leg.slider_axis.tolist()
-            g[3] = leg.u_axis.tolist()
+            axes = (leg.slider_axis.tolist(), leg.u_axis.tolist(), zero)
         elif c == _RPS:
-            g[2] = leg.r_axis.tolist()
+            axes = (leg.r_axis.tolist(), zero, zero)
         elif c == _RPU:
-            g[2] = leg.r_axis.tolist()
-            g[3] = leg.u_platform_axis.tolist()
+            axes = (leg.r_axis.tolist(), leg.u_platform_axis.tolist(), zero)
         elif c == _UPU:
-            g[2] = leg.u_axis.tolist()
-            g[3] = leg.u_platform_axis.tolist()
+            axes = (leg.u_axis.tolist(), leg.u_platform_axis.tolist(), zero)
         elif c == _PRS:
-            g[2] = leg.slider_axis.tolist()
-            g[3] = leg.r_axis.tolist()
+            axes = (leg.slider_axis.tolist(), leg.r_axis.tolist(), zero)
         elif c == _RUS:  # crank axis, the crank's zero direction c0 and r_axis x c0 (as RUS._crank)
-            g[2] = leg.r_axis.tolist()
-            g[3] = leg.crank_direction.tolist()
-            g[4] = np.cross(leg.r_axis, leg.crank_direction).tolist()
-        if c in (_PUS, _PRS, _RUS):
-            sc.append((float(leg.link_length), float(leg.branch), float(getattr(leg, "crank_length", 0.0))))
+            axes = (leg.r_axis.tolist(), leg.crank_direction.tolist(),
+                    np.cross(leg.r_axis, leg.crank_direction).tolist())
         else:
-            sc.append((0.0, 0.0, 0.0))
-    # one flat list of floats each (NumPy reads a flat list several times faster than nested ones)
-    geo = np.array([x for g in geo for v in g for x in v], dtype=np.float64).reshape(nl, 5, 3)
-    sc = np.array([x for row in sc for x in row], dtype=np.float64).reshape(nl, 3)
-    return code, act, geo, sc, int(nc)
+            axes = (zero, zero, zero)
+        for a in axes:
+            geo += a
+        if c in (_PUS, _PRS, _RUS):
+            sc += (float(leg.link_length), float(leg.branch), float(getattr(leg, "crank_length", 0.0)))
+        else:
+            sc += (0.0, 0.0, 0.0)
+    # NumPy reads a flat list several times faster than nested ones
+    return (np.array(code, dtype=np.int64), np.array(act, dtype=np.int64),
+            np.array(geo, dtype=np.float64).reshape(nl, 5, 3), np.array(sc, dtype=np.float64).reshape(nl, 3), int(nc))
 
 
 def _chain_ext(legs, plan, p, R) -> np.ndarray:
