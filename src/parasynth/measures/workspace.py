@@ -908,7 +908,8 @@ def workspace(mech, ranges=None, n: int = 2**16, method: str = "sobol", seed: in
     store = _PointStore(cap, seed)
     ext_lo = ext_hi = None  # the extents so far (none before the first feasible chunk)
     n_feasible = 0
-    report = _Progress(progress, n_samples, getattr(mech, "name", "mechanism"))
+    report = (_SILENT if progress is None and n_samples < PROGRESS_THRESHOLD
+              else _Progress(progress, n_samples, getattr(mech, "name", "mechanism")))
     for start, X, Xs, gidx, flat, counts in _prepared_chunks(sampler, chunk_size, base, cols, rshape, prep.chunks_key):
         m = len(Xs)
         # feasibility and the platform positions' extents from one kernel pass where the
@@ -957,7 +958,7 @@ def workspace(mech, ranges=None, n: int = 2**16, method: str = "sobol", seed: in
         seed=seed,
         coordinates=coords,
         box=dict(prep.box),
-        fixed={c: float(base[i]) for i, c in enumerate(task) if c not in coords},
+        fixed={c: v for c, v in zip(task, base.tolist()) if c not in coords},
         constraints=names if names is not None else tuple(mech.constraints),
         n_samples=n_samples,
         n_feasible=n_feasible,
@@ -1417,6 +1418,19 @@ class _PointStore:
         X = np.repeat(base[None, :], len(Xs), axis=0)
         X[:, cols] = Xs
         return X, len(X) == n_feasible
+
+
+class _Silent:
+    """The progress of a run that reports none (no callback, below PROGRESS_THRESHOLD samples)."""
+
+    def update(self, done: int, feasible: int):
+        pass
+
+    def close(self, feasible: int):
+        pass
+
+
+_SILENT = _Silent()
 
 
 class _Progress:
