@@ -721,35 +721,35 @@ def leg_tables(mech, cons):
     nl = len(legs)
     names = [leg.name for leg in legs]
     index = {n: i for i, n in enumerate(names)}
-    kind = [0] * nl
-    act = [0] * nl
+    kinds = [0] * nl
+    acts = [0] * nl  # 1 for an actuated leg
     rows = []  # the legs' rows of F as floats, one after the other (one array made of them: the same values)
     for i, leg in enumerate(legs):
         t = type(leg)
         f = [0.0] * _NLF
         if t in (SPS, UPS, UPU):
-            kind[i] = _FREE
+            kinds[i] = _FREE
         elif t is PUS:
-            kind[i] = _PUS
+            kinds[i] = _PUS
             f[_AX:_AX + 3] = leg.slider_axis.tolist()
             f[_LEN] = float(leg.link_length)
             f[_BRANCH] = float(leg.branch)
         elif t is PRS:  # a PUS-like slider and link, in the plane normal to r_axis
-            kind[i] = _PRS
+            kinds[i] = _PRS
             f[_AX:_AX + 3] = leg.slider_axis.tolist()
             f[_AX2:_AX2 + 3] = leg.r_axis.tolist()
             f[_LEN] = float(leg.link_length)
             f[_BRANCH] = float(leg.branch)
             f[_PTOL] = GEOM_TOL * max(1.0, float(leg.link_length))
         elif t is RPS:
-            kind[i] = _RPS
+            kinds[i] = _RPS
             f[_AX:_AX + 3] = leg.r_axis.tolist()
         elif t is RPU:
-            kind[i] = _RPU
+            kinds[i] = _RPU
             f[_AX:_AX + 3] = leg.r_axis.tolist()
             f[_AX2:_AX2 + 3] = leg.u_platform_axis.tolist()
         elif t is RUS:  # a crank about r_axis through the base anchor, then a link of fixed length
-            kind[i] = _RUS
+            kinds[i] = _RUS
             f[_AX:_AX + 3] = leg.crank_direction.tolist()
             f[_AX2:_AX2 + 3] = np.cross(leg.r_axis, leg.crank_direction).tolist()  # as RUS._crank
             f[_LEN] = float(leg.link_length)
@@ -757,15 +757,14 @@ def leg_tables(mech, cons):
             f[_CRANK] = float(leg.crank_length)
         else:
             raise Unsupported(f"the leg type {t.__name__} (leg {leg.name})")
-        act[i] = 1 if leg.is_actuated else 0
+        acts[i] = 1 if leg.is_actuated else 0
         f[_B:_B + 3] = leg.base.tolist()
         f[_A:_A + 3] = leg.platform.tolist()
         f[_BREF:_BREF + 3] = leg.base_ref.tolist()
         f[_PREF:_PREF + 3] = leg.platform_ref.tolist()
         rows += f
     F = np.array(rows, dtype=np.float64).reshape(nl, _NLF)
-    acts = act
-    kind, act = np.array(kind, dtype=np.int64), np.array(act, dtype=np.int64)
+    kind, act = np.array(kinds, dtype=np.int64), np.array(acts, dtype=np.int64)
 
     # The check tables depend on the constraint objects, the legs' names, types and actuation
     # and the description -- not on the legs' geometry, but for revolute-joint angle limits
