@@ -303,6 +303,17 @@ class Leg:
     #: The kind ("length" or "angle") of each closure row beyond the actuator: one per
     #: constraint wrench, in the order of :meth:`constraint_residuals`.
     constraint_rows: ClassVar[tuple[str, ...]] = ()
+    #: The fields holding a direction of the leg type, checked by :meth:`__post_init__` in this
+    #: order after the anchors and neutral directions: each a finite non-zero 3-vector, kept as
+    #: the unit vector along it (:func:`_axis`).
+    axis_fields: ClassVar[tuple[str, ...]] = ()
+    #: Whether the type's construction is :meth:`Leg.__post_init__` alone: the anchors and
+    #: :attr:`axis_fields` checked and made unit vectors, then :meth:`_check_values` (which sets
+    #: nothing), every other field kept as given. A described group of such legs is then made
+    #: from one leg built as any other (the fields the legs share) and each leg's anchors and axes
+    #: checked and computed in floats (``parasynth.mechanisms.description.legs``), the same
+    #: fields to the bit.
+    group_built: ClassVar[bool] = False
 
     def __post_init__(self):
         object.__setattr__(self, "base", _vec3((self.name, "base"), self.base))
@@ -313,6 +324,13 @@ class Leg:
             object.__setattr__(self, "base_ref", _axis((self.name, "base_ref"), self.base_ref))
         if self.platform_ref is not _DOWN:
             object.__setattr__(self, "platform_ref", _axis((self.name, "platform_ref"), self.platform_ref))
+        for f in self.axis_fields:
+            object.__setattr__(self, f, _axis((self.name, f), getattr(self, f)))
+        self._check_values()
+
+    def _check_values(self) -> None:
+        """``ValueError`` unless the leg's values other than its anchors and axes (lengths,
+        branch) are allowed; the last check of :meth:`__post_init__`, changing nothing."""
 
     # -- structure -------------------------------------------------------------------------
     @property
@@ -437,6 +455,7 @@ class SPS(Leg):
         stacked=True)
     actuator_value = _anchor_distance
     local_dof: ClassVar[int] = 1
+    group_built: ClassVar[bool] = True
 
     def home_direction(self, p, R):
         return _fixed_line(self.base.tolist(), _at_pose(self.platform.tolist(), p, R))[0]
@@ -479,10 +498,8 @@ class UPS(Leg):
         compiled=True, closure=True, dynamics=True, accuracy=True, stiffness=True, export=True, view=True,
         stacked=True)
     actuator_value = _anchor_distance
-
-    def __post_init__(self):
-        super().__post_init__()
-        object.__setattr__(self, "u_axis", _axis((self.name, "u_axis"), self.u_axis))
+    axis_fields: ClassVar[tuple[str, ...]] = ("u_axis",)
+    group_built: ClassVar[bool] = True
 
     def home_direction(self, p, R):
         return _fixed_line(self.base.tolist(), _at_pose(self.platform.tolist(), p, R))[0]
@@ -559,10 +576,10 @@ class PUS(Leg):
     actuated: ClassVar[int | None] = 0
     actuator_kind: ClassVar[str] = "slider"
 
-    def __post_init__(self):
-        super().__post_init__()
-        object.__setattr__(self, "slider_axis", _axis((self.name, "slider_axis"), self.slider_axis))
-        object.__setattr__(self, "u_axis", _axis((self.name, "u_axis"), self.u_axis))
+    axis_fields: ClassVar[tuple[str, ...]] = ("slider_axis", "u_axis")
+    group_built: ClassVar[bool] = True
+
+    def _check_values(self) -> None:
         L = float(self.link_length)
         if not math.isfinite(L) or L <= 0:
             raise ValueError(f"leg {self.name}: link_length must be a positive length in m, got {L}")
@@ -641,9 +658,8 @@ class RPS(Leg):
     constraint_rows: ClassVar[tuple[str, ...]] = ("length",)
     actuator_value = _anchor_distance
 
-    def __post_init__(self):
-        super().__post_init__()
-        object.__setattr__(self, "r_axis", _axis((self.name, "r_axis"), self.r_axis))
+    axis_fields: ClassVar[tuple[str, ...]] = ("r_axis",)
+    group_built: ClassVar[bool] = True
 
     @property
     def is_actuated(self) -> bool:
@@ -706,12 +722,8 @@ class RPU(Leg):
     constraint_rows: ClassVar[tuple[str, ...]] = ("length", "angle")
     actuator_value = _anchor_distance
 
-    def __post_init__(self):
-        super().__post_init__()
-        object.__setattr__(self, "r_axis", _axis((self.name, "r_axis"), self.r_axis))
-        object.__setattr__(
-            self, "u_platform_axis", _axis((self.name, "u_platform_axis"), self.u_platform_axis)
-        )
+    axis_fields: ClassVar[tuple[str, ...]] = ("r_axis", "u_platform_axis")
+    group_built: ClassVar[bool] = True
 
     def home_direction(self, p, R):
         n = _planar_line(self, p, R)
@@ -779,12 +791,8 @@ class UPU(Leg):
     constraint_rows: ClassVar[tuple[str, ...]] = ("angle",)
     actuator_value = _anchor_distance
 
-    def __post_init__(self):
-        super().__post_init__()
-        object.__setattr__(self, "u_axis", _axis((self.name, "u_axis"), self.u_axis))
-        object.__setattr__(
-            self, "u_platform_axis", _axis((self.name, "u_platform_axis"), self.u_platform_axis)
-        )
+    axis_fields: ClassVar[tuple[str, ...]] = ("u_axis", "u_platform_axis")
+    group_built: ClassVar[bool] = True
 
     @property
     def is_actuated(self) -> bool:
@@ -877,10 +885,10 @@ class PRS(Leg):
     actuated: ClassVar[int | None] = 0
     actuator_kind: ClassVar[str] = "slider"
 
+    axis_fields: ClassVar[tuple[str, ...]] = ("slider_axis", "r_axis")
+
     def __post_init__(self):
         super().__post_init__()
-        object.__setattr__(self, "slider_axis", _axis((self.name, "slider_axis"), self.slider_axis))
-        object.__setattr__(self, "r_axis", _axis((self.name, "r_axis"), self.r_axis))
         if abs(float(self.slider_axis @ self.r_axis)) > 1e-9:
             raise ValueError(
                 f"leg {self.name}: r_axis must be perpendicular to slider_axis (the revolute joint "
@@ -983,10 +991,11 @@ class RUS(Leg):
     actuated: ClassVar[int | None] = 0
     actuator_kind: ClassVar[str] = "angle"
 
+    axis_fields: ClassVar[tuple[str, ...]] = ("r_axis",)
+
     def __post_init__(self):
         super().__post_init__()
-        a = _axis((self.name, "r_axis"), self.r_axis)
-        object.__setattr__(self, "r_axis", a)
+        a = self.r_axis
         c = self.crank_direction
         if c is None:
             c = cross(a, [0.0, 0.0, 1.0])
