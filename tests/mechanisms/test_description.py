@@ -683,6 +683,168 @@ def test_anchor_directions_are_the_in_plane_units_in_arrays_of_each_calls_own():
             a.normal[:] = 7.0
 
 
+_GROUP_LEGS = """
+name: group_legs
+parameters:
+  r: {value: 200 mm}
+  rp: {value: 60 mm}
+  L: {value: 400 mm}
+  tilt: {value: 0.1}
+  br: {value: 1, kind: dimensionless}
+base:
+  B: {pattern: paired, n: 3, radius: r, separation: 20 deg}
+  C: {pattern: points, points: [[40 mm, 10 mm], [100 mm, 0 mm], [0 mm, 120 mm]]}
+platform:
+  P: {pattern: paired, n: 3, radius: rp, separation: 70 deg, phase: 60 deg}
+  P2: {pattern: paired, n: 3, radius: rp, separation: 20 deg}
+  Q: {pattern: polygon, n: 3, radius: rp, plane: xz}
+legs:
+  - {type: PUS, base: B, platform: P, link_length: L, slider_axis: [tilt, 0, 1], u_axis: -tangent, names: [a1, a2, a3, a4, a5, a6]}
+  - {type: UPS, base: C, platform: Q, u_axis: radial, names: [u1, u2, u3]}
+  - {type: RPS, base: "B[0, 2, 4]", platform: "P2[0, 2, 4]", r_axis: tangent, names: [r1, r2, r3]}
+  - {type: RPU, base: "C[1]", platform: [10 mm, 0 mm, 0 mm], r_axis: y, u_platform_axis: -x, name: q1}
+  - {type: UPU, base: C, platform: "Q[2, 1, 0]", u_axis: normal, names: [w1, w2, w3]}
+  - {type: UPU, base: "C[1]", platform: "Q[1]", name: w4}
+  - {type: SPS, base: B, platform: P, names: [s1, s2, s3, s4, s5, s6]}
+task:
+  coordinates: {x: length, y: length, z: length, alpha: angle, beta: angle, gamma: angle}
+  position: [x, y, z]
+  orientation: {convention: xyz, angles: [alpha, beta, gamma]}
+  home: {x: 0 mm, y: 0 mm, z: 300 mm, alpha: 0 deg, beta: 0 deg, gamma: 0 deg}
+"""
+
+
+def _leg_fields_equal(got, want) -> bool:
+    """Two legs of the same type with the same fields, arrays to the bit."""
+    if type(got) is not type(want) or vars(got).keys() != vars(want).keys():
+        return False
+    for k, v in vars(want).items():
+        g = vars(got)[k]
+        if isinstance(v, np.ndarray):
+            if not (isinstance(g, np.ndarray) and g.dtype == v.dtype and g.shape == v.shape and g.tobytes() == v.tobytes()):
+                return False
+        elif type(g) is not type(v) or g != v:
+            return False
+    return True
+
+
+def _group_build_off(monkeypatch):
+    from parasynth.model.legs import LEG_TYPES
+    for cls in LEG_TYPES.values():
+        if cls.__dict__.get("group_built"):
+            monkeypatch.setattr(cls, "group_built", False)
+
+
+def test_leg_groups_built_in_floats_are_the_legs_their_types_build(monkeypatch):
+    """A described group of legs of a type built in floats (``Leg.group_built``: SPS, UPS, PUS,
+    RPS, RPU, UPU) gives the legs its type's constructor gives (every field, arrays to the bit;
+    the constructor applied to each leg is the reference): every shipped description at random
+    designs (lengths, lists changed), and a description with every such type and every kind of
+    axis option (a vector of expressions, named, radial, tangent, normal, signs, defaults) over
+    whole sets, subsets and inline points. Each leg owns its arrays: a write to one leaves the
+    others, and the next build, unchanged."""
+    from parasynth.mechanisms.description import description_class
+    from parasynth.mechanisms.description.parameters import _param_env
+
+    rng = np.random.default_rng(23)
+    cases = []
+    for name, env, _ in _shipped_anchor_sets(rng, 6):
+        cases.append((type(parasynth.load_mechanism(name)).description, env))
+    cls = description_class(yaml.safe_load(_GROUP_LEGS))
+    for k in range(8):
+        env = dict(_param_env(cls.Params(), cls.description.params))
+        if k:
+            env.update(r=rng.uniform(0.1, 0.4), rp=rng.uniform(0.02, 0.09), L=rng.uniform(0.2, 0.6),
+                       tilt=rng.uniform(-2, 2))
+        cases.append((cls.description, env))
+    fast = [d.build_geometry(env)[0] for d, env in cases]
+    fast_again = [d.build_geometry(env)[0] for d, env in cases]  # the templates kept
+    kinds = set()
+    with monkeypatch.context() as m:
+        _group_build_off(m)
+        slow = [d.build_geometry(env)[0] for d, env in cases]
+    for (d, _), a, b, c in zip(cases, fast, fast_again, slow):
+        assert len(a) == len(c)
+        for x, y, z in zip(a, b, c):
+            assert _leg_fields_equal(x, z) and _leg_fields_equal(y, z), (d.name, z.name)
+            kinds.add(type(z).__name__)
+    assert {"SPS", "UPS", "PUS", "RPS", "RPU", "UPU"} <= kinds
+    legs = fast[-1]
+    arrays = [v for leg in legs for v in vars(leg).values() if isinstance(v, np.ndarray) and v.flags.writeable]
+    assert len(arrays) >= 2 * len(legs)
+    for i, u in enumerate(arrays):
+        for v in arrays[i + 1:]:
+            assert not np.shares_memory(u, v)
+    before = [dict(vars(leg)) for leg in cases[-1][0].build_geometry(cases[-1][1])[0]]
+    for a in arrays:
+        a[:] = np.nan
+    after = cases[-1][0].build_geometry(cases[-1][1])[0]
+    assert all(_leg_fields_equal(type(x)(**{k: v for k, v in b.items() if k in {f.name for f in dataclasses.fields(x)}}), x)
+               for x, b in zip(after, before))
+
+
+@pytest.mark.parametrize("edit, where", [
+    ({"slider_axis": [0, 0, 0]}, "the direction must not be zero"),
+    ({"slider_axis": "radial"}, "undefined for an anchor on the axis"),
+    ({"slider_axis": ["1e400", 0, 1]}, None),
+    ({"link_length": "0 mm"}, None),
+    ({"link_length": "-5 mm"}, None),
+])
+def test_leg_groups_built_in_floats_refuse_what_their_types_refuse(monkeypatch, edit, where):
+    """A wrong leg option of a group built in floats gives the error its type's constructor
+    gives (the same text): a zero or undefined direction, a non-finite axis, a link length that
+    is not positive."""
+    from parasynth.mechanisms.description import description_class
+
+    spec = yaml.safe_load(_GROUP_LEGS)
+    spec["base"]["B"] = {"pattern": "points", "points": [[0, 0], ["100 mm", 0], [0, "100 mm"],
+                                                         ["-100 mm", 0], [0, "-100 mm"], ["70 mm", "70 mm"]]}
+    spec["legs"][0].update(edit)
+    errors = []
+    for off in (False, True):
+        with monkeypatch.context() as m:
+            if off:
+                _group_build_off(m)
+            try:
+                cls = description_class(copy.deepcopy(spec))
+                cls()
+            except (DescriptionError, ValueError) as e:
+                errors.append(str(e))
+            else:
+                errors.append(None)
+    assert errors[0] is not None and errors[0] == errors[1]
+    if where is not None:
+        assert where in errors[0]
+
+
+@pytest.mark.parametrize("L, text", [(0.0, "link_length must be a positive length"),
+                                     (-0.1, "link_length must be a positive length"),
+                                     (float("nan"), "evaluates to nan (not finite)")])
+def test_leg_groups_built_in_floats_check_the_shared_options_of_each_design(monkeypatch, L, text):
+    """After a design built in floats (its group's template kept), a design whose shared
+    option is wrong (a link length that is zero, negative, not a number) is refused with the
+    error its type's constructor gives."""
+    from parasynth.mechanisms.description import description_class
+    from parasynth.mechanisms.description.parameters import _param_env
+
+    errors = []
+    for off in (False, True):
+        with monkeypatch.context() as m:
+            if off:
+                _group_build_off(m)
+            cls = description_class(yaml.safe_load(_GROUP_LEGS))
+            cls()
+            d = cls.description
+            env = dict(_param_env(cls.Params(), d.params), L=np.float64(L))
+            try:
+                d.build_geometry(env)
+            except DescriptionError as e:
+                errors.append(str(e))
+            else:
+                errors.append(None)
+    assert errors[0] is not None and errors[0] == errors[1] and text in errors[0]
+
+
 def test_constraints_kept_per_the_values_they_read_are_each_designs_own():
     """A described mechanism's constraints are kept per the values of the parameters their
     bounds read: for random designs of every shipped description (single values changed in one

@@ -5,8 +5,6 @@ each point.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import math
 
 import numpy as np
@@ -47,14 +45,48 @@ def _list_param(name, params, path, kind, ndim_ok):
     return p
 
 
-@dataclass
 class _Anchors:
-    """Built anchor points (n, 3) with the directions of their set's plane."""
+    """Built anchor points with the directions of their set's plane: as rows of three Python
+    floats (``rows``, ``radial_rows``, ``tangent_rows``: tuples of tuples, and ``normal_row``,
+    never written: several built anchors may share them) and, made when first asked for, as
+    arrays of this object's own (``points`` (n, 3), ``radial``, ``tangent``, ``normal`` (3,)).
+    A described leg group of a type built in floats reads the rows alone."""
 
-    points: np.ndarray
-    radial: np.ndarray
-    tangent: np.ndarray
-    normal: np.ndarray  # (3,)
+    __slots__ = ("rows", "radial_rows", "tangent_rows", "normal_row", "_arrays")
+
+    def __init__(self, rows: tuple, radial_rows: tuple, tangent_rows: tuple, normal_row: tuple):
+        self.rows, self.radial_rows, self.tangent_rows, self.normal_row = rows, radial_rows, tangent_rows, normal_row
+        self._arrays = None
+
+    def _made(self) -> tuple:
+        a = self._arrays
+        if a is None:
+            a = self._arrays = (np.array(self.rows, dtype=float).reshape(-1, 3),
+                                np.array(self.radial_rows, dtype=float).reshape(-1, 3),
+                                np.array(self.tangent_rows, dtype=float).reshape(-1, 3),
+                                np.array(self.normal_row, dtype=float))
+        return a
+
+    @property
+    def points(self) -> np.ndarray:
+        return self._made()[0]
+
+    @property
+    def radial(self) -> np.ndarray:
+        return self._made()[1]
+
+    @property
+    def tangent(self) -> np.ndarray:
+        return self._made()[2]
+
+    @property
+    def normal(self) -> np.ndarray:
+        return self._made()[3]
+
+    def subset(self, indices) -> "_Anchors":
+        """The anchors at ``indices`` (rows shared, arrays its own)."""
+        return _Anchors(tuple(self.rows[i] for i in indices), tuple(self.radial_rows[i] for i in indices),
+                        tuple(self.tangent_rows[i] for i in indices), self.normal_row)
 
 
 class _AnchorSet:
@@ -142,7 +174,7 @@ class _AnchorSet:
         """The anchors for the parameter values ``env``: kept per the values of the parameters the
         set's expressions name (as :class:`_Scalar` keeps a value), so that a study's designs
         that leave the set unchanged (the platform's while the legs vary) share its build; each
-        call gets arrays of its own."""
+        call gets arrays of its own (made when asked for: :class:`_Anchors`)."""
         names = self.__dict__.get("_names")
         if names is None:
             names = self._names = self._input_names()
@@ -150,13 +182,13 @@ class _AnchorSet:
         memo = self.__dict__.setdefault("_memo", {})
         hit = memo.get(key) if key is not None else None
         if hit is None:
-            hit = self._build(env)  # arrays of its own
+            hit = self._build(env)
             if key is None:
                 return hit
             if len(memo) >= 64:
                 memo.clear()
             memo[key] = hit
-        return _Anchors(hit.points.copy(), hit.radial.copy(), hit.tangent.copy(), hit.normal.copy())
+        return _Anchors(hit.rows, hit.radial_rows, hit.tangent_rows, hit.normal_row)
 
     def _build(self, env) -> _Anchors:
         """The set's anchors and directions, computed in Python floats: the same operations in
@@ -218,7 +250,7 @@ class _AnchorSet:
 
 def _float_directions(P: list, axes) -> _Anchors:
     """The anchors ``P`` (rows of three floats) with the radial and tangent directions of their
-    set's plane ``axes`` and its normal, as new arrays, computed in floats: the
+    set's plane ``axes`` and its normal, computed in floats: the
     norm sqrt(a a + b b), the unit in-plane vector (zero below 1e-15), radial = u1 e1 + u2 e2
     and tangent = -u2 e1 + u1 e2 component by component, as the array form computes them."""
     i1, i2, i3 = axes
@@ -228,12 +260,13 @@ def _float_directions(P: list, axes) -> _Anchors:
         a, b = v[i1], v[i2]
         n = math.sqrt(a * a + b * b)
         u1, u2 = (a / n, b / n) if n > 1e-15 else (0.0, 0.0)
-        radial.append([u1 * e1[k] + u2 * e2[k] for k in range(3)])
-        tangent.append([-u2 * e1[k] + u1 * e2[k] for k in range(3)])
-    return _Anchors(np.array(P, dtype=float).reshape(-1, 3), np.array(radial, dtype=float).reshape(-1, 3),
-                    np.array(tangent, dtype=float).reshape(-1, 3), _EYE[i3].copy())
+        radial.append((u1 * e1[0] + u2 * e2[0], u1 * e1[1] + u2 * e2[1], u1 * e1[2] + u2 * e2[2]))
+        tangent.append((-u2 * e1[0] + u1 * e2[0], -u2 * e1[1] + u1 * e2[1], -u2 * e1[2] + u1 * e2[2]))
+    return _Anchors(tuple(map(tuple, P)), tuple(radial), tuple(tangent),
+                    _EYE_TUPLES[i3])
 
 
 _EYE = np.eye(3)
 _EYE.flags.writeable = False
 _EYE_ROWS = _EYE.tolist()
+_EYE_TUPLES = tuple(tuple(r) for r in _EYE_ROWS)

@@ -4,11 +4,12 @@ link lengths, branches), anchor references and the actuated joint.
 
 from __future__ import annotations
 
+import math
 import re
 
 import numpy as np
 
-from ...model.legs import LEG_TYPES, types_with
+from ...model.legs import _DOWN, _UP, LEG_TYPES, types_with
 from .errors import DescriptionError
 from .parameters import _Scalar, _check_keys
 from .anchors import _Anchors, _PLANES, _float_directions
@@ -47,6 +48,7 @@ class _Axis:
         self.named = None
         self.vector = None
         self.constant = None  # a named axis (x, -y, ...): the same read-only vector for every leg
+        self.constant_floats = None  # and its three floats
         if isinstance(raw, str):
             s = raw.strip()
             sign = -1.0 if s.startswith("-") else 1.0
@@ -56,6 +58,7 @@ class _Axis:
                 if key in _NAMED_AXES:
                     self.constant = sign * np.array(_NAMED_AXES[key], dtype=float)
                     self.constant.flags.writeable = False
+                    self.constant_floats = tuple(self.constant.tolist())
                 return
             raise DescriptionError(f"{path}: unknown direction {raw!r}; give x, y, z, radial, tangent or normal "
                                    f"(optionally with a sign, e.g. -z) or [ax, ay, az]")
@@ -86,6 +89,26 @@ class _Axis:
         if not x * x + y * y + z * z > 0:  # np.linalg.norm(v) > 0: the same squares and sum
             raise DescriptionError(f"{self.path}: the direction must not be zero")
         return v
+
+
+    def floats(self, env, anchors: _Anchors, k: int):
+        """The direction of :meth:`__call__` as three floats, read from the anchors' rows; None
+        where :meth:`__call__` refuses it (it then says why)."""
+        if self.constant_floats is not None:
+            return self.constant_floats
+        if self.vector is not None:
+            x, y, z = (float(s(env)) for s in self.vector)
+        else:
+            sign, key = self.named
+            if key in _NAMED_AXES:
+                x, y, z = (sign * float(c) for c in _NAMED_AXES[key])
+            else:
+                r = anchors.normal_row if key == "normal" else (anchors.radial_rows if key == "radial"
+                                                                 else anchors.tangent_rows)[k]
+                x, y, z = sign * r[0], sign * r[1], sign * r[2]
+        if not x * x + y * y + z * z > 0:
+            return None
+        return x, y, z
 
 
 class _Ref:
@@ -134,10 +157,10 @@ class _Ref:
         a = built[self.set]
         i = self.indices
         if self.__dict__.get("_all") is None:
-            self._all = i == list(range(len(a.points)))
+            self._all = i == list(range(len(a.rows)))
         if self._all:
             return a
-        return _Anchors(a.points[i], a.radial[i], a.tangent[i], a.normal)
+        return a.subset(i)
 
 
 class _LegGroup:
@@ -232,7 +255,6 @@ class _LegGroup:
     def build(self, env, built_base, built_plat) -> list:
         A = self.base.resolve(env, built_base)
         B = self.platform.resolve(env, built_plat)
-        legs = []
         # the options that do not depend on the leg (lengths, flags): evaluated once per group
         shared, per_leg = {}, []
         for k, spec in self.options.items():
@@ -247,14 +269,88 @@ class _LegGroup:
                 shared[k] = spec
         if self.type in PASSIVE_CAPABLE:
             shared["passive"] = not self.actuated
-        for j, name in enumerate(self.names):
-            kb = 0 if self.base.n == 1 else j
-            kp = 0 if self.platform.n == 1 else j
-            kw = dict(shared)
+        if self.cls.__dict__.get("group_built") and all(k in self.cls.axis_fields for k, *_ in per_leg):
+            return self._in_floats(env, A, B, shared, per_leg)
+        return self._each(env, A, B, shared, per_leg)
+
+    def _one(self, env, j, A, B, shared, per_leg):
+        """Leg ``j`` of the group, built as any leg is: its options evaluated, then its type's
+        constructor (which checks it)."""
+        kb = 0 if self.base.n == 1 else j
+        kp = 0 if self.platform.n == 1 else j
+        kw = dict(shared)
+        for k, spec, S, on_base in per_leg:
+            kw[k] = spec(env, S, kb if on_base else kp)
+        try:
+            return self.cls(self.names[j], base=A.points[kb], platform=B.points[kp], **kw)
+        except ValueError as e:
+            raise DescriptionError(f"{self.label}: {e}") from None
+
+    def _in_floats(self, env, A, B, shared, per_leg) -> list:
+        """The group's legs of a type built in floats (:attr:`Leg.group_built`): the fields the
+        legs share from a template leg built once as any leg is, the options every leg shares as
+        given (checked once, by the first leg's ``_check_values``), each leg's anchors and axes
+        checked and made unit vectors in floats with the operations of its type's constructor
+        (:func:`_axis`), the same bits, as the rows of one array (each leg its own rows). Where
+        the floats find a value wrong, the group is built as any group is, which says what is
+        wrong."""
+        cls = self.cls
+        fields = cls.axis_fields
+        hit = self.__dict__.get("_template")
+        if hit is None:
+            tmpl = self._one(env, 0, A, B, shared, per_leg)
+            given = {k for k, *_ in per_leg}
+            kept = {f: tuple(tmpl.__dict__[f].tolist()) for f in fields if f not in given}
+            # the template's arrays are the leg's anchors and axes, and the shared default neutral
+            # directions (read-only): any other array would be shared by the legs made from it
+            arrays = {f for f, v in tmpl.__dict__.items() if isinstance(v, np.ndarray)}
+            if not arrays <= {"base", "platform", "base_ref", "platform_ref", *fields} \
+                    or tmpl.base_ref is not _UP or tmpl.platform_ref is not _DOWN:
+                return [tmpl] + [self._one(env, j, A, B, shared, per_leg) for j in range(1, self.n)]
+            hit = self._template = (tmpl.__dict__, kept)
+        tdict, kept = hit
+        nb1, np1 = self.base.n == 1, self.platform.n == 1
+        isfinite = math.isfinite
+        # every anchor finite (a sum is finite only if its terms are; one too large to add up
+        # sends the group the constructors' way, which builds it)
+        if not (isfinite(sum(map(sum, A.rows))) and isfinite(sum(map(sum, B.rows)))):
+            return self._each(env, A, B, shared, per_leg)
+        flat = []
+        for j in range(self.n):
+            kb = 0 if nb1 else j
+            kp = 0 if np1 else j
+            row = [*A.rows[kb], *B.rows[kp]]
+            axes = {}
             for k, spec, S, on_base in per_leg:
-                kw[k] = spec(env, S, kb if on_base else kp)
-            try:
-                legs.append(self.cls(name, base=A.points[kb], platform=B.points[kp], **kw))
-            except ValueError as e:
-                raise DescriptionError(f"{self.label}: {e}") from None
+                v = spec.floats(env, S, kb if on_base else kp)
+                if v is None:
+                    return self._each(env, A, B, shared, per_leg)
+                x, y, z = v
+                if not isfinite(x + y + z):
+                    return self._each(env, A, B, shared, per_leg)
+                n = math.sqrt(x * x + y * y + z * z)  # _unit_xyz: one division per entry
+                axes[k] = (x / n, y / n, z / n)
+            for f in fields:
+                row.extend(axes[f] if f in axes else kept[f])
+            flat.extend(row)
+        rows = np.array(flat, dtype=float).reshape(self.n, 2 + len(fields), 3)
+        legs = []
+        new = object.__new__
+        for j, name in enumerate(self.names):
+            leg = new(cls)
+            d = leg.__dict__
+            d.update(tdict)
+            d.update(shared)
+            r = rows[j]
+            d["name"], d["base"], d["platform"] = name, r[0], r[1]
+            for m, f in enumerate(fields):
+                d[f] = r[2 + m]
+            legs.append(leg)
+        try:
+            legs[0]._check_values()  # the shared options, as the constructor checks them last
+        except ValueError:
+            return self._each(env, A, B, shared, per_leg)
         return legs
+
+    def _each(self, env, A, B, shared, per_leg) -> list:
+        return [self._one(env, j, A, B, shared, per_leg) for j in range(self.n)]
