@@ -399,7 +399,9 @@ class DescribedMechanism(Mechanism):
 
     def _neutral_refs(self, legs):
         """Each leg's neutral joint directions: its direction at home (as
-        :meth:`Mechanism._neutral_refs`), after checking that every leg reaches home."""
+        :meth:`Mechanism._neutral_refs`), after checking that every leg reaches home. ``legs``
+        are the ones :meth:`Description.build_geometry` built for this mechanism: most are given
+        their directions in place."""
         p, R = self.__dict__.pop("_home_pose", None) or self._pose(self.home[None, :])
         self._home_platform_pose = (self.home.copy(), p, R)
         out = []
@@ -446,9 +448,12 @@ class DescribedMechanism(Mechanism):
                                        f"by leg {leg.name} ({leg.joints}){why}")
             out.append(leg.with_neutral(n, R[0].T @ (-n)))
         if units:
+            # the legs are this mechanism's own, just built (build_geometry): given their
+            # directions in place, as rows of one array (each leg its own rows)
             rows = np.array([v for _, b, q in units for v in (b, q)], dtype=float)
             for k, (i, _, _) in enumerate(units):
-                out[i] = out[i]._with_refs(rows[2 * k], rows[2 * k + 1])
+                d = out[i].__dict__
+                d["base_ref"], d["platform_ref"] = rows[2 * k], rows[2 * k + 1]
         return out
 
     def home_platform_pose(self):
