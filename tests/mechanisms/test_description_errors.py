@@ -158,6 +158,21 @@ def test_bad_parameter_values_at_load():
         parasynth.load_mechanism("3prs", link_length=0.1)
 
 
+def test_parameter_checks_kept_per_values_refuse_every_failing_set():
+    """A check's passing values are kept per the values it reads: values that fail it are
+    refused each time, also between and after passing ones."""
+    Params = type(parasynth.load_mechanism("3rps")).Params
+    q_max = Params().q_max
+    for _ in range(3):
+        for q_min, ok in ((0.5 * q_max, True), (q_max, False), (1.2 * q_max, False), (0.0, True), (-0.0, True),
+                          (0.5 * q_max, True), (q_max, False)):
+            if ok:
+                assert Params(q_min=q_min).q_min == q_min
+            else:
+                with pytest.raises(ValueError, match="fail the check 'q_min < q_max'"):
+                    Params(q_min=q_min)
+
+
 # -- variants -----------------------------------------------------------------------------------------
 FIVE = _data("5pus_upu.yaml")
 

@@ -321,8 +321,8 @@ def _parse_params(raw) -> list[_Param]:
 
 
 def _param_env(params_obj, plist) -> dict:
-    env = {}
-    for p in plist:
-        v = getattr(params_obj, p.name)
-        env[p.name] = np.float64(v) if p.shape == () else np.asarray(v, dtype=float)
-    return env
+    """{parameter name: its value} of a ``Params`` object: a float64 scalar, or a float64 array
+    for a list parameter."""
+    d = params_obj.__dict__
+    F64, asarray = np.float64, np.asarray
+    return {p.name: F64(d[p.name]) if p.shape == () else asarray(d[p.name], dtype=float) for p in plist}

@@ -14,7 +14,7 @@ import numpy as np
 
 from .errors import DescriptionError
 from .expressions import Expression, _Scope
-from .parameters import _Scalar, _check_identifier, _check_keys, _param_env, _parse_params
+from .parameters import _Scalar, _check_identifier, _check_keys, _param_env, _parse_params, values_key
 from .anchors import _AnchorSet
 from .legs import _LegGroup
 from .task import _Task
@@ -172,6 +172,28 @@ def _digest(data) -> str:
     return hashlib.sha1(text.encode()).hexdigest()[:10]
 
 
+def _check_params(chk, env: dict, mname: str) -> None:
+    """``ValueError`` naming the check and the values unless the parameters ``env`` pass the
+    check ``chk``; the values that passed it are kept (per the values of the parameters it
+    names: :func:`values_key`), as a study's designs mostly repeat them."""
+    names = chk.__dict__.get("_sorted_names")
+    if names is None:
+        names = chk._sorted_names = tuple(sorted(chk.names))
+    key = values_key(env, names)
+    passed = chk.__dict__.setdefault("_passed", set())
+    if key is not None and key in passed:
+        return
+    with np.errstate(all="ignore"):
+        ok = chk(env)
+    if not (bool(ok) if isinstance(ok, (bool, np.bool_)) else bool(np.all(ok))):
+        vals = ", ".join(f"{n}={env[n]!r}" for n in names)
+        raise ValueError(f"{mname}: the parameters fail the check {chk.text!r} ({vals}, SI)")
+    if key is not None:
+        if len(passed) >= 256:
+            passed.clear()
+        passed.add(key)
+
+
 def _make_params_class(desc: Description, cls_name: str, resolve=None):
     """The frozen ``Params`` dataclass: one field per parameter (SI), then one per variant
     (its choice). ``resolve(selection)`` gives the description of a selection (its checks
@@ -186,21 +208,18 @@ def _make_params_class(desc: Description, cls_name: str, resolve=None):
     coerced = [(p, p.name, f"{mname}.{p.name}") for p in plist] + [(v, v.name, f"{mname}.{v.name}") for v in variants]
 
     def __post_init__(self):
+        d = self.__dict__  # a frozen dataclass's fields, written as object.__setattr__ writes them
         for p, name, where in coerced:
-            object.__setattr__(self, name, p.coerce(getattr(self, name), where))
+            d[name] = p.coerce(d[name], where)
         checks = desc.checks
         if variants and resolve is not None:
-            checks = resolve({v.name: getattr(self, v.name) for v in variants}).checks
+            checks = resolve({v.name: d[v.name] for v in variants}).checks
         env = _param_env(self, plist)
-        object.__setattr__(self, "_env", (plist, env))  # the model built from these parameters starts from it
+        d["_env"] = (plist, env)  # the model built from these parameters starts from it
         if not checks:
             return
-        with np.errstate(all="ignore"):  # one context for all the checks (each in turn, the first failing said)
-            for chk in checks:
-                ok = chk(env)
-                if not (bool(ok) if isinstance(ok, (bool, np.bool_)) else bool(np.all(ok))):
-                    vals = ", ".join(f"{n}={env[n]!r}" for n in sorted(chk.names))
-                    raise ValueError(f"{mname}: the parameters fail the check {chk.text!r} ({vals}, SI)")
+        for chk in checks:
+            _check_params(chk, env, mname)
 
     fields = [(p.name, float if p.shape == () else tuple, dataclasses.field(default=p.default)) for p in plist]
     fields += [(v.name, bool if v.is_switch else str, dataclasses.field(default=v.default)) for v in variants]
