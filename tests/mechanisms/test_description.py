@@ -690,7 +690,6 @@ parameters:
   rp: {value: 60 mm}
   L: {value: 400 mm}
   tilt: {value: 0.1}
-  br: {value: 1, kind: dimensionless}
 base:
   B: {pattern: paired, n: 3, radius: r, separation: 20 deg}
   C: {pattern: points, points: [[40 mm, 10 mm], [100 mm, 0 mm], [0 mm, 120 mm]]}
