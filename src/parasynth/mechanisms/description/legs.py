@@ -90,7 +90,6 @@ class _Axis:
             raise DescriptionError(f"{self.path}: the direction must not be zero")
         return v
 
-
     def floats(self, env, anchors: _Anchors, k: int):
         """The direction of :meth:`__call__` as three floats, read from the anchors' rows; None
         where :meth:`__call__` refuses it (it then says why)."""
@@ -98,14 +97,11 @@ class _Axis:
             return self.constant_floats
         if self.vector is not None:
             x, y, z = (float(s(env)) for s in self.vector)
-        else:
+        else:  # a direction of the anchor (a named axis x, y, z is a constant)
             sign, key = self.named
-            if key in _NAMED_AXES:
-                x, y, z = (sign * float(c) for c in _NAMED_AXES[key])
-            else:
-                r = anchors.normal_row if key == "normal" else (anchors.radial_rows if key == "radial"
-                                                                 else anchors.tangent_rows)[k]
-                x, y, z = sign * r[0], sign * r[1], sign * r[2]
+            r = anchors.normal_row if key == "normal" else (anchors.radial_rows if key == "radial"
+                                                             else anchors.tangent_rows)[k]
+            x, y, z = sign * r[0], sign * r[1], sign * r[2]
         if not x * x + y * y + z * z > 0:
             return None
         return x, y, z
