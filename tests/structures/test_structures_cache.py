@@ -34,16 +34,17 @@ def checks(monkeypatch):
 
 
 def _fields(found):
-    return (found.motion, found.enumerated, found.dropped, found.dropped_names, found.no_task_rule,
+    return (found.motion, found.enumerated, found.dropped, found.dropped_names, found.no_task_rule, found.no_home,
             [(s.name, s.key, s.label, s.groups, s.arrangement, s.template, s.axes, s.description, s.checked_poses,
               s.controlled_poses, s.home_margin, s.checked_margin, s.equivalents, s.verified) for s in found])
 
 
 def test_a_second_enumeration_is_read_back_equal_to_the_first(folder, checks):
-    """1T2R: parasitic motions, candidates without a task rule (with their reasons), several
-    structures; the second answer comes without a single check and equals the first."""
+    """1T2R: parasitic motions, candidates without a home near the nominal one (with their
+    reasons), several structures; the second answer comes without a single check and equals the
+    first."""
     first = structures("1T2R", processes=1)
-    assert len(checks) == 1 and first.no_task_rule
+    assert len(checks) == 1 and first.no_home
     files = list((folder / "structures").iterdir())
     assert len(files) == 1
     second = structures("1T2R", processes=1)

@@ -9,7 +9,12 @@ pose (each closure equation's gradient is the work of a constraint wrench). So:
 
 1. a pose near the nominal home (``x = y = 0``, ``z = height``, level) where every limb
    assembles is found by a minimum-norm Gauss-Newton solve over the coordinates but z (the
-   height kept), or, failing that, over all six;
+   height kept), or, failing that, over all six; a solution counts only if it is near
+   (:func:`home_is_near`: the platform tilted at most :data:`HOME_TILT_MAX` from level, its
+   centre within :data:`HOME_OFFSET_MAX` length scales of the nominal one; any turn about the
+   vertical): from a start where the limbs' equations are degenerate the minimum-norm steps
+   may otherwise end at a platform on its side or metres away, a pose that depends on the
+   last bits of the linear algebra (and so on the machine) and that no one would call home;
 2. there the rank ``r`` of the closure Jacobian (lengths scaled by the length scale) counts the
    constraints, and ``6 - r`` is the number of freedoms; the motion type is ``nT mR`` with ``m``
    the rank of the rotational part of the freedoms' twists;
@@ -46,7 +51,8 @@ from ..model.parasitic import HOME_ITERATIONS, ParasiticError, closure_count, ga
 from ..model.spatial import euler_rate_map, euler_to_matrix
 from .vocabulary import TEMPLATES
 
-__all__ = ["MotionRule", "NoTaskRule", "motion_rule", "COORDINATES", "PREFERENCE"]
+__all__ = ["MotionRule", "NoTaskRule", "NoHome", "motion_rule", "home_is_near", "COORDINATES", "PREFERENCE",
+           "HOME_TILT_MAX", "HOME_OFFSET_MAX"]
 
 #: The six pose coordinates of the ``free`` template and their kinds.
 COORDINATES = (("x", "length"), ("y", "length"), ("z", "length"), ("alpha", "angle"), ("beta", "angle"),
@@ -56,10 +62,20 @@ PREFERENCE = ("z", "alpha", "beta", "x", "y", "gamma")
 #: Names of the freedoms of each coordinate (as the ``free`` template's axes).
 _AXIS_NAMES = {"x": "x", "y": "y", "z": "z", "alpha": "x", "beta": "moving y", "gamma": "moving z"}
 _RANK_TOL = 1e-8
+#: The largest tilt of the platform from level (rad) at an assembled home pose.
+HOME_TILT_MAX = np.radians(45.0)
+#: The largest distance of the platform centre from the nominal home's, horizontally and in
+#: height, at an assembled home pose (in length scales: the description's ``base_radius``).
+HOME_OFFSET_MAX = 1.0
 
 
 class NoTaskRule(Exception):
     """No motion rule for a candidate; the message says why."""
+
+
+class NoHome(NoTaskRule):
+    """No motion rule for a candidate because its limbs assemble nowhere near the nominal home
+    (:func:`home_is_near`); the message says what the nearest assembly found was, if any."""
 
 
 @dataclass(frozen=True)
@@ -79,6 +95,25 @@ class MotionRule:
 
 def _pose(V):
     return V[:, :3], euler_to_matrix("xyz", V[:, 3:])
+
+
+def home_is_near(V, V0, L: float) -> str | None:
+    """None if the pose ``V`` (x, y, z, alpha, beta, gamma) is near the nominal home ``V0``
+    (length scale ``L``): tilted at most :data:`HOME_TILT_MAX` from level, its centre within
+    :data:`HOME_OFFSET_MAX` * ``L`` of the nominal one horizontally and in height; else what is
+    far, in words."""
+    R = euler_to_matrix("xyz", np.asarray(V[3:], dtype=float)[None])[0]
+    tilt = float(np.arccos(np.clip(R[2, 2], -1.0, 1.0)))
+    off, dz = float(np.hypot(V[0] - V0[0], V[1] - V0[1])), float(abs(V[2] - V0[2]))
+    far = []
+    if not tilt <= HOME_TILT_MAX:
+        far.append(f"the platform tilted {np.degrees(tilt):.0f} deg from level (at most "
+                   f"{np.degrees(HOME_TILT_MAX):.0f})")
+    if not off <= HOME_OFFSET_MAX * L:
+        far.append(f"its centre {off / L:.2g} length scales off the vertical (at most {HOME_OFFSET_MAX:g})")
+    if not dz <= HOME_OFFSET_MAX * L:
+        far.append(f"its height {dz / L:.2g} length scales from the nominal one (at most {HOME_OFFSET_MAX:g})")
+    return ", ".join(far) or None
 
 
 def motion_rule(description: dict) -> MotionRule:
@@ -109,7 +144,9 @@ def motion_rule(description: dict) -> MotionRule:
 
     V0 = np.asarray(home, dtype=float)  # the free template's nominal home: x, y, z, alpha, beta, gamma
     # assemble with z at the nominal height first (a minimum-norm step may otherwise trade the
-    # height for the closure, e.g. UPU legs turned vertical), then over all six coordinates
+    # height for the closure, e.g. UPU legs turned vertical), then over all six coordinates;
+    # an assembly far from the nominal home is none (home_is_near)
+    far = None
     for free_idx in ([0, 1, 3, 4, 5], [0, 1, 2, 3, 4, 5]):
         fi = np.array(free_idx)
 
@@ -123,10 +160,13 @@ def motion_rule(description: dict) -> MotionRule:
         if ok[0]:
             V = V0.copy()
             V[fi] = Uf[0]
-            break
+            far = home_is_near(V, V0, L)
+            if far is None:
+                break
+            ok = np.zeros(1, dtype=bool)
     if not ok[0]:
-        raise NoTaskRule("the limbs' closure equations have no solution near the nominal home (x = y = 0, "
-                         "z = height, level platform)")
+        raise NoHome("the limbs' closure equations have no solution near the nominal home (x = y = 0, "
+                         "z = height, level platform)" + (f"; the one found has {far}" if far else ""))
     # the closure Jacobian at the assembled pose, in scaled coordinates
     E = np.diag(1e-6 * scale)
     J = ((fun(None, V + E) - fun(None, V - E)) / 2e-6).T  # (k, 6)
@@ -171,6 +211,12 @@ def motion_rule(description: dict) -> MotionRule:
     if not ok[0]:
         raise NoTaskRule(f"the dependent coordinates {', '.join(dep)} have no solution at the nominal values of "
                          f"{', '.join(ind)}")
+    Vh = Vn.copy()
+    Vh[dj] = U[0]
+    far = home_is_near(Vh, V0, L)
+    if far is not None:
+        raise NoHome(f"the dependent coordinates {', '.join(dep)} solved at the nominal values of "
+                         f"{', '.join(ind)} give a home far from the nominal one: {far}")
     t = free.task
     task = {
         "coordinates": {c: kinds[c] for c in ind},
@@ -192,19 +238,21 @@ _RULES: dict = {}
 
 
 def candidate_rule(groups, describe):
-    """``(rule, reason)`` of a candidate's limb groups: its :class:`MotionRule`, or None and why
-    not. ``describe(template)`` writes the candidate's description with a template; the result
-    is cached per groups (the rule depends only on the limbs and the default dimensions)."""
+    """``(rule, reason, drop)`` of a candidate's limb groups: its :class:`MotionRule` (reason
+    and drop None), or None, why not and the drop reason of :mod:`.synthesis` (``"no home"``
+    for :class:`NoHome`, else ``"no task rule"``). ``describe(template)`` writes the candidate's
+    description with a template; the result is cached per groups (the rule depends only on the
+    limbs and the default dimensions)."""
     if groups not in _RULES:
         try:
-            _RULES[groups] = (motion_rule(describe(TEMPLATES["free"])), None)
+            _RULES[groups] = (motion_rule(describe(TEMPLATES["free"])), None, None)
         except NoTaskRule as e:
-            _RULES[groups] = (None, str(e))
+            _RULES[groups] = (None, str(e), "no home" if isinstance(e, NoHome) else "no task rule")
     return _RULES[groups]
 
 
 def remember_rule(groups, rule) -> None:
-    """Keep ``rule`` (``(rule, reason)``, as :func:`candidate_rule` gives) as the rule of
+    """Keep ``rule`` (``(rule, reason, drop)``, as :func:`candidate_rule` gives) as the rule of
     ``groups``: one found in another process (:mod:`.synthesis` spreads the candidates' rules
     over processes)."""
     _RULES.setdefault(groups, rule)

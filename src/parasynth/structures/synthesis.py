@@ -52,6 +52,10 @@ DROP_REASONS = {
     "no task rule": "its constraining limbs select no motion template and no motion can be computed from their "
                     "closure equations (each one's reason follows it, from StructureList.no_task_rule; computed "
                     "only for a candidate with as many actuators as freedoms)",
+    "no home": "its limbs' closure equations have no solution near the nominal home (the platform within 45 deg "
+               "of level, its centre within a length scale of x = y = 0, z = height; each one's nearest solution "
+               "follows it, from StructureList.no_home; computed only for a candidate with as many actuators as "
+               "freedoms)",
     "other axes": "its freedoms are not along the axes required (axes)",
     "under-actuated": "fewer actuators than the requested freedoms",
     "over-actuated": "more actuators than the requested freedoms (redundant actuation)",
@@ -517,14 +521,16 @@ class Structure:
 class StructureList(list):
     """The structures found (a list), with ``motion``, ``enumerated`` (candidates generated),
     ``dropped`` ({reason: count}, reasons of :data:`DROP_REASONS`) and ``dropped_names``
-    ({reason: [candidate names]}) and ``no_task_rule`` ({"name [arrangement]": why it has no task
-    rule}); :meth:`dropped_lines` lists them."""
+    ({reason: [candidate names]}), ``no_task_rule`` ({"name [arrangement]": why it has no task
+    rule}) and ``no_home`` (the same for the candidates whose limbs assemble nowhere near the
+    nominal home); :meth:`dropped_lines` lists them."""
 
     def __init__(self, items, motion, enumerated, dropped, dropped_names, show_dropped: bool = False,
-                 no_task_rule=None):
+                 no_task_rule=None, no_home=None):
         super().__init__(items)
         self.show_dropped = show_dropped
         self.no_task_rule = dict(no_task_rule or {})
+        self.no_home = dict(no_home or {})
         self.motion = motion
         self.enumerated = enumerated
         self.dropped = dropped
@@ -540,8 +546,9 @@ class StructureList(list):
             counted = Counter(names)
             listed = ", ".join(n if k == 1 else f"{n} x{k}" for n, k in counted.items())
             out.append(f"{reason} ({len(names)}; {DROP_REASONS[reason]}): {listed}")
-            if reason == "no task rule":  # why, candidate by candidate
-                out += [f"  {name}: {why}" for name, why in self.no_task_rule.items()]
+            if reason in ("no task rule", "no home"):  # why, candidate by candidate
+                why_of = self.no_task_rule if reason == "no task rule" else getattr(self, "no_home", {})
+                out += [f"  {name}: {why}" for name, why in why_of.items()]
         return out
 
     def summary(self) -> str:
@@ -916,7 +923,7 @@ def structures(motion, *, leg_types=None, legs=None, axes=None, all_axes: bool =
     if kept is not None:
         kept.show_dropped = bool(show_dropped)
         return kept
-    no_rule = {}
+    no_rule, no_home = {}, {}
 
     def drop(reason, c):
         dropped[reason] += 1
@@ -964,11 +971,11 @@ def structures(motion, *, leg_types=None, legs=None, axes=None, all_axes: bool =
         too_many(len(to_check), "at least ")
     rules = _spread(lambda c: candidate_rule(c.groups, lambda t: _description(c, t, "rule")),
                     [c for c, _ in pending], processes)
-    for (c, key), (template, why) in zip(pending, rules):
-        remember_rule(c.groups, (template, why))  # a rule found in another process, for later calls
+    for (c, key), (template, why, reason) in zip(pending, rules):
+        remember_rule(c.groups, (template, why, reason))  # a rule found in another process, for later calls
         if template is None:
-            drop("no task rule", c)
-            no_rule[f"{c.name} [{'; '.join(g.label() for g in c.groups)}]"] = why
+            drop(reason, c)
+            (no_rule if reason == "no task rule" else no_home)[f"{c.name} [{'; '.join(g.label() for g in c.groups)}]"] = why
         elif template.motion != motion:
             drop("wrong motion", c)
         else:
@@ -999,7 +1006,7 @@ def structures(motion, *, leg_types=None, legs=None, axes=None, all_axes: bool =
         found.append(s)
     found = _fold_equivalents(found, drop)
     out = StructureList(found, motion, len(cands), dropped, dropped_names, show_dropped=bool(show_dropped),
-                        no_task_rule=no_rule)
+                        no_task_rule=no_rule, no_home=no_home)
     if cache_key is not None:
         _cache.save("structures", cache_key, out)
     return out
