@@ -107,8 +107,8 @@ def home_is_near(V, V0, L: float) -> str | None:
     off, dz = float(np.hypot(V[0] - V0[0], V[1] - V0[1])), float(abs(V[2] - V0[2]))
     far = []
     if not tilt <= HOME_TILT_MAX:
-        far.append(f"the platform tilted {np.degrees(tilt):.0f} deg from level (at most "
-                   f"{np.degrees(HOME_TILT_MAX):.0f})")
+        far.append(f"the platform tilted {in_display(tilt, 'angle', '.0f')} from level (at most "
+                   f"{in_display(HOME_TILT_MAX, 'angle', '.0f')})")
     if not off <= HOME_OFFSET_MAX * L:
         far.append(f"its centre {off / L:.2g} length scales off the vertical (at most {HOME_OFFSET_MAX:g})")
     if not dz <= HOME_OFFSET_MAX * L:

@@ -187,10 +187,18 @@ def resolve_structures(sec) -> StructureSetup:
                          f"dropped: {', '.join(f'{k} {v}' for k, v in dropped.items()) or 'none'}); a study over "
                          f"structures needs at least two (for one, write its description with `parasynth structures "
                          f"--out DIR` and give it as mechanism:)")
-    coords = {tuple(s.description["task"]["coordinates"]) for s in kept}
-    if len(coords) > 1:
-        raise StudyError(f"structure: the structures found have different task coordinates ({'; '.join(map(str, coords))}); "
-                         f"restrict structure.leg_types or structure.axes to one motion template")
+    by_coords: dict = {}  # the structures of each set of task coordinates, in enumeration order
+    for lab, s in zip(labels, kept):
+        by_coords.setdefault(tuple(s.description["task"]["coordinates"]), []).append(lab)
+    if len(by_coords) > 1:
+        def listed(labs):
+            return ", ".join(labs[:3]) + (f" and {len(labs) - 3} more" if len(labs) > 3 else "")
+
+        sets = "; ".join(f"{', '.join(c)} ({listed(labs)})" for c, labs in by_coords.items())
+        raise StudyError(f"structure: the structures found move in different task coordinates: {sets}; a study "
+                         f"compares structures over one task box, so keep those of one set: restrict "
+                         f"structure.axes (the motion's translation and rotation axes), structure.leg_types or "
+                         f"structure.include")
     ref = sec.reference
     if ref is not None and ref not in labels:
         # a name shared by several structures (their arrangements) is the first of them in
