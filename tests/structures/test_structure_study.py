@@ -118,7 +118,8 @@ def test_structure_is_a_categorical_variable_with_conditional_dimensions():
     # 3T1R with every axis choice: rotations about x for some 2-UPU&2-UPS, about the moving y for others
     ({"structure": {"motion": "3T1R", "leg_types": ["UPU", "UPS"], "arrangements": None, "all_axes": True,
                     "reference": None}},
-     "structure: the structures found move in different task coordinates: x, y, z, beta (2-UPU&2-UPS"),
+     "structure: the structures found move in different task coordinates: x, y, z, beta (axes: {translations: "
+     "[x, y, z], rotations: [moving y]}: 2-UPU&2-UPS"),
     ({"structure": {"screening": 0}}, "structure.screening"),
     ({"optimizer": {"algorithm": "nsga2"}}, "a study over structures uses one of tpe, random"),
     ({"optimizer": {"kind": "nlopt", "n_trials": None}}, "use optimizer.kind: optuna"),

@@ -189,16 +189,21 @@ def resolve_structures(sec) -> StructureSetup:
                          f"--out DIR` and give it as mechanism:)")
     by_coords: dict = {}  # the structures of each set of task coordinates, in enumeration order
     for lab, s in zip(labels, kept):
-        by_coords.setdefault(tuple(s.description["task"]["coordinates"]), []).append(lab)
+        by_coords.setdefault(tuple(s.description["task"]["coordinates"]), []).append((lab, s))
     if len(by_coords) > 1:
-        def listed(labs):
+        def listed(found):
+            labs = [lab for lab, _ in found]
             return ", ".join(labs[:3]) + (f" and {len(labs) - 3} more" if len(labs) > 3 else "")
 
-        sets = "; ".join(f"{', '.join(c)} ({listed(labs)})" for c, labs in by_coords.items())
+        def axes(found):  # the structure.axes that selects the set
+            ax = found[0][1].axes
+            return ("axes: {" + ", ".join(f"{k}: [{', '.join(ax.get(k, ()))}]" for k in ("translations", "rotations"))
+                    + "}")
+
+        sets = "; ".join(f"{', '.join(c)} ({axes(f)}: {listed(f)})" for c, f in by_coords.items())
         raise StudyError(f"structure: the structures found move in different task coordinates: {sets}; a study "
-                         f"compares structures over one task box, so keep those of one set: restrict "
-                         f"structure.axes (the motion's translation and rotation axes), structure.leg_types or "
-                         f"structure.include")
+                         f"compares structures over one task box, so keep those of one set: give structure.axes "
+                         f"as above, or restrict structure.leg_types or structure.include")
     ref = sec.reference
     if ref is not None and ref not in labels:
         # a name shared by several structures (their arrangements) is the first of them in
