@@ -166,7 +166,7 @@ def motion_rule(description: dict) -> MotionRule:
             ok = np.zeros(1, dtype=bool)
     if not ok[0]:
         raise NoHome("the limbs' closure equations have no solution near the nominal home (x = y = 0, "
-                         "z = height, level platform)" + (f"; the one found has {far}" if far else ""))
+                     "z = height, level platform)" + (f"; the one found has {far}" if far else ""))
     # the closure Jacobian at the assembled pose, in scaled coordinates
     E = np.diag(1e-6 * scale)
     J = ((fun(None, V + E) - fun(None, V - E)) / 2e-6).T  # (k, 6)
@@ -216,7 +216,7 @@ def motion_rule(description: dict) -> MotionRule:
     far = home_is_near(Vh, V0, L)
     if far is not None:
         raise NoHome(f"the dependent coordinates {', '.join(dep)} solved at the nominal values of "
-                         f"{', '.join(ind)} give a home far from the nominal one: {far}")
+                     f"{', '.join(ind)} give a home far from the nominal one: {far}")
     t = free.task
     task = {
         "coordinates": {c: kinds[c] for c in ind},

@@ -35,10 +35,11 @@ from ..common.validation import (MAX_LEGS, MAX_SEED, InputError, check_count, ch
                                  numpy_reference)
 from .. import engine as _engine
 from ..common import cache as _cache
+from ..common.units import in_display
 from ..mechanisms import described_class
 from ..measures.usable import SINGULARITY_FLOOR
 from ..model.legs import LEG_TYPES
-from .motion import candidate_rule, remember_rule
+from .motion import HOME_OFFSET_MAX, HOME_TILT_MAX, candidate_rule, remember_rule
 from .vocabulary import (ARRANGEMENTS, CHECKS, HOME_TILTS, LIMB_TYPES, PARAMETERS, TEMPLATES, StructureError,
                          StructureWarning, limb_type, parse_motion)
 
@@ -52,10 +53,10 @@ DROP_REASONS = {
     "no task rule": "its constraining limbs select no motion template and no motion can be computed from their "
                     "closure equations (each one's reason follows it, from StructureList.no_task_rule; computed "
                     "only for a candidate with as many actuators as freedoms)",
-    "no home": "its limbs' closure equations have no solution near the nominal home (the platform within 45 deg "
-               "of level, its centre within a length scale of x = y = 0, z = height; each one's nearest solution "
-               "follows it, from StructureList.no_home; computed only for a candidate with as many actuators as "
-               "freedoms)",
+    "no home": f"its limbs' closure equations have no solution near the nominal home (the platform within "
+               f"{in_display(HOME_TILT_MAX, 'angle', '.0f')} of level, its centre within {HOME_OFFSET_MAX:g} length "
+               f"scale(s) of x = y = 0, z = height; each one's nearest solution follows it, from "
+               f"StructureList.no_home; computed only for a candidate with as many actuators as freedoms)",
     "other axes": "its freedoms are not along the axes required (axes)",
     "under-actuated": "fewer actuators than the requested freedoms",
     "over-actuated": "more actuators than the requested freedoms (redundant actuation)",
@@ -546,9 +547,8 @@ class StructureList(list):
             counted = Counter(names)
             listed = ", ".join(n if k == 1 else f"{n} x{k}" for n, k in counted.items())
             out.append(f"{reason} ({len(names)}; {DROP_REASONS[reason]}): {listed}")
-            if reason in ("no task rule", "no home"):  # why, candidate by candidate
-                why_of = self.no_task_rule if reason == "no task rule" else getattr(self, "no_home", {})
-                out += [f"  {name}: {why}" for name, why in why_of.items()]
+            whys = {"no task rule": self.no_task_rule, "no home": self.no_home}.get(reason, {})
+            out += [f"  {name}: {why}" for name, why in whys.items()]  # why, candidate by candidate
         return out
 
     def summary(self) -> str:
