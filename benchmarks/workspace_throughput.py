@@ -399,7 +399,7 @@ def run_big_workspace(n: int, name: str = "5pus_upu") -> dict:
 # ---------------------------------------------------------------------------------------------
 # The figures of the engine beside the anchor (benchmarks/anchor.py), measured in one process
 # ---------------------------------------------------------------------------------------------
-THREAD_SIZES = (4096, 8192, 16384, 100_000, 2**17, 2**20)
+THREAD_SIZES = (4096, 8192, 10_000, 16384, 100_000, 2**17, 2**20)
 
 
 def _best(fn, repeats=7, min_time=0.05):
@@ -418,6 +418,52 @@ def _best(fn, repeats=7, min_time=0.05):
         if dt < best:
             best, cpu = dt, (time.process_time() - c0) / reps
     return best, cpu
+
+
+def _thread_row(n, mech, kernels, anchor, set_threads, rounds=15, min_time=0.02):
+    """The engine's and the anchor's batch of ``n`` all-feasible poses on one thread and on two,
+    the four ways taken in turn within each round (this machine's speed drifts by tens of per
+    cent within minutes: ways timed one after another would compare two machines): per way the
+    best round's time per call (s) and CPU time per call, and per pair the median over the
+    rounds of the one-thread time over the two-thread time."""
+    import numba
+
+    X = anchor.feasible_poses(n)
+    ways = {}
+    for t in (1, 2):
+        def eng(t=t):
+            set_threads(t)
+            kernels.feasible_fast(mech, X)
+
+        def anc(t=t):
+            numba.set_num_threads(min(t, numba.config.NUMBA_NUM_THREADS))
+            anchor.run(X)
+
+        ways[f"engine{t}"], ways[f"anchor{t}"] = eng, anc
+    reps = {}
+    for k, fn in ways.items():  # warm, and the calls a round needs for min_time
+        fn()
+        t0 = time.perf_counter()
+        fn()
+        reps[k] = max(1, int(min_time / max(time.perf_counter() - t0, 1e-6)))
+    wall = {k: [] for k in ways}
+    cpu = {k: [] for k in ways}
+    for _ in range(rounds):
+        for k, fn in ways.items():
+            c0, t0 = time.process_time(), time.perf_counter()
+            for _ in range(reps[k]):
+                fn()
+            wall[k].append((time.perf_counter() - t0) / reps[k])
+            cpu[k].append((time.process_time() - c0) / reps[k])
+    set_threads(None)
+    numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+    row = {"n": n}
+    for k in ways:
+        i = int(np.argmin(wall[k]))
+        row[k] = (wall[k][i], cpu[k][i])
+    for who in ("engine", "anchor"):
+        row[f"{who}_paired"] = float(np.median(np.array(wall[f"{who}1"]) / np.array(wall[f"{who}2"])))
+    return row
 
 
 def _after_idle(core, kernels, mech, anchor, set_threads, sizes=(8192, 16384), rounds=25, calls=12):
@@ -483,14 +529,7 @@ def run_figures(opts: dict) -> dict:
     if adaptive is not None:  # the table compares the two ways, whichever pays now
         core.ADAPTIVE = False
     for n in opts["sizes"]:
-        X = anchor.feasible_poses(n)
-        row = {"n": n}
-        for t in (1, 2):
-            set_threads(t)
-            row[f"engine{t}"] = _best(lambda: kernels.feasible_fast(mech, X))
-            row[f"anchor{t}"] = (anchor.anchor_seconds(n, t), None)
-        set_threads(None)
-        rows.append(row)
+        rows.append(_thread_row(n, mech, kernels, anchor, set_threads))
     res["threads"] = rows
     res["idle"] = _after_idle(core, kernels, mech, anchor, set_threads) if hasattr(core, "APART") else []
     if adaptive is not None:  # the figures below as a run has them: threads while they pay
@@ -529,17 +568,22 @@ def print_figures(r: dict) -> None:
     print(f"load average (1 min) {la[0]:.2f} before, {lb[0]:.2f} after; numba threads available "
           f"{r['threads_available']}; anchor = benchmarks/anchor.py (fused, prange, every pose feasible, f64; "
           f"{r['anchor_disagree']} disagreements with NumPy on 4096 poses)")
-    print(f"{'poses':>9s} {'engine 1 thr':>13s} {'engine 2 thr':>13s} {'2/1 thr':>8s} {'cpu 2/1':>8s} "
-          f"{'anchor 1 thr':>13s} {'anchor 2 thr':>13s} {'2/1 thr':>8s} {'engine/anchor':>14s} {'(1 thr)':>8s}")
+    print("thread table: best round of each way, the four ways in turn each round; 'paired': the median "
+          "over rounds of one thread's time over two threads'")
+    print(f"{'poses':>9s} {'engine 1 thr':>13s} {'engine 2 thr':>13s} {'2/1 thr':>8s} {'paired':>7s} {'cpu 2/1':>8s} "
+          f"{'anchor 1 thr':>13s} {'anchor 2 thr':>13s} {'2/1 thr':>8s} {'paired':>7s} {'engine/anchor':>14s} "
+          f"{'(1 thr)':>8s}")
     for row in r["threads"]:
         e1, c1 = row["engine1"]
         e2, c2 = row["engine2"]
         a1, a2 = row["anchor1"][0], row["anchor2"][0]
-        print(f"{row['n']:9d} {e1 * 1e3:11.3f}ms {e2 * 1e3:11.3f}ms {e1 / e2:8.2f} {c2 / c1:8.2f} "
-              f"{a1 * 1e3:11.3f}ms {a2 * 1e3:11.3f}ms {a1 / a2:8.2f} {e2 / a2:14.2f} {e1 / a1:8.2f}")
+        print(f"{row['n']:9d} {e1 * 1e3:11.3f}ms {e2 * 1e3:11.3f}ms {e1 / e2:8.2f} {row.get('engine_paired', e1 / e2):7.2f} "
+              f"{c2 / c1:8.2f} {a1 * 1e3:11.3f}ms {a2 * 1e3:11.3f}ms {a1 / a2:8.2f} "
+              f"{row.get('anchor_paired', a1 / a2):7.2f} {e2 / a2:14.2f} {e1 / a1:8.2f}")
     for row in r["threads"]:
         tgt = "(target >= 1.8 from ~1e4 poses, idle machine)" if row["n"] >= 8192 else "(serial below 8192 poses)"
         print(f"threads_ratio n={row['n']} engine={row['engine1'][0] / row['engine2'][0]:.3g} "
+              f"engine_paired={row.get('engine_paired', float('nan')):.3g} "
               f"anchor={row['anchor1'][0] / row['anchor2'][0]:.3g} "
               f"engine_vs_anchor_1_thread={row['anchor1'][0] / row['engine1'][0]:.3g} {tgt}")
     for row in r.get("idle", []):
