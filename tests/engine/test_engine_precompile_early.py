@@ -74,7 +74,7 @@ class P:  # a helper that is not started: the shares are what is asked
     def poll(self):
         return None
 pre.subprocess.Popen = P
-pre.missing = lambda kinds: list(dict.fromkeys(n for k in kinds for n in pre.KERNELS_OF[k] if n not in ("_spin_done", "_crew_spin")))
+pre.missing = lambda kinds: list(dict.fromkeys(n for k in kinds for n in pre.KERNELS_OF[k] if n not in pre.CREW))
 print(pre.start_early(["feasible", "singularity_margin"], processes=2, busy=5.0))
 pre._EARLY.clear(); pre._LEFT.clear()
 print(pre.start_early(["feasible", "singularity_margin"], processes=2, busy=30.0))

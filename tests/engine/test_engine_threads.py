@@ -369,3 +369,143 @@ def test_the_first_parallel_batch_loads_the_spin_kernels(monkeypatch):
     core.over_blocks(fn, 4, True)
     assert core._spin_ready()
     assert np.array_equal(done, np.ones(4))
+
+
+def _posted_batch(mech, X, nt, names=None):
+    """The feasibility batch of ``X`` posted for ``nt`` threads as a run posts it (the caller's
+    ticket taken), without running anything: (its number, out, amb, ext, the crew's arrays)."""
+    from parasynth.engine import evaluate
+
+    core.spin_warm()
+    p, _ = evaluate.plan(mech, names)
+    kernels.feasible_fast(mech, X[:4])  # the kernel compiled here: its entry address known
+    Xr = core._readonly(np.ascontiguousarray(X))
+    n = Xr.shape[0]
+    out = np.zeros(n, dtype=np.bool_)
+    amb = np.zeros(max(1, (n + core.SUB - 1) // core.SUB), dtype=np.int64)
+    ext = np.empty((amb.shape[0], 6))
+    ext[:, :3], ext[:, 3:] = np.inf, -np.inf
+    claim = np.zeros(1, dtype=np.int64)
+    mail, buf, tickets = np.zeros(3, dtype=np.int64), np.zeros(core.CREW_BUF, dtype=np.int64), np.zeros(1, dtype=np.int64)
+    block = core.SUB * 2
+    nblk = (n + block - 1) // block
+    g = core._post_feasible(Xr, *p.args(), block, out, amb, ext, claim, nblk, core._entry_address("_feasible_kernel"),
+                            nt, buf, mail, tickets)
+    return g, out, amb, ext, claim, mail, buf, tickets
+
+
+def _box_poses(mech, n, seed):
+    """``n`` poses uniform in the model's default ranges, its home values elsewhere."""
+    rng = np.random.default_rng(seed)
+    X = np.tile(np.asarray(mech.home, dtype=float), (n, 1))
+    for c, (lo, hi) in mech.default_ranges().items():
+        X[:, mech.task_coordinates.index(c)] = rng.uniform(lo, hi, n)
+    return X
+
+
+# every table of the kernel's arguments non-empty in one of them: coordinate limits (2-RPU/2-SPS),
+# cones (5-PUS/UPU, 3-PRS), leg lengths, revolute ranges, axis angles, an expression (4-UPS/1-RPS's
+# sphere constraint, alone: among all its constraints it never decides a pose of the box)
+@pytest.mark.parametrize("name, n, names", [("5pus_upu", 1000, None), ("5pus_upu", 9000, None),
+                                            ("4ups_1rps", 3000, None), ("4ups_1rps", 3000, ("sphere_constraint",)),
+                                            ("2rpu_2sps", 3000, None), ("3prs", 3000, None)])
+def test_a_batch_served_from_its_posted_arguments_answers_as_the_kernel(name, n, names):
+    """The compiled crew's side alone, on this thread: the arguments the caller posts (data
+    pointers, shapes, scalars) rebuilt and the feasibility kernel called through its entry
+    point give the feasibility and the extents of ``feasible_extents`` on one thread."""
+    from parasynth.engine import evaluate
+
+    mech = load_mechanism(name)
+    X = _box_poses(mech, n, 7)
+    g, out, amb, ext, claim, mail, buf, tickets = _posted_batch(mech, X, 2, names)
+    assert mail[0] == g == 1 and mail[2] == 1
+    done = np.full(4, -1, dtype=np.int64)
+    r = core._crew_serve(mail, 0, claim, 50, core._NO_FIN, -1, buf, tickets, done)
+    assert r == -1  # served the compiled batch itself, then nothing for 50 rounds
+    assert done[1] == g  # ticket 1 ran batch g
+    assert core._cancel_tickets(tickets, 2) == 0  # no ticket left for the caller to cancel
+    assert core._tickets_done(done, g, 2, 0, 1)
+    ok = mech.is_feasible(X, names, engine="numpy")
+    assert np.array_equal(out, ok) and 0 < ok.sum() < n and not amb.any()
+    core.set_threads(1)
+    try:
+        ok1, _, lo_ref, hi_ref = core.run_feasible(evaluate.plan(mech, names)[0], np.ascontiguousarray(X), extents=True)
+    finally:
+        core.set_threads(None)
+    assert np.array_equal(ok1, ok)
+    assert np.array_equal(ext[:, :3].min(axis=0), lo_ref) and np.array_equal(ext[:, 3:].max(axis=0), hi_ref)
+    # the same batch seen again by a late crew thread: its ticket is past the batch's, it runs nothing
+    out[:] = False
+    assert core._crew_serve(mail, 0, claim, 50, core._NO_FIN, -1, buf, tickets, done) == -1
+    assert not out.any()
+
+
+def test_tickets_no_crew_thread_took_are_cancelled_and_not_waited_for():
+    mech = load_mechanism("5pus_upu")
+    X = np.zeros((300, 5)) + np.array([0.0, 0.0, 0.0, 0.0, 0.0])
+    g, out, amb, ext, claim, mail, buf, tickets = _posted_batch(mech, X, 3)
+    done = np.full(4, -1, dtype=np.int64)
+    assert core._cancel_tickets(tickets, 3) == 0b110  # tickets 1 and 2: nobody came
+    assert core._tickets_done(done, g, 3, 0b110, 1)  # nothing to wait for
+    assert not core._tickets_done(done, g, 3, 0b100, 10)  # ticket 1 not cancelled, never done
+
+
+def test_the_crew_serve_hands_a_batch_for_python_back():
+    core.spin_warm()
+    mail = np.array([5, 0, 0], dtype=np.int64)  # batch 5, for Python, not claiming
+    one = np.zeros(1, dtype=np.int64)
+    done = np.full(2, -1, dtype=np.int64)
+    assert core._crew_serve(mail, 4, one, 10, core._NO_FIN, -1, np.zeros(core.CREW_BUF, dtype=np.int64), one, done) == 5
+    assert core._crew_serve(mail, 5, one, 10, core._NO_FIN, -1, np.zeros(core.CREW_BUF, dtype=np.int64), one, done) == -1
+    fin = np.zeros(2, dtype=np.int64)
+    core._crew_serve(mail, 5, one, 1, fin, 1, np.zeros(core.CREW_BUF, dtype=np.int64), one, done)
+    assert fin.tolist() == [0, 1]  # the range it ran last marked first
+
+
+@pytest.mark.parametrize("threads", [2, 3])
+@pytest.mark.parametrize("n", [9000, 50_000])
+def test_compiled_crew_batches_answer_as_one_thread(n, threads, monkeypatch):
+    """Real batches through the compiled crew (crew threads serving them while spinning, or woken
+    from their sleep: a short spin), against one thread; the crew ran some of them."""
+    mech = load_mechanism("5pus_upu")
+    rng = np.random.default_rng(11)
+    lo = np.array([-0.06, -0.06, -0.10, -0.35, -0.35])
+    X = rng.uniform(lo, -lo * np.array([1, 1, 0.8, 1, 1]), size=(n, 5))
+    monkeypatch.setattr(core, "ADAPTIVE", False)
+    monkeypatch.setattr(core, "n_threads", lambda: 1)
+    one = kernels.feasible_fast(mech, X)
+    core.spin_warm()
+    monkeypatch.setattr(core, "n_threads", lambda: threads)
+    for spin in (core.CREW_SPIN, 20):
+        monkeypatch.setattr(core, "CREW_SPIN", spin)
+        before = core._CREW.done.copy()
+        for _ in range(30):
+            assert np.array_equal(kernels.feasible_fast(mech, X), one)
+        served = core._CREW.done != before
+        assert served.any() or spin == 20  # spinning, the crew takes its tickets
+    assert core._SERVE_READY and core._CREW.mail[2] == 1
+
+
+def test_a_failing_call_of_the_caller_waits_for_the_crew_and_raises(monkeypatch):
+    mech = load_mechanism("5pus_upu")
+    X = np.zeros((20_000, 5))
+    monkeypatch.setattr(core, "ADAPTIVE", False)
+    monkeypatch.setattr(core, "n_threads", lambda: 2)
+    core.spin_warm()
+    kernels.feasible_fast(mech, X)
+    real = core._compiled_batch
+    seen = {}
+
+    def failing(crew, post, fn, block, claim, nblk, nt):
+        def boom(*a):
+            raise RuntimeError("the caller's call failed")
+        seen["ran"] = True
+        real(crew, post, boom, block, claim, nblk, nt)
+
+    monkeypatch.setattr(core, "_compiled_batch", failing)
+    with pytest.raises(RuntimeError, match="caller's call failed"):
+        kernels.feasible_fast(mech, X)
+    assert seen["ran"]
+    assert not core._CREW.busy.locked()  # released: the next batch runs
+    monkeypatch.setattr(core, "_compiled_batch", real)
+    assert kernels.feasible_fast(mech, X).shape == (20_000,)

@@ -75,7 +75,7 @@ from .program import OPS, Program, Untranslatable, build_program
 try:  # pragma: no cover - depends on the environment
     if os.environ.get("PARASYNTH_NO_NUMBA", "").strip() not in ("", "0"):
         raise ImportError("disabled by PARASYNTH_NO_NUMBA")
-    from numba import njit
+    from numba import carray, njit
     from numba import types as _nbt
 
     from . import posefn as _posefn
@@ -246,17 +246,25 @@ def _timed_blocks(kind: str, fn, n: int, work: float | None = None) -> None:
 
 
 #: Work items per thread of a batch whose kernel claims its items itself (:func:`_timed_claims`):
-#: a thread that starts late (a crew thread starts ~0.09 ms after the caller: its wake-up, the
-#: interpreter lock while the caller enters its kernel, its own call) takes fewer of them.
-CLAIMS_PER_THREAD = 8
+#: a thread that starts late (a crew thread woken from its sleep starts ~0.09 ms after the
+#: caller) takes fewer of them, and the threads end within about an item of each other. 16: with
+#: the compiled crew (no thread's way back through the interpreter to hide it) 8 items a thread
+#: left the caller waiting ~3.5 us for the crew's last item at 8192 poses; 16 measured 1.86 /
+#: 1.76 times one thread at 8192 poses, 1.94 / 1.87 at 16384 (docs/performance.md).
+CLAIMS_PER_THREAD = 16
 
 
-def _timed_claims(kind: str, fn, n: int, work: float | None = None, unit: int = SUB) -> None:
+def _timed_claims(kind: str, fn, n: int, work: float | None = None, unit: int = SUB, post=None) -> None:
     """As :func:`_timed_blocks` for a kernel that claims its work items itself
     (``fn(block, claim, n_blocks)``, each item taken by an atomic increment of ``claim[0]``):
     every thread of the batch calls it once and takes items until none is left, so a thread
     that starts late takes fewer and none waits for another's range; the items are finer
-    (:data:`CLAIMS_PER_THREAD` a thread). One thread: one call takes them all in order."""
+    (:data:`CLAIMS_PER_THREAD` a thread). One thread: one call takes them all in order.
+
+    ``post(block, claim, n_blocks, threads, buf, mail, tickets)``, where given, posts the batch
+    to the crew in compiled code (:func:`_post_feasible`) and returns its number: the crew
+    threads, spinning in :func:`_crew_serve`, then run the kernel without the interpreter
+    (:func:`_compiled_batch`)."""
     block, nblk, par = blocking(n, kind=kind, work=work, per_thread=CLAIMS_PER_THREAD, unit=unit)
     crew = _CREW
     shared = par and crew.busy.acquire(blocking=False)  # the crew's counter, which its spin watches
@@ -264,15 +272,42 @@ def _timed_claims(kind: str, fn, n: int, work: float | None = None, unit: int = 
     claim[0] = 0
     t0 = time.perf_counter()
     try:
-        over_blocks(lambda p0, p1: fn(block, claim, nblk), n_threads() if par else 1, par, claiming=shared)
+        nt = n_threads() if par else 1
+        if shared and post is not None and _SERVE_READY and nt <= MAX_TICKETS:
+            _compiled_batch(crew, post, fn, block, claim, nblk, nt)
+        else:
+            over_blocks(lambda p0, p1: fn(block, claim, nblk), nt, par, claiming=shared)
     finally:
         if shared:
             crew.busy.release()
     TIMING.record(kind, par, int(max(n, work or 0)), time.perf_counter() - t0)
 
 
+
+
+def _compiled_batch(crew, post, fn, block, claim, nblk, nt) -> None:
+    """A claiming batch on ``nt`` threads whose crew part runs in compiled code: posted by
+    ``post`` (the kernel's arguments into the crew's ``buf``, ``nt`` tickets, the first the
+    caller's), the crew woken where it sleeps, the caller's own call ``fn(block, claim,
+    nblk)``; then the tickets no crew thread took are cancelled and the caller waits for the
+    others to be marked done (spinning, then sleeping 20 us at a time) -- also when its own call
+    failed, since a crew thread may still be reading the batch's arrays."""
+    g = post(block, claim, nblk, nt, crew.buf, crew.mail, crew.tickets)
+    try:
+        crew.wake(nt - 1)
+        fn(block, claim, nblk)
+    finally:
+        cancelled = _cancel_tickets(crew.tickets, nt)
+        while not _tickets_done(crew.done, g, nt, cancelled, SPIN_ITERATIONS):
+            time.sleep(2e-5)
+
+
 _IN_POOL = threading.local()
 _NO_FIN = np.zeros(1, dtype=np.int64)
+#: Length of the crew's ``buf``, where a compiled batch's arguments are posted (:func:`_post_feasible`).
+CREW_BUF = 72
+#: Threads a compiled batch can have (its tickets' bit mask, :func:`_cancel_tickets`).
+MAX_TICKETS = 62
 
 
 class _Batch:
@@ -327,15 +362,22 @@ class _Crew:
     that wakes it (:meth:`_keep_apart`). After a batch a crew thread spins for the next one
     (:data:`CREW_SPIN`, ~1 ms, in compiled code with the lock released) before it sleeps, and
     takes a batch posted meanwhile once the caller is inside its kernel: no wake-up, and no
-    wait for the interpreter lock (a thread that sleeps on it wakes ~0.05-0.1 ms later here)."""
+    wait for the interpreter lock (a thread that sleeps on it wakes ~0.05-0.1 ms later here).
+    The feasibility kernel's batches do not go through the interpreter at all once the
+    compiled crew is loaded (:func:`_compiled_batch`): the spin (:func:`_crew_serve`) runs them
+    from the arguments the caller posted in ``buf``, and marks them done itself."""
 
     def __init__(self):
         self.lock = threading.Lock()
         self.members: list = []  # (thread, wake lock)
         self.batch = None
         # a batch posted: mail[0] counts them, mail[1] says whether its kernel claims its items
-        # from ``claim`` (then the crew's spin waits until the poster is inside its kernel)
-        self.mail = np.zeros(2, dtype=np.int64)
+        # from ``claim`` (then the crew's spin waits until the poster is inside its kernel),
+        # mail[2] whether it is a compiled batch (its arguments in ``buf``, see _compiled_batch)
+        self.mail = np.zeros(3, dtype=np.int64)
+        self.buf = np.zeros(CREW_BUF, dtype=np.int64)
+        self.tickets = np.zeros(1, dtype=np.int64)  # a compiled batch's: its number, tickets taken
+        self.done = np.full(MAX_TICKETS + 2, -1, dtype=np.int64)  # per ticket: the batch it ran last
         self.claim = np.zeros(1, dtype=np.int64)
         self.busy = threading.Lock()  # held by the thread whose batch uses ``claim``
         self.apart_from = None  # the CPU the crew was last kept off (see _keep_apart)
@@ -350,15 +392,23 @@ class _Crew:
             # interpreter lock's, on a virtual machine), a third of a batch of 16384 poses. The
             # spin marks the last range done (fin[last]) once the interpreter lock is released,
             # so the calling thread, seeing it, does not wait for the lock (and sleep).
-            if _spin_ready():
+            if _SERVE_READY:  # compiled batches served in the spin itself, never in Python
+                g = _crew_serve(mail, seen, self.claim, CREW_SPIN, fin, last, self.buf, self.tickets, self.done)
+                fin, last = _NO_FIN, -1
+                if g < 0:
+                    wake.acquire()
+                    continue  # look again: what woke it may be a compiled batch
+                seen = g
+            elif _spin_ready():
                 if not _crew_spin(mail, seen, self.claim, CREW_SPIN, fin, last):
                     wake.acquire()
+                seen = int(mail[0])
             else:
                 if last >= 0:
                     fin[last] = 1
                 if int(mail[0]) == seen:
                     wake.acquire()
-            seen = int(mail[0])
+                seen = int(mail[0])
             b = self.batch
             fin, last = _NO_FIN, -1
             if b is not None:
@@ -370,6 +420,7 @@ class _Crew:
         :meth:`wake`."""
         self.batch = batch
         self.mail[1] = 1 if claiming else 0
+        self.mail[2] = 0
         self.mail[0] += 1
 
     def wake(self, n: int) -> None:
@@ -458,6 +509,11 @@ def _wait(fin: np.ndarray) -> None:
 
 
 _SPIN_READY = False
+#: Whether the compiled crew's kernels are loaded (:func:`spin_warm`): crew threads then wait in
+#: :func:`_crew_serve` and the feasibility kernel's batches go to them in compiled code.
+_SERVE_READY = False
+#: Whether to hand the feasibility kernel's batches to the crew in compiled code at all.
+COMPILED_CREW = True
 
 
 def compiled_or_cached(disp, sig) -> bool:
@@ -480,16 +536,26 @@ def _spin_ready() -> bool:
 
 
 def spin_warm() -> None:
-    """Load the spin kernels of the threads' waits (:func:`_spin_done`, :func:`_crew_spin`) from
-    numba's cache, or compile them (~0.2 s, then cached): a run compiles them ahead with the
-    feasibility kernel (:mod:`parasynth.engine.precompile`); any other process at its first
-    parallel batch. Without them the caller and the crew sleep where they would spin (a batch
-    of 8192 poses on two threads took twice its time on one)."""
-    global _SPIN_READY
+    """Load the spin kernels of the threads' waits (:func:`_spin_done`, :func:`_crew_spin`) and,
+    with :data:`COMPILED_CREW`, the compiled crew's (:func:`_crew_serve`, :func:`_post_feasible`,
+    :func:`_cancel_tickets`, :func:`_tickets_done`) from numba's cache, or compile them (~0.2 s
+    and ~1.5 s, then cached): a run compiles them ahead with the feasibility kernel
+    (:mod:`parasynth.engine.precompile`); any other process at its first parallel batch.
+    Without them the caller and the crew sleep where they would spin (a batch of 8192 poses on
+    two threads took twice its time on one)."""
+    global _SPIN_READY, _SERVE_READY
     if HAVE_NUMBA:
         _spin_done(np.ones(1, dtype=np.int64), 1)
         _crew_spin(np.ones(2, dtype=np.int64), 0, np.ones(1, dtype=np.int64), 1, _NO_FIN, -1)
         _SPIN_READY = True
+        if COMPILED_CREW:
+            one = np.zeros(1, dtype=np.int64)
+            _crew_serve(np.zeros(3, dtype=np.int64), 0, one, 1, _NO_FIN, -1, np.zeros(CREW_BUF, dtype=np.int64), one,
+                        one)
+            _cancel_tickets(np.zeros(1, dtype=np.int64), 0)
+            _tickets_done(one, 0, 1, 0, 1)
+            _post_feasible.compile(tuple(signatures()["_post_feasible"][1]))
+            _SERVE_READY = True
 
 
 def over_blocks(fn, n_blocks: int, parallel: bool = True, claiming: bool = False) -> None:
@@ -1071,11 +1137,34 @@ def run_feasible(plan: KernelPlan, X: np.ndarray, extents: bool = False):
     else:
         ext = _NO_EXT
     args = plan.args()
+    kaddr = _entry_address("_feasible_kernel") if _SERVE_READY and COMPILED_CREW else 0
+    post = None
+    if kaddr:
+        def post(block, claim, b1, nt, buf, mail, tickets):
+            return _post_feasible(X, *args, block, out, amb, ext, claim, b1, kaddr, nt, buf, mail, tickets)
     _timed_claims("feasible", lambda block, claim, b1: _feasible_kernel(X, *args, block, out, amb, ext, claim, b1),
-                  X.shape[0], program_work(X.shape[0], plan.program.ins.shape[0]))
+                  X.shape[0], program_work(X.shape[0], plan.program.ins.shape[0]), post=post)
     if not extents:
         return out, bool(amb.any())
     return out, bool(amb.any()), ext[:, :3].min(axis=0), ext[:, 3:].max(axis=0)
+
+
+_ENTRIES: dict = {}
+
+
+def _entry_address(name: str) -> int:
+    """The address of the C entry point of the kernel ``name`` (of :func:`signatures`) as
+    compiled in this process, which :func:`_call_at` calls; 0 while it is not compiled or
+    loaded here yet (its first call does that)."""
+    a = _ENTRIES.get(name)
+    if a is None:
+        disp, types = signatures()[name]
+        cres = getattr(disp, "overloads", {}).get(tuple(types))  # (not a dispatcher: a test's stand-in)
+        if cres is None:
+            return 0
+        a = int(cres.library.get_pointer_to_function(cres.fndesc.llvm_cfunc_wrapper_name))
+        _ENTRIES[name] = a
+    return a
 
 
 def run_margins(plan: KernelPlan, X: np.ndarray):
@@ -1242,6 +1331,250 @@ if HAVE_NUMBA:
                             break
                 return True
         return False
+
+    # -- the compiled crew: a feasibility batch handed to a spinning crew thread by pointer ----
+    # The calling thread writes the kernel's arguments (data pointers, shapes, scalars) into the
+    # crew's ``buf`` (_post_feasible); a crew thread spinning in _crew_serve rebuilds the arrays
+    # from them and calls the feasibility kernel through its C entry point (_call_at), then marks
+    # its ticket done -- neither thread's hand-off goes through the interpreter.
+
+    @_intrinsic
+    def _addr(typingctx, arr):
+        """The data pointer of a C-contiguous array, as an integer."""
+        sig = _nbt.int64(arr)
+
+        def codegen(context, builder, signature, args):
+            data = context.make_array(signature.args[0])(context, builder, args[0]).data
+            return builder.ptrtoint(data, _llir.IntType(64))
+
+        return sig, codegen
+
+    @_intrinsic
+    def _vptr(typingctx, addr):
+        """An integer address as a ``void *``."""
+        sig = _nbt.voidptr(_nbt.int64)
+
+        def codegen(context, builder, signature, args):
+            return builder.inttoptr(args[0], _llir.IntType(8).as_pointer())
+
+        return sig, codegen
+
+    @_intrinsic
+    def _readonly_view(typingctx, arr):
+        """``arr`` typed read-only (the same array: the kernels take their poses read-only)."""
+        sig = arr.copy(readonly=True)(arr)
+
+        def codegen(context, builder, signature, args):
+            return args[0]
+
+        return sig, codegen
+
+    @_intrinsic
+    def _f8_bits(typingctx, x):
+        """The bits of a float64 as an int64."""
+        sig = _nbt.int64(_nbt.float64)
+
+        def codegen(context, builder, signature, args):
+            return builder.bitcast(args[0], _llir.IntType(64))
+
+        return sig, codegen
+
+    @_intrinsic
+    def _bits_f8(typingctx, x):
+        """The float64 of the bits ``x``."""
+        sig = _nbt.float64(_nbt.int64)
+
+        def codegen(context, builder, signature, args):
+            return builder.bitcast(args[0], _llir.DoubleType())
+
+        return sig, codegen
+
+    @_intrinsic
+    def _call_at(typingctx, addr, args):
+        """The compiled function at ``addr`` (the C entry point numba gives every compiled
+        kernel, see :func:`_entry_address`) called on the tuple ``args``, which must be of the
+        types it was compiled for; it returns nothing."""
+        sig = _nbt.none(addr, args)
+
+        def codegen(context, builder, signature, llargs):
+            dmm = context.data_model_manager
+            tys = signature.args[1].types
+            vals = _cgutils.unpack_tuple(builder, llargs[1], len(tys))
+            fnty = _llir.FunctionType(dmm.lookup(_nbt.none).get_value_type(), [dmm.lookup(t).get_value_type() for t in tys])
+            builder.call(builder.inttoptr(llargs[0], fnty.as_pointer()), vals)
+            return context.get_dummy_value()
+
+        return sig, codegen
+
+    @_intrinsic
+    def _swap_add(typingctx, arr, delta):
+        """``arr[0] += delta`` atomically (acquire and release), its value before returned."""
+        sig = _nbt.int64(arr, _nbt.int64)
+
+        def codegen(context, builder, signature, args):
+            aryty = signature.args[0]
+            ary = context.make_array(aryty)(context, builder, args[0])
+            ptr = _cgutils.get_item_pointer(context, builder, aryty, ary, [context.get_constant(_nbt.intp, 0)])
+            return builder.atomic_rmw("add", ptr, args[1], "acq_rel")
+
+        return sig, codegen
+
+    # buf's layout: each array as (data pointer, its shape), each scalar as one int64 (a float by
+    # its bits); then the kernel's entry address and the number of threads' tickets
+    _B_B1 = 63
+    _B_KADDR = 64
+    _B_PARTS = 65
+    #: Tickets of a compiled batch: the batch number above these bits, the tickets taken below.
+    _TICKET_BITS = 16
+
+    @njit(**_jit_ir_inline)
+    def _put1(buf, k, a):
+        buf[k] = _addr(a)
+        buf[k + 1] = a.shape[0]
+        return k + 2
+
+    @njit(**_jit_ir_inline)
+    def _put2(buf, k, a):
+        buf[k] = _addr(a)
+        buf[k + 1] = a.shape[0]
+        buf[k + 2] = a.shape[1]
+        return k + 3
+
+    @njit(**_jit)
+    def _post_feasible(X, ins, consts, cbase, n_reg, n_pose, pose_regs, valid_regs, plim, loop, expr, tol, leg_kind,
+                       leg_act, leg_f, coord, actr, lenr, cone, rang, axang, pair, offs, block, out, amb, ext, claim,
+                       b1, kaddr, parts, buf, mail, tickets):
+        """Post a feasibility batch (the arguments of :func:`_feasible_kernel`) to the crew:
+        its arguments into ``buf``, ``parts`` tickets of which the caller holds the first, then
+        ``mail[0]`` (the batch count) raised with release ordering -- a crew thread that sees
+        it sees the rest. Returns the batch's number."""
+        k = _put2(buf, 0, X)
+        k = _put2(buf, k, ins)
+        k = _put1(buf, k, consts)
+        buf[k] = cbase
+        buf[k + 1] = n_reg
+        buf[k + 2] = n_pose
+        k = _put1(buf, k + 3, pose_regs)
+        k = _put1(buf, k, valid_regs)
+        k = _put1(buf, k, plim)
+        buf[k] = loop
+        k = _put2(buf, k + 1, expr)
+        buf[k] = _f8_bits(tol)
+        k = _put1(buf, k + 1, leg_kind)
+        k = _put1(buf, k, leg_act)
+        k = _put2(buf, k, leg_f)
+        k = _put2(buf, k, coord)
+        k = _put2(buf, k, actr)
+        k = _put2(buf, k, lenr)
+        k = _put2(buf, k, cone)
+        k = _put2(buf, k, rang)
+        k = _put2(buf, k, axang)
+        k = _put2(buf, k, pair)
+        k = _put2(buf, k, offs)
+        buf[k] = block
+        k = _put1(buf, k + 1, out)
+        k = _put1(buf, k, amb)
+        k = _put2(buf, k, ext)
+        k = _put1(buf, k, claim)
+        buf[_B_B1] = b1
+        buf[_B_KADDR] = kaddr
+        buf[_B_PARTS] = parts
+        g = mail[0] + 1
+        _store_release(tickets, 0, (g << _TICKET_BITS) | 1)
+        mail[2] = 1
+        _store_release(mail, 0, g)
+        return g
+
+    @njit(**_jit)
+    def _run_posted_feasible(buf):
+        """The posted feasibility batch's kernel on this thread (see :func:`_post_feasible`)."""
+        X = _readonly_view(carray(_vptr(buf[0]), (buf[1], buf[2]), np.float64))
+        ins = carray(_vptr(buf[3]), (buf[4], buf[5]), np.int64)
+        consts = carray(_vptr(buf[6]), (buf[7],), np.float64)
+        pose_regs = carray(_vptr(buf[11]), (buf[12],), np.int64)
+        valid_regs = carray(_vptr(buf[13]), (buf[14],), np.int64)
+        plim = carray(_vptr(buf[15]), (buf[16],), np.float64)
+        expr = carray(_vptr(buf[18]), (buf[19], buf[20]), np.int64)
+        leg_kind = carray(_vptr(buf[22]), (buf[23],), np.int64)
+        leg_act = carray(_vptr(buf[24]), (buf[25],), np.int64)
+        leg_f = carray(_vptr(buf[26]), (buf[27], buf[28]), np.float64)
+        coord = carray(_vptr(buf[29]), (buf[30], buf[31]), np.float64)
+        actr = carray(_vptr(buf[32]), (buf[33], buf[34]), np.float64)
+        lenr = carray(_vptr(buf[35]), (buf[36], buf[37]), np.float64)
+        cone = carray(_vptr(buf[38]), (buf[39], buf[40]), np.float64)
+        rang = carray(_vptr(buf[41]), (buf[42], buf[43]), np.float64)
+        axang = carray(_vptr(buf[44]), (buf[45], buf[46]), np.float64)
+        pair = carray(_vptr(buf[47]), (buf[48], buf[49]), np.float64)
+        offs = carray(_vptr(buf[50]), (buf[51], buf[52]), np.int64)
+        out = carray(_vptr(buf[54]), (buf[55],), np.bool_)
+        amb = carray(_vptr(buf[56]), (buf[57],), np.int64)
+        ext = carray(_vptr(buf[58]), (buf[59], buf[60]), np.float64)
+        claim = carray(_vptr(buf[61]), (buf[62],), np.int64)
+        _call_at(buf[_B_KADDR], (X, ins, consts, buf[8], buf[9], buf[10], pose_regs, valid_regs, plim, buf[17], expr,
+                                 _bits_f8(buf[21]), leg_kind, leg_act, leg_f, coord, actr, lenr, cone, rang, axang,
+                                 pair, offs, buf[53], out, amb, ext, claim, buf[_B_B1]))
+
+    @njit(**_jit)
+    def _crew_serve(mail, gen, claim, max_iter, fin, last, buf, tickets, done):
+        """A crew thread's wait for the next batch, in compiled code with the interpreter lock
+        released, as :func:`_crew_spin` (``fin[last] = 1`` first), serving the compiled
+        feasibility batches posted meanwhile itself (``mail[2]`` set, see
+        :func:`_post_feasible`): a ticket taken, the kernel run if the ticket is one of the
+        batch's, the ticket marked done with the batch's number (``done[ticket]``). Returns the
+        batch count of a batch for the interpreter (``mail[2]`` zero: the caller drains it),
+        -1 after ``max_iter`` rounds without a batch."""
+        if last >= 0:
+            _store_release(fin, last, 1)
+        mask = (1 << _TICKET_BITS) - 1
+        idle = 0
+        while idle < max_iter:
+            m = _load_acquire(mail, 0)
+            if m == gen:
+                idle += 1
+                continue
+            if _load_acquire(mail, 2) == 0:
+                if _load_acquire(mail, 1) != 0:
+                    for _ in range(max_iter):
+                        if _load_acquire(claim, 0) != 0:
+                            break
+                return m
+            old = _swap_add(tickets, 1)
+            t = old & mask
+            gb = old >> _TICKET_BITS
+            gen = max(m, gb)  # the tickets of batch gb are stored before its count: gb >= m
+            if t < buf[_B_PARTS]:
+                _run_posted_feasible(buf)
+                _store_release(done, t, gb)
+            idle = 0
+        return -1
+
+    @njit(**_jit)
+    def _cancel_tickets(tickets, parts):
+        """The caller, its own items done: takes every ticket no crew thread took (no thread
+        will run them); returns them as a bit mask."""
+        mask = (1 << _TICKET_BITS) - 1
+        cancelled = 0
+        while True:
+            t = _swap_add(tickets, 1) & mask
+            if t >= parts:
+                return cancelled
+            cancelled |= 1 << t
+
+    @njit(**_jit)
+    def _tickets_done(done, g, parts, cancelled, max_iter):
+        """Whether every ticket 1 .. parts - 1 of batch ``g`` not in ``cancelled`` was marked done
+        within ``max_iter`` rounds."""
+        for t in range(1, parts):
+            if cancelled & (1 << t):
+                continue
+            ok = False
+            for _ in range(max_iter):
+                if _load_acquire(done, t) == g:
+                    ok = True
+                    break
+            if not ok:
+                return False
+        return True
 
     @njit(**_jit)
     def _spin_done(fin, max_iter):
@@ -2405,4 +2738,8 @@ def signatures() -> dict:
         "_margins_kernel": (_margins_kernel, prog + plan + (i8, f2, i1, i1, i8)),
         "_spin_done": (_spin_done, (i1, i8)),
         "_crew_spin": (_crew_spin, (i1, i8, i1, i8, i1, i8)),
+        "_crew_serve": (_crew_serve, (i1, i8, i1, i8, i1, i8, i1, i1, i1)),
+        "_cancel_tickets": (_cancel_tickets, (i1, i8)),
+        "_tickets_done": (_tickets_done, (i1, i8, i8, i8, i8)),
+        "_post_feasible": (_post_feasible, prog + plan + (i8, b1, i1, f2, i1, i8) + (i8, i8, i1, i1, i1)),
     }
