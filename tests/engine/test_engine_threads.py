@@ -509,3 +509,36 @@ def test_a_failing_call_of_the_caller_waits_for_the_crew_and_raises(monkeypatch)
     assert not core._CREW.busy.locked()  # released: the next batch runs
     monkeypatch.setattr(core, "_compiled_batch", real)
     assert kernels.feasible_fast(mech, X).shape == (20_000,)
+
+
+def test_an_interrupt_while_waiting_for_the_crew_is_raised_once_the_crew_is_done(monkeypatch):
+    """Ctrl-C while the caller waits for a crew thread still running the batch (which reads its
+    arrays by address): the wait goes on until the ticket is marked done, then raises."""
+    import threading
+    import time
+
+    core.spin_warm()
+    done = np.full(3, -1, dtype=np.int64)
+    calls = []
+    real_sleep = time.sleep
+
+    def sleep(s):
+        calls.append(s)
+        if len(calls) == 1:
+            raise KeyboardInterrupt
+        real_sleep(s)
+
+    monkeypatch.setattr(core, "SPIN_ITERATIONS", 10)
+    monkeypatch.setattr(core.time, "sleep", sleep)
+
+    def crew_finishes():
+        real_sleep(0.05)
+        done[1] = 7
+
+    t = threading.Thread(target=crew_finishes)
+    t.start()
+    with pytest.raises(KeyboardInterrupt):
+        core._wait_tickets(done, 7, 2, 0)
+    assert done[1] == 7  # raised only after the crew's mark
+    t.join()
+    assert len(calls) > 1  # it went on waiting after the interrupt

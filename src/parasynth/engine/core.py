@@ -292,14 +292,31 @@ def _compiled_batch(crew, post, fn, block, claim, nblk, nt) -> None:
     nblk)``; then the tickets no crew thread took are cancelled and the caller waits for the
     others to be marked done (spinning, then sleeping 20 us at a time) -- also when its own call
     failed, since a crew thread may still be reading the batch's arrays."""
-    g = post(block, claim, nblk, nt, crew.buf, crew.mail, crew.tickets)
+    g = -1
     try:
+        g = post(block, claim, nblk, nt, crew.buf, crew.mail, crew.tickets)
         crew.wake(nt - 1)
         fn(block, claim, nblk)
     finally:
-        cancelled = _cancel_tickets(crew.tickets, nt)
-        while not _tickets_done(crew.done, g, nt, cancelled, SPIN_ITERATIONS):
-            time.sleep(2e-5)
+        if g >= 0:  # posted: the crew may be running it
+            _wait_tickets(crew.done, g, nt, _cancel_tickets(crew.tickets, nt))
+
+
+def _wait_tickets(done, g, nt, cancelled) -> None:
+    """Until every ticket of batch ``g`` not ``cancelled`` is marked done: spinning in compiled
+    code, then sleeping 20 us at a time. An interrupt (Ctrl-C) meanwhile is raised only once
+    they are: a crew thread reads the batch's arrays by their addresses alone, so they must
+    outlive its call."""
+    interrupted = None
+    while True:
+        try:
+            while not _tickets_done(done, g, nt, cancelled, SPIN_ITERATIONS):
+                time.sleep(2e-5)
+            break
+        except BaseException as e:  # noqa: BLE001 - raised below, once the crew is done
+            interrupted = e
+    if interrupted is not None:
+        raise interrupted
 
 
 _IN_POOL = threading.local()
