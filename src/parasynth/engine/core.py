@@ -283,8 +283,6 @@ def _timed_claims(kind: str, fn, n: int, work: float | None = None, unit: int = 
     TIMING.record(kind, par, int(max(n, work or 0)), time.perf_counter() - t0)
 
 
-
-
 def _compiled_batch(crew, post, fn, block, claim, nblk, nt) -> None:
     """A claiming batch on ``nt`` threads whose crew part runs in compiled code: posted by
     ``post`` (the kernel's arguments into the crew's ``buf``, ``nt`` tickets, the first the
