@@ -1302,18 +1302,23 @@ if HAVE_NUMBA:
         return sig, codegen
 
     @_intrinsic
-    def _claim(typingctx, arr):
-        """The next work item of a batch shared by threads: ``arr[0]`` incremented atomically,
-        its value before returned (each item goes to exactly one caller)."""
-        sig = _nbt.int64(arr)
+    def _swap_add(typingctx, arr, delta):
+        """``arr[0] += delta`` atomically (acquire and release), its value before returned."""
+        sig = _nbt.int64(arr, _nbt.int64)
 
         def codegen(context, builder, signature, args):
             aryty = signature.args[0]
             ary = context.make_array(aryty)(context, builder, args[0])
             ptr = _cgutils.get_item_pointer(context, builder, aryty, ary, [context.get_constant(_nbt.intp, 0)])
-            return builder.atomic_rmw("add", ptr, context.get_constant(_nbt.int64, 1), "monotonic")
+            return builder.atomic_rmw("add", ptr, args[1], "acq_rel")
 
         return sig, codegen
+
+    @njit(**_jit_ir_inline)
+    def _claim(arr):
+        """The next work item of a batch shared by threads: ``arr[0]`` incremented atomically,
+        its value before returned (each item goes to exactly one caller)."""
+        return _swap_add(arr, 1)
 
     @_intrinsic
     def _data(typingctx, arr):
@@ -1421,18 +1426,6 @@ if HAVE_NUMBA:
 
         return sig, codegen
 
-    @_intrinsic
-    def _swap_add(typingctx, arr, delta):
-        """``arr[0] += delta`` atomically (acquire and release), its value before returned."""
-        sig = _nbt.int64(arr, _nbt.int64)
-
-        def codegen(context, builder, signature, args):
-            aryty = signature.args[0]
-            ary = context.make_array(aryty)(context, builder, args[0])
-            ptr = _cgutils.get_item_pointer(context, builder, aryty, ary, [context.get_constant(_nbt.intp, 0)])
-            return builder.atomic_rmw("add", ptr, args[1], "acq_rel")
-
-        return sig, codegen
 
     # buf's layout: each array as (data pointer, its shape), each scalar as one int64 (a float by
     # its bits); then the kernel's entry address and the number of threads' tickets
