@@ -36,10 +36,11 @@ def test_split_margin_equals_one_thread(name, n, monkeypatch):
         return real(fn, n_blocks, parallel, claiming)
 
     monkeypatch.setattr(core, "over_blocks", spy)
+    monkeypatch.setattr(core, "_compiled_batch", lambda *a: calls.append((0, True, True)))
     try:
         core.set_threads(1)
         one = mech.singularity_margin(X)
-        assert calls and not any(par for _, par, _ in calls)  # one thread: no parallel batch
+        assert not any(par for _, par, _ in calls)  # one thread: no parallel batch (none handed to the crew)
         core.set_threads(None)
         if core.n_threads() < 2:
             pytest.skip("one thread only")

@@ -4,6 +4,8 @@ NumPy reference."""
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 import pytest
 
@@ -371,9 +373,10 @@ def test_the_first_parallel_batch_loads_the_spin_kernels(monkeypatch):
     assert np.array_equal(done, np.ones(4))
 
 
-def _posted_batch(mech, X, nt, names=None):
+def _posted_batch(mech, X, nt, names=None, kaddr=None):
     """The feasibility batch of ``X`` posted for ``nt`` threads as a run posts it (the caller's
-    ticket taken), without running anything: (its number, out, amb, ext, the crew's arrays)."""
+    ticket taken), without running anything: (its number, out, amb, ext, the crew's arrays).
+    ``kaddr``: the kernel's address (default the feasibility kernel's)."""
     from parasynth.engine import evaluate
 
     core.spin_warm()
@@ -389,8 +392,9 @@ def _posted_batch(mech, X, nt, names=None):
     mail, buf, tickets = np.zeros(3, dtype=np.int64), np.zeros(core.CREW_BUF, dtype=np.int64), np.zeros(1, dtype=np.int64)
     block = core.SUB * 2
     nblk = (n + block - 1) // block
-    g = core._post_feasible(Xr, *p.args(), block, out, amb, ext, claim, nblk, core._entry_address("_feasible_kernel"),
-                            nt, buf, mail, tickets)
+    if kaddr is None:
+        kaddr = core._entry_address("_feasible_kernel")
+    g = core._post_feasible(Xr, *p.args(), block, out, amb, ext, claim, nblk, kaddr, nt, buf, mail, tickets)
     return g, out, amb, ext, claim, mail, buf, tickets
 
 
@@ -479,36 +483,120 @@ def test_compiled_crew_batches_answer_as_one_thread(n, threads, monkeypatch):
     for spin in (core.CREW_SPIN, 20):
         monkeypatch.setattr(core, "CREW_SPIN", spin)
         before = core._CREW.done.copy()
-        for _ in range(30):
+        start = time.monotonic()
+        for i in range(2000):
             assert np.array_equal(kernels.feasible_fast(mech, X), one)
+            # 30 batches, and more while the crew has served none (its CPU busy with other work)
+            if i >= 29 and ((core._CREW.done != before).any() or time.monotonic() - start > 20):
+                break
         served = core._CREW.done != before
         assert served.any() or spin == 20  # spinning, the crew takes its tickets
     assert core._SERVE_READY and core._CREW.mail[2] == 1
 
 
-def test_a_failing_call_of_the_caller_waits_for_the_crew_and_raises(monkeypatch):
+def _failing_kernel_address():
+    """The address (as ``_entry_address`` gives the kernel's) of a compiled function of the
+    feasibility kernel's signature that raises."""
+    import numba
+
+    types = tuple(core.signatures()["_feasible_kernel"][1])
+
+    @numba.njit(nogil=True)
+    def failing(X, ins, consts, cbase, n_reg, n_pose, pose_regs, valid_regs, plim, loop, expr, tol, leg_kind, leg_act,
+                leg_f, coord, actr, lenr, cone, rang, axang, pair, offs, block, out, amb, ext, claim, b1):
+        if b1 >= 0:
+            raise ValueError("a kernel that fails")
+
+    failing.compile(types)
+    cres = failing.overloads[types]
+    return int(cres.library.get_pointer_to_function(cres.fndesc.llvm_func_name))
+
+
+def test_a_kernel_call_that_fails_is_reported_by_the_crew_and_the_caller():
+    """A kernel called at its address does not raise: its failure comes back as a status, set
+    in ``buf`` by a crew thread and in ``state[3]`` by the caller's compiled call (which then
+    runs the batch again through the interpreter); a call that returns reports nothing."""
+    mech = load_mechanism("5pus_upu")
+    X = _box_poses(mech, 2000, 3)
+    bad = _failing_kernel_address()
+    g, out, amb, ext, claim, mail, buf, tickets = _posted_batch(mech, X, 2, kaddr=bad)
+    done = np.full(4, -1, dtype=np.int64)
+    assert core._crew_serve(mail, 0, claim, 50, core._NO_FIN, -1, buf, tickets, done) == -1
+    assert done[1] == g and buf[core._B_ERR] == 1  # ran (and failed), marked done, failure said
+    # the caller's side, on one thread: the failing address, then the kernel's
+    from parasynth.engine import evaluate
+
+    p, _ = evaluate.plan(mech)
+    Xr = core._readonly(np.ascontiguousarray(X))
+    for kaddr, failed in ((bad, 1), (core._entry_address("_feasible_kernel"), 0)):
+        out = np.zeros(len(X), dtype=np.bool_)
+        amb = np.zeros(len(X) // core.SUB + 1, dtype=np.int64)
+        claim, state = np.zeros(1, dtype=np.int64), np.full(4, -7, dtype=np.int64)
+        core._feasible_batch(Xr, *p.args(), core.SUB, out, amb, core._NO_EXT, claim, len(amb), kaddr, 1,
+                             np.zeros(core.CREW_BUF, dtype=np.int64), np.zeros(3, dtype=np.int64),
+                             np.zeros(1, dtype=np.int64), done, 10, state)
+        assert state.tolist() == [state[0], 0, 1, failed] and state[0] >= 1
+        if not failed:
+            assert np.array_equal(out, mech.is_feasible(X, engine="numpy"))
+
+
+def _stand_in_run(state_of, raises=None):
+    """A stand-in for a compiled batch's ``run`` that only sets ``state`` (and raises)."""
+    def run(block, claim, b1, nt, buf, mail, tickets, done, max_iter, state):
+        state[:] = state_of
+        if raises is not None:
+            raise raises
+    return run
+
+
+def test_a_failed_compiled_batch_runs_again_through_the_interpreter_and_raises(monkeypatch):
+    """A kernel call reported failed: the batch runs again on the calling thread through the
+    interpreter, whose call raises the error; the crew's counter is released, the next batch runs."""
     mech = load_mechanism("5pus_upu")
     X = np.zeros((20_000, 5))
     monkeypatch.setattr(core, "ADAPTIVE", False)
     monkeypatch.setattr(core, "n_threads", lambda: 2)
     core.spin_warm()
-    kernels.feasible_fast(mech, X)
-    real = core._compiled_batch
-    seen = {}
+    ran = []
 
-    def failing(crew, post, fn, block, claim, nblk, nt):
-        def boom(*a):
-            raise RuntimeError("the caller's call failed")
-        seen["ran"] = True
-        real(crew, post, boom, block, claim, nblk, nt)
+    def fn(block, claim, b1):
+        ran.append(int(claim[0]))
+        raise RuntimeError("the kernel's error")
 
-    monkeypatch.setattr(core, "_compiled_batch", failing)
-    with pytest.raises(RuntimeError, match="caller's call failed"):
-        kernels.feasible_fast(mech, X)
-    assert seen["ran"]
-    assert not core._CREW.busy.locked()  # released: the next batch runs
-    monkeypatch.setattr(core, "_compiled_batch", real)
+    with pytest.raises(RuntimeError, match="kernel's error"):
+        core._timed_claims("feasible", fn, 20_000, run=_stand_in_run([3, 0, 1, 1]))
+    assert ran == [0]  # again from the first item
+    assert not core._CREW.busy.locked()
     assert kernels.feasible_fast(mech, X).shape == (20_000,)
+    ran.clear()
+    core._timed_claims("feasible", fn, 20_000, run=_stand_in_run([4, 0, 1, 0]))  # none failed: not again
+    assert ran == []
+
+
+def test_an_interrupt_right_after_the_compiled_call_still_waits_for_the_crew(monkeypatch):
+    """Ctrl-C raised as the caller's compiled call returns, the crew not done with the batch:
+    the caller waits for the crew's mark before it raises (the crew reads the batch's arrays)."""
+    import threading
+    import time
+
+    core.spin_warm()
+    crew = core._CREW
+    monkeypatch.setattr(core, "SPIN_ITERATIONS", 10)
+    g = 9
+    crew.done[1] = -1
+
+    def crew_finishes():
+        time.sleep(0.05)
+        crew.done[1] = g
+
+    t = threading.Thread(target=crew_finishes)
+    t.start()
+    run = _stand_in_run([g, 0, 0, 0], raises=KeyboardInterrupt)
+    with pytest.raises(KeyboardInterrupt):
+        core._compiled_batch(crew, run, None, core.SUB, np.zeros(1, dtype=np.int64), 4, 2)
+    assert crew.done[1] == g  # raised only after the crew's mark
+    t.join()
+    crew.done[1] = -1
 
 
 def test_an_interrupt_while_waiting_for_the_crew_is_raised_once_the_crew_is_done(monkeypatch):

@@ -126,28 +126,35 @@ PARALLEL_MIN = 8192
 ITEMS_PER_THREAD = 1
 
 _THREADS = None
+_NT = None  # n_threads(), once known (set_threads forgets it)
 
 
 def n_threads() -> int:
     """Threads a batch is spread over: numba's thread count (``NUMBA_NUM_THREADS``, default
-    the number of cores; a study's worker processes get ``cores // workers`` of it, see
-    :func:`parasynth.study.workers.worker_env`), or fewer if :func:`set_threads` asked so."""
-    if not HAVE_NUMBA:
-        return 1
-    import numba
+    the number of cores, read once: numba fixes it when it starts its threads; a study's worker
+    processes get ``cores // workers`` of it, see :func:`parasynth.study.workers.worker_env`),
+    or fewer if :func:`set_threads` asked so."""
+    global _NT
+    nt = _NT
+    if nt is None:
+        if not HAVE_NUMBA:
+            return 1
+        import numba
 
-    nt = max(1, int(numba.config.NUMBA_NUM_THREADS))
-    return nt if _THREADS is None else min(nt, _THREADS)
+        nt = max(1, int(numba.config.NUMBA_NUM_THREADS))
+        nt = _NT = nt if _THREADS is None else min(nt, _THREADS)
+    return nt
 
 
 def set_threads(n: int | None) -> None:
     """Spread batches over at most ``n`` threads from now on (``None``: numba's thread count
     again); numba's thread count stays the ceiling, so a worker process kept to one thread
     stays there."""
-    global _THREADS
+    global _THREADS, _NT
     if n is not None and (not isinstance(n, int) or isinstance(n, bool) or n < 1):
         raise ValueError(f"threads: {n!r} is not allowed; give a whole number >= 1 or None")
     _THREADS = n
+    _NT = None
 
 
 #: What a pose costs the program kernels (feasibility, margins, pose) on one core, ~``POSE_NS +
@@ -254,50 +261,60 @@ def _timed_blocks(kind: str, fn, n: int, work: float | None = None) -> None:
 CLAIMS_PER_THREAD = 16
 
 
-def _timed_claims(kind: str, fn, n: int, work: float | None = None, unit: int = SUB, post=None) -> None:
+def _timed_claims(kind: str, fn, n: int, work: float | None = None, unit: int = SUB, run=None) -> None:
     """As :func:`_timed_blocks` for a kernel that claims its work items itself
     (``fn(block, claim, n_blocks)``, each item taken by an atomic increment of ``claim[0]``):
     every thread of the batch calls it once and takes items until none is left, so a thread
     that starts late takes fewer and none waits for another's range; the items are finer
     (:data:`CLAIMS_PER_THREAD` a thread). One thread: one call takes them all in order.
 
-    ``post(block, claim, n_blocks, threads, buf, mail, tickets)``, where given, posts the batch
-    to the crew in compiled code (:func:`_post_feasible`) and returns its number: the crew
-    threads, spinning in :func:`_crew_serve`, then run the kernel without the interpreter
+    ``run(block, claim, n_blocks, threads, buf, mail, tickets, done, max_iter, state)``, where
+    given, runs the caller's whole part of the batch in compiled code (:func:`_feasible_batch`):
+    the crew threads, spinning in :func:`_crew_serve`, run the kernel without the interpreter
     (:func:`_compiled_batch`)."""
     block, nblk, par = blocking(n, kind=kind, work=work, per_thread=CLAIMS_PER_THREAD, unit=unit)
-    crew = _CREW
-    shared = par and crew.busy.acquire(blocking=False)  # the crew's counter, which its spin watches
-    claim = crew.claim if shared else np.zeros(1, dtype=np.int64)
-    claim[0] = 0
     t0 = time.perf_counter()
-    try:
-        nt = n_threads() if par else 1
-        if shared and post is not None and _SERVE_READY and nt <= MAX_TICKETS:
-            _compiled_batch(crew, post, fn, block, claim, nblk, nt)
-        else:
-            over_blocks(lambda p0, p1: fn(block, claim, nblk), nt, par, claiming=shared)
-    finally:
-        if shared:
-            crew.busy.release()
-    TIMING.record(kind, par, int(max(n, work or 0)), time.perf_counter() - t0)
+    if not par:
+        fn(block, np.zeros(1, dtype=np.int64), nblk)
+    else:
+        crew = _CREW
+        shared = crew.busy.acquire(blocking=False)  # the crew's counter, which its spin watches
+        try:
+            claim = crew.claim if shared else np.zeros(1, dtype=np.int64)
+            claim[0] = 0
+            nt = n_threads()
+            if shared and run is not None and _SERVE_READY and nt <= MAX_TICKETS:
+                _compiled_batch(crew, run, fn, block, claim, nblk, nt)
+            else:
+                over_blocks(lambda p0, p1: fn(block, claim, nblk), nt, True, claiming=shared)
+        finally:
+            if shared:
+                crew.busy.release()
+    w = n if work is None or work < n else int(work)
+    if w >= PARALLEL_MIN:
+        TIMING.record(kind, par, w, time.perf_counter() - t0)
 
 
-def _compiled_batch(crew, post, fn, block, claim, nblk, nt) -> None:
-    """A claiming batch on ``nt`` threads whose crew part runs in compiled code: posted by
-    ``post`` (the kernel's arguments into the crew's ``buf``, ``nt`` tickets, the first the
-    caller's), the crew woken where it sleeps, the caller's own call ``fn(block, claim,
-    nblk)``; then the tickets no crew thread took are cancelled and the caller waits for the
-    others to be marked done (spinning, then sleeping 20 us at a time) -- also when its own call
-    failed, since a crew thread may still be reading the batch's arrays."""
-    g = -1
+def _compiled_batch(crew, run, fn, block, claim, nblk, nt) -> None:
+    """A claiming batch on ``nt`` threads whose crew part runs in compiled code: the crew woken
+    where it sleeps (it then finds the batch in its spin), and ``run`` posting the batch (the
+    kernel's arguments into the crew's ``buf``, ``nt`` tickets, the first the caller's),
+    running the caller's items, cancelling the tickets no crew thread took and waiting a while
+    for the others (:func:`_feasible_batch`); then, if they are not done yet, waiting for them
+    (sleeping 20 us at a time) -- also when an interrupt came meanwhile, since a crew thread
+    may still be reading the batch's arrays. If a call of the kernel failed, the batch runs
+    again on this thread through the interpreter, which raises the error."""
+    st = crew.state
+    st[0] = -1
     try:
-        g = post(block, claim, nblk, nt, crew.buf, crew.mail, crew.tickets)
         crew.wake(nt - 1)
-        fn(block, claim, nblk)
+        run(block, claim, nblk, nt, crew.buf, crew.mail, crew.tickets, crew.done, SPIN_ITERATIONS, st)
     finally:
-        if g >= 0:  # posted: the crew may be running it
-            _wait_tickets(crew.done, g, nt, _cancel_tickets(crew.tickets, nt))
+        if st[0] >= 0 and not st[2]:  # posted, and the crew is not done with it yet
+            _wait_tickets(crew.done, int(st[0]), nt, int(st[1]))
+    if st[3] or crew.buf[_B_ERR]:
+        claim[0] = 0
+        fn(block, claim, nblk)
 
 
 def _wait_tickets(done, g, nt, cancelled) -> None:
@@ -393,6 +410,7 @@ class _Crew:
         self.buf = np.zeros(CREW_BUF, dtype=np.int64)
         self.tickets = np.zeros(1, dtype=np.int64)  # a compiled batch's: its number, tickets taken
         self.done = np.full(MAX_TICKETS + 2, -1, dtype=np.int64)  # per ticket: the batch it ran last
+        self.state = np.zeros(4, dtype=np.int64)  # a compiled batch's, see _feasible_batch
         self.claim = np.zeros(1, dtype=np.int64)
         self.busy = threading.Lock()  # held by the thread whose batch uses ``claim``
         self.apart_from = None  # the CPU the crew was last kept off (see _keep_apart)
@@ -552,7 +570,7 @@ def _spin_ready() -> bool:
 
 def spin_warm() -> None:
     """Load the spin kernels of the threads' waits (:func:`_spin_done`, :func:`_crew_spin`) and,
-    with :data:`COMPILED_CREW`, the compiled crew's (:func:`_crew_serve`, :func:`_post_feasible`,
+    with :data:`COMPILED_CREW`, the compiled crew's (:func:`_crew_serve`, :func:`_feasible_batch`,
     :func:`_cancel_tickets`, :func:`_tickets_done`) from numba's cache, or compile them (~0.2 s
     and ~1.5 s, then cached): a run compiles them ahead with the feasibility kernel
     (:mod:`parasynth.engine.precompile`); any other process at its first parallel batch.
@@ -569,7 +587,7 @@ def spin_warm() -> None:
                         one)
             _cancel_tickets(np.zeros(1, dtype=np.int64), 0)
             _tickets_done(one, 0, 1, 0, 1)
-            _post_feasible.compile(tuple(signatures()["_post_feasible"][1]))
+            _feasible_batch.compile(tuple(signatures()["_feasible_batch"][1]))
             _SERVE_READY = True
 
 
@@ -693,14 +711,20 @@ class KernelPlan:
         self.names = tuple(names)
         self.tables = tables  # dict name -> (k, m) float64
         self.expr = expr
+        self._args = None
 
     def args(self):
+        """The kernels' arguments for this plan (kept while its pose loop, program, constants and
+        expression rows stay the same objects)."""
         p = self.program
-        t = self.tables
-        return (p.ins, self.consts, p.const_base, p.n_reg, p.n_pose, p.pose_regs, p.valid_regs, p.pose_limit,
-                _posefn.function(p, SUB).address, self.expr, GEOM_TOL,
-                self.leg_kind, self.leg_act, self.leg_f, t["coord"], t["actr"], t["lenr"], t["cone"], t["rang"],
-                t["axang"], t["pair"], t["offs"])
+        loop = _posefn.function(p, SUB).address
+        a = self._args
+        if a is None or a[8] != loop or a[0] is not p.ins or a[1] is not self.consts or a[9] is not self.expr:
+            t = self.tables
+            a = self._args = (p.ins, self.consts, p.const_base, p.n_reg, p.n_pose, p.pose_regs, p.valid_regs,
+                              p.pose_limit, loop, self.expr, GEOM_TOL, self.leg_kind, self.leg_act, self.leg_f,
+                              t["coord"], t["actr"], t["lenr"], t["cone"], t["rang"], t["axang"], t["pair"], t["offs"])
+        return a
 
 
 def _first(row):
@@ -1141,43 +1165,47 @@ def run_feasible(plan: KernelPlan, X: np.ndarray, extents: bool = False):
     (out, ambiguous, lo (3,), hi (3,)): also the least and greatest platform position
     (x, y, z) over the feasible poses, taken in the kernel from the pose it computed (the
     values ``run_pose`` gives; +inf / -inf when no pose is feasible)."""
-    X = _readonly(X)
-    out = np.empty(X.shape[0], dtype=np.bool_)
-    nmax = max(1, (X.shape[0] + SUB - 1) // SUB)
-    amb = np.zeros(nmax, dtype=np.int64)  # one per block, any blocking
+    if X.flags.writeable:
+        X = _readonly(X)
+    n = X.shape[0]
+    out = np.empty(n, dtype=np.bool_)
+    amb = np.zeros(max(1, (n + SUB - 1) // SUB), dtype=np.int64)  # one per block, any blocking
     if extents:  # per block (lo x, y, z, hi x, y, z), any blocking
-        ext = np.empty((nmax, 6))
+        ext = np.empty((amb.shape[0], 6))
         ext[:, :3] = np.inf
         ext[:, 3:] = -np.inf
     else:
         ext = _NO_EXT
     args = plan.args()
-    kaddr = _entry_address("_feasible_kernel") if _SERVE_READY and COMPILED_CREW else 0
-    post = None
+    kaddr = _entry_address("_feasible_kernel") if _SERVE_READY and COMPILED_CREW and X.flags.c_contiguous else 0
+    run = None
     if kaddr:
-        def post(block, claim, b1, nt, buf, mail, tickets):
-            return _post_feasible(X, *args, block, out, amb, ext, claim, b1, kaddr, nt, buf, mail, tickets)
+        def run(block, claim, b1, nt, buf, mail, tickets, done, max_iter, state):
+            _feasible_batch(X, *args, block, out, amb, ext, claim, b1, kaddr, nt, buf, mail, tickets, done, max_iter,
+                            state)
     _timed_claims("feasible", lambda block, claim, b1: _feasible_kernel(X, *args, block, out, amb, ext, claim, b1),
-                  X.shape[0], program_work(X.shape[0], plan.program.ins.shape[0]), post=post)
+                  n, program_work(n, plan.program.ins.shape[0]), run=run)
+    ambiguous = np.count_nonzero(amb) != 0
     if not extents:
-        return out, bool(amb.any())
-    return out, bool(amb.any()), ext[:, :3].min(axis=0), ext[:, 3:].max(axis=0)
+        return out, ambiguous
+    return out, ambiguous, ext[:, :3].min(axis=0), ext[:, 3:].max(axis=0)
 
 
 _ENTRIES: dict = {}
 
 
 def _entry_address(name: str) -> int:
-    """The address of the C entry point of the kernel ``name`` (of :func:`signatures`) as
-    compiled in this process, which :func:`_call_at` calls; 0 while it is not compiled or
-    loaded here yet (its first call does that)."""
+    """The address of the kernel ``name`` (of :func:`signatures`) as compiled in this process,
+    in numba's calling convention (a status returned, the exception not raised), which
+    :func:`_call_status_at` calls; 0 while it is not compiled or loaded here yet (its first
+    call does that)."""
     a = _ENTRIES.get(name)
     if a is None:
         disp, types = signatures()[name]
         cres = getattr(disp, "overloads", {}).get(tuple(types))  # (not a dispatcher: a test's stand-in)
         if cres is None:
             return 0
-        a = int(cres.library.get_pointer_to_function(cres.fndesc.llvm_cfunc_wrapper_name))
+        a = int(cres.library.get_pointer_to_function(cres.fndesc.llvm_func_name))
         _ENTRIES[name] = a
     return a
 
@@ -1355,8 +1383,9 @@ if HAVE_NUMBA:
     # -- the compiled crew: a feasibility batch handed to a spinning crew thread by pointer ----
     # The calling thread writes the kernel's arguments (data pointers, shapes, scalars) into the
     # crew's ``buf`` (_post_feasible); a crew thread spinning in _crew_serve rebuilds the arrays
-    # from them and calls the feasibility kernel through its C entry point (_call_at), then marks
-    # its ticket done -- neither thread's hand-off goes through the interpreter.
+    # from them and calls the feasibility kernel at its address (_call_status_at), then marks
+    # its ticket done -- neither thread's hand-off goes through the interpreter. The caller posts,
+    # runs its own share and waits for the crew's in one compiled call (_feasible_batch).
 
     @_intrinsic
     def _addr(typingctx, arr):
@@ -1410,28 +1439,32 @@ if HAVE_NUMBA:
         return sig, codegen
 
     @_intrinsic
-    def _call_at(typingctx, addr, args):
-        """The compiled function at ``addr`` (the C entry point numba gives every compiled
-        kernel, see :func:`_entry_address`) called on the tuple ``args``, which must be of the
-        types it was compiled for; it returns nothing."""
-        sig = _nbt.none(addr, args)
+    def _call_status_at(typingctx, addr, args):
+        """The compiled function at ``addr`` (a kernel as numba compiled it, in numba's own
+        calling convention: see :func:`_entry_address`) called on the tuple ``args``, which must
+        be of the types it was compiled for: 0 when it returned, 1 when it failed (an
+        exception, which is not raised here: the caller runs the batch again through the
+        interpreter, where it is)."""
+        sig = _nbt.int64(addr, args)
 
         def codegen(context, builder, signature, llargs):
-            dmm = context.data_model_manager
             tys = signature.args[1].types
             vals = _cgutils.unpack_tuple(builder, llargs[1], len(tys))
-            fnty = _llir.FunctionType(dmm.lookup(_nbt.none).get_value_type(), [dmm.lookup(t).get_value_type() for t in tys])
-            builder.call(builder.inttoptr(llargs[0], fnty.as_pointer()), vals)
-            return context.get_dummy_value()
+            fnty = context.call_conv.get_function_type(_nbt.none, tys)
+            fn = builder.inttoptr(llargs[0], fnty.as_pointer())
+            status, _ = context.call_conv.call_function(builder, fn, _nbt.none, tys, vals)
+            i64 = _llir.IntType(64)
+            return builder.select(status.is_error, _llir.Constant(i64, 1), _llir.Constant(i64, 0))
 
         return sig, codegen
 
-
     # buf's layout: each array as (data pointer, its shape), each scalar as one int64 (a float by
-    # its bits); then the kernel's entry address and the number of threads' tickets
+    # its bits); then the kernel's address, the number of threads' tickets, and whether a crew
+    # thread's call of the kernel failed
     _B_B1 = 63
     _B_KADDR = 64
     _B_PARTS = 65
+    _B_ERR = 66
     #: Tickets of a compiled batch: the batch number above these bits, the tickets taken below.
     _TICKET_BITS = 16
 
@@ -1487,6 +1520,7 @@ if HAVE_NUMBA:
         buf[_B_B1] = b1
         buf[_B_KADDR] = kaddr
         buf[_B_PARTS] = parts
+        buf[_B_ERR] = 0
         g = mail[0] + 1
         _store_release(tickets, 0, (g << _TICKET_BITS) | 1)
         mail[2] = 1
@@ -1495,7 +1529,8 @@ if HAVE_NUMBA:
 
     @njit(**_jit)
     def _run_posted_feasible(buf):
-        """The posted feasibility batch's kernel on this thread (see :func:`_post_feasible`)."""
+        """The posted feasibility batch's kernel on this thread (see :func:`_post_feasible`):
+        0, or 1 when the kernel failed."""
         X = _readonly_view(carray(_vptr(buf[0]), (buf[1], buf[2]), np.float64))
         ins = carray(_vptr(buf[3]), (buf[4], buf[5]), np.int64)
         consts = carray(_vptr(buf[6]), (buf[7],), np.float64)
@@ -1518,9 +1553,9 @@ if HAVE_NUMBA:
         amb = carray(_vptr(buf[56]), (buf[57],), np.int64)
         ext = carray(_vptr(buf[58]), (buf[59], buf[60]), np.float64)
         claim = carray(_vptr(buf[61]), (buf[62],), np.int64)
-        _call_at(buf[_B_KADDR], (X, ins, consts, buf[8], buf[9], buf[10], pose_regs, valid_regs, plim, buf[17], expr,
-                                 _bits_f8(buf[21]), leg_kind, leg_act, leg_f, coord, actr, lenr, cone, rang, axang,
-                                 pair, offs, buf[53], out, amb, ext, claim, buf[_B_B1]))
+        return _call_status_at(buf[_B_KADDR], (X, ins, consts, buf[8], buf[9], buf[10], pose_regs, valid_regs, plim, buf[17], expr,
+                                               _bits_f8(buf[21]), leg_kind, leg_act, leg_f, coord, actr, lenr, cone,
+                                               rang, axang, pair, offs, buf[53], out, amb, ext, claim, buf[_B_B1]))
 
     @njit(**_jit)
     def _crew_serve(mail, gen, claim, max_iter, fin, last, buf, tickets, done):
@@ -1551,7 +1586,8 @@ if HAVE_NUMBA:
             gb = old >> _TICKET_BITS
             gen = max(m, gb)  # the tickets of batch gb are stored before its count: gb >= m
             if t < buf[_B_PARTS]:
-                _run_posted_feasible(buf)
+                if _run_posted_feasible(buf) != 0:
+                    buf[_B_ERR] = 1  # seen by the caller with the mark below
                 _store_release(done, t, gb)
             idle = 0
         return -1
@@ -1583,6 +1619,28 @@ if HAVE_NUMBA:
             if not ok:
                 return False
         return True
+
+    @njit(**_jit)
+    def _feasible_batch(X, ins, consts, cbase, n_reg, n_pose, pose_regs, valid_regs, plim, loop, expr, tol, leg_kind,
+                        leg_act, leg_f, coord, actr, lenr, cone, rang, axang, pair, offs, block, out, amb, ext, claim,
+                        b1, kaddr, parts, buf, mail, tickets, done, max_iter, state):
+        """The caller's whole part of a compiled feasibility batch on ``parts`` threads, in one
+        call from the interpreter: the batch posted to the crew (:func:`_post_feasible`), the
+        caller's own items run (:func:`_run_posted_feasible`, as the crew runs them), the tickets no
+        crew thread took cancelled, and up to ``max_iter`` rounds of waiting for the others.
+        ``state`` receives (the batch's number, the cancelled tickets, whether the crew's
+        tickets are all done, whether a call of the kernel failed) -- as each becomes known, so
+        an interrupt raised right after the call still finds what to wait for."""
+        g = _post_feasible(X, ins, consts, cbase, n_reg, n_pose, pose_regs, valid_regs, plim, loop, expr, tol,
+                           leg_kind, leg_act, leg_f, coord, actr, lenr, cone, rang, axang, pair, offs, block, out, amb,
+                           ext, claim, b1, kaddr, parts, buf, mail, tickets)
+        state[0] = g
+        bad = _run_posted_feasible(buf)  # the caller's items, called as the crew calls them
+        cancelled = _cancel_tickets(tickets, parts)
+        state[1] = cancelled
+        ok = _tickets_done(done, g, parts, cancelled, max_iter)
+        state[2] = 1 if ok else 0
+        state[3] = 1 if bad != 0 or (ok and _load_acquire(buf, _B_ERR) != 0) else 0
 
     @njit(**_jit)
     def _spin_done(fin, max_iter):
@@ -2749,5 +2807,6 @@ def signatures() -> dict:
         "_crew_serve": (_crew_serve, (i1, i8, i1, i8, i1, i8, i1, i1, i1)),
         "_cancel_tickets": (_cancel_tickets, (i1, i8)),
         "_tickets_done": (_tickets_done, (i1, i8, i8, i8, i8)),
-        "_post_feasible": (_post_feasible, prog + plan + (i8, b1, i1, f2, i1, i8) + (i8, i8, i1, i1, i1)),
+        "_feasible_batch": (_feasible_batch,
+                            prog + plan + (i8, b1, i1, f2, i1, i8) + (i8, i8, i1, i1, i1) + (i1, i8, i1)),
     }

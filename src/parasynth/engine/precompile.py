@@ -43,7 +43,7 @@ __all__ = ["CREW", "KERNELS_OF", "LOCAL", "WITH", "STUDY", "STRUCTURE_STUDY", "S
 #: The kernels of the engine's threads (their waits, and the compiled crew's hand-off of a
 #: feasibility batch, :func:`parasynth.engine.core._compiled_batch`): small, compiled with the
 #: feasibility kernel.
-CREW = ("_spin_done", "_crew_spin", "_crew_serve", "_post_feasible", "_cancel_tickets", "_tickets_done")
+CREW = ("_spin_done", "_crew_spin", "_crew_serve", "_feasible_batch", "_cancel_tickets", "_tickets_done")
 
 #: Kernels behind each compiled entry point (the names of :data:`parasynth.engine.EXERCISES`).
 KERNELS_OF = {
@@ -80,7 +80,7 @@ LOCAL = ("_pose_kernel", "_feasible_kernel", "_margins_kernel")
 # later one in another process loads it): pose 5.1 s and feasibility 11.7 s each alone,
 # feasibility 8.9 s once the interpreter is cached.
 _INTERPRETER = 2.8
-_COST = {"_spin_done": 0.3, "_crew_spin": 0.3, "_crew_serve": 0.9, "_post_feasible": 0.5, "_cancel_tickets": 0.1,
+_COST = {"_spin_done": 0.3, "_crew_spin": 0.3, "_crew_serve": 0.9, "_feasible_batch": 0.6, "_cancel_tickets": 0.1,
          "_tickets_done": 0.1, "_pose_kernel": 2.3, "_feasible_kernel": 8.9, "_margins_kernel": 8.9,
          "_upu_mean_lengths": 0.8,
          "_margin_kernel": 5.0, "_constraint_rank_kernel": 4.5, "_lti_kernel": 6.0, "_kappa_kernel": 5.0,
