@@ -15,7 +15,7 @@ Output, one line per study::
 
 plus, with ``--split``, the CPU time per design (all threads) and the share of the compiled
 (wall) time spent in each measure, in building the mechanism and in the kernels (every
-compiled batch, timed around ``core.over_blocks``).
+compiled batch, timed around ``core._timed_claims`` and ``core._timed_blocks``).
 
 ``--figures`` instead prints, for the quick start (or the studies given), one design's
 evaluation on the study's fixed samples (wall and CPU ms, in the kernels and outside them),
@@ -164,40 +164,30 @@ DIRECT_KERNELS = ("_upu_mean_lengths", "_constraint_rank_kernel")
 
 def _kernel_timer(parts: dict):
     """Count the time spent inside the engine's kernels in ``parts["(kernels)"]``: every
-    compiled batch that goes through ``core.over_blocks`` (the index kernels through the name
-    imported in ``indices``) and the kernels called directly (:data:`DIRECT_KERNELS`); returns
-    a function that undoes it."""
+    compiled batch, from its blocking to its end (``core._timed_claims``, ``core._timed_blocks``,
+    and the index kernels' batches through the ``over_blocks`` imported in ``indices``; on one
+    thread or several, through the compiled crew or the interpreter's), and the kernels called
+    directly (:data:`DIRECT_KERNELS`); returns a function that undoes it."""
     from parasynth.engine import core, indices
 
-    real = core.over_blocks
-
-    def timed(fn, n_blocks, parallel=True, **kw):
-        t0 = time.perf_counter()
-        try:
-            return real(fn, n_blocks, parallel, **kw)
-        finally:
-            parts["(kernels)"] = parts.get("(kernels)", 0.0) + time.perf_counter() - t0
-
-    def timed_direct(kernel):
-        def call(*args):
+    def timing(fn):
+        def call(*args, **kw):
             t0 = time.perf_counter()
             try:
-                return kernel(*args)
+                return fn(*args, **kw)
             finally:
                 parts["(kernels)"] = parts.get("(kernels)", 0.0) + time.perf_counter() - t0
         return call
 
-    direct = {name: getattr(indices, name) for name in DIRECT_KERNELS if hasattr(indices, name)}
-    core.over_blocks = timed
-    indices.over_blocks = timed
-    for name, kernel in direct.items():
-        setattr(indices, name, timed_direct(kernel))
+    real = {(core, "_timed_claims"): core._timed_claims, (core, "_timed_blocks"): core._timed_blocks,
+            (indices, "over_blocks"): indices.over_blocks}
+    real.update({(indices, name): getattr(indices, name) for name in DIRECT_KERNELS if hasattr(indices, name)})
+    for (mod, name), fn in real.items():
+        setattr(mod, name, timing(fn))
 
     def undo():
-        core.over_blocks = real
-        indices.over_blocks = real
-        for name, kernel in direct.items():
-            setattr(indices, name, kernel)
+        for (mod, name), fn in real.items():
+            setattr(mod, name, fn)
 
     return undo
 
