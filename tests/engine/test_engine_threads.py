@@ -630,3 +630,19 @@ def test_an_interrupt_while_waiting_for_the_crew_is_raised_once_the_crew_is_done
     assert done[1] == 7  # raised only after the crew's mark
     t.join()
     assert len(calls) > 1  # it went on waiting after the interrupt
+
+
+def test_the_thread_count_follows_numbas_setting_after_it_was_read(monkeypatch):
+    """A forked study worker sets numba's thread count to 1 after the run's process has read it
+    (study/workers.py): the engine's count follows, and ``set_threads`` stays a ceiling below it."""
+    monkeypatch.setattr(numba.config, "NUMBA_NUM_THREADS", 3)
+    assert core.n_threads() == 3
+    monkeypatch.setattr(numba.config, "NUMBA_NUM_THREADS", 1)
+    assert core.n_threads() == 1
+    core.set_threads(2)
+    try:
+        assert core.n_threads() == 1
+        monkeypatch.setattr(numba.config, "NUMBA_NUM_THREADS", 4)
+        assert core.n_threads() == 2
+    finally:
+        core.set_threads(None)

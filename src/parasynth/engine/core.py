@@ -76,6 +76,7 @@ try:  # pragma: no cover - depends on the environment
     if os.environ.get("PARASYNTH_NO_NUMBA", "").strip() not in ("", "0"):
         raise ImportError("disabled by PARASYNTH_NO_NUMBA")
     from numba import carray, njit
+    from numba import config as _nb_config
     from numba import types as _nbt
 
     from . import posefn as _posefn
@@ -126,35 +127,28 @@ PARALLEL_MIN = 8192
 ITEMS_PER_THREAD = 1
 
 _THREADS = None
-_NT = None  # n_threads(), once known (set_threads forgets it)
 
 
 def n_threads() -> int:
     """Threads a batch is spread over: numba's thread count (``NUMBA_NUM_THREADS``, default
-    the number of cores, read once: numba fixes it when it starts its threads; a study's worker
-    processes get ``cores // workers`` of it, see :func:`parasynth.study.workers.worker_env`),
-    or fewer if :func:`set_threads` asked so."""
-    global _NT
-    nt = _NT
-    if nt is None:
-        if not HAVE_NUMBA:
-            return 1
-        import numba
-
-        nt = max(1, int(numba.config.NUMBA_NUM_THREADS))
-        nt = _NT = nt if _THREADS is None else min(nt, _THREADS)
-    return nt
+    the number of cores; a study's worker processes get ``cores // workers`` of it, see
+    :func:`parasynth.study.workers.worker_env`, and a forked worker sets it to 1), or fewer if
+    :func:`set_threads` asked so. Read from numba's configuration at each call (an attribute,
+    not an import: a batch asks two or three times)."""
+    if not HAVE_NUMBA:
+        return 1
+    nt = max(1, int(_nb_config.NUMBA_NUM_THREADS))
+    return nt if _THREADS is None else min(nt, _THREADS)
 
 
 def set_threads(n: int | None) -> None:
     """Spread batches over at most ``n`` threads from now on (``None``: numba's thread count
     again); numba's thread count stays the ceiling, so a worker process kept to one thread
     stays there."""
-    global _THREADS, _NT
+    global _THREADS
     if n is not None and (not isinstance(n, int) or isinstance(n, bool) or n < 1):
         raise ValueError(f"threads: {n!r} is not allowed; give a whole number >= 1 or None")
     _THREADS = n
-    _NT = None
 
 
 #: What a pose costs the program kernels (feasibility, margins, pose) on one core, ~``POSE_NS +
