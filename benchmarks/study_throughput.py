@@ -100,6 +100,8 @@ def _compile_as_a_run_does() -> None:
 
 
 def _run(ev, designs, engine: str, split: bool):
+    """Seconds per design of ``designs`` evaluated by ``ev`` (a fresh evaluator: it keeps the
+    measures' arguments, the engine among them, for the designs of a run) with ``engine``."""
     from parasynth.measures import objectives
 
     ev.study.evaluation["engine"] = engine
@@ -376,12 +378,13 @@ def main(argv=None):
     lines = []
     for f in files:
         study = load_study(str(f))
-        ev = Evaluator(study)
         designs = _designs(study, args.designs, args.seed)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            t_c, rc, parts = _run(ev, designs, "compiled", args.split)
-            t_n, rn, _ = _run(ev, designs, "numpy", False)
+            # an evaluator for each engine: one keeps its measures' arguments (the engine among
+            # them) for the designs of a run, so a second engine needs its own
+            t_c, rc, parts = _run(Evaluator(study), designs, "compiled", args.split)
+            t_n, rn, _ = _run(Evaluator(study), designs, "numpy", False)
         worst = 0.0
         failed = sum(r.status != "ok" for r in rc)
         for a, b in zip(rc, rn):
