@@ -1159,8 +1159,7 @@ def run_feasible(plan: KernelPlan, X: np.ndarray, extents: bool = False):
     (out, ambiguous, lo (3,), hi (3,)): also the least and greatest platform position
     (x, y, z) over the feasible poses, taken in the kernel from the pose it computed (the
     values ``run_pose`` gives; +inf / -inf when no pose is feasible)."""
-    if X.flags.writeable:
-        X = _readonly(X)
+    X = _readonly(X)
     n = X.shape[0]
     out = np.empty(n, dtype=np.bool_)
     amb = np.zeros(max(1, (n + SUB - 1) // SUB), dtype=np.int64)  # one per block, any blocking
