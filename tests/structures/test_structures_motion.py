@@ -270,6 +270,46 @@ def test_chain_limbs_in_solved_structures():
     assert {"3-RUU", "3-RUU/UPU"} <= {s.name for s in solved}
 
 
+def test_motion_rule_of_chain_limbs_solves_on_numpy_and_agrees_with_the_compiled_closure(monkeypatch):
+    """A rule solves one pose at a time on the NumPy reference, chain limbs too: the compiled
+    chain closure is not called (nor compiled on an empty cache); the same rule computed with the
+    compiled closure equations (the engine's entry point forced back to them) has the same
+    motion, the same dependent coordinates and their home values equal to 1e-9."""
+    from parasynth import engine
+    from parasynth.engine import chains
+    from parasynth.structures import motion
+    from parasynth.structures.synthesis import Group, _Candidate, _description
+    from parasynth.structures.vocabulary import TEMPLATES
+
+    c = _Candidate((Group("RUU", 3, True, "regular", ()),))
+    desc = _description(c, TEMPLATES["free"], "t")
+    calls = []
+    orig = chains._closure_kernel
+    monkeypatch.setattr(chains, "_closure_kernel", lambda *a: (calls.append(1), orig(*a))[1])
+    rule = motion_rule(desc)
+    assert not calls
+    assert rule.name == "solved" and rule.motion == "3T0R", rule
+    real = engine.closure_residuals
+
+    class Forced:  # the module's `engine` with its closure equations compiled whatever it asks
+        def __getattr__(self, name):
+            return getattr(engine, name)
+
+        @staticmethod
+        def closure_residuals(legs, p, R, L, engine="compiled"):
+            return real(legs, p, R, L)
+
+    monkeypatch.setattr(motion, "engine", Forced())
+    compiled = motion_rule(desc)
+    if engine.core.HAVE_NUMBA:
+        assert calls  # the forced rule did run the compiled closure
+    assert (compiled.motion, compiled.dependent, compiled.independent) == (rule.motion, rule.dependent,
+                                                                           rule.independent)
+    a = [float(v.split()[0]) for v in rule.task["solve"]["start"].values()]
+    b = [float(v.split()[0]) for v in compiled.task["solve"]["start"].values()]
+    np.testing.assert_allclose(a, b, rtol=0, atol=1e-9)
+
+
 def test_motion_rule_refuses_with_a_reason():
     from parasynth.structures.synthesis import Group, _Candidate, _description
     from parasynth.structures.vocabulary import TEMPLATES
