@@ -1,8 +1,8 @@
 """Compiling ahead from the start of a run (precompile.start_early): a helper starts at once with
-the interpreter kernels, the other kernels go to the helper or are left to the work by their
-cost (no more compiling processes than cores), compile_ahead waits for the helper instead of
-compiling the same kernels again and compiles the work's share in its own process, and
-afterwards every kernel is in the cache."""
+every kernel in a queue, the longest interpreter kernel first, and claims each before it
+compiles it; compile_ahead claims those the helper has not begun and compiles them in its own
+process (no more compiling processes than cores), waits for the others instead of compiling
+them again, and afterwards every kernel is in the cache."""
 
 import os
 import subprocess
@@ -16,7 +16,7 @@ from parasynth import engine
 pytestmark = pytest.mark.skipif(not engine.HAVE_NUMBA, reason="numba not available")
 
 CODE = r"""
-import time
+import os, time
 from parasynth.engine import precompile as pre
 from numba.core import event
 compiled = []
@@ -32,11 +32,14 @@ started = time.perf_counter() - t0
 print("shares", shares)
 print("running", sorted(n for n, r in pre.early().items() if r))
 print("again", pre.start_early(["constraint_rank"]))  # nothing twice
-print("left", pre.left())
+folder = pre._QUEUES[pre._EARLY["_pose_kernel"]][0]
 out = pre.compile_ahead(pre.missing(["constraint_rank"]), processes=2)
-print("waited", sorted(out["waited"]), "local", out["local"], "helpers", out["helpers"], "failed", out["failed"])
+print("waited", sorted(out["waited"]), "local", out["local"], "helpers", out["helpers"], "failed", out["failed"],
+      "claimed", out["claimed"])
 print("cached", pre.in_cache("_pose_kernel"), pre.in_cache("_constraint_rank_kernel"))
-print("left_after", pre.left())
+print("claims", sorted(os.listdir(folder)))
+pre.stop_helpers()
+print("claims_after", os.path.exists(folder))
 print("compiled_here", compiled)
 print("started_s", started)
 """
@@ -47,18 +50,18 @@ def test_start_early_then_compile_ahead_waits(tmp_path):
     r = subprocess.run([sys.executable, "-c", CODE], env=env, capture_output=True, text=True, timeout=900)
     assert r.returncode == 0, r.stderr
     lines = dict(line.split(" ", 1) for line in r.stdout.strip().splitlines())
-    # one helper (two cores: the work itself is the second compiling process), with the
-    # interpreter kernel; the constraint-rank kernel (cost 4.5 against the pose kernel's 6.5,
-    # the work's own 5 s of other work counted first) is left to the work
-    assert lines["shares"] == "[['_pose_kernel']]"
-    assert lines["running"] == "['_pose_kernel']"
+    # one helper (two cores: the work itself is the second compiling process) with both
+    # kernels queued, the interpreter kernel first
+    assert lines["shares"] == "[['_pose_kernel', '_constraint_rank_kernel']]"
+    assert lines["running"] == "['_constraint_rank_kernel', '_pose_kernel']"
     assert lines["again"] == "[]"
-    assert lines["left"] == "['_constraint_rank_kernel']"  # the warm-up's compile_ahead takes it
-    # compile_ahead compiled the rank kernel here (no free core for a new helper) and waited
-    # for the pose kernel's helper
-    assert lines["waited"].startswith("['_pose_kernel'] local ['_constraint_rank_kernel'] helpers [] failed []")
+    # compile_ahead, at once, claimed the rank kernel the helper had not begun, compiled it
+    # here, and waited for the pose kernel's helper
+    assert lines["waited"] == ("['_pose_kernel'] local [] helpers [] failed [] claimed "
+                               "['_constraint_rank_kernel']")
     assert lines["cached"] == "True True"
-    assert lines["left_after"] == "[]"
+    assert lines["claims"] == "['_constraint_rank_kernel', '_pose_kernel']"  # each claimed once
+    assert lines["claims_after"] == "False"  # the claim folder goes with the helpers
     here = eval(lines["compiled_here"])  # the rank kernel and its callees, here
     assert here[0] == "_constraint_rank_kernel"
     assert "_pose_kernel" not in here and "_run" not in here  # the pose kernel by the helper only
@@ -66,6 +69,7 @@ def test_start_early_then_compile_ahead_waits(tmp_path):
 
 
 SHARES = r"""
+import os
 from parasynth.engine import precompile as pre
 started = []
 class P:  # a helper that is not started: the shares are what is asked
@@ -73,32 +77,67 @@ class P:  # a helper that is not started: the shares are what is asked
         started.append(args[3:])
     def poll(self):
         return None
+    def terminate(self):
+        pass
+    def wait(self, timeout=None):
+        return 0
 pre.subprocess.Popen = P
 pre.missing = lambda kinds: list(dict.fromkeys(n for k in kinds for n in pre.KERNELS_OF[k] if n not in pre.CREW))
-print(pre.start_early(["feasible", "singularity_margin"], processes=2, busy=5.0))
-pre._EARLY.clear(); pre._LEFT.clear()
-print(pre.start_early(["feasible", "singularity_margin"], processes=2, busy=30.0))
-pre._EARLY.clear(); pre._LEFT.clear()
+print(pre.start_early(["feasible", "singularity_margin"], processes=2))
+folder = pre._QUEUES[pre._EARLY["_margin_kernel"]][0]
+print(started[-1][:3] == ["_feasible_kernel", "--claims", folder], os.listdir(folder))
+pre._EARLY.clear()
+print(pre.start_early(["feasible", "singularity_margin", "constraint_rank"], processes=2))
+pre._EARLY.clear()
 print(pre.start_early(["feasible", "singularity_margin"], processes=1))
-pre._EARLY.clear(); pre._LEFT.clear()
+pre._EARLY.clear()
 print(pre.start_early(["chains", "chain_closure"], processes=1))
+print(len(started))
 """
 
 
-def test_start_early_shares_by_cost():
-    """The helper takes the longest interpreter kernel and, by their cost, what the work (busy
-    with its own ``busy`` seconds) would finish later; on one core it takes everything."""
+def test_start_early_queues_longest_first():
+    """One helper with every kernel in one queue, its claim folder given: the longest
+    interpreter kernel first (it compiles the interpreter; claimed for the helper before it
+    starts, so that a work quicker than the helper's start cannot take it), then longest first;
+    on one core the kernels in the order asked."""
     r = subprocess.run([sys.executable, "-c", SHARES], capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr
     out = r.stdout.strip().splitlines()
-    # the feasibility kernel with the interpreter (2.8 + 8.9) to the helper; the margin kernel
-    # (5) and the pose kernel (2.3, the interpreter then cached) to the work busy for 5 s
-    # (10, 12.3); the lengths (0.8) to the helper, now the less loaded (11.7 + 0.8)
-    assert out[0] == "[['_feasible_kernel', '_upu_mean_lengths']]"
-    # a work busy for 30 s: the helper takes them all
-    assert out[1] == "[['_feasible_kernel', '_margin_kernel', '_pose_kernel', '_upu_mean_lengths']]"
-    assert out[2] == "[['_pose_kernel', '_feasible_kernel', '_upu_mean_lengths', '_margin_kernel']]"  # one core
-    assert out[3] == "[['_chain_kernel', '_chain_rows_kernel', '_closure_kernel']]"
+    # the feasibility kernel with the interpreter (2.8 + 8.9), then the margin kernel (5), the
+    # pose kernel (2.3, the interpreter then cached) and the lengths (0.4)
+    assert out[0] == "[['_feasible_kernel', '_margin_kernel', '_pose_kernel', '_upu_mean_lengths']]"
+    assert out[1] == "True ['_feasible_kernel']"  # the first claimed for the helper, the others by it
+    assert out[2] == ("[['_feasible_kernel', '_margin_kernel', '_constraint_rank_kernel', '_pose_kernel', "
+                      "'_upu_mean_lengths']]")
+    assert out[3] == "[['_pose_kernel', '_feasible_kernel', '_upu_mean_lengths', '_margin_kernel']]"  # one core
+    assert out[4] == "[['_chain_kernel', '_chain_rows_kernel', '_closure_kernel']]"
+    assert out[5] == "4"  # one helper each
+
+
+def test_a_claimed_kernel_is_compiled_by_one_process(tmp_path, monkeypatch):
+    """claim: the first to ask gets it, nobody else; a helper compiles the kernels named before
+    --claims and of those after it only what it claims (the rest was claimed by the work), in
+    its queue's order; a bad command line is refused."""
+    from parasynth.engine import precompile as pre
+
+    folder = str(tmp_path)
+    assert pre.claim(folder, "_crew_spin") is True
+    assert pre.claim(folder, "_crew_spin") is False
+    assert pre.claim(str(tmp_path / "gone"), "_crew_spin") is True  # no folder: nobody else claims
+    done = []
+    monkeypatch.setattr(pre, "_compile", done.append)
+    assert pre.main(["--claims", folder, "_spin_done", "_crew_spin", "_tickets_done"]) == 0
+    assert done == ["_spin_done", "_tickets_done"]
+    assert sorted(os.listdir(folder)) == ["_crew_spin", "_spin_done", "_tickets_done"]
+    assert pre.main(["--claims", folder, "_spin_done"]) == 0 and done == ["_spin_done", "_tickets_done"]
+    assert pre.main(["_spin_done"]) == 0 and done[-1] == "_spin_done"  # no --claims: compiled
+    # the names before --claims are compiled as given, claimed or not
+    assert pre.main(["_crew_spin", "--claims", folder, "_spin_done", "_cancel_tickets"]) == 0
+    assert done[-2:] == ["_crew_spin", "_cancel_tickets"]
+    assert pre.main(["--claims"]) == 2
+    assert pre.main(["--claims", folder, "no_such_kernel"]) == 2
+    assert pre.main(["no_such_kernel", "--claims", folder]) == 2
 
 
 def test_structure_kinds_and_chain_kinds():
@@ -147,7 +186,6 @@ def test_a_run_compiling_on_its_own_compiles_the_rank_kernel_with_the_margin(mon
     monkeypatch.setattr(engine, "needs", lambda work: {"feasible", "singularity_margin"})
     monkeypatch.setattr(pre, "in_cache", lambda name: False)
     monkeypatch.setattr(pre, "_EARLY", {})
-    monkeypatch.setattr(pre, "_LEFT", set())
     alone = engine._ahead(lambda: None)
     assert "_constraint_rank_kernel" in alone
     assert {"_pose_kernel", "_feasible_kernel", "_margin_kernel"} <= set(alone)
@@ -179,7 +217,6 @@ def test_the_warm_up_waits_for_what_early_helpers_compile_though_the_work_does_n
 
     monkeypatch.setattr(engine, "needs", lambda work: {"feasible", "singularity_margin"})
     monkeypatch.setattr(pre, "in_cache", lambda name: name != "_constraint_rank_kernel")
-    monkeypatch.setattr(pre, "_LEFT", set())
     monkeypatch.setattr(pre, "_EARLY", {"_constraint_rank_kernel": Helper(True)})
     assert engine._ahead(lambda: None) == ["_constraint_rank_kernel"]
     monkeypatch.setattr(pre, "_EARLY", {"_constraint_rank_kernel": Helper(False)})
@@ -202,16 +239,16 @@ def test_a_run_starts_the_helpers_before_loading_its_study(monkeypatch, tmp_path
 
     root = Path(__file__).resolve().parents[2]
     calls = []
-    monkeypatch.setattr(pre, "start_early", lambda kinds, processes=None, busy=5.0:
-                        calls.append((tuple(kinds), busy)) or [["_feasible_kernel"]])
+    monkeypatch.setattr(pre, "start_early", lambda kinds, processes=None:
+                        calls.append(tuple(kinds)) or [["_feasible_kernel"]])
     cli._compile_early(root / "studies" / "quickstart.yaml", quiet=False)
-    assert calls == [(pre.STUDY, 1.5)]
+    assert calls == [pre.STUDY]
     assert set(pre.STUDY) == {"feasible", "singularity_margin", "constraint_rank"}
     assert capsys.readouterr().err == engine.COMPILING + "\n"
     cli._compile_early(root / "studies" / "structures_3t2r.yaml", quiet=True)
     doc = yaml.safe_load((root / "studies" / "structures_3t2r.yaml").read_text())
-    assert calls[-1] == (pre.structure_kinds(doc["structure"]["leg_types"]), 5.0)
-    assert "chains" in calls[-1][0] and capsys.readouterr().err == ""
+    assert calls[-1] == pre.structure_kinds(doc["structure"]["leg_types"])
+    assert "chains" in calls[-1] and capsys.readouterr().err == ""
     numpy_study = yaml.safe_load((root / "studies" / "quickstart.yaml").read_text())
     numpy_study["evaluation"]["engine"] = "numpy"
     path = tmp_path / "numpy.yaml"
@@ -242,15 +279,18 @@ def test_helpers_started_ahead_are_forgotten_once_stopped(monkeypatch, tmp_path)
     monkeypatch.setattr(engine, "_ANNOUNCED", False)
     monkeypatch.setattr(pre, "in_cache", lambda name: name != "_pose_kernel")
     monkeypatch.setitem(pre._EARLY, "_feasible_kernel", Finished())
-    pre._LEFT.add("_margin_kernel")
+    folder = tmp_path / "claims"
+    folder.mkdir()
+    monkeypatch.setitem(pre._QUEUES, pre._EARLY["_feasible_kernel"], (str(folder), ("_feasible_kernel",)))
     pre._SINCE.append(1.0)
     assert engine.announce_compile() is False  # said when the helpers were started
     pre.stop_helpers()
-    assert pre.early() == {} and pre.left() == [] and pre.started_at() is None
+    assert pre.early() == {} and pre._QUEUES == {} and pre.started_at() is None
+    assert not folder.exists()
     assert engine.announce_compile() is True  # the next work's own notice
     monkeypatch.setattr(engine, "_ANNOUNCED", False)
     stopped = []
-    monkeypatch.setattr(pre, "start_early", lambda kinds, processes=None, busy=5.0: [["_feasible_kernel"]])
+    monkeypatch.setattr(pre, "start_early", lambda kinds, processes=None: [["_feasible_kernel"]])
     monkeypatch.setattr(pre, "stop_helpers", lambda: stopped.append(True))
     (tmp_path / "bad.yaml").write_text("name: bad\nmechanism: no_such_mechanism\n")
     assert cli.main(["run", str(tmp_path / "bad.yaml"), "--out", str(tmp_path / "out")]) == 2

@@ -342,7 +342,7 @@ def _compile_early(path, quiet: bool) -> None:
     if isinstance(structure, dict):  # its own work first: the enumeration, seconds on one core
         started = core.HAVE_NUMBA and precompile.start_early(precompile.structure_kinds(structure.get("leg_types")))
     else:  # its own work first: loading, the check's probes, the warm-up design on NumPy
-        started = core.HAVE_NUMBA and precompile.start_early(precompile.STUDY, busy=1.5)
+        started = core.HAVE_NUMBA and precompile.start_early(precompile.STUDY)
     if started and not quiet:
         print(COMPILING, file=sys.stderr, flush=True)
 

@@ -531,9 +531,10 @@ def _ahead(work):
     """The kernels to compile ahead of ``work`` (:mod:`parasynth.engine.precompile`): none
     when the pose
     kernel, which every compiled evaluation uses, is already in the cache (an installation
-    that compiled before: ``work`` compiles what it still needs itself); with the kernels
-    :func:`parasynth.engine.precompile.start_early` left to the work, or, without such early
-    helpers, those its entry points use besides (``precompile.WITH``). Off with
+    that compiled before: ``work`` compiles what it still needs itself); with the kernels in
+    the queues of the helpers of :func:`parasynth.engine.precompile.start_early` (the work
+    claims those they have not begun), or, without such early helpers, those its entry points
+    use besides (``precompile.WITH``). Off with
     ``PARASYNTH_COMPILE_AHEAD=0``. The kernels early helpers are still compiling are among them
     whether ``work``'s first evaluation asks for them or not: they were started for this work
     (the structural constraint rank of :data:`~parasynth.engine.precompile.STUDY`, which a design
@@ -548,8 +549,8 @@ def _ahead(work):
     wanted = pre.missing(kinds)
     if not pre.early():  # a run compiling on its own: what its entry points use besides (precompile.WITH)
         wanted += [n for n in pre.with_kernels(kinds) if n not in wanted]
-    # and the work's share of start_early, and what its helpers are compiling for it
-    return wanted + [n for n in dict.fromkeys(pre.left() + running) if n not in wanted]
+    # and what start_early's helpers have in their queues for it
+    return wanted + [n for n in dict.fromkeys(running) if n not in wanted]
 
 
 def warm_up(work, processes: int | None = None, **options) -> WarmUp:

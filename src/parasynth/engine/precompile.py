@@ -19,16 +19,24 @@ time: the work then compiles the kernel itself.
 
 Work with something else to do first (a structure study enumerates its structures, several
 seconds on one core) can start the helpers earlier, :func:`start_early` with the entry points
-it will need (:data:`STRUCTURE_STUDY`); :func:`compile_ahead` then waits for the kernels they
-compile instead of compiling them again.
+it will need (:data:`STRUCTURE_STUDY`): one helper is given all of them in a queue, longest
+first, and claims each before it compiles it (a file made in a folder of its own, which only one
+process can make); :func:`compile_ahead`, once the work gets to it, claims the kernels of that
+queue the helper has not begun, in the same order, compiles them in its own process, and waits
+for the others. So the two processes share the kernels as they go, whatever each has spent on
+other work and however fast this machine's cores run at the time (list scheduling: neither is
+idle while a kernel is left), where a split fixed in advance by estimated costs left one of them
+idle for seconds.
 """
 
 from __future__ import annotations
 
 import atexit
 import os
+import shutil
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -37,7 +45,7 @@ from ..model.legs import LEG_TYPES
 from . import chains, closure, core, indices
 
 __all__ = ["CREW", "KERNELS_OF", "LOCAL", "WITH", "STUDY", "STRUCTURE_STUDY", "STRUCTURE_CHAINS", "structure_kinds", "chain_kinds",
-           "signatures", "in_cache", "missing", "compile_ahead", "start_early", "early", "left", "with_kernels",
+           "signatures", "in_cache", "missing", "claim", "compile_ahead", "start_early", "early", "with_kernels",
            "stop_helpers", "started_at", "main"]
 
 #: The kernels of the engine's threads (their waits, and the compiled crew's hand-off of a
@@ -74,26 +82,27 @@ WITH = {"singularity_margin": ("_constraint_rank_kernel",)}
 #: loads it).
 LOCAL = ("_pose_kernel", "_feasible_kernel", "_margins_kernel")
 
-# Rough cold-compile CPU seconds (5pus_upu, 2-core development machine), to share the work;
-# those of the interpreter kernels (LOCAL) without the expression interpreter they share, which
-# the first of them compiled in a process compiles (~2.8 s; numba caches it on the way, so a
-# later one in another process loads it): pose 5.1 s and feasibility 11.7 s each alone,
-# feasibility 8.9 s once the interpreter is cached.
+# Rough cold-compile CPU seconds (5pus_upu, 2-core development machine), to order the queues
+# (longest first) and share the work between new helpers; those of the interpreter kernels
+# (LOCAL) without the expression interpreter they share, which the first of them compiled in a
+# process compiles (~2.8 s; numba caches it on the way, so a later one in another process loads
+# it): pose 5.1 s and feasibility 11.7 s each alone, feasibility 8.9 s once the interpreter is
+# cached. The crew's kernels measured after the feasibility kernel in one process.
 _INTERPRETER = 2.8
-_COST = {"_spin_done": 0.3, "_crew_spin": 0.3, "_crew_serve": 0.9, "_feasible_batch": 0.6, "_cancel_tickets": 0.1,
+_COST = {"_spin_done": 0.1, "_crew_spin": 0.1, "_crew_serve": 1.4, "_feasible_batch": 1.7, "_cancel_tickets": 0.1,
          "_tickets_done": 0.1, "_pose_kernel": 2.3, "_feasible_kernel": 8.9, "_margins_kernel": 8.9,
-         "_upu_mean_lengths": 0.8,
+         "_upu_mean_lengths": 0.4,
          "_margin_kernel": 5.0, "_constraint_rank_kernel": 4.5, "_lti_kernel": 6.0, "_kappa_kernel": 5.0,
          "_dir_kernel": 2.0, "_prep_kernel": 2.0, "_solve_kernel": 2.0, "_chain_kernel": 3.0,
          "_chain_rows_kernel": 3.0, "_closure_kernel": 2.5}
 #: Helper processes running (see :func:`stop_helpers`).
 _RUNNING: list = []
-#: Kernels being compiled by helpers started ahead of the work (:func:`start_early`): name ->
-#: the helper process compiling it.
+#: Kernels handed to helpers started ahead of the work (:func:`start_early`): name -> the
+#: helper process whose queue holds it (the helper compiles it unless the work claims it
+#: first, :func:`compile_ahead`).
 _EARLY: dict = {}
-#: Kernels :func:`start_early` left to the work (its :func:`compile_ahead` compiles them): not
-#: handed to a helper by a later call.
-_LEFT: set = set()
+#: {helper process: (its claim folder, its queue)} of the helpers of :func:`start_early`.
+_QUEUES: dict = {}
 #: When start_early started its first helper (see :func:`started_at`).
 _SINCE: list = []
 
@@ -178,6 +187,19 @@ def _compile(name: str) -> None:
     disp.compile(tuple(sig))
 
 
+def claim(folder: str, name: str) -> bool:
+    """Claim kernel ``name`` in the claim folder ``folder`` of a helper's queue: True for the
+    first process to ask (it then compiles the kernel), False for any other. A folder that
+    cannot be written (removed: the run is over) counts as claimed by nobody else."""
+    try:
+        os.close(os.open(os.path.join(folder, name), os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o600))
+        return True
+    except FileExistsError:
+        return False
+    except OSError:
+        return True
+
+
 def _shares(names: list[str], n: int) -> list[list[str]]:
     """``names`` split over ``n`` processes, longest first onto the least loaded."""
     bins = [[0.0, []] for _ in range(n)]
@@ -199,14 +221,18 @@ def compile_ahead(names, processes: int | None = None, poll: float = 0.05) -> di
     """Compile kernels ``names`` (not yet cached) into numba's cache: those of :data:`LOCAL`
     here, the others in up to ``processes - 1`` helper processes (default: one fewer than the
     cores, at least one; none on a single core) at the same time, fewer by the helpers of
-    :func:`start_early` still running (here, when no core is left). Returns ``{"local":
-    [...], "helpers": [[...], ...], "failed": [...]}`` (kernels of helpers that did not
-    finish).
+    :func:`start_early` still running (here, when no core is left). The kernels in the queue
+    of such a helper are not compiled twice: those it has not begun are claimed and compiled
+    here, in its queue's order, once this process has compiled its own; the others are waited
+    for. Returns ``{"local": [...], "helpers": [[...], ...], "failed": [...], "waited":
+    [...], "claimed": [...]}`` (failed: kernels of helpers that did not finish; claimed: the
+    early helpers' kernels compiled here).
     Helpers still running when this returns or raises (an interrupt) are terminated."""
     names = list(names)
     if processes is None:
         processes = os.cpu_count() or 1
-    # kernels an early helper (start_early) is compiling: waited for below, not compiled twice
+    # kernels in an early helper's queue (start_early): claimed here or waited for below, not
+    # compiled twice
     pending = {n: _EARLY[n] for n in names if n in _EARLY and _EARLY[n].poll() is None}
     names = [n for n in names if n not in pending and not (n in _EARLY and in_cache(n))]
     local = [n for n in names if n in LOCAL]
@@ -226,6 +252,14 @@ def compile_ahead(names, processes: int | None = None, poll: float = 0.05) -> di
             _RUNNING.append(p)
         for n in local:
             _compile(n)
+        # then what the early helpers have not begun, in their queues' order (longest first)
+        claimed = []
+        for p, (folder, queue) in list(_QUEUES.items()):
+            for n in queue:
+                if pending.get(n) is p and claim(folder, n):
+                    _compile(n)
+                    claimed.append(n)
+                    del pending[n]
         failed = []
         for share, p in procs:
             while p.poll() is None:
@@ -239,29 +273,29 @@ def compile_ahead(names, processes: int | None = None, poll: float = 0.05) -> di
             waited.append(n)
             if p.returncode != 0:
                 failed.append(n)
-        return {"local": local, "helpers": shares, "failed": failed, "waited": waited}
+        return {"local": local, "helpers": shares, "failed": failed, "waited": waited, "claimed": claimed}
     finally:
         _stop([p for _, p in procs])
 
 
-def start_early(kinds, processes: int | None = None, busy: float = 5.0) -> list[list[str]]:
+def start_early(kinds, processes: int | None = None) -> list[list[str]]:
     """Start compiling, in a helper process, the kernels of the entry points ``kinds`` (names
     of :data:`KERNELS_OF`) that are neither compiled nor cached, and return at once: for work
     that has something else to do first (a structure study enumerates its structures, several
-    seconds of Python on one core, before its first design). The work and the helper then
-    share the cores: the longest interpreter kernel (the feasibility kernel) goes to the
-    helper, which compiles the expression interpreter with it (numba caches it there for the
-    others), the other kernels, longest first, to whichever of the helper and the work has
-    less to do, the work counted as ``busy`` seconds of its own first (:data:`_COST`); the
-    work's share is not started here but left to :func:`compile_ahead`, which compiles it in
-    the calling process while the helper runs (its interpreter kernels last, the interpreter
-    then loaded from the cache). So no more processes compile than there are cores: a third
-    process on two cores would slow the helper, whose kernel is the longest compile
-    (docs/performance.md). On one core the helper takes every kernel. :func:`compile_ahead`
-    later waits for the helper's kernels instead of compiling them again. Returns the kernels
-    of each helper started ([] when everything is cached or left to the work). Helpers still
-    running at the end of the process are terminated (what they finished is in the cache)."""
-    names = [n for n in missing(kinds) if n not in _EARLY and n not in _LEFT]
+    seconds of Python on one core, before its first design). The helper is given them all as a
+    queue: the longest interpreter kernel first (the feasibility kernel: the helper compiles the
+    expression interpreter with it, and numba caches it there for the others), then the others,
+    longest first (:data:`_COST`); the first is claimed for it here, and it claims each of the
+    others (:func:`claim`) before it compiles it. The
+    work's :func:`compile_ahead` claims the rest of the queue as soon as the work gets to it
+    and compiles those kernels in the calling process, so that no more processes compile than
+    there are cores (a third process on two cores would slow the helper, whose kernel is the
+    longest compile: docs/performance.md) and neither waits while a kernel is left. On one core
+    the queue is the kernels in the order asked (the work has no core of its own to compile on
+    until its warm-up). Returns the queue of each helper started ([] when everything is
+    cached). Helpers still running at the end of the process are terminated (what they
+    finished is in the cache)."""
+    names = [n for n in missing(kinds) if n not in _EARLY]
     if not names:
         return []
     if processes is None:
@@ -269,32 +303,25 @@ def start_early(kinds, processes: int | None = None, busy: float = 5.0) -> list[
     interp = [n for n in names if n in LOCAL]
     rest = [n for n in names if n not in LOCAL]
     if processes < 2:
-        shares = [interp + rest]
+        queue = interp + rest
     else:
-        helper = [0.0, []]
-        work = [float(busy), []]
-        if interp:  # the longest interpreter kernel, and with it the interpreter, to the helper
-            first = max(interp, key=lambda k: _COST.get(k, 5.0))
-            helper = [_INTERPRETER + _COST.get(first, 5.0), [first]]
-        for name in sorted((n for n in names if n not in helper[1]), key=lambda k: -_COST.get(k, 5.0)):
-            b = min((helper, work), key=lambda b: b[0])  # the helper on a tie: the work has its own first
-            b[0] += _COST.get(name, 5.0)
-            b[1].append(name)
-        shares = [helper[1]] if helper[1] else []
-        _LEFT.update(work[1])
-    env = _helper_env()
-    for share in shares:
-        p = subprocess.Popen([sys.executable, "-m", "parasynth.engine.precompile", *share], env=env,
-                             stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-        _RUNNING.append(p)
-        for n in share:
-            _EARLY[n] = p
-    if shares and not _SINCE:
+        first = [max(interp, key=lambda k: _COST.get(k, 5.0))] if interp else []
+        queue = first + sorted((n for n in names if n not in first), key=lambda k: -_COST.get(k, 5.0))
+    folder = tempfile.mkdtemp(prefix="parasynth-claims-")
+    claim(folder, queue[0])  # the helper's from the start, however late it starts
+    p = subprocess.Popen([sys.executable, "-m", "parasynth.engine.precompile", queue[0], "--claims", folder, *queue[1:]],
+                         env=_helper_env(), stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                         stderr=subprocess.DEVNULL)
+    _RUNNING.append(p)
+    _QUEUES[p] = (folder, tuple(queue))
+    for n in queue:
+        _EARLY[n] = p
+    if not _SINCE:
         _SINCE.append(time.perf_counter())
     if not _ATEXIT:
         atexit.register(stop_helpers)
         _ATEXIT.append(True)
-    return shares
+    return [queue]
 
 
 _ATEXIT: list = []
@@ -319,13 +346,6 @@ def with_kernels(kinds) -> list[str]:
     return [n for n in names if not in_cache(n)]
 
 
-def left() -> list[str]:
-    """The kernels :func:`start_early` left to the work that are not compiled yet: the work's
-    :func:`compile_ahead` compiles them with what its first design needs (a structure study's
-    later structures may need them, its first design not)."""
-    return [n for n in sorted(_LEFT) if not in_cache(n)]
-
-
 def _stop(procs) -> None:
     for p in procs:
         if p.poll() is None:
@@ -348,22 +368,36 @@ def stop_helpers() -> None:
     of the process (another run of a script, of a test) starts from what the cache holds:
     nothing said ahead for it, nothing left to it, its compile timed from its own start."""
     _stop(list(_RUNNING))
+    for folder, _ in _QUEUES.values():
+        shutil.rmtree(folder, ignore_errors=True)
+    _QUEUES.clear()
     _EARLY.clear()
-    _LEFT.clear()
     _SINCE.clear()
 
 
 def main(argv=None) -> int:
-    """``python -m parasynth.engine.precompile NAME ...``: compile those kernels into numba's
-    cache (a helper of :func:`compile_ahead`)."""
+    """``python -m parasynth.engine.precompile NAME ... [--claims FOLDER NAME ...]``: compile
+    those kernels into numba's cache, in that order (a helper of :func:`compile_ahead`); those
+    after ``--claims`` each only if this process claims it first in ``FOLDER`` (:func:`claim`:
+    a helper of :func:`start_early`, whose work may claim some of them)."""
     names = list(sys.argv[1:] if argv is None else argv)
+    folder, claimed = None, []
+    if "--claims" in names:
+        i = names.index("--claims")
+        if i + 1 >= len(names):
+            print("--claims needs a folder", file=sys.stderr)
+            return 2
+        names, folder, claimed = names[:i], names[i + 1], names[i + 2:]
     known = signatures()
-    bad = [n for n in names if n not in known]
+    bad = [n for n in names + claimed if n not in known]
     if bad:
         print(f"unknown kernel(s) {', '.join(bad)}; known: {', '.join(known)}", file=sys.stderr)
         return 2
     for n in names:
         _compile(n)
+    for n in claimed:
+        if claim(folder, n):
+            _compile(n)
     return 0
 
 
