@@ -373,6 +373,95 @@ def test_the_first_parallel_batch_loads_the_spin_kernels(monkeypatch):
     assert np.array_equal(done, np.ones(4))
 
 
+class _Helper:
+    """A stand-in for the compiled crew's background helper: running until ``finish``."""
+
+    def __init__(self, code=0):
+        self.code, self.running = code, True
+
+    def poll(self):
+        return None if self.running else self.code
+
+    @property
+    def returncode(self):
+        return self.poll()
+
+
+def test_the_compiled_crew_compiles_in_the_background_while_batches_go_through_the_interpreter(monkeypatch):
+    """The first parallel batch of a process whose cache lacks the compiled crew's kernels starts
+    one background helper for them and does not load them: the feasibility batches then go
+    through the interpreter's crew and answer as one thread; the first batch after the helper
+    has finished loads them and the next ones go to the compiled crew. A helper that fails
+    leaves the process on the interpreter's crew; with PARASYNTH_COMPILE_AHEAD=0, or called
+    without ``background`` (a warm-up), they are loaded (compiled if need be) at once."""
+    mech = load_mechanism("5pus_upu")
+    X = _box_poses(mech, 9000, 3)
+    monkeypatch.setattr(core, "ADAPTIVE", False)
+    monkeypatch.setattr(core, "n_threads", lambda: 1)
+    one = kernels.feasible_fast(mech, X)
+    cached = [False]
+    started = []
+    monkeypatch.setattr(core, "_serve_cached", lambda: cached[0])
+    monkeypatch.setattr(core, "_start_serve_helper", lambda: (started.append(1), setattr(core, "_SERVE_HELPER", h)))
+    monkeypatch.setattr(core, "_SPIN_READY", False)
+    monkeypatch.setattr(core, "_SERVE_READY", False)
+    monkeypatch.setattr(core, "_SERVE_HELPER", None)
+    monkeypatch.delenv("PARASYNTH_COMPILE_AHEAD", raising=False)
+    monkeypatch.setattr(core, "n_threads", lambda: 2)
+    h = _Helper()
+    compiled = []
+    real_batch = core._compiled_batch
+    monkeypatch.setattr(core, "_compiled_batch", lambda *a: (compiled.append(1), real_batch(*a))[1])
+    for _ in range(3):
+        assert np.array_equal(kernels.feasible_fast(mech, X), one)
+    assert started == [1] and core._SPIN_READY and not core._SERVE_READY and not compiled
+    h.running, cached[0] = False, True  # the helper is done: its kernels are in the cache
+    assert np.array_equal(kernels.feasible_fast(mech, X), one)  # this batch loads them
+    assert core._SERVE_READY and core._SERVE_HELPER is None
+    assert np.array_equal(kernels.feasible_fast(mech, X), one)
+    assert compiled  # now through the compiled crew
+    # a helper that failed: the interpreter's crew for the rest of the process
+    monkeypatch.setattr(core, "_SPIN_READY", False)
+    monkeypatch.setattr(core, "_SERVE_READY", False)
+    cached[0] = False
+    h = _Helper(code=1)
+    compiled.clear()
+    assert np.array_equal(kernels.feasible_fast(mech, X), one)
+    h.running = False
+    for _ in range(2):
+        assert np.array_equal(kernels.feasible_fast(mech, X), one)
+    assert not core._SERVE_READY and core._SERVE_HELPER is None and not compiled and started == [1, 1]
+    # at once: without background (a warm-up), or with compiling ahead turned off
+    core.spin_warm()
+    assert core._SERVE_READY
+    monkeypatch.setattr(core, "_SERVE_READY", False)
+    monkeypatch.setenv("PARASYNTH_COMPILE_AHEAD", "0")
+    core.spin_warm(background=True)
+    assert core._SERVE_READY and started == [1, 1]
+
+
+def test_the_compiled_crews_helper_compiles_into_the_cache(tmp_path):
+    """The background helper's command (``python -m parasynth.engine.precompile`` with
+    core.SERVE_KERNELS' small ones, here) compiles them into numba's cache, where a process
+    then finds them."""
+    import os
+    import subprocess
+    import sys
+
+    env = {**core.helper_env(), "NUMBA_CACHE_DIR": str(tmp_path)}
+    code = ("from parasynth.engine import core, precompile as pre; "
+            "print([pre.in_cache(n) for n in ('_cancel_tickets', '_tickets_done')])")
+    before = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=300)
+    assert before.stdout.strip() == "[False, False]", before.stderr
+    r = subprocess.run([sys.executable, "-m", "parasynth.engine.precompile", "_cancel_tickets", "_tickets_done"],
+                       env=env, capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    after = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=300)
+    assert after.stdout.strip() == "[True, True]", after.stderr
+    assert {"_cancel_tickets", "_tickets_done"} <= set(core.SERVE_KERNELS)
+    assert os.environ.get("PYTHONPATH", "") in env["PYTHONPATH"]
+
+
 def _posted_batch(mech, X, nt, names=None, kaddr=None):
     """The feasibility batch of ``X`` posted for ``nt`` threads as a run posts it (the caller's
     ticket taken), without running anything: (its number, out, amb, ext, the crew's arrays).

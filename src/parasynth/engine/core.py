@@ -55,6 +55,7 @@ import functools
 import itertools
 import math
 import os
+import subprocess as _subprocess
 import sys
 import threading
 import time
@@ -277,6 +278,8 @@ def _timed_claims(kind: str, fn, n: int, work: float | None = None, unit: int = 
             claim = crew.claim if shared else np.zeros(1, dtype=np.int64)
             claim[0] = 0
             nt = n_threads()
+            if _SERVE_HELPER is not None:  # compiling the compiled crew's kernels (spin_warm)
+                _serve_helper_done()
             if shared and run is not None and _SERVE_READY and nt <= MAX_TICKETS:
                 _compiled_batch(crew, run, fn, block, claim, nblk, nt)
             else:
@@ -511,9 +514,10 @@ APART = _sched_getcpu is not None
 _CREW = _Crew()
 
 
-def _after_fork() -> None:  # a forked process has none of the crew's threads
-    global _CREW
+def _after_fork() -> None:  # a forked process has none of the crew's threads, nor the helper
+    global _CREW, _SERVE_HELPER
     _CREW = _Crew()
+    _SERVE_HELPER = None
 
 
 if hasattr(os, "register_at_fork"):
@@ -541,6 +545,12 @@ _SPIN_READY = False
 _SERVE_READY = False
 #: Whether to hand the feasibility kernel's batches to the crew in compiled code at all.
 COMPILED_CREW = True
+#: The compiled crew's kernels (the crew's spin that serves compiled batches, and the caller's
+#: side of such a batch): ~3.5 s of compile on an empty cache, done by a background helper
+#: while the batches go through the interpreter (:func:`spin_warm`).
+SERVE_KERNELS = ("_crew_serve", "_feasible_batch", "_cancel_tickets", "_tickets_done")
+#: The helper process compiling :data:`SERVE_KERNELS` for this process, or None.
+_SERVE_HELPER = None
 
 
 def compiled_or_cached(disp, sig) -> bool:
@@ -562,27 +572,83 @@ def _spin_ready() -> bool:
     return _SPIN_READY
 
 
-def spin_warm() -> None:
+def spin_warm(background: bool = False) -> None:
     """Load the spin kernels of the threads' waits (:func:`_spin_done`, :func:`_crew_spin`) and,
-    with :data:`COMPILED_CREW`, the compiled crew's (:func:`_crew_serve`, :func:`_feasible_batch`,
-    :func:`_cancel_tickets`, :func:`_tickets_done`) from numba's cache, or compile them (~0.2 s
-    and ~1.5 s, then cached): a run compiles them ahead with the feasibility kernel
-    (:mod:`parasynth.engine.precompile`); any other process at its first parallel batch.
-    Without them the caller and the crew sleep where they would spin (a batch of 8192 poses on
-    two threads took twice its time on one)."""
-    global _SPIN_READY, _SERVE_READY
+    with :data:`COMPILED_CREW`, the compiled crew's (:data:`SERVE_KERNELS`) from numba's cache,
+    or compile them (~0.2 s, then cached; a run compiles them ahead with the feasibility kernel,
+    :mod:`parasynth.engine.precompile`; any other process at its first parallel batch). Without
+    the spin kernels the caller and the crew sleep where they would spin (a batch of 8192 poses
+    on two threads took twice its time on one).
+
+    The compiled crew's kernels take ~3.5 s to compile: with ``background`` (the first parallel
+    batch of a process, :func:`over_blocks`), when they are not cached, a helper process
+    compiles them at a lower priority (``python -m parasynth.engine.precompile``, on a core the
+    work leaves idle) and the batches go through the interpreter's crew meanwhile (a few
+    microseconds more a batch); the first parallel batch after the helper is done loads them
+    (:func:`_serve_helper_done`). So a first run on an empty cache does not wait for them.
+    Without ``background``, or with ``PARASYNTH_COMPILE_AHEAD=0`` (each process compiles what it
+    uses as it meets it), they are compiled here."""
+    global _SPIN_READY
     if HAVE_NUMBA:
         _spin_done(np.ones(1, dtype=np.int64), 1)
         _crew_spin(np.ones(2, dtype=np.int64), 0, np.ones(1, dtype=np.int64), 1, _NO_FIN, -1)
         _SPIN_READY = True
-        if COMPILED_CREW:
-            one = np.zeros(1, dtype=np.int64)
-            _crew_serve(np.zeros(3, dtype=np.int64), 0, one, 1, _NO_FIN, -1, np.zeros(CREW_BUF, dtype=np.int64), one,
-                        one)
-            _cancel_tickets(np.zeros(1, dtype=np.int64), 0)
-            _tickets_done(one, 0, 1, 0, 1)
-            _feasible_batch.compile(tuple(signatures()["_feasible_batch"][1]))
-            _SERVE_READY = True
+        if COMPILED_CREW and not _SERVE_READY:
+            if background and _SERVE_HELPER is None and os.environ.get("PARASYNTH_COMPILE_AHEAD", "").strip() != "0" \
+                    and not _serve_cached():
+                _start_serve_helper()
+            elif _SERVE_HELPER is None:
+                _load_serve()
+
+
+def _serve_cached() -> bool:
+    sigs = signatures()
+    return all(compiled_or_cached(*sigs[n]) for n in SERVE_KERNELS)
+
+
+def _load_serve() -> None:
+    """Load (or compile) the compiled crew's kernels; batches then go to the crew in compiled
+    code."""
+    global _SERVE_READY
+    one = np.zeros(1, dtype=np.int64)
+    _crew_serve(np.zeros(3, dtype=np.int64), 0, one, 1, _NO_FIN, -1, np.zeros(CREW_BUF, dtype=np.int64), one, one)
+    _cancel_tickets(np.zeros(1, dtype=np.int64), 0)
+    _tickets_done(one, 0, 1, 0, 1)
+    _feasible_batch.compile(tuple(signatures()["_feasible_batch"][1]))
+    _SERVE_READY = True
+
+
+def helper_env() -> dict:
+    """The environment of a helper process: this one's, with the parasynth this process runs
+    first on ``PYTHONPATH`` (a source tree put on ``sys.path`` by a script, a test)."""
+    env = dict(os.environ)
+    src = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    env["PYTHONPATH"] = src + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
+    return env
+
+
+def _start_serve_helper() -> None:
+    global _SERVE_HELPER
+    try:
+        _SERVE_HELPER = _subprocess.Popen(
+            [sys.executable, "-m", "parasynth.engine.precompile", *SERVE_KERNELS], env=helper_env(),
+            stdin=_subprocess.DEVNULL, stdout=_subprocess.DEVNULL, stderr=_subprocess.DEVNULL,
+            preexec_fn=_posefn._lower_priority if hasattr(os, "nice") else None)
+    except OSError:  # no process to be had: compiled here
+        _load_serve()
+
+
+def _serve_helper_done() -> None:
+    """Once the helper of :func:`spin_warm` has finished, load the kernels it compiled (a
+    helper that failed leaves this process on the interpreter's crew; the next process
+    tries again)."""
+    global _SERVE_HELPER
+    p = _SERVE_HELPER
+    if p is None or p.poll() is None:
+        return
+    _SERVE_HELPER = None
+    if p.returncode == 0 and _serve_cached():
+        _load_serve()
 
 
 def over_blocks(fn, n_blocks: int, parallel: bool = True, claiming: bool = False) -> None:
@@ -597,7 +663,7 @@ def over_blocks(fn, n_blocks: int, parallel: bool = True, claiming: bool = False
         fn(0, n_blocks)
         return
     if not _SPIN_READY:
-        spin_warm()
+        spin_warm(background=True)
     parts = min(n_blocks, ITEMS_PER_THREAD * nt)
     batch = _Batch(fn, [n_blocks * i // parts for i in range(parts + 1)])
     crew = _CREW

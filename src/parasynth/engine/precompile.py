@@ -38,7 +38,6 @@ import subprocess
 import sys
 import tempfile
 import time
-from pathlib import Path
 
 from ..model.chains import ChainLeg
 from ..model.legs import LEG_TYPES
@@ -48,10 +47,13 @@ __all__ = ["CREW", "KERNELS_OF", "LOCAL", "WITH", "STUDY", "STRUCTURE_STUDY", "S
            "signatures", "in_cache", "missing", "claim", "compile_ahead", "start_early", "early", "with_kernels",
            "stop_helpers", "started_at", "main"]
 
-#: The kernels of the engine's threads (their waits, and the compiled crew's hand-off of a
-#: feasibility batch, :func:`parasynth.engine.core._compiled_batch`): small, compiled with the
-#: feasibility kernel.
-CREW = ("_spin_done", "_crew_spin", "_crew_serve", "_feasible_batch", "_cancel_tickets", "_tickets_done")
+#: The kernels of the engine's threads' waits: small, compiled with the feasibility kernel. The
+#: compiled crew's hand-off of a feasibility batch (:data:`parasynth.engine.core.SERVE_KERNELS`,
+#: :func:`parasynth.engine.core._compiled_batch`; ~3.5 s of compile) is not among them: the
+#: first parallel batch of a process whose cache lacks it starts a background helper for it
+#: (:func:`parasynth.engine.core.spin_warm`), and the batches go through the interpreter's crew
+#: meanwhile.
+CREW = ("_spin_done", "_crew_spin")
 
 #: Kernels behind each compiled entry point (the names of :data:`parasynth.engine.EXERCISES`).
 KERNELS_OF = {
@@ -210,13 +212,6 @@ def _shares(names: list[str], n: int) -> list[list[str]]:
     return [b[1] for b in bins if b[1]]
 
 
-def _helper_env() -> dict:
-    env = dict(os.environ)
-    src = str(Path(__file__).resolve().parent.parent.parent)  # the parasynth this process runs
-    env["PYTHONPATH"] = src + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
-    return env
-
-
 def compile_ahead(names, processes: int | None = None, poll: float = 0.05) -> dict:
     """Compile kernels ``names`` (not yet cached) into numba's cache: those of :data:`LOCAL`
     here, the others in up to ``processes - 1`` helper processes (default: one fewer than the
@@ -244,7 +239,7 @@ def compile_ahead(names, processes: int | None = None, poll: float = 0.05) -> di
     shares = _shares(rest, min(free, len(rest))) if rest else []
     procs = []
     try:
-        env = _helper_env()
+        env = core.helper_env()
         for share in shares:
             p = subprocess.Popen([sys.executable, "-m", "parasynth.engine.precompile", *share], env=env,
                                  stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
@@ -310,7 +305,7 @@ def start_early(kinds, processes: int | None = None) -> list[list[str]]:
     folder = tempfile.mkdtemp(prefix="parasynth-claims-")
     claim(folder, queue[0])  # the helper's from the start, however late it starts
     p = subprocess.Popen([sys.executable, "-m", "parasynth.engine.precompile", queue[0], "--claims", folder, *queue[1:]],
-                         env=_helper_env(), stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                         env=core.helper_env(), stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
                          stderr=subprocess.DEVNULL)
     _RUNNING.append(p)
     _QUEUES[p] = (folder, tuple(queue))
