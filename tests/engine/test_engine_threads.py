@@ -431,7 +431,10 @@ def test_the_compiled_crew_compiles_in_the_background_while_batches_go_through_t
     for _ in range(2):
         assert np.array_equal(kernels.feasible_fast(mech, X), one)
     assert not core._SERVE_READY and core._SERVE_HELPER is None and not compiled and started == [1, 1]
-    # at once: without background (a warm-up), or with compiling ahead turned off
+    # at once: without background (a warm-up; also while a helper compiles them), or with
+    # compiling ahead turned off
+    h = _Helper()
+    monkeypatch.setattr(core, "_SERVE_HELPER", h)
     core.spin_warm()
     assert core._SERVE_READY
     monkeypatch.setattr(core, "_SERVE_READY", False)

@@ -594,11 +594,13 @@ def spin_warm(background: bool = False) -> None:
         _crew_spin(np.ones(2, dtype=np.int64), 0, np.ones(1, dtype=np.int64), 1, _NO_FIN, -1)
         _SPIN_READY = True
         if COMPILED_CREW and not _SERVE_READY:
-            if background and _SERVE_HELPER is None and os.environ.get("PARASYNTH_COMPILE_AHEAD", "").strip() != "0" \
-                    and not _serve_cached():
-                _start_serve_helper()
+            if not background or os.environ.get("PARASYNTH_COMPILE_AHEAD", "").strip() == "0":
+                _load_serve()  # here, even while a helper compiles them (numba's cache takes both)
             elif _SERVE_HELPER is None:
-                _load_serve()
+                if _serve_cached():
+                    _load_serve()
+                else:
+                    _start_serve_helper()
 
 
 def _serve_cached() -> bool:
