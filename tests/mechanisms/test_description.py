@@ -877,3 +877,22 @@ def test_constraints_kept_per_the_values_they_read_are_each_designs_own():
         got = parasynth.load_mechanism("5pus_upu", slider_max=hi).constraints
         assert [c for c in got.values() if getattr(c, "hi", None) == hi], (hi, got)
     assert m.constraints.keys() == got.keys()
+
+
+def test_pose_expression_columns_are_the_stacked_broadcast_values():
+    """The pose's columns (mechanism._columns): each expression's value -- a scalar, an integer,
+    an (N,) array or a dual number's value -- broadcast to (N,) as a float column, bit for bit
+    what np.stack of the broadcast values gives, and a fresh array."""
+    from parasynth.mechanisms.description.expressions import _Dual
+    from parasynth.mechanisms.description.mechanism import _columns
+
+    rng = np.random.default_rng(5)
+    col = rng.normal(size=7)
+    dual = _Dual(rng.normal(size=7), rng.normal(size=(7, 3)))
+    vals = [0.25, col, 3, dual, np.float64(-1.5)]
+    want = np.stack([np.broadcast_to(v.v if isinstance(v, _Dual) else v, (7,)) for v in vals], -1).astype(float)
+    got = _columns(vals, 7)
+    assert got.dtype == np.float64 and got.shape == (7, 5)
+    assert got.tobytes() == want.tobytes()
+    assert not np.shares_memory(got, col)
+    assert _columns([], 4).shape == (4, 0)
