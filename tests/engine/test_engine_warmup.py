@@ -97,6 +97,41 @@ def test_warm_up_returns_errors_and_stops_on_request():
     gate.set()
 
 
+ABANDONED = r"""
+import atexit, sys, threading, time
+from parasynth import cli
+from parasynth.engine import warmup
+gate = threading.Event()
+print("before", warmup.abandoned(), flush=True)
+w = warmup.warm_up(lambda: gate.wait(60), progress=None, stop=lambda: True)  # the wait ended at once
+print("after", w.done, warmup.abandoned(), flush=True)
+if sys.argv[1] == "ends":
+    gate.set()
+    time.sleep(0.5)
+    print("ended", warmup.abandoned(), flush=True)
+atexit.register(lambda: print("exit handlers ran", flush=True))
+cli.main = lambda argv=None: (print("main", flush=True), 7)[1]
+cli.entry()
+"""
+
+
+@pytest.mark.parametrize("case", ["running", "ends"])
+def test_a_process_with_an_abandoned_compile_ends_at_once_with_its_status(case):
+    """warmup.abandoned: true while a compiling thread whose wait was ended still runs. The
+    parasynth program then ends its process at once with its status, its output flushed
+    (os._exit: the interpreter's shutdown would tear LLVM down under numba's compile, an
+    LLVM assertion or a segmentation fault in place of the status); once the thread has ended,
+    it exits as usual (exit handlers run)."""
+    r = subprocess.run([sys.executable, "-c", ABANDONED, case], capture_output=True, text=True, timeout=120)
+    lines = r.stdout.split()
+    assert r.returncode == 7, r.stderr
+    assert r.stdout.startswith("before False\nafter False True\n"), r.stdout
+    if case == "running":
+        assert "main" in lines and "handlers" not in lines
+    else:
+        assert "ended False" in r.stdout and "main" in lines and "handlers" in lines
+
+
 def test_reference_uses_numpy_and_compiles_nothing():
     from numba.core import event
 

@@ -974,7 +974,13 @@ def entry() -> None:
     garbage collector (``gc.freeze``): the shutdown's last collection would otherwise walk the
     ~2e5 objects of NumPy, numba, Optuna and pandas once more, 0.3-0.45 s of a 2.6 s warm quick
     start (docs/performance.md, "Ninth pass"). Nothing of the run's output depends on it: files
-    are closed and the standard streams flushed by then, and exit handlers run as before."""
+    are closed and the standard streams flushed by then, and exit handlers run as before.
+
+    A run interrupted while the engine compiles leaves numba compiling on an abandoned thread
+    (:func:`parasynth.engine.warmup.abandoned`): the interpreter's shutdown would tear LLVM
+    down under it (an LLVM assertion, or a segmentation fault, in place of the exit status), so
+    the process then ends at once with its status (``os._exit``): its files are closed, its
+    helper processes stopped and the standard streams flushed by then."""
     young, middle, _ = gc.get_threshold()
     gc.set_threshold(young, middle, FULL_COLLECTION_EVERY)
     code = main()
@@ -983,6 +989,9 @@ def entry() -> None:
             stream.flush()
         except (OSError, ValueError):  # a closed pipe: main already said so
             pass
+    warmup = sys.modules.get("parasynth.engine.warmup")  # loaded if the engine warmed up
+    if warmup is not None and warmup.abandoned():
+        os._exit(code)
     gc.freeze()
     sys.exit(code)
 

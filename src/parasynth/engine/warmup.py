@@ -18,6 +18,11 @@ thread while the calling thread waits in short, interruptible steps:
   few seconds, then the total; with a warm cache it receives nothing;
 * a ``KeyboardInterrupt`` in the calling thread, or ``stop()`` becoming true, ends the wait at
   once: the compiling thread is a daemon and is abandoned (what it finished is in the cache).
+  A process that then ends while that thread is still inside LLVM would tear LLVM down under it
+  at the interpreter's shutdown (an LLVM assertion or a segmentation fault instead of the exit
+  status): :func:`abandoned` tells, and the ``parasynth`` program ends such a process at once
+  with its status once its output is flushed and its helpers stopped
+  (:func:`parasynth.cli.entry`); a script of one's own can do the same (``os._exit``).
 
 :func:`reference` is the other way of not waiting: inside it every entry point evaluates with
 the NumPy reference (the same answers to ~1e-12), for work too small to repay compiling.
@@ -30,7 +35,18 @@ import sys
 import threading
 import time
 
-__all__ = ["warm_up", "WarmUp", "COMPILING"]
+__all__ = ["warm_up", "WarmUp", "COMPILING", "abandoned"]
+
+#: The compiling threads of :func:`warm_up` (see :func:`abandoned`).
+_THREADS: list = []
+
+
+def abandoned() -> bool:
+    """Whether a compiling thread of :func:`warm_up` whose wait was ended (an interrupt,
+    ``stop``) is still running: numba is compiling on it, and the interpreter's shutdown must
+    not tear LLVM down under it (see the module docstring)."""
+    _THREADS[:] = [t for t in _THREADS if t.is_alive()]
+    return bool(_THREADS)
 
 #: What ``progress`` receives first when the kernels are being compiled.
 COMPILING = "compiling the evaluation engine (once per installation) ..."
@@ -151,6 +167,7 @@ def warm_up(work, *, progress=_stderr, stop=None, poll: float = 0.1, every: floa
         else:
             body_thread = threading.Thread(target=body, name="parasynth-engine-compile", daemon=True)
             body_thread.start()
+            _THREADS.append(body_thread)
         said = announced
         last = time.perf_counter()
         while body_thread is not None and body_thread.is_alive():
