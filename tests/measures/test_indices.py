@@ -325,6 +325,27 @@ def test_gravity_wrench_moment_about_P():
     np.testing.assert_allclose(I.default_gravity(load("5pus_upu", {})), [0, 0, -9.80665])
 
 
+def test_a_load_of_weight_and_force_poses_the_platform_once(monkeypatch):
+    """max_actuator_force's load (weight and an external force at the same point): the platform
+    posed once for both wrenches, the wrench bit for bit the sum of gravity_wrench and
+    point_force_wrench each posing it itself; a given pose is the one used."""
+    from parasynth.measures import objectives
+
+    mech = load("5pus_upu", {})
+    X = sample_poses(mech, np.random.default_rng(3), 40, scale=0.3)
+    com, F = (0.0, 0.01, -0.15), np.array([300.0, 300.0, -500.0])
+    want = I.gravity_wrench(mech, X, 20.0, com=com) + I.point_force_wrench(mech, X, F, com)
+    calls = []
+    real = type(mech).pose
+    monkeypatch.setattr(type(mech), "pose", lambda self, Xa: (calls.append(1), real(self, Xa))[1])
+    got = objectives._load(mech, X, 20.0, F, com)
+    assert len(calls) == 1 and got.tobytes() == want.tobytes()
+    p, R = real(mech, X)
+    turned = (p, np.broadcast_to(np.eye(3), R.shape))  # a level platform: the moment of r = com
+    w = I.point_force_wrench(mech, X, F, com, pose=turned)
+    np.testing.assert_allclose(w[:, 3:], np.cross(np.broadcast_to(com, (40, 3)), np.broadcast_to(F, (40, 3))))
+
+
 def test_min_max_forces_with_redundant_actuation():
     """Seven legs, three along x: a force along x through P is shared by legs 1, 2 (at +-r e_y)
     and 7 (through P). Moment balance forces F1 = F2; minimising max |F_i| / weight_i with

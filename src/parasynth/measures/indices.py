@@ -600,23 +600,24 @@ def default_gravity(mech) -> np.ndarray:
     return np.array([0.0, 0.0, -G0])
 
 
-def point_force_wrench(mech, X, force, point=(0.0, 0.0, 0.0)) -> np.ndarray:
+def point_force_wrench(mech, X, force, point=(0.0, 0.0, 0.0), pose=None) -> np.ndarray:
     """Wrench (N, 6) at ``P`` (base frame) of a force ``force`` (3,) or (N, 3), base frame, N,
-    applied at ``point`` given in the platform frame (m)."""
+    applied at ``point`` given in the platform frame (m). ``pose``: ``mech.pose`` at the poses
+    ``X``, where the caller has it (two loads at the same poses pose the platform once)."""
     Xa, single = _as_poses(mech, X)
-    p, R = mech.pose(Xa)
+    _, R = mech.pose(Xa) if pose is None else pose
     f = np.broadcast_to(np.asarray(force, dtype=float), (Xa.shape[0], 3))
     r = R @ np.asarray(point, dtype=float)
     w = np.concatenate([f, np.cross(r, f)], axis=-1)
     return _out(w, single)
 
 
-def gravity_wrench(mech, X, mass: float, com=(0.0, 0.0, 0.0), g=None) -> np.ndarray:
+def gravity_wrench(mech, X, mass: float, com=(0.0, 0.0, 0.0), g=None, pose=None) -> np.ndarray:
     """Wrench (N, 6) at ``P`` of the weight of a body of ``mass`` (kg) carried by the
     platform, centre of mass ``com`` in the platform frame (m); ``g`` the gravity vector
-    (default :func:`default_gravity`)."""
+    (default :func:`default_gravity`); ``pose`` as in :func:`point_force_wrench`."""
     gv = default_gravity(mech) if g is None else np.asarray(g, dtype=float)
-    return point_force_wrench(mech, X, float(mass) * gv, com)
+    return point_force_wrench(mech, X, float(mass) * gv, com, pose=pose)
 
 
 # ---------------------------------------------------------------------------------------------

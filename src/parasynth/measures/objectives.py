@@ -734,9 +734,10 @@ _LOAD_SETTINGS = {**_SUB_SETTINGS, "mass": Setting("mass", default=5.0, doc="pay
 
 def _load(mech, X, mass, force, com):
     com = tuple(com) if com is not None else (0.0, 0.0, 0.0)
-    w = gravity_wrench(mech, X, float(mass), com=com)
+    pose = mech.pose(mech._poses(X)[0]) if force is not None else None  # posed once for both loads
+    w = gravity_wrench(mech, X, float(mass), com=com, pose=pose)
     if force is not None:
-        w = w + point_force_wrench(mech, X, np.asarray(force, dtype=float), com)
+        w = w + point_force_wrench(mech, X, np.asarray(force, dtype=float), com, pose=pose)
     return w
 
 
