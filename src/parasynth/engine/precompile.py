@@ -87,12 +87,10 @@ LOCAL = ("_pose_kernel", "_feasible_kernel", "_margins_kernel")
 # Rough cold-compile CPU seconds (5pus_upu, 2-core development machine), to order the queues
 # (longest first) and share the work between new helpers; those of the interpreter kernels
 # (LOCAL) without the expression interpreter they share, which the first of them compiled in a
-# process compiles (~2.8 s; numba caches it on the way, so a later one in another process loads
-# it): pose 5.1 s and feasibility 11.7 s each alone, feasibility 8.9 s once the interpreter is
-# cached. The crew's kernels measured after the feasibility kernel in one process.
-_INTERPRETER = 2.8
-_COST = {"_spin_done": 0.1, "_crew_spin": 0.1, "_crew_serve": 1.4, "_feasible_batch": 1.7, "_cancel_tickets": 0.1,
-         "_tickets_done": 0.1, "_pose_kernel": 2.3, "_feasible_kernel": 8.9, "_margins_kernel": 8.9,
+# process compiles (~2.8 s more; numba caches it on the way, so a later one in another process
+# loads it): pose 5.1 s and feasibility 11.7 s each alone, feasibility 8.9 s once the
+# interpreter is cached.
+_COST = {"_spin_done": 0.1, "_crew_spin": 0.1, "_pose_kernel": 2.3, "_feasible_kernel": 8.9, "_margins_kernel": 8.9,
          "_upu_mean_lengths": 0.4,
          "_margin_kernel": 5.0, "_constraint_rank_kernel": 4.5, "_lti_kernel": 6.0, "_kappa_kernel": 5.0,
          "_dir_kernel": 2.0, "_prep_kernel": 2.0, "_solve_kernel": 2.0, "_chain_kernel": 3.0,
@@ -281,11 +279,11 @@ def start_early(kinds, processes: int | None = None) -> list[list[str]]:
     queue: the longest interpreter kernel first (the feasibility kernel: the helper compiles the
     expression interpreter with it, and numba caches it there for the others), then the others,
     longest first (:data:`_COST`); the first is claimed for it here, and it claims each of the
-    others (:func:`claim`) before it compiles it. The
-    work's :func:`compile_ahead` claims the rest of the queue as soon as the work gets to it
-    and compiles those kernels in the calling process, so that no more processes compile than
-    there are cores (a third process on two cores would slow the helper, whose kernel is the
-    longest compile: docs/performance.md) and neither waits while a kernel is left. On one core
+    others (:func:`claim`) before it compiles it. The work's :func:`compile_ahead` claims the
+    rest of the queue as soon as the work gets to it and compiles those kernels in the calling
+    process, so that no more processes compile than there are cores (a third process on two
+    cores would slow the helper, whose kernel is the longest compile: docs/performance.md) and
+    neither waits while a kernel is left. On one core
     the queue is the kernels in the order asked (the work has no core of its own to compile on
     until its warm-up). Returns the queue of each helper started ([] when everything is
     cached). Helpers still running at the end of the process are terminated (what they
@@ -361,7 +359,7 @@ def stop_helpers() -> None:
     exits), and forget the helpers started ahead (:func:`start_early`): their kernels are in the
     cache, or, a helper terminated or failed, compile where they are needed. So the next work
     of the process (another run of a script, of a test) starts from what the cache holds:
-    nothing said ahead for it, nothing left to it, its compile timed from its own start."""
+    nothing said ahead for it, nothing queued for it, its compile timed from its own start."""
     _stop(list(_RUNNING))
     for folder, _ in _QUEUES.values():
         shutil.rmtree(folder, ignore_errors=True)
