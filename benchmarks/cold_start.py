@@ -13,6 +13,14 @@ results kept on disk: sampled points, enumerated structures) and output director
    uses, and nothing else but the import and that one design;
 4. **validate**: ``parasynth validate STUDY`` on a third empty cache.
 
+A first run leaves background compiles running at a lower priority (the pose loops of
+``parasynth.engine.posefn``, the compiled crew of ``parasynth.engine.core.spin_warm``): they go
+on for seconds after it ends, on purpose. Before each of the four runs the benchmark waits for
+every such process on the machine (``parasynth.engine.posefn`` or ``parasynth.engine.precompile``
+in its command line; Linux), this run's or an earlier one's, and says how long it waited: so
+the warm run is timed on a filled cache, and no run is slowed by another's helpers (a series of
+cold runs one after the other was, by seconds).
+
 The parasynth package these runs import is byte-compiled first (``compileall``, into its
 ``__pycache__`` folders), as ``pip install .`` of the quick start does at install: a source tree
 run with ``PYTHONDONTWRITEBYTECODE=1`` (some sandboxes set it) would otherwise translate every
@@ -108,6 +116,41 @@ def _run(cmd, cache: str, cwd=ROOT, first: list | None = None) -> tuple[float, f
     return dt, cpu, "".join(out) + "".join(err)
 
 
+#: What the command line of a background compile of parasynth holds.
+HELPERS = (b"parasynth.engine.posefn", b"parasynth.engine.precompile")
+
+
+def _wait_for_helpers(limit: float = 300.0) -> float:
+    """Seconds spent waiting (at most ``limit``) until no background compile of parasynth runs
+    on the machine (read from ``/proc``; 0 where there is none)."""
+    t0 = time.perf_counter()
+    if not os.path.isdir("/proc"):
+        return 0.0
+    while time.perf_counter() - t0 < limit:
+        running = False
+        for pid in os.listdir("/proc"):
+            if not pid.isdigit() or int(pid) == os.getpid():
+                continue
+            try:
+                with open(f"/proc/{pid}/cmdline", "rb") as f:
+                    cmd = f.read()
+            except OSError:
+                continue
+            if any(h in cmd for h in HELPERS):
+                running = True
+                break
+        if not running:
+            break
+        time.sleep(0.2)
+    return time.perf_counter() - t0
+
+
+def _settle(what: str) -> None:
+    waited = _wait_for_helpers()
+    if waited >= 0.5:
+        print(f"(waited {waited:.1f} s for background compiles to end before the {what})", file=sys.stderr)
+
+
 def _identical(a: Path, b: Path) -> bool:
     import pandas as pd
 
@@ -134,6 +177,7 @@ def main(argv=None) -> int:
     py = [sys.executable, "-m", "parasynth.cli"]
     extra = ["--n-trials", str(args.n_trials)] if args.n_trials else []
     try:
+        _settle("cold run")
         load = os.getloadavg()[0]
         cache = str(tmp / "cache")
         first: list = []
@@ -141,13 +185,16 @@ def main(argv=None) -> int:
                                      cache, first=first)
         line = "no line on stderr" if first[0] is None else f"first line on stderr after {first[0]:.1f} s"
         print(f"cold run: {cold_s:.1f} s wall, {cold_cpu:.1f} s CPU; {line}", file=sys.stderr)
+        _settle("warm run")
         warm_s, warm_cpu, _ = _run(py + ["run", args.study, "--quiet", "--no-report", "--out", str(tmp / "warm")]
                                    + extra, cache)
         print(f"warm run: {warm_s:.1f} s wall, {warm_cpu:.1f} s CPU; the cold run's extra: "
               f"{cold_s - warm_s:.1f} s wall, {cold_cpu - warm_cpu:.1f} s CPU", file=sys.stderr)
+        _settle("compile")
         comp_s, comp_cpu, comp_out = _run([sys.executable, "-c", COMPILE_ONLY, args.study], str(tmp / "cache2"))
         print(f"compile (fresh process, empty cache): {comp_s:.1f} s wall, {comp_cpu:.1f} s CPU; "
               f"{comp_out.strip()}", file=sys.stderr)
+        _settle("validate")
         val_s, val_cpu, _ = _run(py + ["validate", args.study], str(tmp / "cache3"))
         print(f"validate (empty cache): {val_s:.1f} s wall, {val_cpu:.1f} s CPU", file=sys.stderr)
         same = _identical(tmp / "cold" / "results.csv", tmp / "warm" / "results.csv")
