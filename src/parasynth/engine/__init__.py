@@ -72,7 +72,7 @@ from ..model.mechanism import EngineFallbackWarning
 from ..common.validation import ENGINES, check_engine
 from ..common.validation import numpy_reference as reference
 from . import warmup as _warmup
-from .warmup import COMPILING, WarmUp
+from .warmup import COMPILING, WarmUp, compile_ahead_off
 
 __all__ = ["HAVE_NUMBA", "ENGINES", "EngineFallbackWarning", "feasible", "feasible_extents", "margins", "pose_batch",
            "solved_unknowns", "available",
@@ -496,12 +496,6 @@ def compiling_early() -> bool:
     to them."""
     pre_mod = sys.modules.get(__name__ + ".precompile")  # loaded if start_early ran
     return pre_mod is not None and any(pre_mod.early().values())
-
-
-def compile_ahead_off() -> bool:
-    """Whether compiling ahead is turned off (``PARASYNTH_COMPILE_AHEAD=0``): no helper
-    processes, no notice said ahead; each run compiles what it uses as it meets it."""
-    return os.environ.get("PARASYNTH_COMPILE_AHEAD", "").strip() == "0"
 
 
 #: The compile notice (:data:`COMPILING`) was said ahead of the next :func:`warm_up` (see

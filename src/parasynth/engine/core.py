@@ -72,6 +72,7 @@ from ..model.spatial import unit
 from ..common import cache as _disk
 from ..common.validation import MAX_POSE_MAGNITUDE
 from .program import OPS, Program, Untranslatable, build_program
+from .warmup import compile_ahead_off
 
 try:  # pragma: no cover - depends on the environment
     if os.environ.get("PARASYNTH_NO_NUMBA", "").strip() not in ("", "0"):
@@ -594,7 +595,7 @@ def spin_warm(background: bool = False) -> None:
         _crew_spin(np.ones(2, dtype=np.int64), 0, np.ones(1, dtype=np.int64), 1, _NO_FIN, -1)
         _SPIN_READY = True
         if COMPILED_CREW and not _SERVE_READY:
-            if not background or os.environ.get("PARASYNTH_COMPILE_AHEAD", "").strip() == "0":
+            if not background or compile_ahead_off():
                 _load_serve()  # here, even while a helper compiles them (numba's cache takes both)
             elif _SERVE_HELPER is None:
                 if _serve_cached():

@@ -31,11 +31,19 @@ the NumPy reference (the same answers to ~1e-12), for work too small to repay co
 from __future__ import annotations
 
 import contextlib
+import os
 import sys
 import threading
 import time
 
-__all__ = ["warm_up", "WarmUp", "COMPILING", "abandoned"]
+__all__ = ["warm_up", "WarmUp", "COMPILING", "abandoned", "compile_ahead_off"]
+
+
+def compile_ahead_off() -> bool:
+    """Whether compiling ahead is turned off (``PARASYNTH_COMPILE_AHEAD=0``): no helper
+    processes, no notice said ahead, no background compile; each run compiles what it uses as
+    it meets it."""
+    return os.environ.get("PARASYNTH_COMPILE_AHEAD", "").strip() == "0"
 
 #: The compiling threads of :func:`warm_up` (see :func:`abandoned`).
 _THREADS: list = []
