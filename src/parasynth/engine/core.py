@@ -630,11 +630,27 @@ def helper_env() -> dict:
     return env
 
 
+def _serve_mark():
+    """The file one helper compiling :data:`SERVE_KERNELS` into this process's numba cache holds
+    (:mod:`parasynth.engine.held`; a study's workers start one helper each), or None without a
+    cache folder."""
+    p = _disk.path_for("held", ("compiled crew", os.environ.get("NUMBA_CACHE_DIR", ""), sys.executable))
+    if p is None:
+        return None
+    try:
+        p.parent.mkdir(parents=True, exist_ok=True)
+    except OSError:
+        return None
+    return p.with_suffix(".held")
+
+
 def _start_serve_helper() -> None:
     global _SERVE_HELPER
+    mark = _serve_mark()
     try:
         _SERVE_HELPER = _subprocess.Popen(
-            [sys.executable, "-m", "parasynth.engine.precompile", *SERVE_KERNELS], env=helper_env(),
+            [sys.executable, "-m", "parasynth.engine.precompile", *SERVE_KERNELS,
+             *(("--hold", str(mark)) if mark is not None else ())], env=helper_env(),
             stdin=_subprocess.DEVNULL, stdout=_subprocess.DEVNULL, stderr=_subprocess.DEVNULL,
             preexec_fn=_posefn._lower_priority if hasattr(os, "nice") else None)
     except OSError:  # no process to be had: compiled here

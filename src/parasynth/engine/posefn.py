@@ -29,7 +29,10 @@ Cephes code, :mod:`parasynth.engine.sincos`).
   (:func:`parasynth.common.qmc.cache_dir`, ``pose_loops/``) and starts one helper process
   (``python -m parasynth.engine.posefn FILE``, at a lower scheduling priority, so that it takes a
   core the run leaves idle; numba's cache then holds the compiled loop);
-  until the helper is done it returns :data:`NONE` (the interpreter runs). A later call, in
+  until the helper is done it returns :data:`NONE` (the interpreter runs). One helper compiles a
+  module at a time on the machine (:mod:`parasynth.engine.held`): another process's helper for
+  the same module (a second run while the first one's helper compiles, a study's workers)
+  waits for it and compiles nothing. A later call, in
   this or any later process, loads the compiled loop from numba's cache (~ms). Without a cache
   folder (``PARASYNTH_CACHE_DIR=off``), on a cache that cannot be written, or with
   ``PARASYNTH_POSE_LOOPS=0``, the interpreter runs throughout.
@@ -56,6 +59,7 @@ from numba import cfunc
 from numba import types as _nbt
 
 from ..common.qmc import cache_dir
+from . import held
 from .program import OPS, Program
 
 __all__ = ["SIG", "FN_TYPE", "NONE", "MAX_INSTRUCTIONS", "source", "function", "build", "main"]
@@ -331,11 +335,22 @@ def _start(path: Path, body: str) -> None:
 
 def main(argv=None) -> int:
     """``python -m parasynth.engine.posefn FILE...``: compile each generated module into numba's
-    cache and mark it done."""
+    cache and mark it done. Each compile is held (:func:`parasynth.engine.held.hold`, a
+    ``.held`` file beside the module): a helper of another process compiling the same module
+    is waited for instead of compiled beside (its loop is then in the cache)."""
     for name in (sys.argv[1:] if argv is None else argv):
         path = Path(name)
-        _load(path)
-        path.with_suffix(".done").write_text("")
+        done, mark = path.with_suffix(".done"), path.with_suffix(".held")
+        while not held.hold(mark):
+            held.wait_let_go(mark)
+            if done.exists():
+                break
+        else:
+            try:
+                _load(path)
+                done.write_text("")
+            finally:
+                held.let_go(mark)
     return 0
 
 

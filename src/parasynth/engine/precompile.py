@@ -41,7 +41,7 @@ import time
 
 from ..model.chains import ChainLeg
 from ..model.legs import LEG_TYPES
-from . import chains, closure, core, indices
+from . import chains, closure, core, held, indices
 
 __all__ = ["CREW", "KERNELS_OF", "LOCAL", "WITH", "STUDY", "STRUCTURE_STUDY", "STRUCTURE_CHAINS", "structure_kinds", "chain_kinds",
            "signatures", "in_cache", "missing", "claim", "compile_ahead", "start_early", "early", "with_kernels",
@@ -369,12 +369,22 @@ def stop_helpers() -> None:
 
 
 def main(argv=None) -> int:
-    """``python -m parasynth.engine.precompile NAME ... [--claims FOLDER NAME ...]``: compile
+    """``python -m parasynth.engine.precompile NAME ... [--hold FILE] [--claims FOLDER NAME ...]``: compile
     those kernels into numba's cache, in that order (a helper of :func:`compile_ahead`); those
     after ``--claims`` each only if this process claims it first in ``FOLDER`` (:func:`claim`:
-    a helper of :func:`start_early`, whose work may claim some of them)."""
+    a helper of :func:`start_early`, whose work may claim some of them). With ``--hold FILE``
+    it holds FILE while it compiles (:func:`parasynth.engine.held.hold`), after waiting for
+    any other live helper holding it (whose kernels it then loads from the cache: the compiled
+    crew's helper of several processes at once)."""
     names = list(sys.argv[1:] if argv is None else argv)
-    folder, claimed = None, []
+    folder, claimed, mark = None, [], None
+    if "--hold" in names:  # one such helper at a time on the machine (parasynth.engine.held)
+        i = names.index("--hold")
+        if i + 1 >= len(names):
+            print("--hold needs a file", file=sys.stderr)
+            return 2
+        mark = names[i + 1]
+        names = names[:i] + names[i + 2:]
     if "--claims" in names:
         i = names.index("--claims")
         if i + 1 >= len(names):
@@ -386,11 +396,18 @@ def main(argv=None) -> int:
     if bad:
         print(f"unknown kernel(s) {', '.join(bad)}; known: {', '.join(known)}", file=sys.stderr)
         return 2
-    for n in names:
-        _compile(n)
-    for n in claimed:
-        if claim(folder, n):
+    if mark is not None:
+        while not held.hold(mark):  # another helper compiles them: wait, then load them from the cache
+            held.wait_let_go(mark)
+    try:
+        for n in names:
             _compile(n)
+        for n in claimed:
+            if claim(folder, n):
+                _compile(n)
+    finally:
+        if mark is not None:
+            held.let_go(mark)
     return 0
 
 
