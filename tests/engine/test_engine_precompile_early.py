@@ -238,16 +238,23 @@ def test_a_run_starts_the_helpers_before_loading_its_study(monkeypatch, tmp_path
     from parasynth.engine import precompile as pre
 
     root = Path(__file__).resolve().parents[2]
-    calls = []
-    monkeypatch.setattr(pre, "start_early", lambda kinds, processes=None:
-                        calls.append(tuple(kinds)) or [["_feasible_kernel"]])
+    calls, guessed = [], []
+    monkeypatch.setattr(pre, "start_early", lambda kinds, processes=None, helper=None:
+                        calls.append((tuple(kinds), helper)) or [["_feasible_kernel"]])
+    monkeypatch.setattr(cli.early, "start", lambda what, legs: guessed.append((what, legs)) or ("helper", what))
     cli._compile_early(root / "studies" / "quickstart.yaml", quiet=False)
-    assert calls == [pre.STUDY]
+    # the helper started before the engine's import is handed to start_early with the same kinds
+    assert calls == [(pre.STUDY, ("helper", "study"))] and guessed == [("study", None)]
+    calls[:] = [k for k, _ in calls]
     assert set(pre.STUDY) == {"feasible", "singularity_margin", "constraint_rank"}
     assert capsys.readouterr().err == engine.COMPILING + "\n"
     cli._compile_early(root / "studies" / "structures_3t2r.yaml", quiet=True)
     doc = yaml.safe_load((root / "studies" / "structures_3t2r.yaml").read_text())
+    assert guessed[-1] == ("structure", [str(t) for t in doc["structure"]["leg_types"]])
+    assert calls[-1][1] == ("helper", "structure")
+    calls[-1] = calls[-1][0]
     assert calls[-1] == pre.structure_kinds(doc["structure"]["leg_types"])
+    assert pre.early_kinds("structure", guessed[-1][1]) == calls[-1]
     assert "chains" in calls[-1] and capsys.readouterr().err == ""
     numpy_study = yaml.safe_load((root / "studies" / "quickstart.yaml").read_text())
     numpy_study["evaluation"]["engine"] = "numpy"
@@ -259,7 +266,7 @@ def test_a_run_starts_the_helpers_before_loading_its_study(monkeypatch, tmp_path
     cli._compile_early(tmp_path / "missing.yaml", quiet=False)
     monkeypatch.setenv("PARASYNTH_COMPILE_AHEAD", "0")
     cli._compile_early(root / "studies" / "quickstart.yaml", quiet=False)
-    assert len(calls) == 2 and capsys.readouterr().err == ""
+    assert len(calls) == 2 and len(guessed) == 2 and capsys.readouterr().err == ""
 
 
 def test_helpers_started_ahead_are_forgotten_once_stopped(monkeypatch, tmp_path):
@@ -290,7 +297,8 @@ def test_helpers_started_ahead_are_forgotten_once_stopped(monkeypatch, tmp_path)
     assert engine.announce_compile() is True  # the next work's own notice
     monkeypatch.setattr(engine, "_ANNOUNCED", False)
     stopped = []
-    monkeypatch.setattr(pre, "start_early", lambda kinds, processes=None: [["_feasible_kernel"]])
+    monkeypatch.setattr(pre, "start_early", lambda kinds, processes=None, helper=None: [["_feasible_kernel"]])
+    monkeypatch.setattr(cli.early, "start", lambda what, legs: None)
     monkeypatch.setattr(pre, "stop_helpers", lambda: stopped.append(True))
     (tmp_path / "bad.yaml").write_text("name: bad\nmechanism: no_such_mechanism\n")
     assert cli.main(["run", str(tmp_path / "bad.yaml"), "--out", str(tmp_path / "out")]) == 2

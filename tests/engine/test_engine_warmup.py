@@ -251,6 +251,23 @@ def test_precompile_helper_fills_the_cache(tmp_path):
     p = subprocess.run(run + ["_no_such_kernel"], env=env, capture_output=True, text=True, timeout=300)
     assert p.returncode == 2 and "unknown kernel(s) _no_such_kernel" in p.stderr
 
+def _helpers_of(cache: str) -> list[str]:
+    """The command lines of the compiling helpers (parasynth.engine.precompile) running with
+    the numba cache ``cache`` (read from /proc; [] where there is none)."""
+    out = []
+    for pid in (p for p in os.listdir("/proc") if p.isdigit()) if os.path.isdir("/proc") else ():
+        try:
+            with open(f"/proc/{pid}/cmdline", "rb") as f:
+                cmd = f.read().replace(b"\0", b" ").decode(errors="replace")
+            with open(f"/proc/{pid}/environ", "rb") as f:
+                envs = f.read().split(b"\0")
+        except OSError:
+            continue
+        if "parasynth.engine.precompile" in cmd and f"NUMBA_CACHE_DIR={cache}".encode() in envs:
+            out.append(cmd)
+    return out
+
+
 def test_sigint_during_compile_ends_with_resume_hint(tmp_path):
     """A run on an empty compile cache, Ctrl-C as soon as it says it is compiling: the run
     stops at once (not after the compile), with the interrupt line, the resume hint and exit
@@ -288,6 +305,9 @@ def test_sigint_during_compile_ends_with_resume_hint(tmp_path):
         time.sleep(0.05)
     assert (out / "run.lock").exists(), "".join(err_lines)
     time.sleep(0.5)
+    # the helper started before the run imported the engine (parasynth.cli.early) compiles
+    if os.path.isdir("/proc"):  # (how the helpers are told apart)
+        assert any("--early" in cmd for cmd in _helpers_of(env["NUMBA_CACHE_DIR"])), _helpers_of(env["NUMBA_CACHE_DIR"])
     t0 = time.time()
     proc.send_signal(signal.SIGINT)
     proc.wait(timeout=60)  # stderr is read by the reader thread alone, to its end
@@ -298,6 +318,7 @@ def test_sigint_during_compile_ends_with_resume_hint(tmp_path):
     assert proc.returncode == 130, stderr
     assert waited < 10, f"the run went on compiling for {waited:.1f} s after Ctrl-C"
     assert "Traceback" not in stderr and "Exception ignored" not in stderr
+    assert _helpers_of(env["NUMBA_CACHE_DIR"]) == []  # stopped with the run
     assert stderr.count(engine.COMPILING) == 1, stderr  # said once, when the helpers started
     last = [x for x in stderr.splitlines() if x.strip()][-1]
     assert last.startswith("interrupted:") and "--resume" in last and str(out) in last, stderr

@@ -36,8 +36,10 @@ import numpy as np
 
 from .. import __version__
 from ..mechanisms import list_mechanisms, load_mechanism, mechanism_summaries
+from . import early
 from .plugins import load_plugins  # noqa: F401  (also parasynth.cli.load_plugins)
 from ..common.units import SI_UNIT_KINDS, UNIT_KINDS, format_pose, format_quantity, in_display
+from ..common.processes import compile_ahead_off
 from ..common.validation import MAX_LEGS, MAX_SAMPLES, MAX_SEED, MAX_TRIALS
 from ..common import columns as derived
 
@@ -318,11 +320,10 @@ def _compile_early(path, quiet: bool) -> None:
     structure study's kernels (``precompile.structure_kinds``) while its structures are
     enumerated, any other study's (``precompile.STUDY``: what nearly every study asks for) while
     it is loaded and checked -- whose probes draw the first sample points, which on a fresh
-    machine imports scipy.stats (~0.6 s). Anything unusual (an unreadable file, the NumPy engine
-    asked for, no numba) starts nothing: the study's loading reports what is wrong, the run
-    compiles as usual."""
-    from ..engine import compile_ahead_off
-
+    machine imports scipy.stats (~0.6 s). The helper is started before the engine is imported
+    when numba's cache seems empty (:mod:`parasynth.cli.early`). Anything unusual (an unreadable
+    file, the NumPy engine asked for, no numba) starts nothing: the study's loading reports what
+    is wrong, the run compiles as usual."""
     if compile_ahead_off():
         return
     try:
@@ -336,13 +337,19 @@ def _compile_early(path, quiet: bool) -> None:
             return
     except Exception:  # noqa: BLE001 - loading the study says what is wrong
         return
-    from ..engine import COMPILING, core, precompile
-
     structure = doc.get("structure")
     if isinstance(structure, dict):  # its own work first: the enumeration, seconds on one core
-        started = core.HAVE_NUMBA and precompile.start_early(precompile.structure_kinds(structure.get("leg_types")))
+        what, legs = "structure", structure.get("leg_types")
+        legs = [str(t) for t in legs] if isinstance(legs, list) else None
     else:  # its own work first: loading, the check's probes, the warm-up design on NumPy
-        started = core.HAVE_NUMBA and precompile.start_early(precompile.STUDY)
+        what, legs = "study", None
+    helper = early.start(what, legs)  # before the engine's import (cli/early.py)
+    from ..engine import COMPILING, core, precompile
+
+    if not core.HAVE_NUMBA:  # (a broken numba the guess could not tell)
+        early.stop(helper)
+        return
+    started = precompile.start_early(precompile.early_kinds(what, legs), helper=helper)
     if started and not quiet:
         print(COMPILING, file=sys.stderr, flush=True)
 
@@ -365,8 +372,6 @@ def _compile_chains_early(study) -> None:
     from its limbs asks for; see :func:`parasynth.engine.precompile.structure_kinds`), started
     now, before the first design asks for them."""
     setup = getattr(study, "structures", None)
-    from ..engine import compile_ahead_off
-
     if setup is None or compile_ahead_off():
         return
     from ..engine import core, precompile

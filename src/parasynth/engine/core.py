@@ -70,6 +70,7 @@ from ..model.mechanism import EngineFallbackWarning
 from ..model.legs import GEOM_TOL, PRS, PUS, RPS, RPU, RUS, SPS, UPS, UPU
 from ..model.spatial import unit
 from ..common import cache as _disk
+from ..common.processes import helper_env
 from ..common.validation import MAX_POSE_MAGNITUDE
 from .program import OPS, Program, Untranslatable, build_program
 from .warmup import compile_ahead_off
@@ -619,15 +620,6 @@ def _load_serve() -> None:
     _tickets_done(one, 0, 1, 0, 1)
     _feasible_batch.compile(tuple(signatures()["_feasible_batch"][1]))
     _SERVE_READY = True
-
-
-def helper_env() -> dict:
-    """The environment of a helper process: this one's, with the parasynth this process runs
-    first on ``PYTHONPATH`` (a source tree put on ``sys.path`` by a script, a test)."""
-    env = dict(os.environ)
-    src = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-    env["PYTHONPATH"] = src + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
-    return env
 
 
 def _serve_mark():

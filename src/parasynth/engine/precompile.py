@@ -44,7 +44,8 @@ from ..model.legs import LEG_TYPES
 from . import chains, closure, core, held, indices
 
 __all__ = ["CREW", "KERNELS_OF", "LOCAL", "WITH", "STUDY", "STRUCTURE_STUDY", "STRUCTURE_CHAINS", "structure_kinds", "chain_kinds",
-           "signatures", "in_cache", "missing", "claim", "compile_ahead", "start_early", "early", "with_kernels",
+           "signatures", "in_cache", "missing", "claim", "compile_ahead", "start_early", "early_queue", "early_kinds",
+           "early", "with_kernels",
            "stop_helpers", "started_at", "main"]
 
 #: The kernels of the engine's threads' waits: small, compiled with the feasibility kernel. The
@@ -271,7 +272,7 @@ def compile_ahead(names, processes: int | None = None, poll: float = 0.05) -> di
         _stop([p for _, p in procs])
 
 
-def start_early(kinds, processes: int | None = None) -> list[list[str]]:
+def start_early(kinds, processes: int | None = None, helper=None) -> list[list[str]]:
     """Start compiling, in a helper process, the kernels of the entry points ``kinds`` (names
     of :data:`KERNELS_OF`) that are neither compiled nor cached, and return at once: for work
     that has something else to do first (a structure study enumerates its structures, several
@@ -287,7 +288,44 @@ def start_early(kinds, processes: int | None = None) -> list[list[str]]:
     the queue is the kernels in the order asked (the work has no core of its own to compile on
     until its warm-up). Returns the queue of each helper started ([] when everything is
     cached). Helpers still running at the end of the process are terminated (what they
-    finished is in the cache)."""
+    finished is in the cache).
+
+    ``helper``: ``(process, claim folder, started at)`` of a helper started before this
+    process imported the engine (``python -m parasynth.engine.precompile --early ...``,
+    :mod:`parasynth.cli.early`: ~0.6 s earlier on a first run), which computes this same queue
+    itself (:func:`early_queue`) and claims every kernel of it before compiling it: it is taken
+    as this queue's helper (unless it has failed already: then one is started as above)."""
+    queue = early_queue(kinds, processes)
+    adopt = helper is not None and bool(queue) and helper[0].poll() in (None, 0)
+    if helper is not None:
+        _RUNNING.append(helper[0])  # stopped with the others (it ends by itself when nothing is missing)
+        if not adopt:
+            _QUEUES[helper[0]] = (helper[1], ())  # its claim folder removed with the others
+        _at_exit()
+    if not queue:
+        return []
+    if adopt:
+        p, folder = helper[0], helper[1]  # it computed this queue itself, and claims each kernel first
+    else:
+        folder = tempfile.mkdtemp(prefix="parasynth-claims-")
+        claim(folder, queue[0])  # the helper's from the start, however late it starts
+        p = subprocess.Popen([sys.executable, "-m", "parasynth.engine.precompile", queue[0], "--claims", folder,
+                              *queue[1:]], env=core.helper_env(), stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                             stderr=subprocess.DEVNULL)
+        _RUNNING.append(p)
+    _QUEUES[p] = (folder, tuple(queue))
+    for n in queue:
+        _EARLY[n] = p
+    if not _SINCE:
+        _SINCE.append(helper[2] if adopt else time.perf_counter())
+    _at_exit()
+    return [queue]
+
+
+def early_queue(kinds, processes: int | None = None) -> list[str]:
+    """The queue :func:`start_early` gives its helper for the entry points ``kinds``: the
+    kernels neither compiled nor cached (nor handed to a helper already), the longest
+    interpreter kernel first, then the others longest first (on one core: in the order asked)."""
     names = [n for n in missing(kinds) if n not in _EARLY]
     if not names:
         return []
@@ -296,25 +334,25 @@ def start_early(kinds, processes: int | None = None) -> list[list[str]]:
     interp = [n for n in names if n in LOCAL]
     rest = [n for n in names if n not in LOCAL]
     if processes < 2:
-        queue = interp + rest
-    else:
-        first = [max(interp, key=lambda k: _COST.get(k, 5.0))] if interp else []
-        queue = first + sorted((n for n in names if n not in first), key=lambda k: -_COST.get(k, 5.0))
-    folder = tempfile.mkdtemp(prefix="parasynth-claims-")
-    claim(folder, queue[0])  # the helper's from the start, however late it starts
-    p = subprocess.Popen([sys.executable, "-m", "parasynth.engine.precompile", queue[0], "--claims", folder, *queue[1:]],
-                         env=core.helper_env(), stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
-                         stderr=subprocess.DEVNULL)
-    _RUNNING.append(p)
-    _QUEUES[p] = (folder, tuple(queue))
-    for n in queue:
-        _EARLY[n] = p
-    if not _SINCE:
-        _SINCE.append(time.perf_counter())
+        return interp + rest
+    first = [max(interp, key=lambda k: _COST.get(k, 5.0))] if interp else []
+    return first + sorted((n for n in names if n not in first), key=lambda k: -_COST.get(k, 5.0))
+
+
+def early_kinds(what: str, leg_types=None) -> tuple[str, ...]:
+    """The entry points compiled from the start of a run (:func:`start_early`): ``what`` is
+    ``"study"`` (:data:`STUDY`) or ``"structure"`` (:func:`structure_kinds` of ``leg_types``)."""
+    if what == "study":
+        return STUDY
+    if what == "structure":
+        return structure_kinds(leg_types)
+    raise ValueError(f"early compile of {what!r}: allowed are 'study' and 'structure'")
+
+
+def _at_exit() -> None:
     if not _ATEXIT:
         atexit.register(stop_helpers)
         _ATEXIT.append(True)
-    return [queue]
 
 
 _ATEXIT: list = []
@@ -369,15 +407,33 @@ def stop_helpers() -> None:
 
 
 def main(argv=None) -> int:
-    """``python -m parasynth.engine.precompile NAME ... [--hold FILE] [--claims FOLDER NAME ...]``: compile
+    """``python -m parasynth.engine.precompile NAME ... [--hold FILE] [--claims FOLDER NAME ...]``, or
+    ``python -m parasynth.engine.precompile --early study|structure [LEG_TYPE ...] --claims FOLDER``: compile
     those kernels into numba's cache, in that order (a helper of :func:`compile_ahead`); those
     after ``--claims`` each only if this process claims it first in ``FOLDER`` (:func:`claim`:
     a helper of :func:`start_early`, whose work may claim some of them). With ``--hold FILE``
     it holds FILE while it compiles (:func:`parasynth.engine.held.hold`), after waiting for
     any other live helper holding it (whose kernels it then loads from the cache: the compiled
-    crew's helper of several processes at once)."""
+    crew's helper of several processes at once). With ``--early`` it compiles the queue of
+    :func:`early_queue` for :func:`early_kinds`, each kernel claimed in FOLDER first (the helper
+    a run starts before it imports the engine, :func:`start_early`'s ``helper``)."""
     names = list(sys.argv[1:] if argv is None else argv)
     folder, claimed, mark = None, [], None
+    if names[:1] == ["--early"]:  # --early study|structure [LEG_TYPE ...] --claims FOLDER
+        if "--claims" not in names or names.index("--claims") + 1 >= len(names) or len(names) < 2:
+            print("--early needs 'study' or 'structure [LEG_TYPE ...]' and --claims FOLDER", file=sys.stderr)
+            return 2
+        i = names.index("--claims")
+        try:
+            kinds = early_kinds(names[1], names[2:i] or None)
+        except ValueError as e:
+            print(e, file=sys.stderr)
+            return 2
+        folder = names[i + 1]
+        for n in early_queue(kinds):
+            if claim(folder, n):
+                _compile(n)
+        return 0
     if "--hold" in names:  # one such helper at a time on the machine (parasynth.engine.held)
         i = names.index("--hold")
         if i + 1 >= len(names):

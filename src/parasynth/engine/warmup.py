@@ -36,14 +36,11 @@ import sys
 import threading
 import time
 
+from ..common.processes import compile_ahead_off
+
 __all__ = ["warm_up", "WarmUp", "COMPILING", "abandoned", "compile_ahead_off"]
 
 
-def compile_ahead_off() -> bool:
-    """Whether compiling ahead is turned off (``PARASYNTH_COMPILE_AHEAD=0``): no helper
-    processes, no notice said ahead, no background compile; each run compiles what it uses as
-    it meets it."""
-    return os.environ.get("PARASYNTH_COMPILE_AHEAD", "").strip() == "0"
 
 #: The compiling threads of :func:`warm_up` (see :func:`abandoned`).
 _THREADS: list = []
