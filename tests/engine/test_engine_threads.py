@@ -85,6 +85,30 @@ def test_the_timing_takes_the_faster_way_and_tries_the_other():
     assert all(k[0] != "small" for k in t.stats)
 
 
+def test_a_batchs_one_off_costs_do_not_keep_the_threads_out():
+    """A way's first batch in a process carries one-off costs (kernels loaded, threads or a
+    background compile started): the way's second batch replaces it when faster, so threads that
+    pay are taken again at their next try, not a hundred batches later; a single slow batch
+    later moves the estimate by at most half, a lasting slowdown still shows."""
+    t = core._Timing(explore=8, weight=0.25, clip=3.0)
+    n = core.PARALLEL_MIN
+    t.record("k", True, n, 100e-3)  # the first parallel batch: kernels loaded, the crew started
+    t.record("k", False, n, 1e-3)
+    ways = [t.threads_pay("k", n) for _ in range(8)]
+    assert ways.count(True) == 1  # one thread, threads tried once in eight
+    t.record("k", True, n, 0.6e-3)  # threads tried again: faster than one thread
+    assert [t.threads_pay("k", n) for _ in range(8)].count(True) == 7  # taken from then on
+    t.record("k", True, n, 50e-3)  # a crew thread descheduled once
+    assert t.stats[("k", n.bit_length())][1] * n == pytest.approx(0.6e-3 * 1.5)  # counted as 3x at most (per pose)
+    for _ in range(3):  # the machine got busy: threads slow for good
+        t.record("k", True, n, 5e-3)
+    assert t.stats[("k", n.bit_length())][1] * n > 1e-3  # one thread is taken again
+    assert [t.threads_pay("k", n) for _ in range(8)].count(True) == 1
+    # without the replacement and the clip (the exponential average alone) the first batch
+    # alone would have kept threads out: 100 ms * 0.75**8 > 1 ms after eight more tries
+    assert 100e-3 * 0.75 ** 8 > 1e-3
+
+
 def test_adaptive_blocking_gives_the_same_answers(monkeypatch):
     mech = load_mechanism("5pus_upu")
     X = np.random.default_rng(5).uniform(-0.05, 0.05, size=(20_000, 5))

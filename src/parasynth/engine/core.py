@@ -202,19 +202,30 @@ class _Timing:
     per kernel and batch size (to a power of 2) the wall time per pose of recent batches is
     kept for both ways (an exponential average), the faster way is taken, and every
     ``explore``-th batch tries the other way. The way never changes an answer, only the
-    time."""
+    time.
 
-    def __init__(self, explore: int = 8, weight: float = 0.25):
+    A batch can carry costs of its own once: a way's first batch in a process loads kernels,
+    starts the crew's threads or its background compile (a structure study's first parallel
+    batch took 100 times the time per pose of the next ones). Averaged in, such a batch kept
+    the threads out for a hundred batches, since the way it slowed is tried only every
+    ``explore``-th batch. So a way's second batch replaces its first when it is faster, and a
+    later batch counts at most ``clip`` times the estimate (a lasting slowdown, a busy machine,
+    still raises it: by half at each batch with the defaults)."""
+
+    def __init__(self, explore: int = 8, weight: float = 0.25, clip: float = 3.0):
         self.explore = explore
         self.weight = weight
-        self.stats: dict = {}  # (kind, size class) -> [serial s/pose or None, parallel s/pose or None, batches]
+        self.clip = clip
+        # (kind, size class) -> [serial s/pose or None, parallel s/pose or None, batches,
+        #                        serial batches timed, parallel batches timed]
+        self.stats: dict = {}
         self.lock = threading.Lock()
 
     def threads_pay(self, kind: str, n: int) -> bool:
         if not ADAPTIVE:
             return True
         with self.lock:
-            st = self.stats.setdefault((kind, int(n).bit_length()), [None, None, 0])
+            st = self.stats.setdefault((kind, int(n).bit_length()), [None, None, 0, 0, 0])
             st[2] += 1
             if st[1] is None:
                 return True
@@ -227,10 +238,16 @@ class _Timing:
         if n < PARALLEL_MIN or n_threads() <= 1:
             return
         with self.lock:
-            st = self.stats.setdefault((kind, int(n).bit_length()), [None, None, 0])
+            st = self.stats.setdefault((kind, int(n).bit_length()), [None, None, 0, 0, 0])
             i = 1 if parallel else 0
             v = seconds / n
-            st[i] = v if st[i] is None else st[i] + self.weight * (v - st[i])
+            if st[i] is None:
+                st[i] = v
+            elif st[3 + i] == 1:  # the way's first batch may have carried one-off costs
+                st[i] = min(st[i], v)
+            else:
+                st[i] += self.weight * (min(v, self.clip * st[i]) - st[i])
+            st[3 + i] += 1
 
 
 #: Threads for a kernel's batches only while they pay (see :class:`_Timing`); False: always
