@@ -49,6 +49,11 @@ def test_the_early_helper_is_started_only_for_an_empty_cache(tmp_path, monkeypat
 
     monkeypatch.setattr(early.subprocess, "Popen", P)
     monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
+    import parasynth.engine.core  # noqa: F401
+
+    assert early.start("study") is None  # the engine's kernels imported here: start_early tells exactly
+    assert started == []
+    monkeypatch.delitem(sys.modules, "parasynth.engine.core")  # as in a run before its engine's import
     monkeypatch.delenv("PARASYNTH_NO_NUMBA", raising=False)
     monkeypatch.delenv("PARASYNTH_COMPILE_AHEAD", raising=False)
     t0 = time.perf_counter()

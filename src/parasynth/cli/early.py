@@ -59,9 +59,13 @@ def probably_cached() -> bool:
 def start(what: str, leg_types: list[str] | None = None):
     """Start the early helper for ``what`` (``"study"``, or ``"structure"`` with its
     ``leg_types``; :func:`parasynth.engine.precompile.early_kinds`) unless the cache seems
-    filled, numba is not to be had or compiling ahead is off: ``(process, claim folder, started
-    at)`` for ``start_early``'s ``helper``, or None."""
+    filled, numba is not to be had, compiling ahead is off or this process has imported the
+    engine already (nothing to win: ``start_early`` then asks numba's cache and this process's
+    kernels exactly): ``(process, claim folder, started at)`` for ``start_early``'s
+    ``helper``, or None."""
     if compile_ahead_off() or os.environ.get("PARASYNTH_NO_NUMBA", "").strip() not in ("", "0"):
+        return None
+    if "parasynth.engine.core" in sys.modules:  # imported already (a script, a test): start_early tells exactly
         return None
     if importlib.util.find_spec("numba") is None or probably_cached():
         return None
