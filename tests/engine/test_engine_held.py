@@ -73,6 +73,15 @@ def test_a_process_id_reused_by_another_program_does_not_hold(tmp_path, procs):
     assert held.hold(mark)
 
 
+def test_a_file_just_made_counts_as_held_until_its_id_is_written(tmp_path):
+    mark = tmp_path / "x.held"
+    mark.write_text("")  # made by another process, which has not written its id yet
+    assert held.holder(mark) == 0 and not held.hold(mark)
+    old = time.time() - 2 * held.MAKING
+    os.utime(mark, (old, old))  # ... and never will (it died between the two)
+    assert held.holder(mark) is None and held.hold(mark)
+
+
 def test_a_folder_that_cannot_be_written_blocks_nobody(tmp_path):
     assert held.hold(tmp_path / "missing" / "x.held")
 

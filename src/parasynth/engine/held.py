@@ -17,7 +17,7 @@ import os
 import time
 from pathlib import Path
 
-__all__ = ["hold", "let_go", "holder", "wait_let_go"]
+__all__ = ["hold", "let_go", "holder", "wait_let_go", "MAKING"]
 
 #: What a holder's command line contains: a process whose line lacks it is not a helper (its
 #: process id reused).
@@ -43,10 +43,19 @@ def _alive(pid: int) -> bool:
         return True
 
 
+#: Seconds a file without a process id counts as held (made, its id not yet written).
+MAKING = 5.0
+
+
 def holder(path: Path) -> int | None:
-    """The process id holding ``path`` if that process lives, else None."""
+    """The process id holding ``path`` if that process lives (0: the file was made less than
+    :data:`MAKING` seconds ago and its holder has not written its id yet), else None."""
+    path = Path(path)
     try:
-        pid = int(Path(path).read_text().strip() or "0")
+        text = path.read_text().strip()
+        if not text:
+            return 0 if time.time() - path.stat().st_mtime < MAKING else None
+        pid = int(text)
     except (OSError, ValueError):
         return None
     return pid if _alive(pid) else None
