@@ -17,7 +17,6 @@ and ends.
 
 from __future__ import annotations
 
-import hashlib
 import importlib.util
 import os
 import shutil
@@ -27,7 +26,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from ..common.processes import compile_ahead_off, helper_env
+from ..common.processes import compile_ahead_off, helper_env, numba_cache_subdir
 
 __all__ = ["FIRST", "probably_cached", "start", "stop"]
 
@@ -41,7 +40,7 @@ def _numba_dirs(source: str) -> list[Path]:
     when set, else ``__pycache__`` beside it or, where that cannot be written, the user's numba
     cache folder (numba's locators, in their order)."""
     folder = os.path.dirname(os.path.abspath(source))
-    sub = f"{os.path.basename(folder)}_{hashlib.sha1(folder.encode()).hexdigest()}"
+    sub = numba_cache_subdir(source)
     if os.environ.get("NUMBA_CACHE_DIR"):
         return [Path(os.environ["NUMBA_CACHE_DIR"]) / sub]
     user = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "numba" / sub

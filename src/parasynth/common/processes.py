@@ -3,9 +3,10 @@ importing the engine)."""
 
 from __future__ import annotations
 
+import hashlib
 import os
 
-__all__ = ["helper_env", "compile_ahead_off"]
+__all__ = ["helper_env", "compile_ahead_off", "numba_cache_subdir"]
 
 
 def compile_ahead_off() -> bool:
@@ -22,3 +23,11 @@ def helper_env() -> dict:
     src = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
     env["PYTHONPATH"] = src + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
     return env
+
+
+def numba_cache_subdir(source: str) -> str:
+    """The folder numba gives the functions of the file ``source`` under ``NUMBA_CACHE_DIR`` or
+    its user-wide cache (its locators' ``get_suitable_cache_subpath``: the folder's name and the
+    SHA-1 of its absolute path)."""
+    folder = os.path.dirname(os.path.abspath(source))
+    return f"{os.path.basename(folder)}_{hashlib.sha1(folder.encode()).hexdigest()}"

@@ -58,6 +58,7 @@ import numpy as np
 from numba import cfunc
 from numba import types as _nbt
 
+from ..common.processes import numba_cache_subdir
 from ..common.qmc import cache_dir
 from . import held
 from .program import OPS, Program
@@ -230,9 +231,7 @@ def _in_numba_cache(path: Path) -> bool:
     pattern = f"{path.stem}.loop-*.nbi"
     places = [path.parent / "__pycache__"]
     if os.environ.get("NUMBA_CACHE_DIR"):  # numba's folder for the modules of path's folder there
-        folder = os.path.dirname(os.path.abspath(path))
-        sub = f"{os.path.basename(folder)}_{hashlib.sha1(folder.encode()).hexdigest()}"
-        places.append(Path(os.environ["NUMBA_CACHE_DIR"]) / sub)
+        places.append(Path(os.environ["NUMBA_CACHE_DIR"]) / numba_cache_subdir(str(path)))
     return any(next(p.glob(pattern), None) is not None for p in places if p.is_dir())
 
 
